@@ -1,0 +1,496 @@
+"""PyTorch reference of ARMFlow's networks and of troupe's streaming sampling loop.
+
+This module is the ground truth the Rust runtime is tested against. The networks follow
+`shared/spec/models.md` section 1 (read from the official code) at any width and depth; the
+streaming loop mirrors `src/session.rs` operation for operation, so that given the same noise the
+two agree to float32 rounding.
+
+Nothing here is copied from the official repository; it is written from the specification.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+import torch
+import torch.nn as nn
+import torch.nn.functional as F
+
+# --------------------------------------------------------------------------------------------
+# Configuration
+# --------------------------------------------------------------------------------------------
+
+
+@dataclass
+class VaeConfig:
+    """CNN-VAE hyper-parameters (models.md 1.3)."""
+
+    encoder_width: int  # 512 in the paper (`is_double`)
+    decoder_width: int  # 256 in the paper
+    depth: int  # ResConv1D blocks per Resnet1D; dilations 3**k, applied in reverse order
+    kernel: int  # kernel of the dilated convolution (7 in the official code)
+    norm_groups: int  # GroupNorm groups (32 in the official code)
+    causal: bool  # True: the streaming variant (left padding, per-frame group statistics)
+
+
+@dataclass
+class ArmflowConfig:
+    frame_dim: int = 262
+    latent_dim: int = 256
+    latent_scale: float = 0.1825
+    cond_dim: int = 768
+    layers: int = 7  # context encoder depth: (layers-1)/2 in, 1 mid, (layers-1)/2 out
+    heads: int = 8
+    mlp_blocks: int = 5
+    frames_per_token: int = 4
+    fps: int = 30
+    context_capacity: int = 256
+    vae: VaeConfig = field(
+        default_factory=lambda: VaeConfig(512, 256, 3, 3, 32, True)
+    )
+
+    @property
+    def width(self) -> int:
+        # The context encoder and MLP run on (actor || reactor) tokens.
+        return 2 * self.latent_dim
+
+    @property
+    def head_dim(self) -> int:
+        return self.width // self.heads
+
+
+# --------------------------------------------------------------------------------------------
+# CNN-VAE (models.md 1.3), official (non-causal) and streaming (causal) variants
+# --------------------------------------------------------------------------------------------
+
+
+class FrameGroupNorm(nn.Module):
+    """GroupNorm whose statistics are taken per frame (over the channels of a group only).
+
+    The official GroupNorm averages over the whole time axis, which makes every token depend on
+    the whole clip. The streaming variant keeps the same parameters but never mixes frames.
+    """
+
+    def __init__(self, groups: int, channels: int, eps: float = 1e-6):
+        super().__init__()
+        self.groups, self.eps = groups, eps
+        self.weight = nn.Parameter(torch.ones(channels))
+        self.bias = nn.Parameter(torch.zeros(channels))
+
+    def forward(self, x):  # x: [B, C, T]
+        b, c, _ = x.shape
+        g = x.reshape(b, self.groups, c // self.groups, -1)
+        mean = g.mean(dim=2, keepdim=True)
+        var = (g - mean).pow(2).mean(dim=2, keepdim=True)
+        g = (g - mean) / torch.sqrt(var + self.eps)
+        return g.reshape(b, c, -1) * self.weight[None, :, None] + self.bias[None, :, None]
+
+
+def make_norm(cfg: VaeConfig, channels: int) -> nn.Module:
+    if cfg.causal:
+        return FrameGroupNorm(cfg.norm_groups, channels)
+    return nn.GroupNorm(cfg.norm_groups, channels, eps=1e-6, affine=True)
+
+
+class TimeConv(nn.Module):
+    """Conv1d over time. Non-causal: symmetric padding as the official code; causal: all of the
+    padding on the left, so output n never sees input after n (after striding)."""
+
+    def __init__(self, c_in, c_out, kernel, stride=1, dilation=1, causal=False, padding=None):
+        super().__init__()
+        self.conv = nn.Conv1d(c_in, c_out, kernel, stride=stride, dilation=dilation)
+        total = (kernel - 1) * dilation if padding is None else 2 * padding
+        if stride > 1:
+            total = kernel - stride  # keeps length T/stride for T divisible by stride
+        self.left = total if causal else total // 2
+        self.right = 0 if causal else total - total // 2
+        self.kernel, self.stride, self.dilation = kernel, stride, dilation
+
+    def forward(self, x):
+        return self.conv(F.pad(x, (self.left, self.right)))
+
+    def reach(self, lo: int, hi: int) -> tuple[int, int]:
+        """Input index range (inclusive) that output indices lo..hi read."""
+        return (
+            self.stride * lo - self.left,
+            self.stride * hi - self.left + (self.kernel - 1) * self.dilation,
+        )
+
+
+class ResBlock(nn.Module):
+    """norm -> ReLU -> dilated conv -> norm -> ReLU -> 1x1 conv, plus the input."""
+
+    def __init__(self, cfg: VaeConfig, width: int, dilation: int):
+        super().__init__()
+        self.norm1 = make_norm(cfg, width)
+        self.conv1 = TimeConv(width, width, cfg.kernel, dilation=dilation, causal=cfg.causal)
+        self.norm2 = make_norm(cfg, width)
+        self.conv2 = TimeConv(width, width, 1, causal=cfg.causal)
+
+    def forward(self, x):
+        h = self.conv1(F.relu(self.norm1(x)))
+        return x + self.conv2(F.relu(self.norm2(h)))
+
+    def reach(self, lo, hi):
+        lo2, hi2 = self.conv1.reach(*self.conv2.reach(lo, hi))
+        return min(lo, lo2), max(hi, hi2)
+
+
+class Resnet1D(nn.Sequential):
+    def __init__(self, cfg: VaeConfig, width: int):
+        dilations = [3**k for k in range(cfg.depth)][::-1]  # reverse_dilation: 27, 9, 3, 1
+        super().__init__(*[ResBlock(cfg, width, d) for d in dilations])
+
+
+class Upsample2(nn.Module):
+    def forward(self, x):
+        return F.interpolate(x, scale_factor=2.0, mode="nearest")
+
+    def reach(self, lo, hi):
+        return lo // 2, hi // 2
+
+
+class Relu(nn.Module):
+    def forward(self, x):
+        return F.relu(x)
+
+    def reach(self, lo, hi):
+        return lo, hi
+
+
+def chain_reach(layers, lo, hi):
+    """Walk a layer list backwards and return the input range the outputs lo..hi depend on."""
+    for layer in reversed(list(layers)):
+        if isinstance(layer, Resnet1D):
+            lo, hi = chain_reach(layer, lo, hi)
+        else:
+            lo, hi = layer.reach(lo, hi)
+    return lo, hi
+
+
+class VaeEncoder(nn.Module):
+    """frames [B, T, D] -> (mean, logvar) [B, T/4, latent]."""
+
+    def __init__(self, cfg: ArmflowConfig):
+        super().__init__()
+        v, w = cfg.vae, cfg.vae.encoder_width
+        layers = [TimeConv(cfg.frame_dim, w, 3, causal=v.causal, padding=1), Relu()]
+        for _ in range(2):  # down_t = 2, stride 2 each
+            layers += [TimeConv(w, w, 4, stride=2, causal=v.causal, padding=1), Resnet1D(v, w)]
+        layers += [TimeConv(w, 2 * cfg.latent_dim, 3, causal=v.causal, padding=1)]
+        self.layers = nn.Sequential(*layers)
+        self.latent_dim = cfg.latent_dim
+
+    def forward(self, motion):
+        h = self.layers(motion.transpose(1, 2)).transpose(1, 2)
+        return h[..., : self.latent_dim], h[..., self.latent_dim :]
+
+
+class VaeDecoder(nn.Module):
+    """latents [B, N, latent] (unscaled) -> frames [B, 4N, D]."""
+
+    def __init__(self, cfg: ArmflowConfig):
+        super().__init__()
+        v, w = cfg.vae, cfg.vae.decoder_width
+        layers = [TimeConv(cfg.latent_dim, w, 3, causal=v.causal, padding=1), Relu()]
+        for _ in range(2):
+            layers += [Resnet1D(v, w), Upsample2(), TimeConv(w, w, 3, causal=v.causal, padding=1)]
+        layers += [
+            TimeConv(w, w, 3, causal=v.causal, padding=1),
+            Relu(),
+            TimeConv(w, cfg.frame_dim, 3, causal=v.causal, padding=1),
+        ]
+        self.layers = nn.Sequential(*layers)
+
+    def forward(self, latents):
+        return self.layers(latents.transpose(1, 2)).transpose(1, 2)
+
+
+def encoder_context_frames(enc: VaeEncoder, fpt: int) -> int:
+    """Frames before a token's first frame that its (causal) encoding depends on, rounded up to a
+    whole token so that every window starts on the token grid."""
+    lo, hi = chain_reach(enc.layers, 1000, 1000)
+    assert hi <= 1001 * fpt - 1, "encoder must not look ahead"
+    need = 1000 * fpt - lo
+    return -(-need // fpt) * fpt
+
+
+def decoder_context_tokens(dec: VaeDecoder, fpt: int) -> int:
+    """Tokens before token j that the frames of token j depend on (causal decoder)."""
+    j = 1000
+    lo, hi = chain_reach(dec.layers, j * fpt, j * fpt + fpt - 1)
+    assert hi <= j, "decoder must not look ahead"
+    return j - lo
+
+
+# --------------------------------------------------------------------------------------------
+# Context encoder: SkipAdaLN transformer with <sos> (models.md 1.4)
+# --------------------------------------------------------------------------------------------
+
+
+def sinusoid_positions(positions: torch.Tensor, width: int) -> torch.Tensor:
+    """pe[p, 2k] = sin(p w_k), pe[p, 2k+1] = cos(p w_k), w_k = exp(-2k ln(10000)/width)."""
+    div = torch.exp(torch.arange(0, width, 2, dtype=torch.float32) * (-math.log(10000.0) / width))
+    ang = positions.to(torch.float32)[..., None] * div
+    return torch.stack([torch.sin(ang), torch.cos(ang)], dim=-1).flatten(-2)
+
+
+class SelfAttention(nn.Module):
+    def __init__(self, width: int, heads: int):
+        super().__init__()
+        self.heads, self.head_dim = heads, width // heads
+        self.scale = 0.25 / math.sqrt(self.head_dim)  # VAR-style, 1/32 at head dim 64
+        self.mat_qkv = nn.Linear(width, 3 * width, bias=False)
+        self.q_bias = nn.Parameter(torch.zeros(width))
+        self.v_bias = nn.Parameter(torch.zeros(width))
+        self.register_buffer("zero_k_bias", torch.zeros(width), persistent=False)
+        self.proj = nn.Linear(width, width)
+
+    def forward(self, x, past_k, past_v, mask):
+        b, s, c = x.shape
+        bias = torch.cat((self.q_bias, self.zero_k_bias, self.v_bias))
+        qkv = F.linear(x, self.mat_qkv.weight, bias).view(b, s, 3, self.heads, self.head_dim)
+        q, k, v = qkv.permute(2, 0, 3, 1, 4).unbind(0)  # [B, H, S, Dh]
+        k = torch.cat([past_k, k], dim=2)
+        v = torch.cat([past_v, v], dim=2)
+        att = (q @ k.transpose(-2, -1)) * self.scale + mask
+        out = att.softmax(dim=-1) @ v
+        return self.proj(out.transpose(1, 2).reshape(b, s, c)), k, v
+
+
+class AdaLNSelfAttn(nn.Module):
+    def __init__(self, width: int, heads: int, cond_dim: int):
+        super().__init__()
+        self.width = width
+        self.attn = SelfAttention(width, heads)
+        self.ffn = nn.Sequential(
+            nn.Linear(width, 4 * width), nn.GELU(approximate="tanh"), nn.Linear(4 * width, width)
+        )
+        self.ada_lin = nn.Sequential(nn.SiLU(), nn.Linear(cond_dim, 6 * width))
+
+    def modulation(self, cond):  # [B, cond] -> [B, 6, C]
+        return self.ada_lin(cond).view(-1, 6, self.width)
+
+    def forward(self, x, mod, past_k, past_v, mask):
+        g1, g2, s1, s2, sh1, sh2 = mod[:, :, None, :].unbind(1)  # each [B, 1, C]
+        ln = lambda t: F.layer_norm(t, (self.width,), eps=1e-6)  # noqa: E731
+        a, k, v = self.attn(ln(x) * (1 + s1) + sh1, past_k, past_v, mask)
+        x = x + g1 * a
+        x = x + g2 * self.ffn(ln(x) * (1 + s2) + sh2)
+        return x, k, v
+
+
+class ContextEncoder(nn.Module):
+    """Causal SkipAdaLN transformer over [sos, (a_0||b_0), ...]; returns the last position."""
+
+    def __init__(self, cfg: ArmflowConfig):
+        super().__init__()
+        assert cfg.layers % 2 == 1, "layers = 2 * n_in + 1"
+        n = cfg.layers // 2
+        c = cfg.width
+        self.width, self.n_in = c, n
+        self.start_token = nn.Parameter(torch.randn(1, 1, c) * 0.5)
+        self.blocks = nn.ModuleList(AdaLNSelfAttn(c, cfg.heads, cfg.cond_dim) for _ in range(cfg.layers))
+        self.skip_linears = nn.ModuleList(nn.Linear(2 * c, c) for _ in range(n))
+
+    def modulation(self, cond):  # [B, cond] -> [B, L, 6, C]
+        return torch.stack([blk.modulation(cond) for blk in self.blocks], dim=1)
+
+    def step(self, tokens, positions, modulation, past):
+        """tokens [B, S, C], positions int64 [B, S], modulation [B, L, 6, C], past: list of L
+        (k, v) pairs [B, H, P, Dh]. Returns (context [B, C] at the last position, present)."""
+        p, s = past[0][0].shape[2], tokens.shape[1]
+        key_pos = torch.arange(p + s)
+        query_pos = torch.arange(s) + p
+        mask = torch.where(key_pos[None, :] <= query_pos[:, None], 0.0, -1e30)
+        x = tokens + sinusoid_positions(positions, self.width)
+        skips, present = [], []
+        for i, blk in enumerate(self.blocks):
+            if i > self.n_in:  # out layers pop the skips LIFO
+                x = self.skip_linears[i - self.n_in - 1](torch.cat([x, skips.pop()], dim=-1))
+            x, k, v = blk(x, modulation[:, i], past[i][0], past[i][1], mask)
+            present.append((k, v))
+            if i < self.n_in:
+                skips.append(x)
+        return x[:, -1], present  # no final norm: head_nm is never called
+
+
+# --------------------------------------------------------------------------------------------
+# Velocity MLP (models.md 1.5)
+# --------------------------------------------------------------------------------------------
+
+
+class TimestepEmbedder(nn.Module):
+    def __init__(self, width: int, freq_dim: int = 256):
+        super().__init__()
+        self.freq_dim = freq_dim
+        self.mlp = nn.Sequential(nn.Linear(freq_dim, width), nn.SiLU(), nn.Linear(width, width))
+
+    def forward(self, t):  # t [B], raw in [0, 1]
+        half = self.freq_dim // 2
+        freqs = torch.exp(-math.log(10000.0) * torch.arange(half, dtype=torch.float32) / half)
+        args = t[:, None].to(torch.float32) * freqs[None]
+        return self.mlp(torch.cat([torch.cos(args), torch.sin(args)], dim=-1))  # cos first
+
+
+class AdaLNMLPBlock(nn.Module):
+    def __init__(self, width: int):
+        super().__init__()
+        self.width = width
+        self.ada_lin = nn.Sequential(nn.SiLU(), nn.Linear(width, 2 * width))
+        self.mlp = nn.Sequential(nn.Linear(width, 4 * width), nn.ReLU(), nn.Linear(4 * width, width))
+
+    def forward(self, x, cond):
+        scale, shift = self.ada_lin(cond).chunk(2, dim=-1)
+        h = F.layer_norm(x, (self.width,), eps=1e-5) * (1 + scale) + shift
+        return x + self.mlp(h)
+
+
+class VelocityMLP(nn.Module):
+    """u(z, r, t | a, c): average velocity of the reactor half."""
+
+    def __init__(self, cfg: ArmflowConfig):
+        super().__init__()
+        self.latent_dim = cfg.latent_dim
+        self.r_embedder = TimestepEmbedder(cfg.width)
+        self.t_embedder = TimestepEmbedder(cfg.width)
+        self.blocks = nn.ModuleList(AdaLNMLPBlock(cfg.width) for _ in range(cfg.mlp_blocks))
+
+    def forward(self, actor, noisy, context, r, t):  # [B, latent], [B, latent], [B, C], [B], [B]
+        x = torch.cat([actor, noisy], dim=-1)
+        cond = context + self.r_embedder(r) + self.t_embedder(t)
+        for blk in self.blocks:
+            x = blk(x, cond)
+        return x[:, self.latent_dim :]  # no head: the reactor half of the residual stream
+
+
+class Armflow(nn.Module):
+    def __init__(self, cfg: ArmflowConfig):
+        super().__init__()
+        self.cfg = cfg
+        self.vae_encoder = VaeEncoder(cfg)
+        self.vae_decoder = VaeDecoder(cfg)
+        self.context = ContextEncoder(cfg)
+        self.velocity = VelocityMLP(cfg)
+
+
+# --------------------------------------------------------------------------------------------
+# Portable noise: Philox4x32-10 + Box-Muller (mirrors src/noise.rs)
+# --------------------------------------------------------------------------------------------
+
+_PHILOX_M0, _PHILOX_M1 = 0xD2511F53, 0xCD9E8D57
+_PHILOX_W0, _PHILOX_W1 = 0x9E3779B9, 0xBB67AE85
+_MASK32 = 0xFFFFFFFF
+
+STREAM_ACTOR_POSTERIOR = 0
+STREAM_REACTOR_NOISE = 1
+
+
+def philox4x32(counter, key):
+    c0, c1, c2, c3 = counter
+    k0, k1 = key
+    for _ in range(10):
+        p0, p1 = _PHILOX_M0 * c0, _PHILOX_M1 * c2
+        c0, c1, c2, c3 = (
+            ((p1 >> 32) ^ c1 ^ k0) & _MASK32,
+            p1 & _MASK32,
+            ((p0 >> 32) ^ c3 ^ k1) & _MASK32,
+            p0 & _MASK32,
+        )
+        k0, k1 = (k0 + _PHILOX_W0) & _MASK32, (k1 + _PHILOX_W1) & _MASK32
+    return c0, c1, c2, c3
+
+
+def philox_normals(seed: int, token: int, stream: int, n: int) -> np.ndarray:
+    """The n standard normals troupe draws for (seed, token, stream); see src/noise.rs."""
+    key = (seed & _MASK32, (seed >> 32) & _MASK32)
+    out = []
+    block = 0
+    while len(out) < n:
+        words = philox4x32((block, token & _MASK32, (token >> 32) & _MASK32, stream), key)
+        for a, b in ((words[0], words[1]), (words[2], words[3])):
+            u1 = (a + 0.5) * 2.0**-32
+            u2 = (b + 0.5) * 2.0**-32
+            rad = math.sqrt(-2.0 * math.log(u1))
+            out += [rad * math.cos(2.0 * math.pi * u2), rad * math.sin(2.0 * math.pi * u2)]
+        block += 1
+    return np.array(out[:n], dtype=np.float64).astype(np.float32)
+
+
+# --------------------------------------------------------------------------------------------
+# The streaming loop troupe runs (mirrors src/session.rs)
+# --------------------------------------------------------------------------------------------
+
+
+def meanflow_grid(steps: int) -> list[float]:
+    """tau_k = (n - k) / n for k = 0..n, rounded once to float32 (1 is noise, 0 is data)."""
+    return [float(np.float32((steps - k) / steps)) for k in range(steps + 1)]
+
+
+@dataclass
+class StreamOptions:
+    steps: int = 1
+    cfg_scale: float = 1.0
+    condition: np.ndarray | None = None
+    capacity: int | None = None  # context tokens kept, <sos> included
+
+
+@torch.no_grad()
+def stream_reference(model: Armflow, actor: np.ndarray, xi: np.ndarray, eps: np.ndarray, opt: StreamOptions):
+    """Run the streaming ARMFlow loop over a whole actor clip with injected noise.
+
+    Returns a dict of float32 arrays: actor_latents, reactor_latents, contexts [N, *] and
+    frames [4N, D] (reactor frames for every complete token)."""
+    cfg = model.cfg
+    fpt, lat = cfg.frames_per_token, cfg.latent_dim
+    ctx_frames = encoder_context_frames(model.vae_encoder, fpt)
+    ctx_tokens = decoder_context_tokens(model.vae_decoder, fpt)
+    capacity = opt.capacity or cfg.context_capacity
+    n_tokens = actor.shape[0] // fpt
+    cond = torch.zeros(1, cfg.cond_dim) if opt.condition is None else torch.from_numpy(opt.condition)[None]
+    modulation = model.context.modulation(cond)
+    h, dh = cfg.heads, cfg.head_dim
+    past = [(torch.zeros(1, h, 0, dh), torch.zeros(1, h, 0, dh)) for _ in range(cfg.layers)]
+    grid = meanflow_grid(opt.steps)
+    motion = torch.from_numpy(actor)[None]
+    a_hist, b_hist, c_hist, frames = [], [], [], []
+    for j in range(n_tokens):
+        # 1. actor token from the encoder window ending with this token's frames
+        start = max(0, j * fpt - ctx_frames)
+        mean, logvar = model.vae_encoder(motion[:, start : (j + 1) * fpt])
+        mean, logvar = mean[0, -1], logvar[0, -1]
+        a = (mean + torch.sqrt(torch.exp(logvar)) * torch.from_numpy(xi[j])) * cfg.latent_scale
+        # 2. context: append <sos> (first token) or the previous (actor || reactor) pair
+        token = model.context.start_token if j == 0 else torch.cat([a_hist[-1], b_hist[-1]])[None, None]
+        held = past[0][0].shape[2]
+        if held + 1 > capacity:  # slide: keep <sos> and the newest capacity - 2 pairs
+            drop_to = held - (capacity - 2)
+            past = [tuple(torch.cat([x[:, :, :1], x[:, :, drop_to:]], 2) for x in kv) for kv in past]
+        c, past = model.context.step(token, torch.tensor([[j]]), modulation, past)
+        # 3. MeanFlow: z <- z - (tau_k - tau_{k+1}) u(z, r=tau_{k+1}, t=tau_k)
+        z = torch.from_numpy(eps[j])[None]
+        for k in range(opt.steps):
+            t_hi, t_lo = grid[k], grid[k + 1]
+            r_t = torch.tensor([t_lo]), torch.tensor([t_hi])
+            u = model.velocity(a[None], z, c, *r_t)
+            if opt.cfg_scale != 1.0:
+                u_null = model.velocity(torch.zeros_like(a[None]), z, torch.zeros_like(c), *r_t)
+                u = u_null + opt.cfg_scale * (u - u_null)
+            z = z - np.float32(t_hi - t_lo) * u
+        b = z[0]
+        # 4. decoder window ending with this token
+        a_hist.append(a)
+        b_hist.append(b)
+        c_hist.append(c[0])
+        first = max(0, j - ctx_tokens)
+        window = torch.stack(b_hist[first:])[None] / torch.tensor(cfg.latent_scale, dtype=torch.float32)
+        frames.append(model.vae_decoder(window)[0, -fpt:])
+    as_np = lambda xs: torch.stack(xs).numpy().astype(np.float32)  # noqa: E731
+    return {
+        "actor_latents": as_np(a_hist),
+        "reactor_latents": as_np(b_hist),
+        "contexts": as_np(c_hist),
+        "frames": torch.cat(frames).numpy().astype(np.float32),
+    }

@@ -1,0 +1,186 @@
+//! One ONNX graph of a bundle: loaded, checked against the manifest, optimised once, and run by
+//! any number of sessions at the same time (a tract plan is `Send + Sync`; each call gets its own
+//! scratch state).
+
+use std::path::Path;
+use std::sync::Arc;
+
+use tract_onnx::prelude::*;
+
+use crate::error::{Error, Result};
+use crate::manifest::{DType, Dim, GraphSpec, TensorSpec};
+
+/// A loaded, optimised graph whose inputs and outputs are addressed in manifest order.
+#[derive(Debug)]
+pub(crate) struct Graph {
+    role: &'static str,
+    plan: Arc<TypedRunnableModel>,
+    /// For each manifest input, its position among the graph's inputs.
+    input_order: Vec<usize>,
+    /// For each manifest output, its position among the graph's outputs.
+    output_order: Vec<usize>,
+}
+
+impl Graph {
+    /// Loads `spec.file` from `dir`, checks it against `spec`, and optimises it.
+    pub(crate) fn load(role: &'static str, dir: &Path, spec: &GraphSpec) -> Result<Self> {
+        let file = dir.join(&spec.file);
+        let bytes = std::fs::read(&file).map_err(|source| Error::Io {
+            path: file.clone(),
+            source,
+        })?;
+        let bad = |message: String| Error::Graph {
+            file: file.clone(),
+            message,
+        };
+        let model = tract_onnx::onnx()
+            .model_for_read(&mut &bytes[..])
+            .map_err(|e| bad(format!("not a loadable ONNX model: {e:#}")))?;
+        let model = model
+            .into_typed()
+            .map_err(|e| bad(format!("shapes cannot be resolved: {e:#}")))?;
+        let (input_order, output_order) = check_interface(&model, spec).map_err(&bad)?;
+        let plan = model
+            .into_optimized()
+            .and_then(|m| m.into_runnable())
+            .map_err(|e| bad(format!("cannot be optimised: {e:#}")))?;
+        Ok(Self {
+            role,
+            plan,
+            input_order,
+            output_order,
+        })
+    }
+
+    /// Runs the graph on inputs given in manifest order; returns outputs in manifest order.
+    pub(crate) fn run(&self, inputs: Vec<TValue>) -> Result<Vec<TValue>> {
+        let mut ordered: Vec<Option<TValue>> = vec![None; inputs.len()];
+        for (value, &slot) in inputs.into_iter().zip(&self.input_order) {
+            ordered[slot] = Some(value);
+        }
+        let ordered: TVec<TValue> = ordered.into_iter().flatten().collect();
+        let mut outputs = self.plan.run(ordered).map_err(|e| Error::Inference {
+            graph: self.role,
+            message: format!("{e:#}"),
+        })?;
+        Ok(self
+            .output_order
+            .iter()
+            .map(|&slot| std::mem::replace(&mut outputs[slot], Tensor::default().into_tvalue()))
+            .collect())
+    }
+}
+
+type Positions = (Vec<usize>, Vec<usize>);
+
+/// Matches the graph's inputs and outputs with the manifest's, by name, element type and shape.
+fn check_interface(model: &TypedModel, spec: &GraphSpec) -> std::result::Result<Positions, String> {
+    let input_names: Vec<String> = model
+        .input_outlets()
+        .map_err(|e| e.to_string())?
+        .iter()
+        .map(|o| model.node(o.node).name.clone())
+        .collect();
+    let output_names: Vec<String> = model
+        .output_outlets()
+        .map_err(|e| e.to_string())?
+        .iter()
+        .map(|o| {
+            model
+                .outlet_label(*o)
+                .map(str::to_owned)
+                .unwrap_or_else(|| model.node(o.node).name.clone())
+        })
+        .collect();
+    let input_facts: Vec<TypedFact> = (0..input_names.len())
+        .map(|i| model.input_fact(i).cloned())
+        .collect::<TractResult<_>>()
+        .map_err(|e| e.to_string())?;
+    let output_facts: Vec<TypedFact> = (0..output_names.len())
+        .map(|i| model.output_fact(i).cloned())
+        .collect::<TractResult<_>>()
+        .map_err(|e| e.to_string())?;
+    let inputs = match_tensors("input", &spec.inputs, &input_names, &input_facts)?;
+    let outputs = match_tensors("output", &spec.outputs, &output_names, &output_facts)?;
+    Ok((inputs, outputs))
+}
+
+fn match_tensors(
+    kind: &str,
+    declared: &[TensorSpec],
+    names: &[String],
+    facts: &[TypedFact],
+) -> std::result::Result<Vec<usize>, String> {
+    if let Some(extra) = names
+        .iter()
+        .find(|n| !declared.iter().any(|d| &d.name == *n))
+    {
+        return Err(format!(
+            "graph {kind} `{extra}` is not declared in the manifest"
+        ));
+    }
+    declared
+        .iter()
+        .map(|d| {
+            let at = names.iter().position(|n| *n == d.name).ok_or_else(|| {
+                format!(
+                    "graph has no {kind} `{}` (its {kind}s are: {})",
+                    d.name,
+                    names.join(", ")
+                )
+            })?;
+            let fact = &facts[at];
+            let dtype_ok = matches!(
+                (d.dtype, fact.datum_type),
+                (DType::Float32, DatumType::F32) | (DType::Int64, DatumType::I64)
+            );
+            let dims_ok = fact.rank() == d.shape.len()
+                && d.shape
+                    .iter()
+                    .zip(fact.shape.iter())
+                    .all(|(want, got)| match want {
+                        Dim::Fixed(n) => got.to_i64().ok() == Some(*n as i64),
+                        Dim::Symbol(_) => got.to_i64().is_err(),
+                    });
+            if dtype_ok && dims_ok {
+                Ok(at)
+            } else {
+                Err(format!(
+                    "{kind} `{}` is {:?} {:?} in the graph, the manifest declares {d}",
+                    d.name, fact.datum_type, fact.shape
+                ))
+            }
+        })
+        .collect()
+}
+
+/// Builds a float tensor from a shape and row-major data.
+pub(crate) fn f32_tensor(shape: &[usize], data: &[f32]) -> TValue {
+    // The caller always passes matching sizes; `from_shape` only fails on a mismatch.
+    Tensor::from_shape(shape, data)
+        .expect("shape matches data")
+        .into_tvalue()
+}
+
+/// Reads a float tensor's contents, checking its shape.
+pub(crate) fn read_f32<'a>(
+    role: &'static str,
+    what: &str,
+    value: &'a TValue,
+    shape: &[usize],
+) -> Result<&'a [f32]> {
+    let fail = |message: String| Error::Inference {
+        graph: role,
+        message,
+    };
+    if value.shape() != shape {
+        return Err(fail(format!(
+            "output `{what}` has shape {:?}, expected {shape:?}",
+            value.shape()
+        )));
+    }
+    value
+        .try_as_plain_ram()
+        .and_then(|v| v.as_slice::<f32>())
+        .map_err(|e| fail(format!("output `{what}`: {e:#}")))
+}

@@ -1,0 +1,261 @@
+//! [`Model`]: a loaded bundle. Immutable once loaded, cheap to clone, shared by any number of
+//! sessions on any number of threads.
+
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+use tract_onnx::prelude::{TValue, Tensor};
+
+use crate::error::{Error, Result};
+use crate::graph::{f32_tensor, read_f32, Graph};
+use crate::kv_cache::KvCache;
+use crate::manifest::Manifest;
+use crate::session::{Session, SessionOptions};
+
+/// A loaded ARMFlow bundle: manifest plus optimised graphs.
+///
+/// `Model` is `Send + Sync`; clones share the same graphs. A [`Session`] keeps its model alive.
+#[derive(Debug, Clone)]
+pub struct Model {
+    inner: Arc<Inner>,
+}
+
+#[derive(Debug)]
+struct Inner {
+    dir: PathBuf,
+    manifest: Manifest,
+    conditioning: Graph,
+    context_step: Graph,
+    velocity: Graph,
+    vae_encoder: Graph,
+    vae_decoder: Graph,
+}
+
+/// Outputs of the conditioning graph: what stays constant while the condition does.
+#[derive(Debug, Clone)]
+pub(crate) struct Conditioning {
+    /// AdaLN modulation of every context layer, `[1, layers, 6, width]`.
+    pub modulation: TValue,
+    /// The `<sos>` token, `[width]`.
+    pub start_token: Vec<f32>,
+}
+
+impl Model {
+    /// Loads the bundle in directory `dir`: reads and validates `troupe.json`, then loads, checks
+    /// and optimises every graph it names. Errors name the file, tensor and shape at fault.
+    pub fn load(dir: impl AsRef<Path>) -> Result<Self> {
+        let dir = dir.as_ref().to_path_buf();
+        let manifest = Manifest::load(&dir)?;
+        let g = &manifest.graphs;
+        let inner = Inner {
+            conditioning: Graph::load("conditioning", &dir, &g.conditioning)?,
+            context_step: Graph::load("context_step", &dir, &g.context_step)?,
+            velocity: Graph::load("velocity", &dir, &g.velocity)?,
+            vae_encoder: Graph::load("vae_encoder", &dir, &g.vae_encoder)?,
+            vae_decoder: Graph::load("vae_decoder", &dir, &g.vae_decoder)?,
+            manifest,
+            dir,
+        };
+        Ok(Self {
+            inner: Arc::new(inner),
+        })
+    }
+
+    /// Starts a stream. Options left unset take the bundle's defaults.
+    pub fn session(&self, options: SessionOptions) -> Result<Session> {
+        Session::new(self.clone(), options)
+    }
+
+    /// The bundle's manifest.
+    pub fn manifest(&self) -> &Manifest {
+        &self.inner.manifest
+    }
+
+    /// The directory the bundle was loaded from.
+    pub fn dir(&self) -> &Path {
+        &self.inner.dir
+    }
+
+    /// Floats per motion frame (262 for `interhuman262`).
+    pub fn frame_dim(&self) -> usize {
+        self.inner.manifest.motion.frame_dim
+    }
+
+    /// Frames per second of the motion.
+    pub fn fps(&self) -> u32 {
+        self.inner.manifest.motion.fps
+    }
+
+    /// Motion frames per latent token (4 for ARMFlow).
+    pub fn frames_per_token(&self) -> usize {
+        self.inner.manifest.latent.frames_per_token
+    }
+
+    /// Floats per latent token of one person.
+    pub fn latent_dim(&self) -> usize {
+        self.inner.manifest.latent.dim
+    }
+
+    /// Floats in the conditioning vector.
+    pub fn condition_dim(&self) -> usize {
+        self.inner.manifest.condition.dim
+    }
+
+    /// Algorithmic latency in frames: how many actor frames after frame `t` arrive before the
+    /// reactor's frame `t` is returned, at worst. For a streaming VAE this is
+    /// `frames_per_token - 1`: the first frame of a token waits for the token's last frame.
+    pub fn latency_frames(&self) -> usize {
+        let m = &self.inner.manifest;
+        let fpt = m.latent.frames_per_token;
+        fpt - 1 + m.vae.encoder.lookahead_frames + fpt * m.vae.decoder.lookahead_tokens
+    }
+
+    /// The context `c` the encoder gives after `[<sos>, pairs...]`, computed from scratch in one
+    /// causal pass (no cache). `pairs` holds `(actor || reactor)` tokens, row-major
+    /// `[n, 2 * latent_dim]`; positions are `0..=n`. A session's cached stream gives the same
+    /// context while its history fits in the context capacity.
+    pub fn recompute_context(&self, condition: Option<&[f32]>, pairs: &[f32]) -> Result<Vec<f32>> {
+        let width = self.inner.manifest.context.width;
+        if pairs.len() % width != 0 {
+            return Err(Error::InvalidInput(format!(
+                "history holds {} floats, not a multiple of the token width {width}",
+                pairs.len()
+            )));
+        }
+        check_finite("history", pairs)?;
+        let cond = self.conditioning(condition)?;
+        let mut tokens = cond.start_token.clone();
+        tokens.extend_from_slice(pairs);
+        let positions: Vec<i64> = (0..(tokens.len() / width) as i64).collect();
+        let mut cache = KvCache::empty(&self.inner.manifest.context);
+        self.context_step(&mut cache, &tokens, &positions, &cond.modulation)
+    }
+
+    // ---- typed network calls, used by sessions ------------------------------------------------
+
+    /// Runs the conditioning graph; `None` is the null condition (all zeros).
+    pub(crate) fn conditioning(&self, condition: Option<&[f32]>) -> Result<Conditioning> {
+        let m = &self.inner.manifest;
+        let dim = m.condition.dim;
+        let zeros;
+        let condition = match condition {
+            Some(c) => {
+                if c.len() != dim {
+                    return Err(Error::InvalidInput(format!(
+                        "condition has {} floats, the bundle expects {dim}",
+                        c.len()
+                    )));
+                }
+                check_finite("condition", c)?;
+                c
+            }
+            None => {
+                zeros = vec![0f32; dim];
+                &zeros
+            }
+        };
+        let out = self
+            .inner
+            .conditioning
+            .run(vec![f32_tensor(&[1, dim], condition)])?;
+        let c = m.context.width;
+        read_f32(
+            "conditioning",
+            "modulation",
+            &out[0],
+            &[1, m.context.layers, 6, c],
+        )?;
+        let start_token = read_f32("conditioning", "start_token", &out[1], &[1, 1, c])?.to_vec();
+        Ok(Conditioning {
+            modulation: out[0].clone(),
+            start_token,
+        })
+    }
+
+    /// One context-encoder call over `tokens` (`[S, width]` row-major) at `positions`, appending
+    /// to `cache`. Returns the context at the last position.
+    pub(crate) fn context_step(
+        &self,
+        cache: &mut KvCache,
+        tokens: &[f32],
+        positions: &[i64],
+        modulation: &TValue,
+    ) -> Result<Vec<f32>> {
+        let c = self.inner.manifest.context.width;
+        let s = positions.len();
+        let mut inputs = vec![
+            f32_tensor(&[1, s, c], tokens),
+            Tensor::from_shape(&[1, s], positions)
+                .expect("shape matches data")
+                .into(),
+            modulation.clone(),
+        ];
+        inputs.extend(cache.tensors().iter().cloned());
+        let mut out = self.inner.context_step.run(inputs)?;
+        let context = read_f32("context_step", "context", &out[0], &[1, c])?.to_vec();
+        cache.replace(out.split_off(1), s)?;
+        Ok(context)
+    }
+
+    /// The average velocity `u(z, r, t | actor, context)` for a batch of rows.
+    pub(crate) fn velocity(
+        &self,
+        actor: &[f32],
+        noisy: &[f32],
+        context: &[f32],
+        r: f32,
+        t: f32,
+    ) -> Result<Vec<f32>> {
+        let m = &self.inner.manifest;
+        let (lat, c) = (m.latent.dim, m.context.width);
+        let b = actor.len() / lat;
+        let out = self.inner.velocity.run(vec![
+            f32_tensor(&[b, lat], actor),
+            f32_tensor(&[b, lat], noisy),
+            f32_tensor(&[b, c], context),
+            f32_tensor(&[b], &vec![r; b]),
+            f32_tensor(&[b], &vec![t; b]),
+        ])?;
+        Ok(read_f32("velocity", "velocity", &out[0], &[b, lat])?.to_vec())
+    }
+
+    /// Encodes `frames` (`[T, frame_dim]`, T a multiple of frames_per_token) into the posterior
+    /// `(mean, logvar)` of its T / frames_per_token tokens.
+    pub(crate) fn encode(&self, frames: &[f32]) -> Result<(Vec<f32>, Vec<f32>)> {
+        let m = &self.inner.manifest;
+        let t = frames.len() / m.motion.frame_dim;
+        let n = t / m.latent.frames_per_token;
+        let out = self
+            .inner
+            .vae_encoder
+            .run(vec![f32_tensor(&[1, t, m.motion.frame_dim], frames)])?;
+        let shape = [1, n, m.latent.dim];
+        Ok((
+            read_f32("vae_encoder", "mean", &out[0], &shape)?.to_vec(),
+            read_f32("vae_encoder", "logvar", &out[1], &shape)?.to_vec(),
+        ))
+    }
+
+    /// Decodes unscaled latents (`[N, latent_dim]`) into `[N * frames_per_token, frame_dim]`.
+    pub(crate) fn decode(&self, latents: &[f32]) -> Result<Vec<f32>> {
+        let m = &self.inner.manifest;
+        let n = latents.len() / m.latent.dim;
+        let out = self
+            .inner
+            .vae_decoder
+            .run(vec![f32_tensor(&[1, n, m.latent.dim], latents)])?;
+        let shape = [1, n * m.latent.frames_per_token, m.motion.frame_dim];
+        Ok(read_f32("vae_decoder", "motion", &out[0], &shape)?.to_vec())
+    }
+}
+
+/// Rejects NaN and infinities, naming the first offending index.
+pub(crate) fn check_finite(what: &str, values: &[f32]) -> Result<()> {
+    match values.iter().position(|v| !v.is_finite()) {
+        None => Ok(()),
+        Some(i) => Err(Error::InvalidInput(format!(
+            "{what} holds a non-finite value ({}) at index {i}",
+            values[i]
+        ))),
+    }
+}

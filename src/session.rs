@@ -1,0 +1,483 @@
+//! [`Session`]: one actor/reactor stream. Frames in, reactor frames out, one token at a time.
+//!
+//! Per token `j` (frames `4j .. 4j+3` with 4 frames per token):
+//! 1. **Actor token**: the VAE encoder runs on the window of actor frames
+//!    `[max(0, 4j - context_frames), 4j + 4 + lookahead_frames)` and its token for `j` is
+//!    `a_j = (mean + sqrt(exp(logvar)) * xi_j) * scale` (or `mean * scale`).
+//! 2. **Context**: the context encoder appends `<sos>` (for `j = 0`) or the previous pair
+//!    `(a_{j-1} || b_{j-1})` at position `j` to its key/value cache and gives `c_j`.
+//! 3. **MeanFlow**: from `z = eps_j`, for `k = 0..steps`:
+//!    `z <- z - (tau_k - tau_{k+1}) * u(z, r = tau_{k+1}, t = tau_k)` with `tau` = [`meanflow_grid`];
+//!    one step is `b_j = eps_j - u(eps_j, 0, 1)`. With CFG scale `s != 1`,
+//!    `u = u_null + s * (u_cond - u_null)` where the null branch zeroes actor token and context.
+//! 4. **Frames**: once token `j + lookahead_tokens` exists, the decoder runs on the reactor
+//!    tokens `[max(0, j - context_tokens), j + 1 + lookahead_tokens)` divided by `scale`, and the
+//!    frames of token `j` are returned.
+//!
+//! A step either completes or leaves the session exactly as it was: all work happens on a copy
+//! of the stream state, committed at the end.
+
+use std::collections::VecDeque;
+
+use ndarray::{Array2, ArrayView2};
+
+use crate::error::{Error, Result};
+use crate::kv_cache::KvCache;
+use crate::manifest::ActorLatent;
+use crate::model::{check_finite, Conditioning, Model};
+use crate::noise::{fill_normals, STREAM_ACTOR_POSTERIOR, STREAM_REACTOR_NOISE};
+
+/// Options of a session. Fields left `None` take the bundle's defaults (`sampler` and
+/// `context` sections of the manifest).
+#[derive(Debug, Clone, Default)]
+pub struct SessionOptions {
+    /// Seed of the portable noise generator ([`crate::noise`]).
+    pub seed: u64,
+    /// MeanFlow steps per token (>= 1).
+    pub steps: Option<u32>,
+    /// Classifier-free guidance scale; 1 disables guidance (one network call per step).
+    pub cfg_scale: Option<f32>,
+    /// Conditioning vector of `condition_dim` floats; `None` is the null condition (zeros).
+    pub condition: Option<Vec<f32>>,
+    /// Tokens kept in the context cache, `<sos>` included (>= 2). See [`crate::kv_cache`].
+    pub context_capacity: Option<usize>,
+    /// Posterior sample (default) or mean for the actor's latent tokens.
+    pub actor_latent: Option<ActorLatent>,
+}
+
+/// The noise of one token, for reproducing a run exactly.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TokenNoise {
+    /// Standard normals for the actor's posterior sample (`latent_dim` floats).
+    pub actor: Vec<f32>,
+    /// The reactor's starting noise `eps` (`latent_dim` floats).
+    pub reactor: Vec<f32>,
+}
+
+/// What the session computed for one token.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TokenTrace {
+    /// Token index in the stream (0-based).
+    pub index: u64,
+    /// The actor's latent token `a_j` (scaled).
+    pub actor_latent: Vec<f32>,
+    /// The generated reactor latent token `b_j` (scaled).
+    pub reactor_latent: Vec<f32>,
+    /// The context `c_j` the velocity network was conditioned on.
+    pub context: Vec<f32>,
+}
+
+/// Result of [`Session::step_detailed`].
+#[derive(Debug, Clone)]
+pub struct StepOutput {
+    /// Reactor frames that became ready, `[n, frame_dim]` (n a multiple of frames_per_token).
+    pub frames: Array2<f32>,
+    /// Every token generated during the step, in order.
+    pub tokens: Vec<TokenTrace>,
+}
+
+/// Settings in force; changed by the setters, kept by `reset()`.
+#[derive(Debug, Clone)]
+struct Settings {
+    seed: u64,
+    steps: u32,
+    cfg_scale: f32,
+    condition: Option<Vec<f32>>,
+    capacity: usize,
+    actor_latent: ActorLatent,
+}
+
+/// Everything a stream accumulates; `reset()` returns it to `StreamState::new`.
+#[derive(Debug, Clone)]
+struct StreamState {
+    /// Actor frames received so far.
+    frames_received: u64,
+    /// Actor frames from index `actor_base` on, row-major.
+    actor_frames: Vec<f32>,
+    actor_base: u64,
+    /// Tokens generated so far.
+    tokens: u64,
+    cache: KvCache,
+    /// `(a_{j-1} || b_{j-1})`, fed to the context encoder with token j; empty before token 0.
+    last_pair: Vec<f32>,
+    /// Reactor latents (scaled) from token `reactor_base` on.
+    reactor_latents: VecDeque<Vec<f32>>,
+    reactor_base: u64,
+    /// Reactor frames returned so far.
+    frames_emitted: u64,
+    /// Noise queued by `queue_noise`, used before the seeded generator.
+    injected: VecDeque<TokenNoise>,
+}
+
+/// One actor/reactor stream over a shared [`Model`]. `Send`, not `Sync`: use it from one
+/// thread at a time.
+#[derive(Debug)]
+pub struct Session {
+    model: Model,
+    settings: Settings,
+    conditioning: Conditioning,
+    grid: Vec<f32>,
+    state: StreamState,
+}
+
+/// MeanFlow time grid `tau_k = (n - k) / n`, k = 0..=n, each rounded once to f32. t = 1 is
+/// noise and t = 0 is data (models.md 1.6).
+pub fn meanflow_grid(steps: u32) -> Vec<f32> {
+    (0..=steps)
+        .map(|k| (f64::from(steps - k) / f64::from(steps)) as f32)
+        .collect()
+}
+
+impl Session {
+    pub(crate) fn new(model: Model, options: SessionOptions) -> Result<Self> {
+        let m = model.manifest();
+        let settings = Settings {
+            seed: options.seed,
+            steps: options.steps.unwrap_or(m.sampler.steps),
+            cfg_scale: options.cfg_scale.unwrap_or(m.sampler.cfg_scale),
+            condition: None,
+            capacity: options
+                .context_capacity
+                .unwrap_or(m.context.capacity_tokens),
+            actor_latent: options.actor_latent.unwrap_or(m.sampler.actor_latent),
+        };
+        check_steps(settings.steps)?;
+        check_cfg(settings.cfg_scale)?;
+        if settings.capacity < 2 {
+            return Err(Error::InvalidOption(format!(
+                "context capacity {} is below 2 (<sos> and the newest token)",
+                settings.capacity
+            )));
+        }
+        let conditioning = model.conditioning(options.condition.as_deref())?;
+        let state = StreamState::new(&model);
+        Ok(Self {
+            grid: meanflow_grid(settings.steps),
+            settings: Settings {
+                condition: options.condition,
+                ..settings
+            },
+            conditioning,
+            state,
+            model,
+        })
+    }
+
+    /// The model this session runs.
+    pub fn model(&self) -> &Model {
+        &self.model
+    }
+
+    /// Feeds any number of actor frames (`[n, frame_dim]`, n may be 0) and returns the reactor
+    /// frames that became ready (a multiple of frames_per_token rows). On error the session is
+    /// unchanged.
+    pub fn step(&mut self, actor: ArrayView2<f32>) -> Result<Array2<f32>> {
+        Ok(self.step_detailed(actor)?.frames)
+    }
+
+    /// [`Session::step`], also returning the latent tokens and contexts it computed.
+    pub fn step_detailed(&mut self, actor: ArrayView2<f32>) -> Result<StepOutput> {
+        let dim = self.model.frame_dim();
+        if actor.ncols() != dim {
+            return Err(Error::InvalidInput(format!(
+                "actor frames have {} features, the bundle's `{}` layout has {dim}",
+                actor.ncols(),
+                self.model.manifest().motion.layout
+            )));
+        }
+        let owned;
+        let flat = match actor.as_slice() {
+            Some(s) => s,
+            None => {
+                owned = actor.as_standard_layout().into_owned();
+                owned.as_slice().expect("standard layout")
+            }
+        };
+        self.step_flat(flat)
+    }
+
+    /// [`Session::step_detailed`] on row-major frames (`n * frame_dim` floats).
+    pub fn step_flat(&mut self, actor: &[f32]) -> Result<StepOutput> {
+        let dim = self.model.frame_dim();
+        if actor.len() % dim != 0 {
+            return Err(Error::InvalidInput(format!(
+                "{} floats is not a whole number of {dim}-float frames",
+                actor.len()
+            )));
+        }
+        check_finite("actor frames", actor)?;
+        let mut next = self.state.clone();
+        let output = self.advance(&mut next, actor)?;
+        self.state = next;
+        Ok(output)
+    }
+
+    /// Returns the session to the state of a fresh session with the current settings (seed,
+    /// steps, CFG, condition, capacity). Queued noise is dropped.
+    pub fn reset(&mut self) {
+        self.state = StreamState::new(&self.model);
+    }
+
+    /// Sets the noise seed; applies to tokens generated from now on.
+    pub fn set_seed(&mut self, seed: u64) {
+        self.settings.seed = seed;
+    }
+
+    /// Sets the number of MeanFlow steps per token (>= 1).
+    pub fn set_steps(&mut self, steps: u32) -> Result<()> {
+        check_steps(steps)?;
+        self.settings.steps = steps;
+        self.grid = meanflow_grid(steps);
+        Ok(())
+    }
+
+    /// Sets the classifier-free guidance scale (finite; 1 disables guidance).
+    pub fn set_cfg_scale(&mut self, scale: f32) -> Result<()> {
+        check_cfg(scale)?;
+        self.settings.cfg_scale = scale;
+        Ok(())
+    }
+
+    /// Sets the conditioning vector (`None`: the null condition). Runs the conditioning graph
+    /// once; applies to tokens generated from now on.
+    pub fn set_condition(&mut self, condition: Option<&[f32]>) -> Result<()> {
+        self.conditioning = self.model.conditioning(condition)?;
+        self.settings.condition = condition.map(<[f32]>::to_vec);
+        Ok(())
+    }
+
+    /// Queues the noise of the next token not yet generated; queued noise is used in order
+    /// before the seeded generator. Both vectors hold `latent_dim` finite floats.
+    pub fn queue_noise(&mut self, noise: TokenNoise) -> Result<()> {
+        let lat = self.model.latent_dim();
+        for (what, v) in [
+            ("actor noise", &noise.actor),
+            ("reactor noise", &noise.reactor),
+        ] {
+            if v.len() != lat {
+                return Err(Error::InvalidInput(format!(
+                    "{what} has {} floats, the bundle's latent dim is {lat}",
+                    v.len()
+                )));
+            }
+            check_finite(what, v)?;
+        }
+        self.state.injected.push_back(noise);
+        Ok(())
+    }
+
+    /// The noise the seeded generator gives token `index` with the current seed.
+    pub fn seeded_noise(&self, index: u64) -> TokenNoise {
+        let lat = self.model.latent_dim();
+        let mut noise = TokenNoise {
+            actor: vec![0.0; lat],
+            reactor: vec![0.0; lat],
+        };
+        let seed = self.settings.seed;
+        fill_normals(seed, index, STREAM_ACTOR_POSTERIOR, &mut noise.actor);
+        fill_normals(seed, index, STREAM_REACTOR_NOISE, &mut noise.reactor);
+        noise
+    }
+
+    /// Actor frames received since the start (or the last reset).
+    pub fn frames_received(&self) -> u64 {
+        self.state.frames_received
+    }
+
+    /// Reactor frames returned since the start (or the last reset).
+    pub fn frames_emitted(&self) -> u64 {
+        self.state.frames_emitted
+    }
+
+    /// Tokens generated since the start (or the last reset).
+    pub fn tokens_generated(&self) -> u64 {
+        self.state.tokens
+    }
+
+    /// Entries held in the context cache (`<sos>` included); never above the capacity.
+    pub fn context_len(&self) -> usize {
+        self.state.cache.len()
+    }
+
+    // ---- the loop -----------------------------------------------------------------------------
+
+    fn advance(&self, st: &mut StreamState, actor: &[f32]) -> Result<StepOutput> {
+        let m = self.model.manifest();
+        let (fpt, dim) = (m.latent.frames_per_token as u64, m.motion.frame_dim);
+        st.actor_frames.extend_from_slice(actor);
+        st.frames_received += (actor.len() / dim) as u64;
+        let mut frames = Vec::new();
+        let mut tokens = Vec::new();
+        let lookahead = m.vae.encoder.lookahead_frames as u64;
+        while st.frames_received >= (st.tokens + 1) * fpt + lookahead {
+            tokens.push(self.generate_token(st)?);
+            while st.tokens > st.frames_emitted / fpt + m.vae.decoder.lookahead_tokens as u64 {
+                frames.extend(self.decode_token(st)?);
+            }
+        }
+        st.trim(m);
+        let n = frames.len() / dim;
+        let frames = Array2::from_shape_vec((n, dim), frames).expect("whole frames");
+        Ok(StepOutput { frames, tokens })
+    }
+
+    fn generate_token(&self, st: &mut StreamState) -> Result<TokenTrace> {
+        let m = self.model.manifest();
+        let (fpt, dim, lat) = (m.latent.frames_per_token, m.motion.frame_dim, m.latent.dim);
+        let j = st.tokens;
+        let noise = st
+            .injected
+            .pop_front()
+            .unwrap_or_else(|| self.seeded_noise(j));
+
+        // 1. actor token from the encoder window ending with this token's frames
+        let first = j * fpt as u64;
+        let start = first.saturating_sub(m.vae.encoder.context_frames as u64);
+        let end = first + fpt as u64 + m.vae.encoder.lookahead_frames as u64;
+        let window = &st.actor_frames
+            [(start - st.actor_base) as usize * dim..(end - st.actor_base) as usize * dim];
+        let (mean, logvar) = self.model.encode(window)?;
+        let row = (first - start) as usize / fpt * lat;
+        let (mean, logvar) = (&mean[row..row + lat], &logvar[row..row + lat]);
+        let scale = m.latent.scale;
+        let actor: Vec<f32> = match self.settings.actor_latent {
+            ActorLatent::Sample => (0..lat)
+                .map(|i| (mean[i] + logvar[i].exp().sqrt() * noise.actor[i]) * scale)
+                .collect(),
+            ActorLatent::Mean => mean.iter().map(|v| v * scale).collect(),
+        };
+
+        // 2. context over [<sos>, pairs...] with the key/value cache
+        let token = if j == 0 {
+            &self.conditioning.start_token
+        } else {
+            &st.last_pair
+        };
+        if st.cache.len() + 1 > self.settings.capacity {
+            st.cache.evict_to(self.settings.capacity - 1)?;
+        }
+        let context = self.model.context_step(
+            &mut st.cache,
+            token,
+            &[j as i64],
+            &self.conditioning.modulation,
+        )?;
+
+        // 3. MeanFlow from the noise
+        let reactor = self.sample(&actor, &context, noise.reactor)?;
+
+        st.last_pair = [actor.as_slice(), reactor.as_slice()].concat();
+        st.reactor_latents.push_back(reactor.clone());
+        st.tokens += 1;
+        Ok(TokenTrace {
+            index: j,
+            actor_latent: actor,
+            reactor_latent: reactor,
+            context,
+        })
+    }
+
+    fn sample(&self, actor: &[f32], context: &[f32], mut z: Vec<f32>) -> Result<Vec<f32>> {
+        let s = self.settings.cfg_scale;
+        let guided = s != 1.0;
+        // With guidance, row 0 is conditional and row 1 the null branch (zero actor and context).
+        let (actor, context) = if guided {
+            (
+                [actor, &vec![0.0; actor.len()]].concat(),
+                [context, &vec![0.0; context.len()]].concat(),
+            )
+        } else {
+            (actor.to_vec(), context.to_vec())
+        };
+        for k in 0..self.settings.steps as usize {
+            let (t, r) = (self.grid[k], self.grid[k + 1]);
+            let noisy = if guided {
+                [&z[..], &z[..]].concat()
+            } else {
+                z.clone()
+            };
+            let u = self.model.velocity(&actor, &noisy, &context, r, t)?;
+            let dt = t - r;
+            let n = z.len();
+            for i in 0..n {
+                let ui = if guided {
+                    u[n + i] + s * (u[i] - u[n + i])
+                } else {
+                    u[i]
+                };
+                z[i] -= dt * ui;
+            }
+        }
+        Ok(z)
+    }
+
+    fn decode_token(&self, st: &mut StreamState) -> Result<Vec<f32>> {
+        let m = self.model.manifest();
+        let (fpt, dim) = (m.latent.frames_per_token, m.motion.frame_dim);
+        let k = st.frames_emitted / fpt as u64;
+        let start = k.saturating_sub(m.vae.decoder.context_tokens as u64);
+        let end = k + 1 + m.vae.decoder.lookahead_tokens as u64;
+        let scale = m.latent.scale;
+        let latents: Vec<f32> = st
+            .reactor_latents
+            .range((start - st.reactor_base) as usize..(end - st.reactor_base) as usize)
+            .flat_map(|b| b.iter().map(|v| v / scale))
+            .collect();
+        let motion = self.model.decode(&latents)?;
+        let row = (k - start) as usize * fpt * dim;
+        st.frames_emitted += fpt as u64;
+        Ok(motion[row..row + fpt * dim].to_vec())
+    }
+}
+
+impl StreamState {
+    fn new(model: &Model) -> Self {
+        Self {
+            frames_received: 0,
+            actor_frames: Vec::new(),
+            actor_base: 0,
+            tokens: 0,
+            cache: KvCache::empty(&model.manifest().context),
+            last_pair: Vec::new(),
+            reactor_latents: VecDeque::new(),
+            reactor_base: 0,
+            frames_emitted: 0,
+            injected: VecDeque::new(),
+        }
+    }
+
+    /// Drops actor frames and reactor latents no future window reads: memory stays bounded.
+    fn trim(&mut self, m: &crate::manifest::Manifest) {
+        let fpt = m.latent.frames_per_token as u64;
+        let keep_from = (self.tokens * fpt).saturating_sub(m.vae.encoder.context_frames as u64);
+        if keep_from > self.actor_base {
+            let drop = (keep_from - self.actor_base) as usize * m.motion.frame_dim;
+            self.actor_frames.drain(..drop);
+            self.actor_base = keep_from;
+        }
+        let next_decode = self.frames_emitted / fpt;
+        let keep_from = next_decode.saturating_sub(m.vae.decoder.context_tokens as u64);
+        while self.reactor_base < keep_from {
+            self.reactor_latents.pop_front();
+            self.reactor_base += 1;
+        }
+    }
+}
+
+fn check_steps(steps: u32) -> Result<()> {
+    if steps == 0 {
+        return Err(Error::InvalidOption(
+            "sampler steps must be at least 1".into(),
+        ));
+    }
+    Ok(())
+}
+
+fn check_cfg(scale: f32) -> Result<()> {
+    if !scale.is_finite() {
+        return Err(Error::InvalidOption(format!(
+            "CFG scale must be finite, got {scale}"
+        )));
+    }
+    Ok(())
+}

@@ -1,0 +1,88 @@
+//! Helpers shared by the integration tests: the committed tiny bundle and its golden files.
+#![allow(dead_code)]
+
+use std::path::{Path, PathBuf};
+use std::sync::OnceLock;
+
+use ndarray::{Array1, Array2};
+use ndarray_npy::read_npy;
+use troupe::{Model, Session, SessionOptions, TokenNoise};
+
+/// The committed tiny bundle.
+pub fn bundle_dir() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("onnx/armflow-tiny")
+}
+
+/// The tiny model, loaded once per test binary.
+pub fn model() -> &'static Model {
+    static MODEL: OnceLock<Model> = OnceLock::new();
+    MODEL.get_or_init(|| Model::load(bundle_dir()).expect("the committed bundle loads"))
+}
+
+pub fn golden2(name: &str) -> Array2<f32> {
+    read_npy(bundle_dir().join("golden").join(format!("{name}.npy")))
+        .unwrap_or_else(|e| panic!("golden {name}: {e}"))
+}
+
+pub fn golden1(name: &str) -> Array1<f32> {
+    read_npy(bundle_dir().join("golden").join(format!("{name}.npy")))
+        .unwrap_or_else(|e| panic!("golden {name}: {e}"))
+}
+
+/// The golden actor clip, `[frames, 262]`.
+pub fn actor() -> Array2<f32> {
+    golden2("actor")
+}
+
+pub fn max_abs_diff(a: &[f32], b: &[f32]) -> f32 {
+    assert_eq!(a.len(), b.len(), "length mismatch");
+    a.iter()
+        .zip(b)
+        .map(|(x, y)| (x - y).abs())
+        .fold(0.0, f32::max)
+}
+
+/// Queues the golden case's injected noise into a session.
+pub fn queue_golden_noise(session: &mut Session, case: &str) {
+    let (xi, eps) = (
+        golden2(&format!("{case}_xi")),
+        golden2(&format!("{case}_eps")),
+    );
+    for (a, r) in xi.rows().into_iter().zip(eps.rows()) {
+        session
+            .queue_noise(TokenNoise {
+                actor: a.to_vec(),
+                reactor: r.to_vec(),
+            })
+            .unwrap();
+    }
+}
+
+/// Feeds `actor` in chunks of `chunk` frames; returns all frames and latents produced.
+pub fn run_chunked(
+    session: &mut Session,
+    actor: &Array2<f32>,
+    chunk: usize,
+) -> (Vec<f32>, Vec<f32>) {
+    let (mut frames, mut latents) = (Vec::new(), Vec::new());
+    let mut start = 0;
+    while start < actor.nrows() {
+        let end = (start + chunk).min(actor.nrows());
+        let out = session
+            .step_detailed(actor.slice(ndarray::s![start..end, ..]))
+            .unwrap();
+        frames.extend(out.frames.iter());
+        for t in out.tokens {
+            latents.extend(t.reactor_latent);
+        }
+        start = end;
+    }
+    (frames, latents)
+}
+
+pub fn default_options() -> SessionOptions {
+    SessionOptions {
+        seed: 11,
+        ..Default::default()
+    }
+}
