@@ -145,9 +145,12 @@ fn match_tensors(
             if dtype_ok && dims_ok {
                 Ok(at)
             } else {
+                let dims: Vec<String> = fact.shape.iter().map(|d| d.to_string()).collect();
                 Err(format!(
-                    "{kind} `{}` is {:?} {:?} in the graph, the manifest declares {d}",
-                    d.name, fact.datum_type, fact.shape
+                    "{kind} `{}` is {:?} [{}] in the graph, the manifest declares {d}",
+                    d.name,
+                    fact.datum_type,
+                    dims.join(", ")
                 ))
             }
         })

@@ -1,0 +1,216 @@
+//! Every bad input is rejected with a clear error and leaves the session as it was; corrupt or
+//! mismatched bundles are rejected at load with the file, tensor and shape named.
+
+mod common;
+
+use std::path::Path;
+
+use common::*;
+use ndarray::{s, Array2};
+use troupe::{Error, Model, Session, SessionOptions, TokenNoise};
+
+/// A session that has consumed 10 frames (2 tokens), and a twin to compare against.
+fn twins() -> (Session, Session) {
+    let actor = actor();
+    let mut a = model().session(default_options()).unwrap();
+    let mut b = model().session(default_options()).unwrap();
+    a.step(actor.slice(s![..10, ..])).unwrap();
+    b.step(actor.slice(s![..10, ..])).unwrap();
+    (a, b)
+}
+
+/// The session behaves exactly like its untouched twin from here on.
+fn assert_unchanged(touched: &mut Session, twin: &mut Session) {
+    assert_eq!(touched.frames_received(), twin.frames_received());
+    assert_eq!(touched.tokens_generated(), twin.tokens_generated());
+    let rest = actor().slice(s![10.., ..]).to_owned();
+    assert!(run_chunked(touched, &rest, 9) == run_chunked(twin, &rest, 9));
+}
+
+fn message(e: Error) -> String {
+    e.to_string()
+}
+
+#[test]
+fn wrong_frame_dim_is_rejected() {
+    let (mut s, mut twin) = twins();
+    let e = s.step(Array2::<f32>::zeros((4, 100)).view()).unwrap_err();
+    assert!(matches!(e, Error::InvalidInput(_)));
+    assert!(message(e).contains("100 features") , "message names the size");
+    let e = s.step_flat(&[0.0; 263]).unwrap_err();
+    assert!(message(e).contains("263 floats"));
+    assert_unchanged(&mut s, &mut twin);
+}
+
+#[test]
+fn non_finite_frames_are_rejected() {
+    for bad in [f32::NAN, f32::INFINITY, f32::NEG_INFINITY] {
+        let (mut s, mut twin) = twins();
+        let mut frames = actor().slice(s![10..20, ..]).to_owned();
+        frames[[7, 5]] = bad;
+        let e = s.step(frames.view()).unwrap_err();
+        let text = message(e);
+        assert!(text.contains("non-finite") && text.contains(&format!("index {}", 7 * 262 + 5)), "{text}");
+        assert_unchanged(&mut s, &mut twin);
+    }
+}
+
+#[test]
+fn bad_options_are_rejected() {
+    let m = model();
+    let opt = |o: SessionOptions| m.session(o).unwrap_err();
+    assert!(matches!(opt(SessionOptions { steps: Some(0), ..Default::default() }), Error::InvalidOption(_)));
+    assert!(matches!(opt(SessionOptions { cfg_scale: Some(f32::NAN), ..Default::default() }), Error::InvalidOption(_)));
+    assert!(matches!(opt(SessionOptions { context_capacity: Some(1), ..Default::default() }), Error::InvalidOption(_)));
+    let e = opt(SessionOptions { condition: Some(vec![0.0; 5]), ..Default::default() });
+    assert!(message(e).contains("condition has 5 floats, the bundle expects 32"));
+    let mut nan = vec![0.0; 32];
+    nan[3] = f32::NAN;
+    let e = opt(SessionOptions { condition: Some(nan), ..Default::default() });
+    assert!(message(e).contains("condition holds a non-finite value"));
+}
+
+#[test]
+fn bad_setters_leave_the_session_unchanged() {
+    let (mut s, mut twin) = twins();
+    assert!(s.set_steps(0).is_err());
+    assert!(s.set_cfg_scale(f32::INFINITY).is_err());
+    assert!(s.set_condition(Some(&[1.0; 31])).is_err());
+    assert!(s.set_condition(Some(&[f32::NAN; 32])).is_err());
+    let lat = model().latent_dim();
+    let e = s.queue_noise(TokenNoise { actor: vec![0.0; lat - 1], reactor: vec![0.0; lat] }).unwrap_err();
+    assert!(message(e).contains("actor noise has 15 floats"));
+    let e = s.queue_noise(TokenNoise { actor: vec![0.0; lat], reactor: vec![f32::NAN; lat] }).unwrap_err();
+    assert!(message(e).contains("reactor noise holds a non-finite value"));
+    assert_unchanged(&mut s, &mut twin);
+}
+
+#[test]
+fn bad_history_for_recompute_is_rejected() {
+    let e = model().recompute_context(None, &[0.0; 33]).unwrap_err();
+    assert!(message(e).contains("not a multiple of the token width 32"));
+    let e = model().recompute_context(Some(&[0.0; 3]), &[]).unwrap_err();
+    assert!(matches!(e, Error::InvalidInput(_)));
+}
+
+// ---- bundles ----------------------------------------------------------------------------------
+
+/// A writable copy of the committed bundle.
+fn bundle_copy() -> tempfile::TempDir {
+    let dir = tempfile::tempdir().unwrap();
+    for entry in std::fs::read_dir(bundle_dir()).unwrap() {
+        let path = entry.unwrap().path();
+        if path.is_file() {
+            std::fs::copy(&path, dir.path().join(path.file_name().unwrap())).unwrap();
+        }
+    }
+    dir
+}
+
+fn edit_manifest(dir: &Path, edit: impl FnOnce(&mut serde_json::Value)) {
+    let path = dir.join("troupe.json");
+    let mut v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
+    edit(&mut v);
+    std::fs::write(path, serde_json::to_string_pretty(&v).unwrap()).unwrap();
+}
+
+fn load_error(dir: &Path) -> String {
+    message(Model::load(dir).unwrap_err())
+}
+
+#[test]
+fn a_copy_of_the_bundle_loads() {
+    let dir = bundle_copy();
+    Model::load(dir.path()).unwrap();
+}
+
+#[test]
+fn missing_bundle_or_manifest_names_the_path() {
+    let e = Model::load("/nonexistent/bundle").unwrap_err();
+    assert!(matches!(e, Error::Io { .. }));
+    assert!(message(e).contains("/nonexistent/bundle/troupe.json"));
+}
+
+#[test]
+fn corrupt_manifest_is_rejected() {
+    let dir = bundle_copy();
+    std::fs::write(dir.path().join("troupe.json"), "{ not json").unwrap();
+    let text = load_error(dir.path());
+    assert!(text.contains("troupe.json") && text.contains("key must be a string"), "{text}");
+
+    let dir = bundle_copy();
+    edit_manifest(dir.path(), |v| v["format_version"] = 2.into());
+    assert!(load_error(dir.path()).contains("format_version 2 is not supported"));
+
+    let dir = bundle_copy();
+    edit_manifest(dir.path(), |v| v["family"] = "magnet".into());
+    assert!(load_error(dir.path()).contains("family `magnet` is not supported"));
+
+    let dir = bundle_copy();
+    edit_manifest(dir.path(), |v| {
+        v.as_object_mut().unwrap().remove("sampler");
+    });
+    assert!(load_error(dir.path()).contains("missing field `sampler`"));
+
+    let dir = bundle_copy();
+    edit_manifest(dir.path(), |v| v["context"]["heads"] = 3.into());
+    assert!(load_error(dir.path()).contains("context.heads 3 * context.head_dim 16 must equal context.width 32"));
+}
+
+#[test]
+fn manifest_inconsistent_with_the_runtime_contract_names_tensor_and_shape() {
+    let dir = bundle_copy();
+    edit_manifest(dir.path(), |v| v["graphs"]["context_step"]["inputs"][3]["shape"][1] = 4.into());
+    let text = load_error(dir.path());
+    assert!(
+        text.contains("graphs.context_step.inputs") && text.contains("`past_key_0` float32 [1, 4, P, 16]"),
+        "{text}"
+    );
+    let dir = bundle_copy();
+    edit_manifest(dir.path(), |v| v["graphs"]["velocity"]["outputs"][0]["name"] = "u".into());
+    assert!(load_error(dir.path()).contains("missing tensor `velocity`"));
+}
+
+#[test]
+fn missing_graph_file_names_it() {
+    let dir = bundle_copy();
+    std::fs::remove_file(dir.path().join("velocity.onnx")).unwrap();
+    let e = Model::load(dir.path()).unwrap_err();
+    assert!(matches!(e, Error::Io { .. }));
+    assert!(message(e).contains("velocity.onnx"));
+}
+
+#[test]
+fn corrupt_graph_is_rejected() {
+    let dir = bundle_copy();
+    let path = dir.path().join("vae_decoder.onnx");
+    let bytes = std::fs::read(&path).unwrap();
+    std::fs::write(&path, &bytes[..bytes.len() / 3]).unwrap();
+    let e = Model::load(dir.path()).unwrap_err();
+    assert!(matches!(e, Error::Graph { .. }));
+    let text = message(e);
+    assert!(text.contains("vae_decoder.onnx") && text.contains("not a loadable ONNX model"), "{text}");
+}
+
+#[test]
+fn mismatched_graph_names_file_tensor_and_shape() {
+    // A graph of another role in the velocity slot: its tensors are not the velocity's.
+    let dir = bundle_copy();
+    std::fs::copy(bundle_dir().join("conditioning.onnx"), dir.path().join("velocity.onnx")).unwrap();
+    let text = load_error(dir.path());
+    assert!(text.contains("velocity.onnx") && text.contains("graph input `condition` is not declared"), "{text}");
+
+    // A manifest that is consistent with itself but not with its graphs: condition dim 48
+    // declared, 32 in the conditioning graph.
+    let dir = bundle_copy();
+    edit_manifest(dir.path(), |v| {
+        v["condition"]["dim"] = 48.into();
+        v["graphs"]["conditioning"]["inputs"][0]["shape"][1] = 48.into();
+    });
+    let text = load_error(dir.path());
+    assert!(
+        text.contains("conditioning.onnx") && text.contains("input `condition` is F32 [1, 32] in the graph")
+            && text.contains("the manifest declares `condition` float32 [1, 48]"),
+        "{text}"
+    );
+}

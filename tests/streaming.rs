@@ -1,0 +1,219 @@
+//! Streaming behaviour of a session: KV cache against full recompute, chunking, reset,
+//! determinism, bounded memory, latency.
+
+mod common;
+
+use common::*;
+use ndarray::{s, Array2};
+use troupe::{ActorLatent, Model, Session, SessionOptions};
+
+fn session(options: SessionOptions) -> Session {
+    model().session(options).unwrap()
+}
+
+/// The cached context of every token equals a from-scratch causal pass over its history.
+#[test]
+fn kv_cached_stream_equals_full_causal_recompute() {
+    let condition: Vec<f32> = (0..model().condition_dim()).map(|i| (i as f32 * 0.37).sin()).collect();
+    let mut s = session(SessionOptions {
+        condition: Some(condition.clone()),
+        ..default_options()
+    });
+    let out = s.step_detailed(actor().view()).unwrap();
+    assert_eq!(out.tokens.len(), 48);
+    let mut pairs = Vec::new();
+    let mut worst = 0f32;
+    for t in &out.tokens {
+        let full = model().recompute_context(Some(&condition), &pairs).unwrap();
+        worst = worst.max(max_abs_diff(&full, &t.context));
+        pairs.extend(&t.actor_latent);
+        pairs.extend(&t.reactor_latent);
+    }
+    println!("cached vs recomputed context over 48 tokens: max-abs {worst:.2e}");
+    assert!(worst <= 1e-5, "cached context differs from recompute by {worst}");
+}
+
+#[test]
+fn chunk_sizes_give_identical_output() {
+    let actor = actor();
+    let reference = run_chunked(&mut session(default_options()), &actor, 1);
+    assert_eq!(reference.0.len(), 48 * 4 * model().frame_dim());
+    for chunk in [3, 4, 37, actor.nrows()] {
+        let got = run_chunked(&mut session(default_options()), &actor, chunk);
+        assert!(got == reference, "chunks of {chunk} frames differ from frame-by-frame");
+    }
+}
+
+#[test]
+fn frames_come_out_one_token_after_its_last_actor_frame() {
+    let m = model();
+    assert_eq!(m.latency_frames(), m.frames_per_token() - 1);
+    let mut s = session(default_options());
+    let actor = actor();
+    for i in 0..20 {
+        let out = s.step(actor.slice(s![i..i + 1, ..])).unwrap();
+        let expect = if (i + 1) % 4 == 0 { 4 } else { 0 };
+        assert_eq!(out.nrows(), expect, "after actor frame {i}");
+    }
+    assert_eq!(s.step(Array2::zeros((0, m.frame_dim())).view()).unwrap().nrows(), 0);
+    assert_eq!((s.frames_received(), s.frames_emitted(), s.tokens_generated()), (20, 20, 5));
+}
+
+#[test]
+fn reset_equals_a_fresh_session() {
+    let actor = actor();
+    let options = SessionOptions {
+        steps: Some(2),
+        cfg_scale: Some(1.5),
+        ..default_options()
+    };
+    let fresh = run_chunked(&mut session(options.clone()), &actor, 7);
+    let mut s = session(options.clone());
+    run_chunked(&mut s, &actor.slice(s![..90, ..]).to_owned(), 5);
+    s.queue_noise(s.seeded_noise(99)).unwrap(); // queued noise is dropped by reset too
+    s.reset();
+    assert_eq!((s.frames_received(), s.tokens_generated(), s.context_len()), (0, 0, 0));
+    assert!(run_chunked(&mut s, &actor, 7) == fresh);
+
+    // Settings changed before a reset persist, and the result equals a fresh session with them.
+    let mut s = session(default_options());
+    run_chunked(&mut s, &actor, 11);
+    s.set_seed(3);
+    s.set_steps(3).unwrap();
+    s.reset();
+    let want = run_chunked(
+        &mut session(SessionOptions {
+            seed: 3,
+            steps: Some(3),
+            ..default_options()
+        }),
+        &actor,
+        11,
+    );
+    assert!(run_chunked(&mut s, &actor, 11) == want);
+}
+
+#[test]
+fn same_seed_is_bit_identical_across_runs_and_threads() {
+    let actor = actor();
+    let reference = run_chunked(&mut session(default_options()), &actor, 4);
+    assert!(run_chunked(&mut session(default_options()), &actor, 4) == reference);
+    let shared: Model = model().clone();
+    let handles: Vec<_> = (0..4)
+        .map(|_| {
+            let (model, actor) = (shared.clone(), actor.clone());
+            std::thread::spawn(move || {
+                let mut s = model.session(default_options()).unwrap();
+                run_chunked(&mut s, &actor, 4)
+            })
+        })
+        .collect();
+    for h in handles {
+        assert!(h.join().unwrap() == reference, "a thread's stream differs");
+    }
+    let other = run_chunked(
+        &mut session(SessionOptions {
+            seed: 12,
+            ..default_options()
+        }),
+        &actor,
+        4,
+    );
+    assert!(other.1 != reference.1, "a different seed must change the reactor");
+}
+
+#[test]
+fn injected_noise_reproduces_a_seeded_run() {
+    let actor = actor();
+    let seeded = run_chunked(&mut session(default_options()), &actor, 4);
+    let mut s = session(SessionOptions {
+        seed: 999,
+        ..default_options()
+    });
+    let donor = session(default_options());
+    for j in 0..48 {
+        s.queue_noise(donor.seeded_noise(j)).unwrap();
+    }
+    assert!(run_chunked(&mut s, &actor, 4) == seeded);
+}
+
+#[test]
+fn posterior_mean_ignores_actor_noise() {
+    let run = |seed| {
+        let mut s = session(SessionOptions {
+            seed,
+            actor_latent: Some(ActorLatent::Mean),
+            ..default_options()
+        });
+        s.step_detailed(actor().view()).unwrap().tokens
+    };
+    let (a, b) = (run(1), run(2));
+    for (x, y) in a.iter().zip(&b) {
+        assert_eq!(x.actor_latent, y.actor_latent);
+    }
+    assert_ne!(a[0].reactor_latent, b[0].reactor_latent);
+}
+
+#[test]
+fn changing_the_condition_changes_later_tokens_only() {
+    let actor = actor();
+    let half = actor.slice(s![..96, ..]).to_owned();
+    let rest = actor.slice(s![96.., ..]).to_owned();
+    let mut plain = session(default_options());
+    let mut switched = session(default_options());
+    let a1 = run_chunked(&mut plain, &half, 4);
+    let b1 = run_chunked(&mut switched, &half, 4);
+    assert!(a1 == b1);
+    let cond = vec![0.5f32; model().condition_dim()];
+    switched.set_condition(Some(&cond)).unwrap();
+    assert!(run_chunked(&mut plain, &rest, 4).1 != run_chunked(&mut switched, &rest, 4).1);
+}
+
+/// A long stream stays within the context capacity and its buffers stop growing.
+#[test]
+fn long_stream_runs_in_bounded_context() {
+    let capacity = 8;
+    let mut s = session(SessionOptions {
+        context_capacity: Some(capacity),
+        ..default_options()
+    });
+    let actor = actor();
+    let mut emitted = 0;
+    for lap in 0..5 {
+        for chunk in actor.axis_chunks_iter(ndarray::Axis(0), 16) {
+            let out = s.step(chunk).unwrap();
+            assert!(out.iter().all(|v| v.is_finite()));
+            emitted += out.nrows();
+        }
+        assert!(s.context_len() <= capacity, "lap {lap}: {} entries", s.context_len());
+    }
+    assert_eq!(s.context_len(), capacity);
+    assert_eq!(emitted as u64, s.frames_emitted());
+    assert_eq!(s.frames_received(), 5 * actor.nrows() as u64);
+}
+
+#[test]
+fn handles_are_send_and_sync_where_documented() {
+    fn send_sync<T: Send + Sync>() {}
+    fn send<T: Send>() {}
+    send_sync::<Model>();
+    send::<Session>();
+}
+
+#[test]
+fn queries_report_the_bundle() {
+    let m = model();
+    assert_eq!(m.frame_dim(), 262);
+    assert_eq!(m.fps(), 30);
+    assert_eq!(m.frames_per_token(), 4);
+    assert_eq!(m.latent_dim(), 16);
+    assert_eq!(m.condition_dim(), 32);
+    assert_eq!(m.manifest().motion.layout, "interhuman262");
+}
+
+#[test]
+fn meanflow_grid_runs_from_noise_to_data() {
+    assert_eq!(troupe::meanflow_grid(1), vec![1.0, 0.0]);
+    assert_eq!(troupe::meanflow_grid(4), vec![1.0, 0.75, 0.5, 0.25, 0.0]);
+    assert_eq!(troupe::meanflow_grid(3)[1], (2.0f64 / 3.0) as f32);
+}
