@@ -116,7 +116,7 @@ impl Model {
     /// context while its history fits in the context capacity.
     pub fn recompute_context(&self, condition: Option<&[f32]>, pairs: &[f32]) -> Result<Vec<f32>> {
         let width = self.inner.manifest.context.width;
-        if pairs.len() % width != 0 {
+        if !pairs.len().is_multiple_of(width) {
             return Err(Error::InvalidInput(format!(
                 "history holds {} floats, not a multiple of the token width {width}",
                 pairs.len()

@@ -199,7 +199,7 @@ impl Session {
     /// [`Session::step_detailed`] on row-major frames (`n * frame_dim` floats).
     pub fn step_flat(&mut self, actor: &[f32]) -> Result<StepOutput> {
         let dim = self.model.frame_dim();
-        if actor.len() % dim != 0 {
+        if !actor.len().is_multiple_of(dim) {
             return Err(Error::InvalidInput(format!(
                 "{} floats is not a whole number of {dim}-float frames",
                 actor.len()

@@ -36,7 +36,10 @@ fn wrong_frame_dim_is_rejected() {
     let (mut s, mut twin) = twins();
     let e = s.step(Array2::<f32>::zeros((4, 100)).view()).unwrap_err();
     assert!(matches!(e, Error::InvalidInput(_)));
-    assert!(message(e).contains("100 features") , "message names the size");
+    assert!(
+        message(e).contains("100 features"),
+        "message names the size"
+    );
     let e = s.step_flat(&[0.0; 263]).unwrap_err();
     assert!(message(e).contains("263 floats"));
     assert_unchanged(&mut s, &mut twin);
@@ -50,7 +53,10 @@ fn non_finite_frames_are_rejected() {
         frames[[7, 5]] = bad;
         let e = s.step(frames.view()).unwrap_err();
         let text = message(e);
-        assert!(text.contains("non-finite") && text.contains(&format!("index {}", 7 * 262 + 5)), "{text}");
+        assert!(
+            text.contains("non-finite") && text.contains(&format!("index {}", 7 * 262 + 5)),
+            "{text}"
+        );
         assert_unchanged(&mut s, &mut twin);
     }
 }
@@ -59,14 +65,38 @@ fn non_finite_frames_are_rejected() {
 fn bad_options_are_rejected() {
     let m = model();
     let opt = |o: SessionOptions| m.session(o).unwrap_err();
-    assert!(matches!(opt(SessionOptions { steps: Some(0), ..Default::default() }), Error::InvalidOption(_)));
-    assert!(matches!(opt(SessionOptions { cfg_scale: Some(f32::NAN), ..Default::default() }), Error::InvalidOption(_)));
-    assert!(matches!(opt(SessionOptions { context_capacity: Some(1), ..Default::default() }), Error::InvalidOption(_)));
-    let e = opt(SessionOptions { condition: Some(vec![0.0; 5]), ..Default::default() });
+    assert!(matches!(
+        opt(SessionOptions {
+            steps: Some(0),
+            ..Default::default()
+        }),
+        Error::InvalidOption(_)
+    ));
+    assert!(matches!(
+        opt(SessionOptions {
+            cfg_scale: Some(f32::NAN),
+            ..Default::default()
+        }),
+        Error::InvalidOption(_)
+    ));
+    assert!(matches!(
+        opt(SessionOptions {
+            context_capacity: Some(1),
+            ..Default::default()
+        }),
+        Error::InvalidOption(_)
+    ));
+    let e = opt(SessionOptions {
+        condition: Some(vec![0.0; 5]),
+        ..Default::default()
+    });
     assert!(message(e).contains("condition has 5 floats, the bundle expects 32"));
     let mut nan = vec![0.0; 32];
     nan[3] = f32::NAN;
-    let e = opt(SessionOptions { condition: Some(nan), ..Default::default() });
+    let e = opt(SessionOptions {
+        condition: Some(nan),
+        ..Default::default()
+    });
     assert!(message(e).contains("condition holds a non-finite value"));
 }
 
@@ -78,9 +108,19 @@ fn bad_setters_leave_the_session_unchanged() {
     assert!(s.set_condition(Some(&[1.0; 31])).is_err());
     assert!(s.set_condition(Some(&[f32::NAN; 32])).is_err());
     let lat = model().latent_dim();
-    let e = s.queue_noise(TokenNoise { actor: vec![0.0; lat - 1], reactor: vec![0.0; lat] }).unwrap_err();
+    let e = s
+        .queue_noise(TokenNoise {
+            actor: vec![0.0; lat - 1],
+            reactor: vec![0.0; lat],
+        })
+        .unwrap_err();
     assert!(message(e).contains("actor noise has 15 floats"));
-    let e = s.queue_noise(TokenNoise { actor: vec![0.0; lat], reactor: vec![f32::NAN; lat] }).unwrap_err();
+    let e = s
+        .queue_noise(TokenNoise {
+            actor: vec![0.0; lat],
+            reactor: vec![f32::NAN; lat],
+        })
+        .unwrap_err();
     assert!(message(e).contains("reactor noise holds a non-finite value"));
     assert_unchanged(&mut s, &mut twin);
 }
@@ -109,7 +149,8 @@ fn bundle_copy() -> tempfile::TempDir {
 
 fn edit_manifest(dir: &Path, edit: impl FnOnce(&mut serde_json::Value)) {
     let path = dir.join("troupe.json");
-    let mut v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
+    let mut v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
     edit(&mut v);
     std::fs::write(path, serde_json::to_string_pretty(&v).unwrap()).unwrap();
 }
@@ -136,7 +177,10 @@ fn corrupt_manifest_is_rejected() {
     let dir = bundle_copy();
     std::fs::write(dir.path().join("troupe.json"), "{ not json").unwrap();
     let text = load_error(dir.path());
-    assert!(text.contains("troupe.json") && text.contains("key must be a string"), "{text}");
+    assert!(
+        text.contains("troupe.json") && text.contains("key must be a string"),
+        "{text}"
+    );
 
     let dir = bundle_copy();
     edit_manifest(dir.path(), |v| v["format_version"] = 2.into());
@@ -154,20 +198,26 @@ fn corrupt_manifest_is_rejected() {
 
     let dir = bundle_copy();
     edit_manifest(dir.path(), |v| v["context"]["heads"] = 3.into());
-    assert!(load_error(dir.path()).contains("context.heads 3 * context.head_dim 16 must equal context.width 32"));
+    assert!(load_error(dir.path())
+        .contains("context.heads 3 * context.head_dim 16 must equal context.width 32"));
 }
 
 #[test]
 fn manifest_inconsistent_with_the_runtime_contract_names_tensor_and_shape() {
     let dir = bundle_copy();
-    edit_manifest(dir.path(), |v| v["graphs"]["context_step"]["inputs"][3]["shape"][1] = 4.into());
+    edit_manifest(dir.path(), |v| {
+        v["graphs"]["context_step"]["inputs"][3]["shape"][1] = 4.into()
+    });
     let text = load_error(dir.path());
     assert!(
-        text.contains("graphs.context_step.inputs") && text.contains("`past_key_0` float32 [1, 4, P, 16]"),
+        text.contains("graphs.context_step.inputs")
+            && text.contains("`past_key_0` float32 [1, 4, P, 16]"),
         "{text}"
     );
     let dir = bundle_copy();
-    edit_manifest(dir.path(), |v| v["graphs"]["velocity"]["outputs"][0]["name"] = "u".into());
+    edit_manifest(dir.path(), |v| {
+        v["graphs"]["velocity"]["outputs"][0]["name"] = "u".into()
+    });
     assert!(load_error(dir.path()).contains("missing tensor `velocity`"));
 }
 
@@ -189,16 +239,26 @@ fn corrupt_graph_is_rejected() {
     let e = Model::load(dir.path()).unwrap_err();
     assert!(matches!(e, Error::Graph { .. }));
     let text = message(e);
-    assert!(text.contains("vae_decoder.onnx") && text.contains("not a loadable ONNX model"), "{text}");
+    assert!(
+        text.contains("vae_decoder.onnx") && text.contains("not a loadable ONNX model"),
+        "{text}"
+    );
 }
 
 #[test]
 fn mismatched_graph_names_file_tensor_and_shape() {
     // A graph of another role in the velocity slot: its tensors are not the velocity's.
     let dir = bundle_copy();
-    std::fs::copy(bundle_dir().join("conditioning.onnx"), dir.path().join("velocity.onnx")).unwrap();
+    std::fs::copy(
+        bundle_dir().join("conditioning.onnx"),
+        dir.path().join("velocity.onnx"),
+    )
+    .unwrap();
     let text = load_error(dir.path());
-    assert!(text.contains("velocity.onnx") && text.contains("graph input `condition` is not declared"), "{text}");
+    assert!(
+        text.contains("velocity.onnx") && text.contains("graph input `condition` is not declared"),
+        "{text}"
+    );
 
     // A manifest that is consistent with itself but not with its graphs: condition dim 48
     // declared, 32 in the conditioning graph.
@@ -209,7 +269,8 @@ fn mismatched_graph_names_file_tensor_and_shape() {
     });
     let text = load_error(dir.path());
     assert!(
-        text.contains("conditioning.onnx") && text.contains("input `condition` is F32 [1, 32] in the graph")
+        text.contains("conditioning.onnx")
+            && text.contains("input `condition` is F32 [1, 32] in the graph")
             && text.contains("the manifest declares `condition` float32 [1, 48]"),
         "{text}"
     );

@@ -29,7 +29,13 @@ fn committed_tiny_bundle_is_reproducible_from_the_exporter() {
     }
     let out = Command::new(python())
         .current_dir(root)
-        .args(["onnx/export.py", "--preset", "tiny", "--check", "onnx/armflow-tiny"])
+        .args([
+            "onnx/export.py",
+            "--preset",
+            "tiny",
+            "--check",
+            "onnx/armflow-tiny",
+        ])
         .output()
         .expect("run the exporter");
     let text = format!(
@@ -37,6 +43,9 @@ fn committed_tiny_bundle_is_reproducible_from_the_exporter() {
         String::from_utf8_lossy(&out.stdout),
         String::from_utf8_lossy(&out.stderr)
     );
-    assert!(out.status.success(), "re-export differs from the committed bundle:\n{text}");
+    assert!(
+        out.status.success(),
+        "re-export differs from the committed bundle:\n{text}"
+    );
     assert!(text.contains("reproducible"), "{text}");
 }

@@ -14,7 +14,9 @@ fn session(options: SessionOptions) -> Session {
 /// The cached context of every token equals a from-scratch causal pass over its history.
 #[test]
 fn kv_cached_stream_equals_full_causal_recompute() {
-    let condition: Vec<f32> = (0..model().condition_dim()).map(|i| (i as f32 * 0.37).sin()).collect();
+    let condition: Vec<f32> = (0..model().condition_dim())
+        .map(|i| (i as f32 * 0.37).sin())
+        .collect();
     let mut s = session(SessionOptions {
         condition: Some(condition.clone()),
         ..default_options()
@@ -30,7 +32,10 @@ fn kv_cached_stream_equals_full_causal_recompute() {
         pairs.extend(&t.reactor_latent);
     }
     println!("cached vs recomputed context over 48 tokens: max-abs {worst:.2e}");
-    assert!(worst <= 1e-5, "cached context differs from recompute by {worst}");
+    assert!(
+        worst <= 1e-5,
+        "cached context differs from recompute by {worst}"
+    );
 }
 
 #[test]
@@ -40,7 +45,10 @@ fn chunk_sizes_give_identical_output() {
     assert_eq!(reference.0.len(), 48 * 4 * model().frame_dim());
     for chunk in [3, 4, 37, actor.nrows()] {
         let got = run_chunked(&mut session(default_options()), &actor, chunk);
-        assert!(got == reference, "chunks of {chunk} frames differ from frame-by-frame");
+        assert!(
+            got == reference,
+            "chunks of {chunk} frames differ from frame-by-frame"
+        );
     }
 }
 
@@ -55,8 +63,20 @@ fn frames_come_out_one_token_after_its_last_actor_frame() {
         let expect = if (i + 1) % 4 == 0 { 4 } else { 0 };
         assert_eq!(out.nrows(), expect, "after actor frame {i}");
     }
-    assert_eq!(s.step(Array2::zeros((0, m.frame_dim())).view()).unwrap().nrows(), 0);
-    assert_eq!((s.frames_received(), s.frames_emitted(), s.tokens_generated()), (20, 20, 5));
+    assert_eq!(
+        s.step(Array2::zeros((0, m.frame_dim())).view())
+            .unwrap()
+            .nrows(),
+        0
+    );
+    assert_eq!(
+        (
+            s.frames_received(),
+            s.frames_emitted(),
+            s.tokens_generated()
+        ),
+        (20, 20, 5)
+    );
 }
 
 #[test]
@@ -72,7 +92,10 @@ fn reset_equals_a_fresh_session() {
     run_chunked(&mut s, &actor.slice(s![..90, ..]).to_owned(), 5);
     s.queue_noise(s.seeded_noise(99)).unwrap(); // queued noise is dropped by reset too
     s.reset();
-    assert_eq!((s.frames_received(), s.tokens_generated(), s.context_len()), (0, 0, 0));
+    assert_eq!(
+        (s.frames_received(), s.tokens_generated(), s.context_len()),
+        (0, 0, 0)
+    );
     assert!(run_chunked(&mut s, &actor, 7) == fresh);
 
     // Settings changed before a reset persist, and the result equals a fresh session with them.
@@ -119,7 +142,10 @@ fn same_seed_is_bit_identical_across_runs_and_threads() {
         &actor,
         4,
     );
-    assert!(other.1 != reference.1, "a different seed must change the reactor");
+    assert!(
+        other.1 != reference.1,
+        "a different seed must change the reactor"
+    );
 }
 
 #[test]
@@ -185,7 +211,11 @@ fn long_stream_runs_in_bounded_context() {
             assert!(out.iter().all(|v| v.is_finite()));
             emitted += out.nrows();
         }
-        assert!(s.context_len() <= capacity, "lap {lap}: {} entries", s.context_len());
+        assert!(
+            s.context_len() <= capacity,
+            "lap {lap}: {} entries",
+            s.context_len()
+        );
     }
     assert_eq!(s.context_len(), capacity);
     assert_eq!(emitted as u64, s.frames_emitted());
