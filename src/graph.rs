@@ -54,6 +54,7 @@ impl Graph {
 
     /// Runs the graph on inputs given in manifest order; returns outputs in manifest order.
     pub(crate) fn run(&self, inputs: Vec<TValue>) -> Result<Vec<TValue>> {
+        debug_assert_eq!(inputs.len(), self.input_order.len(), "{}", self.role);
         let mut ordered: Vec<Option<TValue>> = vec![None; inputs.len()];
         for (value, &slot) in inputs.into_iter().zip(&self.input_order) {
             ordered[slot] = Some(value);

@@ -289,7 +289,10 @@ impl Manifest {
             "context.capacity_tokens must be at least 2 (<sos> and one token)".into()
         })?;
         check(
-            self.vae.encoder.context_frames.is_multiple_of(l.frames_per_token),
+            self.vae
+                .encoder
+                .context_frames
+                .is_multiple_of(l.frames_per_token),
             &|| {
                 format!(
                     "vae.encoder.context_frames {} must be a multiple of latent.frames_per_token {}",

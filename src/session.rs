@@ -135,11 +135,11 @@ impl Session {
             seed: options.seed,
             steps: options.steps.unwrap_or(m.sampler.steps),
             cfg_scale: options.cfg_scale.unwrap_or(m.sampler.cfg_scale),
-            condition: None,
             capacity: options
                 .context_capacity
                 .unwrap_or(m.context.capacity_tokens),
             actor_latent: options.actor_latent.unwrap_or(m.sampler.actor_latent),
+            condition: options.condition,
         };
         check_steps(settings.steps)?;
         check_cfg(settings.cfg_scale)?;
@@ -149,16 +149,11 @@ impl Session {
                 settings.capacity
             )));
         }
-        let conditioning = model.conditioning(options.condition.as_deref())?;
-        let state = StreamState::new(&model);
         Ok(Self {
+            conditioning: model.conditioning(settings.condition.as_deref())?,
             grid: meanflow_grid(settings.steps),
-            settings: Settings {
-                condition: options.condition,
-                ..settings
-            },
-            conditioning,
-            state,
+            state: StreamState::new(&model),
+            settings,
             model,
         })
     }
