@@ -2,11 +2,11 @@
 //! any number of sessions at the same time (a tract plan is `Send + Sync`; each call gets its own
 //! scratch state).
 
-use std::path::Path;
 use std::sync::Arc;
 
 use tract_onnx::prelude::*;
 
+use crate::bundle::BundleFiles;
 use crate::error::{Error, Result};
 use crate::manifest::{DType, Dim, GraphSpec, TensorSpec};
 
@@ -22,13 +22,10 @@ pub(crate) struct Graph {
 }
 
 impl Graph {
-    /// Loads `spec.file` from `dir`, checks it against `spec`, and optimises it.
-    pub(crate) fn load(role: &'static str, dir: &Path, spec: &GraphSpec) -> Result<Self> {
-        let file = dir.join(&spec.file);
-        let bytes = std::fs::read(&file).map_err(|source| Error::Io {
-            path: file.clone(),
-            source,
-        })?;
+    /// Loads `spec.file` from the bundle, checks it against `spec`, and optimises it.
+    pub(crate) fn load(role: &'static str, files: &BundleFiles, spec: &GraphSpec) -> Result<Self> {
+        let file = files.path_of(&spec.file);
+        let bytes = files.read(&spec.file)?;
         let bad = |message: String| Error::Graph {
             file: file.clone(),
             message,

@@ -23,9 +23,12 @@
 
 #![warn(missing_docs)]
 
+mod bundle;
 mod error;
+pub mod ffi;
 mod graph;
 mod kv_cache;
+mod logging;
 pub mod manifest;
 mod model;
 pub mod noise;

@@ -9,6 +9,7 @@ use std::path::Path;
 
 use serde::{Deserialize, Serialize};
 
+use crate::bundle::BundleFiles;
 use crate::error::{Error, Result};
 
 /// Value of the manifest's `format` field.
@@ -218,12 +219,13 @@ impl fmt::Display for TensorSpec {
 }
 
 impl Manifest {
-    /// Reads and validates `troupe.json` from a bundle directory.
-    pub fn load(dir: &Path) -> Result<Self> {
-        let path = dir.join("troupe.json");
-        let text = std::fs::read_to_string(&path).map_err(|source| Error::Io {
+    /// Reads and validates `troupe.json` from a bundle.
+    pub(crate) fn load(files: &BundleFiles) -> Result<Self> {
+        let path = files.path_of("troupe.json");
+        let bytes = files.read("troupe.json")?;
+        let text = String::from_utf8(bytes).map_err(|_| Error::Manifest {
             path: path.clone(),
-            source,
+            message: "not UTF-8 text".into(),
         })?;
         Self::parse(&text, &path)
     }

@@ -6,6 +6,7 @@ use std::sync::Arc;
 
 use tract_onnx::prelude::{TValue, Tensor};
 
+use crate::bundle::BundleFiles;
 use crate::error::{Error, Result};
 use crate::graph::{f32_tensor, read_f32, Graph};
 use crate::kv_cache::KvCache;
@@ -22,7 +23,7 @@ pub struct Model {
 
 #[derive(Debug)]
 struct Inner {
-    dir: PathBuf,
+    source: PathBuf,
     manifest: Manifest,
     conditioning: Graph,
     context_step: Graph,
@@ -41,20 +42,32 @@ pub(crate) struct Conditioning {
 }
 
 impl Model {
-    /// Loads the bundle in directory `dir`: reads and validates `troupe.json`, then loads, checks
-    /// and optimises every graph it names. Errors name the file, tensor and shape at fault.
-    pub fn load(dir: impl AsRef<Path>) -> Result<Self> {
-        let dir = dir.as_ref().to_path_buf();
-        let manifest = Manifest::load(&dir)?;
+    /// Loads the bundle at `path`: a directory, or an uncompressed tar archive of one. Reads and
+    /// validates `troupe.json`, then loads, checks and optimises every graph it names. Errors
+    /// name the file, tensor and shape at fault.
+    pub fn load(path: impl AsRef<Path>) -> Result<Self> {
+        let path = path.as_ref();
+        Self::from_files(BundleFiles::open(path)?, path)
+    }
+
+    /// Loads a bundle from an uncompressed tar archive held in memory (the bytes are copied, not
+    /// kept). `label` names the archive in error messages.
+    pub fn from_archive_bytes(bytes: &[u8], label: &str) -> Result<Self> {
+        let label = Path::new(label);
+        Self::from_files(BundleFiles::from_archive(bytes, label)?, label)
+    }
+
+    fn from_files(files: BundleFiles, source: &Path) -> Result<Self> {
+        let manifest = Manifest::load(&files)?;
         let g = &manifest.graphs;
         let inner = Inner {
-            conditioning: Graph::load("conditioning", &dir, &g.conditioning)?,
-            context_step: Graph::load("context_step", &dir, &g.context_step)?,
-            velocity: Graph::load("velocity", &dir, &g.velocity)?,
-            vae_encoder: Graph::load("vae_encoder", &dir, &g.vae_encoder)?,
-            vae_decoder: Graph::load("vae_decoder", &dir, &g.vae_decoder)?,
+            conditioning: Graph::load("conditioning", &files, &g.conditioning)?,
+            context_step: Graph::load("context_step", &files, &g.context_step)?,
+            velocity: Graph::load("velocity", &files, &g.velocity)?,
+            vae_encoder: Graph::load("vae_encoder", &files, &g.vae_encoder)?,
+            vae_decoder: Graph::load("vae_decoder", &files, &g.vae_decoder)?,
             manifest,
-            dir,
+            source: source.to_path_buf(),
         };
         Ok(Self {
             inner: Arc::new(inner),
@@ -71,9 +84,9 @@ impl Model {
         &self.inner.manifest
     }
 
-    /// The directory the bundle was loaded from.
-    pub fn dir(&self) -> &Path {
-        &self.inner.dir
+    /// The path (or archive label) the bundle was loaded from.
+    pub fn source(&self) -> &Path {
+        &self.inner.source
     }
 
     /// Floats per motion frame (262 for `interhuman262`).
@@ -108,6 +121,13 @@ impl Model {
         let m = &self.inner.manifest;
         let fpt = m.latent.frames_per_token;
         fpt - 1 + m.vae.encoder.lookahead_frames + fpt * m.vae.decoder.lookahead_tokens
+    }
+
+    /// The most reactor frames one `step` with `n_actor_frames` new frames can return, whatever
+    /// the session's state: `ceil(n / frames_per_token) * frames_per_token`.
+    pub fn max_output_frames(&self, n_actor_frames: usize) -> usize {
+        let fpt = self.frames_per_token();
+        n_actor_frames.div_ceil(fpt).saturating_mul(fpt)
     }
 
     /// The context `c` the encoder gives after `[<sos>, pairs...]`, computed from scratch in one

@@ -274,6 +274,19 @@ impl Session {
         noise
     }
 
+    /// Exactly how many reactor frames a `step` with `n_actor_frames` new frames will return.
+    pub fn frames_ready_after(&self, n_actor_frames: usize) -> usize {
+        let m = self.model.manifest();
+        let fpt = m.latent.frames_per_token as u64;
+        let received = self
+            .state
+            .frames_received
+            .saturating_add(n_actor_frames as u64);
+        let tokens = received.saturating_sub(m.vae.encoder.lookahead_frames as u64) / fpt;
+        let decodable = tokens.saturating_sub(m.vae.decoder.lookahead_tokens as u64);
+        (decodable * fpt - self.state.frames_emitted) as usize
+    }
+
     /// Actor frames received since the start (or the last reset).
     pub fn frames_received(&self) -> u64 {
         self.state.frames_received

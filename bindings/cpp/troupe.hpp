@@ -1,0 +1,195 @@
+// troupe.hpp: header-only C++17 RAII wrapper over the troupe C ABI (include/troupe.h).
+//
+// Move-only troupe::Model and troupe::Session own their handles. Every fallible method returns
+// a troupe::Status (works with -fno-exceptions); define TROUPE_CPP_EXCEPTIONS before including
+// to also get the throwing helpers troupe::check() and the *_or_throw factories.
+//
+// Threading follows the C API: a Model may be shared by any number of threads; a Session is
+// used by one thread at a time.
+#ifndef TROUPE_HPP
+#define TROUPE_HPP
+
+#include <cstddef>
+#include <cstdint>
+#include <string>
+#include <utility>
+
+#include "troupe.h"
+
+#ifdef TROUPE_CPP_EXCEPTIONS
+#include <stdexcept>
+#endif
+
+namespace troupe {
+
+/// A status code plus the library's message for it (empty on success).
+class Status {
+  public:
+    Status() = default;
+    /// Captures `code` and, on failure, this thread's last error message.
+    static Status from(troupe_status code) {
+        Status s;
+        s.code_ = code;
+        if (code != TROUPE_OK) {
+            const char *m = troupe_last_error_message();
+            s.message_ = m ? m : troupe_status_name(code);
+        }
+        return s;
+    }
+    bool ok() const { return code_ == TROUPE_OK; }
+    explicit operator bool() const { return ok(); }
+    troupe_status code() const { return code_; }
+    const std::string &message() const { return message_; }
+
+  private:
+    troupe_status code_ = TROUPE_OK;
+    std::string message_;
+};
+
+#ifdef TROUPE_CPP_EXCEPTIONS
+/// Thrown by check(): carries the status code and message.
+class Error : public std::runtime_error {
+  public:
+    explicit Error(const Status &s) : std::runtime_error(s.message()), code_(s.code()) {}
+    troupe_status code() const { return code_; }
+
+  private:
+    troupe_status code_;
+};
+
+/// Throws troupe::Error unless `s` is ok.
+inline void check(const Status &s) {
+    if (!s.ok()) throw Error(s);
+}
+#endif
+
+/// True when the loaded library speaks the ABI this header was written for.
+inline bool abi_compatible() { return troupe_abi_version() == TROUPE_ABI_VERSION; }
+
+class Session;
+
+/// A loaded bundle. Move-only; freeing it while sessions exist is safe.
+class Model {
+  public:
+    Model() = default;
+    Model(Model &&other) noexcept : handle_(std::exchange(other.handle_, nullptr)) {}
+    Model &operator=(Model &&other) noexcept {
+        if (this != &other) {
+            troupe_model_free(handle_);
+            handle_ = std::exchange(other.handle_, nullptr);
+        }
+        return *this;
+    }
+    Model(const Model &) = delete;
+    Model &operator=(const Model &) = delete;
+    ~Model() { troupe_model_free(handle_); }
+
+    /// Loads a bundle directory or archive file.
+    static Status load(const std::string &path, Model &out) {
+        troupe_model *h = nullptr;
+        Status s = Status::from(troupe_model_load_file(path.c_str(), &h));
+        if (s) out = Model(h);
+        return s;
+    }
+    /// Loads a bundle archive from memory (the bytes are copied).
+    static Status load_memory(const void *data, std::size_t len, Model &out) {
+        troupe_model *h = nullptr;
+        Status s = Status::from(troupe_model_load_memory(static_cast<const std::uint8_t *>(data), len, &h));
+        if (s) out = Model(h);
+        return s;
+    }
+#ifdef TROUPE_CPP_EXCEPTIONS
+    static Model load_or_throw(const std::string &path) {
+        Model m;
+        check(load(path, m));
+        return m;
+    }
+#endif
+
+    bool valid() const { return handle_ != nullptr; }
+    std::size_t frame_dim() const { return troupe_model_frame_dim(handle_); }
+    std::size_t fps() const { return troupe_model_fps(handle_); }
+    std::size_t frames_per_token() const { return troupe_model_frames_per_token(handle_); }
+    std::size_t latency_frames() const { return troupe_model_latency_frames(handle_); }
+    std::size_t condition_dim() const { return troupe_model_condition_dim(handle_); }
+    std::size_t latent_dim() const { return troupe_model_latent_dim(handle_); }
+    std::size_t max_output_frames(std::size_t n_actor_frames) const {
+        return troupe_model_max_output_frames(handle_, n_actor_frames);
+    }
+    /// The bundle's default session options.
+    Status default_options(troupe_session_options &out) const {
+        return Status::from(troupe_session_options_init(handle_, &out));
+    }
+    const troupe_model *get() const { return handle_; }
+
+  private:
+    explicit Model(troupe_model *h) : handle_(h) {}
+    troupe_model *handle_ = nullptr;
+};
+
+/// One actor/reactor stream. Move-only; use from one thread at a time.
+class Session {
+  public:
+    Session() = default;
+    Session(Session &&other) noexcept : handle_(std::exchange(other.handle_, nullptr)), dim_(other.dim_) {}
+    Session &operator=(Session &&other) noexcept {
+        if (this != &other) {
+            troupe_session_free(handle_);
+            handle_ = std::exchange(other.handle_, nullptr);
+            dim_ = other.dim_;
+        }
+        return *this;
+    }
+    Session(const Session &) = delete;
+    Session &operator=(const Session &) = delete;
+    ~Session() { troupe_session_free(handle_); }
+
+    /// Starts a stream; `options` may be null for the bundle's defaults.
+    static Status create(const Model &model, const troupe_session_options *options, Session &out) {
+        troupe_session *h = nullptr;
+        Status s = Status::from(troupe_session_new(model.get(), options, &h));
+        if (s) out = Session(h, model.frame_dim());
+        return s;
+    }
+#ifdef TROUPE_CPP_EXCEPTIONS
+    static Session create_or_throw(const Model &model, const troupe_session_options *options = nullptr) {
+        Session s;
+        check(create(model, options, s));
+        return s;
+    }
+#endif
+
+    /// Feeds `n_actor_frames` frames; writes ready reactor frames to `out` (capacity in frames).
+    Status step(const float *actor, std::size_t n_actor_frames, float *out, std::size_t out_capacity_frames,
+                std::size_t &n_written) {
+        return Status::from(
+            troupe_session_step(handle_, actor, n_actor_frames, out, out_capacity_frames, &n_written));
+    }
+    Status reset() { return Status::from(troupe_session_reset(handle_)); }
+    Status set_seed(std::uint64_t seed) { return Status::from(troupe_session_set_seed(handle_, seed)); }
+    Status set_steps(std::uint32_t steps) { return Status::from(troupe_session_set_steps(handle_, steps)); }
+    Status set_cfg_scale(float scale) { return Status::from(troupe_session_set_cfg_scale(handle_, scale)); }
+    /// `condition == nullptr && len == 0` selects the null condition.
+    Status set_condition(const float *condition, std::size_t len) {
+        return Status::from(troupe_session_set_condition(handle_, condition, len));
+    }
+    Status queue_noise(const float *actor_noise, const float *reactor_noise, std::size_t len) {
+        return Status::from(troupe_session_queue_noise(handle_, actor_noise, reactor_noise, len));
+    }
+    /// Exactly how many frames a step with `n_actor_frames` frames would return now.
+    Status output_frames(std::size_t n_actor_frames, std::size_t &n_frames) {
+        return Status::from(troupe_session_output_frames(handle_, n_actor_frames, &n_frames));
+    }
+    bool valid() const { return handle_ != nullptr; }
+    std::size_t frame_dim() const { return dim_; }
+    troupe_session *get() { return handle_; }
+
+  private:
+    Session(troupe_session *h, std::size_t dim) : handle_(h), dim_(dim) {}
+    troupe_session *handle_ = nullptr;
+    std::size_t dim_ = 0;
+};
+
+}  // namespace troupe
+
+#endif  // TROUPE_HPP

@@ -1,0 +1,25 @@
+//! The C ABI of troupe. Everything `extern "C"` lives here; `include/troupe.h` is generated from
+//! these modules by cbindgen (`tests/c_header.rs` checks it is up to date).
+//!
+//! Conventions (repeated at the top of the header):
+//! - Handles: `troupe_model` is immutable and thread-safe; `troupe_session` is one stream, used by
+//!   one thread at a time. A session keeps its model alive, so handles may be freed in any order.
+//!   `_free(NULL)` is a no-op.
+//! - Every fallible function returns a `troupe_status`; out-parameters are written only on
+//!   success; `troupe_last_error_message()` then says what failed (per thread, cleared by a
+//!   success). A failed call leaves the session as it was.
+//! - Memory: inputs are borrowed for the duration of the call only; outputs go into caller
+//!   buffers; nothing returned needs freeing except handles. Frames are contiguous row-major
+//!   float32 `[frames][frame_dim]`. Input and output buffers must not overlap.
+//! - No panic crosses the boundary: a panic returns `TROUPE_ERR_PANIC` and poisons the session
+//!   involved until `troupe_session_reset`.
+//!
+//! Deviation from `shared/spec/c-api.md`: `troupe_session_options_init` takes the model, so the
+//! defaults it writes are the bundle's own (sampler steps, CFG, capacity) rather than sentinels.
+#![allow(non_camel_case_types)]
+
+pub mod boundary;
+pub mod log;
+pub mod model;
+pub mod session;
+pub mod version;

@@ -1,0 +1,186 @@
+//! `troupe_model`: loading bundles and querying them.
+
+use std::ffi::{c_char, CStr};
+
+use super::boundary::{self, non_null, troupe_status, FfiError, TROUPE_ERR_INVALID_ARG};
+use crate::logging::{log, Level};
+use crate::Model;
+
+/// A loaded bundle. Immutable and thread-safe: every function taking a `const troupe_model*`
+/// may be called from any number of threads at once. Free it with `troupe_model_free`; sessions
+/// created from it keep it alive, so it may be freed before them.
+pub struct troupe_model {
+    pub(crate) model: Model,
+}
+
+fn publish(model: Model, out: *mut *mut troupe_model) {
+    log(Level::Info, "troupe::model", || {
+        format!(
+            "loaded bundle `{}` from {}",
+            model.manifest().name,
+            model.source().display()
+        )
+    });
+    // SAFETY: `out` was checked non-NULL by the caller of `publish`.
+    unsafe { *out = Box::into_raw(Box::new(troupe_model { model })) };
+}
+
+/// Loads a bundle from `path` (UTF-8): a bundle directory, or an uncompressed tar archive of
+/// one. Loading parses, validates and optimises every graph; it takes a fraction of a second.
+///
+/// On success `*out` receives a new handle owned by the caller (free with `troupe_model_free`);
+/// on failure `*out` is set to NULL. `path` is borrowed for the call only.
+///
+/// Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG` (path or out NULL), `TROUPE_ERR_INVALID_ARG`
+/// (path not UTF-8), `TROUPE_ERR_IO` (missing file), `TROUPE_ERR_MODEL` (corrupt or mismatched
+/// bundle; the message names file, tensor and shape), `TROUPE_ERR_PANIC`. Thread-safe.
+///
+/// ```c
+/// troupe_model *model = NULL;
+/// if (troupe_model_load_file("onnx/armflow-tiny", &model) != TROUPE_OK)
+///     fprintf(stderr, "%s\n", troupe_last_error_message());
+/// ```
+///
+/// # Safety
+/// `path` must be NUL-terminated; `out` must be writable.
+#[no_mangle]
+pub unsafe extern "C" fn troupe_model_load_file(
+    path: *const c_char,
+    out: *mut *mut troupe_model,
+) -> troupe_status {
+    boundary::call(
+        "troupe_model_load_file",
+        || {},
+        || {
+            non_null(out, "out")?;
+            // SAFETY: checked non-NULL; writable per the contract.
+            unsafe { *out = std::ptr::null_mut() };
+            non_null(path, "path")?;
+            // SAFETY: non-NULL and NUL-terminated per the contract.
+            let path = unsafe { CStr::from_ptr(path) }
+                .to_str()
+                .map_err(|_| FfiError::new(TROUPE_ERR_INVALID_ARG, "`path` is not UTF-8"))?;
+            publish(Model::load(path)?, out);
+            Ok(())
+        },
+    )
+}
+
+/// Loads a bundle from memory: `data` holds `len` bytes of an uncompressed tar archive of a
+/// bundle directory. The bytes are copied; `data` is borrowed for the call only.
+///
+/// Ownership of `*out`, statuses and threading as `troupe_model_load_file`.
+///
+/// # Safety
+/// `data` must be readable for `len` bytes; `out` must be writable.
+#[no_mangle]
+pub unsafe extern "C" fn troupe_model_load_memory(
+    data: *const u8,
+    len: usize,
+    out: *mut *mut troupe_model,
+) -> troupe_status {
+    boundary::call(
+        "troupe_model_load_memory",
+        || {},
+        || {
+            non_null(out, "out")?;
+            // SAFETY: checked non-NULL; writable per the contract.
+            unsafe { *out = std::ptr::null_mut() };
+            // SAFETY: readable for `len` bytes per the contract.
+            let bytes = unsafe { boundary::slice(data, len, "data") }?;
+            publish(Model::from_archive_bytes(bytes, "<memory>")?, out);
+            Ok(())
+        },
+    )
+}
+
+/// Releases the caller's reference to a model; the model itself lives on while sessions made
+/// from it exist. NULL is a no-op. The handle must not be used afterwards.
+///
+/// # Safety
+/// `model` must be NULL or a handle from `troupe_model_load_*` not freed before.
+#[no_mangle]
+pub unsafe extern "C" fn troupe_model_free(model: *mut troupe_model) {
+    if !model.is_null() {
+        // SAFETY: a live handle created by Box::into_raw, freed once per the contract.
+        boundary::get((), || drop(unsafe { Box::from_raw(model) }));
+    }
+}
+
+/// Reads a property of a model; 0 for NULL.
+fn property(model: *const troupe_model, f: impl FnOnce(&Model) -> usize) -> usize {
+    if model.is_null() {
+        return 0;
+    }
+    // SAFETY: a live handle per the getters' contract; models are immutable.
+    boundary::get(0, || f(unsafe { &(*model).model }))
+}
+
+/// Floats per motion frame (262 for the `interhuman262` layout); 0 for NULL. Thread-safe.
+///
+/// # Safety
+/// `model` must be NULL or a live handle.
+#[no_mangle]
+pub unsafe extern "C" fn troupe_model_frame_dim(model: *const troupe_model) -> usize {
+    property(model, Model::frame_dim)
+}
+
+/// Frames per second of the motion; 0 for NULL. Thread-safe.
+///
+/// # Safety
+/// `model` must be NULL or a live handle.
+#[no_mangle]
+pub unsafe extern "C" fn troupe_model_fps(model: *const troupe_model) -> usize {
+    property(model, |m| m.fps() as usize)
+}
+
+/// Motion frames per generated token (reactor frames come out in multiples of it); 0 for NULL.
+/// Thread-safe.
+///
+/// # Safety
+/// `model` must be NULL or a live handle.
+#[no_mangle]
+pub unsafe extern "C" fn troupe_model_frames_per_token(model: *const troupe_model) -> usize {
+    property(model, Model::frames_per_token)
+}
+
+/// Algorithmic latency in frames: at worst, how many actor frames after frame t arrive before
+/// reactor frame t is returned; 0 for NULL. Thread-safe.
+///
+/// # Safety
+/// `model` must be NULL or a live handle.
+#[no_mangle]
+pub unsafe extern "C" fn troupe_model_latency_frames(model: *const troupe_model) -> usize {
+    property(model, Model::latency_frames)
+}
+
+/// Floats in the conditioning vector (`troupe_session_set_condition`); 0 for NULL. Thread-safe.
+///
+/// # Safety
+/// `model` must be NULL or a live handle.
+#[no_mangle]
+pub unsafe extern "C" fn troupe_model_condition_dim(model: *const troupe_model) -> usize {
+    property(model, Model::condition_dim)
+}
+
+/// Floats per latent token (the length of injected noise vectors); 0 for NULL. Thread-safe.
+///
+/// # Safety
+/// `model` must be NULL or a live handle.
+#[no_mangle]
+pub unsafe extern "C" fn troupe_model_latent_dim(model: *const troupe_model) -> usize {
+    property(model, Model::latent_dim)
+}
+
+/// The most reactor frames one `troupe_session_step` call with `n_actor_frames` input frames can
+/// return, whatever the session's state: size output buffers with it. 0 for NULL. Thread-safe.
+///
+/// # Safety
+/// `model` must be NULL or a live handle.
+#[no_mangle]
+pub unsafe extern "C" fn troupe_model_max_output_frames(
+    model: *const troupe_model,
+    n_actor_frames: usize,
+) -> usize {
+    property(model, |m| m.max_output_frames(n_actor_frames))
+}

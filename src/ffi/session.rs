@@ -1,0 +1,496 @@
+//! `troupe_session`: one actor/reactor stream.
+
+use std::cell::Cell;
+
+use super::boundary::{
+    self, checked_mul, non_null, troupe_status, FfiError, FfiResult, TROUPE_ERR_BUFFER_TOO_SMALL,
+    TROUPE_ERR_INVALID_ARG, TROUPE_ERR_POISONED, TROUPE_ERR_SHAPE,
+};
+use super::model::troupe_model;
+use crate::{ActorLatent, Session, SessionOptions, TokenNoise};
+
+/// Actor tokens are the VAE posterior sample `(mean + std * noise) * scale` (the official choice).
+pub const TROUPE_ACTOR_LATENT_SAMPLE: i32 = 0;
+/// Actor tokens are the posterior mean: no actor noise is drawn.
+pub const TROUPE_ACTOR_LATENT_MEAN: i32 = 1;
+
+/// Options of a new session. Fill with `troupe_session_options_init`, then change fields.
+/// Fields are only ever appended; `struct_size` tells the library which version the caller has.
+#[repr(C)]
+#[derive(Debug, Clone, Copy)]
+pub struct troupe_session_options {
+    /// `sizeof(troupe_session_options)` as the caller compiled it (set by `_init`).
+    pub struct_size: u32,
+    /// MeanFlow steps per token, >= 1.
+    pub steps: u32,
+    /// Seed of the portable noise generator: equal seeds give bit-identical motion everywhere.
+    pub seed: u64,
+    /// Classifier-free guidance scale, finite; 1 disables guidance.
+    pub cfg_scale: f32,
+    /// Tokens kept in the context cache, `<sos>` included, >= 2; older ones slide out.
+    pub context_capacity: u32,
+    /// `TROUPE_ACTOR_LATENT_SAMPLE` or `TROUPE_ACTOR_LATENT_MEAN`.
+    pub actor_latent: i32,
+    /// Must be 0.
+    pub reserved: u32,
+}
+
+/// One stream. Not internally synchronised: use a session from one thread at a time (it may
+/// move between threads). Distinct sessions run fully in parallel.
+pub struct troupe_session {
+    session: Session,
+    poisoned: Cell<bool>,
+}
+
+/// `sizeof(troupe_session_options)` in this library, for bindings to check their mirror.
+#[no_mangle]
+pub extern "C" fn troupe_session_options_size() -> usize {
+    std::mem::size_of::<troupe_session_options>()
+}
+
+/// Fills `options` with the defaults of `model`'s bundle (sampler steps, CFG scale, context
+/// capacity, actor latent) and seed 0, and sets `struct_size`.
+///
+/// Returns `TROUPE_OK` or `TROUPE_ERR_NULL_ARG`. Thread-safe.
+///
+/// # Safety
+/// `model` must be a live handle; `options` must be writable.
+#[no_mangle]
+pub unsafe extern "C" fn troupe_session_options_init(
+    model: *const troupe_model,
+    options: *mut troupe_session_options,
+) -> troupe_status {
+    boundary::call(
+        "troupe_session_options_init",
+        || {},
+        || {
+            non_null(model, "model")?;
+            non_null(options, "options")?;
+            // SAFETY: non-NULL live handle per the contract.
+            let m = unsafe { &(*model).model }.manifest();
+            let defaults = troupe_session_options {
+                struct_size: troupe_session_options_size() as u32,
+                steps: m.sampler.steps,
+                seed: 0,
+                cfg_scale: m.sampler.cfg_scale,
+                context_capacity: m.context.capacity_tokens.min(u32::MAX as usize) as u32,
+                actor_latent: match m.sampler.actor_latent {
+                    ActorLatent::Sample => TROUPE_ACTOR_LATENT_SAMPLE,
+                    ActorLatent::Mean => TROUPE_ACTOR_LATENT_MEAN,
+                },
+                reserved: 0,
+            };
+            // SAFETY: non-NULL and writable per the contract.
+            unsafe { options.write(defaults) };
+            Ok(())
+        },
+    )
+}
+
+/// Reads the caller's options, tolerating a newer caller whose extra fields are all zero.
+///
+/// # Safety
+/// `options` must be readable for `struct_size` bytes.
+unsafe fn read_options(options: *const troupe_session_options) -> FfiResult<SessionOptions> {
+    let ours = std::mem::size_of::<troupe_session_options>();
+    // SAFETY: the first field is readable in any version of the struct.
+    let size = unsafe { std::ptr::addr_of!((*options).struct_size).read_unaligned() } as usize;
+    if size < ours {
+        return Err(FfiError::new(
+            TROUPE_ERR_INVALID_ARG,
+            format!("options.struct_size is {size}, this library needs at least {ours}; call troupe_session_options_init"),
+        ));
+    }
+    // SAFETY: the caller's struct holds `size` readable bytes.
+    let tail = unsafe { std::slice::from_raw_parts(options.cast::<u8>().add(ours), size - ours) };
+    if tail.iter().any(|&b| b != 0) {
+        return Err(FfiError::new(
+            TROUPE_ERR_INVALID_ARG,
+            "options carry fields this library does not know (non-zero bytes past its struct)",
+        ));
+    }
+    // SAFETY: at least `ours` readable bytes.
+    let o = unsafe { options.read_unaligned() };
+    let actor_latent =
+        match o.actor_latent {
+            TROUPE_ACTOR_LATENT_SAMPLE => ActorLatent::Sample,
+            TROUPE_ACTOR_LATENT_MEAN => ActorLatent::Mean,
+            other => return Err(FfiError::new(
+                TROUPE_ERR_INVALID_ARG,
+                format!(
+                    "options.actor_latent {other} is neither TROUPE_ACTOR_LATENT_SAMPLE nor _MEAN"
+                ),
+            )),
+        };
+    if o.reserved != 0 {
+        return Err(FfiError::new(
+            TROUPE_ERR_INVALID_ARG,
+            "options.reserved must be 0",
+        ));
+    }
+    Ok(SessionOptions {
+        seed: o.seed,
+        steps: Some(o.steps),
+        cfg_scale: Some(o.cfg_scale),
+        condition: None,
+        context_capacity: Some(o.context_capacity as usize),
+        actor_latent: Some(actor_latent),
+    })
+}
+
+/// Starts a stream on `model` with `options` (NULL: the bundle's defaults). The session starts
+/// with the null condition; set one with `troupe_session_set_condition`.
+///
+/// On success `*out` receives a new handle owned by the caller (free with
+/// `troupe_session_free`); it keeps `model` alive. On failure `*out` is set to NULL.
+///
+/// Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (bad option values or
+/// `struct_size`), `TROUPE_ERR_INFERENCE`, `TROUPE_ERR_PANIC`. Thread-safe with respect to
+/// `model`: sessions may be created from many threads at once.
+///
+/// ```c
+/// troupe_session_options opt;
+/// troupe_session_options_init(model, &opt);
+/// opt.seed = 42;
+/// troupe_session *session = NULL;
+/// troupe_status st = troupe_session_new(model, &opt, &session);
+/// ```
+///
+/// # Safety
+/// `model` must be a live handle; `options` NULL or readable for its `struct_size`; `out`
+/// writable.
+#[no_mangle]
+pub unsafe extern "C" fn troupe_session_new(
+    model: *const troupe_model,
+    options: *const troupe_session_options,
+    out: *mut *mut troupe_session,
+) -> troupe_status {
+    boundary::call(
+        "troupe_session_new",
+        || {},
+        || {
+            non_null(out, "out")?;
+            // SAFETY: checked non-NULL; writable per the contract.
+            unsafe { *out = std::ptr::null_mut() };
+            non_null(model, "model")?;
+            let options = if options.is_null() {
+                SessionOptions::default()
+            } else {
+                // SAFETY: readable per the contract.
+                unsafe { read_options(options) }?
+            };
+            // SAFETY: non-NULL live handle per the contract.
+            let session = unsafe { &(*model).model }.session(options)?;
+            let handle = troupe_session {
+                session,
+                poisoned: Cell::new(false),
+            };
+            // SAFETY: checked non-NULL above.
+            unsafe { *out = Box::into_raw(Box::new(handle)) };
+            Ok(())
+        },
+    )
+}
+
+/// Frees a session. NULL is a no-op. The handle must not be used afterwards.
+///
+/// # Safety
+/// `session` must be NULL or a handle from `troupe_session_new` not freed before, and not in
+/// use by another thread.
+#[no_mangle]
+pub unsafe extern "C" fn troupe_session_free(session: *mut troupe_session) {
+    if !session.is_null() {
+        // SAFETY: a live handle created by Box::into_raw, freed once per the contract.
+        boundary::get((), || drop(unsafe { Box::from_raw(session) }));
+    }
+}
+
+/// Runs `body` on a live session: NULL and poison checks, panic capture (which poisons).
+///
+/// # Safety
+/// `session` must be NULL or a live handle used by no other thread.
+unsafe fn with_session(
+    session: *mut troupe_session,
+    name: &'static str,
+    body: impl FnOnce(&mut Session) -> FfiResult,
+) -> troupe_status {
+    if session.is_null() {
+        return boundary::call(name, || {}, || non_null(session, "session"));
+    }
+    // SAFETY: a live handle, exclusively ours for the call, per the contract.
+    let troupe_session { session, poisoned } = unsafe { &mut *session };
+    boundary::call(
+        name,
+        || poisoned.set(true),
+        || {
+            if poisoned.get() {
+                return Err(FfiError::new(
+                    TROUPE_ERR_POISONED,
+                    "the session panicked earlier; call troupe_session_reset",
+                ));
+            }
+            body(session)
+        },
+    )
+}
+
+/// Feeds `n_actor_frames` actor frames (`actor`: row-major float32
+/// `[n_actor_frames][frame_dim]`, borrowed for the call; may be NULL when `n_actor_frames` is 0)
+/// and writes the reactor frames that became ready into `out` (capacity `out_capacity_frames`
+/// frames of `frame_dim` floats), their count into `*n_written`. Any number of frames may be
+/// fed per call; reactor frames come in multiples of `troupe_model_frames_per_token`.
+/// `troupe_model_max_output_frames(model, n)` frames always suffice, and
+/// `troupe_session_output_frames` gives the exact count. No allocation is handed to the caller.
+///
+/// On any error nothing is written and the session is exactly as before the call, except after
+/// `TROUPE_ERR_PANIC`, which poisons it.
+///
+/// Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (a NaN or infinite
+/// value; the message gives its index), `TROUPE_ERR_BUFFER_TOO_SMALL` (the message says how many
+/// frames are needed), `TROUPE_ERR_INFERENCE`, `TROUPE_ERR_POISONED`, `TROUPE_ERR_PANIC`. One
+/// thread at a time per session.
+///
+/// ```c
+/// float reactor[4 * 262];
+/// size_t n = 0;
+/// troupe_status st = troupe_session_step(session, frame, 1, reactor, 4, &n);
+/// ```
+///
+/// # Safety
+/// `session` must be a live handle; `actor` readable for `n_actor_frames * frame_dim` floats;
+/// `out` writable for `out_capacity_frames * frame_dim` floats and not overlapping `actor`;
+/// `n_written` writable.
+#[no_mangle]
+pub unsafe extern "C" fn troupe_session_step(
+    session: *mut troupe_session,
+    actor: *const f32,
+    n_actor_frames: usize,
+    out: *mut f32,
+    out_capacity_frames: usize,
+    n_written: *mut usize,
+) -> troupe_status {
+    // SAFETY: forwarded contract.
+    unsafe {
+        with_session(session, "troupe_session_step", |s| {
+            non_null(n_written, "n_written")?;
+            let dim = s.model().frame_dim();
+            let n_in = checked_mul(n_actor_frames, dim, "n_actor_frames * frame_dim")?;
+            let actor = boundary::slice(actor, n_in, "actor")?;
+            let ready = s.frames_ready_after(n_actor_frames);
+            if ready > out_capacity_frames {
+                return Err(FfiError::new(
+                    TROUPE_ERR_BUFFER_TOO_SMALL,
+                    format!("this call returns {ready} frames, the output buffer holds {out_capacity_frames}"),
+                ));
+            }
+            if ready > 0 {
+                non_null(out, "out")?;
+            }
+            let output = s.step_flat(actor)?;
+            let frames = output.frames.as_slice().expect("standard layout");
+            debug_assert_eq!(frames.len(), ready * dim);
+            std::ptr::copy_nonoverlapping(frames.as_ptr(), out, frames.len());
+            *n_written = frames.len() / dim;
+            Ok(())
+        })
+    }
+}
+
+/// Writes to `*n_frames` exactly how many reactor frames a `troupe_session_step` with
+/// `n_actor_frames` frames would return now.
+///
+/// Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_POISONED`, `TROUPE_ERR_PANIC`. One
+/// thread at a time per session.
+///
+/// # Safety
+/// `session` must be a live handle; `n_frames` writable.
+#[no_mangle]
+pub unsafe extern "C" fn troupe_session_output_frames(
+    session: *mut troupe_session,
+    n_actor_frames: usize,
+    n_frames: *mut usize,
+) -> troupe_status {
+    // SAFETY: forwarded contract.
+    unsafe {
+        with_session(session, "troupe_session_output_frames", |s| {
+            non_null(n_frames, "n_frames")?;
+            *n_frames = s.frames_ready_after(n_actor_frames);
+            Ok(())
+        })
+    }
+}
+
+/// Makes the session equal to a fresh one with its current settings (seed, steps, CFG,
+/// condition, capacity); queued noise is dropped. Clears the poison left by a panic.
+///
+/// Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_PANIC`. One thread at a time per
+/// session.
+///
+/// # Safety
+/// `session` must be NULL or a live handle.
+#[no_mangle]
+pub unsafe extern "C" fn troupe_session_reset(session: *mut troupe_session) -> troupe_status {
+    if !session.is_null() {
+        // SAFETY: a live handle per the contract.
+        unsafe { (*session).poisoned.set(false) };
+    }
+    // SAFETY: forwarded contract.
+    unsafe {
+        with_session(session, "troupe_session_reset", |s| {
+            s.reset();
+            Ok(())
+        })
+    }
+}
+
+/// Sets the noise seed for tokens generated from now on.
+///
+/// Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_POISONED`, `TROUPE_ERR_PANIC`. One
+/// thread at a time per session.
+///
+/// # Safety
+/// `session` must be NULL or a live handle.
+#[no_mangle]
+pub unsafe extern "C" fn troupe_session_set_seed(
+    session: *mut troupe_session,
+    seed: u64,
+) -> troupe_status {
+    // SAFETY: forwarded contract.
+    unsafe {
+        with_session(session, "troupe_session_set_seed", |s| {
+            s.set_seed(seed);
+            Ok(())
+        })
+    }
+}
+
+/// Sets the MeanFlow steps per token (>= 1) for tokens generated from now on.
+///
+/// Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (0 steps),
+/// `TROUPE_ERR_POISONED`, `TROUPE_ERR_PANIC`. One thread at a time per session.
+///
+/// # Safety
+/// `session` must be NULL or a live handle.
+#[no_mangle]
+pub unsafe extern "C" fn troupe_session_set_steps(
+    session: *mut troupe_session,
+    steps: u32,
+) -> troupe_status {
+    // SAFETY: forwarded contract.
+    unsafe {
+        with_session(session, "troupe_session_set_steps", |s| {
+            Ok(s.set_steps(steps)?)
+        })
+    }
+}
+
+/// Sets the classifier-free guidance scale (finite; 1 disables it) for tokens generated from
+/// now on. The null branch zeroes the actor token and the context.
+///
+/// Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (NaN or infinite),
+/// `TROUPE_ERR_POISONED`, `TROUPE_ERR_PANIC`. One thread at a time per session.
+///
+/// # Safety
+/// `session` must be NULL or a live handle.
+#[no_mangle]
+pub unsafe extern "C" fn troupe_session_set_cfg_scale(
+    session: *mut troupe_session,
+    scale: f32,
+) -> troupe_status {
+    // SAFETY: forwarded contract.
+    unsafe {
+        with_session(session, "troupe_session_set_cfg_scale", |s| {
+            Ok(s.set_cfg_scale(scale)?)
+        })
+    }
+}
+
+/// Sets the conditioning vector (`len` must equal `troupe_model_condition_dim`; borrowed for the
+/// call) for tokens generated from now on. `condition` NULL with `len` 0 selects the null
+/// condition (zeros).
+///
+/// Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_SHAPE` (wrong `len`),
+/// `TROUPE_ERR_INVALID_ARG` (NaN or infinite value), `TROUPE_ERR_INFERENCE`,
+/// `TROUPE_ERR_POISONED`, `TROUPE_ERR_PANIC`. One thread at a time per session.
+///
+/// # Safety
+/// `session` must be a live handle; `condition` readable for `len` floats.
+#[no_mangle]
+pub unsafe extern "C" fn troupe_session_set_condition(
+    session: *mut troupe_session,
+    condition: *const f32,
+    len: usize,
+) -> troupe_status {
+    // SAFETY: forwarded contract.
+    unsafe {
+        with_session(session, "troupe_session_set_condition", |s| {
+            if condition.is_null() && len == 0 {
+                return Ok(s.set_condition(None)?);
+            }
+            let dim = s.model().condition_dim();
+            if len != dim {
+                return Err(FfiError::new(
+                    TROUPE_ERR_SHAPE,
+                    format!("condition has {len} floats, the bundle expects {dim}"),
+                ));
+            }
+            let condition = boundary::slice(condition, len, "condition")?;
+            Ok(s.set_condition(Some(condition))?)
+        })
+    }
+}
+
+/// Queues the noise of the next token not yet generated, to reproduce a run exactly:
+/// `actor_noise` (the posterior sample's standard normals) and `reactor_noise` (the starting
+/// noise), `len` floats each (`troupe_model_latent_dim`), borrowed for the call. Queued noise is
+/// used in order before the seeded generator; `troupe_session_reset` drops it.
+///
+/// Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_SHAPE`, `TROUPE_ERR_INVALID_ARG`
+/// (non-finite value), `TROUPE_ERR_POISONED`, `TROUPE_ERR_PANIC`. One thread at a time per
+/// session.
+///
+/// # Safety
+/// `session` must be a live handle; both noise pointers readable for `len` floats.
+#[no_mangle]
+pub unsafe extern "C" fn troupe_session_queue_noise(
+    session: *mut troupe_session,
+    actor_noise: *const f32,
+    reactor_noise: *const f32,
+    len: usize,
+) -> troupe_status {
+    // SAFETY: forwarded contract.
+    unsafe {
+        with_session(session, "troupe_session_queue_noise", |s| {
+            let lat = s.model().latent_dim();
+            if len != lat {
+                return Err(FfiError::new(
+                    TROUPE_ERR_SHAPE,
+                    format!("noise vectors have {len} floats, the bundle's latent dim is {lat}"),
+                ));
+            }
+            non_null(actor_noise, "actor_noise")?;
+            non_null(reactor_noise, "reactor_noise")?;
+            let noise = TokenNoise {
+                actor: boundary::slice(actor_noise, len, "actor_noise")?.to_vec(),
+                reactor: boundary::slice(reactor_noise, len, "reactor_noise")?.to_vec(),
+            };
+            Ok(s.queue_noise(noise)?)
+        })
+    }
+}
+
+/// Test hook, built only with the `testing` cargo feature and absent from the header: panics
+/// inside the boundary so tests can check `TROUPE_ERR_PANIC` -> `TROUPE_ERR_POISONED` -> reset.
+///
+/// # Safety
+/// `session` must be NULL or a live handle.
+#[cfg(feature = "testing")]
+#[no_mangle]
+pub unsafe extern "C" fn troupe_testing_panic(session: *mut troupe_session) -> troupe_status {
+    // SAFETY: forwarded contract.
+    unsafe {
+        with_session(session, "troupe_testing_panic", |_| {
+            panic!("deliberate test panic")
+        })
+    }
+}

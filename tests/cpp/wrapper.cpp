@@ -1,0 +1,74 @@
+// The C++ wrapper, compiled with -fno-exceptions: RAII, moves, status returns.
+// Usage: wrapper BUNDLE_DIR
+#include "troupe.hpp"
+
+#include <cmath>
+#include <cstdio>
+#include <vector>
+
+static int passed = 0, failed = 0;
+#define CHECK(cond)                                                         \
+    do {                                                                    \
+        if (cond) {                                                         \
+            passed++;                                                       \
+        } else {                                                            \
+            failed++;                                                       \
+            std::fprintf(stderr, "%s:%d: CHECK(%s) failed\n", __FILE__, __LINE__, #cond); \
+        }                                                                   \
+    } while (0)
+
+static std::vector<float> run(troupe::Session &s, const std::vector<float> &actor, std::size_t frames) {
+    std::vector<float> out(frames * s.frame_dim());
+    std::size_t written = 0;
+    for (std::size_t t = 0; t < frames; t++) {
+        std::size_t n = 0;
+        troupe::Status st = s.step(&actor[t * s.frame_dim()], 1, &out[written * s.frame_dim()], frames - written, n);
+        if (!st) {
+            std::fprintf(stderr, "step: %s\n", st.message().c_str());
+            return {};
+        }
+        written += n;
+    }
+    out.resize(written * s.frame_dim());
+    return out;
+}
+
+int main(int argc, char **argv) {
+    if (argc < 2) return 2;
+    CHECK(troupe::abi_compatible());
+    troupe::Model missing;
+    troupe::Status bad = troupe::Model::load("/nonexistent/bundle", missing);
+    CHECK(!bad && bad.code() == TROUPE_ERR_IO && !bad.message().empty() && !missing.valid());
+
+    troupe::Model model;
+    CHECK(troupe::Model::load(argv[1], model).ok());
+    troupe_session_options opt;
+    CHECK(model.default_options(opt).ok());
+    opt.seed = 5;
+    troupe::Session a, b;
+    CHECK(troupe::Session::create(model, &opt, a).ok());
+    CHECK(troupe::Session::create(model, &opt, b).ok());
+
+    const std::size_t frames = 24, dim = model.frame_dim();
+    std::vector<float> actor(frames * dim);
+    for (std::size_t i = 0; i < actor.size(); i++) actor[i] = 0.3f * std::sin(0.01f * static_cast<float>(i));
+    std::vector<float> ra = run(a, actor, frames);
+    CHECK(ra.size() == frames * dim);
+
+    troupe::Session moved(std::move(b));  // moves keep the stream; the source is empty
+    CHECK(moved.valid() && !b.valid());
+    CHECK(run(moved, actor, frames) == ra);
+    CHECK(!b.reset() && b.reset().code() == TROUPE_ERR_NULL_ARG);
+
+    std::vector<float> cond(model.condition_dim() + 1, 0.0f);
+    CHECK(a.set_condition(cond.data(), cond.size()).code() == TROUPE_ERR_SHAPE);
+    CHECK(a.reset().ok());
+    CHECK(run(a, actor, frames) == ra);
+
+    troupe::Model other = std::move(model);  // the sessions keep the model alive regardless
+    other = troupe::Model();
+    CHECK(a.reset().ok() && run(a, actor, frames) == ra);
+
+    std::printf("c++ wrapper: %d passed, %d failed\n", passed, failed);
+    return failed == 0 ? 0 : 1;
+}
