@@ -3,33 +3,19 @@
 //! linked against the real cdylib and the staticlib, the C++ wrapper compiled with
 //! `-fno-exceptions`, and the C smoke test under valgrind when valgrind is installed.
 //!
-//! The libraries are built by `cargo build --lib --features testing`, which adds the
-//! `troupe_testing_panic` hook used to check panic -> PANIC -> POISONED -> reset -> OK.
+//! The libraries come from `common::c_libraries` (`cargo build --lib --features testing`, which
+//! adds the `troupe_testing_panic` hook used to check panic -> PANIC -> POISONED -> reset -> OK).
+
+mod common;
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::sync::OnceLock;
 
+use common::c_libraries as libs;
+
 fn root() -> &'static Path {
     Path::new(env!("CARGO_MANIFEST_DIR"))
-}
-
-/// Builds libtroupe.so / libtroupe.a once per test run; returns the directory holding them.
-fn libs() -> &'static Path {
-    static DIR: OnceLock<PathBuf> = OnceLock::new();
-    DIR.get_or_init(|| {
-        let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
-        let status = Command::new(cargo)
-            .current_dir(root())
-            .args(["build", "--lib", "--features", "testing"])
-            .status()
-            .expect("run cargo build");
-        assert!(status.success(), "building the C libraries failed");
-        let target = std::env::var_os("CARGO_TARGET_DIR")
-            .map(PathBuf::from)
-            .unwrap_or_else(|| root().join("target"));
-        target.join("debug")
-    })
 }
 
 /// A scratch directory for compiled binaries and the bundle archive.
@@ -251,4 +237,35 @@ fn c_smoke_under_valgrind() {
         &[&dir, &archive],
     );
     assert!(text.contains("ERROR SUMMARY: 0 errors"), "{text}");
+}
+
+/// The C streaming demo compiles with the strict flags and runs on the tiny bundle.
+#[test]
+fn c_streaming_demo_runs() {
+    let bin = compile(
+        "cc",
+        &["-std=c99", "-O2"],
+        &[&root().join("examples/c/stream.c")],
+        &shared_link(),
+        "stream_c",
+    );
+    let npy = scratch().join("reactor_c.npy");
+    let out = Command::new(&bin)
+        .arg(root().join("onnx/armflow-tiny"))
+        .args(["40", "3"])
+        .arg(&npy)
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{text}{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(
+        text.contains("40 reactor frames") && text.contains("real-time factor"),
+        "{text}"
+    );
+    let frames: ndarray::Array2<f32> = ndarray_npy::read_npy(&npy).unwrap();
+    assert_eq!(frames.dim(), (40, 262));
 }

@@ -111,17 +111,18 @@ unsafe fn read_options(options: *const troupe_session_options) -> FfiResult<Sess
     }
     // SAFETY: at least `ours` readable bytes.
     let o = unsafe { options.read_unaligned() };
-    let actor_latent =
-        match o.actor_latent {
-            TROUPE_ACTOR_LATENT_SAMPLE => ActorLatent::Sample,
-            TROUPE_ACTOR_LATENT_MEAN => ActorLatent::Mean,
-            other => return Err(FfiError::new(
+    let actor_latent = match o.actor_latent {
+        TROUPE_ACTOR_LATENT_SAMPLE => ActorLatent::Sample,
+        TROUPE_ACTOR_LATENT_MEAN => ActorLatent::Mean,
+        other => {
+            return Err(FfiError::new(
                 TROUPE_ERR_INVALID_ARG,
                 format!(
                     "options.actor_latent {other} is neither TROUPE_ACTOR_LATENT_SAMPLE nor _MEAN"
                 ),
-            )),
-        };
+            ))
+        }
+    };
     if o.reserved != 0 {
         return Err(FfiError::new(
             TROUPE_ERR_INVALID_ARG,

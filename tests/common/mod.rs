@@ -2,6 +2,7 @@
 #![allow(dead_code)]
 
 use std::path::{Path, PathBuf};
+use std::process::Command;
 use std::sync::OnceLock;
 
 use ndarray::{Array1, Array2};
@@ -85,4 +86,24 @@ pub fn default_options() -> SessionOptions {
         seed: 11,
         ..Default::default()
     }
+}
+
+/// Builds the C libraries (libtroupe.so, libtroupe.a) once per test binary with the `testing`
+/// feature; returns the directory holding them.
+pub fn c_libraries() -> &'static Path {
+    static DIR: OnceLock<PathBuf> = OnceLock::new();
+    DIR.get_or_init(|| {
+        let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+        let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
+        let status = Command::new(cargo)
+            .current_dir(root)
+            .args(["build", "--lib", "--features", "testing"])
+            .status()
+            .expect("run cargo build");
+        assert!(status.success(), "building the C libraries failed");
+        std::env::var_os("CARGO_TARGET_DIR")
+            .map(PathBuf::from)
+            .unwrap_or_else(|| root.join("target"))
+            .join("debug")
+    })
 }

@@ -1,0 +1,173 @@
+"""The Python bindings through the real shared library (TROUPE_LIBRARY_PATH or the installed wheel)."""
+
+import ctypes
+import io
+import re
+import tarfile
+import threading
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import troupe
+from troupe import _native
+
+REPO = Path(__file__).resolve().parents[3]
+BUNDLE = REPO / "onnx" / "armflow-tiny"
+GOLDEN = BUNDLE / "golden"
+
+
+@pytest.fixture(scope="module")
+def model():
+    with troupe.Model(BUNDLE) as m:
+        yield m
+
+
+def actor(frames=64, dim=262):
+    t = np.arange(frames, dtype=np.float32)[:, None]
+    d = np.arange(dim, dtype=np.float32)[None, :]
+    return (0.5 * np.sin(0.1 * t * (1 + d % 5) + d)).astype(np.float32)
+
+
+def stream(session, frames, tick):
+    outs = [session.step(frames[i : i + tick]) for i in range(0, len(frames), tick)]
+    return np.concatenate(outs)
+
+
+def test_version_and_abi():
+    lib = _native.load()
+    assert lib.troupe_abi_version() == _native.ABI_VERSION
+    assert re.fullmatch(r"\d+\.\d+\.\d+", troupe.version())
+
+
+def test_every_header_function_has_a_prototype():
+    header = (REPO / "include" / "troupe.h").read_text()
+    declared = set(re.findall(r"\b(troupe_\w+)\(", header))
+    assert declared, "no functions found in the header"
+    missing = declared - set(_native.PROTOTYPES)
+    assert not missing, f"functions without a ctypes prototype: {sorted(missing)}"
+    assert set(_native.PROTOTYPES) <= declared, "prototypes for functions not in the header"
+
+
+def test_struct_sizes_match_the_library():
+    lib = _native.load()
+    assert ctypes.sizeof(_native.SessionOptions) == lib.troupe_session_options_size()
+
+
+def test_queries(model):
+    assert (model.frame_dim, model.fps, model.frames_per_token) == (262, 30, 4)
+    assert (model.latency_frames, model.condition_dim, model.latent_dim) == (3, 32, 16)
+    assert model.max_output_frames(37) == 40
+
+
+def test_frames_come_out_a_token_at_a_time(model):
+    with model.session(seed=3) as s:
+        sizes = [s.step(f[None]).shape[0] for f in actor(12)]
+    assert sizes == [0, 0, 0, 4] * 3
+
+
+def test_chunking_reset_and_determinism(model):
+    x = actor(80)
+    with model.session(seed=5) as s:
+        one = stream(s, x, 1)
+        s.reset()
+        assert np.array_equal(stream(s, x, 37), one)
+    with model.session(seed=5) as s:
+        assert np.array_equal(stream(s, x, 4), one)
+    with model.session(seed=6) as s:
+        assert not np.array_equal(stream(s, x, 4), one)
+    assert one.shape == (80, 262) and np.isfinite(one).all()
+
+
+def test_preallocated_output(model):
+    x = actor(8)
+    out = np.zeros((8, 262), np.float32)
+    with model.session(seed=1) as s:
+        got = s.step(x, out=out)
+    assert got.base is out and got.shape == (8, 262) and np.abs(out).sum() > 0
+
+
+def test_golden_parity_with_injected_noise(model):
+    """The PyTorch reference's golden run, reproduced through the C ABI from Python."""
+    xi, eps = np.load(GOLDEN / "default_xi.npy"), np.load(GOLDEN / "default_eps.npy")
+    with model.session(condition=np.load(GOLDEN / "default_condition.npy")) as s:
+        for a, r in zip(xi, eps):
+            s.set_noise(a, r)
+        frames = s.step(np.load(GOLDEN / "actor.npy"))
+    assert np.abs(frames - np.load(GOLDEN / "default_frames.npy")).max() <= 1e-4
+
+
+def test_errors_are_raised_with_the_library_message(model):
+    with pytest.raises(troupe.TroupeError) as e:
+        troupe.Model("/nonexistent/bundle")
+    assert e.value.name == "TROUPE_ERR_IO" and "/nonexistent/bundle" in str(e.value)
+    with pytest.raises(troupe.TroupeError) as e:
+        model.session(steps=0)
+    assert e.value.name == "TROUPE_ERR_INVALID_ARG"
+    with model.session() as s:
+        with pytest.raises(ValueError):
+            s.step(np.zeros((4, 100), np.float32))
+        with pytest.raises(troupe.TroupeError) as e:
+            s.set_condition(np.zeros(5, np.float32))
+        assert e.value.name == "TROUPE_ERR_SHAPE" and "expects 32" in str(e.value)
+        with pytest.raises(troupe.TroupeError) as e:
+            s.set_cfg_scale(float("nan"))
+        assert e.value.name == "TROUPE_ERR_INVALID_ARG"
+
+
+def test_failed_steps_leave_the_session_unchanged(model):
+    x = actor(16)
+    with model.session(seed=2) as ref:
+        want = stream(ref, x, 4)
+    with model.session(seed=2) as s:
+        got = [s.step(x[:3])]
+        bad = x[3:4].copy()
+        bad[0, 7] = np.nan
+        with pytest.raises(troupe.TroupeError) as e:
+            s.step(bad)
+        assert "non-finite" in str(e.value)
+        with pytest.raises(troupe.TroupeError) as e:
+            s.step(x[3:4], out=np.zeros((3, 262), np.float32))
+        assert e.value.name == "TROUPE_ERR_BUFFER_TOO_SMALL"
+        assert s.output_frames(1) == 4
+        got.append(stream(s, x[3:], 4))
+    assert np.array_equal(np.concatenate(got), want)
+
+
+def test_threads_with_their_own_sessions(model):
+    x = actor(64)
+    with model.session(seed=9) as s:
+        want = stream(s, x, 4)
+    results = [None] * 4
+
+    def work(i):
+        with model.session(seed=9) as s:
+            results[i] = stream(s, x, 4)
+
+    threads = [threading.Thread(target=work, args=(i,)) for i in range(4)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    assert all(r is not None and np.array_equal(r, want) for r in results)
+
+
+def test_model_from_bytes_and_closing(model):
+    buf = io.BytesIO()
+    with tarfile.open(fileobj=buf, mode="w") as tar:
+        for f in sorted(BUNDLE.glob("*")):
+            if f.is_file():
+                tar.add(f, arcname=f.name)
+    x = actor(16)
+    with troupe.Model.from_bytes(buf.getvalue()) as m2, m2.session(seed=4) as s2, model.session(seed=4) as s1:
+        assert np.array_equal(stream(s2, x, 4), stream(s1, x, 4))
+    m3 = troupe.Model(BUNDLE)
+    s = m3.session()
+    m3.close()  # the session keeps the model alive
+    assert s.step(x[:4]).shape == (4, 262)
+    s.close()
+    with pytest.raises(ValueError):
+        s.step(x[:4])
+    with pytest.raises(ValueError):
+        m3.session()

@@ -1,0 +1,212 @@
+"""troupe: real-time human interaction motion generation, from Python.
+
+    import numpy as np, troupe
+    with troupe.Model("onnx/armflow-tiny") as model, model.session(seed=7) as session:
+        reactor = session.step(np.zeros((4, model.frame_dim), np.float32))  # [frames, frame_dim]
+
+A thin ctypes layer over the C ABI (include/troupe.h): errors raise `TroupeError` with the
+library's message; calls release the GIL, so sessions on several Python threads run in parallel.
+A `Model` may be shared by threads; a `Session` is used by one thread at a time.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import os
+import threading
+
+import numpy as np
+
+from . import _native
+
+__all__ = ["Model", "Session", "TroupeError", "version", "ACTOR_LATENT_SAMPLE", "ACTOR_LATENT_MEAN"]
+
+ACTOR_LATENT_SAMPLE = 0
+ACTOR_LATENT_MEAN = 1
+
+_lib = _native.load()
+
+
+class TroupeError(Exception):
+    """A troupe call failed. `status` is the TROUPE_ERR_* code, `name` its symbolic name."""
+
+    def __init__(self, status: int, message: str):
+        self.status = status
+        self.name = _lib.troupe_status_name(status).decode()
+        super().__init__(f"{self.name}: {message}")
+
+
+def _check(status: int) -> None:
+    if status != 0:
+        message = _lib.troupe_last_error_message()
+        raise TroupeError(status, message.decode() if message else "")
+
+
+def version() -> str:
+    """The library's version string."""
+    return _lib.troupe_version_string().decode()
+
+
+def _floats(x, what: str, length: int | None = None) -> np.ndarray:
+    a = np.ascontiguousarray(x, dtype=np.float32)
+    if length is not None and a.size != length:
+        raise ValueError(f"{what} must have {length} floats, got {a.size}")
+    return a
+
+
+def _ptr(a: np.ndarray):
+    return a.ctypes.data_as(_native.f32p)
+
+
+class Model:
+    """A loaded bundle (a directory or a tar archive of one). Thread-safe; sessions keep it alive."""
+
+    def __init__(self, path: str | os.PathLike):
+        handle = _native.model_p()
+        _check(_lib.troupe_model_load_file(os.fsencode(path), ctypes.byref(handle)))
+        self._handle = handle
+
+    @classmethod
+    def from_bytes(cls, archive: bytes) -> "Model":
+        """Loads a bundle from the bytes of an uncompressed tar archive."""
+        self = cls.__new__(cls)
+        handle = _native.model_p()
+        _check(_lib.troupe_model_load_memory(archive, len(archive), ctypes.byref(handle)))
+        self._handle = handle
+        return self
+
+    def _h(self):
+        if not self._handle:
+            raise ValueError("the model is closed")
+        return self._handle
+
+    frame_dim = property(lambda self: _lib.troupe_model_frame_dim(self._h()), doc="floats per frame")
+    fps = property(lambda self: _lib.troupe_model_fps(self._h()), doc="frames per second")
+    frames_per_token = property(lambda self: _lib.troupe_model_frames_per_token(self._h()))
+    latency_frames = property(lambda self: _lib.troupe_model_latency_frames(self._h()))
+    condition_dim = property(lambda self: _lib.troupe_model_condition_dim(self._h()))
+    latent_dim = property(lambda self: _lib.troupe_model_latent_dim(self._h()))
+
+    def max_output_frames(self, n_actor_frames: int) -> int:
+        """The most reactor frames one step with `n_actor_frames` frames can return."""
+        return _lib.troupe_model_max_output_frames(self._h(), n_actor_frames)
+
+    def session(self, seed: int = 0, steps: int | None = None, cfg: float | None = None,
+                capacity: int | None = None, actor_latent: int | None = None,
+                condition=None) -> "Session":
+        """Starts a stream; unset options take the bundle's defaults."""
+        return Session(self, seed, steps, cfg, capacity, actor_latent, condition)
+
+    def close(self) -> None:
+        """Releases this reference (sessions keep the model alive)."""
+        handle, self._handle = getattr(self, "_handle", None), None
+        if handle:
+            _lib.troupe_model_free(handle)
+
+    __del__ = close
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+
+class Session:
+    """One actor/reactor stream. Use it from one thread at a time."""
+
+    def __init__(self, model: Model, seed=0, steps=None, cfg=None, capacity=None, actor_latent=None,
+                 condition=None):
+        opt = _native.SessionOptions()
+        _check(_lib.troupe_session_options_init(model._h(), ctypes.byref(opt)))
+        opt.seed = seed
+        if steps is not None:
+            opt.steps = steps
+        if cfg is not None:
+            opt.cfg_scale = cfg
+        if capacity is not None:
+            opt.context_capacity = capacity
+        if actor_latent is not None:
+            opt.actor_latent = actor_latent
+        handle = _native.session_p()
+        _check(_lib.troupe_session_new(model._h(), ctypes.byref(opt), ctypes.byref(handle)))
+        self._handle = handle
+        self._lock = threading.Lock()  # a session is single-threaded; fail loudly, not racily
+        self.frame_dim = model.frame_dim
+        self.condition_dim = model.condition_dim
+        self.latent_dim = model.latent_dim
+        self._frames_per_token = model.frames_per_token
+        if condition is not None:
+            self.set_condition(condition)
+
+    def _call(self, fn, *args):
+        if not self._handle:
+            raise ValueError("the session is closed")
+        if not self._lock.acquire(blocking=False):
+            raise RuntimeError("a troupe Session is being used by two threads at once")
+        try:
+            _check(fn(self._handle, *args))
+        finally:
+            self._lock.release()
+
+    def step(self, actor: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+        """Feeds actor frames (float32 [n, frame_dim], n >= 0) and returns the reactor frames that
+        became ready ([m, frame_dim]). With `out` (a C-contiguous float32 [k, frame_dim] array),
+        frames are written there and a view of its first m rows is returned."""
+        a = _floats(actor, "actor")
+        if a.ndim != 2 or a.shape[1] != self.frame_dim:
+            raise ValueError(f"actor must be [frames, {self.frame_dim}], got {list(a.shape)}")
+        if out is None:
+            fpt = self._frames_per_token
+            out = np.empty((-(-a.shape[0] // fpt) * fpt, self.frame_dim), np.float32)
+        elif out.dtype != np.float32 or not out.flags.c_contiguous or out.ndim != 2 or out.shape[1] != self.frame_dim:
+            raise ValueError(f"out must be a C-contiguous float32 [k, {self.frame_dim}] array")
+        written = ctypes.c_size_t()
+        self._call(_lib.troupe_session_step, _ptr(a), a.shape[0], _ptr(out), out.shape[0], ctypes.byref(written))
+        return out[: written.value]
+
+    def output_frames(self, n_actor_frames: int) -> int:
+        """Exactly how many frames a step with `n_actor_frames` frames would return now."""
+        n = ctypes.c_size_t()
+        self._call(_lib.troupe_session_output_frames, n_actor_frames, ctypes.byref(n))
+        return n.value
+
+    def reset(self) -> None:
+        """Back to a fresh session with the current settings; queued noise is dropped."""
+        self._call(_lib.troupe_session_reset)
+
+    def set_seed(self, seed: int) -> None:
+        self._call(_lib.troupe_session_set_seed, seed)
+
+    def set_steps(self, steps: int) -> None:
+        self._call(_lib.troupe_session_set_steps, steps)
+
+    def set_cfg_scale(self, scale: float) -> None:
+        self._call(_lib.troupe_session_set_cfg_scale, scale)
+
+    def set_condition(self, condition) -> None:
+        """Sets the conditioning vector (condition_dim floats); None selects the null condition."""
+        if condition is None:
+            self._call(_lib.troupe_session_set_condition, None, 0)
+            return
+        c = _floats(condition, "condition")
+        self._call(_lib.troupe_session_set_condition, _ptr(c), c.size)
+
+    def set_noise(self, actor_noise, reactor_noise) -> None:
+        """Queues one token's noise (latent_dim floats each), used before the seeded generator."""
+        a = _floats(actor_noise, "actor_noise")
+        r = _floats(reactor_noise, "reactor_noise", a.size)
+        self._call(_lib.troupe_session_queue_noise, _ptr(a), _ptr(r), a.size)
+
+    def close(self) -> None:
+        handle, self._handle = getattr(self, "_handle", None), None
+        if handle:
+            _lib.troupe_session_free(handle)
+
+    __del__ = close
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()

@@ -1,0 +1,101 @@
+"""ctypes view of libtroupe: library lookup, the prototype of every C function, the option struct."""
+
+from __future__ import annotations
+
+import ctypes
+import os
+import sys
+from pathlib import Path
+
+ABI_VERSION = 1  # TROUPE_ABI_VERSION this package was written for
+
+_LIB_NAMES = {"linux": "libtroupe.so", "darwin": "libtroupe.dylib", "win32": "troupe.dll"}
+LIB_NAME = _LIB_NAMES.get(sys.platform, "libtroupe.so")
+
+status = ctypes.c_int32
+c_size = ctypes.c_size_t
+f32p = ctypes.POINTER(ctypes.c_float)
+
+
+class SessionOptions(ctypes.Structure):
+    """Mirror of `troupe_session_options` (checked against troupe_session_options_size())."""
+
+    _fields_ = [
+        ("struct_size", ctypes.c_uint32),
+        ("steps", ctypes.c_uint32),
+        ("seed", ctypes.c_uint64),
+        ("cfg_scale", ctypes.c_float),
+        ("context_capacity", ctypes.c_uint32),
+        ("actor_latent", ctypes.c_int32),
+        ("reserved", ctypes.c_uint32),
+    ]
+
+
+LOG_FN = ctypes.CFUNCTYPE(None, ctypes.c_void_p, ctypes.c_int32, ctypes.c_char_p, ctypes.c_char_p)
+
+model_p = ctypes.c_void_p
+session_p = ctypes.c_void_p
+
+# name: (restype, argtypes) for every function of include/troupe.h.
+PROTOTYPES = {
+    "troupe_version_string": (ctypes.c_char_p, []),
+    "troupe_version_number": (ctypes.c_uint32, []),
+    "troupe_abi_version": (ctypes.c_uint32, []),
+    "troupe_status_name": (ctypes.c_char_p, [status]),
+    "troupe_last_error_message": (ctypes.c_char_p, []),
+    "troupe_last_error_copy": (status, [ctypes.c_char_p, c_size, ctypes.POINTER(c_size)]),
+    "troupe_set_log_callback": (status, [LOG_FN, ctypes.c_void_p, ctypes.c_int32]),
+    "troupe_model_load_file": (status, [ctypes.c_char_p, ctypes.POINTER(model_p)]),
+    "troupe_model_load_memory": (status, [ctypes.c_char_p, c_size, ctypes.POINTER(model_p)]),
+    "troupe_model_free": (None, [model_p]),
+    "troupe_model_frame_dim": (c_size, [model_p]),
+    "troupe_model_fps": (c_size, [model_p]),
+    "troupe_model_frames_per_token": (c_size, [model_p]),
+    "troupe_model_latency_frames": (c_size, [model_p]),
+    "troupe_model_condition_dim": (c_size, [model_p]),
+    "troupe_model_latent_dim": (c_size, [model_p]),
+    "troupe_model_max_output_frames": (c_size, [model_p, c_size]),
+    "troupe_session_options_size": (c_size, []),
+    "troupe_session_options_init": (status, [model_p, ctypes.POINTER(SessionOptions)]),
+    "troupe_session_new": (status, [model_p, ctypes.POINTER(SessionOptions), ctypes.POINTER(session_p)]),
+    "troupe_session_free": (None, [session_p]),
+    "troupe_session_step": (status, [session_p, f32p, c_size, f32p, c_size, ctypes.POINTER(c_size)]),
+    "troupe_session_output_frames": (status, [session_p, c_size, ctypes.POINTER(c_size)]),
+    "troupe_session_reset": (status, [session_p]),
+    "troupe_session_set_seed": (status, [session_p, ctypes.c_uint64]),
+    "troupe_session_set_steps": (status, [session_p, ctypes.c_uint32]),
+    "troupe_session_set_cfg_scale": (status, [session_p, ctypes.c_float]),
+    "troupe_session_set_condition": (status, [session_p, f32p, c_size]),
+    "troupe_session_queue_noise": (status, [session_p, f32p, f32p, c_size]),
+}
+
+
+def _candidates() -> list[Path]:
+    env = os.environ.get("TROUPE_LIBRARY_PATH")
+    if env:
+        p = Path(env)
+        return [p / LIB_NAME if p.is_dir() else p]
+    return [Path(__file__).resolve().parent / LIB_NAME]
+
+
+def load() -> ctypes.CDLL:
+    """Opens libtroupe (from TROUPE_LIBRARY_PATH, else next to this package) and declares every
+    prototype. CDLL releases the GIL during each call."""
+    tried = []
+    for path in _candidates():
+        if path.exists():
+            lib = ctypes.CDLL(str(path))
+            break
+        tried.append(str(path))
+    else:
+        raise OSError(
+            f"libtroupe not found (looked at {', '.join(tried)}); build it with "
+            "`cargo build --release` and set TROUPE_LIBRARY_PATH, or pip install the package"
+        )
+    for name, (restype, argtypes) in PROTOTYPES.items():
+        fn = getattr(lib, name)
+        fn.restype, fn.argtypes = restype, argtypes
+    abi = lib.troupe_abi_version()
+    if abi != ABI_VERSION:
+        raise OSError(f"{path} speaks troupe ABI {abi}, this package needs {ABI_VERSION}")
+    return lib

@@ -1,0 +1,174 @@
+//! The Python package (`bindings/python`) through the real shared library: its pytest suite run
+//! against the freshly built cdylib, then again from a wheel built by `pip wheel` and installed
+//! into a scratch site directory (the library found next to the package).
+//!
+//! Needs python3 with numpy, pytest, setuptools and wheel (`.ci/run` installs them).
+
+mod common;
+
+use std::path::Path;
+use std::process::Command;
+
+use common::c_libraries;
+
+fn root() -> &'static Path {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+}
+
+fn python(args: &[&str], env: &[(&str, &Path)], unset_library: bool) -> String {
+    let mut cmd = Command::new("python3");
+    cmd.current_dir(root()).args(args);
+    for (k, v) in env {
+        cmd.env(k, v);
+    }
+    if unset_library {
+        cmd.env_remove("TROUPE_LIBRARY_PATH");
+    }
+    let out = cmd.output().expect("run python3");
+    let text = format!(
+        "{}{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(out.status.success(), "python3 {args:?} failed:\n{text}");
+    text
+}
+
+fn require_python_tools() {
+    let probe = Command::new("python3")
+        .args(["-c", "import numpy, pytest, setuptools, wheel"])
+        .output();
+    assert!(
+        matches!(probe, Ok(ref o) if o.status.success()),
+        "the Python binding tests need python3 with numpy, pytest, setuptools and wheel: \
+         `pip install numpy pytest setuptools wheel`"
+    );
+}
+
+#[test]
+fn pytest_suite_against_the_built_library() {
+    require_python_tools();
+    let lib = c_libraries().join("libtroupe.so");
+    let text = python(
+        &[
+            "-m",
+            "pytest",
+            "-q",
+            "-p",
+            "no:cacheprovider",
+            "bindings/python/tests",
+        ],
+        &[
+            ("TROUPE_LIBRARY_PATH", &lib),
+            ("PYTHONPATH", &root().join("bindings/python")),
+        ],
+        false,
+    );
+    println!("{text}");
+    assert!(
+        text.contains(" passed") && !text.contains("failed"),
+        "{text}"
+    );
+}
+
+#[test]
+fn wheel_carries_the_library_and_passes_the_suite() {
+    require_python_tools();
+    let lib = c_libraries().join("libtroupe.so");
+    let scratch = tempfile::tempdir().unwrap();
+    let wheels = scratch.path().join("wheels");
+    let site = scratch.path().join("site");
+    python(
+        &[
+            "-m",
+            "pip",
+            "wheel",
+            "--no-deps",
+            "--no-build-isolation",
+            "-q",
+            "-w",
+            wheels.to_str().unwrap(),
+            "bindings/python",
+        ],
+        &[("TROUPE_LIBRARY_PATH", &lib)],
+        false,
+    );
+    let wheel = std::fs::read_dir(&wheels)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .find(|p| p.extension().is_some_and(|e| e == "whl"))
+        .expect("a wheel was built");
+    let listing = python(
+        &[
+            "-c",
+            "import sys, zipfile; print('\\n'.join(zipfile.ZipFile(sys.argv[1]).namelist()))",
+            wheel.to_str().unwrap(),
+        ],
+        &[],
+        false,
+    );
+    assert!(
+        listing.contains("troupe/libtroupe.so"),
+        "the wheel lacks the library:\n{listing}"
+    );
+    python(
+        &[
+            "-m",
+            "pip",
+            "install",
+            "--no-deps",
+            "-q",
+            "--target",
+            site.to_str().unwrap(),
+            wheel.to_str().unwrap(),
+        ],
+        &[],
+        false,
+    );
+    let text = python(
+        &[
+            "-m",
+            "pytest",
+            "-q",
+            "-p",
+            "no:cacheprovider",
+            "bindings/python/tests",
+        ],
+        &[("PYTHONPATH", &site)],
+        true,
+    );
+    assert!(
+        text.contains(" passed") && !text.contains("failed"),
+        "{text}"
+    );
+}
+
+/// The Python streaming demo runs on the tiny bundle and writes the reactor motion.
+#[test]
+fn python_streaming_demo_runs() {
+    require_python_tools();
+    let lib = c_libraries().join("libtroupe.so");
+    let scratch = tempfile::tempdir().unwrap();
+    let npy = scratch.path().join("reactor.npy");
+    let text = python(
+        &[
+            "examples/python/stream.py",
+            "--frames",
+            "40",
+            "--tick",
+            "3",
+            "--out",
+            npy.to_str().unwrap(),
+        ],
+        &[
+            ("TROUPE_LIBRARY_PATH", &lib),
+            ("PYTHONPATH", &root().join("bindings/python")),
+        ],
+        false,
+    );
+    assert!(
+        text.contains("40 reactor frames") && text.contains("real-time factor"),
+        "{text}"
+    );
+    assert!(npy.exists());
+}
