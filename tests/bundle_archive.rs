@@ -4,7 +4,7 @@
 mod common;
 
 use common::*;
-use troupe::{Error, Model};
+use troupe::{Error, Model, TokenTrace};
 
 fn pack_bundle() -> Vec<u8> {
     let mut builder = tar::Builder::new(Vec::new());
@@ -23,7 +23,7 @@ fn pack_bundle() -> Vec<u8> {
     builder.into_inner().unwrap()
 }
 
-fn stream(model: &Model) -> (Vec<f32>, Vec<f32>) {
+fn stream(model: &Model) -> (Vec<f32>, Vec<TokenTrace>) {
     run_chunked(&mut model.session(default_options()).unwrap(), &actor(), 4)
 }
 

@@ -5,7 +5,7 @@
 mod common;
 
 use common::*;
-use troupe::SessionOptions;
+use troupe::{SessionOptions, TokenTrace};
 
 const LATENT_TOL: f32 = 1e-5;
 const FRAME_TOL: f32 = 1e-4;
@@ -20,22 +20,15 @@ struct Parity {
 fn run_case(case: &str, options: SessionOptions, chunk: usize) -> Parity {
     let mut session = model().session(options).unwrap();
     queue_golden_noise(&mut session, case);
-    let actor = actor();
-    let (mut a, mut b, mut c, mut frames) = (vec![], vec![], vec![], vec![]);
-    let mut start = 0;
-    while start < actor.nrows() {
-        let end = (start + chunk).min(actor.nrows());
-        let out = session
-            .step_detailed(actor.slice(ndarray::s![start..end, ..]))
-            .unwrap();
-        frames.extend(out.frames.iter().copied());
-        for t in out.tokens {
-            a.extend(t.actor_latent);
-            b.extend(t.reactor_latent);
-            c.extend(t.context);
-        }
-        start = end;
-    }
+    let (frames, tokens) = run_chunked(&mut session, &actor(), chunk);
+    let gather = |f: fn(&TokenTrace) -> &Vec<f32>| -> Vec<f32> {
+        tokens.iter().flat_map(|t| f(t).iter().copied()).collect()
+    };
+    let (a, b, c) = (
+        gather(|t| &t.actor_latent),
+        gather(|t| &t.reactor_latent),
+        gather(|t| &t.context),
+    );
     let want = |k: &str| golden2(&format!("{case}_{k}")).into_raw_vec_and_offset().0;
     assert_eq!(session.tokens_generated(), 48);
     Parity {

@@ -7,7 +7,7 @@ use std::sync::OnceLock;
 
 use ndarray::{Array1, Array2};
 use ndarray_npy::read_npy;
-use troupe::{Model, Session, SessionOptions, TokenNoise};
+use troupe::{Model, Session, SessionOptions, TokenNoise, TokenTrace};
 
 /// The committed tiny bundle.
 pub fn bundle_dir() -> PathBuf {
@@ -59,26 +59,19 @@ pub fn queue_golden_noise(session: &mut Session, case: &str) {
     }
 }
 
-/// Feeds `actor` in chunks of `chunk` frames; returns all frames and latents produced.
+/// Feeds `actor` in chunks of `chunk` frames; returns all frames and the token traces.
 pub fn run_chunked(
     session: &mut Session,
     actor: &Array2<f32>,
     chunk: usize,
-) -> (Vec<f32>, Vec<f32>) {
-    let (mut frames, mut latents) = (Vec::new(), Vec::new());
-    let mut start = 0;
-    while start < actor.nrows() {
-        let end = (start + chunk).min(actor.nrows());
-        let out = session
-            .step_detailed(actor.slice(ndarray::s![start..end, ..]))
-            .unwrap();
+) -> (Vec<f32>, Vec<TokenTrace>) {
+    let (mut frames, mut tokens) = (Vec::new(), Vec::new());
+    for rows in actor.axis_chunks_iter(ndarray::Axis(0), chunk) {
+        let out = session.step_detailed(rows).unwrap();
         frames.extend(out.frames.iter());
-        for t in out.tokens {
-            latents.extend(t.reactor_latent);
-        }
-        start = end;
+        tokens.extend(out.tokens);
     }
-    (frames, latents)
+    (frames, tokens)
 }
 
 pub fn default_options() -> SessionOptions {
