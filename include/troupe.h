@@ -13,7 +13,8 @@
  * - Errors. Every fallible function returns a troupe_status (int32_t): TROUPE_OK or a
  *   TROUPE_ERR_* code. Out-parameters are written only on success (out-handles are set to NULL
  *   on entry). troupe_last_error_message() then says what failed; it is per thread and cleared
- *   by the next successful call. A failed call leaves the session exactly as it was.
+ *   by the next successful status-returning call (troupe_last_error_copy leaves it as it is).
+ *   A failed call leaves the session exactly as it was.
  * - Panics never cross this boundary: an internal panic returns TROUPE_ERR_PANIC and poisons
  *   the session involved; it then returns TROUPE_ERR_POISONED until troupe_session_reset.
  * - Memory. Inputs (frames, paths, bytes) are borrowed for the duration of the call only.

@@ -193,6 +193,12 @@ impl Session {
 
     /// [`Session::step_detailed`] on row-major frames (`n * frame_dim` floats).
     pub fn step_flat(&mut self, actor: &[f32]) -> Result<StepOutput> {
+        self.step_bounded(actor, usize::MAX)
+    }
+
+    /// [`Session::step_flat`] that fails, leaving the session unchanged, when more than
+    /// `max_frames` frames would come out (the C ABI's caller-sized buffer).
+    pub(crate) fn step_bounded(&mut self, actor: &[f32], max_frames: usize) -> Result<StepOutput> {
         let dim = self.model.frame_dim();
         if !actor.len().is_multiple_of(dim) {
             return Err(Error::InvalidInput(format!(
@@ -203,6 +209,12 @@ impl Session {
         check_finite("actor frames", actor)?;
         let mut next = self.state.clone();
         let output = self.advance(&mut next, actor)?;
+        if output.frames.nrows() > max_frames {
+            return Err(Error::InvalidInput(format!(
+                "this call returns {} frames, the output holds {max_frames}",
+                output.frames.nrows()
+            )));
+        }
         self.state = next;
         Ok(output)
     }
@@ -284,7 +296,7 @@ impl Session {
             .saturating_add(n_actor_frames as u64);
         let tokens = received.saturating_sub(m.vae.encoder.lookahead_frames as u64) / fpt;
         let decodable = tokens.saturating_sub(m.vae.decoder.lookahead_tokens as u64);
-        (decodable * fpt - self.state.frames_emitted) as usize
+        (decodable * fpt).saturating_sub(self.state.frames_emitted) as usize
     }
 
     /// Actor frames received since the start (or the last reset).

@@ -203,6 +203,18 @@ fn cpp_wrapper_without_exceptions() {
     println!("{}", run(&[], &bin, &[&root().join("onnx/armflow-tiny")]));
 }
 
+#[test]
+fn cpp_wrapper_with_its_exception_helpers() {
+    let bin = compile(
+        "c++",
+        &["-std=c++17", "-DTROUPE_CPP_EXCEPTIONS"],
+        &[&root().join("tests/cpp/wrapper.cpp")],
+        &shared_link(),
+        "wrapper_cpp_exceptions",
+    );
+    run(&[], &bin, &[&root().join("onnx/armflow-tiny")]);
+}
+
 /// No leak and no invalid access in the C smoke test. valgrind is on the CI machine; where it
 /// is not installed this test says so and passes. `tests/c/valgrind.supp` suppresses only
 /// tract's uninitialised-padding comparisons at model load (explained there).

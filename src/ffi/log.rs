@@ -2,7 +2,7 @@
 
 use std::ffi::{c_char, c_void};
 
-use super::boundary::{troupe_status, TROUPE_ERR_INVALID_ARG, TROUPE_OK};
+use super::boundary::{self, troupe_status, FfiError, TROUPE_ERR_INVALID_ARG};
 use crate::logging::{set_sink, Sink};
 
 /// Log level: something failed.
@@ -40,17 +40,26 @@ pub extern "C" fn troupe_set_log_callback(
     user_data: *mut c_void,
     max_level: i32,
 ) -> troupe_status {
-    let Some(callback) = callback else {
-        set_sink(None);
-        return TROUPE_OK;
-    };
-    if !(TROUPE_LOG_ERROR..=TROUPE_LOG_DEBUG).contains(&max_level) {
-        return TROUPE_ERR_INVALID_ARG;
-    }
-    set_sink(Some(Sink {
-        callback,
-        user_data: user_data as usize,
-        max_level,
-    }));
-    TROUPE_OK
+    boundary::call(
+        "troupe_set_log_callback",
+        || {},
+        || {
+            let Some(callback) = callback else {
+                set_sink(None);
+                return Ok(());
+            };
+            if !(TROUPE_LOG_ERROR..=TROUPE_LOG_DEBUG).contains(&max_level) {
+                return Err(FfiError::new(
+                    TROUPE_ERR_INVALID_ARG,
+                    format!("max_level {max_level} is not a TROUPE_LOG_* level (1..=4)"),
+                ));
+            }
+            set_sink(Some(Sink {
+                callback,
+                user_data: user_data as usize,
+                max_level,
+            }));
+            Ok(())
+        },
+    )
 }

@@ -287,10 +287,13 @@ pub unsafe extern "C" fn troupe_session_step(
             if ready > 0 {
                 non_null(out, "out")?;
             }
-            let output = s.step_flat(actor)?;
+            let output = s.step_bounded(actor, out_capacity_frames)?;
             let frames = output.frames.as_slice().expect("standard layout");
-            debug_assert_eq!(frames.len(), ready * dim);
-            std::ptr::copy_nonoverlapping(frames.as_ptr(), out, frames.len());
+            if !frames.is_empty() {
+                // `out` is non-NULL (checked above: frames.len() == ready * dim > 0) and holds
+                // out_capacity_frames >= ready frames per the contract.
+                std::ptr::copy_nonoverlapping(frames.as_ptr(), out, frames.len());
+            }
             *n_written = frames.len() / dim;
             Ok(())
         })

@@ -138,6 +138,9 @@ int main(int argc, char **argv) {
     CHECK(troupe_model_fps(model) == 30 && troupe_model_latency_frames(model) == 3);
     CHECK(troupe_model_max_output_frames(model, 1) == 4 && troupe_model_max_output_frames(model, 37) == 40);
     CHECK(troupe_model_frame_dim(NULL) == 0 && troupe_model_max_output_frames(NULL, 5) == 0);
+    CHECK(troupe_model_fps(NULL) == 0 && troupe_model_frames_per_token(NULL) == 0);
+    CHECK(troupe_model_latency_frames(NULL) == 0 && troupe_model_condition_dim(NULL) == 0);
+    CHECK(troupe_model_latent_dim(NULL) == 0);
 
     /* options */
     CHECK(troupe_session_options_size() == sizeof(troupe_session_options));
@@ -211,6 +214,10 @@ int main(int argc, char **argv) {
     EXPECT(troupe_session_set_condition(session, NULL, 0), TROUPE_OK);
     EXPECT(troupe_session_queue_noise(session, noise, noise, lat + 1), TROUPE_ERR_SHAPE);
     EXPECT(troupe_session_queue_noise(session, NULL, noise, lat), TROUPE_ERR_NULL_ARG);
+    EXPECT(troupe_session_queue_noise(session, noise, NULL, lat), TROUPE_ERR_NULL_ARG);
+    noise[2] = NAN;
+    EXPECT(troupe_session_queue_noise(session, noise, noise, lat), TROUPE_ERR_INVALID_ARG);
+    noise[2] = 0.0f;
     EXPECT(troupe_session_queue_noise(session, noise, noise, lat), TROUPE_OK);
     EXPECT(troupe_session_set_steps(session, 0), TROUPE_ERR_INVALID_ARG);
     EXPECT(troupe_session_set_steps(session, 2), TROUPE_OK);

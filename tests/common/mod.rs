@@ -82,7 +82,7 @@ pub fn default_options() -> SessionOptions {
 }
 
 /// Builds the C libraries (libtroupe.so, libtroupe.a) once per test binary with the `testing`
-/// feature; returns the directory holding them.
+/// feature (which adds the `troupe_testing_panic` hook); returns the directory holding them.
 pub fn c_libraries() -> &'static Path {
     static DIR: OnceLock<PathBuf> = OnceLock::new();
     DIR.get_or_init(|| {
@@ -90,7 +90,9 @@ pub fn c_libraries() -> &'static Path {
         let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
         let status = Command::new(cargo)
             .current_dir(root)
-            .args(["build", "--lib", "--features", "testing"])
+            // `--tests` keeps dev-dependencies in the feature resolution, as under `cargo test`,
+            // so the dependencies already built for the tests are reused, not rebuilt.
+            .args(["build", "--lib", "--tests", "--features", "testing"])
             .status()
             .expect("run cargo build");
         assert!(status.success(), "building the C libraries failed");

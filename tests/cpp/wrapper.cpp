@@ -69,6 +69,19 @@ int main(int argc, char **argv) {
     other = troupe::Model();
     CHECK(a.reset().ok() && run(a, actor, frames) == ra);
 
+#ifdef TROUPE_CPP_EXCEPTIONS
+    bool thrown = false;
+    try {
+        troupe::Model::load_or_throw("/nonexistent/bundle");
+    } catch (const troupe::Error &e) {
+        thrown = e.code() == TROUPE_ERR_IO;
+    }
+    CHECK(thrown);
+    troupe::Model again = troupe::Model::load_or_throw(argv[1]);
+    troupe::Session s = troupe::Session::create_or_throw(again);
+    CHECK(s.valid());
+#endif
+
     std::printf("c++ wrapper: %d passed, %d failed\n", passed, failed);
     return failed == 0 ? 0 : 1;
 }
