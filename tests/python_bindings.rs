@@ -45,10 +45,8 @@ fn require_python_tools() {
     );
 }
 
-#[test]
-fn pytest_suite_against_the_built_library() {
-    require_python_tools();
-    let lib = c_libraries().join("libtroupe.so");
+/// Runs the pytest suite of the package with `env` and asserts it passed.
+fn pytest_suite(env: &[(&str, &Path)], unset_library: bool) -> String {
     let text = python(
         &[
             "-m",
@@ -58,17 +56,26 @@ fn pytest_suite_against_the_built_library() {
             "no:cacheprovider",
             "bindings/python/tests",
         ],
-        &[
-            ("TROUPE_LIBRARY_PATH", &lib),
-            ("PYTHONPATH", &root().join("bindings/python")),
-        ],
-        false,
+        env,
+        unset_library,
     );
-    println!("{text}");
     assert!(
         text.contains(" passed") && !text.contains("failed"),
         "{text}"
     );
+    text
+}
+
+#[test]
+fn pytest_suite_against_the_built_library() {
+    require_python_tools();
+    let lib = c_libraries().join("libtroupe.so");
+    let bindings = root().join("bindings/python");
+    let text = pytest_suite(
+        &[("TROUPE_LIBRARY_PATH", &lib), ("PYTHONPATH", &bindings)],
+        false,
+    );
+    println!("{text}");
 }
 
 #[test]
@@ -125,22 +132,7 @@ fn wheel_carries_the_library_and_passes_the_suite() {
         &[],
         false,
     );
-    let text = python(
-        &[
-            "-m",
-            "pytest",
-            "-q",
-            "-p",
-            "no:cacheprovider",
-            "bindings/python/tests",
-        ],
-        &[("PYTHONPATH", &site)],
-        true,
-    );
-    assert!(
-        text.contains(" passed") && !text.contains("failed"),
-        "{text}"
-    );
+    pytest_suite(&[("PYTHONPATH", &site)], true);
 }
 
 /// The Python streaming demo runs on the tiny bundle and writes the reactor motion.
