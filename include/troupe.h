@@ -311,14 +311,22 @@ size_t troupe_session_options_size(void);
 
 /*
  Fills `options` with the defaults of `model`'s bundle (sampler steps, CFG scale, context
- capacity, actor latent) and seed 0, and sets `struct_size`.
+ capacity, actor latent) and seed 0, and sets `struct_size`. Pass
+ `sizeof(troupe_session_options)` as `options_size`: the library writes only that many bytes
+ (zeroing fields it does not know), so callers built against an older or newer header are safe.
 
- Returns `TROUPE_OK` or `TROUPE_ERR_NULL_ARG`. Thread-safe.
+ Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, or `TROUPE_ERR_INVALID_ARG` when `options_size`
+ is smaller than the first version of the struct. Thread-safe.
+
+ ```c
+ troupe_session_options opt;
+ troupe_session_options_init(model, &opt, sizeof opt);
+ ```
 
  # Safety
- `model` must be a live handle; `options` must be writable.
+ `model` must be a live handle; `options` must be writable for `options_size` bytes.
  */
-troupe_status troupe_session_options_init(const struct troupe_model *model, struct troupe_session_options *options);
+troupe_status troupe_session_options_init(const struct troupe_model *model, struct troupe_session_options *options, size_t options_size);
 
 /*
  Starts a stream on `model` with `options` (NULL: the bundle's defaults). The session starts
@@ -333,7 +341,7 @@ troupe_status troupe_session_options_init(const struct troupe_model *model, stru
 
  ```c
  troupe_session_options opt;
- troupe_session_options_init(model, &opt);
+ troupe_session_options_init(model, &opt, sizeof opt);
  opt.seed = 42;
  troupe_session *session = NULL;
  troupe_status st = troupe_session_new(model, &opt, &session);

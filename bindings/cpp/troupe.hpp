@@ -118,7 +118,7 @@ class Model {
     }
     /// The bundle's default session options.
     Status default_options(troupe_session_options &out) const {
-        return Status::from(troupe_session_options_init(handle_, &out));
+        return Status::from(troupe_session_options_init(handle_, &out, sizeof out));
     }
     const troupe_model *get() const { return handle_; }
 

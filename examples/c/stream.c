@@ -61,7 +61,7 @@ int main(int argc, char **argv) {
         fprintf(stderr, "load: %s\n", troupe_last_error_message());
         return 1;
     }
-    troupe_session_options_init(model, &opt);
+    troupe_session_options_init(model, &opt, sizeof opt);
     opt.seed = 7;
     if (troupe_session_new(model, &opt, &session) != TROUPE_OK) {
         fprintf(stderr, "session: %s\n", troupe_last_error_message());

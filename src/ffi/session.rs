@@ -48,17 +48,31 @@ pub extern "C" fn troupe_session_options_size() -> usize {
     std::mem::size_of::<troupe_session_options>()
 }
 
+/// The size of the first published `troupe_session_options`; smaller structs are rejected.
+const OPTIONS_V1_SIZE: usize = 32;
+// Version 1 has no padding, so copying its bytes copies only initialised fields.
+const _: () = assert!(std::mem::size_of::<troupe_session_options>() == OPTIONS_V1_SIZE);
+
 /// Fills `options` with the defaults of `model`'s bundle (sampler steps, CFG scale, context
-/// capacity, actor latent) and seed 0, and sets `struct_size`.
+/// capacity, actor latent) and seed 0, and sets `struct_size`. Pass
+/// `sizeof(troupe_session_options)` as `options_size`: the library writes only that many bytes
+/// (zeroing fields it does not know), so callers built against an older or newer header are safe.
 ///
-/// Returns `TROUPE_OK` or `TROUPE_ERR_NULL_ARG`. Thread-safe.
+/// Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, or `TROUPE_ERR_INVALID_ARG` when `options_size`
+/// is smaller than the first version of the struct. Thread-safe.
+///
+/// ```c
+/// troupe_session_options opt;
+/// troupe_session_options_init(model, &opt, sizeof opt);
+/// ```
 ///
 /// # Safety
-/// `model` must be a live handle; `options` must be writable.
+/// `model` must be a live handle; `options` must be writable for `options_size` bytes.
 #[no_mangle]
 pub unsafe extern "C" fn troupe_session_options_init(
     model: *const troupe_model,
     options: *mut troupe_session_options,
+    options_size: usize,
 ) -> troupe_status {
     boundary::call(
         "troupe_session_options_init",
@@ -66,10 +80,18 @@ pub unsafe extern "C" fn troupe_session_options_init(
         || {
             non_null(model, "model")?;
             non_null(options, "options")?;
+            if options_size < OPTIONS_V1_SIZE || options_size > u32::MAX as usize {
+                return Err(FfiError::new(
+                    TROUPE_ERR_INVALID_ARG,
+                    format!(
+                        "options_size {options_size} is not the size of a troupe_session_options"
+                    ),
+                ));
+            }
             // SAFETY: non-NULL live handle per the contract.
             let m = unsafe { &(*model).model }.manifest();
             let defaults = troupe_session_options {
-                struct_size: troupe_session_options_size() as u32,
+                struct_size: options_size as u32,
                 steps: m.sampler.steps,
                 seed: 0,
                 cfg_scale: m.sampler.cfg_scale,
@@ -80,8 +102,21 @@ pub unsafe extern "C" fn troupe_session_options_init(
                 },
                 reserved: 0,
             };
-            // SAFETY: non-NULL and writable per the contract.
-            unsafe { options.write(defaults) };
+            let ours = std::mem::size_of::<troupe_session_options>();
+            let dst = options.cast::<u8>();
+            // SAFETY: `options` is writable for `options_size` bytes per the contract; we write
+            // min(options_size, ours) bytes of our struct (no padding: all fields are 4- or 8-byte
+            // and laid out without gaps) and zero the rest.
+            unsafe {
+                std::ptr::copy_nonoverlapping(
+                    (&defaults as *const troupe_session_options).cast::<u8>(),
+                    dst,
+                    options_size.min(ours),
+                );
+                if options_size > ours {
+                    std::ptr::write_bytes(dst.add(ours), 0, options_size - ours);
+                }
+            }
             Ok(())
         },
     )
@@ -95,7 +130,7 @@ unsafe fn read_options(options: *const troupe_session_options) -> FfiResult<Sess
     let ours = std::mem::size_of::<troupe_session_options>();
     // SAFETY: the first field is readable in any version of the struct.
     let size = unsafe { std::ptr::addr_of!((*options).struct_size).read_unaligned() } as usize;
-    if size < ours {
+    if size < OPTIONS_V1_SIZE.max(ours) {
         return Err(FfiError::new(
             TROUPE_ERR_INVALID_ARG,
             format!("options.struct_size is {size}, this library needs at least {ours}; call troupe_session_options_init"),
@@ -151,7 +186,7 @@ unsafe fn read_options(options: *const troupe_session_options) -> FfiResult<Sess
 ///
 /// ```c
 /// troupe_session_options opt;
-/// troupe_session_options_init(model, &opt);
+/// troupe_session_options_init(model, &opt, sizeof opt);
 /// opt.seed = 42;
 /// troupe_session *session = NULL;
 /// troupe_status st = troupe_session_new(model, &opt, &session);

@@ -144,9 +144,25 @@ int main(int argc, char **argv) {
 
     /* options */
     CHECK(troupe_session_options_size() == sizeof(troupe_session_options));
-    EXPECT(troupe_session_options_init(NULL, &opt), TROUPE_ERR_NULL_ARG);
-    EXPECT(troupe_session_options_init(model, NULL), TROUPE_ERR_NULL_ARG);
-    EXPECT(troupe_session_options_init(model, &opt), TROUPE_OK);
+    EXPECT(troupe_session_options_init(NULL, &opt, sizeof opt), TROUPE_ERR_NULL_ARG);
+    EXPECT(troupe_session_options_init(model, NULL, sizeof opt), TROUPE_ERR_NULL_ARG);
+    EXPECT(troupe_session_options_init(model, &opt, 8), TROUPE_ERR_INVALID_ARG);
+    {
+        /* a caller built against a newer header: its unknown tail is zeroed and accepted */
+        union {
+            troupe_session_options opt;
+            unsigned char bytes[sizeof(troupe_session_options) + 8];
+        } newer;
+        troupe_session *probe = NULL;
+        memset(newer.bytes, 0xab, sizeof newer.bytes);
+        EXPECT(troupe_session_options_init(model, &newer.opt, sizeof newer.bytes), TROUPE_OK);
+        CHECK(newer.bytes[sizeof newer.bytes - 1] == 0 && newer.opt.struct_size == sizeof newer.bytes);
+        EXPECT(troupe_session_new(model, &newer.opt, &probe), TROUPE_OK);
+        troupe_session_free(probe);
+        newer.bytes[sizeof newer.bytes - 1] = 1;
+        EXPECT(troupe_session_new(model, &newer.opt, &probe), TROUPE_ERR_INVALID_ARG);
+    }
+    EXPECT(troupe_session_options_init(model, &opt, sizeof opt), TROUPE_OK);
     CHECK(opt.struct_size == sizeof opt && opt.steps == 1 && opt.cfg_scale == 1.0f && opt.context_capacity == 64);
     opt.seed = 42;
     opt.struct_size = 8;

@@ -118,7 +118,7 @@ class Session:
     def __init__(self, model: Model, seed=0, steps=None, cfg=None, capacity=None, actor_latent=None,
                  condition=None):
         opt = _native.SessionOptions()
-        _check(_lib.troupe_session_options_init(model._h(), ctypes.byref(opt)))
+        _check(_lib.troupe_session_options_init(model._h(), ctypes.byref(opt), ctypes.sizeof(opt)))
         opt.seed = seed
         if steps is not None:
             opt.steps = steps

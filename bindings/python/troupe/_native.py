@@ -56,7 +56,7 @@ PROTOTYPES = {
     "troupe_model_latent_dim": (c_size, [model_p]),
     "troupe_model_max_output_frames": (c_size, [model_p, c_size]),
     "troupe_session_options_size": (c_size, []),
-    "troupe_session_options_init": (status, [model_p, ctypes.POINTER(SessionOptions)]),
+    "troupe_session_options_init": (status, [model_p, ctypes.POINTER(SessionOptions), c_size]),
     "troupe_session_new": (status, [model_p, ctypes.POINTER(SessionOptions), ctypes.POINTER(session_p)]),
     "troupe_session_free": (None, [session_p]),
     "troupe_session_step": (status, [session_p, f32p, c_size, f32p, c_size, ctypes.POINTER(c_size)]),
