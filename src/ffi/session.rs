@@ -130,7 +130,9 @@ unsafe fn read_options(options: *const troupe_session_options) -> FfiResult<Sess
     let ours = std::mem::size_of::<troupe_session_options>();
     // SAFETY: the first field is readable in any version of the struct.
     let size = unsafe { std::ptr::addr_of!((*options).struct_size).read_unaligned() } as usize;
-    if size < OPTIONS_V1_SIZE.max(ours) {
+    // Today `ours == OPTIONS_V1_SIZE`; once fields are appended, a V1-sized caller must get
+    // defaults for them instead of the read below.
+    if size < OPTIONS_V1_SIZE {
         return Err(FfiError::new(
             TROUPE_ERR_INVALID_ARG,
             format!("options.struct_size is {size}, this library needs at least {ours}; call troupe_session_options_init"),
