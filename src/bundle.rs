@@ -1,6 +1,7 @@
 //! Where a bundle's files come from: a directory, or a tar archive of that directory (a file on
 //! disk or bytes in memory, for engines that pack their assets).
 
+use std::borrow::Cow;
 use std::collections::HashMap;
 use std::io::Read;
 use std::path::{Path, PathBuf};
@@ -71,20 +72,25 @@ impl BundleFiles {
         }
     }
 
-    /// The contents of one file of the bundle.
-    pub(crate) fn read(&self, name: &str) -> Result<Vec<u8>> {
+    /// The contents of one file of the bundle (borrowed from an archive, read from a directory).
+    pub(crate) fn read(&self, name: &str) -> Result<Cow<'_, [u8]>> {
         match self {
-            Self::Dir(dir) => std::fs::read(dir.join(name)).map_err(|source| Error::Io {
-                path: dir.join(name),
-                source,
-            }),
-            Self::Archive { files, .. } => files.get(name).cloned().ok_or_else(|| Error::Io {
-                path: self.path_of(name),
-                source: std::io::Error::new(
-                    std::io::ErrorKind::NotFound,
-                    "the archive holds no such file",
-                ),
-            }),
+            Self::Dir(dir) => std::fs::read(dir.join(name))
+                .map(Cow::Owned)
+                .map_err(|source| Error::Io {
+                    path: dir.join(name),
+                    source,
+                }),
+            Self::Archive { files, .. } => files
+                .get(name)
+                .map(|bytes| Cow::Borrowed(bytes.as_slice()))
+                .ok_or_else(|| Error::Io {
+                    path: self.path_of(name),
+                    source: std::io::Error::new(
+                        std::io::ErrorKind::NotFound,
+                        "the archive holds no such file",
+                    ),
+                }),
         }
     }
 }

@@ -223,11 +223,11 @@ impl Manifest {
     pub(crate) fn load(files: &BundleFiles) -> Result<Self> {
         let path = files.path_of("troupe.json");
         let bytes = files.read("troupe.json")?;
-        let text = String::from_utf8(bytes).map_err(|_| Error::Manifest {
+        let text = std::str::from_utf8(&bytes).map_err(|_| Error::Manifest {
             path: path.clone(),
             message: "not UTF-8 text".into(),
         })?;
-        Self::parse(&text, &path)
+        Self::parse(text, &path)
     }
 
     /// Parses and validates manifest text; `path` is only used in messages.
