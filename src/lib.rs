@@ -32,7 +32,9 @@ mod logging;
 pub mod manifest;
 mod model;
 pub mod noise;
+pub mod pyramid;
 mod session;
+pub mod solver;
 
 pub use error::{Error, Result};
 pub use manifest::{ActorLatent, Manifest};

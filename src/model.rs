@@ -10,10 +10,11 @@ use crate::bundle::BundleFiles;
 use crate::error::{Error, Result};
 use crate::graph::{f32_tensor, read_f32, Graph};
 use crate::kv_cache::KvCache;
-use crate::manifest::Manifest;
+use crate::manifest::{ArmFlowSpec, Family, Manifest, UmfSpec};
 use crate::session::{Session, SessionOptions};
 
-/// A loaded ARMFlow bundle: manifest plus optimised graphs.
+/// A loaded bundle: manifest plus optimised graphs. An `armflow` model streams reactions
+/// through [`Session`]s; a `umf` model generates groups with [`Model::generate_group`].
 ///
 /// `Model` is `Send + Sync`; clones share the same graphs. A [`Session`] keeps its model alive.
 #[derive(Debug, Clone)]
@@ -25,11 +26,32 @@ pub struct Model {
 struct Inner {
     source: PathBuf,
     manifest: Manifest,
+    networks: Networks,
+}
+
+/// The optimised graphs, by family.
+#[derive(Debug)]
+enum Networks {
+    ArmFlow(ArmFlowNetworks),
+    Umf(UmfNetworks),
+}
+
+#[derive(Debug)]
+struct ArmFlowNetworks {
     conditioning: Graph,
     context_step: Graph,
     velocity: Graph,
     vae_encoder: Graph,
     vae_decoder: Graph,
+}
+
+/// The graphs of a `umf` bundle (used by [`crate::group`]).
+#[derive(Debug)]
+pub(crate) struct UmfNetworks {
+    pub prior: Graph,
+    pub reaction: Graph,
+    pub context: Graph,
+    pub decoder: Graph,
 }
 
 /// Outputs of the conditioning graph: what stays constant while the condition does.
@@ -59,14 +81,30 @@ impl Model {
 
     fn from_files(files: BundleFiles, source: &Path) -> Result<Self> {
         let manifest = Manifest::load(&files)?;
-        let g = &manifest.graphs;
+        let networks = match &manifest.family {
+            Family::Armflow(spec) => {
+                let g = &spec.graphs;
+                Networks::ArmFlow(ArmFlowNetworks {
+                    conditioning: Graph::load("conditioning", &files, &g.conditioning)?,
+                    context_step: Graph::load("context_step", &files, &g.context_step)?,
+                    velocity: Graph::load("velocity", &files, &g.velocity)?,
+                    vae_encoder: Graph::load("vae_encoder", &files, &g.vae_encoder)?,
+                    vae_decoder: Graph::load("vae_decoder", &files, &g.vae_decoder)?,
+                })
+            }
+            Family::Umf(spec) => {
+                let g = &spec.graphs;
+                Networks::Umf(UmfNetworks {
+                    prior: Graph::load("prior", &files, &g.prior)?,
+                    reaction: Graph::load("reaction", &files, &g.reaction)?,
+                    context: Graph::load("context", &files, &g.context)?,
+                    decoder: Graph::load("decoder", &files, &g.decoder)?,
+                })
+            }
+        };
         let inner = Inner {
-            conditioning: Graph::load("conditioning", &files, &g.conditioning)?,
-            context_step: Graph::load("context_step", &files, &g.context_step)?,
-            velocity: Graph::load("velocity", &files, &g.velocity)?,
-            vae_encoder: Graph::load("vae_encoder", &files, &g.vae_encoder)?,
-            vae_decoder: Graph::load("vae_decoder", &files, &g.vae_decoder)?,
             manifest,
+            networks,
             source: source.to_path_buf(),
         };
         Ok(Self {
@@ -74,7 +112,8 @@ impl Model {
         })
     }
 
-    /// Starts a stream. Options left unset take the bundle's defaults.
+    /// Starts a stream. Options left unset take the bundle's defaults. Fails unless the bundle
+    /// is an `armflow` model.
     pub fn session(&self, options: SessionOptions) -> Result<Session> {
         Session::new(self.clone(), options)
     }
@@ -99,14 +138,18 @@ impl Model {
         self.inner.manifest.motion.fps
     }
 
-    /// Motion frames per latent token (4 for ARMFlow).
+    /// Motion frames per latent token (4 for ARMFlow); 0 for a `umf` model, whose tokens are
+    /// global queries rather than spans of frames.
     pub fn frames_per_token(&self) -> usize {
-        self.inner.manifest.latent.frames_per_token
+        self.armflow_spec().map_or(0, |a| a.latent.frames_per_token)
     }
 
     /// Floats per latent token of one person.
     pub fn latent_dim(&self) -> usize {
-        self.inner.manifest.latent.dim
+        match &self.inner.manifest.family {
+            Family::Armflow(a) => a.latent.dim,
+            Family::Umf(u) => u.latent.dim,
+        }
     }
 
     /// Floats in the conditioning vector.
@@ -117,10 +160,12 @@ impl Model {
     /// Algorithmic latency in frames: how many actor frames after frame `t` arrive before the
     /// reactor's frame `t` is returned, at worst. For a streaming VAE this is
     /// `frames_per_token - 1`: the first frame of a token waits for the token's last frame.
+    /// 0 for a `umf` model, which does not stream.
     pub fn latency_frames(&self) -> usize {
-        let m = &self.inner.manifest;
-        let fpt = m.latent.frames_per_token;
-        fpt - 1 + m.vae.encoder.lookahead_frames + fpt * m.vae.decoder.lookahead_tokens
+        self.armflow_spec().map_or(0, |a| {
+            let fpt = a.latent.frames_per_token;
+            fpt - 1 + a.vae.encoder.lookahead_frames + fpt * a.vae.decoder.lookahead_tokens
+        })
     }
 
     /// The most reactor frames one `step` with `n_actor_frames` new frames can return, whatever
@@ -135,7 +180,7 @@ impl Model {
     /// `[n, 2 * latent_dim]`; positions are `0..=n`. A session's cached stream gives the same
     /// context while its history fits in the context capacity.
     pub fn recompute_context(&self, condition: Option<&[f32]>, pairs: &[f32]) -> Result<Vec<f32>> {
-        let width = self.inner.manifest.context.width;
+        let width = self.armflow()?.0.context.width;
         if !pairs.len().is_multiple_of(width) {
             return Err(Error::InvalidInput(format!(
                 "history holds {} floats, not a multiple of the token width {width}",
@@ -147,16 +192,56 @@ impl Model {
         let mut tokens = cond.start_token.clone();
         tokens.extend_from_slice(pairs);
         let positions: Vec<i64> = (0..(tokens.len() / width) as i64).collect();
-        let mut cache = KvCache::empty(&self.inner.manifest.context);
+        let mut cache = KvCache::empty(&self.armflow()?.0.context);
         self.context_step(&mut cache, &tokens, &positions, &cond.modulation)
+    }
+
+    /// The `armflow` manifest fields, if this is an ARMFlow model.
+    pub fn armflow_spec(&self) -> Option<&ArmFlowSpec> {
+        match &self.inner.manifest.family {
+            Family::Armflow(spec) => Some(spec),
+            Family::Umf(_) => None,
+        }
+    }
+
+    /// The `umf` manifest fields, if this is a UMF model.
+    pub fn umf_spec(&self) -> Option<&UmfSpec> {
+        match &self.inner.manifest.family {
+            Family::Umf(spec) => Some(spec),
+            Family::Armflow(_) => None,
+        }
+    }
+
+    fn wrong_family(&self, needed: &str, what: &str) -> Error {
+        Error::InvalidInput(format!(
+            "bundle `{}` is a `{}` model; {what} needs a `{needed}` bundle",
+            self.inner.manifest.name,
+            self.inner.manifest.family_name()
+        ))
+    }
+
+    /// The ARMFlow spec and graphs, or an error naming the family this bundle is.
+    fn armflow(&self) -> Result<(&ArmFlowSpec, &ArmFlowNetworks)> {
+        match (&self.inner.manifest.family, &self.inner.networks) {
+            (Family::Armflow(spec), Networks::ArmFlow(nets)) => Ok((spec, nets)),
+            _ => Err(self.wrong_family("armflow", "streaming")),
+        }
+    }
+
+    /// The UMF spec and graphs, or an error naming the family this bundle is.
+    pub(crate) fn umf(&self) -> Result<(&UmfSpec, &UmfNetworks)> {
+        match (&self.inner.manifest.family, &self.inner.networks) {
+            (Family::Umf(spec), Networks::Umf(nets)) => Ok((spec, nets)),
+            _ => Err(self.wrong_family("umf", "group generation")),
+        }
     }
 
     // ---- typed network calls, used by sessions ------------------------------------------------
 
     /// Runs the conditioning graph; `None` is the null condition (all zeros).
     pub(crate) fn conditioning(&self, condition: Option<&[f32]>) -> Result<Conditioning> {
-        let m = &self.inner.manifest;
-        let dim = m.condition.dim;
+        let (a, nets) = self.armflow()?;
+        let dim = self.inner.manifest.condition.dim;
         let zeros;
         let condition = match condition {
             Some(c) => {
@@ -170,20 +255,19 @@ impl Model {
                 c
             }
             None => {
-                zeros = vec![0f32; dim];
+                zeros = self.null_condition();
                 &zeros
             }
         };
-        let out = self
-            .inner
+        let out = nets
             .conditioning
             .run(vec![f32_tensor(&[1, dim], condition)])?;
-        let c = m.context.width;
+        let c = a.context.width;
         read_f32(
             "conditioning",
             "modulation",
             &out[0],
-            &[1, m.context.layers, 6, c],
+            &[1, a.context.layers, 6, c],
         )?;
         let start_token = read_f32("conditioning", "start_token", &out[1], &[1, 1, c])?.to_vec();
         Ok(Conditioning {
@@ -201,7 +285,8 @@ impl Model {
         positions: &[i64],
         modulation: &TValue,
     ) -> Result<Vec<f32>> {
-        let c = self.inner.manifest.context.width;
+        let (a, nets) = self.armflow()?;
+        let c = a.context.width;
         let s = positions.len();
         let mut inputs = vec![
             f32_tensor(&[1, s, c], tokens),
@@ -211,7 +296,7 @@ impl Model {
             modulation.clone(),
         ];
         inputs.extend(cache.tensors().iter().cloned());
-        let mut out = self.inner.context_step.run(inputs)?;
+        let mut out = nets.context_step.run(inputs)?;
         let context = read_f32("context_step", "context", &out[0], &[1, c])?.to_vec();
         cache.replace(out.split_off(1), s)?;
         Ok(context)
@@ -226,10 +311,10 @@ impl Model {
         r: f32,
         t: f32,
     ) -> Result<Vec<f32>> {
-        let m = &self.inner.manifest;
-        let (lat, c) = (m.latent.dim, m.context.width);
+        let (a, nets) = self.armflow()?;
+        let (lat, c) = (a.latent.dim, a.context.width);
         let b = actor.len() / lat;
-        let out = self.inner.velocity.run(vec![
+        let out = nets.velocity.run(vec![
             f32_tensor(&[b, lat], actor),
             f32_tensor(&[b, lat], noisy),
             f32_tensor(&[b, c], context),
@@ -242,14 +327,14 @@ impl Model {
     /// Encodes `frames` (`[T, frame_dim]`, T a multiple of frames_per_token) into the posterior
     /// `(mean, logvar)` of its T / frames_per_token tokens.
     pub(crate) fn encode(&self, frames: &[f32]) -> Result<(Vec<f32>, Vec<f32>)> {
-        let m = &self.inner.manifest;
-        let t = frames.len() / m.motion.frame_dim;
-        let n = t / m.latent.frames_per_token;
-        let out = self
-            .inner
+        let (a, nets) = self.armflow()?;
+        let d = self.frame_dim();
+        let t = frames.len() / d;
+        let n = t / a.latent.frames_per_token;
+        let out = nets
             .vae_encoder
-            .run(vec![f32_tensor(&[1, t, m.motion.frame_dim], frames)])?;
-        let shape = [1, n, m.latent.dim];
+            .run(vec![f32_tensor(&[1, t, d], frames)])?;
+        let shape = [1, n, a.latent.dim];
         Ok((
             read_f32("vae_encoder", "mean", &out[0], &shape)?.to_vec(),
             read_f32("vae_encoder", "logvar", &out[1], &shape)?.to_vec(),
@@ -258,14 +343,21 @@ impl Model {
 
     /// Decodes unscaled latents (`[N, latent_dim]`) into `[N * frames_per_token, frame_dim]`.
     pub(crate) fn decode(&self, latents: &[f32]) -> Result<Vec<f32>> {
-        let m = &self.inner.manifest;
-        let n = latents.len() / m.latent.dim;
-        let out = self
-            .inner
+        let (a, nets) = self.armflow()?;
+        let n = latents.len() / a.latent.dim;
+        let out = nets
             .vae_decoder
-            .run(vec![f32_tensor(&[1, n, m.latent.dim], latents)])?;
-        let shape = [1, n * m.latent.frames_per_token, m.motion.frame_dim];
+            .run(vec![f32_tensor(&[1, n, a.latent.dim], latents)])?;
+        let shape = [1, n * a.latent.frames_per_token, self.frame_dim()];
         Ok(read_f32("vae_decoder", "motion", &out[0], &shape)?.to_vec())
+    }
+}
+
+impl Model {
+    /// The condition that stands for "none": the bundle's `condition.null`, or zeros.
+    pub fn null_condition(&self) -> Vec<f32> {
+        let c = &self.inner.manifest.condition;
+        c.null.clone().unwrap_or_else(|| vec![0f32; c.dim])
     }
 }
 

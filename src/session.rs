@@ -23,7 +23,7 @@ use ndarray::{Array2, ArrayView2};
 
 use crate::error::{Error, Result};
 use crate::kv_cache::KvCache;
-use crate::manifest::ActorLatent;
+use crate::manifest::{ActorLatent, ArmFlowSpec};
 use crate::model::{check_finite, Conditioning, Model};
 use crate::noise::{fill_normals, STREAM_ACTOR_POSTERIOR, STREAM_REACTOR_NOISE};
 
@@ -118,6 +118,8 @@ pub struct Session {
     conditioning: Conditioning,
     grid: Vec<f32>,
     state: StreamState,
+    /// The bundle's `armflow` fields (checked when the session was made).
+    spec: ArmFlowSpec,
 }
 
 /// MeanFlow time grid `tau_k = (n - k) / n`, k = 0..=n, each rounded once to f32. t = 1 is
@@ -130,7 +132,14 @@ pub fn meanflow_grid(steps: u32) -> Vec<f32> {
 
 impl Session {
     pub(crate) fn new(model: Model, options: SessionOptions) -> Result<Self> {
-        let m = model.manifest();
+        let spec = model.armflow_spec().cloned().ok_or_else(|| {
+            Error::InvalidInput(format!(
+                "bundle `{}` is a `{}` model; streaming sessions need an `armflow` bundle",
+                model.manifest().name,
+                model.manifest().family_name()
+            ))
+        })?;
+        let m = &spec;
         let settings = Settings {
             seed: options.seed,
             steps: options.steps.unwrap_or(m.sampler.steps),
@@ -152,9 +161,10 @@ impl Session {
         Ok(Self {
             conditioning: model.conditioning(settings.condition.as_deref())?,
             grid: meanflow_grid(settings.steps),
-            state: StreamState::new(&model),
+            state: StreamState::new(&spec),
             settings,
             model,
+            spec,
         })
     }
 
@@ -222,7 +232,7 @@ impl Session {
     /// Returns the session to the state of a fresh session with the current settings (seed,
     /// steps, CFG, condition, capacity). Queued noise is dropped.
     pub fn reset(&mut self) {
-        self.state = StreamState::new(&self.model);
+        self.state = StreamState::new(&self.spec);
     }
 
     /// Sets the noise seed; applies to tokens generated from now on.
@@ -288,7 +298,7 @@ impl Session {
 
     /// Exactly how many reactor frames a `step` with `n_actor_frames` new frames will return.
     pub fn frames_ready_after(&self, n_actor_frames: usize) -> usize {
-        let m = self.model.manifest();
+        let m = &self.spec;
         let fpt = m.latent.frames_per_token as u64;
         let received = self
             .state
@@ -322,8 +332,8 @@ impl Session {
     // ---- the loop -----------------------------------------------------------------------------
 
     fn advance(&self, st: &mut StreamState, actor: &[f32]) -> Result<StepOutput> {
-        let m = self.model.manifest();
-        let (fpt, dim) = (m.latent.frames_per_token as u64, m.motion.frame_dim);
+        let m = &self.spec;
+        let (fpt, dim) = (m.latent.frames_per_token as u64, self.model.frame_dim());
         st.actor_frames.extend_from_slice(actor);
         st.frames_received += (actor.len() / dim) as u64;
         let mut frames = Vec::new();
@@ -335,15 +345,15 @@ impl Session {
                 frames.extend(self.decode_token(st)?);
             }
         }
-        st.trim(m);
+        st.trim(m, dim);
         let n = frames.len() / dim;
         let frames = Array2::from_shape_vec((n, dim), frames).expect("whole frames");
         Ok(StepOutput { frames, tokens })
     }
 
     fn generate_token(&self, st: &mut StreamState) -> Result<TokenTrace> {
-        let m = self.model.manifest();
-        let (fpt, dim, lat) = (m.latent.frames_per_token, m.motion.frame_dim, m.latent.dim);
+        let m = &self.spec;
+        let (fpt, dim, lat) = (m.latent.frames_per_token, self.model.frame_dim(), m.latent.dim);
         let j = st.tokens;
         let noise = st
             .injected
@@ -432,8 +442,8 @@ impl Session {
     }
 
     fn decode_token(&self, st: &mut StreamState) -> Result<Vec<f32>> {
-        let m = self.model.manifest();
-        let (fpt, dim) = (m.latent.frames_per_token, m.motion.frame_dim);
+        let m = &self.spec;
+        let (fpt, dim) = (m.latent.frames_per_token, self.model.frame_dim());
         let k = st.frames_emitted / fpt as u64;
         let start = k.saturating_sub(m.vae.decoder.context_tokens as u64);
         let end = k + 1 + m.vae.decoder.lookahead_tokens as u64;
@@ -451,13 +461,13 @@ impl Session {
 }
 
 impl StreamState {
-    fn new(model: &Model) -> Self {
+    fn new(spec: &ArmFlowSpec) -> Self {
         Self {
             frames_received: 0,
             actor_frames: Vec::new(),
             actor_base: 0,
             tokens: 0,
-            cache: KvCache::empty(&model.manifest().context),
+            cache: KvCache::empty(&spec.context),
             last_pair: Vec::new(),
             reactor_latents: VecDeque::new(),
             reactor_base: 0,
@@ -467,11 +477,11 @@ impl StreamState {
     }
 
     /// Drops actor frames and reactor latents no future window reads: memory stays bounded.
-    fn trim(&mut self, m: &crate::manifest::Manifest) {
+    fn trim(&mut self, m: &ArmFlowSpec, frame_dim: usize) {
         let fpt = m.latent.frames_per_token as u64;
         let keep_from = (self.tokens * fpt).saturating_sub(m.vae.encoder.context_frames as u64);
         if keep_from > self.actor_base {
-            let drop = (keep_from - self.actor_base) as usize * m.motion.frame_dim;
+            let drop = (keep_from - self.actor_base) as usize * frame_dim;
             self.actor_frames.drain(..drop);
             self.actor_base = keep_from;
         }

@@ -89,7 +89,17 @@ pub unsafe extern "C" fn troupe_session_options_init(
                 ));
             }
             // SAFETY: non-NULL live handle per the contract.
-            let m = unsafe { &(*model).model }.manifest();
+            let model = unsafe { &(*model).model };
+            let m = model.armflow_spec().ok_or_else(|| {
+                FfiError::new(
+                    TROUPE_ERR_INVALID_ARG,
+                    format!(
+                        "bundle `{}` is a `{}` model; session options need an `armflow` bundle",
+                        model.manifest().name,
+                        model.manifest().family_name()
+                    ),
+                )
+            })?;
             let defaults = troupe_session_options {
                 struct_size: options_size as u32,
                 steps: m.sampler.steps,

@@ -1,42 +1,15 @@
-//! `troupe.json`: the manifest of a model bundle (contract documented in `onnx/README.md`).
-//!
-//! The manifest states everything the runtime needs; nothing is inferred from file names. It is
-//! checked twice at load: against itself (dimensions that must agree) and, in
-//! [`crate::graph`], against the ONNX graphs it names.
-
-use std::fmt;
-use std::path::Path;
+//! The `armflow` family's manifest fields: streaming VAE windows, the causal context encoder
+//! and the MeanFlow sampler defaults.
 
 use serde::{Deserialize, Serialize};
 
-use crate::bundle::BundleFiles;
-use crate::error::{Error, Result};
+use super::{contract, ensure, float, sym, DType, Dim, GraphSpec, Manifest, TensorSpec};
 
-/// Value of the manifest's `format` field.
-pub const FORMAT: &str = "troupe-bundle";
-/// The manifest format version this runtime reads.
-pub const FORMAT_VERSION: u32 = 1;
-
-/// A parsed and validated `troupe.json`.
+/// The manifest fields of an `armflow` bundle.
 #[derive(Debug, Clone, Serialize, Deserialize)]
-pub struct Manifest {
-    /// Always [`FORMAT`].
-    pub format: String,
-    /// Always [`FORMAT_VERSION`] for bundles this runtime can run.
-    pub format_version: u32,
-    /// Model family; `armflow` for the online reaction model.
-    pub family: String,
-    /// Human-readable bundle name.
-    pub name: String,
-    /// Free-form provenance (exporter, preset, seed); not interpreted.
-    #[serde(default)]
-    pub producer: serde_json::Value,
-    /// Per-frame motion features.
-    pub motion: MotionSpec,
+pub struct ArmFlowSpec {
     /// Latent tokens of the VAE.
     pub latent: LatentSpec,
-    /// Conditioning vector (e.g. a text embedding).
-    pub condition: ConditionSpec,
     /// Causal context encoder.
     pub context: ContextSpec,
     /// Streaming properties of the VAE.
@@ -44,18 +17,7 @@ pub struct Manifest {
     /// Default sampler settings (sessions may override them).
     pub sampler: SamplerSpec,
     /// The ONNX graphs of the bundle.
-    pub graphs: Graphs,
-}
-
-/// Per-frame motion features.
-#[derive(Debug, Clone, Serialize, Deserialize)]
-pub struct MotionSpec {
-    /// Feature layout name, e.g. `interhuman262`.
-    pub layout: String,
-    /// Floats per frame.
-    pub frame_dim: usize,
-    /// Frames per second of the motion.
-    pub fps: u32,
+    pub graphs: ArmFlowGraphs,
 }
 
 /// Latent tokens.
@@ -67,13 +29,6 @@ pub struct LatentSpec {
     pub scale: f32,
     /// Motion frames per latent token.
     pub frames_per_token: usize,
-}
-
-/// Conditioning vector.
-#[derive(Debug, Clone, Serialize, Deserialize)]
-pub struct ConditionSpec {
-    /// Floats in the conditioning vector.
-    pub dim: usize,
 }
 
 /// Causal context encoder.
@@ -143,7 +98,7 @@ pub struct SamplerSpec {
 
 /// The graphs of an `armflow` bundle, by role.
 #[derive(Debug, Clone, Serialize, Deserialize)]
-pub struct Graphs {
+pub struct ArmFlowGraphs {
     /// condition -> AdaLN modulation of every layer, and `<sos>`; run when the condition changes.
     pub conditioning: GraphSpec,
     /// One context-encoder step over new tokens with a per-layer key/value cache.
@@ -156,112 +111,10 @@ pub struct Graphs {
     pub vae_decoder: GraphSpec,
 }
 
-/// One ONNX graph and its interface.
-#[derive(Debug, Clone, Serialize, Deserialize)]
-pub struct GraphSpec {
-    /// File name, relative to the bundle directory.
-    pub file: String,
-    /// Inputs, by name.
-    pub inputs: Vec<TensorSpec>,
-    /// Outputs, by name.
-    pub outputs: Vec<TensorSpec>,
-}
-
-/// Element type of a graph tensor.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum DType {
-    /// 32-bit float.
-    Float32,
-    /// 64-bit signed integer.
-    Int64,
-}
-
-/// One dimension: a fixed size or a symbol (`T`, `P`, `P+S`, ...) resolved per call.
-#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(untagged)]
-pub enum Dim {
-    /// A size fixed by the bundle.
-    Fixed(usize),
-    /// A size that varies from call to call.
-    Symbol(String),
-}
-
-/// Name, element type and shape of one graph input or output.
-#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
-pub struct TensorSpec {
-    /// Tensor name in the ONNX graph.
-    pub name: String,
-    /// Element type.
-    pub dtype: DType,
-    /// Shape.
-    pub shape: Vec<Dim>,
-}
-
-impl fmt::Display for Dim {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        match self {
-            Dim::Fixed(n) => write!(f, "{n}"),
-            Dim::Symbol(s) => write!(f, "{s}"),
-        }
-    }
-}
-
-impl fmt::Display for TensorSpec {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        let dims: Vec<String> = self.shape.iter().map(Dim::to_string).collect();
-        let dtype = match self.dtype {
-            DType::Float32 => "float32",
-            DType::Int64 => "int64",
-        };
-        write!(f, "`{}` {dtype} [{}]", self.name, dims.join(", "))
-    }
-}
-
-impl Manifest {
-    /// Reads and validates `troupe.json` from a bundle.
-    pub(crate) fn load(files: &BundleFiles) -> Result<Self> {
-        let path = files.path_of("troupe.json");
-        let bytes = files.read("troupe.json")?;
-        let text = std::str::from_utf8(&bytes).map_err(|_| Error::Manifest {
-            path: path.clone(),
-            message: "not UTF-8 text".into(),
-        })?;
-        Self::parse(text, &path)
-    }
-
-    /// Parses and validates manifest text; `path` is only used in messages.
-    pub fn parse(text: &str, path: &Path) -> Result<Self> {
-        let bad = |message: String| Error::Manifest {
-            path: path.to_path_buf(),
-            message,
-        };
-        let manifest: Manifest = serde_json::from_str(text).map_err(|e| bad(e.to_string()))?;
-        manifest.validate().map_err(bad)?;
-        Ok(manifest)
-    }
-
-    fn validate(&self) -> std::result::Result<(), String> {
-        let check = |ok: bool, msg: &dyn Fn() -> String| if ok { Ok(()) } else { Err(msg()) };
-        check(self.format == FORMAT, &|| {
-            format!("format is `{}`, expected `{FORMAT}`", self.format)
-        })?;
-        check(self.format_version == FORMAT_VERSION, &|| {
-            format!(
-                "format_version {} is not supported (this runtime reads version {FORMAT_VERSION})",
-                self.format_version
-            )
-        })?;
-        check(self.family == "armflow", &|| {
-            format!(
-                "family `{}` is not supported (expected `armflow`)",
-                self.family
-            )
-        })?;
-        let (m, l, c) = (&self.motion, &self.latent, &self.context);
-        check(m.frame_dim > 0 && m.fps > 0, &|| {
-            "motion.frame_dim and motion.fps must be positive".into()
-        })?;
+impl ArmFlowSpec {
+    pub(super) fn validate(&self, _manifest: &Manifest) -> std::result::Result<(), String> {
+        let check = |ok: bool, msg: &dyn Fn() -> String| ensure(ok, msg);
+        let (l, c) = (&self.latent, &self.context);
         check(l.dim > 0 && l.frames_per_token > 0, &|| {
             "latent.dim and latent.frames_per_token must be positive".into()
         })?;
@@ -308,29 +161,17 @@ impl Manifest {
         check(self.sampler.cfg_scale.is_finite(), &|| {
             "sampler.cfg_scale must be finite".into()
         })?;
-        for (role, declared, expected) in self.graph_contract() {
-            for (kind, got, want) in [
-                ("inputs", &declared.inputs, &expected.inputs),
-                ("outputs", &declared.outputs, &expected.outputs),
-            ] {
-                compare_tensor_lists(got, want)
-                    .map_err(|e| format!("graphs.{role}.{kind}: {e}"))?;
-            }
-        }
         Ok(())
     }
 
     /// Each graph as declared, next to the interface the runtime requires of it.
-    pub(crate) fn graph_contract(&self) -> [(&'static str, &GraphSpec, GraphSpec); 5] {
-        let (c, lat, d) = (self.context.width, self.latent.dim, self.motion.frame_dim);
+    pub(super) fn graph_contract<'a>(
+        &'a self,
+        manifest: &Manifest,
+    ) -> Vec<(&'static str, &'a GraphSpec, GraphSpec)> {
+        let (c, lat, d) = (self.context.width, self.latent.dim, manifest.motion.frame_dim);
         let (h, dh) = (self.context.heads, self.context.head_dim);
-        let f = |name: &str, shape: Vec<Dim>| TensorSpec {
-            name: name.into(),
-            dtype: DType::Float32,
-            shape,
-        };
-        let n = Dim::Fixed;
-        let s = |x: &str| Dim::Symbol(x.into());
+        let (f, n, s) = (float, Dim::Fixed, sym);
         let kv = |prefix: &str, len: &str| -> Vec<TensorSpec> {
             (0..self.context.layers)
                 .flat_map(|i| {
@@ -343,11 +184,7 @@ impl Manifest {
                 })
                 .collect()
         };
-        let spec = |g: &GraphSpec, inputs: Vec<TensorSpec>, outputs: Vec<TensorSpec>| GraphSpec {
-            file: g.file.clone(),
-            inputs,
-            outputs,
-        };
+        let spec = contract;
         let g = &self.graphs;
         let mut step_inputs = vec![
             f("tokens", vec![n(1), s("S"), n(c)]),
@@ -361,13 +198,13 @@ impl Manifest {
         step_inputs.extend(kv("past", "P"));
         let mut step_outputs = vec![f("context", vec![n(1), n(c)])];
         step_outputs.extend(kv("present", "P+S"));
-        [
+        vec![
             (
                 "conditioning",
                 &g.conditioning,
                 spec(
                     &g.conditioning,
-                    vec![f("condition", vec![n(1), n(self.condition.dim)])],
+                    vec![f("condition", vec![n(1), n(manifest.condition.dim)])],
                     vec![
                         f("modulation", vec![n(1), n(self.context.layers), n(6), n(c)]),
                         f("start_token", vec![n(1), n(1), n(c)]),
@@ -417,30 +254,4 @@ impl Manifest {
             ),
         ]
     }
-}
-
-/// Same names (in any order), dtypes, ranks and fixed dims; symbols may be named freely.
-fn compare_tensor_lists(
-    got: &[TensorSpec],
-    want: &[TensorSpec],
-) -> std::result::Result<(), String> {
-    for w in want {
-        let g = got
-            .iter()
-            .find(|g| g.name == w.name)
-            .ok_or_else(|| format!("missing tensor {w}"))?;
-        let same_dims = g.shape.len() == w.shape.len()
-            && g.shape.iter().zip(&w.shape).all(|(a, b)| match (a, b) {
-                (Dim::Fixed(x), Dim::Fixed(y)) => x == y,
-                (Dim::Symbol(_), Dim::Symbol(_)) => true,
-                _ => false,
-            });
-        if g.dtype != w.dtype || !same_dims {
-            return Err(format!("tensor declared as {g}, the runtime requires {w}"));
-        }
-    }
-    if let Some(extra) = got.iter().find(|g| !want.iter().any(|w| w.name == g.name)) {
-        return Err(format!("unexpected tensor {extra}"));
-    }
-    Ok(())
 }
