@@ -5,6 +5,9 @@
  * Regenerate with: TROUPE_BLESS=1 cargo test --test c_header
  *
  * Conventions
+ * - Families. An `armflow` bundle streams reactions through troupe_session; a `umf` bundle
+ *   generates whole groups with troupe_group_generate. Calling one family's functions on the
+ *   other's model returns TROUPE_ERR_INVALID_ARG.
  * - Handles. troupe_model is a loaded bundle: immutable, and every function taking a
  *   `const troupe_model *` may be called from any thread at any time. troupe_session is one
  *   actor/reactor stream: not synchronised, so one thread at a time (it may move between
@@ -40,6 +43,21 @@
 #define TROUPE_VERSION_PATCH 0
 #define TROUPE_VERSION_STRING "0.1.0"
 #define TROUPE_VERSION_NUMBER 256
+
+/*
+ Forward Euler.
+ */
+#define TROUPE_SOLVER_EULER 1
+
+/*
+ The 3/8-rule fourth-order Runge-Kutta (torchdiffeq's `rk4`, UMF's solver).
+ */
+#define TROUPE_SOLVER_RK4 2
+
+/*
+ The most pyramid stages `troupe_group_options` can describe.
+ */
+#define TROUPE_MAX_STAGES 8
 
 /*
  Log level: something failed.
@@ -94,6 +112,82 @@ typedef struct troupe_session troupe_session;
  Status returned by every fallible function: `TROUPE_OK` or one of the `TROUPE_ERR_*` codes.
  */
 typedef int32_t troupe_status;
+
+/*
+ Options of `troupe_group_generate`. Fill with `troupe_group_options_init` (the bundle's
+ defaults), then change fields. Fields are only ever appended; `struct_size` tells the library
+ which version the caller has.
+ */
+typedef struct troupe_group_options {
+  /*
+   `sizeof(troupe_group_options)` as the caller compiled it (set by `_init`).
+   */
+  uint32_t struct_size;
+  /*
+   Pyramid stages of the bundle; must equal `troupe_model_group_stages`.
+   */
+  uint32_t stage_count;
+  /*
+   Seed of the portable noise generator, for draws not given as `troupe_group_noise`.
+   */
+  uint64_t seed;
+  /*
+   Classifier-free guidance scale, finite; 1 runs the conditional branch only.
+   */
+  float cfg_scale;
+  /*
+   Solver of each further person: `TROUPE_SOLVER_EULER` or `TROUPE_SOLVER_RK4`.
+   */
+  uint32_t reaction_solver;
+  /*
+   Intervals of the further persons' solve, >= 1.
+   */
+  uint32_t reaction_steps;
+  /*
+   Must be 0.
+   */
+  uint32_t reserved;
+  /*
+   Solver of each pyramid stage, coarsest first (the first `stage_count` are read).
+   */
+  uint32_t stage_solver[TROUPE_MAX_STAGES];
+  /*
+   Intervals of each pyramid stage, >= 1.
+   */
+  uint32_t stage_steps[TROUPE_MAX_STAGES];
+} troupe_group_options;
+
+/*
+ Every random draw of one generation, given instead of seeded. Arrays are row-major float32;
+ each pointer is borrowed for the call and its length is in floats.
+ */
+typedef struct troupe_group_noise {
+  /*
+   First person's start at the coarsest stage, `[stage 0 tokens][latent_dim]`.
+   */
+  const float *prior;
+  /*
+   Length of `prior`.
+   */
+  size_t prior_len;
+  /*
+   Block noise of each jump, concatenated in stage order: `[stage k tokens][latent_dim]` for
+   k = 1, 2, ...
+   */
+  const float *jumps;
+  /*
+   Length of `jumps`.
+   */
+  size_t jumps_len;
+  /*
+   Noise half of each further person's start, `[people - 1][tokens][latent_dim]`.
+   */
+  const float *reactions;
+  /*
+   Length of `reactions`.
+   */
+  size_t reactions_len;
+} troupe_group_noise;
 
 /*
  A log callback: `level` is one of `TROUPE_LOG_*`; `target` and `message` are NUL-terminated
@@ -189,6 +283,98 @@ typedef struct troupe_session_options {
 #ifdef __cplusplus
 extern "C" {
 #endif // __cplusplus
+
+/*
+ Fills `options` with the defaults of `model`'s bundle (solvers per stage and for further
+ persons, CFG scale) and seed 0, and sets `struct_size`. Pass `sizeof(troupe_group_options)`
+ as `options_size`: the library writes only that many bytes.
+
+ Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, or `TROUPE_ERR_INVALID_ARG` (`options_size`
+ smaller than the first version, a bundle that is not `umf`, or one with more than
+ `TROUPE_MAX_STAGES` stages). Thread-safe.
+
+ ```c
+ troupe_group_options opt;
+ troupe_group_options_init(model, &opt, sizeof opt);
+ opt.stage_solver[0] = TROUPE_SOLVER_EULER; opt.stage_steps[0] = 45;
+ ```
+
+ # Safety
+ `model` must be a live handle; `options` must be writable for `options_size` bytes.
+ */
+troupe_status troupe_group_options_init(const struct troupe_model *model, struct troupe_group_options *options, size_t options_size);
+
+/*
+ Pyramid stages of a `umf` bundle (0 for other bundles or NULL). Thread-safe.
+
+ # Safety
+ `model` must be NULL or a live handle.
+ */
+size_t troupe_model_group_stages(const struct troupe_model *model);
+
+/*
+ Latent tokens per person of a `umf` bundle at full resolution (0 for other bundles or
+ NULL). A person's latent is `tokens * troupe_model_latent_dim` floats. Thread-safe.
+
+ # Safety
+ `model` must be NULL or a live handle.
+ */
+size_t troupe_model_group_tokens(const struct troupe_model *model);
+
+/*
+ Frames of motion per person a `umf` bundle generates (0 for other bundles or NULL): the
+ output of `troupe_group_generate` is `[people][clip_frames][frame_dim]`. Thread-safe.
+
+ # Safety
+ `model` must be NULL or a live handle.
+ */
+size_t troupe_model_clip_frames(const struct troupe_model *model);
+
+/*
+ Writes the lengths, in floats, of the three arrays of a `troupe_group_noise` for `people`
+ people. Any out-pointer may be NULL.
+
+ Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG` (model), `TROUPE_ERR_INVALID_ARG` (not a `umf`
+ bundle; people outside 1..=256). Thread-safe.
+
+ # Safety
+ `model` must be a live handle; each non-NULL out-pointer writable.
+ */
+troupe_status troupe_group_noise_lengths(const struct troupe_model *model, uint32_t people, size_t *prior_len, size_t *jumps_len, size_t *reactions_len);
+
+/*
+ Generates a group of `people` persons for `condition` and writes their motion, row-major
+ float32 `[people][clip_frames][frame_dim]`, into `motion` (capacity `motion_capacity`
+ floats), and, when `latents` is not NULL, their latents `[people][tokens][latent_dim]` into
+ `latents` (capacity `latents_capacity` floats).
+
+ `condition` holds `troupe_model_condition_dim` floats, the prior text feature then the
+ reaction text feature; NULL (with `condition_len` 0) is the bundle's null condition.
+ `options` NULL means the bundle's defaults with seed 0. `noise` NULL draws every random value
+ from `options->seed`; otherwise it supplies them all (lengths from
+ `troupe_group_noise_lengths`). Inputs are borrowed for the call. Nothing is written unless
+ the call succeeds.
+
+ Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (not a `umf` bundle,
+ people outside 1..=256, bad options, non-finite input: the message says which),
+ `TROUPE_ERR_SHAPE` (condition or noise length), `TROUPE_ERR_BUFFER_TOO_SMALL` (the message
+ gives the floats needed), `TROUPE_ERR_INFERENCE`, `TROUPE_ERR_PANIC`. Thread-safe: any number
+ of threads may generate on one model at once.
+
+ ```c
+ size_t n = 2 * troupe_model_clip_frames(model) * troupe_model_frame_dim(model);
+ float *motion = malloc(n * sizeof *motion);
+ troupe_status st = troupe_group_generate(model, NULL, text, text_len, 2, NULL,
+                                          motion, n, NULL, 0);
+ ```
+
+ # Safety
+ `model` must be a live handle; `options` NULL or readable for its `struct_size`;
+ `condition` readable for `condition_len` floats; `noise` NULL or a readable struct whose
+ arrays are readable for their lengths; `motion` writable for `motion_capacity` floats and
+ `latents` (if not NULL) for `latents_capacity`, neither overlapping an input.
+ */
+troupe_status troupe_group_generate(const struct troupe_model *model, const struct troupe_group_options *options, const float *condition, size_t condition_len, uint32_t people, const struct troupe_group_noise *noise, float *motion, size_t motion_capacity, float *latents, size_t latents_capacity);
 
 /*
  Routes the library's log lines at `max_level` or more severe (`TROUPE_LOG_ERROR` ..

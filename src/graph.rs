@@ -49,6 +49,11 @@ impl Graph {
         })
     }
 
+    /// The graph's role in the bundle (`prior`, `context_step`, ...), for messages.
+    pub(crate) fn role(&self) -> &'static str {
+        self.role
+    }
+
     /// Runs the graph on inputs given in manifest order; returns outputs in manifest order.
     pub(crate) fn run(&self, inputs: Vec<TValue>) -> Result<Vec<TValue>> {
         debug_assert_eq!(inputs.len(), self.input_order.len(), "{}", self.role);

@@ -27,6 +27,7 @@ mod bundle;
 mod error;
 pub mod ffi;
 mod graph;
+mod group;
 mod kv_cache;
 mod logging;
 pub mod manifest;
@@ -37,6 +38,11 @@ mod session;
 pub mod solver;
 
 pub use error::{Error, Result};
+pub use group::{
+    Group, GroupNoise, GroupOptions, MAX_PEOPLE, STREAM_JUMP_NOISE, STREAM_PRIOR_NOISE,
+    STREAM_REACTION_NOISE,
+};
 pub use manifest::{ActorLatent, Manifest};
 pub use model::Model;
 pub use session::{meanflow_grid, Session, SessionOptions, StepOutput, TokenNoise, TokenTrace};
+pub use solver::{Method, Solver};

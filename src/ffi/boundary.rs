@@ -165,6 +165,70 @@ pub(crate) unsafe fn slice<'a, T>(ptr: *const T, len: usize, what: &str) -> FfiR
     Ok(unsafe { std::slice::from_raw_parts(ptr, len) })
 }
 
+/// Writes `value` into a caller's versioned struct of `size` bytes (its `struct_size`): only
+/// `min(size, sizeof T)` bytes of it, zeroing any tail the caller has and this library does not
+/// know. `T` must be `repr(C)` without padding, so that only initialised bytes are copied.
+///
+/// # Safety
+/// `dst` must be writable for `size` bytes.
+pub(crate) unsafe fn write_versioned<T: Copy>(dst: *mut T, size: usize, value: &T) {
+    let ours = std::mem::size_of::<T>();
+    let dst = dst.cast::<u8>();
+    // SAFETY: writable for `size` bytes per the contract; `value` has `ours` initialised bytes.
+    unsafe {
+        std::ptr::copy_nonoverlapping((value as *const T).cast::<u8>(), dst, size.min(ours));
+        if size > ours {
+            std::ptr::write_bytes(dst.add(ours), 0, size - ours);
+        }
+    }
+}
+
+/// Reads a caller's versioned struct whose first field is `uint32_t struct_size`. Rejects a
+/// struct smaller than `min_size` (the first published version) and a newer caller's struct
+/// whose fields past ours are not all zero.
+///
+/// # Safety
+/// `src` must be readable for its `struct_size` bytes.
+pub(crate) unsafe fn read_versioned<T: Copy>(
+    src: *const T,
+    min_size: usize,
+    what: &str,
+    init: &str,
+) -> FfiResult<T> {
+    let ours = std::mem::size_of::<T>();
+    // SAFETY: the first field, a u32, is readable in any version of the struct.
+    let size = unsafe { src.cast::<u32>().read_unaligned() } as usize;
+    // Today `ours == min_size` for every struct; once fields are appended, a smaller caller must
+    // get defaults for them instead of the read below.
+    if size < min_size.max(ours) {
+        return Err(FfiError::new(
+            TROUPE_ERR_INVALID_ARG,
+            format!("{what}.struct_size is {size}, this library needs at least {ours}; call {init}"),
+        ));
+    }
+    // SAFETY: the caller's struct holds `size` readable bytes.
+    let tail = unsafe { std::slice::from_raw_parts(src.cast::<u8>().add(ours), size - ours) };
+    if tail.iter().any(|&b| b != 0) {
+        return Err(FfiError::new(
+            TROUPE_ERR_INVALID_ARG,
+            format!("{what} carries fields this library does not know (non-zero bytes past its struct)"),
+        ));
+    }
+    // SAFETY: at least `ours` readable bytes.
+    Ok(unsafe { src.read_unaligned() })
+}
+
+/// Checks the `options_size` given to an `_init` function.
+pub(crate) fn check_struct_size(size: usize, min_size: usize, what: &str) -> FfiResult {
+    if size < min_size || size > u32::MAX as usize {
+        return Err(FfiError::new(
+            TROUPE_ERR_INVALID_ARG,
+            format!("options_size {size} is not the size of a {what}"),
+        ));
+    }
+    Ok(())
+}
+
 /// `a * b`, or an error naming the product when it overflows.
 pub(crate) fn checked_mul(a: usize, b: usize, what: &str) -> FfiResult<usize> {
     a.checked_mul(b).ok_or_else(|| {

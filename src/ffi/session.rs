@@ -3,8 +3,9 @@
 use std::cell::Cell;
 
 use super::boundary::{
-    self, checked_mul, non_null, troupe_status, FfiError, FfiResult, TROUPE_ERR_BUFFER_TOO_SMALL,
-    TROUPE_ERR_INVALID_ARG, TROUPE_ERR_POISONED, TROUPE_ERR_SHAPE,
+    self, check_struct_size, checked_mul, non_null, read_versioned, troupe_status, write_versioned,
+    FfiError, FfiResult, TROUPE_ERR_BUFFER_TOO_SMALL, TROUPE_ERR_INVALID_ARG, TROUPE_ERR_POISONED,
+    TROUPE_ERR_SHAPE,
 };
 use super::model::troupe_model;
 use crate::{ActorLatent, Session, SessionOptions, TokenNoise};
@@ -80,14 +81,7 @@ pub unsafe extern "C" fn troupe_session_options_init(
         || {
             non_null(model, "model")?;
             non_null(options, "options")?;
-            if options_size < OPTIONS_V1_SIZE || options_size > u32::MAX as usize {
-                return Err(FfiError::new(
-                    TROUPE_ERR_INVALID_ARG,
-                    format!(
-                        "options_size {options_size} is not the size of a troupe_session_options"
-                    ),
-                ));
-            }
+            check_struct_size(options_size, OPTIONS_V1_SIZE, "troupe_session_options")?;
             // SAFETY: non-NULL live handle per the contract.
             let model = unsafe { &(*model).model };
             let m = model.armflow_spec().ok_or_else(|| {
@@ -112,21 +106,9 @@ pub unsafe extern "C" fn troupe_session_options_init(
                 },
                 reserved: 0,
             };
-            let ours = std::mem::size_of::<troupe_session_options>();
-            let dst = options.cast::<u8>();
-            // SAFETY: `options` is writable for `options_size` bytes per the contract; we write
-            // min(options_size, ours) bytes of our struct (no padding: all fields are 4- or 8-byte
-            // and laid out without gaps) and zero the rest.
-            unsafe {
-                std::ptr::copy_nonoverlapping(
-                    (&defaults as *const troupe_session_options).cast::<u8>(),
-                    dst,
-                    options_size.min(ours),
-                );
-                if options_size > ours {
-                    std::ptr::write_bytes(dst.add(ours), 0, options_size - ours);
-                }
-            }
+            // SAFETY: writable for `options_size` bytes per the contract; the struct has no
+            // padding (asserted above).
+            unsafe { write_versioned(options, options_size, &defaults) };
             Ok(())
         },
     )
@@ -137,27 +119,15 @@ pub unsafe extern "C" fn troupe_session_options_init(
 /// # Safety
 /// `options` must be readable for `struct_size` bytes.
 unsafe fn read_options(options: *const troupe_session_options) -> FfiResult<SessionOptions> {
-    let ours = std::mem::size_of::<troupe_session_options>();
-    // SAFETY: the first field is readable in any version of the struct.
-    let size = unsafe { std::ptr::addr_of!((*options).struct_size).read_unaligned() } as usize;
-    // Today `ours == OPTIONS_V1_SIZE`; once fields are appended, a V1-sized caller must get
-    // defaults for them instead of the read below.
-    if size < OPTIONS_V1_SIZE {
-        return Err(FfiError::new(
-            TROUPE_ERR_INVALID_ARG,
-            format!("options.struct_size is {size}, this library needs at least {ours}; call troupe_session_options_init"),
-        ));
-    }
-    // SAFETY: the caller's struct holds `size` readable bytes.
-    let tail = unsafe { std::slice::from_raw_parts(options.cast::<u8>().add(ours), size - ours) };
-    if tail.iter().any(|&b| b != 0) {
-        return Err(FfiError::new(
-            TROUPE_ERR_INVALID_ARG,
-            "options carry fields this library does not know (non-zero bytes past its struct)",
-        ));
-    }
-    // SAFETY: at least `ours` readable bytes.
-    let o = unsafe { options.read_unaligned() };
+    // SAFETY: readable for its `struct_size` per the contract.
+    let o = unsafe {
+        read_versioned(
+            options,
+            OPTIONS_V1_SIZE,
+            "options",
+            "troupe_session_options_init",
+        )
+    }?;
     let actor_latent = match o.actor_latent {
         TROUPE_ACTOR_LATENT_SAMPLE => ActorLatent::Sample,
         TROUPE_ACTOR_LATENT_MEAN => ActorLatent::Mean,

@@ -1,0 +1,375 @@
+//! Text-to-group generation (UMF, models.md 2): the first person by Pyramid Flow, every further
+//! person by Semi-Noise Flow from a context of everyone generated before, then one decode.
+//!
+//! ```text
+//! z   <- prior noise [tokens_0, dim]
+//! for stage k:  (k > 0)  z <- alpha_k * Up(z) + beta_k * n'_k          (pyramid.rs)
+//!               solve dz/dtau = G_P(z, (a_k tau + b_k) / time_scale, text_P) over tau in [0, 1]
+//! Z_1 <- z
+//! for person i >= 2:
+//!     C   <- context([Z_1 .. Z_{i-1}])                                 (pooled over persons)
+//!     w   <- [eps_i ; C] per token                                      ([tokens, 2 dim])
+//!     solve dw/dtau = G_S(w, tau, text_S);  Z_i <- second half of w
+//! motion <- decoder(Z_1 .. Z_n)
+//! ```
+//! `G = G_null + w (G_cond - G_null)`, one network call on the batch `[null; cond]`; with
+//! `w = 1` only the conditional half runs.
+
+use ndarray::Array3;
+
+use crate::error::{Error, Result};
+use crate::graph::{f32_tensor, read_f32, Graph};
+use crate::manifest::UmfSpec;
+use crate::model::{check_finite, Model};
+use crate::noise::fill_normals;
+use crate::pyramid::Jump;
+use crate::solver::Solver;
+
+/// Stream id of the first person's starting noise (token index 0).
+pub const STREAM_PRIOR_NOISE: u32 = 2;
+/// Stream id of the standard normals behind the jump into stage `k` (token index `k`).
+pub const STREAM_JUMP_NOISE: u32 = 3;
+/// Stream id of person `p`'s (0-based, `p >= 1`) semi-noise start (token index `p`).
+pub const STREAM_REACTION_NOISE: u32 = 4;
+
+/// The most people one call generates; the cost grows with the square of the count (each new
+/// person's context reads all previous ones).
+pub const MAX_PEOPLE: usize = 256;
+
+/// Settings of one [`Model::generate_group`] call; `None` takes the bundle's default.
+#[derive(Debug, Clone, Default)]
+pub struct GroupOptions {
+    /// Seed of every random draw not given in `noise`.
+    pub seed: u64,
+    /// Classifier-free guidance scale (1: conditional branch only).
+    pub cfg_scale: Option<f32>,
+    /// One solver per pyramid stage, e.g. UMF's code: RK4 with 4 steps per stage; its paper:
+    /// Euler 45 and 5.
+    pub prior: Option<Vec<Solver>>,
+    /// The solver of each further person (UMF: RK4 with 4 steps; its paper: Euler 10).
+    pub reaction: Option<Solver>,
+    /// Every random draw, given instead of seeded (for parity with a reference run).
+    pub noise: Option<GroupNoise>,
+}
+
+/// Every random value a group generation uses. Latent-shaped arrays are row-major
+/// `[tokens, dim]`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct GroupNoise {
+    /// The first person's starting state at the coarsest stage: `[tokens_0, dim]`.
+    pub prior: Vec<f32>,
+    /// For each jump (into stage 1, 2, ...), the block-correlated noise `n'` itself, laid out
+    /// as the finer stage's tokens: `[tokens_k, dim]`.
+    pub jumps: Vec<Vec<f32>>,
+    /// For each further person, the noise half of its starting state: `[tokens, dim]`.
+    pub reactions: Vec<Vec<f32>>,
+}
+
+/// A generated group.
+#[derive(Debug, Clone)]
+pub struct Group {
+    /// Each person's latent, `[people, tokens, dim]`.
+    pub latents: Array3<f32>,
+    /// Each person's decoded motion features, `[people, clip_frames, frame_dim]`.
+    pub motion: Array3<f32>,
+}
+
+/// Settings resolved against the bundle's defaults and checked.
+struct Plan<'a> {
+    spec: &'a UmfSpec,
+    jumps: Vec<Jump>,
+    prior: Vec<Solver>,
+    reaction: Solver,
+    cfg_scale: f32,
+}
+
+impl Model {
+    /// Generates `people` persons' motion for `condition` (`[prior text ; reaction text]`,
+    /// `condition_dim` floats; `None` is the bundle's null condition). Needs a `umf` bundle.
+    ///
+    /// ```no_run
+    /// use troupe::{GroupOptions, Model};
+    /// let model = Model::load("onnx/umf-tiny")?;
+    /// let group = model.generate_group(None, 3, &GroupOptions { seed: 1, ..Default::default() })?;
+    /// assert_eq!(group.motion.shape()[0], 3);
+    /// # Ok::<(), troupe::Error>(())
+    /// ```
+    pub fn generate_group(
+        &self,
+        condition: Option<&[f32]>,
+        people: usize,
+        options: &GroupOptions,
+    ) -> Result<Group> {
+        let (spec, nets) = self.umf()?;
+        check_people(people)?;
+        let plan = self.plan(spec, options)?;
+        let texts = self.texts(spec, condition)?;
+        let noise = match &options.noise {
+            Some(noise) => {
+                self.check_noise(spec, people, noise)?;
+                noise.clone()
+            }
+            None => self.group_noise(options.seed, people)?,
+        };
+        let (tokens, dim) = (spec.latent.tokens, spec.latent.dim);
+
+        let mut latents = Vec::with_capacity(people * tokens * dim);
+        latents.extend(self.first_person(&plan, &nets.prior, &texts, &noise)?);
+        for (p, eps) in noise.reactions.iter().enumerate().map(|(i, e)| (i + 1, e)) {
+            let context = read_context(&nets.context, &latents[..p * tokens * dim], tokens, dim)?;
+            let mut state = Vec::with_capacity(tokens * 2 * dim);
+            for k in 0..tokens {
+                state.extend_from_slice(&eps[k * dim..(k + 1) * dim]);
+                state.extend_from_slice(&context[k * dim..(k + 1) * dim]);
+            }
+            plan.reaction.solve(&mut state, |tau, w| {
+                guided(&nets.reaction, &plan, w, tokens, tau, &texts.reaction)
+            })?;
+            for k in 0..tokens {
+                latents.extend_from_slice(&state[(2 * k + 1) * dim..(2 * k + 2) * dim]);
+            }
+        }
+
+        let frames = spec.clip_frames;
+        let frame_dim = self.frame_dim();
+        let out = nets
+            .decoder
+            .run(vec![f32_tensor(&[people, tokens, dim], &latents)])?;
+        let motion = read_f32("decoder", "motion", &out[0], &[people, frames, frame_dim])?.to_vec();
+        Ok(Group {
+            latents: Array3::from_shape_vec((people, tokens, dim), latents)
+                .expect("people * tokens * dim"),
+            motion: Array3::from_shape_vec((people, frames, frame_dim), motion)
+                .expect("checked shape"),
+        })
+    }
+
+    /// The noise `generate_group` draws for `seed` and `people` when none is given: Philox
+    /// normals (see [`crate::noise`]) on streams [`STREAM_PRIOR_NOISE`], [`STREAM_JUMP_NOISE`]
+    /// (turned into block noise by each jump's covariance factor) and
+    /// [`STREAM_REACTION_NOISE`].
+    pub fn group_noise(&self, seed: u64, people: usize) -> Result<GroupNoise> {
+        let (spec, _) = self.umf()?;
+        check_people(people)?;
+        let dim = spec.latent.dim;
+        let stages = &spec.pyramid.stages;
+        let draw = |token: u64, stream: u32, n: usize| {
+            let mut v = vec![0f32; n];
+            fill_normals(seed, token, stream, &mut v);
+            v
+        };
+        let jumps = spec.jumps()?;
+        Ok(GroupNoise {
+            prior: draw(0, STREAM_PRIOR_NOISE, stages[0].tokens * dim),
+            jumps: jumps
+                .iter()
+                .zip(&stages[1..])
+                .enumerate()
+                .map(|(i, (jump, stage))| {
+                    let normals = draw(i as u64 + 1, STREAM_JUMP_NOISE, stage.tokens * dim);
+                    jump.block_noise(&normals, stage.tokens, dim)
+                })
+                .collect(),
+            reactions: (1..people)
+                .map(|p| draw(p as u64, STREAM_REACTION_NOISE, spec.latent.tokens * dim))
+                .collect(),
+        })
+    }
+
+    /// Frames of motion per person a `umf` bundle generates (0 for other families).
+    pub fn clip_frames(&self) -> usize {
+        self.umf_spec().map_or(0, |u| u.clip_frames)
+    }
+
+    fn plan<'a>(&self, spec: &'a UmfSpec, options: &GroupOptions) -> Result<Plan<'a>> {
+        let prior = options
+            .prior
+            .clone()
+            .unwrap_or_else(|| spec.sampler.prior.clone());
+        let stages = spec.pyramid.stages.len();
+        if prior.len() != stages {
+            return Err(Error::InvalidOption(format!(
+                "{} prior solvers given for a pyramid of {stages} stages",
+                prior.len()
+            )));
+        }
+        for (k, solver) in prior.iter().enumerate() {
+            solver.check(&format!("prior solver of stage {k}"))?;
+        }
+        let reaction = options.reaction.unwrap_or(spec.sampler.reaction);
+        reaction.check("reaction solver")?;
+        let cfg_scale = options.cfg_scale.unwrap_or(spec.sampler.cfg_scale);
+        if !cfg_scale.is_finite() {
+            return Err(Error::InvalidOption(format!(
+                "CFG scale must be finite, got {cfg_scale}"
+            )));
+        }
+        Ok(Plan {
+            spec,
+            jumps: spec.jumps()?,
+            prior,
+            reaction,
+            cfg_scale,
+        })
+    }
+
+    /// Splits the condition (or the null condition) into each denoiser's text, each paired with
+    /// its null text for guidance.
+    fn texts(&self, spec: &UmfSpec, condition: Option<&[f32]>) -> Result<Texts> {
+        let null = self.null_condition();
+        let cond = match condition {
+            Some(c) => {
+                if c.len() != null.len() {
+                    return Err(Error::InvalidInput(format!(
+                        "condition has {} floats, the bundle expects {} ({} prior text + {} \
+                         reaction text)",
+                        c.len(),
+                        null.len(),
+                        spec.text.prior_dim,
+                        spec.text.reaction_dim
+                    )));
+                }
+                check_finite("condition", c)?;
+                c.to_vec()
+            }
+            None => null.clone(),
+        };
+        let at = spec.text.prior_dim;
+        let pair = |range: std::ops::Range<usize>| TextPair {
+            null: null[range.clone()].to_vec(),
+            cond: cond[range].to_vec(),
+        };
+        Ok(Texts {
+            prior: pair(0..at),
+            reaction: pair(at..null.len()),
+        })
+    }
+
+    fn check_noise(&self, spec: &UmfSpec, people: usize, noise: &GroupNoise) -> Result<()> {
+        let dim = spec.latent.dim;
+        let stages = &spec.pyramid.stages;
+        let check = |what: String, values: &[f32], tokens: usize| {
+            if values.len() != tokens * dim {
+                return Err(Error::InvalidInput(format!(
+                    "{what} holds {} floats, expected {tokens} tokens x {dim}",
+                    values.len()
+                )));
+            }
+            check_finite(&what, values)
+        };
+        check("prior noise".into(), &noise.prior, stages[0].tokens)?;
+        if noise.jumps.len() != stages.len() - 1 || noise.reactions.len() != people - 1 {
+            return Err(Error::InvalidInput(format!(
+                "noise holds {} jumps and {} reactions; {} stages and {people} people need {} \
+                 and {}",
+                noise.jumps.len(),
+                noise.reactions.len(),
+                stages.len(),
+                stages.len() - 1,
+                people - 1
+            )));
+        }
+        for (k, jump) in noise.jumps.iter().enumerate() {
+            check(format!("jump noise {}", k + 1), jump, stages[k + 1].tokens)?;
+        }
+        for (p, eps) in noise.reactions.iter().enumerate() {
+            check(
+                format!("reaction noise of person {}", p + 1),
+                eps,
+                spec.latent.tokens,
+            )?;
+        }
+        Ok(())
+    }
+
+    /// Pyramid Flow: the first person's latent, `[tokens, dim]`.
+    fn first_person(
+        &self,
+        plan: &Plan,
+        prior: &Graph,
+        texts: &Texts,
+        noise: &GroupNoise,
+    ) -> Result<Vec<f32>> {
+        let pyramid = &plan.spec.pyramid;
+        let dim = plan.spec.latent.dim;
+        let time_scale = pyramid.time_scale as f32;
+        let mut z = noise.prior.clone();
+        for (k, (stage, solver)) in pyramid.stages.iter().zip(&plan.prior).enumerate() {
+            if k > 0 {
+                z = plan.jumps[k - 1].apply(&z, &noise.jumps[k - 1], dim);
+            }
+            // The official code maps tau linearly onto the stage's table in f32:
+            // (slope * tau + intercept) / 1000 with the slope and intercept from f64 values.
+            let [first, last] = stage.timesteps;
+            let (slope, intercept) = ((last - first) as f32, first as f32);
+            solver.solve(&mut z, |tau, y| {
+                let timestep = (slope * tau + intercept) / time_scale;
+                guided(prior, plan, y, stage.tokens, timestep, &texts.prior)
+            })?;
+        }
+        Ok(z)
+    }
+}
+
+fn check_people(people: usize) -> Result<()> {
+    if people == 0 || people > MAX_PEOPLE {
+        return Err(Error::InvalidInput(format!(
+            "people is {people}; a group has 1 to {MAX_PEOPLE} people"
+        )));
+    }
+    Ok(())
+}
+
+struct TextPair {
+    null: Vec<f32>,
+    cond: Vec<f32>,
+}
+
+struct Texts {
+    prior: TextPair,
+    reaction: TextPair,
+}
+
+/// The guided velocity of a denoiser (`prior` or `reaction`) at state `y` (`[tokens, width]`).
+fn guided(
+    net: &Graph,
+    plan: &Plan,
+    y: &[f32],
+    tokens: usize,
+    timestep: f32,
+    text: &TextPair,
+) -> Result<Vec<f32>> {
+    let width = y.len() / tokens;
+    let t_dim = text.cond.len();
+    let role = net.role();
+    if plan.cfg_scale == 1.0 {
+        let out = net.run(vec![
+            f32_tensor(&[1, tokens, width], y),
+            f32_tensor(&[1], &[timestep]),
+            f32_tensor(&[1, t_dim], &text.cond),
+        ])?;
+        return Ok(read_f32(role, "velocity", &out[0], &[1, tokens, width])?.to_vec());
+    }
+    let states = [y, y].concat();
+    let texts = [&text.null[..], &text.cond[..]].concat();
+    let out = net.run(vec![
+        f32_tensor(&[2, tokens, width], &states),
+        f32_tensor(&[2], &[timestep, timestep]),
+        f32_tensor(&[2, t_dim], &texts),
+    ])?;
+    let both = read_f32(role, "velocity", &out[0], &[2, tokens, width])?;
+    let (uncond, cond) = both.split_at(y.len());
+    let w = plan.cfg_scale;
+    Ok(uncond
+        .iter()
+        .zip(cond)
+        .map(|(u, c)| u + w * (c - u))
+        .collect())
+}
+
+/// The context adapter over the people so far (`[p * tokens, dim]`): `[tokens, dim]`.
+fn read_context(net: &Graph, people_so_far: &[f32], tokens: usize, dim: usize) -> Result<Vec<f32>> {
+    let m = people_so_far.len() / dim;
+    let out = net.run(vec![f32_tensor(&[1, m, dim], people_so_far)])?;
+    Ok(read_f32("context", "context", &out[0], &[1, tokens, dim])?.to_vec())
+}
