@@ -285,6 +285,11 @@ extern "C" {
 #endif // __cplusplus
 
 /*
+ `sizeof(troupe_group_options)` in this library, for bindings to check their mirror.
+ */
+size_t troupe_group_options_size(void);
+
+/*
  Fills `options` with the defaults of `model`'s bundle (solvers per stage and for further
  persons, CFG scale) and seed 0, and sets `struct_size`. Pass `sizeof(troupe_group_options)`
  as `options_size`: the library writes only that many bytes.

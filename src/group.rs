@@ -367,9 +367,9 @@ fn guided(
         .collect())
 }
 
-/// The context adapter over the people so far (`[p * tokens, dim]`): `[tokens, dim]`.
+/// The context adapter over the people so far (`[p, tokens, dim]`): `[tokens, dim]`.
 fn read_context(net: &Graph, people_so_far: &[f32], tokens: usize, dim: usize) -> Result<Vec<f32>> {
-    let m = people_so_far.len() / dim;
-    let out = net.run(vec![f32_tensor(&[1, m, dim], people_so_far)])?;
+    let p = people_so_far.len() / (tokens * dim);
+    let out = net.run(vec![f32_tensor(&[1, p, tokens, dim], people_so_far)])?;
     Ok(read_f32("context", "context", &out[0], &[1, tokens, dim])?.to_vec())
 }

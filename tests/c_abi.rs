@@ -215,7 +215,7 @@ fn cpp_wrapper_with_its_exception_helpers() {
     run(&[], &bin, &[&root().join("onnx/armflow-tiny")]);
 }
 
-/// No leak and no invalid access in the C smoke test. valgrind is on the CI machine; where it
+/// No leak and no invalid access in the C smoke and group tests. valgrind is on the CI machine; where it
 /// is not installed this test says so and passes. `tests/c/valgrind.supp` suppresses only
 /// tract's uninitialised-padding comparisons at model load (explained there).
 #[test]
@@ -231,24 +231,53 @@ fn c_smoke_under_valgrind() {
         &shared_link(),
         "smoke_valgrind",
     );
-    let [dir, archive] = smoke_args();
     let supp = format!(
         "--suppressions={}",
         root().join("tests/c/valgrind.supp").display()
     );
-    let text = run(
-        &[
-            "valgrind",
-            &supp,
-            "--error-exitcode=3",
-            "--leak-check=full",
-            "--errors-for-leak-kinds=definite,indirect",
-            "--show-leak-kinds=definite,indirect",
-        ],
-        &bin,
-        &[&dir, &archive],
-    );
+    let valgrind = [
+        "valgrind",
+        &supp,
+        "--error-exitcode=3",
+        "--leak-check=full",
+        "--errors-for-leak-kinds=definite,indirect",
+        "--show-leak-kinds=definite,indirect",
+    ];
+    let [dir, archive] = smoke_args();
+    let text = run(&valgrind, &bin, &[&dir, &archive]);
     assert!(text.contains("ERROR SUMMARY: 0 errors"), "{text}");
+    let group = compile(
+        "cc",
+        &["-std=c99", "-g"],
+        &[&root().join("tests/c/group.c")],
+        &shared_link(),
+        "group_valgrind",
+    );
+    let [umf, armflow] = group_args();
+    let text = run(&valgrind, &group, &[&umf, &armflow]);
+    assert!(text.contains("ERROR SUMMARY: 0 errors"), "{text}");
+}
+
+fn group_args() -> [PathBuf; 2] {
+    [root().join("onnx/umf-tiny"), root().join("onnx/armflow-tiny")]
+}
+
+/// UMF group generation through the header: seeded parity with the reference, injected noise,
+/// every bad input, as C99 and as C++17.
+#[test]
+fn c_group_generation_as_c99_and_cpp17() {
+    let src = root().join("tests/c/group.c");
+    let c = compile("cc", &["-std=c99"], &[&src], &shared_link(), "group_c");
+    let [umf, armflow] = group_args();
+    println!("{}", run(&[], &c, &[&umf, &armflow]));
+    let cpp = compile(
+        "c++",
+        &["-std=c++17", "-x", "c++"],
+        &[&src],
+        &shared_link(),
+        "group_cpp",
+    );
+    run(&[], &cpp, &[&umf, &armflow]);
 }
 
 /// The C streaming demo compiles with the strict flags and runs on the tiny bundle.

@@ -62,6 +62,12 @@ pub struct troupe_group_noise {
     pub reactions_len: usize,
 }
 
+/// `sizeof(troupe_group_options)` in this library, for bindings to check their mirror.
+#[no_mangle]
+pub extern "C" fn troupe_group_options_size() -> usize {
+    std::mem::size_of::<troupe_group_options>()
+}
+
 /// The size of the first published `troupe_group_options`.
 const OPTIONS_V1_SIZE: usize = 96;
 const _: () = assert!(std::mem::size_of::<troupe_group_options>() == OPTIONS_V1_SIZE);

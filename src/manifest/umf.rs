@@ -226,7 +226,7 @@ impl UmfSpec {
                 &g.context,
                 contract(
                     &g.context,
-                    vec![f("latents", vec![n(1), sym("M"), n(dim)])],
+                    vec![f("latents", vec![n(1), sym("P"), n(tokens), n(dim)])],
                     vec![f("context", vec![n(1), n(tokens), n(dim)])],
                 ),
             ),

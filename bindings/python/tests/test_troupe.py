@@ -53,6 +53,7 @@ def test_every_header_function_has_a_prototype():
 def test_struct_sizes_match_the_library():
     lib = _native.load()
     assert ctypes.sizeof(_native.SessionOptions) == lib.troupe_session_options_size()
+    assert ctypes.sizeof(_native.GroupOptions) == lib.troupe_group_options_size()
 
 
 def test_queries(model):
@@ -171,3 +172,47 @@ def test_model_from_bytes_and_closing(model):
         s.step(x[:4])
     with pytest.raises(ValueError):
         m3.session()
+
+
+UMF = REPO / "onnx" / "umf-tiny"
+
+
+@pytest.fixture(scope="module")
+def umf():
+    with troupe.Model(UMF) as m:
+        yield m
+
+
+def umf_golden(name):
+    return np.load(UMF / "golden" / f"{name}.npy")
+
+
+def test_group_generation_matches_the_reference(umf):
+    assert (umf.group_stages, umf.group_tokens, umf.clip_frames, umf.frame_dim) == (2, 16, 40, 262)
+    cond = umf_golden("seeded_2p_condition")
+    motion, latents = umf.generate_group(2, condition=cond, seed=7, return_latents=True)
+    assert motion.shape == (2, 40, 262) and latents.shape == (2, 16, umf.latent_dim)
+    assert np.abs(motion - umf_golden("seeded_2p_motion")).max() <= 1e-4
+    assert np.abs(latents - umf_golden("seeded_2p_latents")).max() <= 1e-5
+    # The paper's Euler 45/5/10 with injected noise, as the reference ran it.
+    noise = (umf_golden("euler_paper_2p_prior_noise"), umf_golden("euler_paper_2p_jump1"),
+             umf_golden("euler_paper_2p_reaction_noise"))
+    motion = umf.generate_group(2, condition=umf_golden("euler_paper_2p_condition"), cfg=3.0,
+                                prior=[("euler", 45), ("euler", 5)], reaction=("euler", 10), noise=noise)
+    assert np.abs(motion - umf_golden("euler_paper_2p_motion")).max() <= 1e-4
+
+
+def test_group_errors(umf, model):
+    with pytest.raises(troupe.TroupeError, match="people is 0") as e:
+        umf.generate_group(0)
+    assert e.value.name == "TROUPE_ERR_INVALID_ARG"
+    with pytest.raises(troupe.TroupeError, match="TROUPE_ERR_SHAPE"):
+        umf.generate_group(1, condition=np.zeros(3, np.float32))
+    with pytest.raises(troupe.TroupeError, match="1 prior solvers given"):
+        umf.generate_group(1, prior=[("rk4", 4)])
+    with pytest.raises(ValueError, match="unknown solver"):
+        umf.generate_group(1, reaction=("midpoint", 4))
+    with pytest.raises(troupe.TroupeError, match="needs a `umf` bundle"):
+        model.generate_group(1)
+    with pytest.raises(troupe.TroupeError, match="`umf` model"):
+        umf.session()

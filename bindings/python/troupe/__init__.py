@@ -19,10 +19,14 @@ import numpy as np
 
 from . import _native
 
-__all__ = ["Model", "Session", "TroupeError", "version", "ACTOR_LATENT_SAMPLE", "ACTOR_LATENT_MEAN"]
+__all__ = ["Model", "Session", "TroupeError", "version", "ACTOR_LATENT_SAMPLE", "ACTOR_LATENT_MEAN",
+           "EULER", "RK4"]
 
 ACTOR_LATENT_SAMPLE = 0
 ACTOR_LATENT_MEAN = 1
+EULER = 1  # TROUPE_SOLVER_EULER
+RK4 = 2  # TROUPE_SOLVER_RK4
+_SOLVERS = {"euler": EULER, "rk4": RK4}
 
 _lib = _native.load()
 
@@ -91,6 +95,54 @@ class Model:
         """The most reactor frames one step with `n_actor_frames` frames can return."""
         return _lib.troupe_model_max_output_frames(self._h(), n_actor_frames)
 
+    group_stages = property(lambda self: _lib.troupe_model_group_stages(self._h()),
+                            doc="pyramid stages of a umf bundle (0 otherwise)")
+    group_tokens = property(lambda self: _lib.troupe_model_group_tokens(self._h()),
+                            doc="latent tokens per person of a umf bundle (0 otherwise)")
+    clip_frames = property(lambda self: _lib.troupe_model_clip_frames(self._h()),
+                           doc="frames per person a umf bundle generates (0 otherwise)")
+
+    def generate_group(self, people: int, condition=None, seed: int = 0, cfg: float | None = None,
+                       prior=None, reaction=None, noise=None, return_latents: bool = False):
+        """Generates `people` persons' motion with a `umf` bundle: float32
+        [people, clip_frames, frame_dim] (and [people, tokens, latent_dim] latents with
+        `return_latents`).
+
+        `condition`: condition_dim floats ([prior text ; reaction text]) or None for the null
+        condition. `prior`: one (method, steps) per pyramid stage, method "euler" or "rk4";
+        `reaction`: one (method, steps). `noise`: (prior, jumps, reactions) arrays replacing the
+        seeded draws (lengths as troupe_group_noise_lengths gives). Releases the GIL."""
+        h = self._h()
+        opt = _native.GroupOptions()
+        _check(_lib.troupe_group_options_init(h, ctypes.byref(opt), ctypes.sizeof(opt)))
+        opt.seed = seed
+        if cfg is not None:
+            opt.cfg_scale = cfg
+        if prior is not None:
+            if len(prior) > _native.MAX_STAGES:
+                raise ValueError(f"at most {_native.MAX_STAGES} stages")
+            opt.stage_count = len(prior)
+            for k, (method, steps) in enumerate(prior):
+                opt.stage_solver[k], opt.stage_steps[k] = _solver(method), steps
+        if reaction is not None:
+            opt.reaction_solver, opt.reaction_steps = _solver(reaction[0]), reaction[1]
+        cond = None if condition is None else _floats(condition, "condition")
+        noise_struct, keep = None, []
+        if noise is not None:
+            arrays = [_floats(a, name) for a, name in zip(noise, ("prior", "jumps", "reactions"))]
+            keep = arrays  # alive until the call returns
+            noise_struct = _native.GroupNoise(*[v for a in arrays for v in (_ptr(a), a.size)])
+        motion = np.empty((people, self.clip_frames, self.frame_dim), np.float32)
+        latents = np.empty((people, self.group_tokens, self.latent_dim), np.float32) if return_latents else None
+        _check(_lib.troupe_group_generate(
+            h, ctypes.byref(opt),
+            None if cond is None else _ptr(cond), 0 if cond is None else cond.size,
+            people, None if noise_struct is None else ctypes.byref(noise_struct),
+            _ptr(motion), motion.size,
+            None if latents is None else _ptr(latents), 0 if latents is None else latents.size))
+        del keep
+        return (motion, latents) if return_latents else motion
+
     def session(self, seed: int = 0, steps: int | None = None, cfg: float | None = None,
                 capacity: int | None = None, actor_latent: int | None = None,
                 condition=None) -> "Session":
@@ -110,6 +162,14 @@ class Model:
 
     def __exit__(self, *exc):
         self.close()
+
+
+def _solver(method) -> int:
+    if isinstance(method, str):
+        if method.lower() not in _SOLVERS:
+            raise ValueError(f"unknown solver {method!r} (euler or rk4)")
+        return _SOLVERS[method.lower()]
+    return int(method)
 
 
 class Session:

@@ -31,6 +31,38 @@ class SessionOptions(ctypes.Structure):
     ]
 
 
+MAX_STAGES = 8  # TROUPE_MAX_STAGES
+
+
+class GroupOptions(ctypes.Structure):
+    """Mirror of `troupe_group_options` (checked against troupe_group_options_size())."""
+
+    _fields_ = [
+        ("struct_size", ctypes.c_uint32),
+        ("stage_count", ctypes.c_uint32),
+        ("seed", ctypes.c_uint64),
+        ("cfg_scale", ctypes.c_float),
+        ("reaction_solver", ctypes.c_uint32),
+        ("reaction_steps", ctypes.c_uint32),
+        ("reserved", ctypes.c_uint32),
+        ("stage_solver", ctypes.c_uint32 * MAX_STAGES),
+        ("stage_steps", ctypes.c_uint32 * MAX_STAGES),
+    ]
+
+
+class GroupNoise(ctypes.Structure):
+    """Mirror of `troupe_group_noise`."""
+
+    _fields_ = [
+        ("prior", ctypes.POINTER(ctypes.c_float)),
+        ("prior_len", ctypes.c_size_t),
+        ("jumps", ctypes.POINTER(ctypes.c_float)),
+        ("jumps_len", ctypes.c_size_t),
+        ("reactions", ctypes.POINTER(ctypes.c_float)),
+        ("reactions_len", ctypes.c_size_t),
+    ]
+
+
 LOG_FN = ctypes.CFUNCTYPE(None, ctypes.c_void_p, ctypes.c_int32, ctypes.c_char_p, ctypes.c_char_p)
 
 model_p = ctypes.c_void_p
@@ -67,6 +99,16 @@ PROTOTYPES = {
     "troupe_session_set_cfg_scale": (status, [session_p, ctypes.c_float]),
     "troupe_session_set_condition": (status, [session_p, f32p, c_size]),
     "troupe_session_queue_noise": (status, [session_p, f32p, f32p, c_size]),
+    "troupe_group_options_size": (c_size, []),
+    "troupe_group_options_init": (status, [model_p, ctypes.POINTER(GroupOptions), c_size]),
+    "troupe_model_group_stages": (c_size, [model_p]),
+    "troupe_model_group_tokens": (c_size, [model_p]),
+    "troupe_model_clip_frames": (c_size, [model_p]),
+    "troupe_group_noise_lengths": (
+        status, [model_p, ctypes.c_uint32, ctypes.POINTER(c_size), ctypes.POINTER(c_size), ctypes.POINTER(c_size)]),
+    "troupe_group_generate": (status, [
+        model_p, ctypes.POINTER(GroupOptions), f32p, c_size, ctypes.c_uint32, ctypes.POINTER(GroupNoise),
+        f32p, c_size, f32p, c_size]),
 }
 
 

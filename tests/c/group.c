@@ -1,0 +1,219 @@
+/* ABI test of UMF group generation through include/troupe.h only. Compiled as C99 and C++17
+ * with -Wall -Wextra -Werror -pedantic and run under valgrind (tests/c_abi.rs).
+ * Usage: group UMF_BUNDLE_DIR ARMFLOW_BUNDLE_DIR */
+#include "troupe.h"
+
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+static int passed = 0, failed = 0;
+
+#define CHECK(cond)                                                                  \
+    do {                                                                             \
+        if (cond) {                                                                  \
+            passed++;                                                                \
+        } else {                                                                     \
+            failed++;                                                                \
+            fprintf(stderr, "%s:%d: CHECK(%s) failed; last error: %s\n", __FILE__,   \
+                    __LINE__, #cond,                                                 \
+                    troupe_last_error_message() ? troupe_last_error_message() : "-"); \
+        }                                                                            \
+    } while (0)
+
+#define EXPECT(call, status) CHECK((call) == (status))
+
+/* Reads a little-endian float32 .npy file (version 1 header); returns NULL on failure. */
+static float *read_npy(const char *dir, const char *name, size_t *count) {
+    char path[1024], magic[8];
+    unsigned char len_bytes[2];
+    size_t header_len, bytes;
+    long end;
+    float *data;
+    FILE *f;
+    snprintf(path, sizeof path, "%s/golden/%s.npy", dir, name);
+    f = fopen(path, "rb");
+    if (!f) return NULL;
+    if (fread(magic, 1, 8, f) != 8 || memcmp(magic, "\x93NUMPY", 6) != 0 ||
+        fread(len_bytes, 1, 2, f) != 2) {
+        fclose(f);
+        return NULL;
+    }
+    header_len = (size_t)len_bytes[0] | ((size_t)len_bytes[1] << 8);
+    fseek(f, 0, SEEK_END);
+    end = ftell(f);
+    bytes = (size_t)end - 10 - header_len;
+    fseek(f, (long)(10 + header_len), SEEK_SET);
+    data = (float *)malloc(bytes);
+    if (data && fread(data, 1, bytes, f) != bytes) {
+        free(data);
+        data = NULL;
+    }
+    fclose(f);
+    *count = bytes / sizeof(float);
+    return data;
+}
+
+static float max_abs(const float *a, const float *b, size_t n) {
+    float m = 0.0f;
+    size_t i;
+    for (i = 0; i < n; i++) {
+        float d = fabsf(a[i] - b[i]);
+        if (d > m) m = d;
+    }
+    return m;
+}
+
+int main(int argc, char **argv) {
+    troupe_model *model = NULL, *armflow = NULL;
+    troupe_session *session = NULL;
+    troupe_session_options session_opt;
+    troupe_group_options opt, bad;
+    troupe_group_noise noise;
+    size_t frames, dim, tokens, lat, cdim, n_motion, n_latents, prior_len = 0, jumps_len = 0,
+        reactions_len = 0, n = 0, i;
+    float *motion, *again, *latents, *golden, *cond, *prior, *jumps, *reactions;
+    const char *dir;
+
+    if (argc < 3) {
+        fprintf(stderr, "usage: %s UMF_BUNDLE_DIR ARMFLOW_BUNDLE_DIR\n", argv[0]);
+        return 2;
+    }
+    dir = argv[1];
+    EXPECT(troupe_model_load_file(dir, &model), TROUPE_OK);
+    EXPECT(troupe_model_load_file(argv[2], &armflow), TROUPE_OK);
+    if (!model || !armflow) return 1;
+
+    /* queries */
+    frames = troupe_model_clip_frames(model);
+    dim = troupe_model_frame_dim(model);
+    tokens = troupe_model_group_tokens(model);
+    lat = troupe_model_latent_dim(model);
+    cdim = troupe_model_condition_dim(model);
+    CHECK(frames == 40 && dim == 262 && tokens == 16 && lat == 8 && cdim == 32);
+    CHECK(troupe_model_group_stages(model) == 2 && troupe_model_frames_per_token(model) == 0);
+    CHECK(troupe_model_clip_frames(armflow) == 0 && troupe_model_group_stages(armflow) == 0);
+    CHECK(troupe_model_clip_frames(NULL) == 0 && troupe_model_group_tokens(NULL) == 0);
+
+    /* options: the bundle's defaults */
+    CHECK(troupe_group_options_size() == sizeof(troupe_group_options));
+    EXPECT(troupe_group_options_init(model, &opt, sizeof opt), TROUPE_OK);
+    CHECK(opt.struct_size == sizeof opt && opt.stage_count == 2 && opt.cfg_scale == 3.0f);
+    CHECK(opt.stage_solver[0] == TROUPE_SOLVER_RK4 && opt.stage_steps[1] == 4);
+    CHECK(opt.reaction_solver == TROUPE_SOLVER_RK4 && opt.reaction_steps == 4);
+    EXPECT(troupe_group_options_init(model, &opt, 8), TROUPE_ERR_INVALID_ARG);
+    EXPECT(troupe_group_options_init(armflow, &opt, sizeof opt), TROUPE_ERR_INVALID_ARG);
+    CHECK(strstr(troupe_last_error_message(), "needs a `umf` bundle") != NULL);
+    EXPECT(troupe_group_options_init(NULL, &opt, sizeof opt), TROUPE_ERR_NULL_ARG);
+    EXPECT(troupe_group_options_init(model, &opt, sizeof opt), TROUPE_OK);
+    opt.seed = 7;
+
+    /* seeded generation equals the Python reference's seeded case */
+    n_motion = 2 * frames * dim;
+    n_latents = 2 * tokens * lat;
+    motion = (float *)calloc(n_motion, sizeof(float));
+    again = (float *)calloc(n_motion, sizeof(float));
+    latents = (float *)calloc(n_latents, sizeof(float));
+    cond = read_npy(dir, "seeded_2p_condition", &n);
+    CHECK(cond != NULL && n == cdim);
+    EXPECT(troupe_group_generate(model, &opt, cond, cdim, 2, NULL, motion, n_motion, latents, n_latents),
+           TROUPE_OK);
+    golden = read_npy(dir, "seeded_2p_motion", &n);
+    CHECK(golden != NULL && n == n_motion);
+    if (golden) {
+        printf("seeded 2 people: motion max-abs %.2e vs the reference\n", (double)max_abs(motion, golden, n_motion));
+        CHECK(max_abs(motion, golden, n_motion) <= 1e-4f);
+    }
+
+    /* the same draws given as troupe_group_noise give the same motion */
+    EXPECT(troupe_group_noise_lengths(model, 2, &prior_len, &jumps_len, &reactions_len), TROUPE_OK);
+    CHECK(prior_len == 4 * lat && jumps_len == 16 * lat && reactions_len == tokens * lat);
+    prior = read_npy(dir, "seeded_2p_prior_noise", &n);
+    CHECK(prior != NULL && n == prior_len);
+    jumps = read_npy(dir, "seeded_2p_jump1", &n);
+    CHECK(jumps != NULL && n == jumps_len);
+    reactions = read_npy(dir, "seeded_2p_reaction_noise", &n);
+    CHECK(reactions != NULL && n == reactions_len);
+    noise.prior = prior;
+    noise.prior_len = prior_len;
+    noise.jumps = jumps;
+    noise.jumps_len = jumps_len;
+    noise.reactions = reactions;
+    noise.reactions_len = reactions_len;
+    opt.seed = 12345; /* ignored: every draw is given */
+    EXPECT(troupe_group_generate(model, &opt, cond, cdim, 2, &noise, again, n_motion, NULL, 0), TROUPE_OK);
+    CHECK(max_abs(motion, again, n_motion) <= 1e-5f);
+
+    /* NULL options and NULL condition: defaults, null condition */
+    EXPECT(troupe_group_generate(model, NULL, NULL, 0, 1, NULL, again, n_motion, NULL, 0), TROUPE_OK);
+
+    /* bad inputs: a clear status, and nothing written */
+    memcpy(again, motion, n_motion * sizeof(float));
+    EXPECT(troupe_group_generate(model, &opt, cond, cdim, 0, NULL, again, n_motion, NULL, 0), TROUPE_ERR_INVALID_ARG);
+    CHECK(strstr(troupe_last_error_message(), "people is 0") != NULL);
+    EXPECT(troupe_group_generate(model, &opt, cond, cdim - 1, 2, NULL, again, n_motion, NULL, 0), TROUPE_ERR_SHAPE);
+    EXPECT(troupe_group_generate(model, &opt, NULL, cdim, 2, NULL, again, n_motion, NULL, 0), TROUPE_ERR_NULL_ARG);
+    EXPECT(troupe_group_generate(model, &opt, cond, cdim, 2, NULL, again, n_motion - 1, NULL, 0),
+           TROUPE_ERR_BUFFER_TOO_SMALL);
+    EXPECT(troupe_group_generate(model, &opt, cond, cdim, 2, NULL, again, n_motion, latents, 3),
+           TROUPE_ERR_BUFFER_TOO_SMALL);
+    EXPECT(troupe_group_generate(model, &opt, cond, cdim, 2, NULL, NULL, 0, NULL, 0), TROUPE_ERR_NULL_ARG);
+    EXPECT(troupe_group_generate(NULL, &opt, cond, cdim, 2, NULL, again, n_motion, NULL, 0), TROUPE_ERR_NULL_ARG);
+    EXPECT(troupe_group_generate(armflow, &opt, cond, cdim, 2, NULL, again, n_motion, NULL, 0),
+           TROUPE_ERR_INVALID_ARG);
+    bad = opt;
+    bad.stage_count = 1;
+    EXPECT(troupe_group_generate(model, &bad, cond, cdim, 2, NULL, again, n_motion, NULL, 0), TROUPE_ERR_INVALID_ARG);
+    CHECK(strstr(troupe_last_error_message(), "1 prior solvers given for a pyramid of 2 stages") != NULL);
+    bad = opt;
+    bad.stage_solver[1] = 9;
+    EXPECT(troupe_group_generate(model, &bad, cond, cdim, 2, NULL, again, n_motion, NULL, 0), TROUPE_ERR_INVALID_ARG);
+    bad = opt;
+    bad.reaction_steps = 0;
+    EXPECT(troupe_group_generate(model, &bad, cond, cdim, 2, NULL, again, n_motion, NULL, 0), TROUPE_ERR_INVALID_ARG);
+    bad = opt;
+    bad.cfg_scale = NAN;
+    EXPECT(troupe_group_generate(model, &bad, cond, cdim, 2, NULL, again, n_motion, NULL, 0), TROUPE_ERR_INVALID_ARG);
+    bad = opt;
+    bad.struct_size = 4;
+    EXPECT(troupe_group_generate(model, &bad, cond, cdim, 2, NULL, again, n_motion, NULL, 0), TROUPE_ERR_INVALID_ARG);
+    noise.jumps_len = jumps_len - 1;
+    EXPECT(troupe_group_generate(model, &opt, cond, cdim, 2, &noise, again, n_motion, NULL, 0), TROUPE_ERR_SHAPE);
+    noise.jumps_len = jumps_len;
+    EXPECT(troupe_group_generate(model, &opt, cond, cdim, 3, &noise, again, n_motion * 2, NULL, 0), TROUPE_ERR_SHAPE);
+    if (cond) {
+        float saved = cond[5];
+        cond[5] = NAN;
+        EXPECT(troupe_group_generate(model, &opt, cond, cdim, 2, NULL, again, n_motion, NULL, 0),
+               TROUPE_ERR_INVALID_ARG);
+        CHECK(strstr(troupe_last_error_message(), "index 5") != NULL);
+        cond[5] = saved;
+    }
+    CHECK(memcmp(again, motion, n_motion * sizeof(float)) == 0);
+
+    /* the families do not mix */
+    EXPECT(troupe_session_options_init(model, &session_opt, sizeof session_opt), TROUPE_ERR_INVALID_ARG);
+    EXPECT(troupe_session_new(model, NULL, &session), TROUPE_ERR_INVALID_ARG);
+    CHECK(session == NULL);
+
+    /* a success clears the last error */
+    EXPECT(troupe_group_generate(model, &opt, cond, cdim, 1, NULL, again, n_motion, NULL, 0), TROUPE_OK);
+    CHECK(troupe_last_error_message() == NULL);
+    for (i = 0; i < frames * dim; i++)
+        if (again[i] != again[i]) break;
+    CHECK(i == frames * dim);
+
+    troupe_model_free(model);
+    troupe_model_free(armflow);
+    free(motion);
+    free(again);
+    free(latents);
+    free(golden);
+    free(cond);
+    free(prior);
+    free(jumps);
+    free(reactions);
+    printf("c group: %d passed, %d failed\n", passed, failed);
+    return failed == 0 ? 0 : 1;
+}
