@@ -37,7 +37,9 @@ fn parse_solver(text: &str) -> Result<Solver, String> {
         "rk4" => Method::Rk4,
         other => return Err(format!("unknown solver method `{other}` (euler or rk4)")),
     };
-    let steps = steps.parse().map_err(|e| format!("steps of `{text}`: {e}"))?;
+    let steps = steps
+        .parse()
+        .map_err(|e| format!("steps of `{text}`: {e}"))?;
     Ok(Solver { method, steps })
 }
 

@@ -331,9 +331,7 @@ impl Model {
         let d = self.frame_dim();
         let t = frames.len() / d;
         let n = t / a.latent.frames_per_token;
-        let out = nets
-            .vae_encoder
-            .run(vec![f32_tensor(&[1, t, d], frames)])?;
+        let out = nets.vae_encoder.run(vec![f32_tensor(&[1, t, d], frames)])?;
         let shape = [1, n, a.latent.dim];
         Ok((
             read_f32("vae_encoder", "mean", &out[0], &shape)?.to_vec(),

@@ -44,9 +44,9 @@ impl Layout {
         match self {
             Layout::Grid2d => {
                 let h = isqrt(tokens);
-                h * h == tokens && h % 2 == 0 && h > 0
+                h * h == tokens && h.is_multiple_of(2) && h > 0
             }
-            Layout::Temporal => tokens > 0 && tokens % 2 == 0,
+            Layout::Temporal => tokens > 0 && tokens.is_multiple_of(2),
         }
     }
 
@@ -254,7 +254,10 @@ mod tests {
             Layout::Temporal.up(&[1.0, 2.0, 3.0, 4.0], 4, 2),
             vec![1.0, 2.0, 1.0, 2.0, 3.0, 4.0, 3.0, 4.0]
         );
-        assert_eq!(Layout::Temporal.down(&[1.0, 3.0, 5.0, 9.0], 1), vec![2.0, 7.0]);
+        assert_eq!(
+            Layout::Temporal.down(&[1.0, 3.0, 5.0, 9.0], 1),
+            vec![2.0, 7.0]
+        );
         assert!(Layout::Grid2d.can_pool(16) && !Layout::Grid2d.can_pool(9));
         assert!(Layout::Temporal.can_pool(6) && !Layout::Temporal.can_pool(5));
     }
@@ -273,9 +276,7 @@ mod tests {
             let mut cov = vec![0f64; b * b];
             let mut count = 0f64;
             for block in 0..tokens / b {
-                let members: Vec<usize> = (0..tokens)
-                    .filter(|&t| map[t].0 == block)
-                    .collect();
+                let members: Vec<usize> = (0..tokens).filter(|&t| map[t].0 == block).collect();
                 for c in 0..dim {
                     let v: Vec<f64> = members
                         .iter()
@@ -294,7 +295,10 @@ mod tests {
                 for j in 0..b {
                     let want = if i == j { 1.0 } else { gamma };
                     let got = cov[i * b + j] / count;
-                    assert!((got - want).abs() < 1e-2, "{layout:?} cov[{i}][{j}] = {got}");
+                    assert!(
+                        (got - want).abs() < 1e-2,
+                        "{layout:?} cov[{i}][{j}] = {got}"
+                    );
                 }
             }
         }
@@ -317,7 +321,10 @@ mod tests {
         let mean = z.iter().map(|&v| f64::from(v)).sum::<f64>() / n;
         let var = z.iter().map(|&v| f64::from(v).powi(2)).sum::<f64>() / n;
         assert!(mean.abs() < 5e-3, "mean {mean}");
-        assert!((var - target_var).abs() < 1e-2, "variance {var} vs {target_var}");
+        assert!(
+            (var - target_var).abs() < 1e-2,
+            "variance {var} vs {target_var}"
+        );
         // Tokens 0 and 1 share a block: their covariance must vanish.
         let cross = (0..dim)
             .map(|c| f64::from(z[c]) * f64::from(z[dim + c]))

@@ -353,7 +353,11 @@ impl Session {
 
     fn generate_token(&self, st: &mut StreamState) -> Result<TokenTrace> {
         let m = &self.spec;
-        let (fpt, dim, lat) = (m.latent.frames_per_token, self.model.frame_dim(), m.latent.dim);
+        let (fpt, dim, lat) = (
+            m.latent.frames_per_token,
+            self.model.frame_dim(),
+            m.latent.dim,
+        );
         let j = st.tokens;
         let noise = st
             .injected

@@ -259,7 +259,10 @@ fn c_smoke_under_valgrind() {
 }
 
 fn group_args() -> [PathBuf; 2] {
-    [root().join("onnx/umf-tiny"), root().join("onnx/armflow-tiny")]
+    [
+        root().join("onnx/umf-tiny"),
+        root().join("onnx/armflow-tiny"),
+    ]
 }
 
 /// UMF group generation through the header: seeded parity with the reference, injected noise,

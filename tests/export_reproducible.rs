@@ -1,4 +1,5 @@
-//! The committed tiny bundle is exactly what `onnx/export.py --preset tiny --golden` produces.
+//! The committed bundles are exactly what their exporters produce: `onnx/export.py --preset tiny`
+//! and `onnx/export_umf.py --preset tiny | tiny-temporal`, goldens included.
 //!
 //! Needs Python with torch and onnx. CI does not install torch (about 4 GB); where it is missing
 //! this test prints why it did not run and passes.
@@ -14,28 +15,24 @@ fn python() -> &'static str {
     }
 }
 
-#[test]
-fn committed_tiny_bundle_is_reproducible_from_the_exporter() {
-    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+/// Whether python can import torch and onnx; prints why a test is skipped when not.
+fn torch_available(test: &str) -> bool {
     let probe = Command::new(python())
         .args(["-c", "import torch, onnx"])
         .output();
-    match probe {
-        Ok(out) if out.status.success() => {}
-        _ => {
-            println!("SKIPPED committed_tiny_bundle_is_reproducible_from_the_exporter: python with torch and onnx is not installed");
-            return;
-        }
+    let ok = matches!(probe, Ok(out) if out.status.success());
+    if !ok {
+        println!("SKIPPED {test}: python with torch and onnx is not installed");
     }
+    ok
+}
+
+/// Runs `exporter --preset preset --check dir` and asserts the re-export is byte-identical.
+fn check(exporter: &str, preset: &str, dir: &str) {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
     let out = Command::new(python())
         .current_dir(root)
-        .args([
-            "onnx/export.py",
-            "--preset",
-            "tiny",
-            "--check",
-            "onnx/armflow-tiny",
-        ])
+        .args([exporter, "--preset", preset, "--check", dir])
         .output()
         .expect("run the exporter");
     let text = format!(
@@ -45,7 +42,22 @@ fn committed_tiny_bundle_is_reproducible_from_the_exporter() {
     );
     assert!(
         out.status.success(),
-        "re-export differs from the committed bundle:\n{text}"
+        "re-export differs from the committed bundle {dir}:\n{text}"
     );
     assert!(text.contains("reproducible"), "{text}");
+}
+
+#[test]
+fn committed_tiny_bundle_is_reproducible_from_the_exporter() {
+    if torch_available("committed_tiny_bundle_is_reproducible_from_the_exporter") {
+        check("onnx/export.py", "tiny", "onnx/armflow-tiny");
+    }
+}
+
+#[test]
+fn committed_umf_bundles_are_reproducible_from_the_exporter() {
+    if torch_available("committed_umf_bundles_are_reproducible_from_the_exporter") {
+        check("onnx/export_umf.py", "tiny", "onnx/umf-tiny");
+        check("onnx/export_umf.py", "tiny-temporal", "onnx/umf-tiny-temporal");
+    }
 }

@@ -15,7 +15,9 @@ const LATENT_TOL: f32 = 1e-5;
 const MOTION_TOL: f32 = 1e-4;
 
 fn bundle(name: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("onnx").join(name)
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("onnx")
+        .join(name)
 }
 
 fn tiny() -> &'static Model {
@@ -60,10 +62,17 @@ fn solver(v: &Value) -> Solver {
 }
 
 /// The golden case's settings, and the noise it was run with.
-fn case_options(model: &Model, case: &str, spec: &Value) -> (usize, Option<Vec<f32>>, GroupOptions, GroupNoise) {
+fn case_options(
+    model: &Model,
+    case: &str,
+    spec: &Value,
+) -> (usize, Option<Vec<f32>>, GroupOptions, GroupNoise) {
     let people = spec["people"].as_u64().unwrap() as usize;
     let condition = npy(model, &format!("{case}_condition")).map(|c| flat(&c));
-    assert_eq!(condition.is_some(), spec["has_condition"].as_bool().unwrap());
+    assert_eq!(
+        condition.is_some(),
+        spec["has_condition"].as_bool().unwrap()
+    );
     let stages = model.umf_spec().unwrap().pyramid.stages.len();
     let noise = GroupNoise {
         prior: flat(&npy(model, &format!("{case}_prior_noise")).unwrap()),
@@ -71,13 +80,24 @@ fn case_options(model: &Model, case: &str, spec: &Value) -> (usize, Option<Vec<f
             .map(|s| flat(&npy(model, &format!("{case}_jump{s}")).unwrap()))
             .collect(),
         reactions: npy(model, &format!("{case}_reaction_noise"))
-            .map(|r| r.outer_iter().map(|p| p.iter().copied().collect()).collect())
+            .map(|r| {
+                r.outer_iter()
+                    .map(|p| p.iter().copied().collect())
+                    .collect()
+            })
             .unwrap_or_default(),
     };
     let options = GroupOptions {
         seed: spec["seed"].as_u64().unwrap_or(0),
         cfg_scale: Some(spec["cfg_scale"].as_f64().unwrap() as f32),
-        prior: Some(spec["prior"].as_array().unwrap().iter().map(solver).collect()),
+        prior: Some(
+            spec["prior"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .map(solver)
+                .collect(),
+        ),
         reaction: Some(solver(&spec["reaction"])),
         noise: None,
     };
@@ -86,7 +106,10 @@ fn case_options(model: &Model, case: &str, spec: &Value) -> (usize, Option<Vec<f
 
 fn max_abs(a: &[f32], b: &[f32]) -> f32 {
     assert_eq!(a.len(), b.len());
-    a.iter().zip(b).map(|(x, y)| (x - y).abs()).fold(0.0, f32::max)
+    a.iter()
+        .zip(b)
+        .map(|(x, y)| (x - y).abs())
+        .fold(0.0, f32::max)
 }
 
 /// Every golden case of `model`: injected noise reproduces the reference; for seeded cases the
@@ -98,14 +121,19 @@ fn check_golden(model: &Model) -> usize {
         if !spec["seed"].is_null() {
             let drawn = model.group_noise(options.seed, people).unwrap();
             assert_eq!(drawn.prior, noise.prior, "{case}: seeded prior noise");
-            assert_eq!(drawn.reactions, noise.reactions, "{case}: seeded reaction noise");
+            assert_eq!(
+                drawn.reactions, noise.reactions,
+                "{case}: seeded reaction noise"
+            );
             for (k, (a, b)) in drawn.jumps.iter().zip(&noise.jumps).enumerate() {
                 assert_eq!(a, b, "{case}: seeded jump noise {k}");
             }
         } else {
             options.noise = Some(noise);
         }
-        let group = model.generate_group(condition.as_deref(), people, &options).unwrap();
+        let group = model
+            .generate_group(condition.as_deref(), people, &options)
+            .unwrap();
         let latents = max_abs(
             group.latents.as_slice().unwrap(),
             &flat(&npy(model, &format!("{case}_latents")).unwrap()),
@@ -129,7 +157,10 @@ fn golden_parity_grid_pyramid_1_2_and_4_people() {
     let model = tiny();
     let names: Vec<String> = cases(model).keys().cloned().collect();
     for needed in ["rk4_1p", "rk4_2p", "rk4_4p", "euler_paper_2p", "seeded_2p"] {
-        assert!(names.iter().any(|n| n == needed), "missing golden case {needed}");
+        assert!(
+            names.iter().any(|n| n == needed),
+            "missing golden case {needed}"
+        );
     }
     assert!(check_golden(model) >= 5);
 }
@@ -189,7 +220,10 @@ fn bad_inputs_are_rejected_with_a_clear_error() {
         ..Default::default()
     };
     let msg = invalid(model.generate_group(None, 1, &one_stage));
-    assert!(msg.contains("1 prior solvers given for a pyramid of 2 stages"), "{msg}");
+    assert!(
+        msg.contains("1 prior solvers given for a pyramid of 2 stages"),
+        "{msg}"
+    );
     let zero_steps = GroupOptions {
         reaction: Some(Solver::rk4(0)),
         ..Default::default()
@@ -239,7 +273,10 @@ fn load_edited(edit: impl FnOnce(&mut Value)) -> String {
 #[test]
 fn mismatched_stage_tables_are_rejected_at_load() {
     let msg = load_edited(|v| v["pyramid"]["stages"][1]["start_t"] = 0.3.into());
-    assert!(msg.contains("stages[1].start_t is 0.3") && msg.contains("0.2898"), "{msg}");
+    assert!(
+        msg.contains("stages[1].start_t is 0.3") && msg.contains("0.2898"),
+        "{msg}"
+    );
     let msg = load_edited(|v| v["pyramid"]["gamma"] = (-0.25).into());
     assert!(msg.contains("start_t"), "{msg}");
     let msg = load_edited(|v| v["pyramid"]["stages"][0]["tokens"] = 8.into());

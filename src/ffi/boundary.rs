@@ -203,7 +203,9 @@ pub(crate) unsafe fn read_versioned<T: Copy>(
     if size < min_size.max(ours) {
         return Err(FfiError::new(
             TROUPE_ERR_INVALID_ARG,
-            format!("{what}.struct_size is {size}, this library needs at least {ours}; call {init}"),
+            format!(
+                "{what}.struct_size is {size}, this library needs at least {ours}; call {init}"
+            ),
         ));
     }
     // SAFETY: the caller's struct holds `size` readable bytes.
@@ -211,7 +213,9 @@ pub(crate) unsafe fn read_versioned<T: Copy>(
     if tail.iter().any(|&b| b != 0) {
         return Err(FfiError::new(
             TROUPE_ERR_INVALID_ARG,
-            format!("{what} carries fields this library does not know (non-zero bytes past its struct)"),
+            format!(
+                "{what} carries fields this library does not know (non-zero bytes past its struct)"
+            ),
         ));
     }
     // SAFETY: at least `ours` readable bytes.

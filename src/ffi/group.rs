@@ -1,9 +1,8 @@
 //! `troupe_group_generate`: text-to-group generation with a `umf` bundle.
 
 use super::boundary::{
-    self, check_struct_size, checked_mul, non_null, read_versioned, troupe_status,
-    write_versioned, FfiError, FfiResult, TROUPE_ERR_BUFFER_TOO_SMALL, TROUPE_ERR_INVALID_ARG,
-    TROUPE_ERR_SHAPE,
+    self, check_struct_size, checked_mul, non_null, read_versioned, troupe_status, write_versioned,
+    FfiError, FfiResult, TROUPE_ERR_BUFFER_TOO_SMALL, TROUPE_ERR_INVALID_ARG, TROUPE_ERR_SHAPE,
 };
 use super::model::troupe_model;
 use crate::manifest::UmfSpec;
@@ -190,9 +189,7 @@ pub unsafe extern "C" fn troupe_model_group_stages(model: *const troupe_model) -
 /// `model` must be NULL or a live handle.
 #[no_mangle]
 pub unsafe extern "C" fn troupe_model_group_tokens(model: *const troupe_model) -> usize {
-    boundary::get(0, || {
-        umf_model(model).map_or(0, |(_, u)| u.latent.tokens)
-    })
+    boundary::get(0, || umf_model(model).map_or(0, |(_, u)| u.latent.tokens))
 }
 
 /// Frames of motion per person a `umf` bundle generates (0 for other bundles or NULL): the
@@ -430,7 +427,12 @@ unsafe fn read_noise(noise: &troupe_group_noise, expected: &GroupNoise) -> FfiRe
     Ok(GroupNoise {
         prior: read(noise.prior, noise.prior_len, expected.prior.len(), "prior")?,
         jumps: split(
-            read(noise.jumps, noise.jumps_len, total(&expected.jumps), "jumps")?,
+            read(
+                noise.jumps,
+                noise.jumps_len,
+                total(&expected.jumps),
+                "jumps",
+            )?,
             &expected.jumps,
         ),
         reactions: split(

@@ -169,7 +169,11 @@ impl ArmFlowSpec {
         &'a self,
         manifest: &Manifest,
     ) -> Vec<(&'static str, &'a GraphSpec, GraphSpec)> {
-        let (c, lat, d) = (self.context.width, self.latent.dim, manifest.motion.frame_dim);
+        let (c, lat, d) = (
+            self.context.width,
+            self.latent.dim,
+            manifest.motion.frame_dim,
+        );
         let (h, dh) = (self.context.heads, self.context.head_dim);
         let (f, n, s) = (float, Dim::Fixed, sym);
         let kv = |prefix: &str, len: &str| -> Vec<TensorSpec> {

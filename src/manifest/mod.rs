@@ -19,7 +19,9 @@ pub use armflow::{
     ActorLatent, ArmFlowGraphs, ArmFlowSpec, ContextSpec, DecoderWindow, EncoderWindow, LatentSpec,
     SamplerSpec, VaeSpec,
 };
-pub use umf::{PyramidSpec, StageSpec, TextSpec, UmfGraphs, UmfLatentSpec, UmfSamplerSpec, UmfSpec};
+pub use umf::{
+    PyramidSpec, StageSpec, TextSpec, UmfGraphs, UmfLatentSpec, UmfSamplerSpec, UmfSpec,
+};
 
 /// Value of the manifest's `format` field.
 pub const FORMAT: &str = "troupe-bundle";
@@ -163,7 +165,8 @@ impl Manifest {
             path: path.to_path_buf(),
             message,
         };
-        let value: serde_json::Value = serde_json::from_str(text).map_err(|e| bad(e.to_string()))?;
+        let value: serde_json::Value =
+            serde_json::from_str(text).map_err(|e| bad(e.to_string()))?;
         check_header(&value).map_err(bad)?;
         let manifest: Manifest = serde_json::from_value(value).map_err(|e| bad(e.to_string()))?;
         manifest.validate().map_err(bad)?;
@@ -245,7 +248,10 @@ fn check_header(value: &serde_json::Value) -> std::result::Result<(), String> {
 }
 
 /// `Ok` when `ok`, else the message.
-pub(crate) fn ensure(ok: bool, message: impl FnOnce() -> String) -> std::result::Result<(), String> {
+pub(crate) fn ensure(
+    ok: bool,
+    message: impl FnOnce() -> String,
+) -> std::result::Result<(), String> {
     if ok {
         Ok(())
     } else {
@@ -268,7 +274,11 @@ pub(crate) fn sym(name: &str) -> Dim {
 }
 
 /// The declared graph's file with the required interface.
-pub(crate) fn contract(g: &GraphSpec, inputs: Vec<TensorSpec>, outputs: Vec<TensorSpec>) -> GraphSpec {
+pub(crate) fn contract(
+    g: &GraphSpec,
+    inputs: Vec<TensorSpec>,
+    outputs: Vec<TensorSpec>,
+) -> GraphSpec {
     GraphSpec {
         file: g.file.clone(),
         inputs,

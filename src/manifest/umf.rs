@@ -129,16 +129,20 @@ impl UmfSpec {
                 p.stages[last].tokens, l.tokens
             )
         })?;
-        ensure(p.stages[0].start_t == 0.0 && p.stages[last].end_t == 1.0, || {
-            "the first stage must start at t = 0 and the last end at t = 1".into()
-        })?;
+        ensure(
+            p.stages[0].start_t == 0.0 && p.stages[last].end_t == 1.0,
+            || "the first stage must start at t = 0 and the last end at t = 1".into(),
+        )?;
         for (k, s) in p.stages.iter().enumerate() {
-            ensure(s.start_t < s.end_t && s.timesteps.iter().all(|t| t.is_finite()), || {
-                format!(
+            ensure(
+                s.start_t < s.end_t && s.timesteps.iter().all(|t| t.is_finite()),
+                || {
+                    format!(
                     "pyramid.stages[{k}]: start_t {} must be below end_t {} and the timesteps finite",
                     s.start_t, s.end_t
                 )
-            })?;
+                },
+            )?;
         }
         let jumps = self.jumps().map_err(|e| format!("pyramid: {e}"))?;
         for (k, jump) in jumps.iter().enumerate() {
