@@ -453,8 +453,8 @@ size_t troupe_model_frame_dim(const struct troupe_model *model);
 size_t troupe_model_fps(const struct troupe_model *model);
 
 /*
- Motion frames per generated token (reactor frames come out in multiples of it); 0 for NULL.
- Thread-safe.
+ Motion frames per generated token (reactor frames come out in multiples of it); 0 for NULL
+ and for a `umf` bundle. Thread-safe.
 
  # Safety
  `model` must be NULL or a live handle.
@@ -463,7 +463,7 @@ size_t troupe_model_frames_per_token(const struct troupe_model *model);
 
 /*
  Algorithmic latency in frames: at worst, how many actor frames after frame t arrive before
- reactor frame t is returned; 0 for NULL. Thread-safe.
+ reactor frame t is returned; 0 for NULL and for a `umf` bundle. Thread-safe.
 
  # Safety
  `model` must be NULL or a live handle.
@@ -471,7 +471,8 @@ size_t troupe_model_frames_per_token(const struct troupe_model *model);
 size_t troupe_model_latency_frames(const struct troupe_model *model);
 
 /*
- Floats in the conditioning vector (`troupe_session_set_condition`); 0 for NULL. Thread-safe.
+ Floats in the conditioning vector (`troupe_session_set_condition`, `troupe_group_generate`);
+ 0 for NULL. Thread-safe.
 
  # Safety
  `model` must be NULL or a live handle.
@@ -479,7 +480,8 @@ size_t troupe_model_latency_frames(const struct troupe_model *model);
 size_t troupe_model_condition_dim(const struct troupe_model *model);
 
 /*
- Floats per latent token (the length of injected noise vectors); 0 for NULL. Thread-safe.
+ Floats per latent token (the length of injected noise vectors, per token); 0 for NULL.
+ Thread-safe.
 
  # Safety
  `model` must be NULL or a live handle.
@@ -488,7 +490,8 @@ size_t troupe_model_latent_dim(const struct troupe_model *model);
 
 /*
  The most reactor frames one `troupe_session_step` call with `n_actor_frames` input frames can
- return, whatever the session's state: size output buffers with it. 0 for NULL. Thread-safe.
+ return, whatever the session's state: size output buffers with it. 0 for NULL and for a
+ `umf` bundle. Thread-safe.
 
  # Safety
  `model` must be NULL or a live handle.

@@ -169,10 +169,13 @@ impl Model {
     }
 
     /// The most reactor frames one `step` with `n_actor_frames` new frames can return, whatever
-    /// the session's state: `ceil(n / frames_per_token) * frames_per_token`.
+    /// the session's state: `ceil(n / frames_per_token) * frames_per_token`. 0 for a `umf`
+    /// model.
     pub fn max_output_frames(&self, n_actor_frames: usize) -> usize {
-        let fpt = self.frames_per_token();
-        n_actor_frames.div_ceil(fpt).saturating_mul(fpt)
+        match self.frames_per_token() {
+            0 => 0,
+            fpt => n_actor_frames.div_ceil(fpt).saturating_mul(fpt),
+        }
     }
 
     /// The context `c` the encoder gives after `[<sos>, pairs...]`, computed from scratch in one

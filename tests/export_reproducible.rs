@@ -58,6 +58,10 @@ fn committed_tiny_bundle_is_reproducible_from_the_exporter() {
 fn committed_umf_bundles_are_reproducible_from_the_exporter() {
     if torch_available("committed_umf_bundles_are_reproducible_from_the_exporter") {
         check("onnx/export_umf.py", "tiny", "onnx/umf-tiny");
-        check("onnx/export_umf.py", "tiny-temporal", "onnx/umf-tiny-temporal");
+        check(
+            "onnx/export_umf.py",
+            "tiny-temporal",
+            "onnx/umf-tiny-temporal",
+        );
     }
 }

@@ -302,6 +302,7 @@ fn shape_of_group_queries() {
     let model = tiny();
     assert_eq!(model.manifest().family_name(), "umf");
     assert_eq!((model.frames_per_token(), model.latency_frames()), (0, 0));
+    assert_eq!(model.max_output_frames(10), 0);
     let noise = model.group_noise(0, 4).unwrap();
     let spec = model.umf_spec().unwrap();
     let dim = spec.latent.dim;

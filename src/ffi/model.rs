@@ -134,8 +134,8 @@ pub unsafe extern "C" fn troupe_model_fps(model: *const troupe_model) -> usize {
     property(model, |m| m.fps() as usize)
 }
 
-/// Motion frames per generated token (reactor frames come out in multiples of it); 0 for NULL.
-/// Thread-safe.
+/// Motion frames per generated token (reactor frames come out in multiples of it); 0 for NULL
+/// and for a `umf` bundle. Thread-safe.
 ///
 /// # Safety
 /// `model` must be NULL or a live handle.
@@ -145,7 +145,7 @@ pub unsafe extern "C" fn troupe_model_frames_per_token(model: *const troupe_mode
 }
 
 /// Algorithmic latency in frames: at worst, how many actor frames after frame t arrive before
-/// reactor frame t is returned; 0 for NULL. Thread-safe.
+/// reactor frame t is returned; 0 for NULL and for a `umf` bundle. Thread-safe.
 ///
 /// # Safety
 /// `model` must be NULL or a live handle.
@@ -154,7 +154,8 @@ pub unsafe extern "C" fn troupe_model_latency_frames(model: *const troupe_model)
     property(model, Model::latency_frames)
 }
 
-/// Floats in the conditioning vector (`troupe_session_set_condition`); 0 for NULL. Thread-safe.
+/// Floats in the conditioning vector (`troupe_session_set_condition`, `troupe_group_generate`);
+/// 0 for NULL. Thread-safe.
 ///
 /// # Safety
 /// `model` must be NULL or a live handle.
@@ -163,7 +164,8 @@ pub unsafe extern "C" fn troupe_model_condition_dim(model: *const troupe_model) 
     property(model, Model::condition_dim)
 }
 
-/// Floats per latent token (the length of injected noise vectors); 0 for NULL. Thread-safe.
+/// Floats per latent token (the length of injected noise vectors, per token); 0 for NULL.
+/// Thread-safe.
 ///
 /// # Safety
 /// `model` must be NULL or a live handle.
@@ -173,7 +175,8 @@ pub unsafe extern "C" fn troupe_model_latent_dim(model: *const troupe_model) -> 
 }
 
 /// The most reactor frames one `troupe_session_step` call with `n_actor_frames` input frames can
-/// return, whatever the session's state: size output buffers with it. 0 for NULL. Thread-safe.
+/// return, whatever the session's state: size output buffers with it. 0 for NULL and for a
+/// `umf` bundle. Thread-safe.
 ///
 /// # Safety
 /// `model` must be NULL or a live handle.

@@ -93,6 +93,7 @@ int main(int argc, char **argv) {
     cdim = troupe_model_condition_dim(model);
     CHECK(frames == 40 && dim == 262 && tokens == 16 && lat == 8 && cdim == 32);
     CHECK(troupe_model_group_stages(model) == 2 && troupe_model_frames_per_token(model) == 0);
+    CHECK(troupe_model_max_output_frames(model, 10) == 0 && troupe_model_latency_frames(model) == 0);
     CHECK(troupe_model_clip_frames(armflow) == 0 && troupe_model_group_stages(armflow) == 0);
     CHECK(troupe_model_clip_frames(NULL) == 0 && troupe_model_group_tokens(NULL) == 0);
 
