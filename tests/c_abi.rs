@@ -200,7 +200,8 @@ fn cpp_wrapper_without_exceptions() {
         &shared_link(),
         "wrapper_cpp",
     );
-    println!("{}", run(&[], &bin, &[&root().join("onnx/armflow-tiny")]));
+    let [umf, armflow] = group_args();
+    println!("{}", run(&[], &bin, &[&armflow, &umf]));
 }
 
 #[test]
@@ -212,7 +213,8 @@ fn cpp_wrapper_with_its_exception_helpers() {
         &shared_link(),
         "wrapper_cpp_exceptions",
     );
-    run(&[], &bin, &[&root().join("onnx/armflow-tiny")]);
+    let [umf, armflow] = group_args();
+    run(&[], &bin, &[&armflow, &umf]);
 }
 
 /// No leak and no invalid access in the C smoke and group tests. valgrind is on the CI machine; where it

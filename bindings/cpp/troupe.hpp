@@ -13,6 +13,7 @@
 #include <cstdint>
 #include <string>
 #include <utility>
+#include <vector>
 
 #include "troupe.h"
 
@@ -116,9 +117,30 @@ class Model {
     std::size_t max_output_frames(std::size_t n_actor_frames) const {
         return troupe_model_max_output_frames(handle_, n_actor_frames);
     }
-    /// The bundle's default session options.
+    /// The bundle's default session options (armflow bundles).
     Status default_options(troupe_session_options &out) const {
         return Status::from(troupe_session_options_init(handle_, &out, sizeof out));
+    }
+
+    // ---- text-to-group (umf bundles) ----
+    std::size_t clip_frames() const { return troupe_model_clip_frames(handle_); }
+    std::size_t group_tokens() const { return troupe_model_group_tokens(handle_); }
+    std::size_t group_stages() const { return troupe_model_group_stages(handle_); }
+    /// The bundle's default group options (solvers, CFG), seed 0.
+    Status default_group_options(troupe_group_options &out) const {
+        return Status::from(troupe_group_options_init(handle_, &out, sizeof out));
+    }
+    /// Generates `people` persons; `motion` becomes [people][clip_frames][frame_dim]. A NULL
+    /// `condition` is the null condition; NULL `options` the bundle's defaults; NULL `noise`
+    /// draws from the seed. On failure `motion` is left as it was.
+    Status generate_group(const float *condition, std::size_t condition_len, std::uint32_t people,
+                          std::vector<float> &motion, const troupe_group_options *options = nullptr,
+                          const troupe_group_noise *noise = nullptr) const {
+        std::vector<float> out(static_cast<std::size_t>(people) * clip_frames() * frame_dim());
+        Status s = Status::from(troupe_group_generate(handle_, options, condition, condition_len, people, noise,
+                                                      out.data(), out.size(), nullptr, 0));
+        if (s) motion.swap(out);
+        return s;
     }
     const troupe_model *get() const { return handle_; }
 

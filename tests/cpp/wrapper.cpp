@@ -1,5 +1,5 @@
 // The C++ wrapper, compiled with -fno-exceptions: RAII, moves, status returns.
-// Usage: wrapper BUNDLE_DIR
+// Usage: wrapper ARMFLOW_BUNDLE_DIR UMF_BUNDLE_DIR
 #include "troupe.hpp"
 
 #include <cmath>
@@ -34,7 +34,7 @@ static std::vector<float> run(troupe::Session &s, const std::vector<float> &acto
 }
 
 int main(int argc, char **argv) {
-    if (argc < 2) return 2;
+    if (argc < 3) return 2;
     CHECK(troupe::abi_compatible());
     troupe::Model missing;
     troupe::Status bad = troupe::Model::load("/nonexistent/bundle", missing);
@@ -68,6 +68,21 @@ int main(int argc, char **argv) {
     troupe::Model other = std::move(model);  // the sessions keep the model alive regardless
     other = troupe::Model();
     CHECK(a.reset().ok() && run(a, actor, frames) == ra);
+
+    // Groups: defaults, a seed, determinism, and a failure that leaves the output alone.
+    troupe::Model umf;
+    CHECK(troupe::Model::load(argv[2], umf).ok());
+    CHECK(umf.group_stages() == 2 && umf.clip_frames() == 40 && umf.group_tokens() == 16);
+    troupe_group_options gopt;
+    CHECK(umf.default_group_options(gopt).ok() && gopt.stage_count == 2);
+    gopt.seed = 3;
+    std::vector<float> g1, g2;
+    CHECK(umf.generate_group(nullptr, 0, 2, g1, &gopt).ok());
+    CHECK(g1.size() == 2 * umf.clip_frames() * umf.frame_dim());
+    CHECK(umf.generate_group(nullptr, 0, 2, g2, &gopt).ok() && g1 == g2);
+    troupe::Status none = umf.generate_group(nullptr, 0, 0, g2, &gopt);
+    CHECK(none.code() == TROUPE_ERR_INVALID_ARG && g1 == g2);
+    CHECK(other.generate_group(nullptr, 0, 1, g2).code() == TROUPE_ERR_NULL_ARG);
 
 #ifdef TROUPE_CPP_EXCEPTIONS
     bool thrown = false;
