@@ -329,11 +329,14 @@ def compare_bundles(committed: Path, fresh: Path) -> list[str]:
     return problems
 
 
-def main():
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--preset", choices=sorted(PRESETS), required=True)
+def cli(doc: str, presets: dict, export_bundle, write_golden):
+    """The command line every exporter shares: `--preset P --out DIR [--golden]` writes a
+    bundle; `--preset P --check DIR` re-exports into a temporary directory and exits non-zero
+    unless it is byte-identical to DIR (goldens included when DIR has them)."""
+    ap = argparse.ArgumentParser(description=doc, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--preset", choices=sorted(presets), required=True)
     ap.add_argument("--out", type=Path, help="bundle directory to write")
-    ap.add_argument("--golden", action="store_true", help="also write golden outputs (tiny only)")
+    ap.add_argument("--golden", action="store_true", help="also write golden outputs (tiny presets)")
     ap.add_argument("--seed", type=int, default=0, help="weight initialisation seed")
     ap.add_argument("--check", type=Path, help="re-export and compare with this committed bundle")
     args = ap.parse_args()
@@ -360,4 +363,4 @@ def main():
 
 if __name__ == "__main__":
     os.environ.setdefault("PYTHONHASHSEED", "0")
-    main()
+    cli(__doc__, PRESETS, export_bundle, write_golden)

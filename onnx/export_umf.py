@@ -14,17 +14,15 @@ the ARMFlow exporter (export.py).
 
 from __future__ import annotations
 
-import argparse
 import json
 import sys
-import tempfile
 from pathlib import Path
 
 import numpy as np
 import torch
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from export import FORMAT_VERSION, OPSET, compare_bundles, export_graph  # noqa: E402
+from export import FORMAT_VERSION, OPSET, cli, export_graph  # noqa: E402
 from umf_ref import (  # noqa: E402
     TIME_SCALE,
     Solver,
@@ -292,34 +290,5 @@ def write_golden(model: Umf, out_dir: Path):
     (g / "cases.json").write_text(json.dumps(index, indent=2) + "\n")
 
 
-def main():
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--preset", choices=sorted(PRESETS), required=True)
-    ap.add_argument("--out", type=Path, help="bundle directory to write")
-    ap.add_argument("--golden", action="store_true", help="also write golden outputs (tiny presets)")
-    ap.add_argument("--seed", type=int, default=0, help="weight initialisation seed")
-    ap.add_argument("--check", type=Path, help="re-export and compare with this committed bundle")
-    args = ap.parse_args()
-    torch.set_num_threads(1)
-    if args.check:
-        with tempfile.TemporaryDirectory() as tmp:
-            fresh = Path(tmp) / "bundle"
-            model = export_bundle(args.preset, fresh, args.seed)
-            if (args.check / "golden").exists():
-                write_golden(model, fresh)
-            problems = compare_bundles(args.check, fresh)
-        for p in problems:
-            print(f"MISMATCH {p}")
-        print("reproducible" if not problems else f"{len(problems)} difference(s)")
-        sys.exit(1 if problems else 0)
-    if not args.out:
-        ap.error("--out or --check is required")
-    model = export_bundle(args.preset, args.out, args.seed)
-    if args.golden:
-        write_golden(model, args.out)
-    size = sum(f.stat().st_size for f in args.out.rglob("*.onnx"))
-    print(f"wrote {args.out} ({size / 1e6:.1f} MB of ONNX)")
-
-
 if __name__ == "__main__":
-    main()
+    cli(__doc__, PRESETS, export_bundle, write_golden)

@@ -2,27 +2,13 @@
  * with -Wall -Wextra -Werror -pedantic and run under valgrind (tests/c_abi.rs).
  * Usage: group UMF_BUNDLE_DIR ARMFLOW_BUNDLE_DIR */
 #include "troupe.h"
+#include "check.h"
 
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
-static int passed = 0, failed = 0;
-
-#define CHECK(cond)                                                                  \
-    do {                                                                             \
-        if (cond) {                                                                  \
-            passed++;                                                                \
-        } else {                                                                     \
-            failed++;                                                                \
-            fprintf(stderr, "%s:%d: CHECK(%s) failed; last error: %s\n", __FILE__,   \
-                    __LINE__, #cond,                                                 \
-                    troupe_last_error_message() ? troupe_last_error_message() : "-"); \
-        }                                                                            \
-    } while (0)
-
-#define EXPECT(call, status) CHECK((call) == (status))
 
 /* Reads a little-endian float32 .npy file (version 1 header); returns NULL on failure. */
 static float *read_npy(const char *dir, const char *name, size_t *count) {

@@ -2,6 +2,7 @@
  * -Wall -Wextra -Werror -pedantic, linked against the cdylib and the staticlib, and run under
  * valgrind (tests/c_abi.rs). Usage: smoke BUNDLE_DIR BUNDLE_ARCHIVE */
 #include "troupe.h"
+#include "check.h"
 
 #include <math.h>
 #include <stdio.h>
@@ -15,21 +16,6 @@ extern "C"
 troupe_status troupe_testing_panic(troupe_session *session);
 #endif
 
-static int passed = 0, failed = 0;
-
-#define CHECK(cond)                                                                  \
-    do {                                                                             \
-        if (cond) {                                                                  \
-            passed++;                                                                \
-        } else {                                                                     \
-            failed++;                                                                \
-            fprintf(stderr, "%s:%d: CHECK(%s) failed; last error: %s\n", __FILE__,   \
-                    __LINE__, #cond,                                                 \
-                    troupe_last_error_message() ? troupe_last_error_message() : "-"); \
-        }                                                                            \
-    } while (0)
-
-#define EXPECT(call, status) CHECK((call) == (status))
 
 static int log_calls = 0;
 static void on_log(void *user_data, int32_t level, const char *target, const char *message) {

@@ -1,21 +1,11 @@
 // The C++ wrapper, compiled with -fno-exceptions: RAII, moves, status returns.
 // Usage: wrapper ARMFLOW_BUNDLE_DIR UMF_BUNDLE_DIR
 #include "troupe.hpp"
+#include "../c/check.h"
 
 #include <cmath>
 #include <cstdio>
 #include <vector>
-
-static int passed = 0, failed = 0;
-#define CHECK(cond)                                                         \
-    do {                                                                    \
-        if (cond) {                                                         \
-            passed++;                                                       \
-        } else {                                                            \
-            failed++;                                                       \
-            std::fprintf(stderr, "%s:%d: CHECK(%s) failed\n", __FILE__, __LINE__, #cond); \
-        }                                                                   \
-    } while (0)
 
 static std::vector<float> run(troupe::Session &s, const std::vector<float> &actor, std::size_t frames) {
     std::vector<float> out(frames * s.frame_dim());
