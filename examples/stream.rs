@@ -10,6 +10,7 @@
 //!   --out FILE.npy      where to write the reactor motion (default: reactor.npy)
 //!   --seed S --steps K --cfg X --capacity C     session options
 //!   --warmup-tokens H   tokens streamed before timing starts (to time at a given history)
+//!   --vae-windows       run the VAE over windows even when the bundle has per-token steps
 //! ```
 
 use std::time::Instant;
@@ -53,6 +54,7 @@ fn parse_args() -> Result<Args, String> {
             "--cfg" => a.options.cfg_scale = Some(num(value()?)? as f32),
             "--capacity" => a.options.context_capacity = Some(num(value()?)? as usize),
             "--warmup-tokens" => a.warmup_tokens = num(value()?)? as u64,
+            "--vae-windows" => a.options.vae_windows = true,
             "-h" | "--help" => {
                 println!("see the top of examples/stream.rs for the options");
                 std::process::exit(0);

@@ -208,6 +208,52 @@ class VaeDecoder(nn.Module):
         return self.layers(latents.transpose(1, 2)).transpose(1, 2)
 
 
+class VaeStep(nn.Module):
+    """One token of a causal VAE (encoder or decoder) with its convolution state made explicit:
+    `(chunk [1, n, C_in], *state) -> (out [1, m, C_out], *next_state)`.
+
+    Every causal TimeConv with left padding `p > 0` keeps the last `p` frames of its input; a
+    stream starts from zeros, which is the causal pass's zero padding. Norms are per frame and
+    upsampling is per frame, so nothing else carries over between tokens. Stepping token by token
+    equals one causal pass over the whole stream, at O(1) cost per token instead of a window.
+    """
+
+    def __init__(self, stack: nn.Module):
+        super().__init__()
+        self.stack = stack
+        self.convs = [m for m in stack.modules() if isinstance(m, TimeConv) and m.left > 0]
+
+    def state_shapes(self) -> list[tuple[int, int, int]]:
+        return [(1, c.conv.in_channels, c.left) for c in self.convs]
+
+    def forward(self, chunk, *state):
+        assert len(state) == len(self.convs)
+        states, next_state = iter(state), []
+
+        def conv(c: TimeConv, h):
+            if c.left == 0:
+                return c.conv(h)
+            full = torch.cat([next(states), h], dim=2)
+            next_state.append(full[:, :, -c.left :])
+            return c.conv(full)
+
+        def run(layers, h):
+            for layer in layers:
+                if isinstance(layer, TimeConv):
+                    h = conv(layer, h)
+                elif isinstance(layer, Resnet1D):
+                    h = run(layer, h)
+                elif isinstance(layer, ResBlock):
+                    r = conv(layer.conv1, F.relu(layer.norm1(h)))
+                    h = h + conv(layer.conv2, F.relu(layer.norm2(r)))
+                else:
+                    h = layer(h)
+            return h
+
+        out = run(self.stack.layers, chunk.transpose(1, 2)).transpose(1, 2)
+        return (out, *next_state)
+
+
 def encoder_context_frames(enc: VaeEncoder, fpt: int) -> int:
     """Frames before a token's first frame that its (causal) encoding depends on, rounded up to a
     whole token so that every window starts on the token grid."""

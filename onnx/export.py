@@ -31,6 +31,7 @@ from armflow_ref import (  # noqa: E402
     ArmflowConfig,
     StreamOptions,
     VaeConfig,
+    VaeStep,
     decoder_context_tokens,
     encoder_context_frames,
     philox_normals,
@@ -83,18 +84,37 @@ class ContextStepGraph(torch.nn.Module):
         return (context, *[t for kv in present for t in kv])
 
 
+class EncoderStepGraph(torch.nn.Module):
+    """The encoder's per-token step, its output split into the posterior's mean and logvar."""
+
+    def __init__(self, model: Armflow):
+        super().__init__()
+        self.step = VaeStep(model.vae_encoder)
+        self.latent_dim = model.cfg.latent_dim
+
+    def forward(self, motion, *state):
+        out, *next_state = self.step(motion, *state)
+        return (out[..., : self.latent_dim], out[..., self.latent_dim :], *next_state)
+
+
 def dims(*d):
     return list(d)
 
 
-def graph_specs(cfg: ArmflowConfig) -> dict:
+def graph_specs(model: Armflow) -> dict:
     """Every graph's file, inputs and outputs as the manifest states them. Symbolic dims are
     strings: T frames, N tokens, S new tokens, P cached tokens, B batch."""
+    cfg = model.cfg
     c, lat, d, h, dh, L = cfg.width, cfg.latent_dim, cfg.frame_dim, cfg.heads, cfg.head_dim, cfg.layers
+    fpt = cfg.frames_per_token
     t = lambda name, shape, dtype="float32": {"name": name, "dtype": dtype, "shape": shape}  # noqa: E731
     past = [t(f"past_{kv}_{i}", dims(1, h, "P", dh)) for i in range(L) for kv in ("key", "value")]
     present = [t(f"present_{kv}_{i}", dims(1, h, "P+S", dh)) for i in range(L) for kv in ("key", "value")]
-    return {
+
+    def state(stack, prefix):
+        return [t(f"{prefix}state_{i}", list(s)) for i, s in enumerate(VaeStep(stack).state_shapes())]
+
+    specs = {
         "conditioning": {
             "file": "conditioning.onnx",
             "inputs": [t("condition", dims(1, cfg.cond_dim))],
@@ -132,6 +152,19 @@ def graph_specs(cfg: ArmflowConfig) -> dict:
             "outputs": [t("motion", dims(1, "T", d))],
         },
     }
+    if cfg.vae.causal:  # a causal VAE also streams token by token with explicit conv state
+        enc, dec = model.vae_encoder, model.vae_decoder
+        specs["vae_encoder_step"] = {
+            "file": "vae_encoder_step.onnx",
+            "inputs": [t("motion", dims(1, fpt, d)), *state(enc, "")],
+            "outputs": [t("mean", dims(1, 1, lat)), t("logvar", dims(1, 1, lat)), *state(enc, "next_")],
+        }
+        specs["vae_decoder_step"] = {
+            "file": "vae_decoder_step.onnx",
+            "inputs": [t("latents", dims(1, 1, lat)), *state(dec, "")],
+            "outputs": [t("motion", dims(1, fpt, d)), *state(dec, "next_")],
+        }
+    return specs
 
 
 def export_graph(module, args, spec, out_dir: Path, fold_constants: bool = True):
@@ -167,7 +200,7 @@ def export_bundle(preset: str, out_dir: Path, seed: int = 0) -> Armflow:
     cfg = PRESETS[preset]
     model = build_model(preset, seed)
     out_dir.mkdir(parents=True, exist_ok=True)
-    specs = graph_specs(cfg)
+    specs = graph_specs(model)
     c, lat, h, dh = cfg.width, cfg.latent_dim, cfg.heads, cfg.head_dim
     past = [torch.randn(1, h, 3, dh) for _ in range(2 * cfg.layers)]
     examples = {  # dynamic dims get example sizes >= 2: a size of 1 can be specialised away
@@ -183,6 +216,15 @@ def export_bundle(preset: str, out_dir: Path, seed: int = 0) -> Armflow:
         "vae_encoder": (model.vae_encoder, (torch.randn(1, 8 * cfg.frames_per_token, cfg.frame_dim),)),
         "vae_decoder": (model.vae_decoder, (torch.randn(1, 8, lat),)),
     }
+    if "vae_encoder_step" in specs:
+        states = lambda stack: [torch.randn(s) for s in VaeStep(stack).state_shapes()]  # noqa: E731
+        fpt = cfg.frames_per_token
+        examples["vae_encoder_step"] = (
+            EncoderStepGraph(model), (torch.randn(1, fpt, cfg.frame_dim), *states(model.vae_encoder)),
+        )
+        examples["vae_decoder_step"] = (
+            VaeStep(model.vae_decoder), (torch.randn(1, 1, lat), *states(model.vae_decoder)),
+        )
     for name, (module, args) in examples.items():
         # Folding would turn the constant `start_token` output into a nameless initializer.
         export_graph(module, args, specs[name], out_dir, fold_constants=name != "conditioning")
@@ -274,7 +316,8 @@ def write_golden(model: Armflow, out_dir: Path):
 
 @torch.no_grad()
 def check_windows_match_full_clip(model: Armflow, actor: np.ndarray):
-    """The manifest's window sizes must make windowed VAE calls equal one causal pass."""
+    """The manifest's window sizes must make windowed VAE calls equal one causal pass, and so
+    must stepping token by token with explicit state."""
     cfg, fpt = model.cfg, model.cfg.frames_per_token
     ctx_f = encoder_context_frames(model.vae_encoder, fpt)
     ctx_t = decoder_context_tokens(model.vae_decoder, fpt)
@@ -288,6 +331,16 @@ def check_windows_match_full_clip(model: Armflow, actor: np.ndarray):
         assert torch.allclose(m[0, -1], full_mean[0, j], atol=1e-5), f"encoder window, token {j}"
         f = model.vae_decoder(lat[:, max(0, j - ctx_t) : j + 1])
         assert torch.allclose(f[0, -fpt:], full_frames[0, j * fpt : (j + 1) * fpt], atol=1e-5), f"decoder window, token {j}"
+    if not cfg.vae.causal:
+        return
+    enc, dec = VaeStep(model.vae_encoder), VaeStep(model.vae_decoder)
+    enc_state = [torch.zeros(s) for s in enc.state_shapes()]
+    dec_state = [torch.zeros(s) for s in dec.state_shapes()]
+    for j in range(n):
+        out, *enc_state = enc(x[:, j * fpt : (j + 1) * fpt], *enc_state)
+        assert torch.allclose(out[0, 0, : cfg.latent_dim], full_mean[0, j], atol=1e-5), f"encoder step, token {j}"
+        f, *dec_state = dec(lat[:, j : j + 1], *dec_state)
+        assert torch.allclose(f[0], full_frames[0, j * fpt : (j + 1) * fpt], atol=1e-5), f"decoder step, token {j}"
 
 
 # --------------------------------------------------------------------------------------------

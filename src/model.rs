@@ -32,8 +32,8 @@ struct Inner {
 /// The optimised graphs, by family.
 #[derive(Debug)]
 enum Networks {
-    ArmFlow(ArmFlowNetworks),
-    Umf(UmfNetworks),
+    ArmFlow(Box<ArmFlowNetworks>),
+    Umf(Box<UmfNetworks>),
 }
 
 #[derive(Debug)]
@@ -43,6 +43,15 @@ struct ArmFlowNetworks {
     velocity: Graph,
     vae_encoder: Graph,
     vae_decoder: Graph,
+    /// Per-token VAE steps with explicit state, when the bundle has them.
+    vae_steps: Option<(Graph, Graph)>,
+}
+
+/// The convolution state of a stream's VAE steps: every `state_i` of the encoder and decoder.
+#[derive(Debug, Clone)]
+pub(crate) struct VaeState {
+    encoder: Vec<TValue>,
+    decoder: Vec<TValue>,
 }
 
 /// The graphs of a `umf` bundle (used by [`crate::group`]).
@@ -84,22 +93,29 @@ impl Model {
         let networks = match &manifest.family {
             Family::Armflow(spec) => {
                 let g = &spec.graphs;
-                Networks::ArmFlow(ArmFlowNetworks {
+                Networks::ArmFlow(Box::new(ArmFlowNetworks {
                     conditioning: Graph::load("conditioning", &files, &g.conditioning)?,
                     context_step: Graph::load("context_step", &files, &g.context_step)?,
                     velocity: Graph::load("velocity", &files, &g.velocity)?,
                     vae_encoder: Graph::load("vae_encoder", &files, &g.vae_encoder)?,
                     vae_decoder: Graph::load("vae_decoder", &files, &g.vae_decoder)?,
-                })
+                    vae_steps: match (&g.vae_encoder_step, &g.vae_decoder_step) {
+                        (Some(e), Some(d)) => Some((
+                            Graph::load("vae_encoder_step", &files, e)?,
+                            Graph::load("vae_decoder_step", &files, d)?,
+                        )),
+                        _ => None,
+                    },
+                }))
             }
             Family::Umf(spec) => {
                 let g = &spec.graphs;
-                Networks::Umf(UmfNetworks {
+                Networks::Umf(Box::new(UmfNetworks {
                     prior: Graph::load("prior", &files, &g.prior)?,
                     reaction: Graph::load("reaction", &files, &g.reaction)?,
                     context: Graph::load("context", &files, &g.context)?,
                     decoder: Graph::load("decoder", &files, &g.decoder)?,
-                })
+                }))
             }
         };
         let inner = Inner {
@@ -359,6 +375,92 @@ impl Model {
     pub fn null_condition(&self) -> Vec<f32> {
         let c = &self.inner.manifest.condition;
         c.null.clone().unwrap_or_else(|| vec![0f32; c.dim])
+    }
+}
+
+impl Model {
+    /// Whether the bundle has per-token VAE steps (O(1) per token, no windows).
+    pub fn has_vae_steps(&self) -> bool {
+        self.armflow()
+            .is_ok_and(|(_, nets)| nets.vae_steps.is_some())
+    }
+
+    /// The zero state a stream's VAE steps start from, or `None` without step graphs.
+    pub(crate) fn vae_state(&self) -> Result<Option<VaeState>> {
+        let (spec, nets) = self.armflow()?;
+        if nets.vae_steps.is_none() {
+            return Ok(None);
+        }
+        let zeros = |graph: &Option<crate::manifest::GraphSpec>| -> Vec<TValue> {
+            graph
+                .iter()
+                .flat_map(|g| &g.inputs)
+                .filter(|t| t.name.starts_with("state_"))
+                .map(|t| {
+                    let shape: Vec<usize> = t
+                        .shape
+                        .iter()
+                        .map(|d| match d {
+                            crate::manifest::Dim::Fixed(n) => *n,
+                            crate::manifest::Dim::Symbol(_) => 0,
+                        })
+                        .collect();
+                    f32_tensor(&shape, &vec![0f32; shape.iter().product()])
+                })
+                .collect()
+        };
+        let g = &spec.graphs;
+        Ok(Some(VaeState {
+            encoder: zeros(&g.vae_encoder_step),
+            decoder: zeros(&g.vae_decoder_step),
+        }))
+    }
+
+    /// One token of the encoder: `frames` (`[frames_per_token, frame_dim]`) to the posterior
+    /// `(mean, logvar)` of that token, advancing `state`.
+    pub(crate) fn encode_step(
+        &self,
+        frames: &[f32],
+        state: &mut VaeState,
+    ) -> Result<(Vec<f32>, Vec<f32>)> {
+        let (a, nets) = self.armflow()?;
+        let Some((encoder, _)) = &nets.vae_steps else {
+            return Err(Error::InvalidInput(
+                "the bundle has no VAE step graphs".into(),
+            ));
+        };
+        let (fpt, lat) = (a.latent.frames_per_token, a.latent.dim);
+        let mut inputs = vec![f32_tensor(&[1, fpt, self.frame_dim()], frames)];
+        inputs.extend(state.encoder.iter().cloned());
+        let mut out = encoder.run(inputs)?;
+        let mean = read_f32("vae_encoder_step", "mean", &out[0], &[1, 1, lat])?.to_vec();
+        let logvar = read_f32("vae_encoder_step", "logvar", &out[1], &[1, 1, lat])?.to_vec();
+        state.encoder = out.split_off(2);
+        Ok((mean, logvar))
+    }
+
+    /// One token of the decoder: an unscaled latent (`[latent_dim]`) to its
+    /// `[frames_per_token, frame_dim]` frames, advancing `state`.
+    pub(crate) fn decode_step(&self, latent: &[f32], state: &mut VaeState) -> Result<Vec<f32>> {
+        let (a, nets) = self.armflow()?;
+        let Some((_, decoder)) = &nets.vae_steps else {
+            return Err(Error::InvalidInput(
+                "the bundle has no VAE step graphs".into(),
+            ));
+        };
+        let (fpt, lat) = (a.latent.frames_per_token, a.latent.dim);
+        let mut inputs = vec![f32_tensor(&[1, 1, lat], latent)];
+        inputs.extend(state.decoder.iter().cloned());
+        let mut out = decoder.run(inputs)?;
+        let frames = read_f32(
+            "vae_decoder_step",
+            "motion",
+            &out[0],
+            &[1, fpt, self.frame_dim()],
+        )?
+        .to_vec();
+        state.decoder = out.split_off(1);
+        Ok(frames)
     }
 }
 

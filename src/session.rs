@@ -24,6 +24,7 @@ use ndarray::{Array2, ArrayView2};
 use crate::error::{Error, Result};
 use crate::kv_cache::KvCache;
 use crate::manifest::{ActorLatent, ArmFlowSpec};
+use crate::model::VaeState;
 use crate::model::{check_finite, Conditioning, Model};
 use crate::noise::{fill_normals, STREAM_ACTOR_POSTERIOR, STREAM_REACTOR_NOISE};
 
@@ -43,6 +44,9 @@ pub struct SessionOptions {
     pub context_capacity: Option<usize>,
     /// Posterior sample (default) or mean for the actor's latent tokens.
     pub actor_latent: Option<ActorLatent>,
+    /// Run the VAE over windows even when the bundle has per-token step graphs. Slower; the two
+    /// agree to float rounding. For comparisons and for debugging a bundle.
+    pub vae_windows: bool,
 }
 
 /// The noise of one token, for reproducing a run exactly.
@@ -107,6 +111,8 @@ struct StreamState {
     frames_emitted: u64,
     /// Noise queued by `queue_noise`, used before the seeded generator.
     injected: VecDeque<TokenNoise>,
+    /// The VAE steps' convolution state; `None` when the VAE runs over windows.
+    vae: Option<VaeState>,
 }
 
 /// One actor/reactor stream over a shared [`Model`]. `Send`, not `Sync`: use it from one
@@ -120,6 +126,8 @@ pub struct Session {
     state: StreamState,
     /// The bundle's `armflow` fields (checked when the session was made).
     spec: ArmFlowSpec,
+    /// The VAE steps' zero state, when the session uses step graphs rather than windows.
+    vae_start: Option<VaeState>,
 }
 
 /// MeanFlow time grid `tau_k = (n - k) / n`, k = 0..=n, each rounded once to f32. t = 1 is
@@ -158,14 +166,26 @@ impl Session {
                 settings.capacity
             )));
         }
+        let vae_start = if options.vae_windows {
+            None
+        } else {
+            model.vae_state()?
+        };
         Ok(Self {
             conditioning: model.conditioning(settings.condition.as_deref())?,
             grid: meanflow_grid(settings.steps),
-            state: StreamState::new(&spec),
+            state: StreamState::new(&spec, vae_start.clone()),
+            vae_start,
             settings,
             model,
             spec,
         })
+    }
+
+    /// Whether this session runs the bundle's per-token VAE steps (O(1) per token) rather than
+    /// VAE windows: true when the bundle has them and `vae_windows` was not asked for.
+    pub fn uses_vae_steps(&self) -> bool {
+        self.vae_start.is_some()
     }
 
     /// The model this session runs.
@@ -232,7 +252,7 @@ impl Session {
     /// Returns the session to the state of a fresh session with the current settings (seed,
     /// steps, CFG, condition, capacity). Queued noise is dropped.
     pub fn reset(&mut self) {
-        self.state = StreamState::new(&self.spec);
+        self.state = StreamState::new(&self.spec, self.vae_start.clone());
     }
 
     /// Sets the noise seed; applies to tokens generated from now on.
@@ -364,15 +384,30 @@ impl Session {
             .pop_front()
             .unwrap_or_else(|| self.seeded_noise(j));
 
-        // 1. actor token from the encoder window ending with this token's frames
+        // 1. actor token: one encoder step over this token's frames, or the encoder window
+        //    ending with them
         let first = j * fpt as u64;
-        let start = first.saturating_sub(m.vae.encoder.context_frames as u64);
-        let end = first + fpt as u64 + m.vae.encoder.lookahead_frames as u64;
-        let window = &st.actor_frames
-            [(start - st.actor_base) as usize * dim..(end - st.actor_base) as usize * dim];
-        let (mean, logvar) = self.model.encode(window)?;
-        let row = (first - start) as usize / fpt * lat;
-        let (mean, logvar) = (&mean[row..row + lat], &logvar[row..row + lat]);
+        let frames_from = |start: u64, end: u64| {
+            &st.actor_frames
+                [(start - st.actor_base) as usize * dim..(end - st.actor_base) as usize * dim]
+        };
+        let (mean, logvar) = match &mut st.vae {
+            Some(vae) => {
+                let frames = &st.actor_frames[(first - st.actor_base) as usize * dim
+                    ..(first - st.actor_base) as usize * dim + fpt * dim];
+                self.model.encode_step(frames, vae)?
+            }
+            None => {
+                let start = first.saturating_sub(m.vae.encoder.context_frames as u64);
+                let end = first + fpt as u64 + m.vae.encoder.lookahead_frames as u64;
+                let (mean, logvar) = self.model.encode(frames_from(start, end))?;
+                let row = (first - start) as usize / fpt * lat;
+                (
+                    mean[row..row + lat].to_vec(),
+                    logvar[row..row + lat].to_vec(),
+                )
+            }
+        };
         let scale = m.latent.scale;
         let actor: Vec<f32> = match self.settings.actor_latent {
             ActorLatent::Sample => (0..lat)
@@ -449,6 +484,15 @@ impl Session {
         let m = &self.spec;
         let (fpt, dim) = (m.latent.frames_per_token, self.model.frame_dim());
         let k = st.frames_emitted / fpt as u64;
+        if let Some(vae) = &mut st.vae {
+            let latent: Vec<f32> = st.reactor_latents[(k - st.reactor_base) as usize]
+                .iter()
+                .map(|v| v / m.latent.scale)
+                .collect();
+            let frames = self.model.decode_step(&latent, vae)?;
+            st.frames_emitted += fpt as u64;
+            return Ok(frames);
+        }
         let start = k.saturating_sub(m.vae.decoder.context_tokens as u64);
         let end = k + 1 + m.vae.decoder.lookahead_tokens as u64;
         let scale = m.latent.scale;
@@ -465,8 +509,9 @@ impl Session {
 }
 
 impl StreamState {
-    fn new(spec: &ArmFlowSpec) -> Self {
+    fn new(spec: &ArmFlowSpec, vae: Option<VaeState>) -> Self {
         Self {
+            vae,
             frames_received: 0,
             actor_frames: Vec::new(),
             actor_base: 0,
@@ -483,14 +528,23 @@ impl StreamState {
     /// Drops actor frames and reactor latents no future window reads: memory stays bounded.
     fn trim(&mut self, m: &ArmFlowSpec, frame_dim: usize) {
         let fpt = m.latent.frames_per_token as u64;
-        let keep_from = (self.tokens * fpt).saturating_sub(m.vae.encoder.context_frames as u64);
+        // Step graphs carry the past in their state: only the unfinished token's frames and the
+        // undecoded latents are kept.
+        let (context_frames, context_tokens) = match self.vae {
+            Some(_) => (0, 0),
+            None => (
+                m.vae.encoder.context_frames as u64,
+                m.vae.decoder.context_tokens as u64,
+            ),
+        };
+        let keep_from = (self.tokens * fpt).saturating_sub(context_frames);
         if keep_from > self.actor_base {
             let drop = (keep_from - self.actor_base) as usize * frame_dim;
             self.actor_frames.drain(..drop);
             self.actor_base = keep_from;
         }
         let next_decode = self.frames_emitted / fpt;
-        let keep_from = next_decode.saturating_sub(m.vae.decoder.context_tokens as u64);
+        let keep_from = next_decode.saturating_sub(context_tokens);
         while self.reactor_base < keep_from {
             self.reactor_latents.pop_front();
             self.reactor_base += 1;

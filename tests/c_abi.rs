@@ -30,15 +30,12 @@ fn bundle_archive() -> &'static Path {
     PATH.get_or_init(|| {
         let dir = root().join("onnx/armflow-tiny");
         let mut builder = tar::Builder::new(Vec::new());
-        for name in [
-            "troupe.json",
-            "conditioning.onnx",
-            "context_step.onnx",
-            "velocity.onnx",
-            "vae_encoder.onnx",
-            "vae_decoder.onnx",
-        ] {
-            builder.append_path_with_name(dir.join(name), name).unwrap();
+        for entry in std::fs::read_dir(&dir).unwrap() {
+            let path = entry.unwrap().path();
+            if path.is_file() {
+                let name = path.file_name().unwrap().to_owned();
+                builder.append_path_with_name(&path, name).unwrap();
+            }
         }
         let path = scratch().join("armflow-tiny.troupe");
         std::fs::write(&path, builder.into_inner().unwrap()).unwrap();

@@ -275,3 +275,47 @@ fn mismatched_graph_names_file_tensor_and_shape() {
         "{text}"
     );
 }
+
+/// The per-token VAE steps are checked like every graph: they come as a pair, need a streaming
+/// VAE, and each `state_i` needs a `next_state_i` of its shape in the graph and the manifest.
+#[test]
+fn inconsistent_vae_step_graphs_are_rejected() {
+    let dir = bundle_copy();
+    edit_manifest(dir.path(), |v| {
+        v["graphs"]
+            .as_object_mut()
+            .unwrap()
+            .remove("vae_decoder_step");
+    });
+    assert!(load_error(dir.path()).contains("come together"));
+    let dir = bundle_copy();
+    edit_manifest(dir.path(), |v| {
+        v["vae"]["encoder"]["lookahead_frames"] = 4.into()
+    });
+    assert!(load_error(dir.path()).contains("without lookahead"));
+    let dir = bundle_copy();
+    edit_manifest(dir.path(), |v| {
+        v["graphs"]["vae_encoder_step"]["outputs"][2]["shape"][2] = 5.into()
+    });
+    let text = load_error(dir.path());
+    assert!(
+        text.contains("graphs.vae_encoder_step.outputs") && text.contains("next_state_0"),
+        "{text}"
+    );
+    let dir = bundle_copy();
+    edit_manifest(dir.path(), |v| {
+        let inputs = v["graphs"]["vae_decoder_step"]["inputs"]
+            .as_array_mut()
+            .unwrap();
+        inputs[1]["shape"][2] = 3.into();
+        let outputs = v["graphs"]["vae_decoder_step"]["outputs"]
+            .as_array_mut()
+            .unwrap();
+        outputs[1]["shape"][2] = 3.into();
+    });
+    let text = load_error(dir.path());
+    assert!(
+        text.contains("vae_decoder_step.onnx") && text.contains("state_0"),
+        "{text}"
+    );
+}

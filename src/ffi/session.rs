@@ -153,6 +153,7 @@ unsafe fn read_options(options: *const troupe_session_options) -> FfiResult<Sess
         condition: None,
         context_capacity: Some(o.context_capacity as usize),
         actor_latent: Some(actor_latent),
+        vae_windows: false,
     })
 }
 

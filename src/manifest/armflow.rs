@@ -109,6 +109,14 @@ pub struct ArmFlowGraphs {
     pub vae_encoder: GraphSpec,
     /// VAE decoder over a window of tokens.
     pub vae_decoder: GraphSpec,
+    /// The encoder's per-token step with explicit convolution state (`state_i` in,
+    /// `next_state_i` out), for a causal VAE: O(1) per token instead of a window. Optional;
+    /// given together with `vae_decoder_step`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub vae_encoder_step: Option<GraphSpec>,
+    /// The decoder's per-token step with explicit convolution state.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub vae_decoder_step: Option<GraphSpec>,
 }
 
 impl ArmFlowSpec {
@@ -154,6 +162,18 @@ impl ArmFlowSpec {
                     self.vae.encoder.context_frames, l.frames_per_token
                 )
             },
+        )?;
+        let g = &self.graphs;
+        check(
+            g.vae_encoder_step.is_some() == g.vae_decoder_step.is_some(),
+            &|| "graphs.vae_encoder_step and graphs.vae_decoder_step come together".into(),
+        )?;
+        check(
+            g.vae_encoder_step.is_none()
+                || (self.vae.streaming
+                    && self.vae.encoder.lookahead_frames == 0
+                    && self.vae.decoder.lookahead_tokens == 0),
+            &|| "VAE step graphs need a streaming VAE without lookahead".into(),
         )?;
         check(self.sampler.steps >= 1, &|| {
             "sampler.steps must be >= 1".into()
@@ -202,7 +222,7 @@ impl ArmFlowSpec {
         step_inputs.extend(kv("past", "P"));
         let mut step_outputs = vec![f("context", vec![n(1), n(c)])];
         step_outputs.extend(kv("present", "P+S"));
-        vec![
+        let mut contracts = vec![
             (
                 "conditioning",
                 &g.conditioning,
@@ -256,6 +276,66 @@ impl ArmFlowSpec {
                     vec![f("motion", vec![n(1), s("T"), n(d)])],
                 ),
             ),
-        ]
+        ];
+        let fpt = self.latent.frames_per_token;
+        if let Some(step) = &g.vae_encoder_step {
+            contracts.push((
+                "vae_encoder_step",
+                step,
+                stateful(
+                    step,
+                    f("motion", vec![n(1), n(fpt), n(d)]),
+                    vec![
+                        f("mean", vec![n(1), n(1), n(lat)]),
+                        f("logvar", vec![n(1), n(1), n(lat)]),
+                    ],
+                ),
+            ));
+        }
+        if let Some(step) = &g.vae_decoder_step {
+            contracts.push((
+                "vae_decoder_step",
+                step,
+                stateful(
+                    step,
+                    f("latents", vec![n(1), n(1), n(lat)]),
+                    vec![f("motion", vec![n(1), n(fpt), n(d)])],
+                ),
+            ));
+        }
+        contracts
     }
+}
+
+/// The interface of a per-token VAE step: `input` then the declared `state_i` inputs (each a
+/// fixed `[1, channels, frames]`), `outputs` then a `next_state_i` of the same shape for each.
+fn stateful(declared: &GraphSpec, input: TensorSpec, outputs: Vec<TensorSpec>) -> GraphSpec {
+    let states: Vec<TensorSpec> = declared
+        .inputs
+        .iter()
+        .filter(|t| t.name.starts_with("state_"))
+        .map(|t| {
+            let fixed = match t.shape.as_slice() {
+                [Dim::Fixed(1), Dim::Fixed(c), Dim::Fixed(k)] => {
+                    vec![Dim::Fixed(*c), Dim::Fixed(*k)]
+                }
+                _ => vec![],
+            };
+            // A state of any other shape is reported against the required `[1, C, k]` form.
+            let shape = if fixed.is_empty() {
+                vec![Dim::Fixed(1), sym("C"), sym("k")]
+            } else {
+                [vec![Dim::Fixed(1)], fixed].concat()
+            };
+            float(&t.name, shape)
+        })
+        .collect();
+    let next = states
+        .iter()
+        .map(|t| float(&format!("next_{}", t.name), t.shape.clone()));
+    contract(
+        declared,
+        [vec![input], states.clone()].concat(),
+        outputs.into_iter().chain(next).collect(),
+    )
 }

@@ -55,9 +55,9 @@ pub struct Manifest {
 #[serde(tag = "family", rename_all = "lowercase")]
 pub enum Family {
     /// ARMFlow: online reaction, streamed token by token ([`crate::Session`]).
-    Armflow(ArmFlowSpec),
+    Armflow(Box<ArmFlowSpec>),
     /// UMF: text-to-group generation ([`crate::Model::generate_group`]).
-    Umf(UmfSpec),
+    Umf(Box<UmfSpec>),
 }
 
 /// The family names this runtime reads, as they appear in `troupe.json`.
