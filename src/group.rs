@@ -16,6 +16,7 @@
 //! `w = 1` only the conditional half runs.
 
 use ndarray::Array3;
+use tract_onnx::prelude::TValue;
 
 use crate::error::{Error, Result};
 use crate::graph::{f32_tensor, read_f32, Graph};
@@ -63,6 +64,20 @@ pub struct GroupNoise {
     pub jumps: Vec<Vec<f32>>,
     /// For each further person, the noise half of its starting state: `[tokens, dim]`.
     pub reactions: Vec<Vec<f32>>,
+}
+
+/// Floats in each array of a [`GroupNoise`] for a number of people: the one place the noise's
+/// shape is derived from the bundle.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct GroupNoiseShape {
+    /// Floats of [`GroupNoise::prior`].
+    pub prior: usize,
+    /// Floats of each of [`GroupNoise::jumps`], in stage order.
+    pub jumps: Vec<usize>,
+    /// Floats of each of [`GroupNoise::reactions`].
+    pub reaction: usize,
+    /// How many reactions: one per person after the first.
+    pub reactions: usize,
 }
 
 /// A generated group.
@@ -150,9 +165,8 @@ impl Model {
     /// [`STREAM_REACTION_NOISE`].
     pub fn group_noise(&self, seed: u64, people: usize) -> Result<GroupNoise> {
         let (spec, _) = self.umf()?;
-        check_people(people)?;
+        let shape = self.group_noise_shape(people)?;
         let dim = spec.latent.dim;
-        let stages = &spec.pyramid.stages;
         let draw = |token: u64, stream: u32, n: usize| {
             let mut v = vec![0f32; n];
             fill_normals(seed, token, stream, &mut v);
@@ -160,19 +174,33 @@ impl Model {
         };
         let jumps = spec.jumps()?;
         Ok(GroupNoise {
-            prior: draw(0, STREAM_PRIOR_NOISE, stages[0].tokens * dim),
+            prior: draw(0, STREAM_PRIOR_NOISE, shape.prior),
             jumps: jumps
                 .iter()
-                .zip(&stages[1..])
+                .zip(&shape.jumps)
                 .enumerate()
-                .map(|(i, (jump, stage))| {
-                    let normals = draw(i as u64 + 1, STREAM_JUMP_NOISE, stage.tokens * dim);
-                    jump.block_noise(&normals, stage.tokens, dim)
+                .map(|(i, (jump, &n))| {
+                    let normals = draw(i as u64 + 1, STREAM_JUMP_NOISE, n);
+                    jump.block_noise(&normals, n / dim, dim)
                 })
                 .collect(),
             reactions: (1..people)
-                .map(|p| draw(p as u64, STREAM_REACTION_NOISE, spec.latent.tokens * dim))
+                .map(|p| draw(p as u64, STREAM_REACTION_NOISE, shape.reaction))
                 .collect(),
+        })
+    }
+
+    /// The shape of the [`GroupNoise`] of `people` people (1 to [`MAX_PEOPLE`]).
+    pub fn group_noise_shape(&self, people: usize) -> Result<GroupNoiseShape> {
+        let (spec, _) = self.umf()?;
+        check_people(people)?;
+        let dim = spec.latent.dim;
+        let stages = &spec.pyramid.stages;
+        Ok(GroupNoiseShape {
+            prior: stages[0].tokens * dim,
+            jumps: stages[1..].iter().map(|s| s.tokens * dim).collect(),
+            reaction: spec.latent.tokens * dim,
+            reactions: people - 1,
         })
     }
 
@@ -235,9 +263,12 @@ impl Model {
             None => null.clone(),
         };
         let at = spec.text.prior_dim;
-        let pair = |range: std::ops::Range<usize>| TextPair {
-            null: null[range.clone()].to_vec(),
-            cond: cond[range].to_vec(),
+        let pair = |range: std::ops::Range<usize>| {
+            let (null, cond) = (&null[range.clone()], &cond[range]);
+            TextPair {
+                cond: f32_tensor(&[1, cond.len()], cond),
+                batch: f32_tensor(&[2, cond.len()], &[null, cond].concat()),
+            }
         };
         Ok(Texts {
             prior: pair(0..at),
@@ -247,36 +278,37 @@ impl Model {
 
     fn check_noise(&self, spec: &UmfSpec, people: usize, noise: &GroupNoise) -> Result<()> {
         let dim = spec.latent.dim;
-        let stages = &spec.pyramid.stages;
-        let check = |what: String, values: &[f32], tokens: usize| {
-            if values.len() != tokens * dim {
+        let shape = self.group_noise_shape(people)?;
+        let check = |what: String, values: &[f32], floats: usize| {
+            if values.len() != floats {
                 return Err(Error::InvalidInput(format!(
-                    "{what} holds {} floats, expected {tokens} tokens x {dim}",
-                    values.len()
+                    "{what} holds {} floats, expected {} tokens x {dim}",
+                    values.len(),
+                    floats / dim
                 )));
             }
             check_finite(&what, values)
         };
-        check("prior noise".into(), &noise.prior, stages[0].tokens)?;
-        if noise.jumps.len() != stages.len() - 1 || noise.reactions.len() != people - 1 {
+        check("prior noise".into(), &noise.prior, shape.prior)?;
+        if noise.jumps.len() != shape.jumps.len() || noise.reactions.len() != shape.reactions {
             return Err(Error::InvalidInput(format!(
                 "noise holds {} jumps and {} reactions; {} stages and {people} people need {} \
                  and {}",
                 noise.jumps.len(),
                 noise.reactions.len(),
-                stages.len(),
-                stages.len() - 1,
-                people - 1
+                shape.jumps.len() + 1,
+                shape.jumps.len(),
+                shape.reactions
             )));
         }
-        for (k, jump) in noise.jumps.iter().enumerate() {
-            check(format!("jump noise {}", k + 1), jump, stages[k + 1].tokens)?;
+        for (k, (jump, &floats)) in noise.jumps.iter().zip(&shape.jumps).enumerate() {
+            check(format!("jump noise {}", k + 1), jump, floats)?;
         }
         for (p, eps) in noise.reactions.iter().enumerate() {
             check(
                 format!("reaction noise of person {}", p + 1),
                 eps,
-                spec.latent.tokens,
+                shape.reaction,
             )?;
         }
         Ok(())
@@ -320,9 +352,11 @@ fn check_people(people: usize) -> Result<()> {
     Ok(())
 }
 
+/// One denoiser's text input, built once per generation: the conditional row alone, and the
+/// guidance batch `[null; cond]`.
 struct TextPair {
-    null: Vec<f32>,
-    cond: Vec<f32>,
+    cond: TValue,
+    batch: TValue,
 }
 
 struct Texts {
@@ -340,22 +374,20 @@ fn guided(
     text: &TextPair,
 ) -> Result<Vec<f32>> {
     let width = y.len() / tokens;
-    let t_dim = text.cond.len();
     let role = net.role();
     if plan.cfg_scale == 1.0 {
         let out = net.run(vec![
             f32_tensor(&[1, tokens, width], y),
             f32_tensor(&[1], &[timestep]),
-            f32_tensor(&[1, t_dim], &text.cond),
+            text.cond.clone(),
         ])?;
         return Ok(read_f32(role, "velocity", &out[0], &[1, tokens, width])?.to_vec());
     }
     let states = [y, y].concat();
-    let texts = [&text.null[..], &text.cond[..]].concat();
     let out = net.run(vec![
         f32_tensor(&[2, tokens, width], &states),
         f32_tensor(&[2], &[timestep, timestep]),
-        f32_tensor(&[2, t_dim], &texts),
+        text.batch.clone(),
     ])?;
     let both = read_f32(role, "velocity", &out[0], &[2, tokens, width])?;
     let (uncond, cond) = both.split_at(y.len());

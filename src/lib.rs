@@ -39,8 +39,8 @@ pub mod solver;
 
 pub use error::{Error, Result};
 pub use group::{
-    Group, GroupNoise, GroupOptions, MAX_PEOPLE, STREAM_JUMP_NOISE, STREAM_PRIOR_NOISE,
-    STREAM_REACTION_NOISE,
+    Group, GroupNoise, GroupNoiseShape, GroupOptions, MAX_PEOPLE, STREAM_JUMP_NOISE,
+    STREAM_PRIOR_NOISE, STREAM_REACTION_NOISE,
 };
 pub use manifest::{ActorLatent, Manifest};
 pub use model::Model;

@@ -231,9 +231,12 @@ impl Model {
         }
     }
 
-    fn wrong_family(&self, needed: &str, what: &str) -> Error {
+    /// The error for using this bundle where another family is needed: `what` needs `needed`.
+    pub(crate) fn wrong_family(&self, needed: &str, what: &str) -> Error {
+        // As read aloud: "an armflow", "a umf".
+        let article = if needed == "armflow" { "an" } else { "a" };
         Error::InvalidInput(format!(
-            "bundle `{}` is a `{}` model; {what} needs a `{needed}` bundle",
+            "bundle `{}` is a `{}` model; {what} needs {article} `{needed}` bundle",
             self.inner.manifest.name,
             self.inner.manifest.family_name()
         ))

@@ -140,13 +140,10 @@ pub fn meanflow_grid(steps: u32) -> Vec<f32> {
 
 impl Session {
     pub(crate) fn new(model: Model, options: SessionOptions) -> Result<Self> {
-        let spec = model.armflow_spec().cloned().ok_or_else(|| {
-            Error::InvalidInput(format!(
-                "bundle `{}` is a `{}` model; streaming sessions need an `armflow` bundle",
-                model.manifest().name,
-                model.manifest().family_name()
-            ))
-        })?;
+        let spec = model
+            .armflow_spec()
+            .cloned()
+            .ok_or_else(|| model.wrong_family("armflow", "a streaming session"))?;
         let m = &spec;
         let settings = Settings {
             seed: options.seed,
@@ -392,11 +389,9 @@ impl Session {
                 [(start - st.actor_base) as usize * dim..(end - st.actor_base) as usize * dim]
         };
         let (mean, logvar) = match &mut st.vae {
-            Some(vae) => {
-                let frames = &st.actor_frames[(first - st.actor_base) as usize * dim
-                    ..(first - st.actor_base) as usize * dim + fpt * dim];
-                self.model.encode_step(frames, vae)?
-            }
+            Some(vae) => self
+                .model
+                .encode_step(frames_from(first, first + fpt as u64), vae)?,
             None => {
                 let start = first.saturating_sub(m.vae.encoder.context_frames as u64);
                 let end = first + fpt as u64 + m.vae.encoder.lookahead_frames as u64;

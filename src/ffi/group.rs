@@ -6,7 +6,7 @@ use super::boundary::{
 };
 use super::model::troupe_model;
 use crate::manifest::UmfSpec;
-use crate::{GroupNoise, GroupOptions, Method, Model, Solver};
+use crate::{GroupNoise, GroupNoiseShape, GroupOptions, Method, Model, Solver};
 
 /// Forward Euler.
 pub const TROUPE_SOLVER_EULER: u32 = 1;
@@ -97,16 +97,9 @@ fn umf_model<'a>(model: *const troupe_model) -> FfiResult<(&'a Model, &'a UmfSpe
     non_null(model, "model")?;
     // SAFETY: non-NULL live handle per the callers' contracts.
     let model = unsafe { &(*model).model };
-    let spec = model.umf_spec().ok_or_else(|| {
-        FfiError::new(
-            TROUPE_ERR_INVALID_ARG,
-            format!(
-                "bundle `{}` is a `{}` model; group generation needs a `umf` bundle",
-                model.manifest().name,
-                model.manifest().family_name()
-            ),
-        )
-    })?;
+    let spec = model
+        .umf_spec()
+        .ok_or_else(|| model.wrong_family("umf", "group generation"))?;
     Ok((model, spec))
 }
 
@@ -222,13 +215,11 @@ pub unsafe extern "C" fn troupe_group_noise_lengths(
         "troupe_group_noise_lengths",
         || {},
         || {
-            let noise = umf_model(model)?.0.group_noise(0, people as usize)?;
-            let jumps = noise.jumps.iter().map(Vec::len).sum();
-            let reactions = noise.reactions.iter().map(Vec::len).sum();
+            let shape = umf_model(model)?.0.group_noise_shape(people as usize)?;
             for (out, value) in [
-                (prior_len, noise.prior.len()),
-                (jumps_len, jumps),
-                (reactions_len, reactions),
+                (prior_len, shape.prior),
+                (jumps_len, shape.jumps.iter().sum()),
+                (reactions_len, shape.reactions * shape.reaction),
             ] {
                 if !out.is_null() {
                     // SAFETY: non-NULL, writable per the contract.
@@ -313,11 +304,11 @@ pub unsafe extern "C" fn troupe_group_generate(
                 }
                 Some(c)
             };
-            // The expected noise lengths double as the check of `people`.
-            let expected = model.group_noise(0, people_n)?;
+            // The noise's shape doubles as the check of `people`.
+            let shape = model.group_noise_shape(people_n)?;
             if !noise.is_null() {
                 // SAFETY: readable per the contract.
-                opts.noise = Some(unsafe { read_noise(&*noise, &expected) }?);
+                opts.noise = Some(unsafe { read_noise(&*noise, &shape) }?);
             }
             let frames = checked_mul(people_n, model.clip_frames(), "people * clip_frames")?;
             let need = checked_mul(frames, model.frame_dim(), "motion floats")?;
@@ -398,11 +389,11 @@ unsafe fn read_group_options(options: *const troupe_group_options) -> FfiResult<
     })
 }
 
-/// Copies the caller's noise arrays, split as `expected` is.
+/// Copies the caller's noise arrays, split as `shape` says.
 ///
 /// # Safety
 /// Each array must be readable for its length.
-unsafe fn read_noise(noise: &troupe_group_noise, expected: &GroupNoise) -> FfiResult<GroupNoise> {
+unsafe fn read_noise(noise: &troupe_group_noise, shape: &GroupNoiseShape) -> FfiResult<GroupNoise> {
     let read = |ptr: *const f32, len: usize, want: usize, what: &str| -> FfiResult<Vec<f32>> {
         if len != want {
             return Err(FfiError::new(
@@ -413,36 +404,35 @@ unsafe fn read_noise(noise: &troupe_group_noise, expected: &GroupNoise) -> FfiRe
         // SAFETY: readable for `len` floats per the contract.
         Ok(unsafe { boundary::slice(ptr, len, &format!("noise.{what}")) }?.to_vec())
     };
-    let split = |flat: Vec<f32>, like: &[Vec<f32>]| -> Vec<Vec<f32>> {
-        let mut rest = &flat[..];
-        like.iter()
-            .map(|part| {
-                let (head, tail) = rest.split_at(part.len());
+    let prior = read(noise.prior, noise.prior_len, shape.prior, "prior")?;
+    let jumps = read(
+        noise.jumps,
+        noise.jumps_len,
+        shape.jumps.iter().sum(),
+        "jumps",
+    )?;
+    let reactions = read(
+        noise.reactions,
+        noise.reactions_len,
+        shape.reactions * shape.reaction,
+        "reactions",
+    )?;
+    let mut rest = &jumps[..];
+    Ok(GroupNoise {
+        prior,
+        jumps: shape
+            .jumps
+            .iter()
+            .map(|&n| {
+                let (head, tail) = rest.split_at(n);
                 rest = tail;
                 head.to_vec()
             })
-            .collect()
-    };
-    let total = |parts: &[Vec<f32>]| parts.iter().map(Vec::len).sum::<usize>();
-    Ok(GroupNoise {
-        prior: read(noise.prior, noise.prior_len, expected.prior.len(), "prior")?,
-        jumps: split(
-            read(
-                noise.jumps,
-                noise.jumps_len,
-                total(&expected.jumps),
-                "jumps",
-            )?,
-            &expected.jumps,
-        ),
-        reactions: split(
-            read(
-                noise.reactions,
-                noise.reactions_len,
-                total(&expected.reactions),
-                "reactions",
-            )?,
-            &expected.reactions,
-        ),
+            .collect(),
+        // `reaction` is tokens x dim, positive in any loaded bundle; max(1) keeps chunks total.
+        reactions: reactions
+            .chunks(shape.reaction.max(1))
+            .map(<[f32]>::to_vec)
+            .collect(),
     })
 }

@@ -84,16 +84,9 @@ pub unsafe extern "C" fn troupe_session_options_init(
             check_struct_size(options_size, OPTIONS_V1_SIZE, "troupe_session_options")?;
             // SAFETY: non-NULL live handle per the contract.
             let model = unsafe { &(*model).model };
-            let m = model.armflow_spec().ok_or_else(|| {
-                FfiError::new(
-                    TROUPE_ERR_INVALID_ARG,
-                    format!(
-                        "bundle `{}` is a `{}` model; session options need an `armflow` bundle",
-                        model.manifest().name,
-                        model.manifest().family_name()
-                    ),
-                )
-            })?;
+            let m = model
+                .armflow_spec()
+                .ok_or_else(|| model.wrong_family("armflow", "troupe_session_options"))?;
             let defaults = troupe_session_options {
                 struct_size: options_size as u32,
                 steps: m.sampler.steps,

@@ -315,17 +315,12 @@ fn stateful(declared: &GraphSpec, input: TensorSpec, outputs: Vec<TensorSpec>) -
         .iter()
         .filter(|t| t.name.starts_with("state_"))
         .map(|t| {
-            let fixed = match t.shape.as_slice() {
-                [Dim::Fixed(1), Dim::Fixed(c), Dim::Fixed(k)] => {
-                    vec![Dim::Fixed(*c), Dim::Fixed(*k)]
+            let shape = match t.shape.as_slice() {
+                [Dim::Fixed(1), c @ Dim::Fixed(_), k @ Dim::Fixed(_)] => {
+                    vec![Dim::Fixed(1), c.clone(), k.clone()]
                 }
-                _ => vec![],
-            };
-            // A state of any other shape is reported against the required `[1, C, k]` form.
-            let shape = if fixed.is_empty() {
-                vec![Dim::Fixed(1), sym("C"), sym("k")]
-            } else {
-                [vec![Dim::Fixed(1)], fixed].concat()
+                // A state of any other shape is reported against the required `[1, C, k]` form.
+                _ => vec![Dim::Fixed(1), sym("C"), sym("k")],
             };
             float(&t.name, shape)
         })

@@ -127,10 +127,10 @@ class Model:
         if reaction is not None:
             opt.reaction_solver, opt.reaction_steps = _solver(reaction[0]), reaction[1]
         cond = None if condition is None else _floats(condition, "condition")
-        noise_struct, keep = None, []
+        noise_struct = None
         if noise is not None:
+            # `arrays` stays alive until the call returns, so the struct's pointers stay valid.
             arrays = [_floats(a, name) for a, name in zip(noise, ("prior", "jumps", "reactions"))]
-            keep = arrays  # alive until the call returns
             noise_struct = _native.GroupNoise(*[v for a in arrays for v in (_ptr(a), a.size)])
         motion = np.empty((people, self.clip_frames, self.frame_dim), np.float32)
         latents = np.empty((people, self.group_tokens, self.latent_dim), np.float32) if return_latents else None
@@ -140,7 +140,6 @@ class Model:
             people, None if noise_struct is None else ctypes.byref(noise_struct),
             _ptr(motion), motion.size,
             None if latents is None else _ptr(latents), 0 if latents is None else latents.size))
-        del keep
         return (motion, latents) if return_latents else motion
 
     def session(self, seed: int = 0, steps: int | None = None, cfg: float | None = None,
