@@ -210,7 +210,7 @@ class VaeDecoder(nn.Module):
 
 class VaeStep(nn.Module):
     """One token of a causal VAE (encoder or decoder) with its convolution state made explicit:
-    `(chunk [1, n, C_in], *state) -> (out [1, m, C_out], *next_state)`.
+    `(chunk [B, n, C_in], *state) -> (out [B, m, C_out], *next_state)`, one row per stream.
 
     Every causal TimeConv with left padding `p > 0` keeps the last `p` frames of its input; a
     stream starts from zeros, which is the causal pass's zero padding. Norms are per frame and
@@ -223,8 +223,8 @@ class VaeStep(nn.Module):
         self.stack = stack
         self.convs = [m for m in stack.modules() if isinstance(m, TimeConv) and m.left > 0]
 
-    def state_shapes(self) -> list[tuple[int, int, int]]:
-        return [(1, c.conv.in_channels, c.left) for c in self.convs]
+    def state_shapes(self, batch: int = 1) -> list[tuple[int, int, int]]:
+        return [(batch, c.conv.in_channels, c.left) for c in self.convs]
 
     def forward(self, chunk, *state):
         assert len(state) == len(self.convs)
@@ -344,13 +344,19 @@ class ContextEncoder(nn.Module):
     def modulation(self, cond):  # [B, cond] -> [B, L, 6, C]
         return torch.stack([blk.modulation(cond) for blk in self.blocks], dim=1)
 
-    def step(self, tokens, positions, modulation, past):
+    def step(self, tokens, positions, modulation, past, key_mask=None):
         """tokens [B, S, C], positions int64 [B, S], modulation [B, L, 6, C], past: list of L
-        (k, v) pairs [B, H, P, Dh]. Returns (context [B, C] at the last position, present)."""
+        (k, v) pairs [B, H, P, Dh], key_mask [B, P] added to the scores of the past keys (0 to
+        keep, -1e30 to skip a padding entry when streams of unequal history share a batch).
+        Returns (context [B, C] at the last position, present)."""
         p, s = past[0][0].shape[2], tokens.shape[1]
+        if key_mask is None:
+            key_mask = torch.zeros(tokens.shape[0], p)
         key_pos = torch.arange(p + s)
         query_pos = torch.arange(s) + p
-        mask = torch.where(key_pos[None, :] <= query_pos[:, None], 0.0, -1e30)
+        causal = torch.where(key_pos[None, :] <= query_pos[:, None], 0.0, -1e30)  # [S, P+S]
+        keys = torch.cat([key_mask, tokens[:, :, 0] * 0.0], dim=1)  # [B, P+S]: new keys kept
+        mask = causal + keys[:, None, None, :]  # [B, 1, S, P+S]
         x = tokens + sinusoid_positions(positions, self.width)
         skips, present = [], []
         for i, blk in enumerate(self.blocks):

@@ -78,9 +78,9 @@ class ContextStepGraph(torch.nn.Module):
         super().__init__()
         self.context = model.context
 
-    def forward(self, tokens, positions, modulation, *past_flat):
+    def forward(self, tokens, positions, modulation, key_mask, *past_flat):
         past = list(zip(past_flat[0::2], past_flat[1::2]))
-        context, present = self.context.step(tokens, positions, modulation, past)
+        context, present = self.context.step(tokens, positions, modulation, past, key_mask)
         return (context, *[t for kv in present for t in kv])
 
 
@@ -108,11 +108,13 @@ def graph_specs(model: Armflow) -> dict:
     c, lat, d, h, dh, L = cfg.width, cfg.latent_dim, cfg.frame_dim, cfg.heads, cfg.head_dim, cfg.layers
     fpt = cfg.frames_per_token
     t = lambda name, shape, dtype="float32": {"name": name, "dtype": dtype, "shape": shape}  # noqa: E731
-    past = [t(f"past_{kv}_{i}", dims(1, h, "P", dh)) for i in range(L) for kv in ("key", "value")]
-    present = [t(f"present_{kv}_{i}", dims(1, h, "P+S", dh)) for i in range(L) for kv in ("key", "value")]
+    # Streaming graphs take a batch of B streams, so that many sessions read the weights once.
+    past = [t(f"past_{kv}_{i}", dims("B", h, "P", dh)) for i in range(L) for kv in ("key", "value")]
+    present = [t(f"present_{kv}_{i}", dims("B", h, "P+S", dh)) for i in range(L) for kv in ("key", "value")]
 
     def state(stack, prefix):
-        return [t(f"{prefix}state_{i}", list(s)) for i, s in enumerate(VaeStep(stack).state_shapes())]
+        shapes = VaeStep(stack).state_shapes()
+        return [t(f"{prefix}state_{i}", ["B", ch, k]) for i, (_, ch, k) in enumerate(shapes)]
 
     specs = {
         "conditioning": {
@@ -123,12 +125,13 @@ def graph_specs(model: Armflow) -> dict:
         "context_step": {
             "file": "context_step.onnx",
             "inputs": [
-                t("tokens", dims(1, "S", c)),
-                t("positions", dims(1, "S"), "int64"),
-                t("modulation", dims(1, L, 6, c)),
+                t("tokens", dims("B", "S", c)),
+                t("positions", dims("B", "S"), "int64"),
+                t("modulation", dims("B", L, 6, c)),
+                t("key_mask", dims("B", "P")),
                 *past,
             ],
-            "outputs": [t("context", dims(1, c)), *present],
+            "outputs": [t("context", dims("B", c)), *present],
         },
         "velocity": {
             "file": "velocity.onnx",
@@ -156,13 +159,13 @@ def graph_specs(model: Armflow) -> dict:
         enc, dec = model.vae_encoder, model.vae_decoder
         specs["vae_encoder_step"] = {
             "file": "vae_encoder_step.onnx",
-            "inputs": [t("motion", dims(1, fpt, d)), *state(enc, "")],
-            "outputs": [t("mean", dims(1, 1, lat)), t("logvar", dims(1, 1, lat)), *state(enc, "next_")],
+            "inputs": [t("motion", dims("B", fpt, d)), *state(enc, "")],
+            "outputs": [t("mean", dims("B", 1, lat)), t("logvar", dims("B", 1, lat)), *state(enc, "next_")],
         }
         specs["vae_decoder_step"] = {
             "file": "vae_decoder_step.onnx",
-            "inputs": [t("latents", dims(1, 1, lat)), *state(dec, "")],
-            "outputs": [t("motion", dims(1, fpt, d)), *state(dec, "next_")],
+            "inputs": [t("latents", dims("B", 1, lat)), *state(dec, "")],
+            "outputs": [t("motion", dims("B", fpt, d)), *state(dec, "next_")],
         }
     return specs
 
@@ -202,12 +205,13 @@ def export_bundle(preset: str, out_dir: Path, seed: int = 0) -> Armflow:
     out_dir.mkdir(parents=True, exist_ok=True)
     specs = graph_specs(model)
     c, lat, h, dh = cfg.width, cfg.latent_dim, cfg.heads, cfg.head_dim
-    past = [torch.randn(1, h, 3, dh) for _ in range(2 * cfg.layers)]
+    past = [torch.randn(2, h, 3, dh) for _ in range(2 * cfg.layers)]
     examples = {  # dynamic dims get example sizes >= 2: a size of 1 can be specialised away
         "conditioning": (ConditioningGraph(model), (torch.randn(1, cfg.cond_dim),)),
         "context_step": (
             ContextStepGraph(model),
-            (torch.randn(1, 2, c), torch.tensor([[3, 4]]), torch.randn(1, cfg.layers, 6, c), *past),
+            (torch.randn(2, 2, c), torch.tensor([[3, 4], [3, 4]]), torch.randn(2, cfg.layers, 6, c),
+             torch.zeros(2, 3), *past),
         ),
         "velocity": (
             model.velocity,
@@ -217,13 +221,13 @@ def export_bundle(preset: str, out_dir: Path, seed: int = 0) -> Armflow:
         "vae_decoder": (model.vae_decoder, (torch.randn(1, 8, lat),)),
     }
     if "vae_encoder_step" in specs:
-        states = lambda stack: [torch.randn(s) for s in VaeStep(stack).state_shapes()]  # noqa: E731
+        states = lambda stack: [torch.randn(s) for s in VaeStep(stack).state_shapes(2)]  # noqa: E731
         fpt = cfg.frames_per_token
         examples["vae_encoder_step"] = (
-            EncoderStepGraph(model), (torch.randn(1, fpt, cfg.frame_dim), *states(model.vae_encoder)),
+            EncoderStepGraph(model), (torch.randn(2, fpt, cfg.frame_dim), *states(model.vae_encoder)),
         )
         examples["vae_decoder_step"] = (
-            VaeStep(model.vae_decoder), (torch.randn(1, 1, lat), *states(model.vae_decoder)),
+            VaeStep(model.vae_decoder), (torch.randn(2, 1, lat), *states(model.vae_decoder)),
         )
     for name, (module, args) in examples.items():
         # Folding would turn the constant `start_token` output into a nameless initializer.

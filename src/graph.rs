@@ -168,6 +168,48 @@ pub(crate) fn f32_tensor(shape: &[usize], data: &[f32]) -> TValue {
         .into_tvalue()
 }
 
+/// Builds a float tensor that takes ownership of row-major `data` (no copy).
+pub(crate) fn f32_tensor_owned(shape: &[usize], data: Vec<f32>) -> TValue {
+    tract_ndarray::ArrayD::from_shape_vec(shape, data)
+        .expect("shape matches data")
+        .into_tvalue()
+}
+
+/// Stacks float tensors of shape `[1, ...]` (one per stream, all the same shape) into one
+/// `[B, ...]` batch; a single row is passed through without copying.
+pub(crate) fn stack_rows(role: &'static str, rows: &[&TValue]) -> Result<TValue> {
+    let first = rows
+        .first()
+        .ok_or_else(|| Error::InvalidInput("an empty batch".into()))?;
+    if rows.len() == 1 {
+        return Ok((*first).clone());
+    }
+    let shape = first.shape().to_vec();
+    let mut data = Vec::with_capacity(rows.len() * first.len());
+    for row in rows {
+        data.extend_from_slice(read_f32(role, "state", row, &shape)?);
+    }
+    let mut batched = shape;
+    batched[0] = rows.len();
+    Ok(f32_tensor_owned(&batched, data))
+}
+
+/// Splits a `[B, ...]` float tensor into `B` tensors of shape `[1, ...]`; the inverse of
+/// [`stack_rows`].
+pub(crate) fn split_rows(role: &'static str, batch: TValue, rows: usize) -> Result<Vec<TValue>> {
+    if rows == 1 {
+        return Ok(vec![batch]);
+    }
+    let mut shape = batch.shape().to_vec();
+    let all = read_f32(role, "state", &batch, &shape)?;
+    let per_row = all.len() / rows.max(1);
+    shape[0] = 1;
+    Ok(all
+        .chunks(per_row)
+        .map(|row| f32_tensor(&shape, row))
+        .collect())
+}
+
 /// Reads a float tensor's contents, checking its shape.
 pub(crate) fn read_f32<'a>(
     role: &'static str,

@@ -44,5 +44,7 @@ pub use group::{
 };
 pub use manifest::{ActorLatent, Manifest};
 pub use model::Model;
-pub use session::{meanflow_grid, Session, SessionOptions, StepOutput, TokenNoise, TokenTrace};
+pub use session::{
+    meanflow_grid, step_sessions, Session, SessionOptions, StepOutput, TokenNoise, TokenTrace,
+};
 pub use solver::{Method, Solver};

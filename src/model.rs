@@ -8,7 +8,7 @@ use tract_onnx::prelude::{TValue, Tensor};
 
 use crate::bundle::BundleFiles;
 use crate::error::{Error, Result};
-use crate::graph::{f32_tensor, read_f32, Graph};
+use crate::graph::{f32_tensor, read_f32, split_rows, stack_rows, Graph};
 use crate::kv_cache::KvCache;
 use crate::manifest::{ArmFlowSpec, Family, Manifest, UmfSpec};
 use crate::session::{Session, SessionOptions};
@@ -212,7 +212,12 @@ impl Model {
         tokens.extend_from_slice(pairs);
         let positions: Vec<i64> = (0..(tokens.len() / width) as i64).collect();
         let mut cache = KvCache::empty(&self.armflow()?.0.context);
-        self.context_step(&mut cache, &tokens, &positions, &cond.modulation)
+        self.context_step(&mut [&mut cache], &tokens, &positions, &[&cond.modulation])
+    }
+
+    /// Whether `other` is this model or a clone of it (the same loaded graphs).
+    pub(crate) fn same_as(&self, other: &Model) -> bool {
+        Arc::ptr_eq(&self.inner, &other.inner)
     }
 
     /// The `armflow` manifest fields, if this is an ARMFlow model.
@@ -298,50 +303,64 @@ impl Model {
         })
     }
 
-    /// One context-encoder call over `tokens` (`[S, width]` row-major) at `positions`, appending
-    /// to `cache`. Returns the context at the last position.
+    /// One context-encoder call for a batch of streams. Row `b` appends its tokens (`S` tokens
+    /// of `width` floats at `positions[b * S..]`) to `caches[b]`, under `modulations[b]`
+    /// (`[1, layers, 6, width]`). More than one stream needs `S = 1`. Returns the contexts at
+    /// the last position, `[B, width]` row-major.
     pub(crate) fn context_step(
         &self,
-        cache: &mut KvCache,
+        caches: &mut [&mut KvCache],
         tokens: &[f32],
         positions: &[i64],
-        modulation: &TValue,
+        modulations: &[&TValue],
     ) -> Result<Vec<f32>> {
         let (a, nets) = self.armflow()?;
-        let c = a.context.width;
-        let s = positions.len();
+        let (c, b) = (a.context.width, caches.len());
+        let s = positions.len() / b.max(1);
+        let views: Vec<&KvCache> = caches.iter().map(|k| &**k).collect();
+        let (past, key_mask) = KvCache::batch_inputs(&views)?;
+        let padded = key_mask.shape()[1];
         let mut inputs = vec![
-            f32_tensor(&[1, s, c], tokens),
-            Tensor::from_shape(&[1, s], positions)
+            f32_tensor(&[b, s, c], tokens),
+            Tensor::from_shape(&[b, s], positions)
                 .expect("shape matches data")
                 .into(),
-            modulation.clone(),
+            stack_rows("context_step", modulations)?,
+            key_mask,
         ];
-        inputs.extend(cache.tensors().iter().cloned());
+        inputs.extend(past);
         let mut out = nets.context_step.run(inputs)?;
-        let context = read_f32("context_step", "context", &out[0], &[1, c])?.to_vec();
-        cache.replace(out.split_off(1), s)?;
+        let context = read_f32("context_step", "context", &out[0], &[b, c])?.to_vec();
+        let present = out.split_off(1);
+        if let [cache] = caches {
+            cache.replace(present, s)?;
+        } else {
+            for (row, cache) in caches.iter_mut().enumerate() {
+                cache.take_row(&present, row, padded)?;
+            }
+        }
         Ok(context)
     }
 
-    /// The average velocity `u(z, r, t | actor, context)` for a batch of rows.
+    /// The average velocity `u(z, r, t | actor, context)` for a batch of rows, each with its own
+    /// times `r[i] <= t[i]`.
     pub(crate) fn velocity(
         &self,
         actor: &[f32],
         noisy: &[f32],
         context: &[f32],
-        r: f32,
-        t: f32,
+        r: &[f32],
+        t: &[f32],
     ) -> Result<Vec<f32>> {
         let (a, nets) = self.armflow()?;
         let (lat, c) = (a.latent.dim, a.context.width);
-        let b = actor.len() / lat;
+        let b = r.len();
         let out = nets.velocity.run(vec![
             f32_tensor(&[b, lat], actor),
             f32_tensor(&[b, lat], noisy),
             f32_tensor(&[b, c], context),
-            f32_tensor(&[b], &vec![r; b]),
-            f32_tensor(&[b], &vec![t; b]),
+            f32_tensor(&[b], r),
+            f32_tensor(&[b], t),
         ])?;
         Ok(read_f32("velocity", "velocity", &out[0], &[b, lat])?.to_vec())
     }
@@ -405,7 +424,8 @@ impl Model {
                         .iter()
                         .map(|d| match d {
                             crate::manifest::Dim::Fixed(n) => *n,
-                            crate::manifest::Dim::Symbol(_) => 0,
+                            // one stream: the batch dim `B` is 1
+                            crate::manifest::Dim::Symbol(_) => 1,
                         })
                         .collect();
                     f32_tensor(&shape, &vec![0f32; shape.iter().product()])
@@ -419,52 +439,83 @@ impl Model {
         }))
     }
 
-    /// One token of the encoder: `frames` (`[frames_per_token, frame_dim]`) to the posterior
-    /// `(mean, logvar)` of that token, advancing `state`.
+    /// One token of the encoder for a batch of streams: `frames` (`[B, frames_per_token,
+    /// frame_dim]`) to the posteriors `(mean, logvar)` (`[B, latent_dim]` each), advancing each
+    /// stream's `states[b]`.
     pub(crate) fn encode_step(
         &self,
         frames: &[f32],
-        state: &mut VaeState,
+        states: &mut [&mut VaeState],
     ) -> Result<(Vec<f32>, Vec<f32>)> {
         let (a, nets) = self.armflow()?;
-        let Some((encoder, _)) = &nets.vae_steps else {
-            return Err(Error::InvalidInput(
-                "the bundle has no VAE step graphs".into(),
-            ));
-        };
-        let (fpt, lat) = (a.latent.frames_per_token, a.latent.dim);
-        let mut inputs = vec![f32_tensor(&[1, fpt, self.frame_dim()], frames)];
-        inputs.extend(state.encoder.iter().cloned());
+        let (encoder, _) = vae_steps(nets)?;
+        let (fpt, lat, b) = (a.latent.frames_per_token, a.latent.dim, states.len());
+        let mut inputs = vec![f32_tensor(&[b, fpt, self.frame_dim()], frames)];
+        inputs.extend(stack_states(states, |s| &s.encoder)?);
         let mut out = encoder.run(inputs)?;
-        let mean = read_f32("vae_encoder_step", "mean", &out[0], &[1, 1, lat])?.to_vec();
-        let logvar = read_f32("vae_encoder_step", "logvar", &out[1], &[1, 1, lat])?.to_vec();
-        state.encoder = out.split_off(2);
+        let mean = read_f32("vae_encoder_step", "mean", &out[0], &[b, 1, lat])?.to_vec();
+        let logvar = read_f32("vae_encoder_step", "logvar", &out[1], &[b, 1, lat])?.to_vec();
+        for (i, next) in out.split_off(2).into_iter().enumerate() {
+            for (state, row) in states
+                .iter_mut()
+                .zip(split_rows("vae_encoder_step", next, b)?)
+            {
+                state.encoder[i] = row;
+            }
+        }
         Ok((mean, logvar))
     }
 
-    /// One token of the decoder: an unscaled latent (`[latent_dim]`) to its
-    /// `[frames_per_token, frame_dim]` frames, advancing `state`.
-    pub(crate) fn decode_step(&self, latent: &[f32], state: &mut VaeState) -> Result<Vec<f32>> {
+    /// One token of the decoder for a batch of streams: unscaled latents (`[B, latent_dim]`) to
+    /// their frames (`[B, frames_per_token, frame_dim]`), advancing each stream's `states[b]`.
+    pub(crate) fn decode_step(
+        &self,
+        latents: &[f32],
+        states: &mut [&mut VaeState],
+    ) -> Result<Vec<f32>> {
         let (a, nets) = self.armflow()?;
-        let Some((_, decoder)) = &nets.vae_steps else {
-            return Err(Error::InvalidInput(
-                "the bundle has no VAE step graphs".into(),
-            ));
-        };
-        let (fpt, lat) = (a.latent.frames_per_token, a.latent.dim);
-        let mut inputs = vec![f32_tensor(&[1, 1, lat], latent)];
-        inputs.extend(state.decoder.iter().cloned());
+        let (_, decoder) = vae_steps(nets)?;
+        let (fpt, lat, b) = (a.latent.frames_per_token, a.latent.dim, states.len());
+        let mut inputs = vec![f32_tensor(&[b, 1, lat], latents)];
+        inputs.extend(stack_states(states, |s| &s.decoder)?);
         let mut out = decoder.run(inputs)?;
         let frames = read_f32(
             "vae_decoder_step",
             "motion",
             &out[0],
-            &[1, fpt, self.frame_dim()],
+            &[b, fpt, self.frame_dim()],
         )?
         .to_vec();
-        state.decoder = out.split_off(1);
+        for (i, next) in out.split_off(1).into_iter().enumerate() {
+            for (state, row) in states
+                .iter_mut()
+                .zip(split_rows("vae_decoder_step", next, b)?)
+            {
+                state.decoder[i] = row;
+            }
+        }
         Ok(frames)
     }
+}
+
+fn vae_steps(nets: &ArmFlowNetworks) -> Result<&(Graph, Graph)> {
+    nets.vae_steps
+        .as_ref()
+        .ok_or_else(|| Error::InvalidInput("the bundle has no VAE step graphs".into()))
+}
+
+/// Each state input of a VAE step, stacked over the streams of a batch.
+fn stack_states(
+    states: &[&mut VaeState],
+    part: impl Fn(&VaeState) -> &Vec<TValue>,
+) -> Result<Vec<TValue>> {
+    let count = states.first().map_or(0, |s| part(s).len());
+    (0..count)
+        .map(|i| {
+            let rows: Vec<&TValue> = states.iter().map(|s| &part(s)[i]).collect();
+            stack_rows("vae_step", &rows)
+        })
+        .collect()
 }
 
 /// Rejects NaN and infinities, naming the first offending index.

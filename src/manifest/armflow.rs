@@ -202,7 +202,7 @@ impl ArmFlowSpec {
                     ["key", "value"].map(|kv| {
                         f(
                             &format!("{prefix}_{kv}_{i}"),
-                            vec![n(1), n(h), s(len), n(dh)],
+                            vec![s("B"), n(h), s(len), n(dh)],
                         )
                     })
                 })
@@ -210,17 +210,24 @@ impl ArmFlowSpec {
         };
         let spec = contract;
         let g = &self.graphs;
+        // The streaming graphs take a batch of `B` streams (one row each), so that many sessions
+        // stepped together read the weights once; `key_mask` hides the padding of shorter
+        // histories in that batch.
         let mut step_inputs = vec![
-            f("tokens", vec![n(1), s("S"), n(c)]),
+            f("tokens", vec![s("B"), s("S"), n(c)]),
             TensorSpec {
                 name: "positions".into(),
                 dtype: DType::Int64,
-                shape: vec![n(1), s("S")],
+                shape: vec![s("B"), s("S")],
             },
-            f("modulation", vec![n(1), n(self.context.layers), n(6), n(c)]),
+            f(
+                "modulation",
+                vec![s("B"), n(self.context.layers), n(6), n(c)],
+            ),
+            f("key_mask", vec![s("B"), s("P")]),
         ];
         step_inputs.extend(kv("past", "P"));
-        let mut step_outputs = vec![f("context", vec![n(1), n(c)])];
+        let mut step_outputs = vec![f("context", vec![s("B"), n(c)])];
         step_outputs.extend(kv("present", "P+S"));
         let mut contracts = vec![
             (
@@ -284,10 +291,10 @@ impl ArmFlowSpec {
                 step,
                 stateful(
                     step,
-                    f("motion", vec![n(1), n(fpt), n(d)]),
+                    f("motion", vec![s("B"), n(fpt), n(d)]),
                     vec![
-                        f("mean", vec![n(1), n(1), n(lat)]),
-                        f("logvar", vec![n(1), n(1), n(lat)]),
+                        f("mean", vec![s("B"), n(1), n(lat)]),
+                        f("logvar", vec![s("B"), n(1), n(lat)]),
                     ],
                 ),
             ));
@@ -298,8 +305,8 @@ impl ArmFlowSpec {
                 step,
                 stateful(
                     step,
-                    f("latents", vec![n(1), n(1), n(lat)]),
-                    vec![f("motion", vec![n(1), n(fpt), n(d)])],
+                    f("latents", vec![s("B"), n(1), n(lat)]),
+                    vec![f("motion", vec![s("B"), n(fpt), n(d)])],
                 ),
             ));
         }
@@ -307,8 +314,9 @@ impl ArmFlowSpec {
     }
 }
 
-/// The interface of a per-token VAE step: `input` then the declared `state_i` inputs (each a
-/// fixed `[1, channels, frames]`), `outputs` then a `next_state_i` of the same shape for each.
+/// The interface of a per-token VAE step: `input` then the declared `state_i` inputs (each
+/// `[B, channels, frames]`, one row per stream), `outputs` then a `next_state_i` of the same
+/// shape for each.
 fn stateful(declared: &GraphSpec, input: TensorSpec, outputs: Vec<TensorSpec>) -> GraphSpec {
     let states: Vec<TensorSpec> = declared
         .inputs
@@ -316,11 +324,9 @@ fn stateful(declared: &GraphSpec, input: TensorSpec, outputs: Vec<TensorSpec>) -
         .filter(|t| t.name.starts_with("state_"))
         .map(|t| {
             let shape = match t.shape.as_slice() {
-                [Dim::Fixed(1), c @ Dim::Fixed(_), k @ Dim::Fixed(_)] => {
-                    vec![Dim::Fixed(1), c.clone(), k.clone()]
-                }
-                // A state of any other shape is reported against the required `[1, C, k]` form.
-                _ => vec![Dim::Fixed(1), sym("C"), sym("k")],
+                [_, c @ Dim::Fixed(_), k @ Dim::Fixed(_)] => vec![sym("B"), c.clone(), k.clone()],
+                // A state of any other shape is reported against the required `[B, C, k]` form.
+                _ => vec![sym("B"), sym("C"), sym("k")],
             };
             float(&t.name, shape)
         })

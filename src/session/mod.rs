@@ -28,6 +28,9 @@ use crate::model::VaeState;
 use crate::model::{check_finite, Conditioning, Model};
 use crate::noise::{fill_normals, STREAM_ACTOR_POSTERIOR, STREAM_REACTOR_NOISE};
 
+mod lanes;
+use lanes::Lane;
+
 /// Options of a session. Fields left `None` take the bundle's defaults (`sampler` and
 /// `context` sections of the manifest).
 #[derive(Debug, Clone, Default)]
@@ -227,21 +230,12 @@ impl Session {
     /// `max_frames` frames would come out (the C ABI's caller-sized buffer).
     pub(crate) fn step_bounded(&mut self, actor: &[f32], max_frames: usize) -> Result<StepOutput> {
         let dim = self.model.frame_dim();
-        if !actor.len().is_multiple_of(dim) {
-            return Err(Error::InvalidInput(format!(
-                "{} floats is not a whole number of {dim}-float frames",
-                actor.len()
-            )));
-        }
-        check_finite("actor frames", actor)?;
-        let mut next = self.state.clone();
-        let output = self.advance(&mut next, actor)?;
-        if output.frames.nrows() > max_frames {
-            return Err(Error::InvalidInput(format!(
-                "this call returns {} frames, the output holds {max_frames}",
-                output.frames.nrows()
-            )));
-        }
+        check_actor_chunk(actor, dim)?;
+        let mut lanes = [Lane::new(self)];
+        lanes::advance(&self.model, &mut lanes, &[actor])?;
+        let [lane] = lanes;
+        let (next, output) = lane.finish(dim);
+        check_output_room(&output, max_frames, None)?;
         self.state = next;
         Ok(output)
     }
@@ -345,162 +339,6 @@ impl Session {
     pub fn context_len(&self) -> usize {
         self.state.cache.len()
     }
-
-    // ---- the loop -----------------------------------------------------------------------------
-
-    fn advance(&self, st: &mut StreamState, actor: &[f32]) -> Result<StepOutput> {
-        let m = &self.spec;
-        let (fpt, dim) = (m.latent.frames_per_token as u64, self.model.frame_dim());
-        st.actor_frames.extend_from_slice(actor);
-        st.frames_received += (actor.len() / dim) as u64;
-        let mut frames = Vec::new();
-        let mut tokens = Vec::new();
-        let lookahead = m.vae.encoder.lookahead_frames as u64;
-        while st.frames_received >= (st.tokens + 1) * fpt + lookahead {
-            tokens.push(self.generate_token(st)?);
-            while st.tokens > st.frames_emitted / fpt + m.vae.decoder.lookahead_tokens as u64 {
-                frames.extend(self.decode_token(st)?);
-            }
-        }
-        st.trim(m, dim);
-        let n = frames.len() / dim;
-        let frames = Array2::from_shape_vec((n, dim), frames).expect("whole frames");
-        Ok(StepOutput { frames, tokens })
-    }
-
-    fn generate_token(&self, st: &mut StreamState) -> Result<TokenTrace> {
-        let m = &self.spec;
-        let (fpt, dim, lat) = (
-            m.latent.frames_per_token,
-            self.model.frame_dim(),
-            m.latent.dim,
-        );
-        let j = st.tokens;
-        let noise = st
-            .injected
-            .pop_front()
-            .unwrap_or_else(|| self.seeded_noise(j));
-
-        // 1. actor token: one encoder step over this token's frames, or the encoder window
-        //    ending with them
-        let first = j * fpt as u64;
-        let frames_from = |start: u64, end: u64| {
-            &st.actor_frames
-                [(start - st.actor_base) as usize * dim..(end - st.actor_base) as usize * dim]
-        };
-        let (mean, logvar) = match &mut st.vae {
-            Some(vae) => self
-                .model
-                .encode_step(frames_from(first, first + fpt as u64), vae)?,
-            None => {
-                let start = first.saturating_sub(m.vae.encoder.context_frames as u64);
-                let end = first + fpt as u64 + m.vae.encoder.lookahead_frames as u64;
-                let (mean, logvar) = self.model.encode(frames_from(start, end))?;
-                let row = (first - start) as usize / fpt * lat;
-                (
-                    mean[row..row + lat].to_vec(),
-                    logvar[row..row + lat].to_vec(),
-                )
-            }
-        };
-        let scale = m.latent.scale;
-        let actor: Vec<f32> = match self.settings.actor_latent {
-            ActorLatent::Sample => (0..lat)
-                .map(|i| (mean[i] + logvar[i].exp().sqrt() * noise.actor[i]) * scale)
-                .collect(),
-            ActorLatent::Mean => mean.iter().map(|v| v * scale).collect(),
-        };
-
-        // 2. context over [<sos>, pairs...] with the key/value cache
-        let token = if j == 0 {
-            &self.conditioning.start_token
-        } else {
-            &st.last_pair
-        };
-        if st.cache.len() + 1 > self.settings.capacity {
-            st.cache.evict_to(self.settings.capacity - 1)?;
-        }
-        let context = self.model.context_step(
-            &mut st.cache,
-            token,
-            &[j as i64],
-            &self.conditioning.modulation,
-        )?;
-
-        // 3. MeanFlow from the noise
-        let reactor = self.sample(&actor, &context, noise.reactor)?;
-
-        st.last_pair = [actor.as_slice(), reactor.as_slice()].concat();
-        st.reactor_latents.push_back(reactor.clone());
-        st.tokens += 1;
-        Ok(TokenTrace {
-            index: j,
-            actor_latent: actor,
-            reactor_latent: reactor,
-            context,
-        })
-    }
-
-    fn sample(&self, actor: &[f32], context: &[f32], mut z: Vec<f32>) -> Result<Vec<f32>> {
-        let s = self.settings.cfg_scale;
-        let guided = s != 1.0;
-        // With guidance, row 0 is conditional and row 1 the null branch (zero actor and context).
-        let (actor, context) = if guided {
-            (
-                [actor, &vec![0.0; actor.len()]].concat(),
-                [context, &vec![0.0; context.len()]].concat(),
-            )
-        } else {
-            (actor.to_vec(), context.to_vec())
-        };
-        for k in 0..self.settings.steps as usize {
-            let (t, r) = (self.grid[k], self.grid[k + 1]);
-            let noisy = if guided {
-                [&z[..], &z[..]].concat()
-            } else {
-                z.clone()
-            };
-            let u = self.model.velocity(&actor, &noisy, &context, r, t)?;
-            let dt = t - r;
-            let n = z.len();
-            for i in 0..n {
-                let ui = if guided {
-                    u[n + i] + s * (u[i] - u[n + i])
-                } else {
-                    u[i]
-                };
-                z[i] -= dt * ui;
-            }
-        }
-        Ok(z)
-    }
-
-    fn decode_token(&self, st: &mut StreamState) -> Result<Vec<f32>> {
-        let m = &self.spec;
-        let (fpt, dim) = (m.latent.frames_per_token, self.model.frame_dim());
-        let k = st.frames_emitted / fpt as u64;
-        if let Some(vae) = &mut st.vae {
-            let latent: Vec<f32> = st.reactor_latents[(k - st.reactor_base) as usize]
-                .iter()
-                .map(|v| v / m.latent.scale)
-                .collect();
-            let frames = self.model.decode_step(&latent, vae)?;
-            st.frames_emitted += fpt as u64;
-            return Ok(frames);
-        }
-        let start = k.saturating_sub(m.vae.decoder.context_tokens as u64);
-        let end = k + 1 + m.vae.decoder.lookahead_tokens as u64;
-        let scale = m.latent.scale;
-        let latents: Vec<f32> = st
-            .reactor_latents
-            .range((start - st.reactor_base) as usize..(end - st.reactor_base) as usize)
-            .flat_map(|b| b.iter().map(|v| v / scale))
-            .collect();
-        let motion = self.model.decode(&latents)?;
-        let row = (k - start) as usize * fpt * dim;
-        st.frames_emitted += fpt as u64;
-        Ok(motion[row..row + fpt * dim].to_vec())
-    }
 }
 
 impl StreamState {
@@ -545,6 +383,90 @@ impl StreamState {
             self.reactor_base += 1;
         }
     }
+}
+
+/// Advances many sessions of one model in one call: `actor[i]` (row-major frames, any number)
+/// goes to `sessions[i]`, and the result's entry `i` is what [`Session::step_flat`] would have
+/// returned for it. Each round of the loop runs every graph once for all the sessions that have
+/// a token to generate, so the weights are read once per round rather than once per session;
+/// each session's outputs equal stepping it alone up to float rounding (<= 1e-5 in the tests).
+///
+/// Sessions may differ in everything but their model (same [`Model`] or a clone of it): seed,
+/// steps, CFG, condition, capacity, history length, and how many frames they are given. On error
+/// every session is unchanged.
+pub fn step_sessions(sessions: &mut [&mut Session], actor: &[&[f32]]) -> Result<Vec<StepOutput>> {
+    step_sessions_bounded(sessions, actor, &[])
+}
+
+/// [`step_sessions`] that fails, changing no session, when session `i` would return more than
+/// `max_frames[i]` frames (the C ABI's caller-sized buffers; empty: unbounded).
+pub(crate) fn step_sessions_bounded(
+    sessions: &mut [&mut Session],
+    actor: &[&[f32]],
+    max_frames: &[usize],
+) -> Result<Vec<StepOutput>> {
+    if actor.len() != sessions.len() {
+        return Err(Error::InvalidInput(format!(
+            "{} sessions but {} chunks of actor frames",
+            sessions.len(),
+            actor.len()
+        )));
+    }
+    let Some(first) = sessions.first() else {
+        return Ok(Vec::new());
+    };
+    let model = first.model.clone();
+    let dim = model.frame_dim();
+    for (i, (session, chunk)) in sessions.iter().zip(actor).enumerate() {
+        if !session.model.same_as(&model) {
+            return Err(Error::InvalidInput(format!(
+                "session {i} runs another model: sessions stepped together must share one"
+            )));
+        }
+        check_actor_chunk(chunk, dim).map_err(|e| match e {
+            Error::InvalidInput(m) => Error::InvalidInput(format!("session {i}: {m}")),
+            other => other,
+        })?;
+    }
+    let mut lanes: Vec<Lane> = sessions.iter().map(|s| Lane::new(s)).collect();
+    lanes::advance(&model, &mut lanes, actor)?;
+    let finished: Vec<_> = lanes.into_iter().map(|l| l.finish(dim)).collect();
+    for (i, (_, output)) in finished.iter().enumerate() {
+        check_output_room(
+            output,
+            max_frames.get(i).copied().unwrap_or(usize::MAX),
+            Some(i),
+        )?;
+    }
+    Ok(sessions
+        .iter_mut()
+        .zip(finished)
+        .map(|(session, (state, output))| {
+            session.state = state;
+            output
+        })
+        .collect())
+}
+
+fn check_actor_chunk(actor: &[f32], dim: usize) -> Result<()> {
+    if !actor.len().is_multiple_of(dim) {
+        return Err(Error::InvalidInput(format!(
+            "{} floats is not a whole number of {dim}-float frames",
+            actor.len()
+        )));
+    }
+    check_finite("actor frames", actor)
+}
+
+fn check_output_room(output: &StepOutput, max_frames: usize, session: Option<usize>) -> Result<()> {
+    if output.frames.nrows() <= max_frames {
+        return Ok(());
+    }
+    let whose = session.map_or(String::new(), |i| format!("session {i}: "));
+    Err(Error::InvalidInput(format!(
+        "{whose}this call returns {} frames, the output holds {max_frames}",
+        output.frames.nrows()
+    )))
 }
 
 fn check_steps(steps: u32) -> Result<()> {

@@ -1,0 +1,335 @@
+//! The token loop, for one stream or many at once.
+//!
+//! Every stream taking part in a step is a [`Lane`]: its session (settings, conditioning) and a
+//! working copy of its state. The loop runs in rounds; each round generates the next token of
+//! every lane that has the frames for one, with one network call per graph for all of them, so
+//! the weights are read once per round however many streams there are. A single
+//! [`Session::step`](super::Session::step) is a batch of one lane through the same code.
+
+use super::{Session, StepOutput, StreamState, TokenNoise, TokenTrace};
+use crate::error::Result;
+use crate::manifest::{ActorLatent, ArmFlowSpec};
+use crate::model::{Model, VaeState};
+
+/// One stream's part in a step.
+pub(super) struct Lane<'s> {
+    pub(super) session: &'s Session,
+    /// Committed to the session only when the whole step succeeds.
+    pub(super) state: StreamState,
+    /// Reactor frames produced so far in this step, row-major.
+    pub(super) frames: Vec<f32>,
+    pub(super) tokens: Vec<TokenTrace>,
+}
+
+impl<'s> Lane<'s> {
+    pub(super) fn new(session: &'s Session) -> Self {
+        Self {
+            session,
+            state: session.state.clone(),
+            frames: Vec::new(),
+            tokens: Vec::new(),
+        }
+    }
+
+    /// Splits the lane into the state to commit and what the step returns.
+    pub(super) fn finish(self, frame_dim: usize) -> (StreamState, StepOutput) {
+        let n = self.frames.len() / frame_dim;
+        let frames =
+            ndarray::Array2::from_shape_vec((n, frame_dim), self.frames).expect("whole frames");
+        let output = StepOutput {
+            frames,
+            tokens: self.tokens,
+        };
+        (self.state, output)
+    }
+
+    fn spec(&self) -> &'s ArmFlowSpec {
+        &self.session.spec
+    }
+
+    /// Whether the frames received cover the next token (and the encoder's lookahead).
+    fn token_ready(&self) -> bool {
+        let m = self.spec();
+        let fpt = m.latent.frames_per_token as u64;
+        let st = &self.state;
+        st.frames_received >= (st.tokens + 1) * fpt + m.vae.encoder.lookahead_frames as u64
+    }
+
+    /// Whether a generated token waits to be decoded (its lookahead tokens exist).
+    fn decode_due(&self) -> bool {
+        let m = self.spec();
+        let fpt = m.latent.frames_per_token as u64;
+        let st = &self.state;
+        st.tokens > st.frames_emitted / fpt + m.vae.decoder.lookahead_tokens as u64
+    }
+
+    /// Actor frames `[start, end)` (absolute indices), row-major.
+    fn actor_frames(&self, start: u64, end: u64, dim: usize) -> &[f32] {
+        let base = self.state.actor_base;
+        &self.state.actor_frames[(start - base) as usize * dim..(end - base) as usize * dim]
+    }
+}
+
+/// Appends each lane's new actor frames (`chunks[i]`, already validated) and generates and
+/// decodes every token they complete.
+pub(super) fn advance(model: &Model, lanes: &mut [Lane], chunks: &[&[f32]]) -> Result<()> {
+    let dim = model.frame_dim();
+    for (lane, chunk) in lanes.iter_mut().zip(chunks) {
+        lane.state.actor_frames.extend_from_slice(chunk);
+        lane.state.frames_received += (chunk.len() / dim) as u64;
+    }
+    loop {
+        let mut ready: Vec<&mut Lane> = lanes.iter_mut().filter(|l| l.token_ready()).collect();
+        if ready.is_empty() {
+            break;
+        }
+        generate_tokens(model, &mut ready)?;
+        loop {
+            let mut due: Vec<&mut Lane> = lanes.iter_mut().filter(|l| l.decode_due()).collect();
+            if due.is_empty() {
+                break;
+            }
+            decode_tokens(model, &mut due)?;
+        }
+    }
+    for lane in lanes {
+        lane.state.trim(&lane.session.spec, dim);
+    }
+    Ok(())
+}
+
+/// The next token of every lane: actor posterior, context, MeanFlow.
+fn generate_tokens(model: &Model, lanes: &mut [&mut Lane]) -> Result<()> {
+    let lat = model.latent_dim();
+    let noise: Vec<TokenNoise> = lanes
+        .iter_mut()
+        .map(|l| {
+            let j = l.state.tokens;
+            l.state
+                .injected
+                .pop_front()
+                .unwrap_or_else(|| l.session.seeded_noise(j))
+        })
+        .collect();
+
+    // 1. actor tokens `(mean + sqrt(exp(logvar)) * xi) * scale`, or `mean * scale`
+    let (mean, logvar) = posteriors(model, lanes)?;
+    let mut actor = vec![0f32; lanes.len() * lat];
+    for (i, lane) in lanes.iter().enumerate() {
+        let scale = lane.spec().latent.scale;
+        let row = i * lat..(i + 1) * lat;
+        for (((a, m), lv), xi) in actor[row.clone()]
+            .iter_mut()
+            .zip(&mean[row.clone()])
+            .zip(&logvar[row])
+            .zip(&noise[i].actor)
+        {
+            *a = match lane.session.settings.actor_latent {
+                ActorLatent::Sample => (m + lv.exp().sqrt() * xi) * scale,
+                ActorLatent::Mean => m * scale,
+            };
+        }
+    }
+
+    // 2. context over [<sos>, pairs...]: append token j (<sos> or the last pair) to each cache
+    let sessions: Vec<&Session> = lanes.iter().map(|l| l.session).collect();
+    let mut tokens = Vec::new();
+    let mut positions = Vec::with_capacity(lanes.len());
+    for lane in lanes.iter_mut() {
+        let capacity = lane.session.settings.capacity;
+        if lane.state.cache.len() + 1 > capacity {
+            lane.state.cache.evict_to(capacity - 1)?;
+        }
+        let j = lane.state.tokens;
+        tokens.extend_from_slice(if j == 0 {
+            &lane.session.conditioning.start_token
+        } else {
+            &lane.state.last_pair
+        });
+        positions.push(j as i64);
+    }
+    let modulations: Vec<_> = sessions
+        .iter()
+        .map(|s| &s.conditioning.modulation)
+        .collect();
+    let mut caches: Vec<_> = lanes.iter_mut().map(|l| &mut l.state.cache).collect();
+    let context = model.context_step(&mut caches, &tokens, &positions, &modulations)?;
+
+    // 3. MeanFlow from the noise
+    let z: Vec<f32> = noise
+        .iter()
+        .flat_map(|n| n.reactor.iter().copied())
+        .collect();
+    let reactor = sample(model, &sessions, &actor, &context, z)?;
+
+    let c = context.len() / lanes.len();
+    for (i, lane) in lanes.iter_mut().enumerate() {
+        let (a, b) = (
+            &actor[i * lat..(i + 1) * lat],
+            &reactor[i * lat..(i + 1) * lat],
+        );
+        let st = &mut lane.state;
+        st.last_pair = [a, b].concat();
+        st.reactor_latents.push_back(b.to_vec());
+        lane.tokens.push(TokenTrace {
+            index: st.tokens,
+            actor_latent: a.to_vec(),
+            reactor_latent: b.to_vec(),
+            context: context[i * c..(i + 1) * c].to_vec(),
+        });
+        st.tokens += 1;
+    }
+    Ok(())
+}
+
+/// The posterior `(mean, logvar)` of each lane's next actor token, `[lanes, latent_dim]` each:
+/// one encoder step for all lanes that stream the VAE, a window for each lane that does not.
+fn posteriors(model: &Model, lanes: &mut [&mut Lane]) -> Result<(Vec<f32>, Vec<f32>)> {
+    let (dim, lat) = (model.frame_dim(), model.latent_dim());
+    let mut mean = vec![0f32; lanes.len() * lat];
+    let mut logvar = vec![0f32; lanes.len() * lat];
+    let token_start = |l: &Lane| l.state.tokens * l.spec().latent.frames_per_token as u64;
+    let fpt = model.frames_per_token() as u64;
+
+    let stepping: Vec<usize> = (0..lanes.len())
+        .filter(|&i| lanes[i].state.vae.is_some())
+        .collect();
+    if !stepping.is_empty() {
+        let frames: Vec<f32> = stepping
+            .iter()
+            .flat_map(|&i| {
+                let first = token_start(lanes[i]);
+                lanes[i]
+                    .actor_frames(first, first + fpt, dim)
+                    .iter()
+                    .copied()
+            })
+            .collect();
+        let mut states: Vec<&mut VaeState> = lanes
+            .iter_mut()
+            .filter_map(|l| l.state.vae.as_mut())
+            .collect();
+        let (m, lv) = model.encode_step(&frames, &mut states)?;
+        for (row, &i) in stepping.iter().enumerate() {
+            mean[i * lat..(i + 1) * lat].copy_from_slice(&m[row * lat..(row + 1) * lat]);
+            logvar[i * lat..(i + 1) * lat].copy_from_slice(&lv[row * lat..(row + 1) * lat]);
+        }
+    }
+    for (i, lane) in lanes.iter().enumerate() {
+        if lane.state.vae.is_some() {
+            continue;
+        }
+        let enc = &lane.spec().vae.encoder;
+        let first = token_start(lane);
+        let start = first.saturating_sub(enc.context_frames as u64);
+        let end = first + fpt + enc.lookahead_frames as u64;
+        let (m, lv) = model.encode(lane.actor_frames(start, end, dim))?;
+        let row = (first - start) as usize / fpt as usize * lat;
+        mean[i * lat..(i + 1) * lat].copy_from_slice(&m[row..row + lat]);
+        logvar[i * lat..(i + 1) * lat].copy_from_slice(&lv[row..row + lat]);
+    }
+    Ok((mean, logvar))
+}
+
+/// MeanFlow for every lane at once, `z <- z - (tau_k - tau_{k+1}) * u(z, tau_{k+1}, tau_k)`, each
+/// lane with its own steps and CFG scale. A guided lane adds a null row right after its
+/// conditional row (zero actor token and context): `u = u_null + s * (u_cond - u_null)`.
+fn sample(
+    model: &Model,
+    sessions: &[&Session],
+    actor: &[f32],
+    context: &[f32],
+    mut z: Vec<f32>,
+) -> Result<Vec<f32>> {
+    let lat = model.latent_dim();
+    let c = context.len() / sessions.len();
+    let most_steps = sessions.iter().map(|s| s.settings.steps).max().unwrap_or(0);
+    for k in 0..most_steps as usize {
+        let (mut a, mut noisy, mut ctx, mut r, mut t) = (vec![], vec![], vec![], vec![], vec![]);
+        let active = |s: &&Session| k < s.settings.steps as usize;
+        for (i, s) in sessions.iter().enumerate().filter(|(_, s)| active(s)) {
+            let rows = if s.settings.cfg_scale != 1.0 { 2 } else { 1 };
+            for row in 0..rows {
+                if row == 0 {
+                    a.extend_from_slice(&actor[i * lat..(i + 1) * lat]);
+                    ctx.extend_from_slice(&context[i * c..(i + 1) * c]);
+                } else {
+                    a.resize(a.len() + lat, 0.0);
+                    ctx.resize(ctx.len() + c, 0.0);
+                }
+                noisy.extend_from_slice(&z[i * lat..(i + 1) * lat]);
+                r.push(s.grid[k + 1]);
+                t.push(s.grid[k]);
+            }
+        }
+        let u = model.velocity(&a, &noisy, &ctx, &r, &t)?;
+        let mut row = 0;
+        for (i, s) in sessions.iter().enumerate().filter(|(_, s)| active(s)) {
+            let scale = s.settings.cfg_scale;
+            let dt = s.grid[k] - s.grid[k + 1];
+            let cond = &u[row * lat..(row + 1) * lat];
+            let zi = &mut z[i * lat..(i + 1) * lat];
+            if scale != 1.0 {
+                let null = &u[(row + 1) * lat..(row + 2) * lat];
+                for ((zv, uc), un) in zi.iter_mut().zip(cond).zip(null) {
+                    *zv -= dt * (un + scale * (uc - un));
+                }
+                row += 2;
+            } else {
+                for (zv, uc) in zi.iter_mut().zip(cond) {
+                    *zv -= dt * uc;
+                }
+                row += 1;
+            }
+        }
+    }
+    Ok(z)
+}
+
+/// Decodes the oldest undecoded token of every lane: one decoder step for all lanes that stream
+/// the VAE, a window for each lane that does not.
+fn decode_tokens(model: &Model, lanes: &mut [&mut Lane]) -> Result<()> {
+    let (dim, fpt) = (model.frame_dim(), model.frames_per_token());
+    let next = |l: &Lane| l.state.frames_emitted / fpt as u64;
+    let latent = |l: &Lane, k: u64| -> Vec<f32> {
+        let scale = l.spec().latent.scale;
+        l.state.reactor_latents[(k - l.state.reactor_base) as usize]
+            .iter()
+            .map(|v| v / scale)
+            .collect()
+    };
+    let stepping: Vec<usize> = (0..lanes.len())
+        .filter(|&i| lanes[i].state.vae.is_some())
+        .collect();
+    if !stepping.is_empty() {
+        let latents: Vec<f32> = stepping
+            .iter()
+            .flat_map(|&i| latent(lanes[i], next(lanes[i])))
+            .collect();
+        let mut states: Vec<&mut VaeState> = lanes
+            .iter_mut()
+            .filter_map(|l| l.state.vae.as_mut())
+            .collect();
+        let frames = model.decode_step(&latents, &mut states)?;
+        let per = fpt * dim;
+        for (row, &i) in stepping.iter().enumerate() {
+            lanes[i]
+                .frames
+                .extend_from_slice(&frames[row * per..(row + 1) * per]);
+        }
+    }
+    for lane in lanes.iter_mut() {
+        if lane.state.vae.is_none() {
+            let dec = &lane.spec().vae.decoder;
+            let k = next(lane);
+            let start = k.saturating_sub(dec.context_tokens as u64);
+            let end = k + 1 + dec.lookahead_tokens as u64;
+            let latents: Vec<f32> = (start..end).flat_map(|j| latent(lane, j)).collect();
+            let motion = model.decode(&latents)?;
+            let row = (k - start) as usize * fpt * dim;
+            lane.frames.extend_from_slice(&motion[row..row + fpt * dim]);
+        }
+        lane.state.frames_emitted += fpt as u64;
+    }
+    Ok(())
+}
