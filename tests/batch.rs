@@ -125,9 +125,9 @@ fn a_bad_batch_changes_no_session() {
     let warm: Vec<f32> = actor.slice(s![..10, ..]).iter().copied().collect();
     {
         let mut refs: Vec<&mut Session> = sessions.iter_mut().collect();
-        step_sessions(&mut refs, &vec![warm.as_slice(); 5]).unwrap();
+        step_sessions(&mut refs, &[warm.as_slice(); 5]).unwrap();
         let mut refs: Vec<&mut Session> = twins.iter_mut().collect();
-        step_sessions(&mut refs, &vec![warm.as_slice(); 5]).unwrap();
+        step_sessions(&mut refs, &[warm.as_slice(); 5]).unwrap();
     }
     let good: Vec<f32> = actor.slice(s![10..14, ..]).iter().copied().collect();
     let mut nan = good.clone();
@@ -147,7 +147,7 @@ fn a_bad_batch_changes_no_session() {
         assert!(err.contains(expected), "{err}");
     }
     refs.push(&mut stranger);
-    let err = step_sessions(&mut refs, &vec![good.as_slice(); 6])
+    let err = step_sessions(&mut refs, &[good.as_slice(); 6])
         .unwrap_err()
         .to_string();
     assert!(err.contains("session 5 runs another model"), "{err}");
