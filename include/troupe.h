@@ -587,6 +587,38 @@ void troupe_session_free(struct troupe_session *session);
 troupe_status troupe_session_step(struct troupe_session *session, const float *actor, size_t n_actor_frames, float *out, size_t out_capacity_frames, size_t *n_written);
 
 /*
+ Advances `n_sessions` sessions of one model in one call, reading the model's weights once
+ per token for all of them rather than once per session: the way to run a crowd. For each
+ `i < n_sessions`, `actor[i]` holds `n_actor_frames[i]` frames for `sessions[i]` (row-major
+ float32, borrowed; may be NULL when the count is 0), and the reactor frames that became ready
+ go to `out[i]` (capacity `out_capacity_frames[i]` frames; may be NULL when none are ready),
+ their count to `n_written[i]`. Each session's result equals what `troupe_session_step` gives
+ it alone, up to float rounding (1e-5). Sessions may differ in every option and in how many
+ frames they are given (0 included), but must share one model and appear once each.
+
+ On any error nothing is written and every session is exactly as before the call, except after
+ `TROUPE_ERR_PANIC`, which poisons every session of the call. Messages name the session index.
+
+ Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (a session listed twice,
+ sessions of different models, a NaN or infinite value), `TROUPE_ERR_BUFFER_TOO_SMALL`,
+ `TROUPE_ERR_INFERENCE`, `TROUPE_ERR_POISONED`, `TROUPE_ERR_PANIC`. The sessions must not be
+ used by another thread during the call; the arrays are borrowed for the call.
+
+ ```c
+ troupe_session *crowd[64]; const float *in[64]; size_t n_in[64];
+ float *out[64]; size_t cap[64], n_out[64];
+ troupe_status st = troupe_sessions_step(crowd, 64, in, n_in, out, cap, n_out);
+ ```
+
+ # Safety
+ Each array must be readable (`n_written` writable) for `n_sessions` entries (any may be NULL
+ when `n_sessions` is 0); `sessions[i]` live handles; `actor[i]` readable for
+ `n_actor_frames[i] * frame_dim` floats; `out[i]` writable for `out_capacity_frames[i] *
+ frame_dim` floats, overlapping no other buffer of the call.
+ */
+troupe_status troupe_sessions_step(struct troupe_session *const *sessions, size_t n_sessions, const float *const *actor, const size_t *n_actor_frames, float *const *out, const size_t *out_capacity_frames, size_t *n_written);
+
+/*
  Writes to `*n_frames` exactly how many reactor frames a `troupe_session_step` with
  `n_actor_frames` frames would return now.
 

@@ -311,6 +311,132 @@ pub unsafe extern "C" fn troupe_session_step(
     }
 }
 
+/// Advances `n_sessions` sessions of one model in one call, reading the model's weights once
+/// per token for all of them rather than once per session: the way to run a crowd. For each
+/// `i < n_sessions`, `actor[i]` holds `n_actor_frames[i]` frames for `sessions[i]` (row-major
+/// float32, borrowed; may be NULL when the count is 0), and the reactor frames that became ready
+/// go to `out[i]` (capacity `out_capacity_frames[i]` frames; may be NULL when none are ready),
+/// their count to `n_written[i]`. Each session's result equals what `troupe_session_step` gives
+/// it alone, up to float rounding (1e-5). Sessions may differ in every option and in how many
+/// frames they are given (0 included), but must share one model and appear once each.
+///
+/// On any error nothing is written and every session is exactly as before the call, except after
+/// `TROUPE_ERR_PANIC`, which poisons every session of the call. Messages name the session index.
+///
+/// Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (a session listed twice,
+/// sessions of different models, a NaN or infinite value), `TROUPE_ERR_BUFFER_TOO_SMALL`,
+/// `TROUPE_ERR_INFERENCE`, `TROUPE_ERR_POISONED`, `TROUPE_ERR_PANIC`. The sessions must not be
+/// used by another thread during the call; the arrays are borrowed for the call.
+///
+/// ```c
+/// troupe_session *crowd[64]; const float *in[64]; size_t n_in[64];
+/// float *out[64]; size_t cap[64], n_out[64];
+/// troupe_status st = troupe_sessions_step(crowd, 64, in, n_in, out, cap, n_out);
+/// ```
+///
+/// # Safety
+/// Each array must be readable (`n_written` writable) for `n_sessions` entries (any may be NULL
+/// when `n_sessions` is 0); `sessions[i]` live handles; `actor[i]` readable for
+/// `n_actor_frames[i] * frame_dim` floats; `out[i]` writable for `out_capacity_frames[i] *
+/// frame_dim` floats, overlapping no other buffer of the call.
+#[no_mangle]
+pub unsafe extern "C" fn troupe_sessions_step(
+    sessions: *const *mut troupe_session,
+    n_sessions: usize,
+    actor: *const *const f32,
+    n_actor_frames: *const usize,
+    out: *const *mut f32,
+    out_capacity_frames: *const usize,
+    n_written: *mut usize,
+) -> troupe_status {
+    let handles: &[*mut troupe_session] = if n_sessions == 0 || sessions.is_null() {
+        &[]
+    } else {
+        // SAFETY: readable for n_sessions entries per the contract.
+        unsafe { std::slice::from_raw_parts(sessions, n_sessions) }
+    };
+    let poison_all = || {
+        for &h in handles {
+            if !h.is_null() {
+                // SAFETY: live handles per the contract; only the flag is touched.
+                unsafe { (*h).poisoned.set(true) };
+            }
+        }
+    };
+    boundary::call("troupe_sessions_step", poison_all, || {
+        if n_sessions == 0 {
+            return Ok(());
+        }
+        // SAFETY (all four): readable (writable) for n_sessions entries per the contract.
+        let (actor, n_actor_frames, out, capacity) = unsafe {
+            (
+                boundary::slice(actor, n_sessions, "actor")?,
+                boundary::slice(n_actor_frames, n_sessions, "n_actor_frames")?,
+                boundary::slice(out, n_sessions, "out")?,
+                boundary::slice(out_capacity_frames, n_sessions, "out_capacity_frames")?,
+            )
+        };
+        non_null(sessions, "sessions")?;
+        non_null(n_written, "n_written")?;
+        let mut seen: Vec<(usize, usize)> = handles.iter().map(|&h| h as usize).zip(0..).collect();
+        seen.sort_unstable();
+        for pair in seen.windows(2) {
+            if pair[0].0 == pair[1].0 {
+                return Err(FfiError::new(
+                    TROUPE_ERR_INVALID_ARG,
+                    format!(
+                        "sessions[{}] and sessions[{}] are the same session",
+                        pair[0].1.min(pair[1].1),
+                        pair[0].1.max(pair[1].1)
+                    ),
+                ));
+            }
+        }
+        let mut live: Vec<&mut Session> = Vec::with_capacity(n_sessions);
+        for (i, &h) in handles.iter().enumerate() {
+            non_null(h, &format!("sessions[{i}]"))?;
+            // SAFETY: a live handle, distinct from every other (checked above), ours for the call.
+            let troupe_session { session, poisoned } = unsafe { &mut *h };
+            if poisoned.get() {
+                return Err(FfiError::new(
+                    TROUPE_ERR_POISONED,
+                    format!("sessions[{i}] panicked earlier; call troupe_session_reset"),
+                ));
+            }
+            live.push(session);
+        }
+        let dim = live[0].model().frame_dim();
+        let mut chunks = Vec::with_capacity(n_sessions);
+        for i in 0..n_sessions {
+            let n_in = checked_mul(n_actor_frames[i], dim, "n_actor_frames[i] * frame_dim")?;
+            // SAFETY: readable for n_in floats per the contract.
+            chunks.push(unsafe { boundary::slice(actor[i], n_in, &format!("actor[{i}]"))? });
+            let ready = live[i].frames_ready_after(n_actor_frames[i]);
+            if ready > capacity[i] {
+                return Err(FfiError::new(
+                    TROUPE_ERR_BUFFER_TOO_SMALL,
+                    format!("session {i}: this call returns {ready} frames, out[{i}] holds {}", capacity[i]),
+                ));
+            }
+            if ready > 0 {
+                non_null(out[i], &format!("out[{i}]"))?;
+            }
+        }
+        let outputs = crate::session::step_sessions_bounded(&mut live, &chunks, capacity)?;
+        for (i, output) in outputs.iter().enumerate() {
+            let frames = output.frames.as_slice().expect("standard layout");
+            if !frames.is_empty() {
+                // SAFETY: out[i] is non-NULL (checked: frames were ready) and holds
+                // out_capacity_frames[i] >= frames.len() / dim frames per the contract.
+                unsafe { std::ptr::copy_nonoverlapping(frames.as_ptr(), out[i], frames.len()) };
+            }
+            // SAFETY: writable for n_sessions entries per the contract.
+            unsafe { *n_written.add(i) = frames.len() / dim };
+        }
+        Ok(())
+    })
+}
+
 /// Writes to `*n_frames` exactly how many reactor frames a `troupe_session_step` with
 /// `n_actor_frames` frames would return now.
 ///

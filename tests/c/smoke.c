@@ -203,6 +203,87 @@ int main(int argc, char **argv) {
     CHECK(stream(session, actor, frames, dim, 4, again, frames) == frames);
     CHECK(memcmp(out, again, frames * dim * sizeof(float)) == 0);
 
+    /* many sessions in one call: each equals the session streamed alone (`out`) */
+    {
+        troupe_session *crowd[3] = {NULL, NULL, NULL}, *kept;
+        const float *in[3];
+        size_t n_in[3], cap[3], n_out[3], fed[3] = {0, 0, 0}, got[3] = {0, 0, 0}, k, i;
+        static const size_t ticks[3] = {1, 5, 12};
+        float *res[3], *dst[3], worst = 0.0f;
+        for (k = 0; k < 3; k++) {
+            EXPECT(troupe_session_new(model, &opt, &crowd[k]), TROUPE_OK);
+            res[k] = (float *)calloc(frames * dim, sizeof(float));
+        }
+        while (fed[0] < frames || fed[1] < frames || fed[2] < frames) {
+            for (k = 0; k < 3; k++) {
+                n_in[k] = fed[k] + ticks[k] <= frames ? ticks[k] : frames - fed[k];
+                in[k] = actor + fed[k] * dim;
+                dst[k] = res[k] + got[k] * dim;
+                cap[k] = frames - got[k];
+            }
+            EXPECT(troupe_sessions_step(crowd, 3, in, n_in, dst, cap, n_out), TROUPE_OK);
+            for (k = 0; k < 3; k++) {
+                fed[k] += n_in[k];
+                got[k] += n_out[k];
+            }
+        }
+        for (k = 0; k < 3; k++) {
+            CHECK(got[k] == frames);
+            for (i = 0; i < frames * dim; i++)
+                worst = fabsf(res[k][i] - out[i]) > worst ? fabsf(res[k][i] - out[i]) : worst;
+        }
+        CHECK(worst <= 1e-5f);
+
+        /* bad calls write nothing and change no session */
+        for (k = 0; k < 3; k++) {
+            EXPECT(troupe_session_reset(crowd[k]), TROUPE_OK);
+            in[k] = actor;
+            n_in[k] = 4;
+            dst[k] = res[k];
+            cap[k] = 4;
+            n_out[k] = 77;
+        }
+        kept = crowd[2];
+        crowd[2] = crowd[0];
+        EXPECT(troupe_sessions_step(crowd, 3, in, n_in, dst, cap, n_out), TROUPE_ERR_INVALID_ARG);
+        CHECK(strstr(troupe_last_error_message(), "sessions[0] and sessions[2] are the same") != NULL);
+        crowd[2] = other; /* a session of another model (the memory-loaded bundle) */
+        EXPECT(troupe_sessions_step(crowd, 3, in, n_in, dst, cap, n_out), TROUPE_ERR_INVALID_ARG);
+        CHECK(strstr(troupe_last_error_message(), "session 2 runs another model") != NULL);
+        crowd[2] = NULL;
+        EXPECT(troupe_sessions_step(crowd, 3, in, n_in, dst, cap, n_out), TROUPE_ERR_NULL_ARG);
+        crowd[2] = kept;
+        cap[1] = 3;
+        EXPECT(troupe_sessions_step(crowd, 3, in, n_in, dst, cap, n_out), TROUPE_ERR_BUFFER_TOO_SMALL);
+        CHECK(strstr(troupe_last_error_message(), "session 1: this call returns 4 frames") != NULL);
+        cap[1] = 4;
+        in[1] = NULL;
+        EXPECT(troupe_sessions_step(crowd, 3, in, n_in, dst, cap, n_out), TROUPE_ERR_NULL_ARG);
+        in[1] = actor;
+        saved = actor[5];
+        actor[5] = NAN;
+        EXPECT(troupe_sessions_step(crowd, 3, in, n_in, dst, cap, n_out), TROUPE_ERR_INVALID_ARG);
+        actor[5] = saved;
+        EXPECT(troupe_sessions_step(NULL, 3, in, n_in, dst, cap, n_out), TROUPE_ERR_NULL_ARG);
+        EXPECT(troupe_sessions_step(crowd, 3, NULL, n_in, dst, cap, n_out), TROUPE_ERR_NULL_ARG);
+        EXPECT(troupe_sessions_step(crowd, 3, in, n_in, dst, NULL, n_out), TROUPE_ERR_NULL_ARG);
+        EXPECT(troupe_sessions_step(crowd, 3, in, n_in, dst, cap, NULL), TROUPE_ERR_NULL_ARG);
+        EXPECT(troupe_sessions_step(NULL, 0, NULL, NULL, NULL, NULL, NULL), TROUPE_OK);
+        CHECK(n_out[0] == 77 && n_out[1] == 77 && n_out[2] == 77);
+        EXPECT(troupe_sessions_step(crowd, 3, in, n_in, dst, cap, n_out), TROUPE_OK);
+        worst = 0.0f;
+        for (k = 0; k < 3; k++) {
+            CHECK(n_out[k] == 4);
+            for (i = 0; i < 4 * dim; i++) /* as if nothing failed */
+                worst = fabsf(res[k][i] - out[i]) > worst ? fabsf(res[k][i] - out[i]) : worst;
+        }
+        CHECK(worst <= 1e-5f);
+        for (k = 0; k < 3; k++) {
+            troupe_session_free(crowd[k]);
+            free(res[k]);
+        }
+    }
+
     /* setters */
     cond = (float *)calloc(cdim, sizeof(float));
     noise = (float *)calloc(lat, sizeof(float));
