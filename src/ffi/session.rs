@@ -415,7 +415,10 @@ pub unsafe extern "C" fn troupe_sessions_step(
             if ready > capacity[i] {
                 return Err(FfiError::new(
                     TROUPE_ERR_BUFFER_TOO_SMALL,
-                    format!("session {i}: this call returns {ready} frames, out[{i}] holds {}", capacity[i]),
+                    format!(
+                        "session {i}: this call returns {ready} frames, out[{i}] holds {}",
+                        capacity[i]
+                    ),
                 ));
             }
             if ready > 0 {

@@ -136,6 +136,45 @@ def test_failed_steps_leave_the_session_unchanged(model):
     assert np.array_equal(np.concatenate(got), want)
 
 
+def test_many_sessions_in_one_call_equal_each_alone(model):
+    x = actor(48)
+    settings = [dict(seed=1), dict(seed=2, steps=2, cfg=2.0), dict(seed=3, capacity=4)]
+    ticks = [1, 5, 12]
+    alone = []
+    for kw, tick in zip(settings, ticks):
+        with model.session(**kw) as s:
+            alone.append(stream(s, x, tick))
+    crowd = [model.session(**kw) for kw in settings]
+    got = [[] for _ in crowd]
+    fed = [0, 0, 0]
+    while any(f < len(x) for f in fed):
+        chunks = [x[f : f + t] for f, t in zip(fed, ticks)]
+        for i, out in enumerate(troupe.step_sessions(crowd, chunks)):
+            got[i].append(out)
+        fed = [f + len(c) for f, c in zip(fed, chunks)]
+    for want, parts in zip(alone, got):
+        assert np.abs(np.concatenate(parts) - want).max() <= 1e-5
+
+    # a bad batch changes no session: each goes on as its twin that never saw it
+    for s in crowd:
+        s.reset()
+    bad = x[:4].copy()
+    bad[1, 3] = np.inf
+    with pytest.raises(troupe.TroupeError) as e:
+        troupe.step_sessions(crowd, [x[:4], bad, x[:4]])
+    assert "session 1" in str(e.value) and e.value.name == "TROUPE_ERR_INVALID_ARG"
+    with pytest.raises(ValueError):
+        troupe.step_sessions([crowd[0], crowd[0]], [x[:4], x[:4]])
+    with pytest.raises(ValueError):
+        troupe.step_sessions(crowd, [np.zeros((4, 5), np.float32)] * 3)
+    outs = troupe.step_sessions(crowd, [x[:4]] * 3)
+    for out, want in zip(outs, alone):
+        assert np.abs(out - want[:4]).max() <= 1e-5
+    assert troupe.step_sessions([], []) == []
+    for s in crowd:
+        s.close()
+
+
 def test_threads_with_their_own_sessions(model):
     x = actor(64)
     with model.session(seed=9) as s:

@@ -19,7 +19,7 @@ import numpy as np
 
 from . import _native
 
-__all__ = ["Model", "Session", "TroupeError", "version", "ACTOR_LATENT_SAMPLE", "ACTOR_LATENT_MEAN",
+__all__ = ["Model", "Session", "TroupeError", "step_sessions", "version", "ACTOR_LATENT_SAMPLE", "ACTOR_LATENT_MEAN",
            "EULER", "RK4"]
 
 ACTOR_LATENT_SAMPLE = 0
@@ -171,6 +171,41 @@ def _solver(method) -> int:
     return int(method)
 
 
+def step_sessions(sessions, actors) -> list[np.ndarray]:
+    """Advances many sessions of one model in one call (`troupe_sessions_step`): `actors[i]`
+    (float32 [n_i, frame_dim], n_i >= 0) goes to `sessions[i]`; returns each session's reactor
+    frames. The weights are read once per token for all sessions, which is how a crowd runs in
+    real time; each result equals `sessions[i].step(actors[i])` up to float rounding. On error no
+    session changes."""
+    sessions, actors = list(sessions), [s._actor(a) for s, a in zip(sessions, actors)]
+    if len(actors) != len(sessions):
+        raise ValueError(f"{len(sessions)} sessions but {len(actors)} actor arrays")
+    if len({id(s) for s in sessions}) != len(sessions):
+        raise ValueError("a session appears twice")
+    n = len(sessions)
+    outs = [s._out_for(a) for s, a in zip(sessions, actors)]
+    handles = (_native.session_p * n)(*[s._handle for s in sessions])
+    if not all(handles):
+        raise ValueError("a session is closed")
+    c_size = ctypes.c_size_t
+    ins = (_native.f32p * n)(*[_ptr(a) for a in actors])
+    outp = (_native.f32p * n)(*[_ptr(o) for o in outs])
+    n_in = (c_size * n)(*[a.shape[0] for a in actors])
+    cap = (c_size * n)(*[o.shape[0] for o in outs])
+    written = (c_size * n)()
+    locked = []
+    try:
+        for s in sessions:
+            if not s._lock.acquire(blocking=False):
+                raise RuntimeError("a troupe Session is being used by two threads at once")
+            locked.append(s)
+        _check(_lib.troupe_sessions_step(handles, n, ins, n_in, outp, cap, written))
+    finally:
+        for s in locked:
+            s._lock.release()
+    return [o[: written[i]] for i, o in enumerate(outs)]
+
+
 class Session:
     """One actor/reactor stream. Use it from one thread at a time."""
 
@@ -208,16 +243,24 @@ class Session:
         finally:
             self._lock.release()
 
+    def _actor(self, actor) -> np.ndarray:
+        a = _floats(actor, "actor")
+        if a.ndim != 2 or a.shape[1] != self.frame_dim:
+            raise ValueError(f"actor must be [frames, {self.frame_dim}], got {list(a.shape)}")
+        return a
+
+    def _out_for(self, actor: np.ndarray) -> np.ndarray:
+        """A buffer that always holds what a step with these frames returns."""
+        fpt = self._frames_per_token
+        return np.empty((-(-actor.shape[0] // fpt) * fpt, self.frame_dim), np.float32)
+
     def step(self, actor: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
         """Feeds actor frames (float32 [n, frame_dim], n >= 0) and returns the reactor frames that
         became ready ([m, frame_dim]). With `out` (a C-contiguous float32 [k, frame_dim] array),
         frames are written there and a view of its first m rows is returned."""
-        a = _floats(actor, "actor")
-        if a.ndim != 2 or a.shape[1] != self.frame_dim:
-            raise ValueError(f"actor must be [frames, {self.frame_dim}], got {list(a.shape)}")
+        a = self._actor(actor)
         if out is None:
-            fpt = self._frames_per_token
-            out = np.empty((-(-a.shape[0] // fpt) * fpt, self.frame_dim), np.float32)
+            out = self._out_for(a)
         elif out.dtype != np.float32 or not out.flags.c_contiguous or out.ndim != 2 or out.shape[1] != self.frame_dim:
             raise ValueError(f"out must be a C-contiguous float32 [k, {self.frame_dim}] array")
         written = ctypes.c_size_t()

@@ -92,6 +92,8 @@ PROTOTYPES = {
     "troupe_session_new": (status, [model_p, ctypes.POINTER(SessionOptions), ctypes.POINTER(session_p)]),
     "troupe_session_free": (None, [session_p]),
     "troupe_session_step": (status, [session_p, f32p, c_size, f32p, c_size, ctypes.POINTER(c_size)]),
+    "troupe_sessions_step": (status, [ctypes.POINTER(session_p), c_size, ctypes.POINTER(f32p), ctypes.POINTER(c_size),
+                                      ctypes.POINTER(f32p), ctypes.POINTER(c_size), ctypes.POINTER(c_size)]),
     "troupe_session_output_frames": (status, [session_p, c_size, ctypes.POINTER(c_size)]),
     "troupe_session_reset": (status, [session_p]),
     "troupe_session_set_seed": (status, [session_p, ctypes.c_uint64]),
