@@ -118,7 +118,8 @@ class Bundle:
     def state_shapes(self, role: str) -> list[tuple[str, list[int]]]:
         """The explicit convolution states of a VAE step graph, (name, shape), in input order."""
         inputs = self.manifest["graphs"][role]["inputs"]
-        return [(x["name"], x["shape"]) for x in inputs if x["name"].startswith("state_")]
+        one = lambda shape: [1 if isinstance(d, str) else d for d in shape]  # noqa: E731  (B = 1)
+        return [(x["name"], one(x["shape"])) for x in inputs if x["name"].startswith("state_")]
 
     def cache_bytes(self, tokens: int) -> int:
         return 2 * self.layers * self.heads * tokens * self.head_dim * 4
@@ -191,6 +192,7 @@ class OrtStream:
             "tokens": tokens,
             "positions": np.arange(inp.history, dtype=np.int64)[None],
             "modulation": peer.modulation,
+            "key_mask": np.zeros((1, 0), np.float32),  # one stream: nothing to mask
         }
         prefill |= {f"past_{kv}_{i}": empty for i in range(b.layers) for kv in ("key", "value")}
         outputs = [x.name for x in ctx.get_outputs()]
@@ -200,6 +202,7 @@ class OrtStream:
         }
         self.io = ctx.io_binding()
         self.io.bind_cpu_input("modulation", peer.modulation)
+        self.io.bind_cpu_input("key_mask", np.zeros((1, inp.history), np.float32))
         for name, x in self.cache.items():  # OrtValues over self.cache's memory: no copy
             self.io.bind_ortvalue_input(name, ort.OrtValue.ortvalue_from_numpy(x))
         for name in outputs:  # every output, so that ORT computes the presents

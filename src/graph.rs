@@ -8,6 +8,7 @@ use tract_onnx::prelude::*;
 
 use crate::bundle::BundleFiles;
 use crate::error::{Error, Result};
+use crate::logging::{log, Level};
 use crate::manifest::{DType, Dim, GraphSpec, TensorSpec};
 
 /// A loaded, optimised graph whose inputs and outputs are addressed in manifest order.
@@ -30,6 +31,7 @@ impl Graph {
             file: file.clone(),
             message,
         };
+        let started = std::time::Instant::now();
         let model = tract_onnx::onnx()
             .model_for_read(&mut &bytes[..])
             .map_err(|e| bad(format!("not a loadable ONNX model: {e:#}")))?;
@@ -41,6 +43,13 @@ impl Graph {
             .into_optimized()
             .and_then(|m| m.into_runnable())
             .map_err(|e| bad(format!("cannot be optimised: {e:#}")))?;
+        log(Level::Debug, "troupe::load", || {
+            format!(
+                "{}: loaded and optimised in {:.0} ms",
+                file.display(),
+                started.elapsed().as_secs_f64() * 1e3
+            )
+        });
         Ok(Self {
             role,
             plan,

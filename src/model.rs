@@ -10,7 +10,7 @@ use crate::bundle::BundleFiles;
 use crate::error::{Error, Result};
 use crate::graph::{f32_tensor, read_f32, split_rows, stack_rows, Graph};
 use crate::kv_cache::KvCache;
-use crate::manifest::{ArmFlowSpec, Family, Manifest, UmfSpec};
+use crate::manifest::{ArmFlowSpec, Family, GraphSpec, Manifest, UmfSpec};
 use crate::session::{Session, SessionOptions};
 
 /// A loaded bundle: manifest plus optimised graphs. An `armflow` model streams reactions
@@ -93,28 +93,42 @@ impl Model {
         let networks = match &manifest.family {
             Family::Armflow(spec) => {
                 let g = &spec.graphs;
+                let mut wanted = vec![
+                    ("conditioning", &g.conditioning),
+                    ("context_step", &g.context_step),
+                    ("velocity", &g.velocity),
+                    ("vae_encoder", &g.vae_encoder),
+                    ("vae_decoder", &g.vae_decoder),
+                ];
+                if let (Some(e), Some(d)) = (&g.vae_encoder_step, &g.vae_decoder_step) {
+                    wanted.extend([("vae_encoder_step", e), ("vae_decoder_step", d)]);
+                }
+                let mut graphs = load_graphs(&files, &wanted)?.into_iter();
+                let mut next = || graphs.next().expect("one graph per wanted entry");
                 Networks::ArmFlow(Box::new(ArmFlowNetworks {
-                    conditioning: Graph::load("conditioning", &files, &g.conditioning)?,
-                    context_step: Graph::load("context_step", &files, &g.context_step)?,
-                    velocity: Graph::load("velocity", &files, &g.velocity)?,
-                    vae_encoder: Graph::load("vae_encoder", &files, &g.vae_encoder)?,
-                    vae_decoder: Graph::load("vae_decoder", &files, &g.vae_decoder)?,
-                    vae_steps: match (&g.vae_encoder_step, &g.vae_decoder_step) {
-                        (Some(e), Some(d)) => Some((
-                            Graph::load("vae_encoder_step", &files, e)?,
-                            Graph::load("vae_decoder_step", &files, d)?,
-                        )),
-                        _ => None,
-                    },
+                    conditioning: next(),
+                    context_step: next(),
+                    velocity: next(),
+                    vae_encoder: next(),
+                    vae_decoder: next(),
+                    vae_steps: (wanted.len() == 7).then(|| (next(), next())),
                 }))
             }
             Family::Umf(spec) => {
                 let g = &spec.graphs;
+                let wanted = [
+                    ("prior", &g.prior),
+                    ("reaction", &g.reaction),
+                    ("context", &g.context),
+                    ("decoder", &g.decoder),
+                ];
+                let mut graphs = load_graphs(&files, &wanted)?.into_iter();
+                let mut next = || graphs.next().expect("one graph per wanted entry");
                 Networks::Umf(Box::new(UmfNetworks {
-                    prior: Graph::load("prior", &files, &g.prior)?,
-                    reaction: Graph::load("reaction", &files, &g.reaction)?,
-                    context: Graph::load("context", &files, &g.context)?,
-                    decoder: Graph::load("decoder", &files, &g.decoder)?,
+                    prior: next(),
+                    reaction: next(),
+                    context: next(),
+                    decoder: next(),
                 }))
             }
         };
@@ -496,6 +510,33 @@ impl Model {
         }
         Ok(frames)
     }
+}
+
+/// Loads and optimises `wanted` graphs on all cores (optimisation dominates load time and each
+/// graph is independent); returns them in order, or the first error in that order.
+fn load_graphs(files: &BundleFiles, wanted: &[(&'static str, &GraphSpec)]) -> Result<Vec<Graph>> {
+    let workers = std::thread::available_parallelism()
+        .map_or(1, |n| n.get())
+        .min(wanted.len());
+    let next = std::sync::atomic::AtomicUsize::new(0);
+    let mut slots: Vec<Option<Result<Graph>>> = (0..wanted.len()).map(|_| None).collect();
+    let done = std::sync::Mutex::new(&mut slots);
+    std::thread::scope(|scope| {
+        for _ in 0..workers {
+            scope.spawn(|| loop {
+                let i = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                let Some(&(role, spec)) = wanted.get(i) else {
+                    break;
+                };
+                let graph = Graph::load(role, files, spec);
+                done.lock().unwrap_or_else(|e| e.into_inner())[i] = Some(graph);
+            });
+        }
+    });
+    slots
+        .into_iter()
+        .map(|slot| slot.expect("every graph was attempted"))
+        .collect()
 }
 
 fn vae_steps(nets: &ArmFlowNetworks) -> Result<&(Graph, Graph)> {
