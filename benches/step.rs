@@ -1,0 +1,92 @@
+//! The Rust-side benchmark of troupe's streaming step (criterion). The peer comparison
+//! (onnxruntime, torch) is `benches/peers.py`; many streams at once is `examples/crowd.rs`;
+//! `docs/PERFORMANCE.md` has the numbers and the commands.
+//!
+//!     cargo bench --bench step                                   # the committed tiny bundle
+//!     TROUPE_BENCH_BUNDLE=onnx/paper cargo bench --bench step    # paper size (export it first)
+//!     cargo bench --bench step -- --test                         # run each once (CI smoke)
+//!
+//! - `load`: `Model::load` plus a first session.
+//! - `step/history_H`: one full token (4 new actor frames in, 4 reactor frames out) with `H`
+//!   tokens in the context cache (capacity `H + 1`, so the cache stays at H as the stream runs).
+//! - `sessions_step/N`: one round of `step_sessions` over N sessions at history 10, one token
+//!   each; compare with N times `step/history_10`.
+
+use std::hint::black_box;
+use std::path::PathBuf;
+
+use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
+use troupe::{step_sessions, Model, Session, SessionOptions};
+
+fn bundle() -> PathBuf {
+    let root = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
+    std::env::var_os("TROUPE_BENCH_BUNDLE").map_or_else(|| root.join("onnx/armflow-tiny"), PathBuf::from)
+}
+
+/// A smooth synthetic actor frame stream, `frames * dim` floats.
+fn actor(frames: usize, dim: usize) -> Vec<f32> {
+    (0..frames * dim)
+        .map(|i| {
+            let (t, d) = ((i / dim) as f32, (i % dim) as f32);
+            0.5 * (0.1 * t * (1.0 + d % 5.0) + d).sin()
+        })
+        .collect()
+}
+
+/// A session warmed to `history` tokens with capacity `history + 1`.
+fn warm_session(model: &Model, history: usize, seed: u64) -> Session {
+    let mut session = model
+        .session(SessionOptions {
+            seed,
+            context_capacity: Some(history + 1),
+            ..Default::default()
+        })
+        .expect("session");
+    let frames = actor(history * model.frames_per_token(), model.frame_dim());
+    session.step_flat(&frames).expect("warm-up");
+    session
+}
+
+fn benches(c: &mut Criterion) {
+    let path = bundle();
+    let model = Model::load(&path).expect("the benchmark bundle loads");
+    let (dim, fpt) = (model.frame_dim(), model.frames_per_token());
+    let token = actor(fpt, dim);
+
+    c.bench_function("load", |b| {
+        b.iter(|| {
+            let m = Model::load(&path).expect("load");
+            black_box(m.session(SessionOptions::default()).expect("session"))
+        })
+    });
+
+    let mut group = c.benchmark_group("step");
+    for history in [10, 100, 1000, 2000] {
+        let mut session = warm_session(&model, history, 1);
+        group.bench_function(BenchmarkId::from_parameter(format!("history_{history}")), |b| {
+            b.iter(|| black_box(session.step_flat(&token).expect("step")))
+        });
+    }
+    group.finish();
+
+    let mut group = c.benchmark_group("sessions_step");
+    for n in [1, 8, 32] {
+        let mut sessions: Vec<Session> = (0..n).map(|i| warm_session(&model, 10, i)).collect();
+        let chunks = vec![token.as_slice(); n as usize];
+        group.throughput(Throughput::Elements(n));
+        group.bench_function(BenchmarkId::from_parameter(n), |b| {
+            b.iter(|| {
+                let mut refs: Vec<&mut Session> = sessions.iter_mut().collect();
+                black_box(step_sessions(&mut refs, &chunks).expect("batched step"))
+            })
+        });
+    }
+    group.finish();
+}
+
+criterion_group! {
+    name = step;
+    config = Criterion::default().sample_size(20);
+    targets = benches
+}
+criterion_main!(step);
