@@ -1,0 +1,197 @@
+//! A crowd: many reactor streams of one model, each fed a 30 fps actor, and whether the machine
+//! keeps them all in real time. Runs the sessions batched (`step_sessions`: one network call per
+//! graph for all of them) or one by one (`Session::step` each), on one or more threads.
+//!
+//!     cargo run --release --example crowd -- --bundle onnx/paper --sessions 8,32,64 --history 100
+//!
+//! For each crowd size N: N sessions (seeds 0..N, the bundle's context capacity) are warmed to
+//! `--history` tokens, then `--rounds` rounds are timed; a round gives every session one token's
+//! worth of new actor frames (4 frames, 133 ms of motion at 30 fps) and collects its reactor
+//! frames. The crowd is in real time when a round's p99 fits in that 133 ms. With `--threads T`
+//! the crowd is split into T equal parts stepped on T threads. Also reported: resident memory
+//! per session (RSS growth from creating and warming the crowd, divided by N; Linux).
+
+use std::time::Instant;
+
+use troupe::{step_sessions, Model, Session, SessionOptions};
+
+struct Args {
+    bundle: String,
+    sessions: Vec<usize>,
+    history: usize,
+    rounds: usize,
+    threads: usize,
+    modes: Vec<Mode>,
+}
+
+#[derive(Clone, Copy, PartialEq)]
+enum Mode {
+    Batched,
+    Alone,
+}
+
+impl Mode {
+    fn name(self) -> &'static str {
+        match self {
+            Mode::Batched => "batched",
+            Mode::Alone => "one by one",
+        }
+    }
+}
+
+fn parse_args() -> Result<Args, String> {
+    let mut args = Args {
+        bundle: concat!(env!("CARGO_MANIFEST_DIR"), "/onnx/armflow-tiny").into(),
+        sessions: vec![1, 8, 32],
+        history: 100,
+        rounds: 20,
+        threads: 1,
+        modes: vec![Mode::Batched, Mode::Alone],
+    };
+    let mut it = std::env::args().skip(1);
+    while let Some(flag) = it.next() {
+        let mut value = || it.next().ok_or(format!("{flag} needs a value"));
+        let number = |v: String| v.parse::<usize>().map_err(|e| format!("{flag} {v}: {e}"));
+        match flag.as_str() {
+            "--bundle" => args.bundle = value()?,
+            "--sessions" => {
+                args.sessions = value()?
+                    .split(',')
+                    .map(|v| number(v.to_string()))
+                    .collect::<Result<_, _>>()?
+            }
+            "--history" => args.history = number(value()?)?,
+            "--rounds" => args.rounds = number(value()?)?,
+            "--threads" => args.threads = number(value()?)?.max(1),
+            "--mode" => {
+                args.modes = match value()?.as_str() {
+                    "batched" => vec![Mode::Batched],
+                    "alone" => vec![Mode::Alone],
+                    "both" => vec![Mode::Batched, Mode::Alone],
+                    other => return Err(format!("--mode {other}: batched, alone or both")),
+                }
+            }
+            "-h" | "--help" => {
+                println!(
+                    "crowd [--bundle DIR] [--sessions 1,8,32] [--history 100] [--rounds 20] \
+                     [--threads 1] [--mode batched|alone|both]"
+                );
+                std::process::exit(0);
+            }
+            other => return Err(format!("unknown argument {other}")),
+        }
+    }
+    if args.sessions.contains(&0) || args.rounds == 0 {
+        return Err("--sessions and --rounds must be >= 1".into());
+    }
+    Ok(args)
+}
+
+/// A smooth synthetic actor clip, `frames * dim` floats, row-major.
+fn actor(frames: usize, dim: usize) -> Vec<f32> {
+    (0..frames * dim)
+        .map(|i| {
+            let (t, d) = ((i / dim) as f32, (i % dim) as f32);
+            0.5 * (0.1 * t * (1.0 + d % 5.0) + d).sin()
+        })
+        .collect()
+}
+
+/// Resident set size of this process in bytes (0 where /proc is missing).
+fn rss_bytes() -> u64 {
+    std::fs::read_to_string("/proc/self/statm")
+        .ok()
+        .and_then(|s| s.split_whitespace().nth(1)?.parse::<u64>().ok())
+        .map_or(0, |pages| pages * 4096)
+}
+
+/// One round: every session gets `chunk`; the crowd is split over `threads` threads.
+fn round(sessions: &mut [Session], chunk: &[f32], mode: Mode, threads: usize) {
+    let part = sessions.len().div_ceil(threads);
+    std::thread::scope(|scope| {
+        for group in sessions.chunks_mut(part) {
+            scope.spawn(move || match mode {
+                Mode::Batched => {
+                    let mut refs: Vec<&mut Session> = group.iter_mut().collect();
+                    let chunks = vec![chunk; refs.len()];
+                    step_sessions(&mut refs, &chunks).expect("batched step");
+                }
+                Mode::Alone => {
+                    for s in group {
+                        s.step_flat(chunk).expect("step");
+                    }
+                }
+            });
+        }
+    });
+}
+
+fn percentile(sorted: &[f64], p: f64) -> f64 {
+    sorted[((sorted.len() - 1) as f64 * p).round() as usize]
+}
+
+fn main() -> Result<(), Box<dyn std::error::Error>> {
+    let args = parse_args()?;
+    let model = Model::load(&args.bundle)?;
+    let (dim, fpt) = (model.frame_dim(), model.frames_per_token());
+    let budget_ms = 1e3 * fpt as f64 / f64::from(model.fps());
+    let clip = actor((args.history + args.modes.len() * args.rounds + 1) * fpt, dim);
+    println!(
+        "bundle {} ({}): history {} tokens, {} timed rounds of {fpt} frames ({budget_ms:.1} ms of motion), {} thread(s)",
+        args.bundle, model.manifest().name, args.history, args.rounds, args.threads
+    );
+    println!("| sessions | mode | round p50 ms | round p99 ms | per session-token ms | real time | RSS per session MB |");
+    println!("|---|---|---|---|---|---|---|");
+    let mut best = vec![0usize; args.modes.len()];
+    for &n in &args.sessions {
+        let before = rss_bytes();
+        let mut sessions: Vec<Session> = (0..n)
+            .map(|i| {
+                model.session(SessionOptions {
+                    seed: i as u64,
+                    ..Default::default()
+                })
+            })
+            .collect::<Result<_, _>>()?;
+        let warm = &clip[..args.history * fpt * dim];
+        for group in sessions.chunks_mut(64) {
+            let chunks = vec![warm; group.len()];
+            let mut refs: Vec<&mut Session> = group.iter_mut().collect();
+            step_sessions(&mut refs, &chunks)?;
+        }
+        let per_session_mb = (rss_bytes().saturating_sub(before)) as f64 / n as f64 / 1e6;
+        // Both modes continue the same streams; each round advances every stream by a token.
+        let mut fed = args.history;
+        for (m, &mode) in args.modes.iter().enumerate() {
+            let mut times = Vec::with_capacity(args.rounds);
+            for _ in 0..args.rounds {
+                let at = fed * fpt * dim;
+                let chunk = &clip[at..at + fpt * dim];
+                let t = Instant::now();
+                round(&mut sessions, chunk, mode, args.threads);
+                times.push(t.elapsed().as_secs_f64() * 1e3);
+                fed += 1;
+            }
+            times.sort_by(f64::total_cmp);
+            let (p50, p99) = (percentile(&times, 0.5), percentile(&times, 0.99));
+            let real_time = p99 <= budget_ms;
+            if real_time {
+                best[m] = best[m].max(n);
+            }
+            println!(
+                "| {n} | {} | {p50:.2} | {p99:.2} | {:.3} | {} | {per_session_mb:.2} |",
+                mode.name(),
+                p50 / n as f64,
+                if real_time { "yes" } else { "no" }
+            );
+        }
+    }
+    for (m, mode) in args.modes.iter().enumerate() {
+        println!(
+            "largest crowd in real time, {}: {} of the sizes tried",
+            mode.name(),
+            best[m]
+        );
+    }
+    Ok(())
+}
