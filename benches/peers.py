@@ -376,10 +376,13 @@ def read_bandwidth() -> dict:
     return out
 
 
-def run_troupe(binary: str, bundle: Path, history: int, steps: int) -> dict:
+def run_troupe(binary: str, bundle: Path, history: int, steps: int, bounded: bool = False) -> dict:
+    """troupe's stream at `history`: the cache holds all H tokens (capacity H + 1), or with
+    `bounded` the bundle's own capacity (the oldest pairs slide out)."""
     with tempfile.TemporaryDirectory() as tmp:
+        capacity = [] if bounded else ["--capacity", str(history + 1)]
         cmd = [
-            binary, "--bundle", str(bundle), "--capacity", str(history + 1),
+            binary, "--bundle", str(bundle), *capacity,
             "--warmup-tokens", str(history), "--frames", str(4 * (history + steps)), "--tick", "4",
             "--out", str(Path(tmp) / "reactor.npy"),
         ]
@@ -389,6 +392,18 @@ def run_troupe(binary: str, bundle: Path, history: int, steps: int) -> dict:
     if not m or not load:
         sys.exit(f"cannot parse the output of {' '.join(cmd)}:\n{out}")
     return {"n": int(m[1]), "p50": float(m[2]), "p99": float(m[3]), "load_ms": float(load[1])}
+
+
+def troupe_first_step(binary: str, bundle: Path) -> dict:
+    """A fresh process: `Model::load` and a session (troupe's own report), then the first token."""
+    with tempfile.TemporaryDirectory() as tmp:
+        cmd = [binary, "--bundle", str(bundle), "--frames", "4", "--tick", "4", "--out", str(Path(tmp) / "r.npy")]
+        out = subprocess.run(cmd, capture_output=True, text=True, check=True).stdout
+    load = re.search(r"loaded in ([\d.]+) ms", out)
+    first = re.search(r"every call \(1 calls\): p50 ([\d.]+) ms", out)
+    if not load or not first:
+        sys.exit(f"cannot parse the output of {' '.join(cmd)}:\n{out}")
+    return {"load_ms": float(load[1]), "first_step_ms": float(first[1])}
 
 
 # --------------------------------------------------------------------------------------------
@@ -407,14 +422,15 @@ def check_agreement(first: dict) -> dict:
 
 
 def table(s: dict) -> str:
-    troupe, peers = s["troupe"], s["peers"]
-    head = ["history"] + (["troupe p50 / p99 ms"] if troupe else [])
+    troupe, peers, bounded = s["troupe"], s["peers"], s["troupe_bounded"]
+    head = ["history"] + ([f"troupe bounded ({s['capacity']}) p50 / p99 ms", "troupe p50 / p99 ms"] if troupe else [])
     for p in peers:
         head += [f"{p} p50 / p99 ms"] + ([f"{p} / troupe"] if troupe else [])
     lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     for h, results in s["results"].items():
         row = [str(h)]
         if troupe:
+            row.append(f"{bounded[h]['p50']:.2f} / {bounded[h]['p99']:.2f}")
             row.append(f"{troupe[h]['p50']:.2f} / {troupe[h]['p99']:.2f}")
         for p in peers:
             r = results[p]
@@ -435,8 +451,16 @@ def print_report(s: dict):
     print("versions: " + ", ".join(s["versions"]))
     if s["ort_load_ms"] is not None:
         print(f"ORT load (5 sessions + conditioning run): {s['ort_load_ms']:.0f} ms")
+    if s["ort_load_ms"] is not None:
+        print(f"ORT load to first step: {s['ort_load_ms'] + results[first]['ort']['first_step_ms']:.0f} ms "
+              f"(load {s['ort_load_ms']:.0f} + first step at H={first})")
     if troupe:
-        print(f"troupe load (Model::load + session, its own report): {troupe[first]['load_ms']:.0f} ms")
+        f = s["troupe_first"]
+        print(f"troupe load to first step (fresh process, Model::load + session + first token): "
+              f"{f['load_ms'] + f['first_step_ms']:.0f} ms (load {f['load_ms']:.0f} + {f['first_step_ms']:.1f})")
+        b = s["troupe_bounded"]
+        print(f"troupe bounded, step at H={last} / step at H={first}: "
+              f"p50 {b[last]['p50'] / b[first]['p50']:.2f}x, p99 {b[last]['p99'] / b[first]['p99']:.2f}x")
     print(f"first full step (H={first}): "
           + ", ".join(f"{n} {r['first_step_ms']:.2f} ms" for n, r in results[first].items()))
     if s["velocity_agreement"]:
@@ -491,9 +515,11 @@ def main():
             agreement = check_agreement(results[h])
         for r in results[h].values():
             r.pop("first_velocity", None)
-    troupe = None
+    troupe = bounded = first = None
     if args.troupe_binary:
         troupe = {h: run_troupe(args.troupe_binary, args.bundle, h, args.steps) for h in histories}
+        bounded = {h: run_troupe(args.troupe_binary, args.bundle, h, args.steps, bounded=True) for h in histories}
+        first = troupe_first_step(args.troupe_binary, args.bundle)
     weights = weight_bytes(b)
     bandwidth = read_bandwidth()
 
@@ -506,7 +532,8 @@ def main():
         "weights_bytes": weights, "read_bandwidth_bytes_per_s": bandwidth,
         "bandwidth_bound_ms": sum(weights.values()) / max(bandwidth.values()) * 1e3,
         "kv_cache_bytes_at_last": b.cache_bytes(histories[-1]),
-        "results": results, "troupe": troupe,
+        "results": results, "troupe": troupe, "troupe_bounded": bounded, "troupe_first": first,
+        "capacity": b.manifest["context"]["capacity_tokens"],
     }
     print_report(summary)
     if args.json:
