@@ -20,7 +20,8 @@ use troupe::{step_sessions, Model, Session, SessionOptions};
 
 fn bundle() -> PathBuf {
     let root = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
-    std::env::var_os("TROUPE_BENCH_BUNDLE").map_or_else(|| root.join("onnx/armflow-tiny"), PathBuf::from)
+    std::env::var_os("TROUPE_BENCH_BUNDLE")
+        .map_or_else(|| root.join("onnx/armflow-tiny"), PathBuf::from)
 }
 
 /// A smooth synthetic actor frame stream, `frames * dim` floats.
@@ -63,9 +64,10 @@ fn benches(c: &mut Criterion) {
     let mut group = c.benchmark_group("step");
     for history in [10, 100, 1000, 2000] {
         let mut session = warm_session(&model, history, 1);
-        group.bench_function(BenchmarkId::from_parameter(format!("history_{history}")), |b| {
-            b.iter(|| black_box(session.step_flat(&token).expect("step")))
-        });
+        group.bench_function(
+            BenchmarkId::from_parameter(format!("history_{history}")),
+            |b| b.iter(|| black_box(session.step_flat(&token).expect("step"))),
+        );
     }
     group.finish();
 

@@ -135,7 +135,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let model = Model::load(&args.bundle)?;
     let (dim, fpt) = (model.frame_dim(), model.frames_per_token());
     let budget_ms = 1e3 * fpt as f64 / f64::from(model.fps());
-    let clip = actor((args.history + args.modes.len() * args.rounds + 1) * fpt, dim);
+    let clip = actor(
+        (args.history + args.modes.len() * args.rounds + 1) * fpt,
+        dim,
+    );
     println!(
         "bundle {} ({}): history {} tokens, {} timed rounds of {fpt} frames ({budget_ms:.1} ms of motion), {} thread(s)",
         args.bundle, model.manifest().name, args.history, args.rounds, args.threads

@@ -212,6 +212,35 @@ class Session {
     std::size_t dim_ = 0;
 };
 
+/// Advances many sessions of one model in one call (`troupe_sessions_step`, which reads the
+/// weights once per token for all of them): `sessions[i]` gets `n_actor_frames[i]` frames from
+/// `actor[i]`, and `out[i]` becomes its reactor frames (`[m_i][frame_dim]`). On error every
+/// session and `out` are unchanged. The sessions must not be used by other threads meanwhile.
+inline Status step_sessions(const std::vector<Session *> &sessions, const std::vector<const float *> &actor,
+                            const std::vector<std::size_t> &n_actor_frames, std::vector<std::vector<float>> &out) {
+    const std::size_t n = sessions.size();
+    std::vector<troupe_session *> handles(n);
+    std::vector<std::vector<float>> fresh(n);
+    std::vector<float *> buffers(n);
+    std::vector<std::size_t> capacity(n), written(n);
+    // Mismatched arrays are described to the library as a NULL array, which it rejects by name.
+    const bool sizes_match = actor.size() == n && n_actor_frames.size() == n;
+    for (std::size_t i = 0; i < n && sizes_match; i++) {
+        handles[i] = sessions[i] ? sessions[i]->get() : nullptr;
+        if (handles[i] && sessions[i]->output_frames(n_actor_frames[i], capacity[i]).ok())
+            fresh[i].resize(capacity[i] * sessions[i]->frame_dim());
+        buffers[i] = fresh[i].data();
+    }
+    Status s = Status::from(troupe_sessions_step(handles.data(), n, sizes_match ? actor.data() : nullptr,
+                                                 sizes_match ? n_actor_frames.data() : nullptr, buffers.data(),
+                                                 capacity.data(), written.data()));
+    if (s.ok()) {
+        for (std::size_t i = 0; i < n; i++) fresh[i].resize(written[i] * sessions[i]->frame_dim());
+        out = std::move(fresh);
+    }
+    return s;
+}
+
 }  // namespace troupe
 
 #endif  // TROUPE_HPP

@@ -50,6 +50,27 @@ int main(int argc, char **argv) {
     CHECK(run(moved, actor, frames) == ra);
     CHECK(!b.reset() && b.reset().code() == TROUPE_ERR_NULL_ARG);
 
+    // Many sessions in one call: each equals the session stepped alone.
+    {
+        troupe::Session c1, c2;
+        CHECK(troupe::Session::create(model, &opt, c1).ok() && troupe::Session::create(model, &opt, c2).ok());
+        std::vector<std::vector<float>> outs, crowd(2);
+        for (std::size_t t = 0; t < frames; t += 4) {
+            CHECK(troupe::step_sessions({&c1, &c2}, {&actor[t * dim], &actor[t * dim]}, {4, 4}, outs).ok());
+            for (std::size_t k = 0; k < 2; k++) crowd[k].insert(crowd[k].end(), outs[k].begin(), outs[k].end());
+        }
+        float worst = 0.0f;
+        for (std::size_t k = 0; k < 2; k++) {
+            CHECK(crowd[k].size() == ra.size());
+            for (std::size_t i = 0; i < ra.size() && crowd[k].size() == ra.size(); i++)
+                worst = std::fmax(worst, std::fabs(crowd[k][i] - ra[i]));
+        }
+        CHECK(worst <= 1e-5f);
+        troupe::Status dup = troupe::step_sessions({&c1, &c1}, {actor.data(), actor.data()}, {4, 4}, outs);
+        CHECK(dup.code() == TROUPE_ERR_INVALID_ARG && outs.size() == 2);
+        CHECK(troupe::step_sessions({&c1, &c2}, {actor.data()}, {4, 4}, outs).code() == TROUPE_ERR_NULL_ARG);
+    }
+
     std::vector<float> cond(model.condition_dim() + 1, 0.0f);
     CHECK(a.set_condition(cond.data(), cond.size()).code() == TROUPE_ERR_SHAPE);
     CHECK(a.reset().ok());
