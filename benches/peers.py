@@ -53,6 +53,10 @@ thread; the GEMV is the batch-1 step's own access pattern, and reads 1.2-1.6x fa
 `sum` on the 2-core dev machine): roughly the least a batch-1 step can take when every weight streams from memory once
 (weights still in cache can beat it).
 
+Crowd (`--crowd 4,8`): N ORT streams at the first history, stepped one after another, 10 timed
+rounds of one token each; a crowd is real time when a round's p99 fits in 4 frames at 30 fps
+(133 ms). troupe's crowds, batched and one by one, are `examples/crowd.rs`.
+
 Check (with two peers or more): at the first history every peer's first full step runs on
 identical inputs (same cache tokens, zero VAE states, same frames and noise); their velocity
 outputs must agree within 1e-3, so the benchmark cannot silently time a wrong loop.
@@ -346,6 +350,25 @@ def run_peer(peer, inp: Inputs, steps: int) -> dict:
     }
 
 
+def run_crowd(peer, inp: Inputs, sizes: list[int], rounds: int) -> dict:
+    """N streams of `peer` at the history, stepped one by one: each round gives every stream one
+    token (4 frames, 133 ms of motion at 30 fps). Returns round p50 / p99 ms per N."""
+    out = {}
+    for n in sizes:
+        streams = [peer.new_stream(inp) for _ in range(n)]
+        times = []
+        for k in range(WARMUP_STEPS + rounds):
+            t0 = time.perf_counter()
+            for stream in streams:
+                stream.step(inp.frames[k], inp.xi[k], inp.eps[k])
+            if k >= WARMUP_STEPS:
+                times.append((time.perf_counter() - t0) * 1e3)
+        out[n] = percentiles(times)
+        del streams
+        gc.collect()
+    return out
+
+
 def weight_bytes(b: Bundle) -> dict:
     import onnx
     from onnx.helper import tensor_dtype_to_np_dtype
@@ -477,6 +500,11 @@ def print_report(s: dict):
         print(f"RSS growth per added stream at H={h} (state held): " + ", ".join(
             f"{n} {r['rss_per_stream_bytes'] / 1e6:+.1f} MB ({r['state_bytes'] / 1e6:.1f} MB)"
             for n, r in by_peer.items()))
+    if s["ort_crowd"]:
+        budget = 1e3 * 4 / 30
+        for n, r in s["ort_crowd"].items():
+            print(f"ORT crowd of {n} at H={first}, one by one: round p50 {r['p50']:.1f} ms, p99 {r['p99']:.1f} ms "
+                  f"({'real time' if r['p99'] <= budget else 'not real time'}: budget {budget:.1f} ms)")
     print(f"(KV cache alone at H={last}: {s['kv_cache_bytes_at_last'] / 1e6:.1f} MB; "
           "RSS growth is approximate: allocators reuse memory freed by the first stream)")
 
@@ -490,6 +518,8 @@ def main():
     ap.add_argument("--peers", default=",".join(PEERS), help=f"comma-separated, of {', '.join(PEERS)}")
     ap.add_argument("--troupe-binary", help="the built examples/stream, to time troupe as well")
     ap.add_argument("--json", type=Path, help="also write the results here")
+    ap.add_argument("--crowd", help="comma-separated crowd sizes: time ORT streams stepped one by one "
+                    "at the first history (compare with examples/crowd.rs)")
     args = ap.parse_args()
     histories = [int(h) for h in args.histories.split(",")]
     peer_names = args.peers.split(",")
@@ -515,6 +545,10 @@ def main():
             agreement = check_agreement(results[h])
         for r in results[h].values():
             r.pop("first_velocity", None)
+    crowd = None
+    if args.crowd and "ort" in peers:
+        sizes = [int(n) for n in args.crowd.split(",")]
+        crowd = run_crowd(peers["ort"], Inputs(b, histories[0], WARMUP_STEPS + 10), sizes, 10)
     troupe = bounded = first = None
     if args.troupe_binary:
         troupe = {h: run_troupe(args.troupe_binary, args.bundle, h, args.steps) for h in histories}
@@ -533,7 +567,7 @@ def main():
         "bandwidth_bound_ms": sum(weights.values()) / max(bandwidth.values()) * 1e3,
         "kv_cache_bytes_at_last": b.cache_bytes(histories[-1]),
         "results": results, "troupe": troupe, "troupe_bounded": bounded, "troupe_first": first,
-        "capacity": b.manifest["context"]["capacity_tokens"],
+        "capacity": b.manifest["context"]["capacity_tokens"], "ort_crowd": crowd,
     }
     print_report(summary)
     if args.json:

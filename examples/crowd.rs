@@ -8,8 +8,10 @@
 //! `--history` tokens, then `--rounds` rounds are timed; a round gives every session one token's
 //! worth of new actor frames (4 frames, 133 ms of motion at 30 fps) and collects its reactor
 //! frames. The crowd is in real time when a round's p99 fits in that 133 ms. With `--threads T`
-//! the crowd is split into T equal parts stepped on T threads. Also reported: resident memory
-//! per session (RSS growth from creating and warming the crowd, divided by N; Linux).
+//! the crowd is split into T equal parts stepped on T threads. Also reported: the memory a
+//! session holds (`Session::memory_bytes`, the largest in the crowd) and the RSS growth from
+//! creating and warming the crowd divided by N (Linux; it includes allocator slack and what the
+//! warm-up's batched calls left behind, so it is an upper bound).
 
 use std::time::Instant;
 
@@ -143,8 +145,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         "bundle {} ({}): history {} tokens, {} timed rounds of {fpt} frames ({budget_ms:.1} ms of motion), {} thread(s)",
         args.bundle, model.manifest().name, args.history, args.rounds, args.threads
     );
-    println!("| sessions | mode | round p50 ms | round p99 ms | per session-token ms | real time | RSS per session MB |");
-    println!("|---|---|---|---|---|---|---|");
+    println!("| sessions | mode | round p50 ms | round p99 ms | per session-token ms | real time | held per session MB | RSS per session MB |");
+    println!("|---|---|---|---|---|---|---|---|");
     let mut best = vec![0usize; args.modes.len()];
     for &n in &args.sessions {
         let before = rss_bytes();
@@ -163,6 +165,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             step_sessions(&mut refs, &chunks)?;
         }
         let per_session_mb = (rss_bytes().saturating_sub(before)) as f64 / n as f64 / 1e6;
+        let held_mb = sessions
+            .iter()
+            .map(Session::memory_bytes)
+            .max()
+            .unwrap_or(0) as f64
+            / 1e6;
         // Both modes continue the same streams; each round advances every stream by a token.
         let mut fed = args.history;
         for (m, &mode) in args.modes.iter().enumerate() {
@@ -182,7 +190,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 best[m] = best[m].max(n);
             }
             println!(
-                "| {n} | {} | {p50:.2} | {p99:.2} | {:.3} | {} | {per_session_mb:.2} |",
+                "| {n} | {} | {p50:.2} | {p99:.2} | {:.3} | {} | {held_mb:.2} | {per_session_mb:.2} |",
                 mode.name(),
                 p50 / n as f64,
                 if real_time { "yes" } else { "no" }

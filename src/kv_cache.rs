@@ -46,6 +46,11 @@ impl KvCache {
         self.len
     }
 
+    /// Bytes of keys and values held.
+    pub(crate) fn bytes(&self) -> usize {
+        self.tensors.iter().map(|t| t.len() * 4).sum()
+    }
+
     /// Takes the `present_*` outputs of a step that appended `added` entries.
     pub(crate) fn replace(&mut self, present: Vec<TValue>, added: usize) -> Result<()> {
         let want = [1, self.heads, self.len + added, self.head_dim];

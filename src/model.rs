@@ -54,6 +54,17 @@ pub(crate) struct VaeState {
     decoder: Vec<TValue>,
 }
 
+impl VaeState {
+    /// Bytes of convolution state held.
+    pub(crate) fn bytes(&self) -> usize {
+        self.encoder
+            .iter()
+            .chain(&self.decoder)
+            .map(|t| t.len() * 4)
+            .sum()
+    }
+}
+
 /// The graphs of a `umf` bundle (used by [`crate::group`]).
 #[derive(Debug)]
 pub(crate) struct UmfNetworks {

@@ -205,6 +205,7 @@ fn long_stream_runs_in_bounded_context() {
     });
     let actor = actor();
     let mut emitted = 0;
+    let mut held = Vec::new();
     for lap in 0..5 {
         for chunk in actor.axis_chunks_iter(ndarray::Axis(0), 16) {
             let out = s.step(chunk).unwrap();
@@ -216,7 +217,16 @@ fn long_stream_runs_in_bounded_context() {
             "lap {lap}: {} entries",
             s.context_len()
         );
+        held.push(s.memory_bytes());
     }
+    // Memory stops growing once the cache is full: laps 2.. hold no more than lap 1.
+    assert!(held[2..].iter().all(|&b| b <= held[1]), "{held:?}");
+    let c = &model().armflow_spec().unwrap().context;
+    let kv = capacity * 2 * c.layers * c.heads * c.head_dim * 4;
+    assert!(
+        held[4] >= kv && held[4] < kv + 1_000_000,
+        "{held:?} vs cache {kv}"
+    );
     assert_eq!(s.context_len(), capacity);
     assert_eq!(emitted as u64, s.frames_emitted());
     assert_eq!(s.frames_received(), 5 * actor.nrows() as u64);

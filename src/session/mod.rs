@@ -335,6 +335,23 @@ impl Session {
         self.state.tokens
     }
 
+    /// Bytes this stream holds: its context cache, VAE state, buffered frames and latents, and
+    /// its conditioning. Bounded by the context capacity however long the stream runs (allocator
+    /// overhead and the model's weights, shared by all sessions, are not counted).
+    pub fn memory_bytes(&self) -> usize {
+        let st = &self.state;
+        let floats = st.actor_frames.capacity()
+            + st.last_pair.capacity()
+            + st.reactor_latents.iter().map(Vec::capacity).sum::<usize>()
+            + st.injected.len() * 2 * self.model.latent_dim()
+            + self.conditioning.modulation.len()
+            + self.conditioning.start_token.len();
+        std::mem::size_of::<Self>()
+            + st.cache.bytes()
+            + st.vae.as_ref().map_or(0, VaeState::bytes)
+            + floats * std::mem::size_of::<f32>()
+    }
+
     /// Entries held in the context cache (`<sos>` included); never above the capacity.
     pub fn context_len(&self) -> usize {
         self.state.cache.len()
