@@ -196,7 +196,7 @@ pub(crate) fn stack_rows(role: &'static str, rows: &[&TValue]) -> Result<TValue>
     let shape = first.shape().to_vec();
     let mut data = Vec::with_capacity(rows.len() * first.len());
     for row in rows {
-        data.extend_from_slice(read_f32(role, "state", row, &shape)?);
+        data.extend_from_slice(read_f32(role, "batch row", row, &shape)?);
     }
     let mut batched = shape;
     batched[0] = rows.len();
@@ -210,7 +210,7 @@ pub(crate) fn split_rows(role: &'static str, batch: TValue, rows: usize) -> Resu
         return Ok(vec![batch]);
     }
     let mut shape = batch.shape().to_vec();
-    let all = read_f32(role, "state", &batch, &shape)?;
+    let all = read_f32(role, "batch", &batch, &shape)?;
     let per_row = all.len() / rows.max(1);
     shape[0] = 1;
     Ok(all

@@ -111,7 +111,11 @@ impl Model {
                     ("vae_encoder", &g.vae_encoder),
                     ("vae_decoder", &g.vae_decoder),
                 ];
-                if let (Some(e), Some(d)) = (&g.vae_encoder_step, &g.vae_decoder_step) {
+                let steps = match (&g.vae_encoder_step, &g.vae_decoder_step) {
+                    (Some(e), Some(d)) => Some((e, d)),
+                    _ => None,
+                };
+                if let Some((e, d)) = steps {
                     wanted.extend([("vae_encoder_step", e), ("vae_decoder_step", d)]);
                 }
                 let mut graphs = load_graphs(&files, &wanted)?.into_iter();
@@ -122,7 +126,7 @@ impl Model {
                     velocity: next(),
                     vae_encoder: next(),
                     vae_decoder: next(),
-                    vae_steps: (wanted.len() == 7).then(|| (next(), next())),
+                    vae_steps: steps.map(|_| (next(), next())),
                 }))
             }
             Family::Umf(spec) => {

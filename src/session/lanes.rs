@@ -44,7 +44,7 @@ impl<'s> Lane<'s> {
     }
 
     fn spec(&self) -> &'s ArmFlowSpec {
-        &self.session.spec
+        self.session.spec()
     }
 
     /// Whether the frames received cover the next token (and the encoder's lookahead).
@@ -93,7 +93,7 @@ pub(super) fn advance(model: &Model, lanes: &mut [Lane], chunks: &[&[f32]]) -> R
         }
     }
     for lane in lanes {
-        lane.state.trim(&lane.session.spec, dim);
+        lane.state.trim(lane.session.spec(), dim);
     }
     Ok(())
 }

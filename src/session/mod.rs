@@ -127,8 +127,6 @@ pub struct Session {
     conditioning: Conditioning,
     grid: Vec<f32>,
     state: StreamState,
-    /// The bundle's `armflow` fields (checked when the session was made).
-    spec: ArmFlowSpec,
     /// The VAE steps' zero state, when the session uses step graphs rather than windows.
     vae_start: Option<VaeState>,
 }
@@ -143,11 +141,9 @@ pub fn meanflow_grid(steps: u32) -> Vec<f32> {
 
 impl Session {
     pub(crate) fn new(model: Model, options: SessionOptions) -> Result<Self> {
-        let spec = model
+        let m = model
             .armflow_spec()
-            .cloned()
             .ok_or_else(|| model.wrong_family("armflow", "a streaming session"))?;
-        let m = &spec;
         let settings = Settings {
             seed: options.seed,
             steps: options.steps.unwrap_or(m.sampler.steps),
@@ -174,12 +170,18 @@ impl Session {
         Ok(Self {
             conditioning: model.conditioning(settings.condition.as_deref())?,
             grid: meanflow_grid(settings.steps),
-            state: StreamState::new(&spec, vae_start.clone()),
+            state: StreamState::new(m, vae_start.clone()),
             vae_start,
             settings,
             model,
-            spec,
         })
+    }
+
+    /// The bundle's `armflow` fields (the family was checked when the session was made).
+    fn spec(&self) -> &ArmFlowSpec {
+        self.model
+            .armflow_spec()
+            .expect("a session is only made for an armflow model")
     }
 
     /// Whether this session runs the bundle's per-token VAE steps (O(1) per token) rather than
@@ -243,7 +245,7 @@ impl Session {
     /// Returns the session to the state of a fresh session with the current settings (seed,
     /// steps, CFG, condition, capacity). Queued noise is dropped.
     pub fn reset(&mut self) {
-        self.state = StreamState::new(&self.spec, self.vae_start.clone());
+        self.state = StreamState::new(self.spec(), self.vae_start.clone());
     }
 
     /// Sets the noise seed; applies to tokens generated from now on.
@@ -309,7 +311,7 @@ impl Session {
 
     /// Exactly how many reactor frames a `step` with `n_actor_frames` new frames will return.
     pub fn frames_ready_after(&self, n_actor_frames: usize) -> usize {
-        let m = &self.spec;
+        let m = self.spec();
         let fpt = m.latent.frames_per_token as u64;
         let received = self
             .state
