@@ -18,20 +18,14 @@ use std::path::PathBuf;
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
 use troupe::{step_sessions, Model, Session, SessionOptions};
 
+#[path = "../examples/common/mod.rs"]
+mod common;
+use common::synthetic_actor;
+
 fn bundle() -> PathBuf {
     let root = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
     std::env::var_os("TROUPE_BENCH_BUNDLE")
         .map_or_else(|| root.join("onnx/armflow-tiny"), PathBuf::from)
-}
-
-/// A smooth synthetic actor frame stream, `frames * dim` floats.
-fn actor(frames: usize, dim: usize) -> Vec<f32> {
-    (0..frames * dim)
-        .map(|i| {
-            let (t, d) = ((i / dim) as f32, (i % dim) as f32);
-            0.5 * (0.1 * t * (1.0 + d % 5.0) + d).sin()
-        })
-        .collect()
 }
 
 /// A session warmed to `history` tokens with capacity `history + 1`.
@@ -43,8 +37,8 @@ fn warm_session(model: &Model, history: usize, seed: u64) -> Session {
             ..Default::default()
         })
         .expect("session");
-    let frames = actor(history * model.frames_per_token(), model.frame_dim());
-    session.step_flat(&frames).expect("warm-up");
+    let frames = synthetic_actor(history * model.frames_per_token(), model.frame_dim());
+    session.step(frames.view()).expect("warm-up");
     session
 }
 
@@ -52,7 +46,8 @@ fn benches(c: &mut Criterion) {
     let path = bundle();
     let model = Model::load(&path).expect("the benchmark bundle loads");
     let (dim, fpt) = (model.frame_dim(), model.frames_per_token());
-    let token = actor(fpt, dim);
+    let token = synthetic_actor(fpt, dim);
+    let token = token.as_slice().expect("standard layout");
 
     c.bench_function("load", |b| {
         b.iter(|| {
@@ -66,7 +61,7 @@ fn benches(c: &mut Criterion) {
         let mut session = warm_session(&model, history, 1);
         group.bench_function(
             BenchmarkId::from_parameter(format!("history_{history}")),
-            |b| b.iter(|| black_box(session.step_flat(&token).expect("step"))),
+            |b| b.iter(|| black_box(session.step_flat(token).expect("step"))),
         );
     }
     group.finish();
@@ -74,7 +69,7 @@ fn benches(c: &mut Criterion) {
     let mut group = c.benchmark_group("sessions_step");
     for n in [1, 8, 32] {
         let mut sessions: Vec<Session> = (0..n).map(|i| warm_session(&model, 10, i)).collect();
-        let chunks = vec![token.as_slice(); n as usize];
+        let chunks = vec![token; n as usize];
         group.throughput(Throughput::Elements(n));
         group.bench_function(BenchmarkId::from_parameter(n), |b| {
             b.iter(|| {

@@ -17,6 +17,9 @@ use std::time::Instant;
 
 use troupe::{step_sessions, Model, Session, SessionOptions};
 
+mod common;
+use common::{percentile, synthetic_actor};
+
 struct Args {
     bundle: String,
     sessions: Vec<usize>,
@@ -89,16 +92,6 @@ fn parse_args() -> Result<Args, String> {
     Ok(args)
 }
 
-/// A smooth synthetic actor clip, `frames * dim` floats, row-major.
-fn actor(frames: usize, dim: usize) -> Vec<f32> {
-    (0..frames * dim)
-        .map(|i| {
-            let (t, d) = ((i / dim) as f32, (i % dim) as f32);
-            0.5 * (0.1 * t * (1.0 + d % 5.0) + d).sin()
-        })
-        .collect()
-}
-
 /// Resident set size of this process in bytes (0 where /proc is missing).
 fn rss_bytes() -> u64 {
     std::fs::read_to_string("/proc/self/statm")
@@ -128,19 +121,16 @@ fn round(sessions: &mut [Session], chunk: &[f32], mode: Mode, threads: usize) {
     });
 }
 
-fn percentile(sorted: &[f64], p: f64) -> f64 {
-    sorted[((sorted.len() - 1) as f64 * p).round() as usize]
-}
-
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args = parse_args()?;
     let model = Model::load(&args.bundle)?;
     let (dim, fpt) = (model.frame_dim(), model.frames_per_token());
     let budget_ms = 1e3 * fpt as f64 / f64::from(model.fps());
-    let clip = actor(
+    let clip = synthetic_actor(
         (args.history + args.modes.len() * args.rounds + 1) * fpt,
         dim,
     );
+    let clip = clip.as_slice().expect("standard layout");
     println!(
         "bundle {} ({}): history {} tokens, {} timed rounds of {fpt} frames ({budget_ms:.1} ms of motion), {} thread(s)",
         args.bundle, model.manifest().name, args.history, args.rounds, args.threads

@@ -19,6 +19,9 @@ use ndarray::{s, Array2};
 use ndarray_npy::{read_npy, write_npy};
 use troupe::{Model, SessionOptions};
 
+mod common;
+use common::{percentile, synthetic_actor};
+
 struct Args {
     bundle: String,
     actor: Option<String>,
@@ -63,21 +66,6 @@ fn parse_args() -> Result<Args, String> {
         }
     }
     Ok(a)
-}
-
-/// A smooth, deterministic stand-in for mocap: every feature a slow sinusoid of its own.
-fn synthetic_actor(frames: usize, dim: usize) -> Array2<f32> {
-    Array2::from_shape_fn((frames, dim), |(t, d)| {
-        let freq = 0.2 + 1.8 * ((d as f32 * 0.618_034).fract());
-        0.5 * (std::f32::consts::TAU * freq * t as f32 / 30.0 + d as f32).sin()
-    })
-}
-
-fn percentile(sorted: &[f64], p: f64) -> f64 {
-    if sorted.is_empty() {
-        return f64::NAN;
-    }
-    sorted[((sorted.len() - 1) as f64 * p).round() as usize]
 }
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {

@@ -484,14 +484,7 @@ impl Model {
         let mut out = encoder.run(inputs)?;
         let mean = read_f32("vae_encoder_step", "mean", &out[0], &[b, 1, lat])?.to_vec();
         let logvar = read_f32("vae_encoder_step", "logvar", &out[1], &[b, 1, lat])?.to_vec();
-        for (i, next) in out.split_off(2).into_iter().enumerate() {
-            for (state, row) in states
-                .iter_mut()
-                .zip(split_rows("vae_encoder_step", next, b)?)
-            {
-                state.encoder[i] = row;
-            }
-        }
+        unstack_states(states, out.split_off(2), |s| &mut s.encoder)?;
         Ok((mean, logvar))
     }
 
@@ -515,14 +508,7 @@ impl Model {
             &[b, fpt, self.frame_dim()],
         )?
         .to_vec();
-        for (i, next) in out.split_off(1).into_iter().enumerate() {
-            for (state, row) in states
-                .iter_mut()
-                .zip(split_rows("vae_decoder_step", next, b)?)
-            {
-                state.decoder[i] = row;
-            }
-        }
+        unstack_states(states, out.split_off(1), |s| &mut s.decoder)?;
         Ok(frames)
     }
 }
@@ -572,6 +558,21 @@ fn stack_states(
             stack_rows("vae_step", &rows)
         })
         .collect()
+}
+
+/// The inverse of [`stack_states`]: gives each stream its row of every `next_state_i`.
+fn unstack_states(
+    states: &mut [&mut VaeState],
+    next: Vec<TValue>,
+    part: impl Fn(&mut VaeState) -> &mut Vec<TValue>,
+) -> Result<()> {
+    let b = states.len();
+    for (i, batch) in next.into_iter().enumerate() {
+        for (state, row) in states.iter_mut().zip(split_rows("vae_step", batch, b)?) {
+            part(state)[i] = row;
+        }
+    }
+    Ok(())
 }
 
 /// Rejects NaN and infinities, naming the first offending index.

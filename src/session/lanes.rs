@@ -188,8 +188,8 @@ fn posteriors(model: &Model, lanes: &mut [&mut Lane]) -> Result<(Vec<f32>, Vec<f
     let (dim, lat) = (model.frame_dim(), model.latent_dim());
     let mut mean = vec![0f32; lanes.len() * lat];
     let mut logvar = vec![0f32; lanes.len() * lat];
-    let token_start = |l: &Lane| l.state.tokens * l.spec().latent.frames_per_token as u64;
     let fpt = model.frames_per_token() as u64;
+    let token_start = |l: &Lane| l.state.tokens * fpt;
 
     let stepping: Vec<usize> = (0..lanes.len())
         .filter(|&i| lanes[i].state.vae.is_some())

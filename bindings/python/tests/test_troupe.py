@@ -167,6 +167,9 @@ def test_many_sessions_in_one_call_equal_each_alone(model):
         troupe.step_sessions([crowd[0], crowd[0]], [x[:4], x[:4]])
     with pytest.raises(ValueError):
         troupe.step_sessions(crowd, [np.zeros((4, 5), np.float32)] * 3)
+    for wrong in ([x[:4]] * 2, [x[:4]] * 4):  # one array per session, no more, no fewer
+        with pytest.raises(ValueError, match="3 sessions but"):
+            troupe.step_sessions(crowd, wrong)
     outs = troupe.step_sessions(crowd, [x[:4]] * 3)
     for out, want in zip(outs, alone):
         assert np.abs(out - want[:4]).max() <= 1e-5

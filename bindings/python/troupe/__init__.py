@@ -177,9 +177,10 @@ def step_sessions(sessions, actors) -> list[np.ndarray]:
     frames. The weights are read once per token for all sessions, which is how a crowd runs in
     real time; each result equals `sessions[i].step(actors[i])` up to float rounding. On error no
     session changes."""
-    sessions, actors = list(sessions), [s._actor(a) for s, a in zip(sessions, actors)]
+    sessions, actors = list(sessions), list(actors)
     if len(actors) != len(sessions):
         raise ValueError(f"{len(sessions)} sessions but {len(actors)} actor arrays")
+    actors = [s._actor(a) for s, a in zip(sessions, actors)]
     if len({id(s) for s in sessions}) != len(sessions):
         raise ValueError("a session appears twice")
     n = len(sessions)
