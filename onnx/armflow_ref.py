@@ -47,6 +47,11 @@ class ArmflowConfig:
     frames_per_token: int = 4
     fps: int = 30
     context_capacity: int = 256
+    clip_frames: int = 0  # official clip length (300 InterHuman, 150 InterX); 0: streaming only
+    text_branch: bool = False  # include the official trainable text branch
+    text_heads: int = 8
+    text_ffn: int = 2048
+    stream_windows: VaeWindows | None = None  # stream-mode windows of a non-causal VAE
     vae: VaeConfig = field(
         default_factory=lambda: VaeConfig(512, 256, 3, 3, 32, True)
     )
@@ -94,32 +99,29 @@ def make_norm(cfg: VaeConfig, channels: int) -> nn.Module:
     return nn.GroupNorm(cfg.norm_groups, channels, eps=1e-6, affine=True)
 
 
-class TimeConv(nn.Module):
-    """Conv1d over time. Non-causal: symmetric padding as the official code; causal: all of the
-    padding on the left, so output n never sees input after n (after striding)."""
+class TimeConv(nn.Conv1d):
+    """Conv1d over time with explicit padding. Non-causal: symmetric, as the official code;
+    causal: all of it on the left, so output n never sees input after n (after striding).
+    A subclass of nn.Conv1d so that its parameters carry the official names."""
 
     def __init__(self, c_in, c_out, kernel, stride=1, dilation=1, causal=False, padding=None):
-        super().__init__()
-        self.conv = nn.Conv1d(c_in, c_out, kernel, stride=stride, dilation=dilation)
+        super().__init__(c_in, c_out, kernel, stride=stride, dilation=dilation)
         total = (kernel - 1) * dilation if padding is None else 2 * padding
         if stride > 1:
             total = kernel - stride  # keeps length T/stride for T divisible by stride
         self.left = total if causal else total // 2
         self.right = 0 if causal else total - total // 2
-        self.kernel, self.stride, self.dilation = kernel, stride, dilation
 
     def forward(self, x):
-        return self.conv(F.pad(x, (self.left, self.right)))
+        return super().forward(F.pad(x, (self.left, self.right)))
 
     def reach(self, lo: int, hi: int) -> tuple[int, int]:
         """Input index range (inclusive) that output indices lo..hi read."""
-        return (
-            self.stride * lo - self.left,
-            self.stride * hi - self.left + (self.kernel - 1) * self.dilation,
-        )
+        k, s, d = self.kernel_size[0], self.stride[0], self.dilation[0]
+        return s * lo - self.left, s * hi - self.left + (k - 1) * d
 
 
-class ResBlock(nn.Module):
+class ResConv1DBlock(nn.Module):
     """norm -> ReLU -> dilated conv -> norm -> ReLU -> 1x1 conv, plus the input."""
 
     def __init__(self, cfg: VaeConfig, width: int, dilation: int):
@@ -138,10 +140,14 @@ class ResBlock(nn.Module):
         return min(lo, lo2), max(hi, hi2)
 
 
-class Resnet1D(nn.Sequential):
+class Resnet1D(nn.Module):
     def __init__(self, cfg: VaeConfig, width: int):
+        super().__init__()
         dilations = [3**k for k in range(cfg.depth)][::-1]  # reverse_dilation: 27, 9, 3, 1
-        super().__init__(*[ResBlock(cfg, width, d) for d in dilations])
+        self.model = nn.Sequential(*[ResConv1DBlock(cfg, width, d) for d in dilations])
+
+    def forward(self, x):
+        return self.model(x)
 
 
 class Upsample2(nn.Module):
@@ -160,52 +166,68 @@ class Relu(nn.Module):
         return lo, hi
 
 
-def chain_reach(layers, lo, hi):
-    """Walk a layer list backwards and return the input range the outputs lo..hi depend on."""
-    for layer in reversed(list(layers)):
-        if isinstance(layer, Resnet1D):
-            lo, hi = chain_reach(layer, lo, hi)
-        else:
-            lo, hi = layer.reach(lo, hi)
+def flat_layers(module: nn.Module) -> list[nn.Module]:
+    """The VAE's layers in execution order, nested Sequentials and Resnet1Ds unrolled."""
+    if isinstance(module, (nn.Sequential, Resnet1D)):
+        seq = module.model if isinstance(module, Resnet1D) else module
+        return [x for m in seq for x in flat_layers(m)]
+    return [module]
+
+
+def chain_reach(stack, lo, hi):
+    """Walk a VAE stack backwards and return the input range the outputs lo..hi depend on."""
+    for layer in reversed(flat_layers(stack.model)):
+        lo, hi = layer.reach(lo, hi)
     return lo, hi
 
 
 class VaeEncoder(nn.Module):
-    """frames [B, T, D] -> (mean, logvar) [B, T/4, latent]."""
+    """frames [B, T, D] -> (mean, logvar) [B, T/4, latent]. Official layout: `model` is
+    conv, ReLU, 2 x (stride-2 conv, Resnet1D), conv."""
 
     def __init__(self, cfg: ArmflowConfig):
         super().__init__()
         v, w = cfg.vae, cfg.vae.encoder_width
         layers = [TimeConv(cfg.frame_dim, w, 3, causal=v.causal, padding=1), Relu()]
         for _ in range(2):  # down_t = 2, stride 2 each
-            layers += [TimeConv(w, w, 4, stride=2, causal=v.causal, padding=1), Resnet1D(v, w)]
+            layers.append(nn.Sequential(TimeConv(w, w, 4, stride=2, causal=v.causal, padding=1), Resnet1D(v, w)))
         layers += [TimeConv(w, 2 * cfg.latent_dim, 3, causal=v.causal, padding=1)]
-        self.layers = nn.Sequential(*layers)
+        self.model = nn.Sequential(*layers)
         self.latent_dim = cfg.latent_dim
 
     def forward(self, motion):
-        h = self.layers(motion.transpose(1, 2)).transpose(1, 2)
+        h = self.model(motion.transpose(1, 2)).transpose(1, 2)
         return h[..., : self.latent_dim], h[..., self.latent_dim :]
 
 
 class VaeDecoder(nn.Module):
-    """latents [B, N, latent] (unscaled) -> frames [B, 4N, D]."""
+    """latents [B, N, latent] (unscaled) -> frames [B, 4N, D]. Official layout: `model` is
+    conv, ReLU, 2 x (Resnet1D, upsample, conv), conv, ReLU, conv."""
 
     def __init__(self, cfg: ArmflowConfig):
         super().__init__()
         v, w = cfg.vae, cfg.vae.decoder_width
         layers = [TimeConv(cfg.latent_dim, w, 3, causal=v.causal, padding=1), Relu()]
         for _ in range(2):
-            layers += [Resnet1D(v, w), Upsample2(), TimeConv(w, w, 3, causal=v.causal, padding=1)]
+            layers.append(nn.Sequential(Resnet1D(v, w), Upsample2(), TimeConv(w, w, 3, causal=v.causal, padding=1)))
         layers += [
             TimeConv(w, w, 3, causal=v.causal, padding=1),
             Relu(),
             TimeConv(w, cfg.frame_dim, 3, causal=v.causal, padding=1),
         ]
-        self.layers = nn.Sequential(*layers)
+        self.model = nn.Sequential(*layers)
 
     def forward(self, latents):
-        return self.layers(latents.transpose(1, 2)).transpose(1, 2)
+        return self.model(latents.transpose(1, 2)).transpose(1, 2)
+
+
+class KLVae(nn.Module):
+    """The VAE's two halves under the official names (`vae.encoder`, `vae.decoder`)."""
+
+    def __init__(self, cfg: ArmflowConfig):
+        super().__init__()
+        self.encoder = VaeEncoder(cfg)
+        self.decoder = VaeDecoder(cfg)
 
 
 class VaeStep(nn.Module):
@@ -224,7 +246,7 @@ class VaeStep(nn.Module):
         self.convs = [m for m in stack.modules() if isinstance(m, TimeConv) and m.left > 0]
 
     def state_shapes(self, batch: int = 1) -> list[tuple[int, int, int]]:
-        return [(batch, c.conv.in_channels, c.left) for c in self.convs]
+        return [(batch, c.in_channels, c.left) for c in self.convs]
 
     def forward(self, chunk, *state):
         assert len(state) == len(self.convs)
@@ -232,32 +254,27 @@ class VaeStep(nn.Module):
 
         def conv(c: TimeConv, h):
             if c.left == 0:
-                return c.conv(h)
+                return nn.Conv1d.forward(c, h)
             full = torch.cat([next(states), h], dim=2)
             next_state.append(full[:, :, -c.left :])
-            return c.conv(full)
+            return nn.Conv1d.forward(c, full)
 
-        def run(layers, h):
-            for layer in layers:
-                if isinstance(layer, TimeConv):
-                    h = conv(layer, h)
-                elif isinstance(layer, Resnet1D):
-                    h = run(layer, h)
-                elif isinstance(layer, ResBlock):
-                    r = conv(layer.conv1, F.relu(layer.norm1(h)))
-                    h = h + conv(layer.conv2, F.relu(layer.norm2(r)))
-                else:
-                    h = layer(h)
-            return h
-
-        out = run(self.stack.layers, chunk.transpose(1, 2)).transpose(1, 2)
-        return (out, *next_state)
+        h = chunk.transpose(1, 2)
+        for layer in flat_layers(self.stack.model):
+            if isinstance(layer, TimeConv):
+                h = conv(layer, h)
+            elif isinstance(layer, ResConv1DBlock):
+                r = conv(layer.conv1, F.relu(layer.norm1(h)))
+                h = h + conv(layer.conv2, F.relu(layer.norm2(r)))
+            else:
+                h = layer(h)
+        return (h.transpose(1, 2), *next_state)
 
 
 def encoder_context_frames(enc: VaeEncoder, fpt: int) -> int:
     """Frames before a token's first frame that its (causal) encoding depends on, rounded up to a
     whole token so that every window starts on the token grid."""
-    lo, hi = chain_reach(enc.layers, 1000, 1000)
+    lo, hi = chain_reach(enc, 1000, 1000)
     assert hi <= 1001 * fpt - 1, "encoder must not look ahead"
     need = 1000 * fpt - lo
     return -(-need // fpt) * fpt
@@ -266,7 +283,7 @@ def encoder_context_frames(enc: VaeEncoder, fpt: int) -> int:
 def decoder_context_tokens(dec: VaeDecoder, fpt: int) -> int:
     """Tokens before token j that the frames of token j depend on (causal decoder)."""
     j = 1000
-    lo, hi = chain_reach(dec.layers, j * fpt, j * fpt + fpt - 1)
+    lo, hi = chain_reach(dec, j * fpt, j * fpt + fpt - 1)
     assert hi <= j, "decoder must not look ahead"
     return j - lo
 
@@ -291,7 +308,7 @@ class SelfAttention(nn.Module):
         self.mat_qkv = nn.Linear(width, 3 * width, bias=False)
         self.q_bias = nn.Parameter(torch.zeros(width))
         self.v_bias = nn.Parameter(torch.zeros(width))
-        self.register_buffer("zero_k_bias", torch.zeros(width), persistent=False)
+        self.register_buffer("zero_k_bias", torch.zeros(width))  # in the official state dict
         self.proj = nn.Linear(width, width)
 
     def forward(self, x, past_k, past_v, mask):
@@ -301,9 +318,21 @@ class SelfAttention(nn.Module):
         q, k, v = qkv.permute(2, 0, 3, 1, 4).unbind(0)  # [B, H, S, Dh]
         k = torch.cat([past_k, k], dim=2)
         v = torch.cat([past_v, v], dim=2)
-        att = (q @ k.transpose(-2, -1)) * self.scale + mask
+        att = (q @ k.transpose(-2, -1)) * self.scale
+        if mask is not None:
+            att = att + mask
         out = att.softmax(dim=-1) @ v
         return self.proj(out.transpose(1, 2).reshape(b, s, c)), k, v
+
+
+class FFN(nn.Module):
+    def __init__(self, width: int):
+        super().__init__()
+        self.fc1 = nn.Linear(width, 4 * width)
+        self.fc2 = nn.Linear(4 * width, width)
+
+    def forward(self, x):
+        return self.fc2(F.gelu(self.fc1(x), approximate="tanh"))
 
 
 class AdaLNSelfAttn(nn.Module):
@@ -311,9 +340,7 @@ class AdaLNSelfAttn(nn.Module):
         super().__init__()
         self.width = width
         self.attn = SelfAttention(width, heads)
-        self.ffn = nn.Sequential(
-            nn.Linear(width, 4 * width), nn.GELU(approximate="tanh"), nn.Linear(4 * width, width)
-        )
+        self.ffn = FFN(width)
         self.ada_lin = nn.Sequential(nn.SiLU(), nn.Linear(cond_dim, 6 * width))
 
     def modulation(self, cond):  # [B, cond] -> [B, 6, C]
@@ -328,21 +355,38 @@ class AdaLNSelfAttn(nn.Module):
         return x, k, v
 
 
-class ContextEncoder(nn.Module):
-    """Causal SkipAdaLN transformer over [sos, (a_0||b_0), ...]; returns the last position."""
+class SkipAdaLNTransformer(nn.Module):
+    """The context encoder (official `armflow.arnet`): in layers, a mid layer and out layers
+    that each first fuse the matching in layer's output (LIFO) through a linear layer."""
 
     def __init__(self, cfg: ArmflowConfig):
         super().__init__()
         assert cfg.layers % 2 == 1, "layers = 2 * n_in + 1"
-        n = cfg.layers // 2
-        c = cfg.width
+        n, c = cfg.layers // 2, cfg.width
         self.width, self.n_in = c, n
-        self.start_token = nn.Parameter(torch.randn(1, 1, c) * 0.5)
-        self.blocks = nn.ModuleList(AdaLNSelfAttn(c, cfg.heads, cfg.cond_dim) for _ in range(cfg.layers))
-        self.skip_linears = nn.ModuleList(nn.Linear(2 * c, c) for _ in range(n))
+        block = lambda: AdaLNSelfAttn(c, cfg.heads, cfg.cond_dim)  # noqa: E731
+        self.in_layers = nn.ModuleList(block() for _ in range(n))
+        self.mid_layer = block()
+        self.out_layers = nn.ModuleList(block() for _ in range(n))
+        self.linear_layers = nn.ModuleList(nn.Linear(2 * c, c) for _ in range(n))
+
+    def blocks(self) -> list[AdaLNSelfAttn]:
+        return [*self.in_layers, self.mid_layer, *self.out_layers]
 
     def modulation(self, cond):  # [B, cond] -> [B, L, 6, C]
-        return torch.stack([blk.modulation(cond) for blk in self.blocks], dim=1)
+        return torch.stack([blk.modulation(cond) for blk in self.blocks()], dim=1)
+
+    def run(self, x, modulation, past, mask):
+        """x [B, S, C] (positions added), past: L (k, v) pairs -> (output [B, S, C], present)."""
+        skips, present = [], []
+        for i, blk in enumerate(self.blocks()):
+            if i > self.n_in:  # out layers pop the skips LIFO
+                x = self.linear_layers[i - self.n_in - 1](torch.cat([x, skips.pop()], dim=-1))
+            x, k, v = blk(x, modulation[:, i], past[i][0], past[i][1], mask)
+            present.append((k, v))
+            if i < self.n_in:
+                skips.append(x)
+        return x, present  # no final norm: the official head_nm is never called
 
     def step(self, tokens, positions, modulation, past, key_mask=None):
         """tokens [B, S, C], positions int64 [B, S], modulation [B, L, 6, C], past: list of L
@@ -357,16 +401,18 @@ class ContextEncoder(nn.Module):
         causal = torch.where(key_pos[None, :] <= query_pos[:, None], 0.0, -1e30)  # [S, P+S]
         keys = torch.cat([key_mask, tokens[:, :, 0] * 0.0], dim=1)  # [B, P+S]: new keys kept
         mask = causal + keys[:, None, None, :]  # [B, 1, S, P+S]
-        x = tokens + sinusoid_positions(positions, self.width)
-        skips, present = [], []
-        for i, blk in enumerate(self.blocks):
-            if i > self.n_in:  # out layers pop the skips LIFO
-                x = self.skip_linears[i - self.n_in - 1](torch.cat([x, skips.pop()], dim=-1))
-            x, k, v = blk(x, modulation[:, i], past[i][0], past[i][1], mask)
-            present.append((k, v))
-            if i < self.n_in:
-                skips.append(x)
-        return x[:, -1], present  # no final norm: head_nm is never called
+        x, present = self.run(tokens + sinusoid_positions(positions, self.width), modulation, past, mask)
+        return x[:, -1], present
+
+    def full(self, tokens, modulation):
+        """The official inference call: the whole prefix [B, S, C] at positions 0..S-1 with no
+        attention mask (earlier tokens also see later ones). Returns the last position [B, C]."""
+        b, s, _ = tokens.shape
+        h = self.in_layers[0].attn
+        empty = torch.zeros(b, h.heads, 0, h.head_dim)
+        x = tokens + sinusoid_positions(torch.arange(s), self.width)[None]
+        x, _ = self.run(x, modulation, [(empty, empty)] * len(self.blocks()), None)
+        return x[:, -1]
 
 
 # --------------------------------------------------------------------------------------------
@@ -387,45 +433,119 @@ class TimestepEmbedder(nn.Module):
         return self.mlp(torch.cat([torch.cos(args), torch.sin(args)], dim=-1))  # cos first
 
 
-class AdaLNMLPBlock(nn.Module):
+class AdaLnMLPBlock(nn.Module):
     def __init__(self, width: int):
         super().__init__()
         self.width = width
         self.ada_lin = nn.Sequential(nn.SiLU(), nn.Linear(width, 2 * width))
-        self.mlp = nn.Sequential(nn.Linear(width, 4 * width), nn.ReLU(), nn.Linear(4 * width, width))
+        self.linear1 = nn.Linear(width, 4 * width)
+        self.linear2 = nn.Linear(4 * width, width)
 
     def forward(self, x, cond):
         scale, shift = self.ada_lin(cond).chunk(2, dim=-1)
         h = F.layer_norm(x, (self.width,), eps=1e-5) * (1 + scale) + shift
-        return x + self.mlp(h)
+        return x + self.linear2(F.relu(self.linear1(h)))
 
 
-class VelocityMLP(nn.Module):
-    """u(z, r, t | a, c): average velocity of the reactor half."""
+class AdaLnMLP(nn.Module):
+    def __init__(self, cfg: ArmflowConfig):
+        super().__init__()
+        self.blocks = nn.Sequential(*[AdaLnMLPBlock(cfg.width) for _ in range(cfg.mlp_blocks)])
+
+
+class ArmflowCore(nn.Module):
+    """The autoregressive part under the official names (`armflow.*`): <sos>, the context
+    encoder `arnet`, the r/t embedders and the velocity MLP `mlp`."""
 
     def __init__(self, cfg: ArmflowConfig):
         super().__init__()
         self.latent_dim = cfg.latent_dim
+        self.start_token = nn.Parameter(torch.randn(1, 1, cfg.width) * 0.5)
+        self.arnet = SkipAdaLNTransformer(cfg)
         self.r_embedder = TimestepEmbedder(cfg.width)
         self.t_embedder = TimestepEmbedder(cfg.width)
-        self.blocks = nn.ModuleList(AdaLNMLPBlock(cfg.width) for _ in range(cfg.mlp_blocks))
+        self.mlp = AdaLnMLP(cfg)
 
-    def forward(self, actor, noisy, context, r, t):  # [B, latent], [B, latent], [B, C], [B], [B]
+    def velocity(self, actor, noisy, context, r, t):  # [B, latent], [B, latent], [B, C], [B], [B]
+        """u(z, r, t | a, c): average velocity of the reactor half."""
         x = torch.cat([actor, noisy], dim=-1)
         cond = context + self.r_embedder(r) + self.t_embedder(t)
-        for blk in self.blocks:
+        for blk in self.mlp.blocks:
             x = blk(x, cond)
         return x[:, self.latent_dim :]  # no head: the reactor half of the residual stream
 
 
+class VelocityGraph(nn.Module):
+    def __init__(self, core: ArmflowCore):
+        super().__init__()
+        self.core = core
+
+    def forward(self, actor, noisy, context, r, t):
+        return self.core.velocity(actor, noisy, context, r, t)
+
+
+class EncoderLayer(nn.Module):
+    """nn.TransformerEncoderLayer as the official text branch configures it (post-norm, exact
+    GELU, batch first, eval), written out so that it exports to plain ONNX ops. Parameter names
+    are torch's, so the official `clipTrans.layers.i.*` load as they are."""
+
+    def __init__(self, width: int, heads: int, ffn: int):
+        super().__init__()
+        self.heads = heads
+        self.self_attn = nn.MultiheadAttention(width, heads, batch_first=True)
+        self.linear1 = nn.Linear(width, ffn)
+        self.linear2 = nn.Linear(ffn, width)
+        self.norm1 = nn.LayerNorm(width)
+        self.norm2 = nn.LayerNorm(width)
+
+    def forward(self, x):  # [B, T, C]
+        b, t, c = x.shape
+        a = self.self_attn
+        qkv = F.linear(x, a.in_proj_weight, a.in_proj_bias).view(b, t, 3, self.heads, c // self.heads)
+        q, k, v = qkv.permute(2, 0, 3, 1, 4).unbind(0)
+        att = (q @ k.transpose(-2, -1)) / math.sqrt(c // self.heads)
+        y = (att.softmax(dim=-1) @ v).transpose(1, 2).reshape(b, t, c)
+        x = self.norm1(x + a.out_proj(y))
+        return self.norm2(x + self.linear2(F.gelu(self.linear1(x))))
+
+
+class TransformerStack(nn.Module):
+    def __init__(self, width: int, heads: int, ffn: int, layers: int):
+        super().__init__()
+        self.layers = nn.ModuleList(EncoderLayer(width, heads, ffn) for _ in range(layers))
+
+    def forward(self, x):
+        for layer in self.layers:
+            x = layer(x)
+        return x
+
+
+class TextBranch(nn.Module):
+    """The trainable part of the official text encoder (`text_encoder.clipTrans`, `.clipln`):
+    CLIP's token features [B, T, 768] -> 2 post-norm layers -> LayerNorm -> the feature at the
+    end-of-text token (the argmax of CLIP's token ids) = the condition [B, 768]."""
+
+    def __init__(self, cfg: ArmflowConfig):
+        super().__init__()
+        self.clipTrans = TransformerStack(cfg.cond_dim, cfg.text_heads, cfg.text_ffn, 2)
+        self.clipln = nn.LayerNorm(cfg.cond_dim)
+
+    def forward(self, tokens, eot):  # [B, T, C] float, [B] int64
+        out = self.clipln(self.clipTrans(tokens))
+        return out[torch.arange(tokens.shape[0]), eot]
+
+
 class Armflow(nn.Module):
+    """ARMFlow under the official module and parameter names: `vae.*`, `armflow.*` and, when
+    the configuration has a text branch, `text_encoder.clipTrans.*` / `text_encoder.clipln.*`."""
+
     def __init__(self, cfg: ArmflowConfig):
         super().__init__()
         self.cfg = cfg
-        self.vae_encoder = VaeEncoder(cfg)
-        self.vae_decoder = VaeDecoder(cfg)
-        self.context = ContextEncoder(cfg)
-        self.velocity = VelocityMLP(cfg)
+        self.vae = KLVae(cfg)
+        self.armflow = ArmflowCore(cfg)
+        if cfg.text_branch:
+            self.text_encoder = TextBranch(cfg)
 
 
 # --------------------------------------------------------------------------------------------
@@ -489,60 +609,146 @@ class StreamOptions:
     capacity: int | None = None  # context tokens kept, <sos> included
 
 
+@dataclass
+class VaeWindows:
+    """The stream-mode VAE windows of the manifest's `vae` section."""
+
+    context_frames: int
+    lookahead_frames: int
+    context_tokens: int
+    lookahead_tokens: int
+
+    @staticmethod
+    def of(model: Armflow) -> "VaeWindows":
+        """The configured windows; for a causal VAE, those that make windowed calls equal one
+        pass over the stream."""
+        if model.cfg.stream_windows is not None:
+            return model.cfg.stream_windows
+        fpt = model.cfg.frames_per_token
+        return VaeWindows(
+            encoder_context_frames(model.vae.encoder, fpt), 0,
+            decoder_context_tokens(model.vae.decoder, fpt), 0,
+        )
+
+
 @torch.no_grad()
-def stream_reference(model: Armflow, actor: np.ndarray, xi: np.ndarray, eps: np.ndarray, opt: StreamOptions):
+def stream_reference(
+    model: Armflow, actor: np.ndarray, xi: np.ndarray, eps: np.ndarray, opt: StreamOptions,
+    windows: VaeWindows | None = None,
+):
     """Run the streaming ARMFlow loop over a whole actor clip with injected noise.
 
     Returns a dict of float32 arrays: actor_latents, reactor_latents, contexts [N, *] and
-    frames [4N, D] (reactor frames for every complete token)."""
-    cfg = model.cfg
-    fpt, lat = cfg.frames_per_token, cfg.latent_dim
-    ctx_frames = encoder_context_frames(model.vae_encoder, fpt)
-    ctx_tokens = decoder_context_tokens(model.vae_decoder, fpt)
+    frames (reactor frames of every token whose decoder lookahead exists)."""
+    cfg, core = model.cfg, model.armflow
+    fpt = cfg.frames_per_token
+    w = windows or VaeWindows.of(model)
     capacity = opt.capacity or cfg.context_capacity
-    n_tokens = actor.shape[0] // fpt
+    n_tokens = (actor.shape[0] - w.lookahead_frames) // fpt
     cond = torch.zeros(1, cfg.cond_dim) if opt.condition is None else torch.from_numpy(opt.condition)[None]
-    modulation = model.context.modulation(cond)
+    modulation = core.arnet.modulation(cond)
     h, dh = cfg.heads, cfg.head_dim
     past = [(torch.zeros(1, h, 0, dh), torch.zeros(1, h, 0, dh)) for _ in range(cfg.layers)]
     grid = meanflow_grid(opt.steps)
     motion = torch.from_numpy(actor)[None]
     a_hist, b_hist, c_hist, frames = [], [], [], []
     for j in range(n_tokens):
-        # 1. actor token from the encoder window ending with this token's frames
-        start = max(0, j * fpt - ctx_frames)
-        mean, logvar = model.vae_encoder(motion[:, start : (j + 1) * fpt])
-        mean, logvar = mean[0, -1], logvar[0, -1]
+        # 1. actor token from the encoder window around this token's frames
+        start = max(0, j * fpt - w.context_frames)
+        mean, logvar = model.vae.encoder(motion[:, start : (j + 1) * fpt + w.lookahead_frames])
+        row = (j * fpt - start) // fpt
+        mean, logvar = mean[0, row], logvar[0, row]
         a = (mean + torch.sqrt(torch.exp(logvar)) * torch.from_numpy(xi[j])) * cfg.latent_scale
         # 2. context: append <sos> (first token) or the previous (actor || reactor) pair
-        token = model.context.start_token if j == 0 else torch.cat([a_hist[-1], b_hist[-1]])[None, None]
+        token = core.start_token if j == 0 else torch.cat([a_hist[-1], b_hist[-1]])[None, None]
         held = past[0][0].shape[2]
         if held + 1 > capacity:  # slide: keep <sos> and the newest capacity - 2 pairs
             drop_to = held - (capacity - 2)
             past = [tuple(torch.cat([x[:, :, :1], x[:, :, drop_to:]], 2) for x in kv) for kv in past]
-        c, past = model.context.step(token, torch.tensor([[j]]), modulation, past)
+        c, past = core.arnet.step(token, torch.tensor([[j]]), modulation, past)
         # 3. MeanFlow: z <- z - (tau_k - tau_{k+1}) u(z, r=tau_{k+1}, t=tau_k)
         z = torch.from_numpy(eps[j])[None]
         for k in range(opt.steps):
             t_hi, t_lo = grid[k], grid[k + 1]
             r_t = torch.tensor([t_lo]), torch.tensor([t_hi])
-            u = model.velocity(a[None], z, c, *r_t)
+            u = core.velocity(a[None], z, c, *r_t)
             if opt.cfg_scale != 1.0:
-                u_null = model.velocity(torch.zeros_like(a[None]), z, torch.zeros_like(c), *r_t)
+                u_null = core.velocity(torch.zeros_like(a[None]), z, torch.zeros_like(c), *r_t)
                 u = u_null + opt.cfg_scale * (u - u_null)
             z = z - np.float32(t_hi - t_lo) * u
-        b = z[0]
-        # 4. decoder window ending with this token
         a_hist.append(a)
-        b_hist.append(b)
+        b_hist.append(z[0])
         c_hist.append(c[0])
-        first = max(0, j - ctx_tokens)
-        window = torch.stack(b_hist[first:])[None] / torch.tensor(cfg.latent_scale, dtype=torch.float32)
-        frames.append(model.vae_decoder(window)[0, -fpt:])
+        # 4. decode token k = j - lookahead once its lookahead tokens exist
+        k = j - w.lookahead_tokens
+        if k >= 0:
+            first = max(0, k - w.context_tokens)
+            window = torch.stack(b_hist[first:])[None] / torch.tensor(cfg.latent_scale, dtype=torch.float32)
+            frames.append(model.vae.decoder(window)[0, (k - first) * fpt : (k - first + 1) * fpt])
     as_np = lambda xs: torch.stack(xs).numpy().astype(np.float32)  # noqa: E731
     return {
         "actor_latents": as_np(a_hist),
         "reactor_latents": as_np(b_hist),
         "contexts": as_np(c_hist),
         "frames": torch.cat(frames).numpy().astype(np.float32),
+    }
+
+
+# --------------------------------------------------------------------------------------------
+# The official clip loop (models.md 1.7), on the same modules
+# --------------------------------------------------------------------------------------------
+
+
+def clip_tokens(cfg: ArmflowConfig) -> int:
+    """Tokens of a padded clip: the two stride-2 convolutions (k4, p1) floor odd lengths, so
+    150 frames give 75 then 37 tokens (InterX), 300 give 75 (InterHuman)."""
+    n = cfg.clip_frames
+    for _ in range(2):
+        n = (n + 2 - 4) // 2 + 1
+    return n
+
+
+@torch.no_grad()
+def clip_reference(model: Armflow, actor: np.ndarray, xi: np.ndarray, eps: np.ndarray,
+                   condition: np.ndarray | None, steps: int = 1):
+    """The official sampling loop: the actor clip zero-padded to the clip length and encoded
+    once with the posterior sample `xi` [N, latent]; for every token the whole prefix
+    [sos, (a_j || b_j) for j < i] re-run through the context encoder with no attention mask;
+    the same noise token `eps` [latent] (the official E[N-1]) for every token; one decode of
+    all reactor tokens, padded to the clip length by repeating the last frame (InterX).
+
+    Returns actor_latents, reactor_latents, contexts [N, *] and frames [clip_frames, D]."""
+    cfg, core = model.cfg, model.armflow
+    frames_in, d = actor.shape
+    assert frames_in <= cfg.clip_frames
+    padded = np.zeros((cfg.clip_frames, d), np.float32)
+    padded[:frames_in] = actor
+    mean, logvar = model.vae.encoder(torch.from_numpy(padded)[None])
+    a = (mean + logvar.exp().pow(0.5) * torch.from_numpy(xi)[None]) * cfg.latent_scale  # [1, N, lat]
+    cond = torch.zeros(1, cfg.cond_dim) if condition is None else torch.from_numpy(condition)[None]
+    modulation = core.arnet.modulation(cond)
+    grid = meanflow_grid(steps)
+    e = torch.from_numpy(eps)[None]
+    b_hist, c_hist = [], []
+    for i in range(a.shape[1]):
+        seq = core.start_token
+        if i > 0:
+            pairs = torch.cat([a[:, :i], torch.stack(b_hist)[None]], dim=-1)
+            seq = torch.cat([core.start_token, pairs], dim=1)
+        c = core.arnet.full(seq, modulation)
+        z = e
+        for k in range(steps):
+            t_hi, t_lo = grid[k], grid[k + 1]
+            z = z - np.float32(t_hi - t_lo) * core.velocity(a[:, i], z, c, torch.tensor([t_lo]), torch.tensor([t_hi]))
+        b_hist.append(z[0])
+        c_hist.append(c[0])
+    b = torch.stack(b_hist)[None]
+    out = model.vae.decoder(b / torch.tensor(cfg.latent_scale, dtype=torch.float32))[0]
+    if out.shape[0] < cfg.clip_frames:  # InterX: 37 tokens decode to 148 of 150 frames
+        out = torch.cat([out, out[-1:].repeat(cfg.clip_frames - out.shape[0], 1)])
+    return {
+        "actor_latents": a[0].numpy().astype(np.float32),
+        "reactor_latents": b[0].numpy().astype(np.float32),
+        "contexts": torch.stack(c_hist).numpy().astype(np.float32),
+        "frames": out.numpy().astype(np.float32),
     }

@@ -5,8 +5,14 @@
     python onnx/export.py --preset paper --out onnx/paper                   # benchmarks, not committed
     python onnx/export.py --preset tiny  --check onnx/armflow-tiny          # reproducibility check
 
-The weights are random (seeded): these bundles test and benchmark the runtime; they do not
-generate meaningful motion. The bundle contract is documented in onnx/README.md.
+    # an official checkpoint (ZenGengChin/armflow_official), as released:
+    python onnx/export.py --preset interhuman --checkpoint armflow.ckpt --out onnx/armflow-interhuman
+    python onnx/export.py --preset interx     --checkpoint armflowx.ckpt --out onnx/armflow-interx
+
+Without `--checkpoint` the weights are random (seeded): such bundles test and benchmark the
+runtime; they do not generate meaningful motion. `--write-checkpoint FILE` saves those random
+weights in the official layout (the parity harness's checkpoints). The bundle contract is
+documented in onnx/README.md.
 """
 
 from __future__ import annotations
@@ -32,14 +38,18 @@ from armflow_ref import (  # noqa: E402
     StreamOptions,
     VaeConfig,
     VaeStep,
-    decoder_context_tokens,
-    encoder_context_frames,
+    VaeWindows,
+    VelocityGraph,
+    clip_reference,
+    clip_tokens,
     philox_normals,
     stream_reference,
 )
+from checkpoint import CheckpointError, load_strict, read_state_dict  # noqa: E402
 
 FORMAT_VERSION = 1
 OPSET = 17
+LAYOUTS = {262: "interhuman262", 336: "interx336"}
 
 PRESETS = {
     # Small enough to commit and to run the test-suite in seconds; every architectural feature
@@ -59,6 +69,43 @@ PRESETS = {
 }
 
 
+def official(frame_dim: int, clip_frames: int, size: str, windows: VaeWindows) -> ArmflowConfig:
+    """The official configuration (`cfg/armflow/armflow.yaml`, `armflowx.yaml`): non-causal
+    VAE (k7, dilations 27/9/3/1, GroupNorm 32, widths 512/256), 7-layer context encoder, 5 MLP
+    blocks, 768-d text branch. `tiny` keeps that layout at reduced width for the parity
+    harness's committed checkpoints."""
+    full = size == "full"
+    return ArmflowConfig(
+        frame_dim=frame_dim, latent_dim=256 if full else 16, cond_dim=768 if full else 32, layers=7,
+        heads=8 if full else 2, mlp_blocks=5, context_capacity=128, clip_frames=clip_frames,
+        text_branch=True, text_heads=8, text_ffn=2048 if full else 64,
+        vae=VaeConfig(encoder_width=512 if full else 32, decoder_width=256 if full else 32, depth=4,
+                      kernel=7, norm_groups=32, causal=False),
+        stream_windows=windows,
+    )
+
+
+# Stream-mode windows of the non-causal official VAE (onnx/README.md, "Stream mode with the
+# official VAE", for how they were chosen).
+OFFICIAL_WINDOWS = VaeWindows(context_frames=96, lookahead_frames=16, context_tokens=16, lookahead_tokens=2)
+PRESETS |= {
+    "interhuman": official(262, 300, "full", OFFICIAL_WINDOWS),
+    "interx": official(336, 150, "full", OFFICIAL_WINDOWS),
+    "tiny-interhuman": official(262, 300, "tiny", OFFICIAL_WINDOWS),
+    "tiny-interx": official(336, 150, "tiny", OFFICIAL_WINDOWS),
+}
+
+# Tensors of the official checkpoints that inference does not use, and why.
+IGNORED = {
+    "text_encoder.clip_": "the frozen CLIP text tower: the bundle takes its token features",
+    "armflow.arnet.head_nm.": "constructed but never called by the official forward",
+    "armflow.pe.": "sinusoidal table, recomputed",
+    "vae.smpl_loss.": "SMPL-X body model of the InterX training loss",
+    "normalizer.": "evaluation-time feature statistics",
+    "loss_fn.": "training loss state",
+}
+
+
 # --------------------------------------------------------------------------------------------
 # Export wrappers: one module per graph of the bundle
 # --------------------------------------------------------------------------------------------
@@ -69,21 +116,32 @@ class ConditioningGraph(torch.nn.Module):
 
     def __init__(self, model: Armflow):
         super().__init__()
-        self.context = model.context
+        self.core = model.armflow
 
     def forward(self, condition):
-        return self.context.modulation(condition), self.context.start_token * 1.0
+        return self.core.arnet.modulation(condition), self.core.start_token * 1.0
 
 
 class ContextStepGraph(torch.nn.Module):
     def __init__(self, model: Armflow):
         super().__init__()
-        self.context = model.context
+        self.arnet = model.armflow.arnet
 
     def forward(self, tokens, positions, modulation, key_mask, *past_flat):
         past = list(zip(past_flat[0::2], past_flat[1::2]))
-        context, present = self.context.step(tokens, positions, modulation, past, key_mask)
+        context, present = self.arnet.step(tokens, positions, modulation, past, key_mask)
         return (context, *[t for kv in present for t in kv])
+
+
+class ContextFullGraph(torch.nn.Module):
+    """The official context call: the whole prefix, no attention mask, no cache."""
+
+    def __init__(self, model: Armflow):
+        super().__init__()
+        self.arnet = model.armflow.arnet
+
+    def forward(self, tokens, modulation):
+        return self.arnet.full(tokens, modulation)
 
 
 class EncoderStepGraph(torch.nn.Module):
@@ -91,7 +149,7 @@ class EncoderStepGraph(torch.nn.Module):
 
     def __init__(self, model: Armflow):
         super().__init__()
-        self.step = VaeStep(model.vae_encoder)
+        self.step = VaeStep(model.vae.encoder)
         self.latent_dim = model.cfg.latent_dim
 
     def forward(self, motion, *state):
@@ -157,8 +215,20 @@ def graph_specs(model: Armflow) -> dict:
             "outputs": [t("motion", dims(1, "T", d))],
         },
     }
+    if cfg.clip_frames:  # the official clip loop re-runs the whole prefix with no mask
+        specs["context_full"] = {
+            "file": "context_full.onnx",
+            "inputs": [t("tokens", dims("B", "S", c)), t("modulation", dims("B", L, 6, c))],
+            "outputs": [t("context", dims("B", c))],
+        }
+    if cfg.text_branch:  # CLIP token features -> the condition, as the official text encoder
+        specs["text_branch"] = {
+            "file": "text_branch.onnx",
+            "inputs": [t("clip_tokens", dims("B", "T", cfg.cond_dim)), t("eot_index", dims("B"), "int64")],
+            "outputs": [t("condition", dims("B", cfg.cond_dim))],
+        }
     if cfg.vae.causal:  # a causal VAE also streams token by token with explicit conv state
-        enc, dec = model.vae_encoder, model.vae_decoder
+        enc, dec = model.vae.encoder, model.vae.decoder
         specs["vae_encoder_step"] = {
             "file": "vae_encoder_step.onnx",
             "inputs": [t("motion", dims("B", fpt, d)), *state(enc, "")],
@@ -188,9 +258,17 @@ def export_graph(module, args, spec, out_dir: Path, fold_constants: bool = True)
         )
 
 
-def build_model(preset: str, seed: int) -> Armflow:
+def build_model(preset: str, seed: int, checkpoint: Path | None = None) -> Armflow:
+    """The preset's model with seeded random weights, or the weights of `checkpoint`."""
     torch.manual_seed(seed)
     model = Armflow(PRESETS[preset]).eval()
+    if checkpoint is not None:
+        skipped = load_strict(model, read_state_dict(checkpoint), IGNORED)
+        for prefix, why in IGNORED.items():
+            n = sum(k.startswith(prefix) for k in skipped)
+            if n:
+                print(f"ignored {n} tensor(s) {prefix}*: {why}")
+        return model
     # Random init leaves AdaLN gates and biases near zero; widen them so every path matters.
     with torch.no_grad():
         for name, p in model.named_parameters():
@@ -201,9 +279,9 @@ def build_model(preset: str, seed: int) -> Armflow:
     return model
 
 
-def export_bundle(preset: str, out_dir: Path, seed: int = 0) -> Armflow:
+def export_bundle(preset: str, out_dir: Path, seed: int = 0, checkpoint: Path | None = None) -> Armflow:
     cfg = PRESETS[preset]
-    model = build_model(preset, seed)
+    model = build_model(preset, seed, checkpoint)
     out_dir.mkdir(parents=True, exist_ok=True)
     specs = graph_specs(model)
     c, lat, h, dh = cfg.width, cfg.latent_dim, cfg.heads, cfg.head_dim
@@ -216,31 +294,38 @@ def export_bundle(preset: str, out_dir: Path, seed: int = 0) -> Armflow:
              torch.zeros(2, 3), *past),
         ),
         "velocity": (
-            model.velocity,
+            VelocityGraph(model.armflow),
             (torch.randn(2, lat), torch.randn(2, lat), torch.randn(2, c), torch.rand(2), torch.rand(2)),
         ),
-        "vae_encoder": (model.vae_encoder, (torch.randn(1, 8 * cfg.frames_per_token, cfg.frame_dim),)),
-        "vae_decoder": (model.vae_decoder, (torch.randn(1, 8, lat),)),
+        "vae_encoder": (model.vae.encoder, (torch.randn(1, 8 * cfg.frames_per_token, cfg.frame_dim),)),
+        "vae_decoder": (model.vae.decoder, (torch.randn(1, 8, lat),)),
     }
+    if "context_full" in specs:
+        examples["context_full"] = (ContextFullGraph(model), (torch.randn(2, 3, c), torch.randn(2, cfg.layers, 6, c)))
+    if "text_branch" in specs:
+        examples["text_branch"] = (model.text_encoder, (torch.randn(2, 5, cfg.cond_dim), torch.tensor([4, 2])))
     if "vae_encoder_step" in specs:
         states = lambda stack: [torch.randn(s) for s in VaeStep(stack).state_shapes(2)]  # noqa: E731
         fpt = cfg.frames_per_token
         examples["vae_encoder_step"] = (
-            EncoderStepGraph(model), (torch.randn(2, fpt, cfg.frame_dim), *states(model.vae_encoder)),
+            EncoderStepGraph(model), (torch.randn(2, fpt, cfg.frame_dim), *states(model.vae.encoder)),
         )
         examples["vae_decoder_step"] = (
-            VaeStep(model.vae_decoder), (torch.randn(2, 1, lat), *states(model.vae_decoder)),
+            VaeStep(model.vae.decoder), (torch.randn(2, 1, lat), *states(model.vae.decoder)),
         )
     for name, (module, args) in examples.items():
         # Folding would turn the constant `start_token` output into a nameless initializer.
         export_graph(module, args, specs[name], out_dir, fold_constants=name != "conditioning")
+    windows = VaeWindows.of(model)
+    source = {"checkpoint": checkpoint.name} if checkpoint else {"seed": seed}
+    producer = {"tool": "onnx/export.py", "preset": preset, **source, "opset": OPSET}
     manifest = {
         "format": "troupe-bundle",
         "format_version": FORMAT_VERSION,
         "family": "armflow",
         "name": f"armflow-{preset}",
-        "producer": {"tool": "onnx/export.py", "preset": preset, "seed": seed, "opset": OPSET},
-        "motion": {"layout": "interhuman262", "frame_dim": cfg.frame_dim, "fps": cfg.fps},
+        "producer": producer,
+        "motion": {"layout": LAYOUTS[cfg.frame_dim], "frame_dim": cfg.frame_dim, "fps": cfg.fps},
         "latent": {"dim": lat, "scale": cfg.latent_scale, "frames_per_token": cfg.frames_per_token},
         "condition": {"dim": cfg.cond_dim},
         "context": {
@@ -249,18 +334,14 @@ def export_bundle(preset: str, out_dir: Path, seed: int = 0) -> Armflow:
         },
         "vae": {
             "streaming": cfg.vae.causal,
-            "encoder": {
-                "context_frames": encoder_context_frames(model.vae_encoder, cfg.frames_per_token),
-                "lookahead_frames": 0,
-            },
-            "decoder": {
-                "context_tokens": decoder_context_tokens(model.vae_decoder, cfg.frames_per_token),
-                "lookahead_tokens": 0,
-            },
+            "encoder": {"context_frames": windows.context_frames, "lookahead_frames": windows.lookahead_frames},
+            "decoder": {"context_tokens": windows.context_tokens, "lookahead_tokens": windows.lookahead_tokens},
         },
         "sampler": {"steps": 1, "cfg_scale": 1.0, "actor_latent": "sample"},
         "graphs": specs,
     }
+    if cfg.clip_frames:
+        manifest["clip"] = {"frames": cfg.clip_frames, "tokens": clip_tokens(cfg)}
     (out_dir / "troupe.json").write_text(json.dumps(manifest, indent=2) + "\n")
     return model
 
@@ -284,6 +365,8 @@ def synthetic_actor(frames: int, dim: int, seed: int = 1) -> np.ndarray:
 
 
 def write_golden(model: Armflow, out_dir: Path):
+    if model.cfg.clip_frames:
+        return write_clip_golden(model, out_dir)
     cfg = model.cfg
     g = out_dir / "golden"
     g.mkdir(exist_ok=True)
@@ -320,26 +403,69 @@ def write_golden(model: Armflow, out_dir: Path):
     check_windows_match_full_clip(model, actor)
 
 
+CLIP_TEXT_TOKENS, CLIP_EOT = 77, 9  # CLIP's context length; the end-of-text token of a short prompt
+
+
+@torch.no_grad()
+def write_clip_golden(model: Armflow, out_dir: Path):
+    """Goldens of an official-layout bundle, all from the PyTorch reference on the same weights:
+    - `text`: the text branch on random CLIP token features;
+    - `clip`: the official clip loop on a short actor (zero-padded to the clip length),
+      conditioned on that text, with injected posterior noise and noise token;
+    - `clip_null`: a full-length actor, null condition, other noise;
+    - `stream`: the stream loop with the bundle's windows (non-causal VAE, lookahead)."""
+    cfg = model.cfg
+    g = out_dir / "golden"
+    g.mkdir(exist_ok=True)
+    rng = np.random.default_rng(3)
+    n, lat = clip_tokens(cfg), cfg.latent_dim
+    arrays = {
+        "text_clip_tokens": rng.standard_normal((CLIP_TEXT_TOKENS, cfg.cond_dim)).astype(np.float32),
+        "text_eot_index": np.array([CLIP_EOT], np.int64),
+    }
+    tokens = torch.from_numpy(arrays["text_clip_tokens"])[None]
+    condition = model.text_encoder(tokens, torch.tensor([CLIP_EOT]))[0].numpy().astype(np.float32)
+    arrays["text_condition"] = condition
+    short = cfg.clip_frames * 2 // 3
+    cases = {"clip": (synthetic_actor(short, cfg.frame_dim), condition),
+             "clip_null": (synthetic_actor(cfg.clip_frames, cfg.frame_dim, seed=4), None)}
+    for name, (actor, cond) in cases.items():
+        xi = rng.standard_normal((n, lat)).astype(np.float32)
+        eps = rng.standard_normal(lat).astype(np.float32)
+        out = clip_reference(model, actor, xi, eps, cond)
+        arrays |= {f"{name}_actor": actor, f"{name}_xi": xi, f"{name}_eps": eps}
+        arrays |= {f"{name}_{k}": v for k, v in out.items()}
+    actor = cases["clip"][0]
+    w = VaeWindows.of(model)
+    tokens_stream = (actor.shape[0] - w.lookahead_frames) // cfg.frames_per_token
+    xi = rng.standard_normal((tokens_stream, lat)).astype(np.float32)
+    eps = rng.standard_normal((tokens_stream, lat)).astype(np.float32)
+    out = stream_reference(model, actor, xi, eps, StreamOptions(condition=condition), w)
+    arrays |= {"stream_xi": xi, "stream_eps": eps} | {f"stream_{k}": v for k, v in out.items()}
+    for k, v in arrays.items():
+        np.save(g / f"{k}.npy", v)
+
+
 @torch.no_grad()
 def check_windows_match_full_clip(model: Armflow, actor: np.ndarray):
     """The manifest's window sizes must make windowed VAE calls equal one causal pass, and so
     must stepping token by token with explicit state."""
     cfg, fpt = model.cfg, model.cfg.frames_per_token
-    ctx_f = encoder_context_frames(model.vae_encoder, fpt)
-    ctx_t = decoder_context_tokens(model.vae_decoder, fpt)
+    w = VaeWindows.of(model)
+    ctx_f, ctx_t = w.context_frames, w.context_tokens
     x = torch.from_numpy(actor)[None]
     n = actor.shape[0] // fpt
-    full_mean, _ = model.vae_encoder(x[:, : n * fpt])
+    full_mean, _ = model.vae.encoder(x[:, : n * fpt])
     lat = torch.randn(1, n, cfg.latent_dim)
-    full_frames = model.vae_decoder(lat)
+    full_frames = model.vae.decoder(lat)
     for j in range(n):
-        m, _ = model.vae_encoder(x[:, max(0, j * fpt - ctx_f) : (j + 1) * fpt])
+        m, _ = model.vae.encoder(x[:, max(0, j * fpt - ctx_f) : (j + 1) * fpt])
         assert torch.allclose(m[0, -1], full_mean[0, j], atol=1e-5), f"encoder window, token {j}"
-        f = model.vae_decoder(lat[:, max(0, j - ctx_t) : j + 1])
+        f = model.vae.decoder(lat[:, max(0, j - ctx_t) : j + 1])
         assert torch.allclose(f[0, -fpt:], full_frames[0, j * fpt : (j + 1) * fpt], atol=1e-5), f"decoder window, token {j}"
     if not cfg.vae.causal:
         return
-    enc, dec = VaeStep(model.vae_encoder), VaeStep(model.vae_decoder)
+    enc, dec = VaeStep(model.vae.encoder), VaeStep(model.vae.decoder)
     enc_state = [torch.zeros(s) for s in enc.state_shapes()]
     dec_state = [torch.zeros(s) for s in dec.state_shapes()]
     for j in range(n):
@@ -388,18 +514,42 @@ def compare_bundles(committed: Path, fresh: Path) -> list[str]:
     return problems
 
 
-def cli(doc: str, presets: dict, export_bundle, write_golden):
+def write_checkpoint(preset: str, seed: int, path: Path, extras: bool = True):
+    """Save the preset's seeded random weights as an official checkpoint: a Lightning-style
+    `{"state_dict": ...}` under the official names. With `extras`, also tensors the official
+    checkpoints carry that inference ignores (`IGNORED`), so that the loader meets them."""
+    state = build_model(preset, seed).state_dict()
+    if extras:
+        cfg = PRESETS[preset]
+        state |= {
+            "armflow.arnet.head_nm.ada_lin.1.weight": torch.zeros(2 * cfg.width, cfg.cond_dim),
+            "armflow.arnet.head_nm.ada_lin.1.bias": torch.zeros(2 * cfg.width),
+            "text_encoder.clip_ln_final.weight": torch.ones(cfg.cond_dim),
+        }
+    torch.save({"state_dict": state, "epoch": 0}, path)
+
+
+def cli(doc: str, presets: dict, export_bundle, write_golden, write_checkpoint=None):
     """The command line every exporter shares: `--preset P --out DIR [--golden]` writes a
     bundle; `--preset P --check DIR` re-exports into a temporary directory and exits non-zero
-    unless it is byte-identical to DIR (goldens included when DIR has them)."""
+    unless it is byte-identical to DIR (goldens included when DIR has them). Exporters that
+    take official checkpoints add `--checkpoint FILE` and `--write-checkpoint FILE`."""
     ap = argparse.ArgumentParser(description=doc, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--preset", choices=sorted(presets), required=True)
     ap.add_argument("--out", type=Path, help="bundle directory to write")
     ap.add_argument("--golden", action="store_true", help="also write golden outputs (tiny presets)")
     ap.add_argument("--seed", type=int, default=0, help="weight initialisation seed")
     ap.add_argument("--check", type=Path, help="re-export and compare with this committed bundle")
+    if write_checkpoint:
+        ap.add_argument("--checkpoint", type=Path, help="official checkpoint to export (else random weights)")
+        ap.add_argument("--write-checkpoint", type=Path, help="save the random weights as an official checkpoint")
     args = ap.parse_args()
     torch.set_num_threads(1)
+    if getattr(args, "write_checkpoint", None):
+        write_checkpoint(args.preset, args.seed, args.write_checkpoint)
+        print(f"wrote {args.write_checkpoint}")
+        return
+    checkpoint = {"checkpoint": args.checkpoint} if getattr(args, "checkpoint", None) else {}
     if args.check:
         with tempfile.TemporaryDirectory() as tmp:
             fresh = Path(tmp) / "bundle"
@@ -412,8 +562,11 @@ def cli(doc: str, presets: dict, export_bundle, write_golden):
         print("reproducible" if not problems else f"{len(problems)} difference(s)")
         sys.exit(1 if problems else 0)
     if not args.out:
-        ap.error("--out or --check is required")
-    model = export_bundle(args.preset, args.out, args.seed)
+        ap.error("--out, --check or --write-checkpoint is required")
+    try:
+        model = export_bundle(args.preset, args.out, args.seed, **checkpoint)
+    except CheckpointError as e:
+        sys.exit(f"error: {e}")
     if args.golden:
         write_golden(model, args.out)
     size = sum(f.stat().st_size for f in args.out.rglob("*.onnx"))
@@ -422,4 +575,4 @@ def cli(doc: str, presets: dict, export_bundle, write_golden):
 
 if __name__ == "__main__":
     os.environ.setdefault("PYTHONHASHSEED", "0")
-    cli(__doc__, PRESETS, export_bundle, write_golden)
+    cli(__doc__, PRESETS, export_bundle, write_golden, write_checkpoint)

@@ -1,0 +1,61 @@
+"""Load a checkpoint of the official code into our module definitions, strictly.
+
+Our modules carry the official module and parameter names (`onnx/armflow_ref.py`), so an
+official state dict loads without renaming. What this module adds is the strictness a user needs
+when a checkpoint does not match the configuration it is exported with: every missing,
+unexpected or mis-shaped tensor is named in one error, instead of a silent partial load.
+
+A few tensors of the official checkpoints are deliberately not used at inference; they are
+listed with the reason in `IGNORED` and reported, never silently dropped.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import torch
+import torch.nn as nn
+
+
+class CheckpointError(ValueError):
+    """The checkpoint does not match the model configuration."""
+
+
+def read_state_dict(path: Path) -> dict[str, torch.Tensor]:
+    """The tensors of a checkpoint file: a Lightning checkpoint (`state_dict` inside) or a
+    plain state dict. Loaded with `weights_only=True`: a checkpoint cannot run code."""
+    try:
+        obj = torch.load(path, map_location="cpu", weights_only=True)
+    except Exception as e:  # noqa: BLE001 - torch raises many types for a bad file
+        raise CheckpointError(f"{path}: not a readable torch checkpoint ({type(e).__name__}: {e})") from e
+    if isinstance(obj, dict) and isinstance(obj.get("state_dict"), dict):
+        obj = obj["state_dict"]
+    if not isinstance(obj, dict) or not all(isinstance(v, torch.Tensor) for v in obj.values()):
+        raise CheckpointError(f"{path}: expected a state dict (name -> tensor) or a Lightning checkpoint")
+    return obj
+
+
+def load_strict(model: nn.Module, state: dict[str, torch.Tensor], ignored: dict[str, str]) -> list[str]:
+    """Copy `state` into `model`. Names starting with a prefix of `ignored` (prefix -> reason)
+    are skipped; everything else must match the model's state dict exactly, name and shape.
+    Returns the skipped names; raises CheckpointError naming every problem."""
+    want = model.state_dict()
+    skipped = sorted(k for k in state if k not in want and k.startswith(tuple(ignored)))
+    missing = sorted(k for k in want if k not in state)
+    extra = sorted(k for k in state if k not in want and k not in skipped)
+    shapes = sorted(
+        f"{k}: checkpoint {tuple(state[k].shape)}, model {tuple(want[k].shape)}"
+        for k in want
+        if k in state and tuple(state[k].shape) != tuple(want[k].shape)
+    )
+    problems = []
+    for title, names in (("missing", missing), ("unexpected", extra), ("mis-shaped", shapes)):
+        if names:
+            problems.append(f"{len(names)} {title} parameter(s):\n  " + "\n  ".join(names))
+    if problems:
+        raise CheckpointError("checkpoint does not match the configuration:\n" + "\n".join(problems))
+    bad = sorted(k for k in want if k in state and not torch.isfinite(state[k].float()).all())
+    if bad:
+        raise CheckpointError("non-finite values in:\n  " + "\n  ".join(bad))
+    model.load_state_dict({k: state[k].to(want[k].dtype) for k in want}, strict=True)
+    return skipped
