@@ -532,7 +532,10 @@ class TextBranch(nn.Module):
 
     def forward(self, tokens, eot):  # [B, T, C] float, [B] int64
         out = self.clipln(self.clipTrans(tokens))
-        return out[torch.arange(tokens.shape[0]), eot]
+        # out[b, eot[b]] as an exact one-hot sum: advanced indexing exports to a Flatten that
+        # tract cannot shape with a symbolic batch.
+        pick = (torch.arange(tokens.shape[1])[None, :] == eot[:, None]).to(out.dtype)
+        return (out * pick[:, :, None]).sum(dim=1)
 
 
 class Armflow(nn.Module):

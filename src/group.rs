@@ -204,9 +204,14 @@ impl Model {
         })
     }
 
-    /// Frames of motion per person a `umf` bundle generates (0 for other families).
+    /// Frames of motion per clip: per person of [`Model::generate_group`] for a `umf` bundle,
+    /// of [`Model::generate_clip`] for an `armflow` bundle with a `clip` section; 0 otherwise.
     pub fn clip_frames(&self) -> usize {
-        self.umf_spec().map_or(0, |u| u.clip_frames)
+        match (self.umf_spec(), self.clip_spec()) {
+            (Some(u), _) => u.clip_frames,
+            (None, Some(c)) => c.frames,
+            (None, None) => 0,
+        }
     }
 
     fn plan<'a>(&self, spec: &'a UmfSpec, options: &GroupOptions) -> Result<Plan<'a>> {

@@ -24,6 +24,7 @@
 #![warn(missing_docs)]
 
 mod bundle;
+pub mod clip;
 mod error;
 pub mod ffi;
 mod graph;
@@ -37,6 +38,7 @@ pub mod pyramid;
 mod session;
 pub mod solver;
 
+pub use clip::{Clip, ClipNoise, ClipOptions};
 pub use error::{Error, Result};
 pub use group::{
     Group, GroupNoise, GroupNoiseShape, GroupOptions, MAX_PEOPLE, STREAM_JUMP_NOISE,

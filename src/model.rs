@@ -37,7 +37,7 @@ enum Networks {
 }
 
 #[derive(Debug)]
-struct ArmFlowNetworks {
+pub(crate) struct ArmFlowNetworks {
     conditioning: Graph,
     context_step: Graph,
     velocity: Graph,
@@ -45,6 +45,10 @@ struct ArmFlowNetworks {
     vae_decoder: Graph,
     /// Per-token VAE steps with explicit state, when the bundle has them.
     vae_steps: Option<(Graph, Graph)>,
+    /// The official unmasked whole-prefix context call (clip mode), when present.
+    pub(crate) context_full: Option<Graph>,
+    /// The official text branch (CLIP token features -> condition), when present.
+    pub(crate) text_branch: Option<Graph>,
 }
 
 /// The convolution state of a stream's VAE steps: every `state_i` of the encoder and decoder.
@@ -118,6 +122,15 @@ impl Model {
                 if let Some((e, d)) = steps {
                     wanted.extend([("vae_encoder_step", e), ("vae_decoder_step", d)]);
                 }
+                let optional = [
+                    ("context_full", &g.context_full),
+                    ("text_branch", &g.text_branch),
+                ];
+                wanted.extend(
+                    optional
+                        .iter()
+                        .filter_map(|(n, g)| g.as_ref().map(|g| (*n, g))),
+                );
                 let mut graphs = load_graphs(&files, &wanted)?.into_iter();
                 let mut next = || graphs.next().expect("one graph per wanted entry");
                 Networks::ArmFlow(Box::new(ArmFlowNetworks {
@@ -127,6 +140,8 @@ impl Model {
                     vae_encoder: next(),
                     vae_decoder: next(),
                     vae_steps: steps.map(|_| (next(), next())),
+                    context_full: g.context_full.as_ref().map(|_| next()),
+                    text_branch: g.text_branch.as_ref().map(|_| next()),
                 }))
             }
             Family::Umf(spec) => {
@@ -277,7 +292,7 @@ impl Model {
     }
 
     /// The ARMFlow spec and graphs, or an error naming the family this bundle is.
-    fn armflow(&self) -> Result<(&ArmFlowSpec, &ArmFlowNetworks)> {
+    pub(crate) fn armflow(&self) -> Result<(&ArmFlowSpec, &ArmFlowNetworks)> {
         match (&self.inner.manifest.family, &self.inner.networks) {
             (Family::Armflow(spec), Networks::ArmFlow(nets)) => Ok((spec, nets)),
             _ => Err(self.wrong_family("armflow", "streaming")),

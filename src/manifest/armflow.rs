@@ -16,8 +16,24 @@ pub struct ArmFlowSpec {
     pub vae: VaeSpec,
     /// Default sampler settings (sessions may override them).
     pub sampler: SamplerSpec,
+    /// The official clip length, for bundles that run the official clip loop
+    /// ([`crate::Model::generate_clip`]); absent for streaming-only bundles.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub clip: Option<ClipSpec>,
     /// The ONNX graphs of the bundle.
     pub graphs: ArmFlowGraphs,
+}
+
+/// The fixed clip of the official sampler: actor clips are zero-padded to `frames`, which
+/// the VAE encodes to `tokens` tokens.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct ClipSpec {
+    /// Frames of a padded clip (300 for InterHuman, 150 for InterX).
+    pub frames: usize,
+    /// Tokens the encoder makes of them (75 and 37: the stride-2 convolutions floor odd
+    /// lengths, and the decoder's `4 * tokens` frames are padded to `frames` by repeating the
+    /// last frame).
+    pub tokens: usize,
 }
 
 /// Latent tokens.
@@ -117,6 +133,14 @@ pub struct ArmFlowGraphs {
     /// The decoder's per-token step with explicit convolution state.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub vae_decoder_step: Option<GraphSpec>,
+    /// The official context call: the whole prefix `[<sos>, pairs...]` with no attention mask
+    /// and no cache, giving the context at the last position. Required with `clip`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub context_full: Option<GraphSpec>,
+    /// The official trainable text branch: CLIP token features and the end-of-text index to
+    /// the condition vector. Optional.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub text_branch: Option<GraphSpec>,
 }
 
 impl ArmFlowSpec {
@@ -175,6 +199,20 @@ impl ArmFlowSpec {
                     && self.vae.decoder.lookahead_tokens == 0),
             &|| "VAE step graphs need a streaming VAE without lookahead".into(),
         )?;
+        if let Some(clip) = &self.clip {
+            check(g.context_full.is_some(), &|| {
+                "a bundle with `clip` needs graphs.context_full".into()
+            })?;
+            check(
+                clip.tokens > 0 && clip.tokens * l.frames_per_token <= clip.frames,
+                &|| {
+                    format!(
+                        "clip.tokens {} * latent.frames_per_token {} must be in 1..=clip.frames {}",
+                        clip.tokens, l.frames_per_token, clip.frames
+                    )
+                },
+            )?;
+        }
         check(self.sampler.steps >= 1, &|| {
             "sampler.steps must be >= 1".into()
         })?;
@@ -284,6 +322,42 @@ impl ArmFlowSpec {
                 ),
             ),
         ];
+        if let Some(full) = &g.context_full {
+            contracts.push((
+                "context_full",
+                full,
+                spec(
+                    full,
+                    vec![
+                        f("tokens", vec![s("B"), s("S"), n(c)]),
+                        f(
+                            "modulation",
+                            vec![s("B"), n(self.context.layers), n(6), n(c)],
+                        ),
+                    ],
+                    vec![f("context", vec![s("B"), n(c)])],
+                ),
+            ));
+        }
+        if let Some(text) = &g.text_branch {
+            let cond = manifest.condition.dim;
+            contracts.push((
+                "text_branch",
+                text,
+                spec(
+                    text,
+                    vec![
+                        f("clip_tokens", vec![s("B"), s("T"), n(cond)]),
+                        TensorSpec {
+                            name: "eot_index".into(),
+                            dtype: DType::Int64,
+                            shape: vec![s("B")],
+                        },
+                    ],
+                    vec![f("condition", vec![s("B"), n(cond)])],
+                ),
+            ));
+        }
         let fpt = self.latent.frames_per_token;
         if let Some(step) = &g.vae_encoder_step {
             contracts.push((

@@ -16,8 +16,8 @@ mod armflow;
 mod umf;
 
 pub use armflow::{
-    ActorLatent, ArmFlowGraphs, ArmFlowSpec, ContextSpec, DecoderWindow, EncoderWindow, LatentSpec,
-    SamplerSpec, VaeSpec,
+    ActorLatent, ArmFlowGraphs, ArmFlowSpec, ClipSpec, ContextSpec, DecoderWindow, EncoderWindow,
+    LatentSpec, SamplerSpec, VaeSpec,
 };
 pub use umf::{
     PyramidSpec, StageSpec, TextSpec, UmfGraphs, UmfLatentSpec, UmfSamplerSpec, UmfSpec,

@@ -1,0 +1,259 @@
+//! ARMFlow's official clip loop, [`Model::generate_clip`]: given the same weights and noise,
+//! the same motion as the released sampler (`shared/spec/models.md` §1.7).
+//!
+//! Unlike a [`crate::Session`], which streams, the official sampler works on a whole clip:
+//! 1. the actor clip is zero-padded to the clip length (300 frames InterHuman, 150 InterX) and
+//!    encoded once, non-causally; actor tokens are the posterior sample
+//!    `a = (mean + sqrt(exp(logvar)) * xi) * scale`;
+//! 2. for every token `i`, the whole prefix `[<sos>, (a_j || b_j) for j < i]` is re-run through
+//!    the context encoder with **no attention mask** (earlier tokens see later ones), and the
+//!    context is the output at the last position;
+//! 3. **one** noise token `eps` (the official `E[N-1]`) is used for every token:
+//!    `b_i = eps - u(eps, r = 0, t = 1)` (more MeanFlow steps follow the session's grid);
+//! 4. all reactor tokens are decoded at once and padded to the clip length by repeating the
+//!    last frame (InterX's 37 tokens decode to 148 frames).
+//!
+//! Cost: the prefix re-run makes token `i` cost O(i) tokens, the clip O(N²); the official code
+//! pays the same.
+
+use ndarray::{Array2, ArrayView2};
+
+use crate::error::{Error, Result};
+use crate::graph::{f32_tensor, read_f32, stack_rows};
+use crate::manifest::ClipSpec;
+use crate::model::{check_finite, Model};
+use crate::noise::{fill_normals, STREAM_ACTOR_POSTERIOR, STREAM_REACTOR_NOISE};
+use crate::session::meanflow_grid;
+
+/// The random draws of one clip. Pass them to reproduce another implementation's draws
+/// exactly; leave them out and troupe draws them from the seed.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ClipNoise {
+    /// `xi`, the standard normals of the actor posterior sample, `[clip.tokens, latent_dim]`
+    /// row-major (the official first draw).
+    pub actor_posterior: Vec<f32>,
+    /// `eps`, the one noise token every reactor token starts from, `[latent_dim]` (the
+    /// official `E[N-1]` of the second draw).
+    pub reactor_noise: Vec<f32>,
+}
+
+/// Options of [`Model::generate_clip`].
+#[derive(Debug, Clone, Default)]
+pub struct ClipOptions {
+    /// Seed of the draws when `noise` is `None`: `xi` of token `j` is the Philox stream
+    /// [`STREAM_ACTOR_POSTERIOR`] at token `j`, and `eps` the stream [`STREAM_REACTOR_NOISE`]
+    /// at token `N - 1`, the draws a [`crate::Session`] with this seed makes for those tokens.
+    pub seed: u64,
+    /// MeanFlow steps per token; `None` takes the bundle's default (1 for the official models).
+    pub steps: Option<u32>,
+    /// Injected draws; `None` draws from `seed`.
+    pub noise: Option<ClipNoise>,
+}
+
+/// What [`Model::generate_clip`] returns.
+#[derive(Debug, Clone)]
+pub struct Clip {
+    /// Reactor motion, `[clip.frames, frame_dim]`.
+    pub frames: Array2<f32>,
+    /// Actor tokens `a_i` (scaled), `[clip.tokens, latent_dim]`.
+    pub actor_latents: Array2<f32>,
+    /// Reactor tokens `b_i` (scaled), `[clip.tokens, latent_dim]`.
+    pub reactor_latents: Array2<f32>,
+    /// Context `c_i` of every token, `[clip.tokens, 2 * latent_dim]`.
+    pub contexts: Array2<f32>,
+}
+
+impl Model {
+    /// The official clip of an `armflow` bundle with a `clip` section, or `None`.
+    pub fn clip_spec(&self) -> Option<&ClipSpec> {
+        self.armflow_spec().and_then(|a| a.clip.as_ref())
+    }
+
+    /// The draws [`Model::generate_clip`] makes for `seed` when none are given.
+    pub fn clip_noise(&self, seed: u64) -> Result<ClipNoise> {
+        let clip = self.require_clip()?;
+        let lat = self.latent_dim();
+        let mut actor_posterior = vec![0f32; clip.tokens * lat];
+        for (j, row) in actor_posterior.chunks_exact_mut(lat).enumerate() {
+            fill_normals(seed, j as u64, STREAM_ACTOR_POSTERIOR, row);
+        }
+        let mut reactor_noise = vec![0f32; lat];
+        fill_normals(
+            seed,
+            clip.tokens as u64 - 1,
+            STREAM_REACTOR_NOISE,
+            &mut reactor_noise,
+        );
+        Ok(ClipNoise {
+            actor_posterior,
+            reactor_noise,
+        })
+    }
+
+    /// Runs the official ARMFlow sampler on one actor clip (see [`crate::clip`]): `actor` is
+    /// `[frames, frame_dim]` with 1 to `clip.frames` frames (zero-padded to `clip.frames`);
+    /// `condition` the text condition (`None`: the null condition). Needs an `armflow` bundle
+    /// with a `clip` section, exported from the official layout (`onnx/export.py --preset
+    /// interhuman | interx`).
+    ///
+    /// ```no_run
+    /// use ndarray::Array2;
+    /// use troupe::{ClipOptions, Model};
+    /// let model = Model::load("onnx/armflow-tiny-interhuman")?;
+    /// let actor = Array2::<f32>::zeros((120, model.frame_dim()));
+    /// let clip = model.generate_clip(actor.view(), None, &ClipOptions { seed: 1, ..Default::default() })?;
+    /// assert_eq!(clip.frames.nrows(), 300);
+    /// # Ok::<(), troupe::Error>(())
+    /// ```
+    pub fn generate_clip(
+        &self,
+        actor: ArrayView2<f32>,
+        condition: Option<&[f32]>,
+        options: &ClipOptions,
+    ) -> Result<Clip> {
+        let clip = self.require_clip()?.clone();
+        let (spec, nets) = self.armflow()?;
+        let (d, lat, c) = (self.frame_dim(), self.latent_dim(), spec.context.width);
+        let n = clip.tokens;
+        if actor.ncols() != d || actor.nrows() == 0 || actor.nrows() > clip.frames {
+            return Err(Error::InvalidInput(format!(
+                "actor clip is {}x{}, expected 1..={} frames of {d} floats",
+                actor.nrows(),
+                actor.ncols(),
+                clip.frames
+            )));
+        }
+        let steps = options.steps.unwrap_or(spec.sampler.steps);
+        if steps == 0 {
+            return Err(Error::InvalidInput("steps must be >= 1".into()));
+        }
+        let mut padded = vec![0f32; clip.frames * d];
+        for (dst, src) in padded.iter_mut().zip(actor.iter()) {
+            *dst = *src;
+        }
+        check_finite("actor clip", &padded[..actor.len()])?;
+        let noise = match &options.noise {
+            Some(noise) => {
+                check_clip_noise(noise, n, lat)?;
+                noise.clone()
+            }
+            None => self.clip_noise(options.seed)?,
+        };
+        let cond = self.conditioning(condition)?;
+        let full = nets
+            .context_full
+            .as_ref()
+            .expect("validated: clip needs context_full");
+
+        // 1. One encode of the padded clip; actor tokens are the posterior sample.
+        let (mean, logvar) = self.encode(&padded)?;
+        let scale = spec.latent.scale;
+        let actor_latents: Vec<f32> = (0..n * lat)
+            .map(|i| (mean[i] + logvar[i].exp().sqrt() * noise.actor_posterior[i]) * scale)
+            .collect();
+
+        // 2.-3. Every token re-runs the whole unmasked prefix; one noise token for all.
+        let grid = meanflow_grid(steps);
+        let modulation = stack_rows("context_full", &[&cond.modulation])?;
+        let mut sequence = cond.start_token.clone(); // [<sos>, (a_j || b_j)...]
+        let (mut reactor, mut contexts) = (Vec::with_capacity(n * lat), Vec::with_capacity(n * c));
+        for i in 0..n {
+            let out = full.run(vec![
+                f32_tensor(&[1, i + 1, c], &sequence),
+                modulation.clone(),
+            ])?;
+            let context = read_f32("context_full", "context", &out[0], &[1, c])?.to_vec();
+            let a = &actor_latents[i * lat..(i + 1) * lat];
+            let mut z = noise.reactor_noise.clone();
+            for k in 0..steps as usize {
+                let u = self.velocity(a, &z, &context, &[grid[k + 1]], &[grid[k]])?;
+                let dt = grid[k] - grid[k + 1];
+                for (zv, uv) in z.iter_mut().zip(&u) {
+                    *zv -= dt * uv;
+                }
+            }
+            check_finite("generated reactor token", &z)?;
+            sequence.extend_from_slice(a);
+            sequence.extend_from_slice(&z);
+            reactor.extend_from_slice(&z);
+            contexts.extend_from_slice(&context);
+        }
+
+        // 4. One decode of all tokens, padded to the clip by repeating the last frame.
+        let unscaled: Vec<f32> = reactor.iter().map(|v| v / scale).collect();
+        let mut frames = self.decode(&unscaled)?;
+        let last = frames[frames.len() - d..].to_vec();
+        while frames.len() < clip.frames * d {
+            frames.extend_from_slice(&last);
+        }
+        let rows = |v: Vec<f32>, w: usize| Array2::from_shape_vec((v.len() / w, w), v);
+        Ok(Clip {
+            frames: rows(frames, d).expect("whole frames"),
+            actor_latents: rows(actor_latents, lat).expect("whole tokens"),
+            reactor_latents: rows(reactor, lat).expect("whole tokens"),
+            contexts: rows(contexts, c).expect("whole contexts"),
+        })
+    }
+
+    /// Runs the official text branch: CLIP's token features `[tokens, condition_dim]` (the
+    /// output of CLIP's final LayerNorm for one prompt) and the index of its end-of-text token
+    /// (the argmax of CLIP's token ids) give the condition vector `[condition_dim]`. Needs a
+    /// bundle with a `text_branch` graph.
+    pub fn encode_text(&self, clip_tokens: ArrayView2<f32>, eot_index: usize) -> Result<Vec<f32>> {
+        let (_, nets) = self.armflow()?;
+        let graph = nets.text_branch.as_ref().ok_or_else(|| {
+            Error::InvalidInput(format!(
+                "bundle `{}` has no text_branch graph",
+                self.manifest().name
+            ))
+        })?;
+        let dim = self.condition_dim();
+        let t = clip_tokens.nrows();
+        if clip_tokens.ncols() != dim || t == 0 {
+            return Err(Error::InvalidInput(format!(
+                "CLIP token features are {t}x{}, expected at least one token of {dim} floats",
+                clip_tokens.ncols()
+            )));
+        }
+        if eot_index >= t {
+            return Err(Error::InvalidInput(format!(
+                "end-of-text index {eot_index} is outside the {t} tokens"
+            )));
+        }
+        let flat: Vec<f32> = clip_tokens.iter().copied().collect();
+        check_finite("CLIP token features", &flat)?;
+        let eot = tract_onnx::prelude::Tensor::from_shape(&[1], &[eot_index as i64])
+            .expect("shape matches data");
+        let out = graph.run(vec![f32_tensor(&[1, t, dim], &flat), eot.into()])?;
+        Ok(read_f32("text_branch", "condition", &out[0], &[1, dim])?.to_vec())
+    }
+
+    fn require_clip(&self) -> Result<&ClipSpec> {
+        if self.armflow_spec().is_none() {
+            return Err(self.wrong_family("armflow", "clip generation"));
+        }
+        self.clip_spec().ok_or_else(|| {
+            Error::InvalidInput(format!(
+                "bundle `{}` has no `clip` section: clip generation needs a bundle exported \
+                 from the official layout (onnx/export.py --preset interhuman | interx)",
+                self.manifest().name
+            ))
+        })
+    }
+}
+
+fn check_clip_noise(noise: &ClipNoise, tokens: usize, lat: usize) -> Result<()> {
+    let sizes = [
+        ("actor_posterior", noise.actor_posterior.len(), tokens * lat),
+        ("reactor_noise", noise.reactor_noise.len(), lat),
+    ];
+    for (name, got, want) in sizes {
+        if got != want {
+            return Err(Error::InvalidInput(format!(
+                "clip noise `{name}` has {got} floats, expected {want}"
+            )));
+        }
+    }
+    check_finite("clip noise actor_posterior", &noise.actor_posterior)?;
+    check_finite("clip noise reactor_noise", &noise.reactor_noise)
+}
