@@ -114,6 +114,29 @@ typedef struct troupe_session troupe_session;
 typedef int32_t troupe_status;
 
 /*
+ The random draws of one clip, given instead of seeded. Arrays are row-major float32, each
+ borrowed for the call; lengths are in floats.
+ */
+typedef struct troupe_clip_noise {
+  /*
+   Standard normals of the actor posterior sample, `[clip_tokens][latent_dim]`.
+   */
+  const float *actor_posterior;
+  /*
+   Length of `actor_posterior`.
+   */
+  size_t actor_posterior_len;
+  /*
+   The one noise token every reactor token starts from, `[latent_dim]`.
+   */
+  const float *reactor_noise;
+  /*
+   Length of `reactor_noise`.
+   */
+  size_t reactor_noise_len;
+} troupe_clip_noise;
+
+/*
  Options of `troupe_group_generate`. Fill with `troupe_group_options_init` (the bundle's
  defaults), then change fields. Fields are only ever appended; `struct_size` tells the library
  which version the caller has.
@@ -285,6 +308,60 @@ extern "C" {
 #endif // __cplusplus
 
 /*
+ Tokens of the official clip of an `armflow` bundle exported from the official layout (75
+ InterHuman, 37 InterX); 0 for other bundles or NULL. Thread-safe.
+
+ # Safety
+ `model` must be NULL or a live handle.
+ */
+size_t troupe_model_clip_tokens(const struct troupe_model *model);
+
+/*
+ Runs the official ARMFlow sampler on one actor clip and writes the reactor motion, row-major
+ float32 `[clip_frames][frame_dim]`, into `frames` (capacity `frames_capacity` floats), and,
+ when `reactor_latents` is not NULL, the reactor tokens `[clip_tokens][latent_dim]` into it
+ (capacity `latents_capacity` floats).
+
+ `actor` holds `n_actor_frames` frames (1 to `troupe_model_clip_frames`), zero-padded to the
+ clip. `condition` holds `troupe_model_condition_dim` floats (NULL with `condition_len` 0:
+ the null condition). `steps` is the MeanFlow steps per token, 0 for the bundle's default.
+ `noise` NULL draws from `seed` (the draws a session with that seed makes for those tokens);
+ otherwise it supplies every draw. Inputs are borrowed for the call; nothing is written unless
+ the call succeeds.
+
+ Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (a bundle without a
+ clip, a clip of 0 or too many frames, non-finite input, bad noise length: the message says
+ which), `TROUPE_ERR_SHAPE` (condition length), `TROUPE_ERR_BUFFER_TOO_SMALL`,
+ `TROUPE_ERR_INFERENCE`, `TROUPE_ERR_PANIC`. Thread-safe: any number of threads may generate
+ on one model at once.
+
+ # Safety
+ `model` must be a live handle; `actor` readable for `n_actor_frames * frame_dim` floats;
+ `condition` for `condition_len`; `noise` NULL or a readable struct whose arrays are readable
+ for their lengths; `frames` writable for `frames_capacity` floats and `reactor_latents` (if
+ not NULL) for `latents_capacity`, neither overlapping an input.
+ */
+troupe_status troupe_clip_generate(const struct troupe_model *model, const float *actor, size_t n_actor_frames, const float *condition, size_t condition_len, uint64_t seed, uint32_t steps, const struct troupe_clip_noise *noise, float *frames, size_t frames_capacity, float *reactor_latents, size_t latents_capacity);
+
+/*
+ Runs the official text branch of an `armflow` bundle that has one: CLIP's token features
+ `clip_tokens`, row-major `[n_tokens][condition_dim]` (the output of CLIP's final LayerNorm
+ for one prompt), and the index of the end-of-text token (the argmax of CLIP's token ids)
+ give the condition vector, written to `condition` (capacity `condition_capacity` floats, at
+ least `troupe_model_condition_dim`). Inputs are borrowed; nothing is written unless the call
+ succeeds.
+
+ Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (no text branch, no
+ tokens, index out of range, non-finite input), `TROUPE_ERR_BUFFER_TOO_SMALL`,
+ `TROUPE_ERR_INFERENCE`, `TROUPE_ERR_PANIC`. Thread-safe.
+
+ # Safety
+ `model` must be a live handle; `clip_tokens` readable for `n_tokens * condition_dim` floats;
+ `condition` writable for `condition_capacity` floats and not overlapping `clip_tokens`.
+ */
+troupe_status troupe_text_encode(const struct troupe_model *model, const float *clip_tokens, size_t n_tokens, size_t eot_index, float *condition, size_t condition_capacity);
+
+/*
  `sizeof(troupe_group_options)` in this library, for bindings to check their mirror.
  */
 size_t troupe_group_options_size(void);
@@ -327,8 +404,9 @@ size_t troupe_model_group_stages(const struct troupe_model *model);
 size_t troupe_model_group_tokens(const struct troupe_model *model);
 
 /*
- Frames of motion per person a `umf` bundle generates (0 for other bundles or NULL): the
- output of `troupe_group_generate` is `[people][clip_frames][frame_dim]`. Thread-safe.
+ Frames of motion per clip (0 for other bundles or NULL): per person of
+ `troupe_group_generate` (`[people][clip_frames][frame_dim]`) for a `umf` bundle, of
+ `troupe_clip_generate` for an `armflow` bundle with an official clip. Thread-safe.
 
  # Safety
  `model` must be NULL or a live handle.

@@ -713,12 +713,15 @@ def clip_tokens(cfg: ArmflowConfig) -> int:
 
 @torch.no_grad()
 def clip_reference(model: Armflow, actor: np.ndarray, xi: np.ndarray, eps: np.ndarray,
-                   condition: np.ndarray | None, steps: int = 1):
+                   condition: np.ndarray | None, steps: int = 1, causal_context: bool = False):
     """The official sampling loop: the actor clip zero-padded to the clip length and encoded
     once with the posterior sample `xi` [N, latent]; for every token the whole prefix
     [sos, (a_j || b_j) for j < i] re-run through the context encoder with no attention mask;
     the same noise token `eps` [latent] (the official E[N-1]) for every token; one decode of
     all reactor tokens, padded to the clip length by repeating the last frame (InterX).
+
+    `causal_context` swaps the unmasked prefix for the causal mask that stream mode's key/value
+    cache implies (a measurement aid, not the official loop).
 
     Returns actor_latents, reactor_latents, contexts [N, *] and frames [clip_frames, D]."""
     cfg, core = model.cfg, model.armflow
@@ -738,7 +741,12 @@ def clip_reference(model: Armflow, actor: np.ndarray, xi: np.ndarray, eps: np.nd
         if i > 0:
             pairs = torch.cat([a[:, :i], torch.stack(b_hist)[None]], dim=-1)
             seq = torch.cat([core.start_token, pairs], dim=1)
-        c = core.arnet.full(seq, modulation)
+        if causal_context:
+            h = core.arnet.in_layers[0].attn
+            empty = torch.zeros(1, h.heads, 0, h.head_dim)
+            c, _ = core.arnet.step(seq, torch.arange(i + 1)[None], modulation, [(empty, empty)] * cfg.layers)
+        else:
+            c = core.arnet.full(seq, modulation)
         z = e
         for k in range(steps):
             t_hi, t_lo = grid[k], grid[k + 1]

@@ -442,8 +442,8 @@ def write_clip_golden(model: Armflow, out_dir: Path):
     eps = rng.standard_normal((tokens_stream, lat)).astype(np.float32)
     out = stream_reference(model, actor, xi, eps, StreamOptions(condition=condition), w)
     arrays |= {"stream_xi": xi, "stream_eps": eps} | {f"stream_{k}": v for k, v in out.items()}
-    for k, v in arrays.items():
-        np.save(g / f"{k}.npy", v)
+    for k, v in arrays.items():  # C order: the C ABI test reads them with a minimal reader
+        np.save(g / f"{k}.npy", np.ascontiguousarray(v))
 
 
 @torch.no_grad()

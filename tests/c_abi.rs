@@ -255,6 +255,41 @@ fn c_smoke_under_valgrind() {
     let [umf, armflow] = group_args();
     let text = run(&valgrind, &group, &[&umf, &armflow]);
     assert!(text.contains("ERROR SUMMARY: 0 errors"), "{text}");
+    let clip = compile(
+        "cc",
+        &["-std=c99", "-g"],
+        &[&root().join("tests/c/clip.c")],
+        &shared_link(),
+        "clip_valgrind",
+    );
+    let [official, streaming] = clip_args();
+    let text = run(&valgrind, &clip, &[&official, &streaming]);
+    assert!(text.contains("ERROR SUMMARY: 0 errors"), "{text}");
+}
+
+fn clip_args() -> [PathBuf; 2] {
+    [
+        root().join("onnx/armflow-tiny-interhuman"),
+        root().join("onnx/armflow-tiny"),
+    ]
+}
+
+/// The official clip loop and text branch through the header: parity with the reference,
+/// seeded determinism, every bad input, as C99 and as C++17.
+#[test]
+fn c_clip_generation_as_c99_and_cpp17() {
+    let src = root().join("tests/c/clip.c");
+    let c = compile("cc", &["-std=c99"], &[&src], &shared_link(), "clip_c");
+    let [official, streaming] = clip_args();
+    println!("{}", run(&[], &c, &[&official, &streaming]));
+    let cpp = compile(
+        "c++",
+        &["-std=c++17", "-x", "c++"],
+        &[&src],
+        &shared_link(),
+        "clip_cpp",
+    );
+    run(&[], &cpp, &[&official, &streaming]);
 }
 
 fn group_args() -> [PathBuf; 2] {

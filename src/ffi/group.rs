@@ -185,14 +185,16 @@ pub unsafe extern "C" fn troupe_model_group_tokens(model: *const troupe_model) -
     boundary::get(0, || umf_model(model).map_or(0, |(_, u)| u.latent.tokens))
 }
 
-/// Frames of motion per person a `umf` bundle generates (0 for other bundles or NULL): the
-/// output of `troupe_group_generate` is `[people][clip_frames][frame_dim]`. Thread-safe.
+/// Frames of motion per clip (0 for other bundles or NULL): per person of
+/// `troupe_group_generate` (`[people][clip_frames][frame_dim]`) for a `umf` bundle, of
+/// `troupe_clip_generate` for an `armflow` bundle with an official clip. Thread-safe.
 ///
 /// # Safety
 /// `model` must be NULL or a live handle.
 #[no_mangle]
 pub unsafe extern "C" fn troupe_model_clip_frames(model: *const troupe_model) -> usize {
-    boundary::get(0, || umf_model(model).map_or(0, |(_, u)| u.clip_frames))
+    // SAFETY: NULL or live per the contract.
+    boundary::get(0, || unsafe { model.as_ref() }.map_or(0, |m| m.model.clip_frames()))
 }
 
 /// Writes the lengths, in floats, of the three arrays of a `troupe_group_noise` for `people`

@@ -19,6 +19,7 @@
 #![allow(non_camel_case_types)]
 
 pub mod boundary;
+pub mod clip;
 pub mod group;
 pub mod log;
 pub mod model;

@@ -1,0 +1,203 @@
+//! `troupe_clip_generate` and `troupe_text_encode`: the official ARMFlow clip loop and text
+//! branch (see `crate::clip`).
+
+use ndarray::ArrayView2;
+
+use super::boundary::{
+    self, non_null, troupe_status, FfiError, FfiResult, TROUPE_ERR_BUFFER_TOO_SMALL,
+    TROUPE_ERR_SHAPE,
+};
+use super::model::troupe_model;
+use crate::{ClipNoise, ClipOptions, Model};
+
+/// The random draws of one clip, given instead of seeded. Arrays are row-major float32, each
+/// borrowed for the call; lengths are in floats.
+#[repr(C)]
+#[derive(Debug, Clone, Copy)]
+pub struct troupe_clip_noise {
+    /// Standard normals of the actor posterior sample, `[clip_tokens][latent_dim]`.
+    pub actor_posterior: *const f32,
+    /// Length of `actor_posterior`.
+    pub actor_posterior_len: usize,
+    /// The one noise token every reactor token starts from, `[latent_dim]`.
+    pub reactor_noise: *const f32,
+    /// Length of `reactor_noise`.
+    pub reactor_noise_len: usize,
+}
+
+/// Tokens of the official clip of an `armflow` bundle exported from the official layout (75
+/// InterHuman, 37 InterX); 0 for other bundles or NULL. Thread-safe.
+///
+/// # Safety
+/// `model` must be NULL or a live handle.
+#[no_mangle]
+pub unsafe extern "C" fn troupe_model_clip_tokens(model: *const troupe_model) -> usize {
+    // SAFETY: NULL or live per the contract.
+    boundary::get(0, || unsafe { model.as_ref() }.and_then(|m| m.model.clip_spec()).map_or(0, |c| c.tokens))
+}
+
+/// Runs the official ARMFlow sampler on one actor clip and writes the reactor motion, row-major
+/// float32 `[clip_frames][frame_dim]`, into `frames` (capacity `frames_capacity` floats), and,
+/// when `reactor_latents` is not NULL, the reactor tokens `[clip_tokens][latent_dim]` into it
+/// (capacity `latents_capacity` floats).
+///
+/// `actor` holds `n_actor_frames` frames (1 to `troupe_model_clip_frames`), zero-padded to the
+/// clip. `condition` holds `troupe_model_condition_dim` floats (NULL with `condition_len` 0:
+/// the null condition). `steps` is the MeanFlow steps per token, 0 for the bundle's default.
+/// `noise` NULL draws from `seed` (the draws a session with that seed makes for those tokens);
+/// otherwise it supplies every draw. Inputs are borrowed for the call; nothing is written unless
+/// the call succeeds.
+///
+/// Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (a bundle without a
+/// clip, a clip of 0 or too many frames, non-finite input, bad noise length: the message says
+/// which), `TROUPE_ERR_SHAPE` (condition length), `TROUPE_ERR_BUFFER_TOO_SMALL`,
+/// `TROUPE_ERR_INFERENCE`, `TROUPE_ERR_PANIC`. Thread-safe: any number of threads may generate
+/// on one model at once.
+///
+/// # Safety
+/// `model` must be a live handle; `actor` readable for `n_actor_frames * frame_dim` floats;
+/// `condition` for `condition_len`; `noise` NULL or a readable struct whose arrays are readable
+/// for their lengths; `frames` writable for `frames_capacity` floats and `reactor_latents` (if
+/// not NULL) for `latents_capacity`, neither overlapping an input.
+#[no_mangle]
+#[allow(clippy::too_many_arguments)]
+pub unsafe extern "C" fn troupe_clip_generate(
+    model: *const troupe_model,
+    actor: *const f32,
+    n_actor_frames: usize,
+    condition: *const f32,
+    condition_len: usize,
+    seed: u64,
+    steps: u32,
+    noise: *const troupe_clip_noise,
+    frames: *mut f32,
+    frames_capacity: usize,
+    reactor_latents: *mut f32,
+    latents_capacity: usize,
+) -> troupe_status {
+    boundary::call(
+        "troupe_clip_generate",
+        || {},
+        || {
+            non_null(model, "model")?;
+            // SAFETY: non-NULL live handle per the contract.
+            let model: &Model = unsafe { &(*model).model };
+            let d = model.frame_dim();
+            let n = boundary::checked_mul(n_actor_frames, d, "n_actor_frames * frame_dim")?;
+            // SAFETY: readable for `n` floats per the contract.
+            let actor = unsafe { boundary::slice(actor, n, "actor") }?;
+            let condition = if condition.is_null() && condition_len == 0 {
+                None
+            } else {
+                // SAFETY: readable for `condition_len` floats per the contract.
+                let c = unsafe { boundary::slice(condition, condition_len, "condition") }?;
+                if c.len() != model.condition_dim() {
+                    return Err(FfiError::new(
+                        TROUPE_ERR_SHAPE,
+                        format!(
+                            "condition_len is {}, the bundle's condition has {} floats",
+                            c.len(),
+                            model.condition_dim()
+                        ),
+                    ));
+                }
+                Some(c)
+            };
+            let options = ClipOptions {
+                seed,
+                steps: (steps != 0).then_some(steps),
+                // SAFETY: NULL or readable per the contract.
+                noise: unsafe { noise.as_ref() }.map(|n| read_noise(n)).transpose()?,
+            };
+            let tokens = model.clip_spec().map_or(0, |c| c.tokens);
+            let need = model.clip_frames() * d;
+            let latent_need = tokens * model.latent_dim();
+            non_null(frames, "frames")?;
+            room(need, frames_capacity, "the frames")?;
+            if !reactor_latents.is_null() {
+                room(latent_need, latents_capacity, "the reactor latents")?;
+            }
+            let actor = ArrayView2::from_shape((n_actor_frames, d), actor)
+                .expect("n_actor_frames * frame_dim floats");
+            let clip = model.generate_clip(actor, condition, &options)?;
+            let out = clip.frames.as_slice().expect("standard layout");
+            // SAFETY: non-NULL, writable for frames_capacity >= need floats.
+            unsafe { std::ptr::copy_nonoverlapping(out.as_ptr(), frames, out.len()) };
+            if !reactor_latents.is_null() {
+                let z = clip.reactor_latents.as_slice().expect("standard layout");
+                // SAFETY: non-NULL, writable for latents_capacity >= latent_need floats.
+                unsafe { std::ptr::copy_nonoverlapping(z.as_ptr(), reactor_latents, z.len()) };
+            }
+            Ok(())
+        },
+    )
+}
+
+/// Runs the official text branch of an `armflow` bundle that has one: CLIP's token features
+/// `clip_tokens`, row-major `[n_tokens][condition_dim]` (the output of CLIP's final LayerNorm
+/// for one prompt), and the index of the end-of-text token (the argmax of CLIP's token ids)
+/// give the condition vector, written to `condition` (capacity `condition_capacity` floats, at
+/// least `troupe_model_condition_dim`). Inputs are borrowed; nothing is written unless the call
+/// succeeds.
+///
+/// Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (no text branch, no
+/// tokens, index out of range, non-finite input), `TROUPE_ERR_BUFFER_TOO_SMALL`,
+/// `TROUPE_ERR_INFERENCE`, `TROUPE_ERR_PANIC`. Thread-safe.
+///
+/// # Safety
+/// `model` must be a live handle; `clip_tokens` readable for `n_tokens * condition_dim` floats;
+/// `condition` writable for `condition_capacity` floats and not overlapping `clip_tokens`.
+#[no_mangle]
+pub unsafe extern "C" fn troupe_text_encode(
+    model: *const troupe_model,
+    clip_tokens: *const f32,
+    n_tokens: usize,
+    eot_index: usize,
+    condition: *mut f32,
+    condition_capacity: usize,
+) -> troupe_status {
+    boundary::call(
+        "troupe_text_encode",
+        || {},
+        || {
+            non_null(model, "model")?;
+            // SAFETY: non-NULL live handle per the contract.
+            let model: &Model = unsafe { &(*model).model };
+            let dim = model.condition_dim();
+            let n = boundary::checked_mul(n_tokens, dim, "n_tokens * condition_dim")?;
+            // SAFETY: readable for `n` floats per the contract.
+            let tokens = unsafe { boundary::slice(clip_tokens, n, "clip_tokens") }?;
+            non_null(condition, "condition")?;
+            room(dim, condition_capacity, "the condition")?;
+            let view = ArrayView2::from_shape((n_tokens, dim), tokens).expect("n floats");
+            let out = model.encode_text(view, eot_index)?;
+            // SAFETY: non-NULL, writable for condition_capacity >= dim floats.
+            unsafe { std::ptr::copy_nonoverlapping(out.as_ptr(), condition, out.len()) };
+            Ok(())
+        },
+    )
+}
+
+fn room(need: usize, capacity: usize, what: &str) -> FfiResult {
+    if capacity < need {
+        return Err(FfiError::new(
+            TROUPE_ERR_BUFFER_TOO_SMALL,
+            format!("{what} need {need} floats, the buffer holds {capacity}"),
+        ));
+    }
+    Ok(())
+}
+
+fn read_noise(n: &troupe_clip_noise) -> FfiResult<ClipNoise> {
+    // SAFETY: the arrays are readable for their lengths per troupe_clip_generate's contract.
+    let (a, r) = unsafe {
+        (
+            boundary::slice(n.actor_posterior, n.actor_posterior_len, "noise.actor_posterior")?,
+            boundary::slice(n.reactor_noise, n.reactor_noise_len, "noise.reactor_noise")?,
+        )
+    };
+    Ok(ClipNoise {
+        actor_posterior: a.to_vec(),
+        reactor_noise: r.to_vec(),
+    })
+}
