@@ -1,4 +1,5 @@
 //! The committed bundles are exactly what their exporters produce: `onnx/export.py --preset tiny`
+//! (and `tiny-interhuman`, `tiny-interx`, the official-layout parity bundles)
 //! and `onnx/export_umf.py --preset tiny | tiny-temporal`, goldens included.
 //!
 //! Needs Python with torch and onnx. CI does not install torch (about 4 GB); where it is missing
@@ -63,5 +64,39 @@ fn committed_umf_bundles_are_reproducible_from_the_exporter() {
             "tiny-temporal",
             "onnx/umf-tiny-temporal",
         );
+    }
+}
+
+#[test]
+fn committed_official_layout_bundles_are_reproducible_from_the_exporter() {
+    if torch_available("committed_official_layout_bundles_are_reproducible_from_the_exporter") {
+        check(
+            "onnx/export.py",
+            "tiny-interhuman",
+            "onnx/armflow-tiny-interhuman",
+        );
+        check("onnx/export.py", "tiny-interx", "onnx/armflow-tiny-interx");
+    }
+}
+
+/// The official-checkpoint path (`onnx/test_official.py`): a checkpoint in the official layout
+/// exports to exactly the committed parity bundles; missing, unexpected, mis-shaped and
+/// non-finite tensors are rejected by name; the text branch equals torch's encoder.
+#[test]
+fn official_checkpoints_load_strictly() {
+    if torch_available("official_checkpoints_load_strictly") {
+        let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+        let out = Command::new(python())
+            .current_dir(root)
+            .args(["-m", "pytest", "-q", "onnx/test_official.py"])
+            .output()
+            .expect("run pytest");
+        let text = format!(
+            "{}{}",
+            String::from_utf8_lossy(&out.stdout),
+            String::from_utf8_lossy(&out.stderr)
+        );
+        assert!(out.status.success(), "{text}");
+        assert!(text.contains("9 passed"), "{text}");
     }
 }

@@ -33,7 +33,11 @@ pub struct troupe_clip_noise {
 #[no_mangle]
 pub unsafe extern "C" fn troupe_model_clip_tokens(model: *const troupe_model) -> usize {
     // SAFETY: NULL or live per the contract.
-    boundary::get(0, || unsafe { model.as_ref() }.and_then(|m| m.model.clip_spec()).map_or(0, |c| c.tokens))
+    boundary::get(0, || {
+        unsafe { model.as_ref() }
+            .and_then(|m| m.model.clip_spec())
+            .map_or(0, |c| c.tokens)
+    })
 }
 
 /// Runs the official ARMFlow sampler on one actor clip and writes the reactor motion, row-major
@@ -107,7 +111,7 @@ pub unsafe extern "C" fn troupe_clip_generate(
                 seed,
                 steps: (steps != 0).then_some(steps),
                 // SAFETY: NULL or readable per the contract.
-                noise: unsafe { noise.as_ref() }.map(|n| read_noise(n)).transpose()?,
+                noise: unsafe { noise.as_ref() }.map(read_noise).transpose()?,
             };
             let tokens = model.clip_spec().map_or(0, |c| c.tokens);
             let need = model.clip_frames() * d;
@@ -192,7 +196,11 @@ fn read_noise(n: &troupe_clip_noise) -> FfiResult<ClipNoise> {
     // SAFETY: the arrays are readable for their lengths per troupe_clip_generate's contract.
     let (a, r) = unsafe {
         (
-            boundary::slice(n.actor_posterior, n.actor_posterior_len, "noise.actor_posterior")?,
+            boundary::slice(
+                n.actor_posterior,
+                n.actor_posterior_len,
+                "noise.actor_posterior",
+            )?,
             boundary::slice(n.reactor_noise, n.reactor_noise_len, "noise.reactor_noise")?,
         )
     };

@@ -194,7 +194,9 @@ pub unsafe extern "C" fn troupe_model_group_tokens(model: *const troupe_model) -
 #[no_mangle]
 pub unsafe extern "C" fn troupe_model_clip_frames(model: *const troupe_model) -> usize {
     // SAFETY: NULL or live per the contract.
-    boundary::get(0, || unsafe { model.as_ref() }.map_or(0, |m| m.model.clip_frames()))
+    boundary::get(0, || {
+        unsafe { model.as_ref() }.map_or(0, |m| m.model.clip_frames())
+    })
 }
 
 /// Writes the lengths, in floats, of the three arrays of a `troupe_group_noise` for `people`

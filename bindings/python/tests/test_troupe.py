@@ -258,3 +258,31 @@ def test_group_errors(umf, model):
         model.generate_group(1)
     with pytest.raises(troupe.TroupeError, match="`umf` model"):
         umf.session()
+
+
+OFFICIAL = REPO / "onnx" / "armflow-tiny-interhuman"
+
+
+def official_golden(name):
+    return np.load(OFFICIAL / "golden" / f"{name}.npy")
+
+
+def test_official_clip_loop_and_text_branch_match_the_reference():
+    m = troupe.Model(OFFICIAL)
+    assert (m.clip_frames, m.clip_tokens) == (300, 75)
+    cond = m.encode_text(official_golden("text_clip_tokens"), int(official_golden("text_eot_index")[0]))
+    assert np.abs(cond - official_golden("text_condition")).max() <= 1e-5
+    noise = (official_golden("clip_xi"), official_golden("clip_eps"))
+    motion, latents = m.generate_clip(official_golden("clip_actor"), cond, noise=noise, return_latents=True)
+    assert np.abs(motion - official_golden("clip_frames")).max() <= 1e-4
+    assert np.abs(latents - official_golden("clip_reactor_latents")).max() <= 1e-5
+    seeded = m.generate_clip(official_golden("clip_actor"), seed=4)
+    assert np.array_equal(seeded, m.generate_clip(official_golden("clip_actor"), seed=4))
+    with pytest.raises(troupe.TroupeError, match="1..=300 frames"):
+        m.generate_clip(np.zeros((301, 262), np.float32))
+    with pytest.raises(troupe.TroupeError, match="reactor_noise"):
+        m.generate_clip(official_golden("clip_actor"), noise=(noise[0], noise[1][:3]))
+    with pytest.raises(troupe.TroupeError, match="no `clip` section"):
+        troupe.Model(BUNDLE).generate_clip(np.zeros((4, 262), np.float32))
+    with pytest.raises(ValueError, match="clip_tokens must be"):
+        m.encode_text(np.zeros((5, 7), np.float32), 0)

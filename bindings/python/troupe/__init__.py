@@ -100,7 +100,51 @@ class Model:
     group_tokens = property(lambda self: _lib.troupe_model_group_tokens(self._h()),
                             doc="latent tokens per person of a umf bundle (0 otherwise)")
     clip_frames = property(lambda self: _lib.troupe_model_clip_frames(self._h()),
-                           doc="frames per person a umf bundle generates (0 otherwise)")
+                           doc="frames per clip: per person of a umf bundle, of an official "
+                               "ARMFlow clip (0 otherwise)")
+    clip_tokens = property(lambda self: _lib.troupe_model_clip_tokens(self._h()),
+                           doc="tokens of an official ARMFlow clip (0 otherwise)")
+
+    def generate_clip(self, actor, condition=None, seed: int = 0, steps: int = 0, noise=None,
+                      return_latents: bool = False):
+        """The official ARMFlow clip loop (an armflow bundle exported from the official layout):
+        `actor` [frames, frame_dim] with 1..clip_frames frames, zero-padded to the clip.
+        Returns the reactor motion [clip_frames, frame_dim] (and the reactor tokens
+        [clip_tokens, latent_dim] with `return_latents`).
+
+        `condition`: condition_dim floats, or None for the null condition. `steps`: MeanFlow
+        steps per token, 0 for the bundle's default. `noise`: (actor_posterior
+        [clip_tokens, latent_dim], reactor_noise [latent_dim]) replacing the seeded draws.
+        Releases the GIL."""
+        h = self._h()
+        a = _floats(actor, "actor")
+        if a.ndim != 2 or a.shape[1] != self.frame_dim:
+            raise ValueError(f"actor must be [frames, {self.frame_dim}], got {list(a.shape)}")
+        cond = None if condition is None else _floats(condition, "condition")
+        noise_struct = None
+        if noise is not None:
+            # `arrays` stays alive until the call returns, so the struct's pointers stay valid.
+            arrays = [_floats(x, name) for x, name in zip(noise, ("actor_posterior", "reactor_noise"))]
+            noise_struct = _native.ClipNoise(*[v for x in arrays for v in (_ptr(x), x.size)])
+        motion = np.empty((self.clip_frames, self.frame_dim), np.float32)
+        latents = np.empty((self.clip_tokens, self.latent_dim), np.float32) if return_latents else None
+        _check(_lib.troupe_clip_generate(
+            h, _ptr(a), a.shape[0],
+            None if cond is None else _ptr(cond), 0 if cond is None else cond.size,
+            seed, steps, None if noise_struct is None else ctypes.byref(noise_struct),
+            _ptr(motion), motion.size,
+            None if latents is None else _ptr(latents), 0 if latents is None else latents.size))
+        return (motion, latents) if return_latents else motion
+
+    def encode_text(self, clip_tokens, eot_index: int) -> np.ndarray:
+        """The official text branch: CLIP token features [tokens, condition_dim] and the
+        end-of-text index (argmax of CLIP's token ids) -> the condition [condition_dim]."""
+        t = _floats(clip_tokens, "clip_tokens")
+        if t.ndim != 2 or t.shape[1] != self.condition_dim:
+            raise ValueError(f"clip_tokens must be [tokens, {self.condition_dim}], got {list(t.shape)}")
+        out = np.empty(self.condition_dim, np.float32)
+        _check(_lib.troupe_text_encode(self._h(), _ptr(t), t.shape[0], eot_index, _ptr(out), out.size))
+        return out
 
     def generate_group(self, people: int, condition=None, seed: int = 0, cfg: float | None = None,
                        prior=None, reaction=None, noise=None, return_latents: bool = False):

@@ -63,6 +63,17 @@ class GroupNoise(ctypes.Structure):
     ]
 
 
+class ClipNoise(ctypes.Structure):
+    """Mirror of `troupe_clip_noise`."""
+
+    _fields_ = [
+        ("actor_posterior", ctypes.POINTER(ctypes.c_float)),
+        ("actor_posterior_len", ctypes.c_size_t),
+        ("reactor_noise", ctypes.POINTER(ctypes.c_float)),
+        ("reactor_noise_len", ctypes.c_size_t),
+    ]
+
+
 LOG_FN = ctypes.CFUNCTYPE(None, ctypes.c_void_p, ctypes.c_int32, ctypes.c_char_p, ctypes.c_char_p)
 
 model_p = ctypes.c_void_p
@@ -111,6 +122,11 @@ PROTOTYPES = {
     "troupe_group_generate": (status, [
         model_p, ctypes.POINTER(GroupOptions), f32p, c_size, ctypes.c_uint32, ctypes.POINTER(GroupNoise),
         f32p, c_size, f32p, c_size]),
+    "troupe_model_clip_tokens": (c_size, [model_p]),
+    "troupe_clip_generate": (status, [
+        model_p, f32p, c_size, f32p, c_size, ctypes.c_uint64, ctypes.c_uint32, ctypes.POINTER(ClipNoise),
+        f32p, c_size, f32p, c_size]),
+    "troupe_text_encode": (status, [model_p, f32p, c_size, c_size, f32p, c_size]),
 }
 
 
