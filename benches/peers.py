@@ -263,11 +263,11 @@ class TorchPeer:
         self.torch, self.b, self.recompute = torch, b, recompute
         self.library = f"torch {torch.__version__}"
         model = build_model(producer["preset"], producer["seed"])
-        self.context, self.velocity = model.context, model.velocity
-        self.encoder, self.decoder = VaeStep(model.vae_encoder), VaeStep(model.vae_decoder)
+        self.context, self.velocity = model.armflow.arnet, model.armflow.velocity
+        self.encoder, self.decoder = VaeStep(model.vae.encoder), VaeStep(model.vae.decoder)
         with torch.inference_mode():
             self.modulation = self.context.modulation(torch.from_numpy(condition))
-            self.start_token = self.context.start_token.detach().clone()
+            self.start_token = model.armflow.start_token.detach().clone()
 
     def new_stream(self, inp: Inputs) -> "TorchStream":
         with self.torch.inference_mode():
