@@ -5,9 +5,8 @@ use ndarray::ArrayView2;
 
 use super::boundary::{
     self, non_null, troupe_status, FfiError, FfiResult, TROUPE_ERR_BUFFER_TOO_SMALL,
-    TROUPE_ERR_SHAPE,
 };
-use super::model::troupe_model;
+use super::model::{optional_condition, troupe_model};
 use crate::{ClipNoise, ClipOptions, Model};
 
 /// The random draws of one clip, given instead of seeded. Arrays are row-major float32, each
@@ -90,23 +89,8 @@ pub unsafe extern "C" fn troupe_clip_generate(
             let n = boundary::checked_mul(n_actor_frames, d, "n_actor_frames * frame_dim")?;
             // SAFETY: readable for `n` floats per the contract.
             let actor = unsafe { boundary::slice(actor, n, "actor") }?;
-            let condition = if condition.is_null() && condition_len == 0 {
-                None
-            } else {
-                // SAFETY: readable for `condition_len` floats per the contract.
-                let c = unsafe { boundary::slice(condition, condition_len, "condition") }?;
-                if c.len() != model.condition_dim() {
-                    return Err(FfiError::new(
-                        TROUPE_ERR_SHAPE,
-                        format!(
-                            "condition_len is {}, the bundle's condition has {} floats",
-                            c.len(),
-                            model.condition_dim()
-                        ),
-                    ));
-                }
-                Some(c)
-            };
+            // SAFETY: readable for `condition_len` floats per the contract.
+            let condition = unsafe { optional_condition(model, condition, condition_len) }?;
             let options = ClipOptions {
                 seed,
                 steps: (steps != 0).then_some(steps),

@@ -4,7 +4,7 @@ use super::boundary::{
     self, check_struct_size, checked_mul, non_null, read_versioned, troupe_status, write_versioned,
     FfiError, FfiResult, TROUPE_ERR_BUFFER_TOO_SMALL, TROUPE_ERR_INVALID_ARG, TROUPE_ERR_SHAPE,
 };
-use super::model::troupe_model;
+use super::model::{optional_condition, troupe_model};
 use crate::manifest::UmfSpec;
 use crate::{GroupNoise, GroupNoiseShape, GroupOptions, Method, Model, Solver};
 
@@ -291,23 +291,8 @@ pub unsafe extern "C" fn troupe_group_generate(
                 // SAFETY: readable per the contract.
                 unsafe { read_group_options(options) }?
             };
-            let condition = if condition.is_null() && condition_len == 0 {
-                None
-            } else {
-                // SAFETY: readable for `condition_len` floats per the contract.
-                let c = unsafe { boundary::slice(condition, condition_len, "condition") }?;
-                if c.len() != model.condition_dim() {
-                    return Err(FfiError::new(
-                        TROUPE_ERR_SHAPE,
-                        format!(
-                            "condition_len is {}, the bundle's condition has {} floats",
-                            c.len(),
-                            model.condition_dim()
-                        ),
-                    ));
-                }
-                Some(c)
-            };
+            // SAFETY: readable for `condition_len` floats per the contract.
+            let condition = unsafe { optional_condition(model, condition, condition_len) }?;
             // The noise's shape doubles as the check of `people`.
             let shape = model.group_noise_shape(people_n)?;
             if !noise.is_null() {

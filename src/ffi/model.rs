@@ -2,7 +2,9 @@
 
 use std::ffi::{c_char, CStr};
 
-use super::boundary::{self, non_null, troupe_status, FfiError, TROUPE_ERR_INVALID_ARG};
+use super::boundary::{
+    self, non_null, troupe_status, FfiError, FfiResult, TROUPE_ERR_INVALID_ARG, TROUPE_ERR_SHAPE,
+};
 use crate::logging::{log, Level};
 use crate::Model;
 
@@ -11,6 +13,35 @@ use crate::Model;
 /// created from it keep it alive, so it may be freed before them.
 pub struct troupe_model {
     pub(crate) model: Model,
+}
+
+/// The condition a generation call was given: NULL with length 0 is the null condition
+/// (`None`); anything else must be `condition_dim` readable floats (`TROUPE_ERR_SHAPE` names
+/// both lengths otherwise).
+///
+/// # Safety
+/// A non-NULL `condition` must be readable for `len` floats for the duration of the call.
+pub(crate) unsafe fn optional_condition<'a>(
+    model: &Model,
+    condition: *const f32,
+    len: usize,
+) -> FfiResult<Option<&'a [f32]>> {
+    if condition.is_null() && len == 0 {
+        return Ok(None);
+    }
+    // SAFETY: forwarded contract.
+    let c = unsafe { boundary::slice(condition, len, "condition") }?;
+    if c.len() != model.condition_dim() {
+        return Err(FfiError::new(
+            TROUPE_ERR_SHAPE,
+            format!(
+                "condition_len is {}, the bundle's condition has {} floats",
+                c.len(),
+                model.condition_dim()
+            ),
+        ));
+    }
+    Ok(Some(c))
 }
 
 fn publish(model: Model, out: *mut *mut troupe_model) {
