@@ -23,7 +23,7 @@ Peers:
   in a live stream they would be bound as the next step's `past_*`.
 - `torch-kv`: the PyTorch reference (`onnx/armflow_ref.py`) built by `onnx/export.py`'s
   `build_model` with the bundle's `producer.preset` and `producer.seed`, so that it holds the same
-  weights; eager, `torch.inference_mode()`, `ContextEncoder.step` with the cache, `VaeStep` for the
+  weights; eager, `torch.inference_mode()`, `SkipAdaLNTransformer.step` with the cache, `VaeStep` for the
   VAE.
 - `torch-recompute`: as `torch-kv`, but the context is recomputed over the whole prefix
   `[sos, pairs...]` plus the new token, from scratch, every step, as the official ARMFlow sampler

@@ -17,6 +17,7 @@ import numpy as np
 import torch
 import torch.nn as nn
 import torch.nn.functional as F
+from transformer import EncoderStack
 
 # --------------------------------------------------------------------------------------------
 # Configuration
@@ -484,42 +485,6 @@ class VelocityGraph(nn.Module):
         return self.core.velocity(actor, noisy, context, r, t)
 
 
-class EncoderLayer(nn.Module):
-    """nn.TransformerEncoderLayer as the official text branch configures it (post-norm, exact
-    GELU, batch first, eval), written out so that it exports to plain ONNX ops. Parameter names
-    are torch's, so the official `clipTrans.layers.i.*` load as they are."""
-
-    def __init__(self, width: int, heads: int, ffn: int):
-        super().__init__()
-        self.heads = heads
-        self.self_attn = nn.MultiheadAttention(width, heads, batch_first=True)
-        self.linear1 = nn.Linear(width, ffn)
-        self.linear2 = nn.Linear(ffn, width)
-        self.norm1 = nn.LayerNorm(width)
-        self.norm2 = nn.LayerNorm(width)
-
-    def forward(self, x):  # [B, T, C]
-        b, t, c = x.shape
-        a = self.self_attn
-        qkv = F.linear(x, a.in_proj_weight, a.in_proj_bias).view(b, t, 3, self.heads, c // self.heads)
-        q, k, v = qkv.permute(2, 0, 3, 1, 4).unbind(0)
-        att = (q @ k.transpose(-2, -1)) / math.sqrt(c // self.heads)
-        y = (att.softmax(dim=-1) @ v).transpose(1, 2).reshape(b, t, c)
-        x = self.norm1(x + a.out_proj(y))
-        return self.norm2(x + self.linear2(F.gelu(self.linear1(x))))
-
-
-class TransformerStack(nn.Module):
-    def __init__(self, width: int, heads: int, ffn: int, layers: int):
-        super().__init__()
-        self.layers = nn.ModuleList(EncoderLayer(width, heads, ffn) for _ in range(layers))
-
-    def forward(self, x):
-        for layer in self.layers:
-            x = layer(x)
-        return x
-
-
 class TextBranch(nn.Module):
     """The trainable part of the official text encoder (`text_encoder.clipTrans`, `.clipln`):
     CLIP's token features [B, T, 768] -> 2 post-norm layers -> LayerNorm -> the feature at the
@@ -527,7 +492,7 @@ class TextBranch(nn.Module):
 
     def __init__(self, cfg: ArmflowConfig):
         super().__init__()
-        self.clipTrans = TransformerStack(cfg.cond_dim, cfg.text_heads, cfg.text_ffn, 2)
+        self.clipTrans = EncoderStack(cfg.cond_dim, cfg.text_heads, cfg.text_ffn, 2)
         self.clipln = nn.LayerNorm(cfg.cond_dim)
 
     def forward(self, tokens, eot):  # [B, T, C] float, [B] int64

@@ -30,6 +30,7 @@ import torch
 import torch.nn as nn
 import torch.nn.functional as F
 from armflow_ref import philox_normals
+from transformer import Attention, EncoderLayer, EncoderStack
 
 # --------------------------------------------------------------------------------------------
 # Configuration
@@ -288,51 +289,6 @@ class TimestepEmbedding(nn.Module):
         return self.linear_2(F.silu(self.linear_1(x)))
 
 
-class Attention(nn.Module):
-    """nn.MultiheadAttention (batch first, no dropout) with its parameter names: the packed
-    q/k/v projection `in_proj_weight`/`in_proj_bias` and `out_proj`. Written out because the
-    built-in module's ONNX trace bakes the batch and sequence sizes into its reshapes."""
-
-    def __init__(self, width: int, heads: int):
-        super().__init__()
-        self.heads, self.scale = heads, (width // heads) ** -0.5
-        self.in_proj_weight = nn.Parameter(nn.init.xavier_uniform_(torch.empty(3 * width, width)))
-        self.in_proj_bias = nn.Parameter(torch.zeros(3 * width))
-        self.out_proj = nn.Linear(width, width)
-
-    def forward(self, x, memory=None):
-        """Self-attention over x [B, S, C], or x attending to memory [B, M, C]."""
-        w, b, c = self.in_proj_weight, self.in_proj_bias, x.shape[-1]
-        if memory is None:
-            q, k, v = F.linear(x, w, b).chunk(3, dim=-1)
-        else:
-            q = F.linear(x, w[:c], b[:c])
-            k, v = F.linear(memory, w[c:], b[c:]).chunk(2, dim=-1)
-        q, k, v = (t.unflatten(-1, (self.heads, -1)).transpose(1, 2) for t in (q, k, v))  # [B, H, S, Dh]
-        att = torch.softmax((q * self.scale) @ k.transpose(-2, -1), dim=-1)
-        return self.out_proj((att @ v).transpose(1, 2).flatten(2))
-
-
-class EncoderLayer(nn.Module):
-    """Post-norm transformer layer, exact GELU (the official TransformerEncoderLayer, eval):
-    x = norm1(x + attn(x)); x = norm2(x + linear2(gelu(linear1(x))))."""
-
-    def __init__(self, width: int, heads: int, ffn: int):
-        super().__init__()
-        self.self_attn = Attention(width, heads)
-        self.linear1 = nn.Linear(width, ffn)
-        self.linear2 = nn.Linear(ffn, width)
-        self.norm1 = nn.LayerNorm(width)
-        self.norm2 = nn.LayerNorm(width)
-
-    def feed_forward(self, x):
-        return self.linear2(F.gelu(self.linear1(x)))
-
-    def forward(self, x):
-        x = self.norm1(x + self.self_attn(x))
-        return self.norm2(x + self.feed_forward(x))
-
-
 class DecoderLayer(EncoderLayer):
     """Post-norm decoder layer: self-attention -> norm1, cross-attention to the memory (no
     positions) -> norm2, feed-forward -> norm3."""
@@ -346,20 +302,6 @@ class DecoderLayer(EncoderLayer):
         x = self.norm1(x + self.self_attn(x))
         x = self.norm2(x + self.multihead_attn(x, memory))
         return self.norm3(x + self.feed_forward(x))
-
-
-class ContextEncoder(nn.Module):
-    """The context adapter: nn.TransformerEncoder of post-norm layers, no positions, no final
-    norm (keys `layers.i.*` as the official module's)."""
-
-    def __init__(self, width: int, heads: int, ffn: int, layers: int):
-        super().__init__()
-        self.layers = nn.ModuleList(EncoderLayer(width, heads, ffn) for _ in range(layers))
-
-    def forward(self, x):
-        for layer in self.layers:
-            x = layer(x)
-        return x
 
 
 class SkipTransformer(nn.Module):
@@ -454,7 +396,7 @@ class Umf(nn.Module):
         self.indi_denoiser = Denoiser(cfg, d, cfg.prior_text_dim, cfg.prior_layers, cfg.prior_expert_layers)
         self.reac_denoiser = Denoiser(cfg, 2 * d, cfg.reaction_text_dim, cfg.reaction_layers, 0)
         self.dataset_embedding = nn.Embedding(2, cfg.prior_text_dim)
-        self.motion_context_encoder = ContextEncoder(d, cfg.context_heads, cfg.context_ffn, cfg.context_layers)
+        self.motion_context_encoder = EncoderStack(d, cfg.context_heads, cfg.context_ffn, cfg.context_layers)
         self.vae = VaeDecoder(cfg)
         # Feature normaliser (InterHuman mean/std) and the encoded empty prompt, per bundle.
         self.register_buffer("motion_mean", torch.zeros(cfg.frame_dim))
