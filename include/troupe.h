@@ -317,6 +317,16 @@ extern "C" {
 size_t troupe_model_clip_tokens(const struct troupe_model *model);
 
 /*
+ Width of the CLIP token features `troupe_text_encode` reads (the bundle's CLIP width: the
+ condition dim of an official ARMFlow bundle, 768 for UMF as released); 0 for bundles without
+ a text branch, or NULL. Thread-safe.
+
+ # Safety
+ `model` must be NULL or a live handle.
+ */
+size_t troupe_model_text_token_dim(const struct troupe_model *model);
+
+/*
  Runs the official ARMFlow sampler on one actor clip and writes the reactor motion, row-major
  float32 `[clip_frames][frame_dim]`, into `frames` (capacity `frames_capacity` floats), and,
  when `reactor_latents` is not NULL, the reactor tokens `[clip_tokens][latent_dim]` into it
@@ -344,11 +354,12 @@ size_t troupe_model_clip_tokens(const struct troupe_model *model);
 troupe_status troupe_clip_generate(const struct troupe_model *model, const float *actor, size_t n_actor_frames, const float *condition, size_t condition_len, uint64_t seed, uint32_t steps, const struct troupe_clip_noise *noise, float *frames, size_t frames_capacity, float *reactor_latents, size_t latents_capacity);
 
 /*
- Runs the official text branch of an `armflow` bundle that has one: CLIP's token features
- `clip_tokens`, row-major `[n_tokens][condition_dim]` (the output of CLIP's final LayerNorm
- for one prompt), and the index of the end-of-text token (the argmax of CLIP's token ids)
- give the condition vector, written to `condition` (capacity `condition_capacity` floats, at
- least `troupe_model_condition_dim`). Inputs are borrowed; nothing is written unless the call
+ Runs the official text branch of a bundle that has one (`troupe_model_text_token_dim` > 0:
+ official ARMFlow and UMF bundles): CLIP's token features `clip_tokens`, row-major
+ `[n_tokens][text_token_dim]` (the output of CLIP's final LayerNorm for one prompt), and the
+ index of the end-of-text token (the argmax of CLIP's token ids) give the condition vector,
+ written to `condition` (capacity `condition_capacity` floats, at least
+ `troupe_model_condition_dim`). Inputs are borrowed; nothing is written unless the call
  succeeds.
 
  Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (no text branch, no
@@ -356,7 +367,7 @@ troupe_status troupe_clip_generate(const struct troupe_model *model, const float
  `TROUPE_ERR_INFERENCE`, `TROUPE_ERR_PANIC`. Thread-safe.
 
  # Safety
- `model` must be a live handle; `clip_tokens` readable for `n_tokens * condition_dim` floats;
+ `model` must be a live handle; `clip_tokens` readable for `n_tokens * text_token_dim` floats;
  `condition` writable for `condition_capacity` floats and not overlapping `clip_tokens`.
  */
 troupe_status troupe_text_encode(const struct troupe_model *model, const float *clip_tokens, size_t n_tokens, size_t eot_index, float *condition, size_t condition_capacity);

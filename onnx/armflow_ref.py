@@ -17,7 +17,7 @@ import numpy as np
 import torch
 import torch.nn as nn
 import torch.nn.functional as F
-from transformer import EncoderStack
+from transformer import EncoderStack, pick_token
 
 # --------------------------------------------------------------------------------------------
 # Configuration
@@ -496,11 +496,7 @@ class TextBranch(nn.Module):
         self.clipln = nn.LayerNorm(cfg.cond_dim)
 
     def forward(self, tokens, eot):  # [B, T, C] float, [B] int64
-        out = self.clipln(self.clipTrans(tokens))
-        # out[b, eot[b]] as an exact one-hot sum: advanced indexing exports to a Flatten that
-        # tract cannot shape with a symbolic batch.
-        pick = (torch.arange(tokens.shape[1])[None, :] == eot[:, None]).to(out.dtype)
-        return (out * pick[:, :, None]).sum(dim=1)
+        return pick_token(self.clipln(self.clipTrans(tokens)), eot)
 
 
 class Armflow(nn.Module):

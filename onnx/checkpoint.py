@@ -1,12 +1,15 @@
 """Load a checkpoint of the official code into our module definitions, strictly.
 
-Our modules carry the official module and parameter names (`onnx/armflow_ref.py`), so an
-official state dict loads without renaming. What this module adds is the strictness a user needs
-when a checkpoint does not match the configuration it is exported with: every missing,
-unexpected or mis-shaped tensor is named in one error, instead of a silent partial load.
+Our modules carry the official module and parameter names (`onnx/armflow_ref.py`,
+`onnx/umf_ref.py`), so an official state dict loads without renaming. What this module adds is
+the strictness a user needs when a checkpoint does not match the configuration it is exported
+with: every missing, unexpected or mis-shaped tensor is named in one error, instead of a silent
+partial load.
 
-A few tensors of the official checkpoints are deliberately not used at inference; they are
-listed with the reason in `IGNORED` and reported, never silently dropped.
+A few tensors of the official checkpoints are deliberately not used at inference; each exporter
+lists them with the reason (`IGNORED`), and they are reported, never silently dropped. Tensors
+that repeat another module's (UMF's flow schedulers hold the denoisers they drive) are checked
+equal to what they repeat, then skipped.
 """
 
 from __future__ import annotations
@@ -35,12 +38,18 @@ def read_state_dict(path: Path) -> dict[str, torch.Tensor]:
     return obj
 
 
-def load_strict(model: nn.Module, state: dict[str, torch.Tensor], ignored: dict[str, str]) -> list[str]:
+def load_strict(
+    model: nn.Module, state: dict[str, torch.Tensor], ignored: dict[str, str], aliases: dict[str, str] | None = None
+) -> list[str]:
     """Copy `state` into `model`. Names starting with a prefix of `ignored` (prefix -> reason)
-    are skipped; everything else must match the model's state dict exactly, name and shape.
+    are skipped; names starting with a prefix of `aliases` (alias -> the prefix it repeats, as
+    when a module holds another module's network) are skipped once they equal the tensor they
+    repeat. Everything else must match the model's state dict exactly, name and shape.
     Returns the skipped names; raises CheckpointError naming every problem."""
     want = model.state_dict()
-    skipped = sorted(k for k in state if k not in want and k.startswith(tuple(ignored)))
+    aliases = aliases or {}
+    skip = tuple(ignored) + tuple(aliases)
+    skipped = sorted(k for k in state if k not in want and k.startswith(skip))
     missing = sorted(k for k in want if k not in state)
     extra = sorted(k for k in state if k not in want and k not in skipped)
     shapes = sorted(
@@ -48,8 +57,21 @@ def load_strict(model: nn.Module, state: dict[str, torch.Tensor], ignored: dict[
         for k in want
         if k in state and tuple(state[k].shape) != tuple(want[k].shape)
     )
+    differing = []
+    for k in skipped:
+        for alias, target in aliases.items():
+            if k.startswith(alias):
+                original = target + k[len(alias) :]
+                same = original in state and torch.equal(state[original], state[k])
+                if not same:
+                    differing.append(f"{k} (should repeat {original})")
     problems = []
-    for title, names in (("missing", missing), ("unexpected", extra), ("mis-shaped", shapes)):
+    for title, names in (
+        ("missing", missing),
+        ("unexpected", extra),
+        ("mis-shaped", shapes),
+        ("inconsistent repeated", differing),
+    ):
         if names:
             problems.append(f"{len(names)} {title} parameter(s):\n  " + "\n  ".join(names))
     if problems:
@@ -59,3 +81,15 @@ def load_strict(model: nn.Module, state: dict[str, torch.Tensor], ignored: dict[
         raise CheckpointError("non-finite values in:\n  " + "\n  ".join(bad))
     model.load_state_dict({k: state[k].to(want[k].dtype) for k in want}, strict=True)
     return skipped
+
+
+def load_checkpoint(
+    model: nn.Module, path: Path, ignored: dict[str, str], aliases: dict[str, str] | None = None
+) -> None:
+    """`load_strict` from a checkpoint file, then report what was skipped, prefix by prefix."""
+    skipped = load_strict(model, read_state_dict(path), ignored, aliases)
+    reasons = dict(ignored) | {a: f"repeats {t}* (checked equal)" for a, t in (aliases or {}).items()}
+    for prefix, why in reasons.items():
+        n = sum(k.startswith(prefix) for k in skipped)
+        if n:
+            print(f"ignored {n} tensor(s) {prefix}*: {why}")

@@ -45,7 +45,7 @@ from armflow_ref import (  # noqa: E402
     philox_normals,
     stream_reference,
 )
-from checkpoint import CheckpointError, load_strict, read_state_dict  # noqa: E402
+from checkpoint import CheckpointError, load_checkpoint  # noqa: E402
 
 FORMAT_VERSION = 1
 OPSET = 17
@@ -263,11 +263,7 @@ def build_model(preset: str, seed: int, checkpoint: Path | None = None) -> Armfl
     torch.manual_seed(seed)
     model = Armflow(PRESETS[preset]).eval()
     if checkpoint is not None:
-        skipped = load_strict(model, read_state_dict(checkpoint), IGNORED)
-        for prefix, why in IGNORED.items():
-            n = sum(k.startswith(prefix) for k in skipped)
-            if n:
-                print(f"ignored {n} tensor(s) {prefix}*: {why}")
+        load_checkpoint(model, checkpoint, IGNORED)
         return model
     # Random init leaves AdaLN gates and biases near zero; widen them so every path matters.
     with torch.no_grad():
@@ -529,11 +525,12 @@ def write_checkpoint(preset: str, seed: int, path: Path, extras: bool = True):
     torch.save({"state_dict": state, "epoch": 0}, path)
 
 
-def cli(doc: str, presets: dict, export_bundle, write_golden, write_checkpoint=None):
+def cli(doc: str, presets: dict, export_bundle, write_golden, write_checkpoint=None, normaliser: bool = False):
     """The command line every exporter shares: `--preset P --out DIR [--golden]` writes a
     bundle; `--preset P --check DIR` re-exports into a temporary directory and exits non-zero
     unless it is byte-identical to DIR (goldens included when DIR has them). Exporters that
-    take official checkpoints add `--checkpoint FILE` and `--write-checkpoint FILE`."""
+    take official checkpoints add `--checkpoint FILE` and `--write-checkpoint FILE`; those whose
+    feature normaliser lives outside the checkpoint add `--mean FILE --std FILE`."""
     ap = argparse.ArgumentParser(description=doc, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--preset", choices=sorted(presets), required=True)
     ap.add_argument("--out", type=Path, help="bundle directory to write")
@@ -543,6 +540,9 @@ def cli(doc: str, presets: dict, export_bundle, write_golden, write_checkpoint=N
     if write_checkpoint:
         ap.add_argument("--checkpoint", type=Path, help="official checkpoint to export (else random weights)")
         ap.add_argument("--write-checkpoint", type=Path, help="save the random weights as an official checkpoint")
+    if normaliser:
+        ap.add_argument("--mean", type=Path, help="the dataset's feature mean (.npy) to denormalise with")
+        ap.add_argument("--std", type=Path, help="the dataset's feature std (.npy)")
     args = ap.parse_args()
     torch.set_num_threads(1)
     if getattr(args, "write_checkpoint", None):
@@ -550,6 +550,10 @@ def cli(doc: str, presets: dict, export_bundle, write_golden, write_checkpoint=N
         print(f"wrote {args.write_checkpoint}")
         return
     checkpoint = {"checkpoint": args.checkpoint} if getattr(args, "checkpoint", None) else {}
+    if normaliser and (args.mean or args.std):
+        if not (args.mean and args.std):
+            ap.error("--mean and --std go together")
+        checkpoint["normaliser"] = (args.mean, args.std)
     if args.check:
         with tempfile.TemporaryDirectory() as tmp:
             fresh = Path(tmp) / "bundle"

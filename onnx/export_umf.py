@@ -3,12 +3,20 @@
 
     python onnx/export_umf.py --preset tiny          --out onnx/umf-tiny --golden            # committed
     python onnx/export_umf.py --preset tiny-temporal --out onnx/umf-tiny-temporal --golden   # committed
-    python onnx/export_umf.py --preset paper         --out onnx/paper-umf                    # not committed
+    python onnx/export_umf.py --preset interhuman    --out onnx/paper-umf                    # not committed
     python onnx/export_umf.py --preset tiny          --check onnx/umf-tiny                   # reproducible?
 
-The weights, the feature normaliser and the null condition are random (seeded): these bundles
-test and benchmark the runtime; they do not generate meaningful motion. The networks and the
-reference sampler live in umf_ref.py; the graph export and the bundle comparison are shared with
+    # the official checkpoint (Githubhgh/UMF_CVPR, the S-Flow stage's, which holds every network)
+    # and InterHuman's feature statistics:
+    python onnx/export_umf.py --preset interhuman --checkpoint umf.ckpt \
+        --mean global_mean.npy --std global_std.npy --out onnx/umf-interhuman
+
+Our modules (umf_ref.py) carry the official module and parameter names, so an official state
+dict loads as it is, strictly (checkpoint.py). Without `--checkpoint` the weights, the feature
+normaliser and the null condition are random (seeded): such bundles test and benchmark the
+runtime; they do not generate meaningful motion. `--write-checkpoint FILE` saves those weights
+in the official layout, with the normaliser beside it as `global_mean.npy` / `global_std.npy`
+(the parity harness's checkpoints). The graph export and the bundle comparison are shared with
 the ARMFlow exporter (export.py).
 """
 
@@ -22,6 +30,7 @@ import numpy as np
 import torch
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+from checkpoint import CheckpointError, load_checkpoint  # noqa: E402
 from export import FORMAT_VERSION, OPSET, cli, export_graph  # noqa: E402
 from umf_ref import (  # noqa: E402
     TIME_SCALE,
@@ -36,14 +45,16 @@ from umf_ref import (  # noqa: E402
 
 _TINY = dict(
     latent_dim=8, width=32, heads=2, ffn=64, time_dim=32, prior_layers=3, prior_expert_layers=1,
-    reaction_layers=3, prior_text_dim=16, reaction_text_dim=16, pe_length=32, context_heads=2,
-    context_ffn=32, decoder_width=32, decoder_layers=3, decoder_heads=2, decoder_ffn=64,
-    decoder_pe_length=64, clip_frames=40,
+    reaction_layers=3, prior_text_dim=16, reaction_text_dim=16, pe_length=32, clip_layers=1,
+    clip_heads=2, text_heads=2, text_ffn=32, context_heads=2, context_ffn=32, vae_width=32,
+    vae_layers=3, vae_heads=2, vae_ffn=64, vae_pe_length=64, clip_frames=40,
 )
 
 PRESETS = {
-    # Small enough to commit and to run the test-suite in seconds; every architectural feature
-    # (skips, expert head, dataset token, context pooling, cross-attention decoder) is present.
+    # The official layout at reduced width, the official sampler (grid pyramid, gamma -0.2, RK4
+    # 3/8 with 4 intervals, CFG 3): small enough to commit and to test in seconds; every
+    # architectural feature (skips, both expert heads, dataset token, text branches, context
+    # pooling, cross-attention decoder) is present. The parity bundle of official checkpoints.
     "tiny": UmfConfig(**_TINY),
     # The same widths on a sequence pyramid of three stages with mixed solvers, so that the
     # runtime's general paths (temporal layout, K > 2, Euler, another gamma) are exercised.
@@ -52,17 +63,22 @@ PRESETS = {
         prior_solvers=[Solver("euler", 3), Solver("rk4", 2), Solver("rk4", 2)],
         reaction_solver=Solver("euler", 4), cfg_scale=2.0,
     ),
-    # models.md 2: the official sizes (UmfConfig's defaults).
-    "paper": UmfConfig(),
+    # models.md 2: the configuration as released (UmfConfig's defaults): 16 x 64 latents.
+    "interhuman": UmfConfig(),
 }
+PRESETS["paper"] = PRESETS["interhuman"]  # the name the benchmarks use
 
 DATASET_NAMES = {0: "humanml3d", 1: "interhuman"}
 MAX_ABS_ERROR = 1e-4  # ONNX Runtime vs torch, per graph
 
-
-# --------------------------------------------------------------------------------------------
-# Model and graphs
-# --------------------------------------------------------------------------------------------
+# Tensors of the official checkpoints that inference does not use, and why.
+IGNORED = {
+    "t2m_textencoder.": "the HumanML3D evaluator's text encoder (metrics only)",
+    "t2m_moveencoder.": "the HumanML3D evaluator's movement encoder (metrics only)",
+    "t2m_motionencoder.": "the HumanML3D evaluator's motion encoder (metrics only)",
+}
+# FlowModel holds the network it integrates, so the official state dict repeats each denoiser.
+ALIASES = {"flow_scheduler.net.": "indi_denoiser.", "flow_scheduler_org.net.": "reac_denoiser."}
 
 
 # Weight gains over PyTorch's default init. With default init the velocity barely depends on
@@ -81,15 +97,14 @@ GAINS = {
 }
 
 
-def build_model(preset: str, seed: int) -> Umf:
-    torch.manual_seed(seed)
-    model = Umf(PRESETS[preset]).eval()
-    # Default init also leaves norm affines at 1/0 and attention biases at 0; spread them so
-    # every parameter matters. The normaliser and the null condition stand in for InterHuman's
-    # statistics and the encoded empty prompt.
+def randomise(model: Umf):
+    """Seeded random weights that make every parameter matter. Default init leaves norm affines
+    at 1/0 and attention biases at 0; spread them, and apply GAINS. The normaliser stands in for
+    InterHuman's statistics."""
     with torch.no_grad():
+        norms = {f"{m}.{p}" for m, mod in model.named_modules() if isinstance(mod, torch.nn.LayerNorm) for p in ("weight", "bias")}
         for name, p in model.named_parameters():
-            if "norm" in name:
+            if name in norms:
                 p.normal_(1.0 if name.endswith("weight") else 0.0, 0.1)
             elif name.endswith(("in_proj_bias", "out_proj.bias")):
                 p.normal_(0.0, 0.1)
@@ -98,13 +113,51 @@ def build_model(preset: str, seed: int) -> Umf:
                     p.mul_(gain)
         model.motion_mean.normal_()
         model.motion_std.uniform_(0.5, 1.5)
-        model.null_condition.normal_()
+
+
+def load_normaliser(model: Umf, mean_path: Path, std_path: Path):
+    """InterHuman's feature statistics (`global_mean.npy`, `global_std.npy`), which the official
+    code reads from the dataset, not from the checkpoint."""
+    n = model.cfg.frame_dim
+    arrays = []
+    for path in (mean_path, std_path):
+        try:
+            a = np.load(path).astype(np.float32).reshape(-1)
+        except Exception as e:  # noqa: BLE001 - numpy raises many types for a bad file
+            raise CheckpointError(f"{path}: not a readable .npy array ({e})") from e
+        if a.shape != (n,) or not np.isfinite(a).all():
+            raise CheckpointError(f"{path}: expected {n} finite floats, got shape {a.shape}")
+        arrays.append(torch.from_numpy(a))
+    if not (arrays[1] > 0).all():
+        raise CheckpointError(f"{std_path}: the standard deviations must be positive")
+    model.motion_mean.copy_(arrays[0])
+    model.motion_std.copy_(arrays[1])
+
+
+def build_model(
+    preset: str, seed: int, checkpoint: Path | None = None, normaliser: tuple[Path, Path] | None = None
+) -> Umf:
+    """The preset's model with seeded random weights, or the weights of an official
+    `checkpoint`. The normaliser comes from `normaliser` (mean, std files), else it is random
+    with random weights and the identity with a checkpoint. The null condition is computed from
+    the weights: the empty prompt through CLIP and the text branches."""
+    torch.manual_seed(seed)
+    model = Umf(PRESETS[preset]).eval()
+    if checkpoint is not None:
+        load_checkpoint(model, checkpoint, IGNORED, ALIASES)
+    else:
+        randomise(model)
+    if normaliser is not None:
+        load_normaliser(model, *normaliser)
+    elif checkpoint is not None:
+        print("warning: no --mean/--std: the bundle's motion stays in normalised feature units")
+    model.refresh_null_condition()
     return model
 
 
 class GraphModule(torch.nn.Module):
-    """One method of Umf (prior_velocity, reaction_velocity, context, decode) as a module, the
-    unit torch.onnx.export traces."""
+    """One method of Umf (prior_velocity, reaction_velocity, context, decode, text_condition) as
+    a module, the unit torch.onnx.export traces."""
 
     def __init__(self, model: Umf, method: str):
         super().__init__()
@@ -114,12 +167,16 @@ class GraphModule(torch.nn.Module):
         return getattr(self.model, self.method)(*args)
 
 
-GRAPH_METHODS = {"prior": "prior_velocity", "reaction": "reaction_velocity", "context": "context", "decoder": "decode"}
+GRAPH_METHODS = {
+    "prior": "prior_velocity", "reaction": "reaction_velocity", "context": "context", "decoder": "decode",
+    "text_branch": "text_condition",
+}
+CLIP_TEXT_TOKENS = 77  # CLIP's context: the token features the golden text case feeds
 
 
 def graph_specs(cfg: UmfConfig) -> dict:
     """Every graph's file, inputs and outputs as the manifest states them. Symbolic dims: B
-    batch, N the stage's tokens, P persons so far."""
+    batch, N the stage's tokens, P persons so far, T CLIP tokens."""
     t = lambda name, shape: {"name": name, "dtype": "float32", "shape": shape}  # noqa: E731
     d, n = cfg.latent_dim, cfg.tokens
     return {
@@ -143,17 +200,26 @@ def graph_specs(cfg: UmfConfig) -> dict:
             "inputs": [t("latents", ["B", n, d])],
             "outputs": [t("motion", ["B", cfg.clip_frames, cfg.frame_dim])],
         },
+        # Optional: CLIP's token features -> the condition, exactly the official text branches.
+        "text_branch": {
+            "file": "text_branch.onnx",
+            "inputs": [t("clip_tokens", ["B", "T", cfg.text_dim]), {"name": "eot_index", "dtype": "int64", "shape": ["B"]}],
+            "outputs": [t("condition", ["B", cfg.condition_dim])],
+        },
     }
 
 
 def example_inputs(cfg: UmfConfig, graph: str, batch: int, tokens: int | None = None):
-    """Random inputs of a graph; `tokens` is N (prior) or P (context)."""
+    """Random inputs of a graph; `tokens` is N (prior), P (context) or T (text_branch)."""
     d, n = cfg.latent_dim, cfg.tokens
     return {
         "prior": lambda: (torch.randn(batch, tokens or n, d), torch.rand(batch), torch.randn(batch, cfg.prior_text_dim)),
         "reaction": lambda: (torch.randn(batch, n, 2 * d), torch.rand(batch), torch.randn(batch, cfg.reaction_text_dim)),
         "context": lambda: (torch.randn(1, tokens or 2, n, d),),
         "decoder": lambda: (torch.randn(batch, n, d),),
+        "text_branch": lambda: (
+            torch.randn(batch, tokens or 7, cfg.text_dim), torch.arange(batch, dtype=torch.int64) * 3 % (tokens or 7)
+        ),
     }[graph]()
 
 
@@ -167,6 +233,7 @@ def validate_graphs(model: Umf, out_dir: Path, specs: dict):
         "reaction": [(1, None), (2, None)],
         "context": [(1, 1), (1, 3)],
         "decoder": [(1, None), (2, None)],
+        "text_branch": [(1, CLIP_TEXT_TOKENS), (2, 5)],
     }
     opts = ort.SessionOptions()
     opts.intra_op_num_threads = 1
@@ -187,9 +254,12 @@ def validate_graphs(model: Umf, out_dir: Path, specs: dict):
         print(f"  {name:8s} onnxruntime vs torch, max |diff| per input shape: " + "; ".join(figures))
 
 
-def export_bundle(preset: str, out_dir: Path, seed: int = 0) -> Umf:
+def export_bundle(
+    preset: str, out_dir: Path, seed: int = 0, checkpoint: Path | None = None,
+    normaliser: tuple[Path, Path] | None = None,
+) -> Umf:
     cfg = PRESETS[preset]
-    model = build_model(preset, seed)
+    model = build_model(preset, seed, checkpoint, normaliser)
     out_dir.mkdir(parents=True, exist_ok=True)
     specs = graph_specs(cfg)
     torch.manual_seed(seed + 1)  # example inputs: dynamic dims get sizes >= 2 so none is specialised
@@ -202,7 +272,8 @@ def export_bundle(preset: str, out_dir: Path, seed: int = 0) -> Umf:
         "family": "umf",
         "name": f"umf-{preset}",
         "producer": {
-            "tool": "onnx/export_umf.py", "preset": preset, "seed": seed, "opset": OPSET,
+            "tool": "onnx/export_umf.py", "preset": preset, "opset": OPSET,
+            **({"checkpoint": checkpoint.name} if checkpoint else {"seed": seed}),
             "dataset": DATASET_NAMES[cfg.dataset_label],
         },
         "motion": {"layout": "interhuman262", "frame_dim": cfg.frame_dim, "fps": cfg.fps},
@@ -238,36 +309,48 @@ PAPER_SOLVERS = ([Solver("euler", 45), Solver("euler", 5)], Solver("euler", 10))
 
 
 def golden_cases(cfg: UmfConfig) -> dict:
-    """name -> (people, cfg_scale, has_condition, prior solvers, reaction solver, seed or None)."""
+    """name -> (people, cfg_scale, condition, prior solvers, reaction solver, seed or None).
+    condition: "normals" (a random vector), "text" (the text branch on random CLIP token
+    features, the `text_*` goldens) or None (the null condition)."""
     default = (cfg.prior_solvers, cfg.reaction_solver)
     if cfg.layout == "temporal":
         return {
-            "rk4_2p": (2, cfg.cfg_scale, True, *default, None),
-            "seeded_3p": (3, cfg.cfg_scale, True, *default, 7),
+            "rk4_2p": (2, cfg.cfg_scale, "normals", *default, None),
+            "seeded_3p": (3, cfg.cfg_scale, "normals", *default, 7),
         }
     return {
-        "rk4_1p": (1, cfg.cfg_scale, True, *default, None),
-        "rk4_2p": (2, cfg.cfg_scale, True, *default, None),
-        "rk4_4p": (4, cfg.cfg_scale, True, *default, None),
-        "euler_paper_2p": (2, 3.0, True, *PAPER_SOLVERS, None),
-        "null_cfg1_3p": (3, 1.0, False, *default, None),
-        "seeded_2p": (2, cfg.cfg_scale, True, *default, 7),
+        "rk4_1p": (1, cfg.cfg_scale, "normals", *default, None),
+        "rk4_2p": (2, cfg.cfg_scale, "normals", *default, None),
+        "text_3p": (3, cfg.cfg_scale, "text", *default, None),
+        "rk4_4p": (4, cfg.cfg_scale, "normals", *default, None),
+        "euler_paper_2p": (2, 3.0, "normals", *PAPER_SOLVERS, None),
+        "null_cfg1_3p": (3, 1.0, None, *default, None),
+        "seeded_2p": (2, cfg.cfg_scale, "normals", *default, 7),
     }
 
 
 def write_golden(model: Umf, out_dir: Path):
     """Per case: the condition and every noise (so a test can inject them) and the expected
     latents and motion. Unseeded cases use independent normals, with the jumps' normals turned
-    into block noise as troupe does."""
+    into block noise as troupe does. Also the text branch: CLIP token features, the end-of-text
+    index and the condition they give."""
     cfg = model.cfg
     g = out_dir / "golden"
     g.mkdir(exist_ok=True)
     rng = np.random.default_rng(2)
     normals = lambda *shape: rng.standard_normal(shape).astype(np.float32)  # noqa: E731
     tokens, d = stage_tokens(cfg), cfg.latent_dim
+    text = {"text_clip_tokens": normals(CLIP_TEXT_TOKENS, cfg.text_dim), "text_eot_index": np.array([9], np.int64)}
+    with torch.no_grad():
+        text["text_condition"] = model.text_condition(
+            torch.from_numpy(text["text_clip_tokens"])[None], torch.from_numpy(text["text_eot_index"])
+        )[0].numpy()
+    for k, v in text.items():
+        np.save(g / f"{k}.npy", np.ascontiguousarray(v))
     index = {}
-    for name, (people, scale, has_condition, prior, reaction, seed) in golden_cases(cfg).items():
-        condition = normals(cfg.condition_dim) if has_condition else None
+    for name, (people, scale, source, prior, reaction, seed) in golden_cases(cfg).items():
+        condition = {"normals": lambda: normals(cfg.condition_dim), "text": lambda: text["text_condition"]}
+        condition = condition[source]() if source else None
         if seed is None:
             prior_noise = normals(tokens[0], d)
             jumps = [block_noise_from_normals(normals(n * d), cfg.layout, n, d, cfg.gamma) for n in tokens[1:]]
@@ -283,12 +366,32 @@ def write_golden(model: Umf, out_dir: Path):
         for k, v in {**arrays, "latents": latents, "motion": motion}.items():
             np.save(g / f"{name}_{k}.npy", np.ascontiguousarray(v, dtype=np.float32))
         index[name] = {
-            "people": people, "cfg_scale": scale, "has_condition": has_condition,
+            "people": people, "cfg_scale": scale, "has_condition": source is not None, "condition": source,
             "prior": [s.to_json() for s in prior], "reaction": reaction.to_json(), "seed": seed,
         }
         print(f"  golden {name}: |latents| {np.abs(latents).mean():.3f}, |motion| {np.abs(motion).mean():.3f}")
     (g / "cases.json").write_text(json.dumps(index, indent=2) + "\n")
 
 
+def write_checkpoint(preset: str, seed: int, path: Path, extras: bool = True):
+    """Save the preset's seeded random weights as an official checkpoint: a Lightning-style
+    `{"state_dict": ...}` under the official names, with the schedulers' copies of the denoisers
+    the official state dict carries (`ALIASES`), and the normaliser beside it as
+    `global_mean.npy` / `global_std.npy`. With `extras`, also tensors the official checkpoints
+    carry that inference ignores (`IGNORED`), so that the loader meets them."""
+    model = build_model(preset, seed)
+    state = model.state_dict()
+    for alias, target in ALIASES.items():
+        state |= {alias + k[len(target) :]: v for k, v in list(state.items()) if k.startswith(target)}
+    if extras:
+        state |= {
+            "t2m_textencoder.input_emb.weight": torch.zeros(4, 3),
+            "t2m_motionencoder.out_net.0.bias": torch.zeros(4),
+        }
+    torch.save({"state_dict": state, "epoch": 0}, path)
+    np.save(path.parent / "global_mean.npy", model.motion_mean.numpy())
+    np.save(path.parent / "global_std.npy", model.motion_std.numpy())
+
+
 if __name__ == "__main__":
-    cli(__doc__, PRESETS, export_bundle, write_golden)
+    cli(__doc__, PRESETS, export_bundle, write_golden, write_checkpoint, normaliser=True)

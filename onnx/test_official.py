@@ -1,9 +1,9 @@
-"""The official-checkpoint path of the ARMFlow exporter (needs torch; run by
+"""The official-checkpoint path of the ARMFlow and UMF exporters (needs torch; run by
 `cargo test --test export_reproducible`, or `python3 -m pytest onnx/test_official.py`).
 
 - A checkpoint in the official layout exports to exactly the committed parity bundles.
 - A checkpoint with missing, unexpected or mis-shaped tensors is rejected, naming each.
-- The text branch written out for ONNX equals torch's own TransformerEncoder on the same
+- The text branches written out for ONNX equal torch's own TransformerEncoder on the same
   official parameters.
 """
 
@@ -11,6 +11,8 @@ from __future__ import annotations
 
 import json
 import sys
+
+import numpy as np
 from pathlib import Path
 
 import pytest
@@ -21,6 +23,7 @@ pytest.importorskip("onnx")
 ROOT = Path(__file__).resolve().parent
 sys.path.insert(0, str(ROOT))
 import export  # noqa: E402
+import export_umf  # noqa: E402
 from checkpoint import CheckpointError  # noqa: E402
 
 torch.set_num_threads(1)  # as the exporter runs: the goldens compare within 1e-6
@@ -128,3 +131,121 @@ def test_text_branch_equals_torch_transformer_encoder():
         want = official["clipln"](official["clipTrans"](tokens))[torch.arange(3), eot]
         got = model.text_encoder(tokens, eot)
     assert torch.allclose(got, want, atol=1e-5), (got - want).abs().max()
+
+
+# --------------------------------------------------------------------------------------------
+# UMF (Githubhgh/UMF_CVPR): the committed `umf-tiny` bundle is the official layout at reduced
+# width; its checkpoint carries the schedulers' copies of the denoisers and evaluator extras.
+# --------------------------------------------------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def umf_checkpoint(tmp_path_factory):
+    path = tmp_path_factory.mktemp("umf") / "umf.ckpt"
+    export_umf.write_checkpoint("tiny", 0, path)
+    return path
+
+
+def statistics(ckpt: Path) -> tuple[Path, Path]:
+    """The normaliser write_checkpoint saves beside a checkpoint."""
+    return ckpt.parent / "global_mean.npy", ckpt.parent / "global_std.npy"
+
+
+def umf_export(ckpt: Path, tmp_path: Path, normaliser: tuple[Path, Path]):
+    return export_umf.export_bundle("tiny", tmp_path / "bundle", checkpoint=ckpt, normaliser=normaliser)
+
+
+def umf_error(ckpt: Path, tmp_path: Path, normaliser: tuple[Path, Path]) -> str:
+    with pytest.raises(CheckpointError) as e:
+        umf_export(ckpt, tmp_path, normaliser)
+    return str(e.value)
+
+
+def test_umf_checkpoint_exports_to_the_committed_bundle(umf_checkpoint, tmp_path, capsys):
+    model = umf_export(umf_checkpoint, tmp_path, statistics(umf_checkpoint))
+    export_umf.write_golden(model, tmp_path / "bundle")
+    committed = ROOT / "umf-tiny"
+    assert export.compare_bundles(committed, tmp_path / "bundle") == ["troupe.json: contents differ"]
+    a, b = (json.loads((d / "troupe.json").read_text()) for d in (committed, tmp_path / "bundle"))
+    assert a.pop("producer")["seed"] == 0
+    assert b.pop("producer")["checkpoint"] == "umf.ckpt"
+    assert a == b  # the null condition included: it is computed from the checkpoint's CLIP
+    out = capsys.readouterr().out
+    assert "tensor(s) flow_scheduler.net.*: repeats indi_denoiser.* (checked equal)" in out
+    assert "ignored 1 tensor(s) t2m_textencoder.*" in out
+
+
+def test_umf_missing_extra_and_misshaped_parameters_are_named(umf_checkpoint, tmp_path):
+    def edit(sd):
+        del sd["indi_denoiser.expert_ih_blocks.0.linear1.bias"]
+        del sd["clipTransEncoder_react.layers.1.norm2.weight"]
+        sd["reac_denoiser.expert_ih_norm.weight"] = torch.ones(32)
+        sd["vae.final_layer.weight"] = torch.zeros(263, 32)
+
+    msg = umf_error(mutated(umf_checkpoint, tmp_path, edit), tmp_path, statistics(umf_checkpoint))
+    assert "2 missing" in msg and "indi_denoiser.expert_ih_blocks.0.linear1.bias" in msg
+    assert "clipTransEncoder_react.layers.1.norm2.weight" in msg
+    assert "1 unexpected" in msg and "reac_denoiser.expert_ih_norm.weight" in msg
+    assert "vae.final_layer.weight: checkpoint (263, 32), model (262, 32)" in msg
+
+
+def test_umf_scheduler_copies_must_repeat_the_denoisers(umf_checkpoint, tmp_path):
+    def edit(sd):
+        key = "flow_scheduler_org.net.latent_pre.bias"
+        sd[key] = sd[key] + 1.0  # a new tensor: in the file the copy shares its original's storage
+
+    msg = umf_error(mutated(umf_checkpoint, tmp_path, edit), tmp_path, statistics(umf_checkpoint))
+    assert "1 inconsistent repeated" in msg
+    assert "flow_scheduler_org.net.latent_pre.bias (should repeat reac_denoiser.latent_pre.bias)" in msg
+
+
+def test_umf_non_finite_weights_and_bad_normalisers_are_named(umf_checkpoint, tmp_path):
+    def poison(sd):
+        sd["dataset_embedding.weight"][1, 0] = float("inf")
+
+    msg = umf_error(mutated(umf_checkpoint, tmp_path, poison), tmp_path, statistics(umf_checkpoint))
+    assert "non-finite" in msg and "dataset_embedding.weight" in msg
+    short = tmp_path / "short.npy"
+    np.save(short, np.ones(261, np.float32))
+    mean, std = statistics(umf_checkpoint)
+    assert "expected 262 finite floats, got shape (261,)" in umf_error(umf_checkpoint, tmp_path, (short, std))
+    zero = tmp_path / "zero.npy"
+    np.save(zero, np.zeros(262, np.float32))
+    assert "must be positive" in umf_error(umf_checkpoint, tmp_path, (mean, zero))
+
+
+def test_umf_text_branches_equal_torch_transformer_encoders():
+    model = export_umf.build_model("tiny", 0)
+    cfg = model.cfg
+    official = {}
+    for name in ("ih", "react"):
+        layer = torch.nn.TransformerEncoderLayer(cfg.text_dim, cfg.text_heads, cfg.text_ffn, dropout=0.1,
+                                                 activation="gelu", batch_first=True)
+        encoder = torch.nn.TransformerEncoder(layer, num_layers=cfg.text_layers, enable_nested_tensor=False).eval()
+        encoder.load_state_dict(getattr(model, f"clipTransEncoder_{name}").state_dict(), strict=True)
+        official[name] = lambda x, e=encoder, n=name: getattr(model, f"clip_ln_{n}")(e(x))
+    torch.manual_seed(5)
+    tokens, eot = torch.randn(3, 77, cfg.text_dim), torch.tensor([9, 76, 1])
+    with torch.no_grad():
+        want = torch.cat([official[n](tokens)[torch.arange(3), eot] for n in ("ih", "react")], dim=-1)
+        got = model.text_condition(tokens, eot)
+    assert torch.allclose(got, want, atol=1e-5), (got - want).abs().max()
+
+
+def test_umf_null_condition_is_the_empty_prompt_through_clip():
+    model = export_umf.build_model("tiny", 0)
+    ids = torch.zeros(1, 77, dtype=torch.long)
+    ids[0, :2] = torch.tensor([49406, 49407])  # clip.tokenize(""): <|startoftext|> <|endoftext|>
+    with torch.no_grad():
+        # CLIP's text tower as OpenAI's CLIP runs it: sequence-first, causal mask, then ln_final.
+        x = (model.token_embedding(ids) + model.positional_embedding).permute(1, 0, 2)
+        mask = torch.empty(77, 77).fill_(float("-inf")).triu_(1)
+        for block in model.clip_transformer.resblocks:
+            h = block.ln_1(x)
+            x = x + block.attn(h, h, h, need_weights=False, attn_mask=mask)[0]
+            h = block.mlp.c_fc(block.ln_2(x))
+            x = x + block.mlp.c_proj(h * torch.sigmoid(1.702 * h))  # QuickGELU
+        feats = model.ln_final(x.permute(1, 0, 2))
+        want = model.text_condition(feats, ids.argmax(dim=-1))[0]
+    assert torch.allclose(model.null_condition, want, atol=1e-6)
+    assert not torch.allclose(model.null_condition, torch.zeros_like(want))

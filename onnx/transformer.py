@@ -57,6 +57,13 @@ class EncoderLayer(nn.Module):
         return self.norm2(x + self.feed_forward(x))
 
 
+def pick_token(x: torch.Tensor, index: torch.Tensor) -> torch.Tensor:
+    """x[b, index[b]] for x [B, T, C] and index [B] (int64), as an exact one-hot sum: advanced
+    indexing exports to a Flatten that tract cannot shape with a symbolic batch."""
+    one_hot = (torch.arange(x.shape[1])[None, :] == index[:, None]).to(x.dtype)
+    return (x * one_hot[:, :, None]).sum(dim=1)
+
+
 class EncoderStack(nn.Module):
     """nn.TransformerEncoder of post-norm layers: no positions, no final norm (keys
     `layers.i.*` as torch's module)."""

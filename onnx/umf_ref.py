@@ -23,6 +23,7 @@ Nothing here is copied from the official repository; it is written from the spec
 from __future__ import annotations
 
 import math
+from collections import OrderedDict
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -30,7 +31,7 @@ import torch
 import torch.nn as nn
 import torch.nn.functional as F
 from armflow_ref import philox_normals
-from transformer import Attention, EncoderLayer, EncoderStack
+from transformer import Attention, EncoderLayer, EncoderStack, pick_token
 
 # --------------------------------------------------------------------------------------------
 # Configuration
@@ -70,23 +71,32 @@ class UmfConfig:
     heads: int = 4
     ffn: int = 1024
     time_dim: int = 768  # sinusoidal timestep features
-    prior_layers: int = 9  # P-Flow skip-transformer layers (odd)
-    prior_expert_layers: int = 2  # P-Flow InterHuman expert head
+    prior_layers: int = 9  # P-Flow backbone skip-transformer layers (odd); official num_layers 13 = 9 + 2 x 2
+    prior_expert_layers: int = 2  # layers of each P-Flow expert head (official dh_depth)
     reaction_layers: int = 13  # S-Flow skip-transformer layers (odd)
     prior_text_dim: int = 768
     reaction_text_dim: int = 768
     pe_length: int = 500  # learned positions of the denoisers
-    dataset_label: int = 1  # P-Flow's dataset embedding row: 1 = InterHuman, 0 = HumanML3D
+    dataset_label: int = 1  # P-Flow's dataset: 1 = InterHuman ("ih" expert), 0 = HumanML3D ("t2m")
+    # Text: CLIP ViT-L/14@336px's text tower (run at export only, for the empty prompt) and the
+    # official 2-layer encoders after it
+    clip_layers: int = 12
+    clip_heads: int = 12
+    clip_context: int = 77
+    clip_vocab: int = 49408
+    text_layers: int = 2
+    text_heads: int = 8
+    text_ffn: int = 2048
     # Context adapter (runs at latent_dim)
     context_layers: int = 2
     context_heads: int = 4
     context_ffn: int = 1024
-    # VAE decoder
-    decoder_width: int = 512
-    decoder_layers: int = 9
-    decoder_heads: int = 4
-    decoder_ffn: int = 1024
-    decoder_pe_length: int = 500
+    # VAE (encoder and decoder share these sizes)
+    vae_width: int = 512
+    vae_layers: int = 9
+    vae_heads: int = 4
+    vae_ffn: int = 1024
+    vae_pe_length: int = 500
     clip_frames: int = 300
     # P-Flow pyramid and the default sampler (the official code)
     layout: str = "grid2d"
@@ -95,6 +105,11 @@ class UmfConfig:
     prior_solvers: list[Solver] = field(default_factory=lambda: [Solver("rk4", 4)] * 2)
     reaction_solver: Solver = Solver("rk4", 4)
     cfg_scale: float = 3.0
+
+    @property
+    def text_dim(self) -> int:
+        """CLIP's width: the features both text encoders read and give."""
+        return self.prior_text_dim
 
     @property
     def condition_dim(self) -> int:
@@ -255,8 +270,13 @@ def seeded_noise(cfg: UmfConfig, seed: int, people: int):
 
 
 # --------------------------------------------------------------------------------------------
-# Networks (models.md 2.1, 2.5, 2.6)
+# Networks under the official module and parameter names (models.md 2.1, 2.5, 2.6)
 # --------------------------------------------------------------------------------------------
+
+# CLIP's byte-pair ids of <|startoftext|> and <|endoftext|>: the empty prompt of guidance is
+# [SOT, EOT, 0, ...], so its end-of-text token (the argmax of the ids) sits at index 1.
+CLIP_SOT, CLIP_EOT = 49406, 49407
+EMPTY_PROMPT_EOT = 1
 
 
 class LearnedPositions(nn.Module):
@@ -330,29 +350,39 @@ class SkipTransformer(nn.Module):
         return self.norm(x)
 
 
+EXPERTS = {0: "t2m", 1: "ih"}  # dataset label -> the official name of its expert head and text encoder
+
+
 class Denoiser(nn.Module):
-    """UmfDenoiser: velocity of `state_dim`-wide tokens given a timestep and text tokens.
+    """UmfDenoiser (`umf_denoiser.py`): velocity of `state_dim`-wide tokens given a timestep
+    and text tokens.
 
-    Sequence [time, text tokens, state tokens] + learned positions through a skip transformer;
-    the state tokens come out through the InterHuman expert head (P-Flow, `expert_layers` > 0)
-    or a plain projection (S-Flow)."""
+    Sequence [time, text tokens, state tokens] + learned positions through a skip transformer.
+    With expert heads (P-Flow, `expert_layers` > 0, the official `dh_depth`) the state tokens
+    leave through the head of `expert` ("ih" InterHuman or "t2m" HumanML3D; both heads exist,
+    as in the official model); otherwise (S-Flow) through a plain projection. `mem_pos` is
+    built by the official model and never used; it is here so that checkpoints load as they are."""
 
-    def __init__(self, cfg: UmfConfig, state_dim: int, text_dim: int, layers: int, expert_layers: int):
+    def __init__(self, cfg: UmfConfig, state_dim: int, layers: int, expert_layers: int, expert: str = "ih"):
         super().__init__()
-        w = cfg.width
-        self.time_dim = cfg.time_dim
+        w, text_dim = cfg.width, cfg.text_dim
+        self.time_dim, self.expert = cfg.time_dim, expert if expert_layers > 0 else None
         self.latent_pre = nn.Linear(state_dim, w)
-        self.time_embedding = TimestepEmbedding(cfg.time_dim, w)
-        self.emb_proj = nn.Sequential(nn.ReLU(), nn.Linear(text_dim, w))
-        self.query_pos = LearnedPositions(w, cfg.pe_length)
-        self.encoder = SkipTransformer(lambda: EncoderLayer(w, cfg.heads, cfg.ffn), layers, w)
-        self.expert = expert_layers > 0
         if self.expert:
-            self.expert_ih_blocks = nn.ModuleList(EncoderLayer(w, cfg.heads, cfg.ffn) for _ in range(expert_layers))
-            self.expert_ih_norm = nn.LayerNorm(w)
+            self.latent_post_t2m = nn.Linear(w, state_dim)
             self.latent_post_ih = nn.Linear(w, state_dim)
         else:
             self.latent_post = nn.Linear(w, state_dim)
+        self.time_embedding = TimestepEmbedding(cfg.time_dim, w)
+        self.emb_proj = nn.Sequential(nn.ReLU(), nn.Linear(text_dim, w))
+        self.query_pos = LearnedPositions(w, cfg.pe_length)
+        self.mem_pos = LearnedPositions(w, cfg.pe_length)
+        self.encoder = SkipTransformer(lambda: EncoderLayer(w, cfg.heads, cfg.ffn), layers, w)
+        if self.expert:
+            for name in EXPERTS.values():
+                blocks = nn.ModuleList(EncoderLayer(w, cfg.heads, cfg.ffn) for _ in range(expert_layers))
+                setattr(self, f"expert_{name}_blocks", blocks)
+                setattr(self, f"expert_{name}_norm", nn.LayerNorm(w))
 
     def forward(self, sample, timestep, text):  # [B, N, state], [B], [B, K, text] -> [B, N, state]
         time = self.time_embedding(timestep_features(timestep, self.time_dim))[:, None]
@@ -360,23 +390,32 @@ class Denoiser(nn.Module):
         x = self.encoder(self.query_pos(x))[:, 1 + text.shape[1] :]
         if not self.expert:
             return self.latent_post(x)
-        for block in self.expert_ih_blocks:
+        for block in getattr(self, f"expert_{self.expert}_blocks"):
             x = block(x)
-        return self.latent_post_ih(self.expert_ih_norm(x))
+        x = getattr(self, f"expert_{self.expert}_norm")(x)
+        return getattr(self, f"latent_post_{self.expert}")(x)
 
 
-class VaeDecoder(nn.Module):
-    """MLD encoder_decoder VAE's decoder: `clip_frames` zero queries + learned positions attend
-    to the projected latent tokens; returns normalised features [B, F, frame_dim]. Every frame
-    is decoded (the official code zeroes frames past a length; troupe returns whole clips)."""
+class Vae(nn.Module):
+    """UmfVae, MLD's `encoder_decoder` VAE (`umf_vae.py`). Only the decoder runs here: `clip_frames`
+    zero queries + learned positions attend to the projected latent tokens and give normalised
+    features [B, F, frame_dim]. The encoder's modules are built so that checkpoints load as they
+    are. Every frame is decoded: the official decode at length 300 (the official code masks
+    frames past a shorter length; troupe returns whole clips)."""
 
     def __init__(self, cfg: UmfConfig):
         super().__init__()
-        w = cfg.decoder_width
+        w, d = cfg.vae_width, cfg.latent_dim
         self.frames, self.width = cfg.clip_frames, w
-        self.latent_post = nn.Linear(cfg.latent_dim, w)
-        self.query_pos_decoder = LearnedPositions(w, cfg.decoder_pe_length)
-        self.decoder = SkipTransformer(lambda: DecoderLayer(w, cfg.decoder_heads, cfg.decoder_ffn), cfg.decoder_layers, w)
+        layer = dict(width=w, heads=cfg.vae_heads, ffn=cfg.vae_ffn)
+        self.latent_pre = nn.Linear(w, d) if w != d else nn.Identity()
+        self.latent_post = nn.Linear(d, w) if w != d else nn.Identity()
+        self.query_pos_encoder = LearnedPositions(w, cfg.vae_pe_length)
+        self.encoder = SkipTransformer(lambda: EncoderLayer(**layer), cfg.vae_layers, w)
+        self.query_pos_decoder = LearnedPositions(w, cfg.vae_pe_length)
+        self.decoder = SkipTransformer(lambda: DecoderLayer(**layer), cfg.vae_layers, w)
+        self.global_motion_token = nn.Parameter(torch.randn(2 * cfg.tokens, w))
+        self.skel_embedding = nn.Linear(cfg.frame_dim, w)
         self.final_layer = nn.Linear(w, cfg.frame_dim)
 
     def forward(self, z):
@@ -385,23 +424,99 @@ class VaeDecoder(nn.Module):
         return self.final_layer(self.decoder(queries, memory))
 
 
+class QuickGELU(nn.Module):
+    def forward(self, x):
+        return x * torch.sigmoid(1.702 * x)
+
+
+class ClipBlock(nn.Module):
+    """CLIP's ResidualAttentionBlock: pre-norm, causal self-attention, QuickGELU MLP."""
+
+    def __init__(self, width: int, heads: int):
+        super().__init__()
+        self.attn = nn.MultiheadAttention(width, heads)
+        self.ln_1 = nn.LayerNorm(width)
+        self.mlp = nn.Sequential(
+            OrderedDict(c_fc=nn.Linear(width, 4 * width), gelu=QuickGELU(), c_proj=nn.Linear(4 * width, width))
+        )
+        self.ln_2 = nn.LayerNorm(width)
+
+    def forward(self, x, mask):  # x [T, B, C], sequence first as CLIP
+        h = self.ln_1(x)
+        x = x + self.attn(h, h, h, need_weights=False, attn_mask=mask)[0]
+        return x + self.mlp(self.ln_2(x))
+
+
+class ClipTransformer(nn.Module):
+    """CLIP's text Transformer (`resblocks`). The official model carries CLIP ViT-L/14@336px's
+    frozen text tower in its state dict; troupe runs it once, at export, to encode the empty
+    prompt that classifier-free guidance conditions its unconditional half on."""
+
+    def __init__(self, width: int, layers: int, heads: int):
+        super().__init__()
+        self.resblocks = nn.ModuleList(ClipBlock(width, heads) for _ in range(layers))
+
+    def forward(self, x):
+        t = x.shape[0]
+        mask = torch.full((t, t), float("-inf")).triu_(1)
+        for block in self.resblocks:
+            x = block(x, mask)
+        return x
+
+
 class Umf(nn.Module):
-    """Every network of text-to-group generation, with the methods the exported graphs run."""
+    """Every network of UMF as the official `UMF` module names it (`umf/models/modeltype/umf.py`):
+    CLIP's text tower (`token_embedding`, `clip_transformer`, `positional_embedding`,
+    `ln_final`), the trainable text encoders (`clipTransEncoder_{t2m,ih,react}`,
+    `clip_ln_*`), `vae`, `reac_denoiser` (S-Flow), `indi_denoiser` (P-Flow),
+    `dataset_embedding` and `motion_context_encoder`. The methods are what the exported graphs
+    run. Not in the state dict: the feature normaliser (a file of the dataset) and the null
+    condition, which is computed from the weights (`refresh_null_condition`)."""
 
     def __init__(self, cfg: UmfConfig):
         super().__init__()
+        assert cfg.prior_text_dim == cfg.reaction_text_dim, "both text encoders read CLIP's features"
         self.cfg = cfg
         self.stages = stage_tables(cfg)
-        d = cfg.latent_dim
-        self.indi_denoiser = Denoiser(cfg, d, cfg.prior_text_dim, cfg.prior_layers, cfg.prior_expert_layers)
-        self.reac_denoiser = Denoiser(cfg, 2 * d, cfg.reaction_text_dim, cfg.reaction_layers, 0)
-        self.dataset_embedding = nn.Embedding(2, cfg.prior_text_dim)
+        c, d = cfg.text_dim, cfg.latent_dim
+        self.expert = EXPERTS[cfg.dataset_label]
+        self.token_embedding = nn.Embedding(cfg.clip_vocab, c)
+        self.clip_transformer = ClipTransformer(c, cfg.clip_layers, cfg.clip_heads)
+        self.positional_embedding = nn.Parameter(torch.randn(cfg.clip_context, c) * 0.01)
+        self.ln_final = nn.LayerNorm(c)
+        for name in ("t2m", "ih", "react"):
+            setattr(self, f"clipTransEncoder_{name}", EncoderStack(c, cfg.text_heads, cfg.text_ffn, cfg.text_layers))
+            setattr(self, f"clip_ln_{name}", nn.LayerNorm(c))
+        self.vae = Vae(cfg)
+        self.reac_denoiser = Denoiser(cfg, 2 * d, cfg.reaction_layers, 0)
+        self.indi_denoiser = Denoiser(cfg, d, cfg.prior_layers, cfg.prior_expert_layers, self.expert)
+        self.dataset_embedding = nn.Embedding(2, c)
         self.motion_context_encoder = EncoderStack(d, cfg.context_heads, cfg.context_ffn, cfg.context_layers)
-        self.vae = VaeDecoder(cfg)
         # Feature normaliser (InterHuman mean/std) and the encoded empty prompt, per bundle.
-        self.register_buffer("motion_mean", torch.zeros(cfg.frame_dim))
-        self.register_buffer("motion_std", torch.ones(cfg.frame_dim))
-        self.register_buffer("null_condition", torch.zeros(cfg.condition_dim))
+        self.register_buffer("motion_mean", torch.zeros(cfg.frame_dim), persistent=False)
+        self.register_buffer("motion_std", torch.ones(cfg.frame_dim), persistent=False)
+        self.register_buffer("null_condition", torch.zeros(cfg.condition_dim), persistent=False)
+
+    def clip_features(self, ids):
+        """CLIP's text tower: token ids [B, T] -> the features after ln_final [B, T, C]."""
+        x = self.token_embedding(ids) + self.positional_embedding[: ids.shape[1]]
+        return self.ln_final(self.clip_transformer(x.transpose(0, 1)).transpose(0, 1))
+
+    def text_condition(self, clip_tokens, eot_index):
+        """The official text branches: CLIP's token features [B, T, C] and the end-of-text index
+        [B] -> the condition [B, prior ; reaction] (the P-Flow encoder of the bundle's dataset,
+        and the S-Flow encoder, each followed by its LayerNorm, at the end-of-text token)."""
+        branch = lambda name: getattr(self, f"clip_ln_{name}")(getattr(self, f"clipTransEncoder_{name}")(clip_tokens))  # noqa: E731
+        return torch.cat([pick_token(branch(self.expert), eot_index), pick_token(branch("react"), eot_index)], dim=-1)
+
+    @torch.no_grad()
+    def refresh_null_condition(self):
+        """The unconditional half of guidance is the empty prompt "" through CLIP and the text
+        branches, as the official `_apply_cfg_tokens` does."""
+        ids = torch.zeros(1, self.cfg.clip_context, dtype=torch.long)
+        ids[0, 0], ids[0, EMPTY_PROMPT_EOT] = CLIP_SOT, CLIP_EOT
+        eot = torch.tensor([EMPTY_PROMPT_EOT])
+        self.null_condition.copy_(self.text_condition(self.clip_features(ids), eot)[0])
 
     def prior_velocity(self, sample, timestep, text):
         """P-Flow: [B, N, D] at any stage's N; text tokens are [text, dataset embedding]."""

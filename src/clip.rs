@@ -195,13 +195,13 @@ impl Model {
         })
     }
 
-    /// Runs the official text branch: CLIP's token features `[tokens, condition_dim]` (the
+    /// Runs the official text branch: CLIP's token features `[tokens, text_token_dim]` (the
     /// output of CLIP's final LayerNorm for one prompt) and the index of its end-of-text token
     /// (the argmax of CLIP's token ids) give the condition vector `[condition_dim]`. Needs a
-    /// bundle with a `text_branch` graph.
+    /// bundle with a `text_branch` graph ([`Model::text_token_dim`] is then `Some`): ARMFlow's
+    /// official bundles, and UMF's, whose condition is `[P-Flow text ; S-Flow text]`.
     pub fn encode_text(&self, clip_tokens: ArrayView2<f32>, eot_index: usize) -> Result<Vec<f32>> {
-        let (_, nets) = self.armflow()?;
-        let graph = nets.text_branch.as_ref().ok_or_else(|| {
+        let (graph, width) = self.text_branch().ok_or_else(|| {
             Error::InvalidInput(format!(
                 "bundle `{}` has no text_branch graph",
                 self.manifest().name
@@ -209,9 +209,9 @@ impl Model {
         })?;
         let dim = self.condition_dim();
         let t = clip_tokens.nrows();
-        if clip_tokens.ncols() != dim || t == 0 {
+        if clip_tokens.ncols() != width || t == 0 {
             return Err(Error::InvalidInput(format!(
-                "CLIP token features are {t}x{}, expected at least one token of {dim} floats",
+                "CLIP token features are {t}x{}, expected at least one token of {width} floats",
                 clip_tokens.ncols()
             )));
         }
@@ -224,8 +224,14 @@ impl Model {
         check_finite("CLIP token features", &flat)?;
         let eot = tract_onnx::prelude::Tensor::from_shape(&[1], &[eot_index as i64])
             .expect("shape matches data");
-        let out = graph.run(vec![f32_tensor(&[1, t, dim], &flat), eot.into()])?;
+        let out = graph.run(vec![f32_tensor(&[1, t, width], &flat), eot.into()])?;
         Ok(read_f32("text_branch", "condition", &out[0], &[1, dim])?.to_vec())
+    }
+
+    /// The width of the CLIP token features [`Model::encode_text`] reads, or `None` when the
+    /// bundle has no text branch.
+    pub fn text_token_dim(&self) -> Option<usize> {
+        self.text_branch().map(|(_, width)| width)
     }
 
     fn require_clip(&self) -> Result<&ClipSpec> {

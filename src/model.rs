@@ -76,6 +76,7 @@ pub(crate) struct UmfNetworks {
     pub reaction: Graph,
     pub context: Graph,
     pub decoder: Graph,
+    pub text_branch: Option<Graph>,
 }
 
 /// Outputs of the conditioning graph: what stays constant while the condition does.
@@ -146,12 +147,13 @@ impl Model {
             }
             Family::Umf(spec) => {
                 let g = &spec.graphs;
-                let wanted = [
+                let mut wanted = vec![
                     ("prior", &g.prior),
                     ("reaction", &g.reaction),
                     ("context", &g.context),
                     ("decoder", &g.decoder),
                 ];
+                wanted.extend(g.text_branch.as_ref().map(|t| ("text_branch", t)));
                 let mut graphs = load_graphs(&files, &wanted)?.into_iter();
                 let mut next = || graphs.next().expect("one graph per wanted entry");
                 Networks::Umf(Box::new(UmfNetworks {
@@ -159,6 +161,7 @@ impl Model {
                     reaction: next(),
                     context: next(),
                     decoder: next(),
+                    text_branch: g.text_branch.as_ref().map(|_| next()),
                 }))
             }
         };
@@ -292,6 +295,19 @@ impl Model {
     }
 
     /// The ARMFlow spec and graphs, or an error naming the family this bundle is.
+    /// The bundle's text branch and the width of the CLIP token features it reads, if it has one.
+    pub(crate) fn text_branch(&self) -> Option<(&Graph, usize)> {
+        match (&self.inner.manifest.family, &self.inner.networks) {
+            (Family::Armflow(_), Networks::ArmFlow(n)) => {
+                n.text_branch.as_ref().map(|g| (g, self.condition_dim()))
+            }
+            (Family::Umf(spec), Networks::Umf(n)) => {
+                n.text_branch.as_ref().map(|g| (g, spec.text.prior_dim))
+            }
+            _ => None,
+        }
+    }
+
     pub(crate) fn armflow(&self) -> Result<(&ArmFlowSpec, &ArmFlowNetworks)> {
         match (&self.inner.manifest.family, &self.inner.networks) {
             (Family::Armflow(spec), Networks::ArmFlow(nets)) => Ok((spec, nets)),

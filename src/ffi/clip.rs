@@ -5,6 +5,7 @@ use ndarray::ArrayView2;
 
 use super::boundary::{
     self, non_null, troupe_status, FfiError, FfiResult, TROUPE_ERR_BUFFER_TOO_SMALL,
+    TROUPE_ERR_INVALID_ARG,
 };
 use super::model::{optional_condition, troupe_model};
 use crate::{ClipNoise, ClipOptions, Model};
@@ -36,6 +37,22 @@ pub unsafe extern "C" fn troupe_model_clip_tokens(model: *const troupe_model) ->
         unsafe { model.as_ref() }
             .and_then(|m| m.model.clip_spec())
             .map_or(0, |c| c.tokens)
+    })
+}
+
+/// Width of the CLIP token features `troupe_text_encode` reads (the bundle's CLIP width: the
+/// condition dim of an official ARMFlow bundle, 768 for UMF as released); 0 for bundles without
+/// a text branch, or NULL. Thread-safe.
+///
+/// # Safety
+/// `model` must be NULL or a live handle.
+#[no_mangle]
+pub unsafe extern "C" fn troupe_model_text_token_dim(model: *const troupe_model) -> usize {
+    // SAFETY: NULL or live per the contract.
+    boundary::get(0, || {
+        unsafe { model.as_ref() }
+            .and_then(|m| m.model.text_token_dim())
+            .unwrap_or(0)
     })
 }
 
@@ -121,11 +138,12 @@ pub unsafe extern "C" fn troupe_clip_generate(
     )
 }
 
-/// Runs the official text branch of an `armflow` bundle that has one: CLIP's token features
-/// `clip_tokens`, row-major `[n_tokens][condition_dim]` (the output of CLIP's final LayerNorm
-/// for one prompt), and the index of the end-of-text token (the argmax of CLIP's token ids)
-/// give the condition vector, written to `condition` (capacity `condition_capacity` floats, at
-/// least `troupe_model_condition_dim`). Inputs are borrowed; nothing is written unless the call
+/// Runs the official text branch of a bundle that has one (`troupe_model_text_token_dim` > 0:
+/// official ARMFlow and UMF bundles): CLIP's token features `clip_tokens`, row-major
+/// `[n_tokens][text_token_dim]` (the output of CLIP's final LayerNorm for one prompt), and the
+/// index of the end-of-text token (the argmax of CLIP's token ids) give the condition vector,
+/// written to `condition` (capacity `condition_capacity` floats, at least
+/// `troupe_model_condition_dim`). Inputs are borrowed; nothing is written unless the call
 /// succeeds.
 ///
 /// Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (no text branch, no
@@ -133,7 +151,7 @@ pub unsafe extern "C" fn troupe_clip_generate(
 /// `TROUPE_ERR_INFERENCE`, `TROUPE_ERR_PANIC`. Thread-safe.
 ///
 /// # Safety
-/// `model` must be a live handle; `clip_tokens` readable for `n_tokens * condition_dim` floats;
+/// `model` must be a live handle; `clip_tokens` readable for `n_tokens * text_token_dim` floats;
 /// `condition` writable for `condition_capacity` floats and not overlapping `clip_tokens`.
 #[no_mangle]
 pub unsafe extern "C" fn troupe_text_encode(
@@ -151,13 +169,22 @@ pub unsafe extern "C" fn troupe_text_encode(
             non_null(model, "model")?;
             // SAFETY: non-NULL live handle per the contract.
             let model: &Model = unsafe { &(*model).model };
-            let dim = model.condition_dim();
-            let n = boundary::checked_mul(n_tokens, dim, "n_tokens * condition_dim")?;
+            let (dim, width) = (model.condition_dim(), model.text_token_dim());
+            let width = width.ok_or_else(|| {
+                FfiError::new(
+                    TROUPE_ERR_INVALID_ARG,
+                    format!(
+                        "bundle `{}` has no text_branch graph",
+                        model.manifest().name
+                    ),
+                )
+            })?;
+            let n = boundary::checked_mul(n_tokens, width, "n_tokens * text_token_dim")?;
             // SAFETY: readable for `n` floats per the contract.
             let tokens = unsafe { boundary::slice(clip_tokens, n, "clip_tokens") }?;
             non_null(condition, "condition")?;
             room(dim, condition_capacity, "the condition")?;
-            let view = ArrayView2::from_shape((n_tokens, dim), tokens).expect("n floats");
+            let view = ArrayView2::from_shape((n_tokens, width), tokens).expect("n floats");
             let out = model.encode_text(view, eot_index)?;
             // SAFETY: non-NULL, writable for condition_capacity >= dim floats.
             unsafe { std::ptr::copy_nonoverlapping(out.as_ptr(), condition, out.len()) };

@@ -3,7 +3,9 @@
 
 use serde::{Deserialize, Serialize};
 
-use super::{contract, ensure, float, sym, DType, Dim, GraphSpec, Manifest, TensorSpec};
+use super::{
+    contract, ensure, float, sym, text_branch_contract, DType, Dim, GraphSpec, Manifest, TensorSpec,
+};
 
 /// The manifest fields of an `armflow` bundle.
 #[derive(Debug, Clone, Serialize, Deserialize)]
@@ -341,22 +343,7 @@ impl ArmFlowSpec {
         }
         if let Some(text) = &g.text_branch {
             let cond = manifest.condition.dim;
-            contracts.push((
-                "text_branch",
-                text,
-                spec(
-                    text,
-                    vec![
-                        f("clip_tokens", vec![s("B"), s("T"), n(cond)]),
-                        TensorSpec {
-                            name: "eot_index".into(),
-                            dtype: DType::Int64,
-                            shape: vec![s("B")],
-                        },
-                    ],
-                    vec![f("condition", vec![s("B"), n(cond)])],
-                ),
-            ));
+            contracts.push(("text_branch", text, text_branch_contract(text, cond, cond)));
         }
         let fpt = self.latent.frames_per_token;
         if let Some(step) = &g.vae_encoder_step {

@@ -286,6 +286,33 @@ pub(crate) fn contract(
     }
 }
 
+/// The official text branch: CLIP's token features `[B, T, token_dim]` and the end-of-text
+/// index `[B]` give the condition `[B, condition_dim]`.
+pub(crate) fn text_branch_contract(
+    g: &GraphSpec,
+    token_dim: usize,
+    condition_dim: usize,
+) -> GraphSpec {
+    contract(
+        g,
+        vec![
+            float(
+                "clip_tokens",
+                vec![sym("B"), sym("T"), Dim::Fixed(token_dim)],
+            ),
+            TensorSpec {
+                name: "eot_index".into(),
+                dtype: DType::Int64,
+                shape: vec![sym("B")],
+            },
+        ],
+        vec![float(
+            "condition",
+            vec![sym("B"), Dim::Fixed(condition_dim)],
+        )],
+    )
+}
+
 /// Same names (in any order), dtypes, ranks and fixed dims; symbols may be named freely.
 fn compare_tensor_lists(
     got: &[TensorSpec],

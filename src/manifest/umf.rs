@@ -3,7 +3,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use super::{contract, ensure, float, sym, Dim, GraphSpec, Manifest};
+use super::{contract, ensure, float, sym, text_branch_contract, Dim, GraphSpec, Manifest};
 use crate::pyramid::{Jump, Layout};
 use crate::solver::Solver;
 
@@ -92,6 +92,10 @@ pub struct UmfGraphs {
     pub context: GraphSpec,
     /// VAE decoder: latents to motion features (denormalised).
     pub decoder: GraphSpec,
+    /// The official trainable text branches: CLIP token features and the end-of-text index to
+    /// the condition vector `[prior text ; reaction text]`. Optional.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub text_branch: Option<GraphSpec>,
 }
 
 impl UmfSpec {
@@ -116,6 +120,12 @@ impl UmfSpec {
                     "text.prior_dim {} + text.reaction_dim {} must equal condition.dim {}",
                     self.text.prior_dim, self.text.reaction_dim, manifest.condition.dim
                 )
+            },
+        )?;
+        ensure(
+            self.graphs.text_branch.is_none() || self.text.prior_dim == self.text.reaction_dim,
+            || {
+                "a text_branch needs text.prior_dim == text.reaction_dim (both read CLIP's features)".into()
             },
         )?;
         ensure(!p.stages.is_empty(), || "pyramid.stages is empty".into())?;
@@ -208,7 +218,7 @@ impl UmfSpec {
                 vec![f("velocity", vec![sym("B"), len, n(width)])],
             )
         };
-        vec![
+        let mut contracts = vec![
             (
                 "prior",
                 &g.prior,
@@ -246,6 +256,12 @@ impl UmfSpec {
                     )],
                 ),
             ),
-        ]
+        ];
+        if let Some(text) = &g.text_branch {
+            // Both text encoders read CLIP's token features, as wide as each one's output.
+            let contract = text_branch_contract(text, self.text.prior_dim, manifest.condition.dim);
+            contracts.push(("text_branch", text, contract));
+        }
+        contracts
     }
 }
