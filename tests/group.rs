@@ -6,7 +6,7 @@
 use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 
-use ndarray::ArrayD;
+use ndarray::{Array1, Array2, ArrayD};
 use ndarray_npy::read_npy;
 use serde_json::Value;
 use troupe::{Error, GroupNoise, GroupOptions, Method, Model, Solver};
@@ -153,16 +153,23 @@ fn check_golden(model: &Model) -> usize {
 }
 
 #[test]
-fn golden_parity_grid_pyramid_1_2_and_4_people() {
+fn golden_parity_grid_pyramid_1_to_4_people() {
     let model = tiny();
     let names: Vec<String> = cases(model).keys().cloned().collect();
-    for needed in ["rk4_1p", "rk4_2p", "rk4_4p", "euler_paper_2p", "seeded_2p"] {
+    for needed in [
+        "rk4_1p",
+        "rk4_2p",
+        "text_3p",
+        "rk4_4p",
+        "euler_paper_2p",
+        "seeded_2p",
+    ] {
         assert!(
             names.iter().any(|n| n == needed),
             "missing golden case {needed}"
         );
     }
-    assert!(check_golden(model) >= 5);
+    assert!(check_golden(model) >= 6);
 }
 
 #[test]
@@ -170,6 +177,32 @@ fn golden_parity_temporal_pyramid_with_three_stages() {
     let model = temporal();
     assert_eq!(model.umf_spec().unwrap().pyramid.stages.len(), 3);
     assert!(check_golden(model) >= 2);
+}
+
+/// The official text branches: CLIP token features give the condition the reference computed,
+/// the one the text-conditioned golden group (`text_3p`) was generated from.
+#[test]
+fn text_branch_gives_the_reference_condition() {
+    let model = tiny();
+    assert_eq!(model.text_token_dim(), Some(16));
+    assert_eq!(temporal().text_token_dim(), Some(16));
+    let golden = model.source().join("golden");
+    let tokens: Array2<f32> = read_npy(golden.join("text_clip_tokens.npy")).unwrap();
+    let eot: Array1<i64> = read_npy(golden.join("text_eot_index.npy")).unwrap();
+    let got = model.encode_text(tokens.view(), eot[0] as usize).unwrap();
+    assert_eq!(got.len(), model.condition_dim());
+    let want = flat(&npy(model, "text_condition").unwrap());
+    let err = max_abs(&got, &want);
+    println!("umf-tiny text branch: max-abs condition {err:.2e}");
+    assert!(err <= LATENT_TOL, "text branch off by {err}");
+    assert_eq!(want, flat(&npy(model, "text_3p_condition").unwrap()));
+    // CLIP's width is 16 here, not the condition's 32.
+    let wide = Array2::<f32>::zeros((77, 32));
+    let msg = model.encode_text(wide.view(), 1).unwrap_err().to_string();
+    assert!(
+        msg.contains("expected at least one token of 16 floats"),
+        "{msg}"
+    );
 }
 
 #[test]

@@ -30,6 +30,7 @@ int main(int argc, char **argv) {
     CHECK(frames == 300 && tokens == 75 && dim == 262 && lat == 16 && cdim == 32);
     CHECK(troupe_model_clip_tokens(streaming) == 0 && troupe_model_clip_frames(streaming) == 0);
     CHECK(troupe_model_clip_tokens(NULL) == 0);
+    CHECK(troupe_model_text_token_dim(model) == cdim && troupe_model_text_token_dim(streaming) == 0);
 
     /* the text branch: CLIP token features -> condition, as the reference */
     tokens_in = read_npy(dir, "text_clip_tokens", &n);

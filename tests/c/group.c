@@ -20,6 +20,9 @@ int main(int argc, char **argv) {
     size_t frames, dim, tokens, lat, cdim, n_motion, n_latents, prior_len = 0, jumps_len = 0,
         reactions_len = 0, n = 0, i;
     float *motion, *again, *latents, *golden, *cond, *prior, *jumps, *reactions;
+    float *clip_tokens, *text_golden, *three, *three_latents, *want;
+    float *t_prior, *t_jumps, *t_reactions;
+    float text_cond[32];
     const char *dir;
 
     if (argc < 3) {
@@ -95,6 +98,50 @@ int main(int argc, char **argv) {
     /* NULL options and NULL condition: defaults, null condition */
     EXPECT(troupe_group_generate(model, NULL, NULL, 0, 1, NULL, again, n_motion, NULL, 0), TROUPE_OK);
 
+    /* the official text branches: CLIP token features -> [P-Flow text ; S-Flow text], then a
+       3-person group on that condition with the reference's draws equals the reference */
+    CHECK(troupe_model_text_token_dim(model) == 16 && troupe_model_text_token_dim(armflow) == 0);
+    CHECK(troupe_model_text_token_dim(NULL) == 0);
+    clip_tokens = read_npy(dir, "text_clip_tokens", &n);
+    CHECK(clip_tokens != NULL && n == 77 * 16);
+    EXPECT(troupe_text_encode(model, clip_tokens, 77, 9, text_cond, 32), TROUPE_OK);
+    text_golden = read_npy(dir, "text_condition", &n);
+    CHECK(text_golden != NULL && n == cdim);
+    if (text_golden) CHECK(max_abs(text_cond, text_golden, cdim) <= 1e-5f);
+    EXPECT(troupe_text_encode(armflow, clip_tokens, 77, 9, text_cond, 32), TROUPE_ERR_INVALID_ARG);
+    CHECK(strstr(troupe_last_error_message(), "no text_branch") != NULL);
+    t_prior = read_npy(dir, "text_3p_prior_noise", &n);
+    CHECK(t_prior != NULL && n == prior_len);
+    t_jumps = read_npy(dir, "text_3p_jump1", &n);
+    CHECK(t_jumps != NULL && n == jumps_len);
+    t_reactions = read_npy(dir, "text_3p_reaction_noise", &n);
+    CHECK(t_reactions != NULL && n == 2 * reactions_len);
+    noise.prior = t_prior;
+    noise.jumps = t_jumps;
+    noise.reactions = t_reactions;
+    noise.reactions_len = 2 * reactions_len;
+    three = (float *)calloc(3 * frames * dim, sizeof(float));
+    three_latents = (float *)calloc(3 * tokens * lat, sizeof(float));
+    EXPECT(troupe_group_generate(model, &opt, text_cond, cdim, 3, &noise, three, 3 * frames * dim, three_latents,
+                                 3 * tokens * lat),
+           TROUPE_OK);
+    want = read_npy(dir, "text_3p_latents", &n);
+    CHECK(want != NULL && n == 3 * tokens * lat);
+    if (want) {
+        printf("text-conditioned 3 people: latents max-abs %.2e vs the reference\n",
+               (double)max_abs(three_latents, want, n));
+        CHECK(max_abs(three_latents, want, n) <= 1e-5f);
+        free(want);
+    }
+    want = read_npy(dir, "text_3p_motion", &n);
+    CHECK(want != NULL && n == 3 * frames * dim);
+    if (want) CHECK(max_abs(three, want, n) <= 1e-4f);
+    free(want);
+    noise.prior = prior;
+    noise.jumps = jumps;
+    noise.reactions = reactions;
+    noise.reactions_len = reactions_len;
+
     /* bad inputs: a clear status, and nothing written */
     memcpy(again, motion, n_motion * sizeof(float));
     EXPECT(troupe_group_generate(model, &opt, cond, cdim, 0, NULL, again, n_motion, NULL, 0), TROUPE_ERR_INVALID_ARG);
@@ -161,6 +208,13 @@ int main(int argc, char **argv) {
     free(prior);
     free(jumps);
     free(reactions);
+    free(clip_tokens);
+    free(text_golden);
+    free(three);
+    free(three_latents);
+    free(t_prior);
+    free(t_jumps);
+    free(t_reactions);
     printf("c group: %d passed, %d failed\n", passed, failed);
     return failed == 0 ? 0 : 1;
 }

@@ -244,6 +244,18 @@ def test_group_generation_matches_the_reference(umf):
     assert np.abs(motion - umf_golden("euler_paper_2p_motion")).max() <= 1e-4
 
 
+def test_group_text_branch_and_three_people_match_the_reference(umf):
+    assert umf.text_token_dim == 16 and umf.condition_dim == 32
+    cond = umf.encode_text(umf_golden("text_clip_tokens"), int(umf_golden("text_eot_index")[0]))
+    assert np.abs(cond - umf_golden("text_condition")).max() <= 1e-5
+    noise = (umf_golden("text_3p_prior_noise"), umf_golden("text_3p_jump1"), umf_golden("text_3p_reaction_noise"))
+    motion, latents = umf.generate_group(3, condition=cond, noise=noise, return_latents=True)
+    assert np.abs(latents - umf_golden("text_3p_latents")).max() <= 1e-5
+    assert np.abs(motion - umf_golden("text_3p_motion")).max() <= 1e-4
+    with pytest.raises(ValueError, match=r"clip_tokens must be \[tokens, 16\]"):
+        umf.encode_text(np.zeros((5, 32), np.float32), 0)
+
+
 def test_group_errors(umf, model):
     with pytest.raises(troupe.TroupeError, match="people is 0") as e:
         umf.generate_group(0)

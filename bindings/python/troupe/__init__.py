@@ -136,12 +136,16 @@ class Model:
             None if latents is None else _ptr(latents), 0 if latents is None else latents.size))
         return (motion, latents) if return_latents else motion
 
+    text_token_dim = property(lambda self: _lib.troupe_model_text_token_dim(self._h()),
+                              doc="width of the CLIP token features encode_text reads (0: no text branch)")
+
     def encode_text(self, clip_tokens, eot_index: int) -> np.ndarray:
-        """The official text branch: CLIP token features [tokens, condition_dim] and the
-        end-of-text index (argmax of CLIP's token ids) -> the condition [condition_dim]."""
+        """The official text branch (official ARMFlow and UMF bundles): CLIP token features
+        [tokens, text_token_dim] and the end-of-text index (argmax of CLIP's token ids) -> the
+        condition [condition_dim]."""
         t = _floats(clip_tokens, "clip_tokens")
-        if t.ndim != 2 or t.shape[1] != self.condition_dim:
-            raise ValueError(f"clip_tokens must be [tokens, {self.condition_dim}], got {list(t.shape)}")
+        if t.ndim != 2 or t.shape[1] != self.text_token_dim:
+            raise ValueError(f"clip_tokens must be [tokens, {self.text_token_dim}], got {list(t.shape)}")
         out = np.empty(self.condition_dim, np.float32)
         _check(_lib.troupe_text_encode(self._h(), _ptr(t), t.shape[0], eot_index, _ptr(out), out.size))
         return out

@@ -123,6 +123,7 @@ PROTOTYPES = {
         model_p, ctypes.POINTER(GroupOptions), f32p, c_size, ctypes.c_uint32, ctypes.POINTER(GroupNoise),
         f32p, c_size, f32p, c_size]),
     "troupe_model_clip_tokens": (c_size, [model_p]),
+    "troupe_model_text_token_dim": (c_size, [model_p]),
     "troupe_clip_generate": (status, [
         model_p, f32p, c_size, f32p, c_size, ctypes.c_uint64, ctypes.c_uint32, ctypes.POINTER(ClipNoise),
         f32p, c_size, f32p, c_size]),
