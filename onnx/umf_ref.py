@@ -13,11 +13,14 @@ this reference agree to float32 rounding:
   the context pools everyone generated before.
 * One decode of every person's latent by the MLD-style VAE decoder, then denormalisation.
 
-Parameter names follow the official state dict where natural (`indi_denoiser`, `reac_denoiser`,
-`motion_context_encoder`, `vae.decoder.input_blocks.0.self_attn`, ...), so that official
-checkpoints can later be loaded with little renaming.
+Modules and parameters carry the official names (`indi_denoiser.expert_ih_blocks.0.linear1`,
+`reac_denoiser.encoder.input_blocks.0.self_attn`, `clipTransEncoder_react.layers.1`,
+`vae.decoder.middle_block.multihead_attn`, ...; read from `umf/models/modeltype/umf.py`,
+`architectures/umf_denoiser.py`, `umf_vae.py` and `operator/cross_attention.py`), so an official
+checkpoint loads as it is (`export_umf.py --checkpoint`).
 
-Nothing here is copied from the official repository; it is written from the specification.
+Nothing here is copied from the official repository; it is written from the specification and
+the names read there.
 """
 
 from __future__ import annotations
