@@ -79,9 +79,10 @@ fn committed_official_layout_bundles_are_reproducible_from_the_exporter() {
     }
 }
 
-/// The official-checkpoint path (`onnx/test_official.py`): a checkpoint in the official layout
-/// exports to exactly the committed parity bundles; missing, unexpected, mis-shaped and
-/// non-finite tensors are rejected by name; the text branch equals torch's encoder.
+/// The official-checkpoint path of ARMFlow and UMF (`onnx/test_official.py`): a checkpoint in
+/// the official layout exports to exactly the committed parity bundles; missing, unexpected,
+/// mis-shaped, inconsistent and non-finite tensors are rejected by name; the text branches
+/// equal torch's encoder; UMF's null condition is the empty prompt through CLIP.
 #[test]
 fn official_checkpoints_load_strictly() {
     if torch_available("official_checkpoints_load_strictly") {
@@ -97,6 +98,6 @@ fn official_checkpoints_load_strictly() {
             String::from_utf8_lossy(&out.stderr)
         );
         assert!(out.status.success(), "{text}");
-        assert!(text.contains("9 passed"), "{text}");
+        assert!(text.contains("15 passed"), "{text}");
     }
 }
