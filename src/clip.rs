@@ -201,12 +201,7 @@ impl Model {
     /// bundle with a `text_branch` graph ([`Model::text_token_dim`] is then `Some`): ARMFlow's
     /// official bundles, and UMF's, whose condition is `[P-Flow text ; S-Flow text]`.
     pub fn encode_text(&self, clip_tokens: ArrayView2<f32>, eot_index: usize) -> Result<Vec<f32>> {
-        let (graph, width) = self.text_branch().ok_or_else(|| {
-            Error::InvalidInput(format!(
-                "bundle `{}` has no text_branch graph",
-                self.manifest().name
-            ))
-        })?;
+        let (graph, width) = self.text_branch()?;
         let dim = self.condition_dim();
         let t = clip_tokens.nrows();
         if clip_tokens.ncols() != width || t == 0 {
@@ -231,7 +226,7 @@ impl Model {
     /// The width of the CLIP token features [`Model::encode_text`] reads, or `None` when the
     /// bundle has no text branch.
     pub fn text_token_dim(&self) -> Option<usize> {
-        self.text_branch().map(|(_, width)| width)
+        self.text_branch().ok().map(|(_, width)| width)
     }
 
     fn require_clip(&self) -> Result<&ClipSpec> {

@@ -295,9 +295,10 @@ impl Model {
     }
 
     /// The ARMFlow spec and graphs, or an error naming the family this bundle is.
-    /// The bundle's text branch and the width of the CLIP token features it reads, if it has one.
-    pub(crate) fn text_branch(&self) -> Option<(&Graph, usize)> {
-        match (&self.inner.manifest.family, &self.inner.networks) {
+    /// The bundle's text branch and the width of the CLIP token features it reads; an error
+    /// naming the bundle when it has none.
+    pub(crate) fn text_branch(&self) -> Result<(&Graph, usize)> {
+        let found = match (&self.inner.manifest.family, &self.inner.networks) {
             (Family::Armflow(_), Networks::ArmFlow(n)) => {
                 n.text_branch.as_ref().map(|g| (g, self.condition_dim()))
             }
@@ -305,7 +306,13 @@ impl Model {
                 n.text_branch.as_ref().map(|g| (g, spec.text.prior_dim))
             }
             _ => None,
-        }
+        };
+        found.ok_or_else(|| {
+            Error::InvalidInput(format!(
+                "bundle `{}` has no text_branch graph",
+                self.manifest().name
+            ))
+        })
     }
 
     pub(crate) fn armflow(&self) -> Result<(&ArmFlowSpec, &ArmFlowNetworks)> {

@@ -5,7 +5,6 @@ use ndarray::ArrayView2;
 
 use super::boundary::{
     self, non_null, troupe_status, FfiError, FfiResult, TROUPE_ERR_BUFFER_TOO_SMALL,
-    TROUPE_ERR_INVALID_ARG,
 };
 use super::model::{optional_condition, troupe_model};
 use crate::{ClipNoise, ClipOptions, Model};
@@ -169,16 +168,7 @@ pub unsafe extern "C" fn troupe_text_encode(
             non_null(model, "model")?;
             // SAFETY: non-NULL live handle per the contract.
             let model: &Model = unsafe { &(*model).model };
-            let (dim, width) = (model.condition_dim(), model.text_token_dim());
-            let width = width.ok_or_else(|| {
-                FfiError::new(
-                    TROUPE_ERR_INVALID_ARG,
-                    format!(
-                        "bundle `{}` has no text_branch graph",
-                        model.manifest().name
-                    ),
-                )
-            })?;
+            let (dim, (_, width)) = (model.condition_dim(), model.text_branch()?);
             let n = boundary::checked_mul(n_tokens, width, "n_tokens * text_token_dim")?;
             // SAFETY: readable for `n` floats per the contract.
             let tokens = unsafe { boundary::slice(clip_tokens, n, "clip_tokens") }?;
