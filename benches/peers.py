@@ -1,12 +1,12 @@
 #!/usr/bin/env python3
 """Benchmark troupe's peers on ARMFlow's streaming step, on the same ONNX files troupe loads.
 
-    python3 benches/peers.py                                       # onnx/paper, all peers
-    python3 benches/peers.py --bundle onnx/armflow-tiny --histories 10,100 --steps 20
+    python3 benches/peers.py                                       # onnx/bundles/paper, all peers
+    python3 benches/peers.py --bundle onnx/bundles/armflow-tiny --histories 10,100 --steps 20
     python3 benches/peers.py --histories 10,100 --steps 20 --peers ort,torch-kv \\
         --troupe-binary target/release/examples/stream --json /tmp/peers.json
 
-The paper bundle is not committed: `python3 onnx/export.py --preset paper --out onnx/paper`.
+The paper bundle is not committed: `python3 onnx/cli.py armflow export --preset paper --out onnx/bundles/paper`.
 
 A **full step** is one reactor token, as troupe's session runs it for an `armflow` bundle with
 per-token VAE steps (onnx/README.md): `vae_encoder_step` on the actor's 4 new frames (posterior
@@ -21,10 +21,10 @@ Peers:
   --threads`, `inter_op_num_threads = 1`. The context step uses IOBinding: the cache is bound
   once as OrtValues and the `present_*` outputs stay in ORT-allocated memory (no copy to numpy);
   in a live stream they would be bound as the next step's `past_*`.
-- `torch-kv`: the PyTorch reference (`onnx/armflow_ref.py`) built by `onnx/export.py`'s
-  `build_model` with the bundle's `producer.preset` and `producer.seed`, so that it holds the same
-  weights; eager, `torch.inference_mode()`, `SkipAdaLNTransformer.step` with the cache, `VaeStep` for the
-  VAE.
+- `torch-kv`: the PyTorch reference (`troupe_onnx.armflow.reference`) built by the ARMFlow
+  exporter's `build_model` with the bundle's `producer.preset` and `producer.seed`, so that it
+  holds the same weights; eager, `torch.inference_mode()`, `SkipAdaLNTransformer.step` with the
+  cache, `VaeStep` for the VAE.
 - `torch-recompute`: as `torch-kv`, but the context is recomputed over the whole prefix
   `[sos, pairs...]` plus the new token, from scratch, every step, as the official ARMFlow sampler
   does. Slow at long histories (paper bundle: ~0.1 s per step at H = 100, growing with H).
@@ -104,7 +104,7 @@ class Bundle:
             sys.exit(f"{directory}: family {m['family']!r}, this benchmark runs 'armflow' bundles")
         missing = [r for r in STEP_ROLES if r not in m["graphs"]]
         if missing:
-            sys.exit(f"{directory}: no {', '.join(missing)}; re-export it with onnx/export.py")
+            sys.exit(f"{directory}: no {', '.join(missing)}; re-export it with onnx/cli.py armflow export")
         self.name = m["name"]
         self.latent = m["latent"]["dim"]
         self.scale = np.float32(m["latent"]["scale"])
@@ -253,12 +253,13 @@ class TorchPeer:
         import torch
 
         sys.path.insert(0, str(ROOT / "onnx"))
-        from armflow_ref import VaeStep
-        from export import build_model
+        from troupe_onnx.armflow.export import TOOL, build_model
+        from troupe_onnx.armflow.reference import VaeStep
 
         producer = b.manifest.get("producer", {})
-        if producer.get("tool") != "onnx/export.py":
-            sys.exit(f"{b.dir}: producer is not onnx/export.py; the torch peers cannot rebuild its weights")
+        # "onnx/export.py": bundles exported before the exporter moved behind onnx/cli.py
+        if producer.get("tool") not in (TOOL, "onnx/export.py"):
+            sys.exit(f"{b.dir}: producer is not {TOOL}; the torch peers cannot rebuild its weights")
         torch.set_num_threads(threads)
         self.torch, self.b, self.recompute = torch, b, recompute
         self.library = f"torch {torch.__version__}"
@@ -511,7 +512,7 @@ def print_report(s: dict):
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--bundle", type=Path, default=ROOT / "onnx" / "paper")
+    ap.add_argument("--bundle", type=Path, default=ROOT / "onnx" / "bundles" / "paper")
     ap.add_argument("--histories", default="10,100,1000,2000", help="comma-separated cached tokens H")
     ap.add_argument("--steps", type=int, default=50, help="timed full steps per history")
     ap.add_argument("--threads", type=int, default=1)

@@ -3,7 +3,7 @@
 //! `docs/PERFORMANCE.md` has the numbers and the commands.
 //!
 //!     cargo bench --bench step                                   # the committed tiny bundle
-//!     TROUPE_BENCH_BUNDLE=onnx/paper cargo bench --bench step    # paper size (export it first)
+//!     TROUPE_BENCH_BUNDLE=onnx/bundles/paper cargo bench --bench step    # paper size (export it first)
 //!     cargo bench --bench step -- --test                         # run each once (CI smoke)
 //!
 //! - `load`: `Model::load` plus a first session.
@@ -25,7 +25,7 @@ use common::synthetic_actor;
 fn bundle() -> PathBuf {
     let root = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
     std::env::var_os("TROUPE_BENCH_BUNDLE")
-        .map_or_else(|| root.join("onnx/armflow-tiny"), PathBuf::from)
+        .map_or_else(|| root.join("onnx/bundles/armflow-tiny"), PathBuf::from)
 }
 
 /// A session warmed to `history` tokens with capacity `history + 1`.

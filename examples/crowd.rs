@@ -2,7 +2,7 @@
 //! keeps them all in real time. Runs the sessions batched (`step_sessions`: one network call per
 //! graph for all of them) or one by one (`Session::step` each), on one or more threads.
 //!
-//!     cargo run --release --example crowd -- --bundle onnx/paper --sessions 8,32,64 --history 100
+//!     cargo run --release --example crowd -- --bundle onnx/bundles/paper --sessions 8,32,64 --history 100
 //!
 //! For each crowd size N: N sessions (seeds 0..N, the bundle's context capacity) are warmed to
 //! `--history` tokens, then `--rounds` rounds are timed; a round gives every session one token's
@@ -46,7 +46,7 @@ impl Mode {
 
 fn parse_args() -> Result<Args, String> {
     let mut args = Args {
-        bundle: concat!(env!("CARGO_MANIFEST_DIR"), "/onnx/armflow-tiny").into(),
+        bundle: concat!(env!("CARGO_MANIFEST_DIR"), "/onnx/bundles/armflow-tiny").into(),
         sessions: vec![1, 8, 32],
         history: 100,
         rounds: 20,

@@ -3,7 +3,7 @@
 //!
 //! ```text
 //! cargo run --release --example group -- [options]
-//!   --bundle DIR           umf bundle (default: onnx/umf-tiny)
+//!   --bundle DIR           umf bundle (default: onnx/bundles/umf-tiny)
 //!   --people N             people in the group (default: 2)
 //!   --condition FILE.npy   condition vector, float32 [condition_dim] (default: the null condition)
 //!   --prior M:S,M:S        solver per pyramid stage, M = euler | rk4 (default: the bundle's)
@@ -45,7 +45,7 @@ fn parse_solver(text: &str) -> Result<Solver, String> {
 
 fn parse_args() -> Result<Args, String> {
     let mut a = Args {
-        bundle: concat!(env!("CARGO_MANIFEST_DIR"), "/onnx/umf-tiny").into(),
+        bundle: concat!(env!("CARGO_MANIFEST_DIR"), "/onnx/bundles/umf-tiny").into(),
         people: 2,
         condition: None,
         options: GroupOptions::default(),

@@ -3,7 +3,7 @@
 //!
 //! ```text
 //! cargo run --release --example stream -- [options]
-//!   --bundle DIR        model bundle (default: onnx/armflow-tiny)
+//!   --bundle DIR        model bundle (default: onnx/bundles/armflow-tiny)
 //!   --actor FILE.npy    actor motion, float32 [T, frame_dim] (default: a synthetic actor)
 //!   --frames N          length of the synthetic actor (default: 600 = 20 s at 30 fps)
 //!   --tick N            actor frames per step() call (default: 1, i.e. every frame)
@@ -34,7 +34,7 @@ struct Args {
 
 fn parse_args() -> Result<Args, String> {
     let mut a = Args {
-        bundle: concat!(env!("CARGO_MANIFEST_DIR"), "/onnx/armflow-tiny").into(),
+        bundle: concat!(env!("CARGO_MANIFEST_DIR"), "/onnx/bundles/armflow-tiny").into(),
         actor: None,
         frames: 600,
         tick: 1,

@@ -496,7 +496,7 @@ troupe_status troupe_set_log_callback(troupe_log_fn callback, void *user_data, i
 
  ```c
  troupe_model *model = NULL;
- if (troupe_model_load_file("onnx/armflow-tiny", &model) != TROUPE_OK)
+ if (troupe_model_load_file("onnx/bundles/armflow-tiny", &model) != TROUPE_OK)
      fprintf(stderr, "%s\n", troupe_last_error_message());
  ```
 

@@ -93,13 +93,13 @@ impl Model {
     /// Runs the official ARMFlow sampler on one actor clip (see [`crate::clip`]): `actor` is
     /// `[frames, frame_dim]` with 1 to `clip.frames` frames (zero-padded to `clip.frames`);
     /// `condition` the text condition (`None`: the null condition). Needs an `armflow` bundle
-    /// with a `clip` section, exported from the official layout (`onnx/export.py --preset
-    /// interhuman | interx`).
+    /// with a `clip` section, exported from the official layout (`onnx/cli.py armflow export
+    /// --preset interhuman | interx`).
     ///
     /// ```no_run
     /// use ndarray::Array2;
     /// use troupe::{ClipOptions, Model};
-    /// let model = Model::load("onnx/armflow-tiny-interhuman")?;
+    /// let model = Model::load("onnx/bundles/armflow-tiny-interhuman")?;
     /// let actor = Array2::<f32>::zeros((120, model.frame_dim()));
     /// let clip = model.generate_clip(actor.view(), None, &ClipOptions { seed: 1, ..Default::default() })?;
     /// assert_eq!(clip.frames.nrows(), 300);
@@ -236,7 +236,7 @@ impl Model {
         self.clip_spec().ok_or_else(|| {
             Error::InvalidInput(format!(
                 "bundle `{}` has no `clip` section: clip generation needs a bundle exported \
-                 from the official layout (onnx/export.py --preset interhuman | interx)",
+                 from the official layout (onnx/cli.py armflow export --preset interhuman | interx)",
                 self.manifest().name
             ))
         })

@@ -104,7 +104,7 @@ impl Model {
     ///
     /// ```no_run
     /// use troupe::{GroupOptions, Model};
-    /// let model = Model::load("onnx/umf-tiny")?;
+    /// let model = Model::load("onnx/bundles/umf-tiny")?;
     /// let group = model.generate_group(None, 3, &GroupOptions { seed: 1, ..Default::default() })?;
     /// assert_eq!(group.motion.shape()[0], 3);
     /// # Ok::<(), troupe::Error>(())

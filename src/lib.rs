@@ -11,7 +11,7 @@
 //! use ndarray::Array2;
 //! use troupe::{Model, SessionOptions};
 //!
-//! let model = Model::load("onnx/armflow-tiny")?;            // load and optimise once
+//! let model = Model::load("onnx/bundles/armflow-tiny")?;    // load and optimise once
 //! let mut session = model.session(SessionOptions { seed: 7, ..Default::default() })?;
 //! let actor = Array2::<f32>::zeros((1, model.frame_dim())); // one frame from the engine
 //! let reactor = session.step(actor.view())?;                // 0 or 4 frames back

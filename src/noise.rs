@@ -14,7 +14,7 @@
 //!
 //! Because the generator is counter-based, the noise of token `j` does not depend on what was
 //! drawn before it: changing the sampler steps or CFG never shifts later tokens' noise, and
-//! `reset()` needs no generator state. `onnx/armflow_ref.py::philox_normals` is the same
+//! `reset()` needs no generator state. `onnx/troupe_onnx/shared/noise.py::philox_normals` is the same
 //! algorithm in Python and the golden tests check both agree bit for bit.
 
 /// Stream id of the actor posterior sample `xi`.

@@ -28,7 +28,7 @@ fn scratch() -> &'static Path {
 fn bundle_archive() -> &'static Path {
     static PATH: OnceLock<PathBuf> = OnceLock::new();
     PATH.get_or_init(|| {
-        let dir = root().join("onnx/armflow-tiny");
+        let dir = root().join("onnx/bundles/armflow-tiny");
         let mut builder = tar::Builder::new(Vec::new());
         for entry in std::fs::read_dir(&dir).unwrap() {
             let path = entry.unwrap().path();
@@ -131,7 +131,7 @@ fn run(wrapper: &[&str], binary: &Path, args: &[&Path]) -> String {
 
 fn smoke_args() -> [PathBuf; 2] {
     [
-        root().join("onnx/armflow-tiny"),
+        root().join("onnx/bundles/armflow-tiny"),
         bundle_archive().to_path_buf(),
     ]
 }
@@ -269,8 +269,8 @@ fn c_smoke_under_valgrind() {
 
 fn clip_args() -> [PathBuf; 2] {
     [
-        root().join("onnx/armflow-tiny-interhuman"),
-        root().join("onnx/armflow-tiny"),
+        root().join("onnx/bundles/armflow-tiny-interhuman"),
+        root().join("onnx/bundles/armflow-tiny"),
     ]
 }
 
@@ -294,8 +294,8 @@ fn c_clip_generation_as_c99_and_cpp17() {
 
 fn group_args() -> [PathBuf; 2] {
     [
-        root().join("onnx/umf-tiny"),
-        root().join("onnx/armflow-tiny"),
+        root().join("onnx/bundles/umf-tiny"),
+        root().join("onnx/bundles/armflow-tiny"),
     ]
 }
 
@@ -329,7 +329,7 @@ fn c_streaming_demo_runs() {
     );
     let npy = scratch().join("reactor_c.npy");
     let out = Command::new(&bin)
-        .arg(root().join("onnx/armflow-tiny"))
+        .arg(root().join("onnx/bundles/armflow-tiny"))
         .args(["40", "3"])
         .arg(&npy)
         .output()

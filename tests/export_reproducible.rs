@@ -1,6 +1,7 @@
-//! The committed bundles are exactly what their exporters produce: `onnx/export.py --preset tiny`
-//! (and `tiny-interhuman`, `tiny-interx`, the official-layout parity bundles)
-//! and `onnx/export_umf.py --preset tiny | tiny-temporal`, goldens included.
+//! The committed bundles are exactly what their exporters produce:
+//! `onnx/cli.py armflow export --preset tiny` (and `tiny-interhuman`, `tiny-interx`, the
+//! official-layout parity bundles) and `onnx/cli.py umf export --preset tiny | tiny-temporal`,
+//! goldens included.
 //!
 //! Needs Python with torch and onnx. CI does not install torch (about 4 GB); where it is missing
 //! this test prints why it did not run and passes.
@@ -28,12 +29,21 @@ fn torch_available(test: &str) -> bool {
     ok
 }
 
-/// Runs `exporter --preset preset --check dir` and asserts the re-export is byte-identical.
-fn check(exporter: &str, preset: &str, dir: &str) {
+/// Runs `onnx/cli.py family export --preset preset --check dir` and asserts the re-export is
+/// byte-identical.
+fn check(family: &str, preset: &str, dir: &str) {
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
     let out = Command::new(python())
         .current_dir(root)
-        .args([exporter, "--preset", preset, "--check", dir])
+        .args([
+            "onnx/cli.py",
+            family,
+            "export",
+            "--preset",
+            preset,
+            "--check",
+            dir,
+        ])
         .output()
         .expect("run the exporter");
     let text = format!(
@@ -51,19 +61,15 @@ fn check(exporter: &str, preset: &str, dir: &str) {
 #[test]
 fn committed_tiny_bundle_is_reproducible_from_the_exporter() {
     if torch_available("committed_tiny_bundle_is_reproducible_from_the_exporter") {
-        check("onnx/export.py", "tiny", "onnx/armflow-tiny");
+        check("armflow", "tiny", "onnx/bundles/armflow-tiny");
     }
 }
 
 #[test]
 fn committed_umf_bundles_are_reproducible_from_the_exporter() {
     if torch_available("committed_umf_bundles_are_reproducible_from_the_exporter") {
-        check("onnx/export_umf.py", "tiny", "onnx/umf-tiny");
-        check(
-            "onnx/export_umf.py",
-            "tiny-temporal",
-            "onnx/umf-tiny-temporal",
-        );
+        check("umf", "tiny", "onnx/bundles/umf-tiny");
+        check("umf", "tiny-temporal", "onnx/bundles/umf-tiny-temporal");
     }
 }
 
@@ -71,16 +77,16 @@ fn committed_umf_bundles_are_reproducible_from_the_exporter() {
 fn committed_official_layout_bundles_are_reproducible_from_the_exporter() {
     if torch_available("committed_official_layout_bundles_are_reproducible_from_the_exporter") {
         check(
-            "onnx/export.py",
+            "armflow",
             "tiny-interhuman",
-            "onnx/armflow-tiny-interhuman",
+            "onnx/bundles/armflow-tiny-interhuman",
         );
-        check("onnx/export.py", "tiny-interx", "onnx/armflow-tiny-interx");
+        check("armflow", "tiny-interx", "onnx/bundles/armflow-tiny-interx");
     }
 }
 
-/// The official-checkpoint path of ARMFlow and UMF (`onnx/test_official.py`): a checkpoint in
-/// the official layout exports to exactly the committed parity bundles; missing, unexpected,
+/// The official-checkpoint path of ARMFlow and UMF (`onnx/tests/test_official.py`): a checkpoint
+/// in the official layout exports to exactly the committed parity bundles; missing, unexpected,
 /// mis-shaped, inconsistent and non-finite tensors are rejected by name; the text branches
 /// equal torch's encoder; UMF's null condition is the empty prompt through CLIP.
 #[test]
@@ -89,7 +95,7 @@ fn official_checkpoints_load_strictly() {
         let root = Path::new(env!("CARGO_MANIFEST_DIR"));
         let out = Command::new(python())
             .current_dir(root)
-            .args(["-m", "pytest", "-q", "onnx/test_official.py"])
+            .args(["-m", "pytest", "-q", "onnx/tests/test_official.py"])
             .output()
             .expect("run pytest");
         let text = format!(

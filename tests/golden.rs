@@ -1,5 +1,5 @@
 //! Golden parity: the committed tiny bundle run by troupe against the PyTorch reference loop
-//! (`onnx/armflow_ref.py::stream_reference`) with the same injected noise.
+//! (`onnx/troupe_onnx/armflow/reference.py::stream_reference`) with the same injected noise.
 //! Tolerances: latents and contexts max-abs <= 1e-5, frames <= 1e-4, over 48 tokens.
 
 mod common;

@@ -1,8 +1,8 @@
 //! UMF text-to-group generation: golden parity of the committed tiny bundles against the
-//! PyTorch reference sampler (`onnx/umf_ref.py`) with the same noise, seeded noise against the
-//! Python generator, the official text branches, and every bad input rejected with a clear
-//! error. `umf-tiny` is the official UMF layout at reduced width with the released sampler: its
-//! weights also load as an official checkpoint (`onnx/test_official.py`).
+//! PyTorch reference sampler (`onnx/troupe_onnx/umf/reference.py`) with the same noise, seeded
+//! noise against the Python generator, the official text branches, and every bad input rejected
+//! with a clear error. `umf-tiny` is the official UMF layout at reduced width with the released sampler: its
+//! weights also load as an official checkpoint (`onnx/tests/test_official.py`).
 //! Tolerances: latents max-abs <= 1e-5, motion <= 1e-4.
 
 use std::path::{Path, PathBuf};
@@ -19,6 +19,7 @@ const MOTION_TOL: f32 = 1e-4;
 fn bundle(name: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))
         .join("onnx")
+        .join("bundles")
         .join(name)
 }
 

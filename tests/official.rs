@@ -1,8 +1,9 @@
-//! Parity with the official ARMFlow sampler: the committed bundles `onnx/armflow-tiny-interhuman`
-//! and `onnx/armflow-tiny-interx` hold random weights in the official layout (written as an
-//! official checkpoint and exported from it, `onnx/test_official.py`), and their goldens come
-//! from the PyTorch reference of the official loops (`onnx/armflow_ref.py::clip_reference`,
-//! `stream_reference`) on the same weights and injected noise.
+//! Parity with the official ARMFlow sampler: the committed bundles
+//! `onnx/bundles/armflow-tiny-interhuman` and `onnx/bundles/armflow-tiny-interx` hold random
+//! weights in the official layout (written as an official checkpoint and exported from it,
+//! `onnx/tests/test_official.py`), and their goldens come from the PyTorch reference of the
+//! official loops (`onnx/troupe_onnx/armflow/reference.py::clip_reference`, `stream_reference`)
+//! on the same weights and injected noise.
 //!
 //! Tolerances: latents and contexts 1e-5, frames 1e-4 (the parity bounds).
 
@@ -21,7 +22,7 @@ const FRAME_TOL: f32 = 1e-4;
 const CONFIGS: [&str; 2] = ["interhuman", "interx"];
 
 fn dir(config: &str) -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join(format!("onnx/armflow-tiny-{config}"))
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join(format!("onnx/bundles/armflow-tiny-{config}"))
 }
 
 fn model(config: &str) -> &'static Model {

@@ -46,7 +46,7 @@ static int write_npy(const char *path, const float *data, size_t rows, size_t co
 }
 
 int main(int argc, char **argv) {
-    const char *bundle = argc > 1 ? argv[1] : "onnx/armflow-tiny";
+    const char *bundle = argc > 1 ? argv[1] : "onnx/bundles/armflow-tiny";
     size_t frames = argc > 2 ? (size_t)atol(argv[2]) : 600, tick = argc > 3 ? (size_t)atol(argv[3]) : 1;
     const char *out_path = argc > 4 ? argv[4] : "reactor_c.npy";
     troupe_model *model = NULL;

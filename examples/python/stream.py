@@ -22,7 +22,7 @@ def synthetic_actor(frames: int, dim: int) -> np.ndarray:
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--bundle", default="onnx/armflow-tiny")
+    ap.add_argument("--bundle", default="onnx/bundles/armflow-tiny")
     ap.add_argument("--actor", help="float32 [T, frame_dim] .npy (default: synthetic)")
     ap.add_argument("--frames", type=int, default=600)
     ap.add_argument("--tick", type=int, default=1)

@@ -68,7 +68,7 @@ fn publish(model: Model, out: *mut *mut troupe_model) {
 ///
 /// ```c
 /// troupe_model *model = NULL;
-/// if (troupe_model_load_file("onnx/armflow-tiny", &model) != TROUPE_OK)
+/// if (troupe_model_load_file("onnx/bundles/armflow-tiny", &model) != TROUPE_OK)
 ///     fprintf(stderr, "%s\n", troupe_last_error_message());
 /// ```
 ///

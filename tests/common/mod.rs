@@ -11,7 +11,7 @@ use troupe::{Model, Session, SessionOptions, TokenNoise, TokenTrace};
 
 /// The committed tiny bundle.
 pub fn bundle_dir() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("onnx/armflow-tiny")
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("onnx/bundles/armflow-tiny")
 }
 
 /// The tiny model, loaded once per test binary.

@@ -14,7 +14,7 @@ import troupe
 from troupe import _native
 
 REPO = Path(__file__).resolve().parents[3]
-BUNDLE = REPO / "onnx" / "armflow-tiny"
+BUNDLE = REPO / "onnx" / "bundles" / "armflow-tiny"
 GOLDEN = BUNDLE / "golden"
 
 
@@ -216,7 +216,7 @@ def test_model_from_bytes_and_closing(model):
         m3.session()
 
 
-UMF = REPO / "onnx" / "umf-tiny"
+UMF = REPO / "onnx" / "bundles" / "umf-tiny"
 
 
 @pytest.fixture(scope="module")
@@ -272,7 +272,7 @@ def test_group_errors(umf, model):
         umf.session()
 
 
-OFFICIAL = REPO / "onnx" / "armflow-tiny-interhuman"
+OFFICIAL = REPO / "onnx" / "bundles" / "armflow-tiny-interhuman"
 
 
 def official_golden(name):

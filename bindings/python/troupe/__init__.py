@@ -1,7 +1,7 @@
 """troupe: real-time human interaction motion generation, from Python.
 
     import numpy as np, troupe
-    with troupe.Model("onnx/armflow-tiny") as model, model.session(seed=7) as session:
+    with troupe.Model("onnx/bundles/armflow-tiny") as model, model.session(seed=7) as session:
         reactor = session.step(np.zeros((4, model.frame_dim), np.float32))  # [frames, frame_dim]
 
 A thin ctypes layer over the C ABI (include/troupe.h): errors raise `TroupeError` with the

@@ -1,13 +1,12 @@
-#!/usr/bin/env python3
 """UMF at the released sizes, loaded from a checkpoint in the official layout: troupe (through the
 Python bindings and the C ABI) against the PyTorch reference, same text-branch condition and
 injected noise. Not part of CI (the bundle is 450 MB); the committed `umf-tiny` covers parity there.
 
-    python3 onnx/export_umf.py --preset interhuman --write-checkpoint /tmp/umfck/umf.ckpt
-    python3 onnx/export_umf.py --preset interhuman --checkpoint /tmp/umfck/umf.ckpt \\
+    python3 onnx/cli.py umf export --preset interhuman --write-checkpoint /tmp/umfck/umf.ckpt
+    python3 onnx/cli.py umf export --preset interhuman --checkpoint /tmp/umfck/umf.ckpt \\
         --mean /tmp/umfck/global_mean.npy --std /tmp/umfck/global_std.npy --out /tmp/umf-interhuman
     cargo build --release
-    TROUPE_LIBRARY_PATH=target/release python3 onnx/umf_official_parity.py \\
+    TROUPE_LIBRARY_PATH=target/release python3 onnx/cli.py umf official-parity \\
         --checkpoint /tmp/umfck/umf.ckpt --bundle /tmp/umf-interhuman --people 3
 """
 
@@ -21,20 +20,22 @@ from pathlib import Path
 import numpy as np
 import torch
 
-ROOT = Path(__file__).resolve().parent
-sys.path.insert(0, str(ROOT))
-sys.path.insert(0, str(ROOT.parent / "bindings" / "python"))
-import export_umf  # noqa: E402
-import troupe  # noqa: E402
-from umf_ref import block_noise_from_normals, generate_group, stage_tokens  # noqa: E402
+from troupe_onnx.umf import export as export_umf
+from troupe_onnx.umf.reference import block_noise_from_normals, generate_group, stage_tokens
+
+REPO = Path(__file__).resolve().parents[3]
 
 
-def main():
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+def main(argv: list[str] | None = None, prog: str | None = None):
+    """`onnx/cli.py umf official-parity`."""
+    ap = argparse.ArgumentParser(prog=prog, description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--checkpoint", type=Path, required=True)
     ap.add_argument("--bundle", type=Path, required=True)
     ap.add_argument("--people", type=int, default=3)
-    args = ap.parse_args()
+    args = ap.parse_args(argv)
+    sys.path.insert(0, str(REPO / "bindings" / "python"))
+    import troupe  # the Python bindings; they load the built library
+
     torch.set_num_threads(1)
     stats = (args.checkpoint.parent / "global_mean.npy", args.checkpoint.parent / "global_std.npy")
     model = export_umf.build_model("interhuman", 0, args.checkpoint, stats)
@@ -66,7 +67,3 @@ def main():
             f"person {p + 1}: latents max-abs {np.abs(got_latents[p] - latents[p]).max():.2e}, "
             f"features max-abs {np.abs(got_motion[p] - motion[p]).max():.2e} (mean |feature| {np.abs(motion[p]).mean():.2f})"
         )
-
-
-if __name__ == "__main__":
-    main()

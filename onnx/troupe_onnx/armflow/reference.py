@@ -2,7 +2,7 @@
 
 This module is the ground truth the Rust runtime is tested against. The networks follow
 `shared/spec/models.md` section 1 (read from the official code) at any width and depth; the
-streaming loop mirrors `src/session.rs` operation for operation, so that given the same noise the
+streaming loop mirrors `src/session/` operation for operation, so that given the same noise the
 two agree to float32 rounding.
 
 Nothing here is copied from the official repository; it is written from the specification.
@@ -17,7 +17,7 @@ import numpy as np
 import torch
 import torch.nn as nn
 import torch.nn.functional as F
-from transformer import EncoderStack, pick_token
+from troupe_onnx.shared.transformer import EncoderStack, pick_token
 
 # --------------------------------------------------------------------------------------------
 # Configuration
@@ -513,50 +513,15 @@ class Armflow(nn.Module):
 
 
 # --------------------------------------------------------------------------------------------
-# Portable noise: Philox4x32-10 + Box-Muller (mirrors src/noise.rs)
+# Seeded noise: stream ids of the portable generator (troupe_onnx.shared.noise)
 # --------------------------------------------------------------------------------------------
-
-_PHILOX_M0, _PHILOX_M1 = 0xD2511F53, 0xCD9E8D57
-_PHILOX_W0, _PHILOX_W1 = 0x9E3779B9, 0xBB67AE85
-_MASK32 = 0xFFFFFFFF
 
 STREAM_ACTOR_POSTERIOR = 0
 STREAM_REACTOR_NOISE = 1
 
 
-def philox4x32(counter, key):
-    c0, c1, c2, c3 = counter
-    k0, k1 = key
-    for _ in range(10):
-        p0, p1 = _PHILOX_M0 * c0, _PHILOX_M1 * c2
-        c0, c1, c2, c3 = (
-            ((p1 >> 32) ^ c1 ^ k0) & _MASK32,
-            p1 & _MASK32,
-            ((p0 >> 32) ^ c3 ^ k1) & _MASK32,
-            p0 & _MASK32,
-        )
-        k0, k1 = (k0 + _PHILOX_W0) & _MASK32, (k1 + _PHILOX_W1) & _MASK32
-    return c0, c1, c2, c3
-
-
-def philox_normals(seed: int, token: int, stream: int, n: int) -> np.ndarray:
-    """The n standard normals troupe draws for (seed, token, stream); see src/noise.rs."""
-    key = (seed & _MASK32, (seed >> 32) & _MASK32)
-    out = []
-    block = 0
-    while len(out) < n:
-        words = philox4x32((block, token & _MASK32, (token >> 32) & _MASK32, stream), key)
-        for a, b in ((words[0], words[1]), (words[2], words[3])):
-            u1 = (a + 0.5) * 2.0**-32
-            u2 = (b + 0.5) * 2.0**-32
-            rad = math.sqrt(-2.0 * math.log(u1))
-            out += [rad * math.cos(2.0 * math.pi * u2), rad * math.sin(2.0 * math.pi * u2)]
-        block += 1
-    return np.array(out[:n], dtype=np.float64).astype(np.float32)
-
-
 # --------------------------------------------------------------------------------------------
-# The streaming loop troupe runs (mirrors src/session.rs)
+# The streaming loop troupe runs (mirrors src/session/)
 # --------------------------------------------------------------------------------------------
 
 

@@ -1,5 +1,5 @@
 """The official-checkpoint path of the ARMFlow and UMF exporters (needs torch; run by
-`cargo test --test export_reproducible`, or `python3 -m pytest onnx/test_official.py`).
+`cargo test --test export_reproducible`, or `python3 -m pytest onnx/tests/test_official.py`).
 
 - A checkpoint in the official layout exports to exactly the committed parity bundles.
 - A checkpoint with missing, unexpected or mis-shaped tensors is rejected, naming each.
@@ -10,7 +10,6 @@
 from __future__ import annotations
 
 import json
-import sys
 
 import numpy as np
 from pathlib import Path
@@ -20,11 +19,12 @@ import pytest
 torch = pytest.importorskip("torch")
 pytest.importorskip("onnx")
 
-ROOT = Path(__file__).resolve().parent
-sys.path.insert(0, str(ROOT))
-import export  # noqa: E402
-import export_umf  # noqa: E402
-from checkpoint import CheckpointError  # noqa: E402
+from troupe_onnx.armflow import export  # noqa: E402
+from troupe_onnx.shared.checkpoint import CheckpointError  # noqa: E402
+from troupe_onnx.shared.export import compare_bundles  # noqa: E402
+from troupe_onnx.umf import export as export_umf  # noqa: E402
+
+BUNDLES = Path(__file__).resolve().parents[1] / "bundles"
 
 torch.set_num_threads(1)  # as the exporter runs: the goldens compare within 1e-6
 
@@ -43,9 +43,9 @@ def test_checkpoint_exports_to_the_committed_bundle(preset, tmp_path):
     out = tmp_path / "bundle"
     model = export.export_bundle(preset, out, checkpoint=ckpt)
     export.write_golden(model, out)
-    committed = ROOT / f"armflow-{preset}"
+    committed = BUNDLES / f"armflow-{preset}"
     # Weights, graphs and goldens equal; the manifest differs in naming its source only.
-    assert export.compare_bundles(committed, out) == ["troupe.json: contents differ"]
+    assert compare_bundles(committed, out) == ["troupe.json: contents differ"]
     a, b = (json.loads((d / "troupe.json").read_text()) for d in (committed, out))
     assert a.pop("producer")["seed"] == 0
     assert b.pop("producer")["checkpoint"] == "official.ckpt"
@@ -164,8 +164,8 @@ def umf_error(ckpt: Path, tmp_path: Path, normaliser: tuple[Path, Path]) -> str:
 def test_umf_checkpoint_exports_to_the_committed_bundle(umf_checkpoint, tmp_path, capsys):
     model = umf_export(umf_checkpoint, tmp_path, statistics(umf_checkpoint))
     export_umf.write_golden(model, tmp_path / "bundle")
-    committed = ROOT / "umf-tiny"
-    assert export.compare_bundles(committed, tmp_path / "bundle") == ["troupe.json: contents differ"]
+    committed = BUNDLES / "umf-tiny"
+    assert compare_bundles(committed, tmp_path / "bundle") == ["troupe.json: contents differ"]
     a, b = (json.loads((d / "troupe.json").read_text()) for d in (committed, tmp_path / "bundle"))
     assert a.pop("producer")["seed"] == 0
     assert b.pop("producer")["checkpoint"] == "umf.ckpt"

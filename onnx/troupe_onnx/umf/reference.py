@@ -17,7 +17,7 @@ Modules and parameters carry the official names (`indi_denoiser.expert_ih_blocks
 `reac_denoiser.encoder.input_blocks.0.self_attn`, `clipTransEncoder_react.layers.1`,
 `vae.decoder.middle_block.multihead_attn`, ...; read from `umf/models/modeltype/umf.py`,
 `architectures/umf_denoiser.py`, `umf_vae.py` and `operator/cross_attention.py`), so an official
-checkpoint loads as it is (`export_umf.py --checkpoint`).
+checkpoint loads as it is (`cli.py umf export --checkpoint`).
 
 Nothing here is copied from the official repository; it is written from the specification and
 the names read there.
@@ -33,8 +33,8 @@ import numpy as np
 import torch
 import torch.nn as nn
 import torch.nn.functional as F
-from armflow_ref import philox_normals
-from transformer import Attention, EncoderLayer, EncoderStack, pick_token
+from troupe_onnx.shared.noise import philox_normals
+from troupe_onnx.shared.transformer import Attention, EncoderLayer, EncoderStack, pick_token
 
 # --------------------------------------------------------------------------------------------
 # Configuration

@@ -1,7 +1,6 @@
-#!/usr/bin/env python3
-"""How far stream mode is from the official clip loop, by VAE window size.
+"""How far ARMFlow's stream mode is from the official clip loop, by VAE window size.
 
-    python3 onnx/stream_deviation.py --preset interhuman [--checkpoint armflow.ckpt] [--json F]
+    python3 onnx/cli.py armflow stream-deviation --preset interhuman [--checkpoint armflow.ckpt] [--json F]
 
 The official VAE is not causal: every token depends on the whole padded clip (GroupNorm over
 time, dilated convolutions reaching hundreds of frames). A stream cannot wait for the clip, so
@@ -10,28 +9,27 @@ stream mode encodes each actor token from a window of `context_frames` before it
 `lookahead_tokens` after it (the bundle's `vae` section). The stream also runs the context
 encoder causally with a key/value cache, where the official loop re-runs the unmasked prefix.
 
-This script runs both loops of the PyTorch reference (`armflow_ref.py`; troupe equals it within
-1e-4, `tests/official.rs`) on one 300-frame actor clip with the same draws: the same posterior
-noise per token and the official single noise token for every token. It reports the reactor
-features' error per token (max-abs, and the mean over tokens of the per-token mean-abs error)
-for a range of windows, and the latency each window costs. Without `--checkpoint` the weights
-are random, which says how the windows behave, not what a trained model's error is.
+This tool runs both loops of the PyTorch reference (`troupe_onnx.armflow.reference`; troupe
+equals it within 1e-4, `tests/official.rs`) on one 300-frame actor clip with the same draws: the
+same posterior noise per token and the official single noise token for every token. It reports
+the reactor features' error per token (max-abs, and the mean over tokens of the per-token
+mean-abs error) for a range of windows, and the latency each window costs. Without
+`--checkpoint` the weights are random, which says how the windows behave, not what a trained
+model's error is.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
-import sys
 import time
 from pathlib import Path
 
 import numpy as np
 import torch
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from armflow_ref import StreamOptions, VaeWindows, clip_reference, clip_tokens, stream_reference  # noqa: E402
-from export import OFFICIAL_WINDOWS, build_model, synthetic_actor  # noqa: E402
+from troupe_onnx.armflow.export import OFFICIAL_WINDOWS, build_model, synthetic_actor
+from troupe_onnx.armflow.reference import StreamOptions, VaeWindows, clip_reference, clip_tokens, stream_reference
 
 SWEEP = [  # context_frames, lookahead_frames, context_tokens, lookahead_tokens
     VaeWindows(16, 0, 4, 0),
@@ -44,13 +42,14 @@ SWEEP = [  # context_frames, lookahead_frames, context_tokens, lookahead_tokens
 ]
 
 
-def main():
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+def main(argv: list[str] | None = None, prog: str | None = None):
+    """`onnx/cli.py armflow stream-deviation`."""
+    ap = argparse.ArgumentParser(prog=prog, description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--preset", default="interhuman", choices=["interhuman", "interx", "tiny-interhuman", "tiny-interx"])
     ap.add_argument("--checkpoint", type=Path)
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--json", type=Path, help="also write the table here")
-    args = ap.parse_args()
+    args = ap.parse_args(argv)
     torch.set_num_threads(2)
     model = build_model(args.preset, args.seed, args.checkpoint)
     cfg = model.cfg
@@ -96,7 +95,3 @@ def main():
     if args.json:
         args.json.write_text(json.dumps({"preset": args.preset, "checkpoint": str(args.checkpoint),
                                          "clip_feature_scale": scale, "rows": rows}, indent=2) + "\n")
-
-
-if __name__ == "__main__":
-    main()

@@ -1,10 +1,9 @@
 """Load a checkpoint of the official code into our module definitions, strictly.
 
-Our modules carry the official module and parameter names (`onnx/armflow_ref.py`,
-`onnx/umf_ref.py`), so an official state dict loads without renaming. What this module adds is
-the strictness a user needs when a checkpoint does not match the configuration it is exported
-with: every missing, unexpected or mis-shaped tensor is named in one error, instead of a silent
-partial load.
+Our modules carry the official module and parameter names (each family's `reference.py`), so
+an official state dict loads without renaming. What this module adds is the strictness a user
+needs when a checkpoint does not match the configuration it is exported with: every missing,
+unexpected or mis-shaped tensor is named in one error, instead of a silent partial load.
 
 A few tensors of the official checkpoints are deliberately not used at inference; each exporter
 lists them with the reason (`IGNORED`), and they are reported, never silently dropped. Tensors

@@ -1,38 +1,36 @@
-#!/usr/bin/env python3
-"""Export a UMF model into a troupe bundle (manifest + ONNX graphs [+ golden outputs]).
+"""UMF's exporter: a model into a troupe bundle (manifest + ONNX graphs [+ golden outputs]).
 
-    python onnx/export_umf.py --preset tiny          --out onnx/umf-tiny --golden            # committed
-    python onnx/export_umf.py --preset tiny-temporal --out onnx/umf-tiny-temporal --golden   # committed
-    python onnx/export_umf.py --preset interhuman    --out onnx/paper-umf                    # not committed
-    python onnx/export_umf.py --preset tiny          --check onnx/umf-tiny                   # reproducible?
+    python3 onnx/cli.py umf export --preset tiny          --out onnx/bundles/umf-tiny --golden            # committed
+    python3 onnx/cli.py umf export --preset tiny-temporal --out onnx/bundles/umf-tiny-temporal --golden   # committed
+    python3 onnx/cli.py umf export --preset interhuman    --out onnx/bundles/paper-umf                    # not committed
+    python3 onnx/cli.py umf export --preset tiny          --check onnx/bundles/umf-tiny                   # reproducible?
 
     # the official checkpoint (Githubhgh/UMF_CVPR, the S-Flow stage's, which holds every network)
     # and InterHuman's feature statistics:
-    python onnx/export_umf.py --preset interhuman --checkpoint umf.ckpt \
-        --mean global_mean.npy --std global_std.npy --out onnx/umf-interhuman
+    python3 onnx/cli.py umf export --preset interhuman --checkpoint umf.ckpt \
+        --mean global_mean.npy --std global_std.npy --out onnx/bundles/umf-interhuman
 
-Our modules (umf_ref.py) carry the official module and parameter names, so an official state
-dict loads as it is, strictly (checkpoint.py). Without `--checkpoint` the weights, the feature
-normaliser and the null condition are random (seeded): such bundles test and benchmark the
-runtime; they do not generate meaningful motion. `--write-checkpoint FILE` saves those weights
-in the official layout, with the normaliser beside it as `global_mean.npy` / `global_std.npy`
-(the parity harness's checkpoints). The graph export and the bundle comparison are shared with
-the ARMFlow exporter (export.py).
+Our modules (`troupe_onnx.umf.reference`) carry the official module and parameter names, so an
+official state dict loads as it is, strictly (`troupe_onnx.shared.checkpoint`). Without
+`--checkpoint` the weights, the feature normaliser and the null condition are random (seeded):
+such bundles test and benchmark the runtime; they do not generate meaningful motion.
+`--write-checkpoint FILE` saves those weights in the official layout, with the normaliser beside
+it as `global_mean.npy` / `global_std.npy` (the parity harness's checkpoints). The graph export,
+the bundle comparison and the command line are shared with every family's exporter
+(`troupe_onnx.shared.export`).
 """
 
 from __future__ import annotations
 
 import json
-import sys
 from pathlib import Path
 
 import numpy as np
 import torch
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from checkpoint import CheckpointError, load_checkpoint  # noqa: E402
-from export import FORMAT_VERSION, OPSET, cli, export_graph  # noqa: E402
-from umf_ref import (  # noqa: E402
+from troupe_onnx.shared.checkpoint import CheckpointError, load_checkpoint
+from troupe_onnx.shared.export import FORMAT_VERSION, OPSET, export_graph, exporter_cli
+from troupe_onnx.umf.reference import (
     TIME_SCALE,
     Solver,
     Umf,
@@ -42,6 +40,8 @@ from umf_ref import (  # noqa: E402
     seeded_noise,
     stage_tokens,
 )
+
+TOOL = "onnx/cli.py umf export"  # the manifest's `producer.tool`
 
 _TINY = dict(
     latent_dim=8, width=32, heads=2, ffn=64, time_dim=32, prior_layers=3, prior_expert_layers=1,
@@ -272,7 +272,7 @@ def export_bundle(
         "family": "umf",
         "name": f"umf-{preset}",
         "producer": {
-            "tool": "onnx/export_umf.py", "preset": preset, "opset": OPSET,
+            "tool": TOOL, "preset": preset, "opset": OPSET,
             **({"checkpoint": checkpoint.name} if checkpoint else {"seed": seed}),
             "dataset": DATASET_NAMES[cfg.dataset_label],
         },
@@ -393,5 +393,6 @@ def write_checkpoint(preset: str, seed: int, path: Path, extras: bool = True):
     np.save(path.parent / "global_std.npy", model.motion_std.numpy())
 
 
-if __name__ == "__main__":
-    cli(__doc__, PRESETS, export_bundle, write_golden, write_checkpoint, normaliser=True)
+def main(argv: list[str] | None = None, prog: str | None = None):
+    """`onnx/cli.py umf export`."""
+    exporter_cli(__doc__, PRESETS, export_bundle, write_golden, write_checkpoint, normaliser=True, argv=argv, prog=prog)

@@ -1,0 +1,6 @@
+"""Puts onnx/ on the path, so that the tests import the `troupe_onnx` package."""
+
+import sys
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
