@@ -45,21 +45,6 @@
 #define TROUPE_VERSION_NUMBER 256
 
 /*
- Forward Euler.
- */
-#define TROUPE_SOLVER_EULER 1
-
-/*
- The 3/8-rule fourth-order Runge-Kutta (torchdiffeq's `rk4`, UMF's solver).
- */
-#define TROUPE_SOLVER_RK4 2
-
-/*
- The most pyramid stages `troupe_group_options` can describe.
- */
-#define TROUPE_MAX_STAGES 8
-
-/*
  Log level: something failed.
  */
 #define TROUPE_LOG_ERROR 1
@@ -80,6 +65,12 @@
 #define TROUPE_LOG_DEBUG 4
 
 /*
+ ABI version of this library. Bumped on every incompatible change of the C ABI; bindings
+ check `troupe_abi_version() == TROUPE_ABI_VERSION` when they load the library.
+ */
+#define TROUPE_ABI_VERSION 1
+
+/*
  Actor tokens are the VAE posterior sample `(mean + std * noise) * scale` (the official choice).
  */
 #define TROUPE_ACTOR_LATENT_SAMPLE 0
@@ -90,10 +81,19 @@
 #define TROUPE_ACTOR_LATENT_MEAN 1
 
 /*
- ABI version of this library. Bumped on every incompatible change of the C ABI; bindings
- check `troupe_abi_version() == TROUPE_ABI_VERSION` when they load the library.
+ Forward Euler.
  */
-#define TROUPE_ABI_VERSION 1
+#define TROUPE_SOLVER_EULER 1
+
+/*
+ The 3/8-rule fourth-order Runge-Kutta (torchdiffeq's `rk4`, UMF's solver).
+ */
+#define TROUPE_SOLVER_RK4 2
+
+/*
+ The most pyramid stages `troupe_group_options` can describe.
+ */
+#define TROUPE_MAX_STAGES 8
 
 /*
  A loaded bundle. Immutable and thread-safe: every function taking a `const troupe_model*`
@@ -112,6 +112,12 @@ typedef struct troupe_session troupe_session;
  Status returned by every fallible function: `TROUPE_OK` or one of the `TROUPE_ERR_*` codes.
  */
 typedef int32_t troupe_status;
+
+/*
+ A log callback: `level` is one of `TROUPE_LOG_*`; `target` and `message` are NUL-terminated
+ and valid only during the call.
+ */
+typedef void (*troupe_log_fn)(void *user_data, int32_t level, const char *target, const char *message);
 
 /*
  The random draws of one clip, given instead of seeded. Arrays are row-major float32, each
@@ -135,6 +141,41 @@ typedef struct troupe_clip_noise {
    */
   size_t reactor_noise_len;
 } troupe_clip_noise;
+
+/*
+ Options of a new session. Fill with `troupe_session_options_init`, then change fields.
+ Fields are only ever appended; `struct_size` tells the library which version the caller has.
+ */
+typedef struct troupe_session_options {
+  /*
+   `sizeof(troupe_session_options)` as the caller compiled it (set by `_init`).
+   */
+  uint32_t struct_size;
+  /*
+   MeanFlow steps per token, >= 1.
+   */
+  uint32_t steps;
+  /*
+   Seed of the portable noise generator: equal seeds give bit-identical motion everywhere.
+   */
+  uint64_t seed;
+  /*
+   Classifier-free guidance scale, finite; 1 disables guidance.
+   */
+  float cfg_scale;
+  /*
+   Tokens kept in the context cache, `<sos>` included, >= 2; older ones slide out.
+   */
+  uint32_t context_capacity;
+  /*
+   `TROUPE_ACTOR_LATENT_SAMPLE` or `TROUPE_ACTOR_LATENT_MEAN`.
+   */
+  int32_t actor_latent;
+  /*
+   Must be 0.
+   */
+  uint32_t reserved;
+} troupe_session_options;
 
 /*
  Options of `troupe_group_generate`. Fill with `troupe_group_options_init` (the bundle's
@@ -213,47 +254,6 @@ typedef struct troupe_group_noise {
 } troupe_group_noise;
 
 /*
- A log callback: `level` is one of `TROUPE_LOG_*`; `target` and `message` are NUL-terminated
- and valid only during the call.
- */
-typedef void (*troupe_log_fn)(void *user_data, int32_t level, const char *target, const char *message);
-
-/*
- Options of a new session. Fill with `troupe_session_options_init`, then change fields.
- Fields are only ever appended; `struct_size` tells the library which version the caller has.
- */
-typedef struct troupe_session_options {
-  /*
-   `sizeof(troupe_session_options)` as the caller compiled it (set by `_init`).
-   */
-  uint32_t struct_size;
-  /*
-   MeanFlow steps per token, >= 1.
-   */
-  uint32_t steps;
-  /*
-   Seed of the portable noise generator: equal seeds give bit-identical motion everywhere.
-   */
-  uint64_t seed;
-  /*
-   Classifier-free guidance scale, finite; 1 disables guidance.
-   */
-  float cfg_scale;
-  /*
-   Tokens kept in the context cache, `<sos>` included, >= 2; older ones slide out.
-   */
-  uint32_t context_capacity;
-  /*
-   `TROUPE_ACTOR_LATENT_SAMPLE` or `TROUPE_ACTOR_LATENT_MEAN`.
-   */
-  int32_t actor_latent;
-  /*
-   Must be 0.
-   */
-  uint32_t reserved;
-} troupe_session_options;
-
-/*
  Success.
  */
 #define TROUPE_OK 0
@@ -306,169 +306,6 @@ typedef struct troupe_session_options {
 #ifdef __cplusplus
 extern "C" {
 #endif // __cplusplus
-
-/*
- Tokens of the official clip of an `armflow` bundle exported from the official layout (75
- InterHuman, 37 InterX); 0 for other bundles or NULL. Thread-safe.
-
- # Safety
- `model` must be NULL or a live handle.
- */
-size_t troupe_model_clip_tokens(const struct troupe_model *model);
-
-/*
- Width of the CLIP token features `troupe_text_encode` reads (the bundle's CLIP width: the
- condition dim of an official ARMFlow bundle, 768 for UMF as released); 0 for bundles without
- a text branch, or NULL. Thread-safe.
-
- # Safety
- `model` must be NULL or a live handle.
- */
-size_t troupe_model_text_token_dim(const struct troupe_model *model);
-
-/*
- Runs the official ARMFlow sampler on one actor clip and writes the reactor motion, row-major
- float32 `[clip_frames][frame_dim]`, into `frames` (capacity `frames_capacity` floats), and,
- when `reactor_latents` is not NULL, the reactor tokens `[clip_tokens][latent_dim]` into it
- (capacity `latents_capacity` floats).
-
- `actor` holds `n_actor_frames` frames (1 to `troupe_model_clip_frames`), zero-padded to the
- clip. `condition` holds `troupe_model_condition_dim` floats (NULL with `condition_len` 0:
- the null condition). `steps` is the MeanFlow steps per token, 0 for the bundle's default.
- `noise` NULL draws from `seed` (the draws a session with that seed makes for those tokens);
- otherwise it supplies every draw. Inputs are borrowed for the call; nothing is written unless
- the call succeeds.
-
- Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (a bundle without a
- clip, a clip of 0 or too many frames, non-finite input, bad noise length: the message says
- which), `TROUPE_ERR_SHAPE` (condition length), `TROUPE_ERR_BUFFER_TOO_SMALL`,
- `TROUPE_ERR_INFERENCE`, `TROUPE_ERR_PANIC`. Thread-safe: any number of threads may generate
- on one model at once.
-
- # Safety
- `model` must be a live handle; `actor` readable for `n_actor_frames * frame_dim` floats;
- `condition` for `condition_len`; `noise` NULL or a readable struct whose arrays are readable
- for their lengths; `frames` writable for `frames_capacity` floats and `reactor_latents` (if
- not NULL) for `latents_capacity`, neither overlapping an input.
- */
-troupe_status troupe_clip_generate(const struct troupe_model *model, const float *actor, size_t n_actor_frames, const float *condition, size_t condition_len, uint64_t seed, uint32_t steps, const struct troupe_clip_noise *noise, float *frames, size_t frames_capacity, float *reactor_latents, size_t latents_capacity);
-
-/*
- Runs the official text branch of a bundle that has one (`troupe_model_text_token_dim` > 0:
- official ARMFlow and UMF bundles): CLIP's token features `clip_tokens`, row-major
- `[n_tokens][text_token_dim]` (the output of CLIP's final LayerNorm for one prompt), and the
- index of the end-of-text token (the argmax of CLIP's token ids) give the condition vector,
- written to `condition` (capacity `condition_capacity` floats, at least
- `troupe_model_condition_dim`). Inputs are borrowed; nothing is written unless the call
- succeeds.
-
- Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (no text branch, no
- tokens, index out of range, non-finite input), `TROUPE_ERR_BUFFER_TOO_SMALL`,
- `TROUPE_ERR_INFERENCE`, `TROUPE_ERR_PANIC`. Thread-safe.
-
- # Safety
- `model` must be a live handle; `clip_tokens` readable for `n_tokens * text_token_dim` floats;
- `condition` writable for `condition_capacity` floats and not overlapping `clip_tokens`.
- */
-troupe_status troupe_text_encode(const struct troupe_model *model, const float *clip_tokens, size_t n_tokens, size_t eot_index, float *condition, size_t condition_capacity);
-
-/*
- `sizeof(troupe_group_options)` in this library, for bindings to check their mirror.
- */
-size_t troupe_group_options_size(void);
-
-/*
- Fills `options` with the defaults of `model`'s bundle (solvers per stage and for further
- persons, CFG scale) and seed 0, and sets `struct_size`. Pass `sizeof(troupe_group_options)`
- as `options_size`: the library writes only that many bytes.
-
- Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, or `TROUPE_ERR_INVALID_ARG` (`options_size`
- smaller than the first version, a bundle that is not `umf`, or one with more than
- `TROUPE_MAX_STAGES` stages). Thread-safe.
-
- ```c
- troupe_group_options opt;
- troupe_group_options_init(model, &opt, sizeof opt);
- opt.stage_solver[0] = TROUPE_SOLVER_EULER; opt.stage_steps[0] = 45;
- ```
-
- # Safety
- `model` must be a live handle; `options` must be writable for `options_size` bytes.
- */
-troupe_status troupe_group_options_init(const struct troupe_model *model, struct troupe_group_options *options, size_t options_size);
-
-/*
- Pyramid stages of a `umf` bundle (0 for other bundles or NULL). Thread-safe.
-
- # Safety
- `model` must be NULL or a live handle.
- */
-size_t troupe_model_group_stages(const struct troupe_model *model);
-
-/*
- Latent tokens per person of a `umf` bundle at full resolution (0 for other bundles or
- NULL). A person's latent is `tokens * troupe_model_latent_dim` floats. Thread-safe.
-
- # Safety
- `model` must be NULL or a live handle.
- */
-size_t troupe_model_group_tokens(const struct troupe_model *model);
-
-/*
- Frames of motion per clip (0 for other bundles or NULL): per person of
- `troupe_group_generate` (`[people][clip_frames][frame_dim]`) for a `umf` bundle, of
- `troupe_clip_generate` for an `armflow` bundle with an official clip. Thread-safe.
-
- # Safety
- `model` must be NULL or a live handle.
- */
-size_t troupe_model_clip_frames(const struct troupe_model *model);
-
-/*
- Writes the lengths, in floats, of the three arrays of a `troupe_group_noise` for `people`
- people. Any out-pointer may be NULL.
-
- Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG` (model), `TROUPE_ERR_INVALID_ARG` (not a `umf`
- bundle; people outside 1..=256). Thread-safe.
-
- # Safety
- `model` must be a live handle; each non-NULL out-pointer writable.
- */
-troupe_status troupe_group_noise_lengths(const struct troupe_model *model, uint32_t people, size_t *prior_len, size_t *jumps_len, size_t *reactions_len);
-
-/*
- Generates a group of `people` persons for `condition` and writes their motion, row-major
- float32 `[people][clip_frames][frame_dim]`, into `motion` (capacity `motion_capacity`
- floats), and, when `latents` is not NULL, their latents `[people][tokens][latent_dim]` into
- `latents` (capacity `latents_capacity` floats).
-
- `condition` holds `troupe_model_condition_dim` floats, the prior text feature then the
- reaction text feature; NULL (with `condition_len` 0) is the bundle's null condition.
- `options` NULL means the bundle's defaults with seed 0. `noise` NULL draws every random value
- from `options->seed`; otherwise it supplies them all (lengths from
- `troupe_group_noise_lengths`). Inputs are borrowed for the call. Nothing is written unless
- the call succeeds.
-
- Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (not a `umf` bundle,
- people outside 1..=256, bad options, non-finite input: the message says which),
- `TROUPE_ERR_SHAPE` (condition or noise length), `TROUPE_ERR_BUFFER_TOO_SMALL` (the message
- gives the floats needed), `TROUPE_ERR_INFERENCE`, `TROUPE_ERR_PANIC`. Thread-safe: any number
- of threads may generate on one model at once.
-
- ```c
- size_t n = 2 * troupe_model_clip_frames(model) * troupe_model_frame_dim(model);
- float *motion = malloc(n * sizeof *motion);
- troupe_status st = troupe_group_generate(model, NULL, text, text_len, 2, NULL,
-                                          motion, n, NULL, 0);
- ```
-
- # Safety
- `model` must be a live handle; `options` NULL or readable for its `struct_size`;
- `condition` readable for `condition_len` floats; `noise` NULL or a readable struct whose
- arrays are readable for their lengths; `motion` writable for `motion_capacity` floats and
- `latents` (if not NULL) for `latents_capacity`, neither overlapping an input.
- */
-troupe_status troupe_group_generate(const struct troupe_model *model, const struct troupe_group_options *options, const float *condition, size_t condition_len, uint32_t people, const struct troupe_group_noise *noise, float *motion, size_t motion_capacity, float *latents, size_t latents_capacity);
 
 /*
  Routes the library's log lines at `max_level` or more severe (`TROUPE_LOG_ERROR` ..
@@ -586,6 +423,118 @@ size_t troupe_model_latent_dim(const struct troupe_model *model);
  `model` must be NULL or a live handle.
  */
 size_t troupe_model_max_output_frames(const struct troupe_model *model, size_t n_actor_frames);
+
+/*
+ The library version, e.g. `"0.1.0"`.
+
+ Returns a static NUL-terminated string (never free it). Thread-safe.
+ */
+const char *troupe_version_string(void);
+
+/*
+ The library version packed as `(major << 16) | (minor << 8) | patch`; equals
+ `TROUPE_VERSION_NUMBER` of the header the caller compiled against when they match. Thread-safe.
+ */
+uint32_t troupe_version_number(void);
+
+/*
+ The ABI version the library was built with (see `TROUPE_ABI_VERSION`). Thread-safe.
+ */
+uint32_t troupe_abi_version(void);
+
+/*
+ A static name for a status code (`"TROUPE_OK"`, `"TROUPE_ERR_NULL_ARG"`, ...), or
+ `"TROUPE_ERR_UNKNOWN"`. Never free it. Thread-safe.
+ */
+const char *troupe_status_name(troupe_status status);
+
+/*
+ The message of the last failed troupe call on this thread, or NULL if the last call
+ succeeded.
+
+ The string is owned by the library and valid until the next troupe call on the same thread;
+ copy it (or use `troupe_last_error_copy`) to keep it. Thread-safe (per-thread state).
+ */
+const char *troupe_last_error_message(void);
+
+/*
+ Copies the last error message of this thread into `buf` (capacity `capacity` bytes, always
+ NUL-terminated when `capacity > 0`, truncated if needed) and writes the bytes the whole
+ message needs, NUL included, to `*needed` (1 when there is no error). `buf` may be NULL when
+ `capacity` is 0. Does not clear the error.
+
+ Returns `TROUPE_OK`, or `TROUPE_ERR_NULL_ARG` if `needed` is NULL or `buf` is NULL with a
+ non-zero capacity. Thread-safe.
+
+ # Safety
+ `buf` must be writable for `capacity` bytes; `needed` must be writable.
+ */
+troupe_status troupe_last_error_copy(char *buf, size_t capacity, size_t *needed);
+
+/*
+ Tokens of the official clip of an `armflow` bundle exported from the official layout (75
+ InterHuman, 37 InterX); 0 for other bundles or NULL. Thread-safe.
+
+ # Safety
+ `model` must be NULL or a live handle.
+ */
+size_t troupe_model_clip_tokens(const struct troupe_model *model);
+
+/*
+ Width of the CLIP token features `troupe_text_encode` reads (the bundle's CLIP width: the
+ condition dim of an official ARMFlow bundle, 768 for UMF as released); 0 for bundles without
+ a text branch, or NULL. Thread-safe.
+
+ # Safety
+ `model` must be NULL or a live handle.
+ */
+size_t troupe_model_text_token_dim(const struct troupe_model *model);
+
+/*
+ Runs the official ARMFlow sampler on one actor clip and writes the reactor motion, row-major
+ float32 `[clip_frames][frame_dim]`, into `frames` (capacity `frames_capacity` floats), and,
+ when `reactor_latents` is not NULL, the reactor tokens `[clip_tokens][latent_dim]` into it
+ (capacity `latents_capacity` floats).
+
+ `actor` holds `n_actor_frames` frames (1 to `troupe_model_clip_frames`), zero-padded to the
+ clip. `condition` holds `troupe_model_condition_dim` floats (NULL with `condition_len` 0:
+ the null condition). `steps` is the MeanFlow steps per token, 0 for the bundle's default.
+ `noise` NULL draws from `seed` (the draws a session with that seed makes for those tokens);
+ otherwise it supplies every draw. Inputs are borrowed for the call; nothing is written unless
+ the call succeeds.
+
+ Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (a bundle without a
+ clip, a clip of 0 or too many frames, non-finite input, bad noise length: the message says
+ which), `TROUPE_ERR_SHAPE` (condition length), `TROUPE_ERR_BUFFER_TOO_SMALL`,
+ `TROUPE_ERR_INFERENCE`, `TROUPE_ERR_PANIC`. Thread-safe: any number of threads may generate
+ on one model at once.
+
+ # Safety
+ `model` must be a live handle; `actor` readable for `n_actor_frames * frame_dim` floats;
+ `condition` for `condition_len`; `noise` NULL or a readable struct whose arrays are readable
+ for their lengths; `frames` writable for `frames_capacity` floats and `reactor_latents` (if
+ not NULL) for `latents_capacity`, neither overlapping an input.
+ */
+troupe_status troupe_clip_generate(const struct troupe_model *model, const float *actor, size_t n_actor_frames, const float *condition, size_t condition_len, uint64_t seed, uint32_t steps, const struct troupe_clip_noise *noise, float *frames, size_t frames_capacity, float *reactor_latents, size_t latents_capacity);
+
+/*
+ Runs the official text branch of a bundle that has one (`troupe_model_text_token_dim` > 0:
+ official ARMFlow and UMF bundles): CLIP's token features `clip_tokens`, row-major
+ `[n_tokens][text_token_dim]` (the output of CLIP's final LayerNorm for one prompt), and the
+ index of the end-of-text token (the argmax of CLIP's token ids) give the condition vector,
+ written to `condition` (capacity `condition_capacity` floats, at least
+ `troupe_model_condition_dim`). Inputs are borrowed; nothing is written unless the call
+ succeeds.
+
+ Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (no text branch, no
+ tokens, index out of range, non-finite input), `TROUPE_ERR_BUFFER_TOO_SMALL`,
+ `TROUPE_ERR_INFERENCE`, `TROUPE_ERR_PANIC`. Thread-safe.
+
+ # Safety
+ `model` must be a live handle; `clip_tokens` readable for `n_tokens * text_token_dim` floats;
+ `condition` writable for `condition_capacity` floats and not overlapping `clip_tokens`.
+ */
+troupe_status troupe_text_encode(const struct troupe_model *model, const float *clip_tokens, size_t n_tokens, size_t eot_index, float *condition, size_t condition_capacity);
 
 /*
  `sizeof(troupe_session_options)` in this library, for bindings to check their mirror.
@@ -795,51 +744,102 @@ troupe_status troupe_session_set_condition(struct troupe_session *session, const
 troupe_status troupe_session_queue_noise(struct troupe_session *session, const float *actor_noise, const float *reactor_noise, size_t len);
 
 /*
- The library version, e.g. `"0.1.0"`.
-
- Returns a static NUL-terminated string (never free it). Thread-safe.
+ `sizeof(troupe_group_options)` in this library, for bindings to check their mirror.
  */
-const char *troupe_version_string(void);
+size_t troupe_group_options_size(void);
 
 /*
- The library version packed as `(major << 16) | (minor << 8) | patch`; equals
- `TROUPE_VERSION_NUMBER` of the header the caller compiled against when they match. Thread-safe.
- */
-uint32_t troupe_version_number(void);
+ Fills `options` with the defaults of `model`'s bundle (solvers per stage and for further
+ persons, CFG scale) and seed 0, and sets `struct_size`. Pass `sizeof(troupe_group_options)`
+ as `options_size`: the library writes only that many bytes.
 
-/*
- The ABI version the library was built with (see `TROUPE_ABI_VERSION`). Thread-safe.
- */
-uint32_t troupe_abi_version(void);
+ Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, or `TROUPE_ERR_INVALID_ARG` (`options_size`
+ smaller than the first version, a bundle that is not `umf`, or one with more than
+ `TROUPE_MAX_STAGES` stages). Thread-safe.
 
-/*
- A static name for a status code (`"TROUPE_OK"`, `"TROUPE_ERR_NULL_ARG"`, ...), or
- `"TROUPE_ERR_UNKNOWN"`. Never free it. Thread-safe.
- */
-const char *troupe_status_name(troupe_status status);
-
-/*
- The message of the last failed troupe call on this thread, or NULL if the last call
- succeeded.
-
- The string is owned by the library and valid until the next troupe call on the same thread;
- copy it (or use `troupe_last_error_copy`) to keep it. Thread-safe (per-thread state).
- */
-const char *troupe_last_error_message(void);
-
-/*
- Copies the last error message of this thread into `buf` (capacity `capacity` bytes, always
- NUL-terminated when `capacity > 0`, truncated if needed) and writes the bytes the whole
- message needs, NUL included, to `*needed` (1 when there is no error). `buf` may be NULL when
- `capacity` is 0. Does not clear the error.
-
- Returns `TROUPE_OK`, or `TROUPE_ERR_NULL_ARG` if `needed` is NULL or `buf` is NULL with a
- non-zero capacity. Thread-safe.
+ ```c
+ troupe_group_options opt;
+ troupe_group_options_init(model, &opt, sizeof opt);
+ opt.stage_solver[0] = TROUPE_SOLVER_EULER; opt.stage_steps[0] = 45;
+ ```
 
  # Safety
- `buf` must be writable for `capacity` bytes; `needed` must be writable.
+ `model` must be a live handle; `options` must be writable for `options_size` bytes.
  */
-troupe_status troupe_last_error_copy(char *buf, size_t capacity, size_t *needed);
+troupe_status troupe_group_options_init(const struct troupe_model *model, struct troupe_group_options *options, size_t options_size);
+
+/*
+ Pyramid stages of a `umf` bundle (0 for other bundles or NULL). Thread-safe.
+
+ # Safety
+ `model` must be NULL or a live handle.
+ */
+size_t troupe_model_group_stages(const struct troupe_model *model);
+
+/*
+ Latent tokens per person of a `umf` bundle at full resolution (0 for other bundles or
+ NULL). A person's latent is `tokens * troupe_model_latent_dim` floats. Thread-safe.
+
+ # Safety
+ `model` must be NULL or a live handle.
+ */
+size_t troupe_model_group_tokens(const struct troupe_model *model);
+
+/*
+ Frames of motion per clip (0 for other bundles or NULL): per person of
+ `troupe_group_generate` (`[people][clip_frames][frame_dim]`) for a `umf` bundle, of
+ `troupe_clip_generate` for an `armflow` bundle with an official clip. Thread-safe.
+
+ # Safety
+ `model` must be NULL or a live handle.
+ */
+size_t troupe_model_clip_frames(const struct troupe_model *model);
+
+/*
+ Writes the lengths, in floats, of the three arrays of a `troupe_group_noise` for `people`
+ people. Any out-pointer may be NULL.
+
+ Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG` (model), `TROUPE_ERR_INVALID_ARG` (not a `umf`
+ bundle; people outside 1..=256). Thread-safe.
+
+ # Safety
+ `model` must be a live handle; each non-NULL out-pointer writable.
+ */
+troupe_status troupe_group_noise_lengths(const struct troupe_model *model, uint32_t people, size_t *prior_len, size_t *jumps_len, size_t *reactions_len);
+
+/*
+ Generates a group of `people` persons for `condition` and writes their motion, row-major
+ float32 `[people][clip_frames][frame_dim]`, into `motion` (capacity `motion_capacity`
+ floats), and, when `latents` is not NULL, their latents `[people][tokens][latent_dim]` into
+ `latents` (capacity `latents_capacity` floats).
+
+ `condition` holds `troupe_model_condition_dim` floats, the prior text feature then the
+ reaction text feature; NULL (with `condition_len` 0) is the bundle's null condition.
+ `options` NULL means the bundle's defaults with seed 0. `noise` NULL draws every random value
+ from `options->seed`; otherwise it supplies them all (lengths from
+ `troupe_group_noise_lengths`). Inputs are borrowed for the call. Nothing is written unless
+ the call succeeds.
+
+ Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (not a `umf` bundle,
+ people outside 1..=256, bad options, non-finite input: the message says which),
+ `TROUPE_ERR_SHAPE` (condition or noise length), `TROUPE_ERR_BUFFER_TOO_SMALL` (the message
+ gives the floats needed), `TROUPE_ERR_INFERENCE`, `TROUPE_ERR_PANIC`. Thread-safe: any number
+ of threads may generate on one model at once.
+
+ ```c
+ size_t n = 2 * troupe_model_clip_frames(model) * troupe_model_frame_dim(model);
+ float *motion = malloc(n * sizeof *motion);
+ troupe_status st = troupe_group_generate(model, NULL, text, text_len, 2, NULL,
+                                          motion, n, NULL, 0);
+ ```
+
+ # Safety
+ `model` must be a live handle; `options` NULL or readable for its `struct_size`;
+ `condition` readable for `condition_len` floats; `noise` NULL or a readable struct whose
+ arrays are readable for their lengths; `motion` writable for `motion_capacity` floats and
+ `latents` (if not NULL) for `latents_capacity`, neither overlapping an input.
+ */
+troupe_status troupe_group_generate(const struct troupe_model *model, const struct troupe_group_options *options, const float *condition, size_t condition_len, uint32_t people, const struct troupe_group_noise *noise, float *motion, size_t motion_capacity, float *latents, size_t latents_capacity);
 
 #ifdef __cplusplus
 }  // extern "C"

@@ -20,33 +20,35 @@
 //!
 //! Threading: [`Model`] is `Send + Sync` and shared by any number of sessions; a [`Session`] is
 //! `Send` and used from one thread at a time.
+//!
+//! Layout (see `docs/ARCHITECTURE.md`): `shared` machinery at the bottom (bundle files,
+//! graphs, noise, solvers, errors), one folder per model family above it ([`armflow`], [`umf`]),
+//! each importing only from `shared` and itself, then [`Model`] and [`manifest`], which know
+//! every family, and the C ABI ([`ffi`]) on top.
 
 #![warn(missing_docs)]
 
-mod bundle;
-pub mod clip;
-mod error;
+pub mod armflow;
 pub mod ffi;
-mod graph;
-mod group;
-mod kv_cache;
-mod logging;
 pub mod manifest;
 mod model;
-pub mod noise;
-pub mod pyramid;
-mod session;
-pub mod solver;
+pub(crate) mod shared;
+pub mod umf;
 
-pub use clip::{Clip, ClipNoise, ClipOptions};
-pub use error::{Error, Result};
-pub use group::{
-    Group, GroupNoise, GroupNoiseShape, GroupOptions, MAX_PEOPLE, STREAM_JUMP_NOISE,
-    STREAM_PRIOR_NOISE, STREAM_REACTION_NOISE,
+// `clip`, `noise`, `solver` and `pyramid` keep the public paths they had before the family
+// folders (`troupe::noise::fill_normals`, ...).
+pub use armflow::clip;
+pub use armflow::{
+    meanflow_grid, step_sessions, Clip, ClipNoise, ClipOptions, Session, SessionOptions,
+    StepOutput, TokenNoise, TokenTrace,
 };
 pub use manifest::{ActorLatent, Manifest};
 pub use model::Model;
-pub use session::{
-    meanflow_grid, step_sessions, Session, SessionOptions, StepOutput, TokenNoise, TokenTrace,
+pub use shared::error::{Error, Result};
+pub use shared::noise;
+pub use shared::solver::{self, Method, Solver};
+pub use umf::pyramid;
+pub use umf::{
+    Group, GroupNoise, GroupNoiseShape, GroupOptions, MAX_PEOPLE, STREAM_JUMP_NOISE,
+    STREAM_PRIOR_NOISE, STREAM_REACTION_NOISE,
 };
-pub use solver::{Method, Solver};

@@ -5,7 +5,7 @@ use std::cell::RefCell;
 use std::ffi::{c_char, CString};
 use std::panic::{catch_unwind, AssertUnwindSafe};
 
-use crate::logging::{log, Level};
+use crate::shared::logging::{log, Level};
 use crate::Error;
 
 /// Status returned by every fallible function: `TROUPE_OK` or one of the `TROUPE_ERR_*` codes.
@@ -133,13 +133,21 @@ pub(crate) fn get<T>(default: T, body: impl FnOnce() -> T) -> T {
 /// Rejects a NULL pointer, naming the parameter.
 pub(crate) fn non_null<T>(ptr: *const T, what: &str) -> FfiResult {
     if ptr.is_null() {
-        Err(FfiError::new(
-            TROUPE_ERR_NULL_ARG,
-            format!("`{what}` is NULL"),
-        ))
+        Err(null_arg(what))
     } else {
         Ok(())
     }
+}
+
+/// The handle behind a parameter the C side passes as a nullable pointer (`Option<&T>` has the
+/// layout of `const T *`, NULL being `None`), or the NULL error naming the parameter. Taking
+/// handles this way needs no `unsafe` dereference at each entry point.
+pub(crate) fn required<'a, T>(handle: Option<&'a T>, what: &str) -> FfiResult<&'a T> {
+    handle.ok_or_else(|| null_arg(what))
+}
+
+fn null_arg(what: &str) -> FfiError {
+    FfiError::new(TROUPE_ERR_NULL_ARG, format!("`{what}` is NULL"))
 }
 
 /// A borrowed slice of `len` elements at `ptr` (`ptr` may be NULL only when `len` is 0).

@@ -3,7 +3,7 @@
 use std::ffi::{c_char, c_void};
 
 use super::boundary::{self, troupe_status, FfiError, TROUPE_ERR_INVALID_ARG};
-use crate::logging::{set_sink, Sink};
+use crate::shared::logging::{set_sink, Sink};
 
 /// Log level: something failed.
 pub const TROUPE_LOG_ERROR: i32 = 1;

@@ -1,5 +1,6 @@
-//! The C ABI of troupe. Everything `extern "C"` lives here; `include/troupe.h` is generated from
-//! these modules by cbindgen (`tests/c_header.rs` checks it is up to date).
+//! The C ABI of troupe. Everything `extern "C"` lives here, laid out like the crate: the common
+//! boundary, logging, version and model handle beside one module per family. `include/troupe.h`
+//! is generated from these modules by cbindgen (`tests/c_header.rs` checks it is up to date).
 //!
 //! Conventions (repeated at the top of the header):
 //! - Handles: `troupe_model` is immutable and thread-safe; `troupe_session` is one stream, used by
@@ -18,10 +19,12 @@
 //! defaults it writes are the bundle's own (sampler steps, CFG, capacity) rather than sentinels.
 #![allow(non_camel_case_types)]
 
+// The boundary every entry point goes through, and what every bundle answers.
 pub mod boundary;
-pub mod clip;
-pub mod group;
 pub mod log;
 pub mod model;
-pub mod session;
 pub mod version;
+
+// One module per family, mirroring `src/<family>/`.
+pub mod armflow;
+pub mod umf;

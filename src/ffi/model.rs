@@ -5,7 +5,7 @@ use std::ffi::{c_char, CStr};
 use super::boundary::{
     self, non_null, troupe_status, FfiError, FfiResult, TROUPE_ERR_INVALID_ARG, TROUPE_ERR_SHAPE,
 };
-use crate::logging::{log, Level};
+use crate::shared::logging::{log, Level};
 use crate::Model;
 
 /// A loaded bundle. Immutable and thread-safe: every function taking a `const troupe_model*`
@@ -139,12 +139,8 @@ pub unsafe extern "C" fn troupe_model_free(model: *mut troupe_model) {
 }
 
 /// Reads a property of a model; 0 for NULL.
-fn property(model: *const troupe_model, f: impl FnOnce(&Model) -> usize) -> usize {
-    if model.is_null() {
-        return 0;
-    }
-    // SAFETY: a live handle per the getters' contract; models are immutable.
-    boundary::get(0, || f(unsafe { &(*model).model }))
+pub(crate) fn property(model: Option<&troupe_model>, f: impl FnOnce(&Model) -> usize) -> usize {
+    model.map_or(0, |m| boundary::get(0, || f(&m.model)))
 }
 
 /// Floats per motion frame (262 for the `interhuman262` layout); 0 for NULL. Thread-safe.
@@ -152,7 +148,7 @@ fn property(model: *const troupe_model, f: impl FnOnce(&Model) -> usize) -> usiz
 /// # Safety
 /// `model` must be NULL or a live handle.
 #[no_mangle]
-pub unsafe extern "C" fn troupe_model_frame_dim(model: *const troupe_model) -> usize {
+pub unsafe extern "C" fn troupe_model_frame_dim(model: Option<&troupe_model>) -> usize {
     property(model, Model::frame_dim)
 }
 
@@ -161,7 +157,7 @@ pub unsafe extern "C" fn troupe_model_frame_dim(model: *const troupe_model) -> u
 /// # Safety
 /// `model` must be NULL or a live handle.
 #[no_mangle]
-pub unsafe extern "C" fn troupe_model_fps(model: *const troupe_model) -> usize {
+pub unsafe extern "C" fn troupe_model_fps(model: Option<&troupe_model>) -> usize {
     property(model, |m| m.fps() as usize)
 }
 
@@ -171,7 +167,7 @@ pub unsafe extern "C" fn troupe_model_fps(model: *const troupe_model) -> usize {
 /// # Safety
 /// `model` must be NULL or a live handle.
 #[no_mangle]
-pub unsafe extern "C" fn troupe_model_frames_per_token(model: *const troupe_model) -> usize {
+pub unsafe extern "C" fn troupe_model_frames_per_token(model: Option<&troupe_model>) -> usize {
     property(model, Model::frames_per_token)
 }
 
@@ -181,7 +177,7 @@ pub unsafe extern "C" fn troupe_model_frames_per_token(model: *const troupe_mode
 /// # Safety
 /// `model` must be NULL or a live handle.
 #[no_mangle]
-pub unsafe extern "C" fn troupe_model_latency_frames(model: *const troupe_model) -> usize {
+pub unsafe extern "C" fn troupe_model_latency_frames(model: Option<&troupe_model>) -> usize {
     property(model, Model::latency_frames)
 }
 
@@ -191,7 +187,7 @@ pub unsafe extern "C" fn troupe_model_latency_frames(model: *const troupe_model)
 /// # Safety
 /// `model` must be NULL or a live handle.
 #[no_mangle]
-pub unsafe extern "C" fn troupe_model_condition_dim(model: *const troupe_model) -> usize {
+pub unsafe extern "C" fn troupe_model_condition_dim(model: Option<&troupe_model>) -> usize {
     property(model, Model::condition_dim)
 }
 
@@ -201,7 +197,7 @@ pub unsafe extern "C" fn troupe_model_condition_dim(model: *const troupe_model) 
 /// # Safety
 /// `model` must be NULL or a live handle.
 #[no_mangle]
-pub unsafe extern "C" fn troupe_model_latent_dim(model: *const troupe_model) -> usize {
+pub unsafe extern "C" fn troupe_model_latent_dim(model: Option<&troupe_model>) -> usize {
     property(model, Model::latent_dim)
 }
 
@@ -213,7 +209,7 @@ pub unsafe extern "C" fn troupe_model_latent_dim(model: *const troupe_model) -> 
 /// `model` must be NULL or a live handle.
 #[no_mangle]
 pub unsafe extern "C" fn troupe_model_max_output_frames(
-    model: *const troupe_model,
+    model: Option<&troupe_model>,
     n_actor_frames: usize,
 ) -> usize {
     property(model, |m| m.max_output_frames(n_actor_frames))

@@ -2,7 +2,7 @@
 
 This module is the ground truth the Rust runtime is tested against. The networks follow
 `shared/spec/models.md` section 1 (read from the official code) at any width and depth; the
-streaming loop mirrors `src/session/` operation for operation, so that given the same noise the
+streaming loop mirrors `src/armflow/session/` operation for operation, so that given the same noise the
 two agree to float32 rounding.
 
 Nothing here is copied from the official repository; it is written from the specification.
@@ -521,7 +521,7 @@ STREAM_REACTOR_NOISE = 1
 
 
 # --------------------------------------------------------------------------------------------
-# The streaming loop troupe runs (mirrors src/session/)
+# The streaming loop troupe runs (mirrors src/armflow/session/)
 # --------------------------------------------------------------------------------------------
 
 

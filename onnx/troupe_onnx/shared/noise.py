@@ -1,4 +1,4 @@
-"""troupe's portable noise generator in Python: Philox4x32-10 + Box-Muller (mirrors src/noise.rs).
+"""troupe's portable noise generator in Python: Philox4x32-10 + Box-Muller (mirrors src/shared/noise.rs).
 
 The normals troupe draws for (seed, token, stream), shared by the families; each family numbers
 its own streams (`STREAM_*` in its reference). The golden tests check that the Rust generator
@@ -32,7 +32,7 @@ def philox4x32(counter, key):
 
 
 def philox_normals(seed: int, token: int, stream: int, n: int) -> np.ndarray:
-    """The n standard normals troupe draws for (seed, token, stream); see src/noise.rs."""
+    """The n standard normals troupe draws for (seed, token, stream); see src/shared/noise.rs."""
     key = (seed & _MASK32, (seed >> 32) & _MASK32)
     out = []
     block = 0

@@ -1,7 +1,7 @@
 """PyTorch reference of UMF's networks and of troupe's group sampler (text to a group of people).
 
-This module is the ground truth the Rust runtime (`src/group.rs`, `src/pyramid.rs`,
-`src/solver.rs`) is tested against. The networks follow `shared/spec/models.md` section 2 (read
+This module is the ground truth the Rust runtime (`src/umf/group.rs`, `src/umf/pyramid.rs`,
+`src/shared/solver.rs`) is tested against. The networks follow `shared/spec/models.md` section 2 (read
 from the official code, `Githubhgh/UMF_CVPR`) at any width and depth; the sampler runs the
 official numerics operation for operation in float32, so that given the same noise troupe and
 this reference agree to float32 rounding:
@@ -44,7 +44,7 @@ TRAIN_TIMESTEPS = 1000  # FlowModel's N: the tables the stage timesteps come fro
 TIME_SCALE = 1000.0  # the denoiser sees the table value divided by this
 BLOCK = {"grid2d": 4, "temporal": 2}  # tokens one coarse token becomes at a jump
 
-# troupe's seeded draws (src/group.rs): stream ids of Philox normals, keyed by token index.
+# troupe's seeded draws (src/umf/group.rs): stream ids of Philox normals, keyed by token index.
 STREAM_PRIOR_NOISE = 2  # token 0: the first person's starting noise at the coarsest stage
 STREAM_JUMP_NOISE = 3  # token k: the standard normals behind the jump into stage k
 STREAM_REACTION_NOISE = 4  # token p: person p's (0-based, p >= 1) semi-noise start
@@ -242,7 +242,7 @@ def block_noise_from_normals(e: np.ndarray, layout: str, fine_tokens: int, dim: 
 
     Block (channel c, block k) takes e[(c * blocks + k) * b : ... + b] (the order of the
     official `sample_block_noise` loop) and becomes L e; element `place` of that vector goes to
-    the block's fine token at that place. Float32, summed term by term like src/pyramid.rs."""
+    the block's fine token at that place. Float32, summed term by term like src/umf/pyramid.rs."""
     b = BLOCK[layout]
     blocks = fine_tokens // b
     chol = block_cholesky(layout, gamma)
@@ -255,7 +255,7 @@ def block_noise_from_normals(e: np.ndarray, layout: str, fine_tokens: int, dim: 
 
 
 def seeded_noise(cfg: UmfConfig, seed: int, people: int):
-    """The noise troupe draws for a seed (src/group.rs group_noise): prior [T0, D], jumps
+    """The noise troupe draws for a seed (src/umf/group.rs group_noise): prior [T0, D], jumps
     [[T_s, D] for s >= 1] (block noise of Philox normals), reactions [[tokens, D] per person
     after the first]."""
     d = cfg.latent_dim
@@ -546,7 +546,7 @@ class Umf(nn.Module):
 
 
 # --------------------------------------------------------------------------------------------
-# troupe's group sampler (mirrors src/group.rs)
+# troupe's group sampler (mirrors src/umf/group.rs)
 # --------------------------------------------------------------------------------------------
 
 _ONE_THIRD, _TWO_THIRDS = 1 / 3, 2 / 3  # torchdiffeq's Python floats

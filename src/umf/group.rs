@@ -14,17 +14,20 @@
 //! ```
 //! `G = G_null + w (G_cond - G_null)`, one network call on the batch `[null; cond]`; with
 //! `w = 1` only the conditional half runs.
+//!
+//! [`crate::Model::generate_group`] checks the family and calls [`Networks::generate_group`].
 
 use ndarray::Array3;
 use tract_onnx::prelude::TValue;
 
-use crate::error::{Error, Result};
-use crate::graph::{f32_tensor, read_f32, Graph};
-use crate::manifest::UmfSpec;
-use crate::model::{check_finite, Model};
-use crate::noise::fill_normals;
-use crate::pyramid::Jump;
-use crate::solver::Solver;
+use super::networks::Networks;
+use super::pyramid::Jump;
+use super::spec::UmfSpec;
+use crate::shared::checks::check_finite;
+use crate::shared::error::{Error, Result};
+use crate::shared::graph::{f32_tensor, read_f32, Graph};
+use crate::shared::noise::fill_normals;
+use crate::shared::solver::Solver;
 
 /// Stream id of the first person's starting noise (token index 0).
 pub const STREAM_PRIOR_NOISE: u32 = 2;
@@ -37,7 +40,7 @@ pub const STREAM_REACTION_NOISE: u32 = 4;
 /// person's context reads all previous ones).
 pub const MAX_PEOPLE: usize = 256;
 
-/// Settings of one [`Model::generate_group`] call; `None` takes the bundle's default.
+/// Settings of one [`crate::Model::generate_group`] call; `None` takes the bundle's default.
 #[derive(Debug, Clone, Default)]
 pub struct GroupOptions {
     /// Seed of every random draw not given in `noise`.
@@ -98,24 +101,15 @@ struct Plan<'a> {
     cfg_scale: f32,
 }
 
-impl Model {
-    /// Generates `people` persons' motion for `condition` (`[prior text ; reaction text]`,
-    /// `condition_dim` floats; `None` is the bundle's null condition). Needs a `umf` bundle.
-    ///
-    /// ```no_run
-    /// use troupe::{GroupOptions, Model};
-    /// let model = Model::load("onnx/bundles/umf-tiny")?;
-    /// let group = model.generate_group(None, 3, &GroupOptions { seed: 1, ..Default::default() })?;
-    /// assert_eq!(group.motion.shape()[0], 3);
-    /// # Ok::<(), troupe::Error>(())
-    /// ```
-    pub fn generate_group(
+impl Networks {
+    /// Generates `people` persons' motion for `condition` (`None`: the null condition).
+    pub(crate) fn generate_group(
         &self,
         condition: Option<&[f32]>,
         people: usize,
         options: &GroupOptions,
     ) -> Result<Group> {
-        let (spec, nets) = self.umf()?;
+        let spec = &self.spec;
         check_people(people)?;
         let plan = self.plan(spec, options)?;
         let texts = self.texts(spec, condition)?;
@@ -129,16 +123,16 @@ impl Model {
         let (tokens, dim) = (spec.latent.tokens, spec.latent.dim);
 
         let mut latents = Vec::with_capacity(people * tokens * dim);
-        latents.extend(self.first_person(&plan, &nets.prior, &texts, &noise)?);
+        latents.extend(self.first_person(&plan, &self.prior, &texts, &noise)?);
         for (p, eps) in noise.reactions.iter().enumerate().map(|(i, e)| (i + 1, e)) {
-            let context = read_context(&nets.context, &latents[..p * tokens * dim], tokens, dim)?;
+            let context = read_context(&self.context, &latents[..p * tokens * dim], tokens, dim)?;
             let mut state = Vec::with_capacity(tokens * 2 * dim);
             for k in 0..tokens {
                 state.extend_from_slice(&eps[k * dim..(k + 1) * dim]);
                 state.extend_from_slice(&context[k * dim..(k + 1) * dim]);
             }
             plan.reaction.solve(&mut state, |tau, w| {
-                guided(&nets.reaction, &plan, w, tokens, tau, &texts.reaction)
+                guided(&self.reaction, &plan, w, tokens, tau, &texts.reaction)
             })?;
             for k in 0..tokens {
                 latents.extend_from_slice(&state[(2 * k + 1) * dim..(2 * k + 2) * dim]);
@@ -146,8 +140,8 @@ impl Model {
         }
 
         let frames = spec.clip_frames;
-        let frame_dim = self.frame_dim();
-        let out = nets
+        let frame_dim = self.io.frame_dim();
+        let out = self
             .decoder
             .run(vec![f32_tensor(&[people, tokens, dim], &latents)])?;
         let motion = read_f32("decoder", "motion", &out[0], &[people, frames, frame_dim])?.to_vec();
@@ -160,11 +154,11 @@ impl Model {
     }
 
     /// The noise `generate_group` draws for `seed` and `people` when none is given: Philox
-    /// normals (see [`crate::noise`]) on streams [`STREAM_PRIOR_NOISE`], [`STREAM_JUMP_NOISE`]
-    /// (turned into block noise by each jump's covariance factor) and
+    /// normals (see [`crate::noise`]) on streams [`STREAM_PRIOR_NOISE`],
+    /// [`STREAM_JUMP_NOISE`] (turned into block noise by each jump's covariance factor) and
     /// [`STREAM_REACTION_NOISE`].
-    pub fn group_noise(&self, seed: u64, people: usize) -> Result<GroupNoise> {
-        let (spec, _) = self.umf()?;
+    pub(crate) fn group_noise(&self, seed: u64, people: usize) -> Result<GroupNoise> {
+        let spec = &self.spec;
         let shape = self.group_noise_shape(people)?;
         let dim = spec.latent.dim;
         let draw = |token: u64, stream: u32, n: usize| {
@@ -191,8 +185,8 @@ impl Model {
     }
 
     /// The shape of the [`GroupNoise`] of `people` people (1 to [`MAX_PEOPLE`]).
-    pub fn group_noise_shape(&self, people: usize) -> Result<GroupNoiseShape> {
-        let (spec, _) = self.umf()?;
+    pub(crate) fn group_noise_shape(&self, people: usize) -> Result<GroupNoiseShape> {
+        let spec = &self.spec;
         check_people(people)?;
         let dim = spec.latent.dim;
         let stages = &spec.pyramid.stages;
@@ -202,16 +196,6 @@ impl Model {
             reaction: spec.latent.tokens * dim,
             reactions: people - 1,
         })
-    }
-
-    /// Frames of motion per clip: per person of [`Model::generate_group`] for a `umf` bundle,
-    /// of [`Model::generate_clip`] for an `armflow` bundle with a `clip` section; 0 otherwise.
-    pub fn clip_frames(&self) -> usize {
-        match (self.umf_spec(), self.clip_spec()) {
-            (Some(u), _) => u.clip_frames,
-            (None, Some(c)) => c.frames,
-            (None, None) => 0,
-        }
     }
 
     fn plan<'a>(&self, spec: &'a UmfSpec, options: &GroupOptions) -> Result<Plan<'a>> {
@@ -249,7 +233,7 @@ impl Model {
     /// Splits the condition (or the null condition) into each denoiser's text, each paired with
     /// its null text for guidance.
     fn texts(&self, spec: &UmfSpec, condition: Option<&[f32]>) -> Result<Texts> {
-        let null = self.null_condition();
+        let null = self.io.condition.null_or_zeros();
         let cond = match condition {
             Some(c) => {
                 if c.len() != null.len() {

@@ -1,4 +1,4 @@
-//! ARMFlow's official clip loop, [`Model::generate_clip`]: given the same weights and noise,
+//! ARMFlow's official clip loop, [`crate::Model::generate_clip`]: given the same weights and noise,
 //! the same motion as the released sampler (`shared/spec/models.md` §1.7).
 //!
 //! Unlike a [`crate::Session`], which streams, the official sampler works on a whole clip:
@@ -18,12 +18,13 @@
 
 use ndarray::{Array2, ArrayView2};
 
-use crate::error::{Error, Result};
-use crate::graph::{f32_tensor, read_f32, stack_rows};
-use crate::manifest::ClipSpec;
-use crate::model::{check_finite, Model};
-use crate::noise::{fill_normals, STREAM_ACTOR_POSTERIOR, STREAM_REACTOR_NOISE};
-use crate::session::meanflow_grid;
+use super::meanflow::meanflow_grid;
+use super::networks::Networks;
+use super::spec::ClipSpec;
+use crate::shared::checks::check_finite;
+use crate::shared::error::{Error, Result};
+use crate::shared::graph::{f32_tensor, read_f32, stack_rows};
+use crate::shared::noise::{fill_normals, STREAM_ACTOR_POSTERIOR, STREAM_REACTOR_NOISE};
 
 /// The random draws of one clip. Pass them to reproduce another implementation's draws
 /// exactly; leave them out and troupe draws them from the seed.
@@ -37,7 +38,7 @@ pub struct ClipNoise {
     pub reactor_noise: Vec<f32>,
 }
 
-/// Options of [`Model::generate_clip`].
+/// Options of [`crate::Model::generate_clip`].
 #[derive(Debug, Clone, Default)]
 pub struct ClipOptions {
     /// Seed of the draws when `noise` is `None`: `xi` of token `j` is the Philox stream
@@ -50,7 +51,7 @@ pub struct ClipOptions {
     pub noise: Option<ClipNoise>,
 }
 
-/// What [`Model::generate_clip`] returns.
+/// What [`crate::Model::generate_clip`] returns.
 #[derive(Debug, Clone)]
 pub struct Clip {
     /// Reactor motion, `[clip.frames, frame_dim]`.
@@ -63,14 +64,9 @@ pub struct Clip {
     pub contexts: Array2<f32>,
 }
 
-impl Model {
-    /// The official clip of an `armflow` bundle with a `clip` section, or `None`.
-    pub fn clip_spec(&self) -> Option<&ClipSpec> {
-        self.armflow_spec().and_then(|a| a.clip.as_ref())
-    }
-
-    /// The draws [`Model::generate_clip`] makes for `seed` when none are given.
-    pub fn clip_noise(&self, seed: u64) -> Result<ClipNoise> {
+impl Networks {
+    /// The draws [`Networks::generate_clip`] makes for `seed` when none are given.
+    pub(crate) fn clip_noise(&self, seed: u64) -> Result<ClipNoise> {
         let clip = self.require_clip()?;
         let lat = self.latent_dim();
         let mut actor_posterior = vec![0f32; clip.tokens * lat];
@@ -90,29 +86,15 @@ impl Model {
         })
     }
 
-    /// Runs the official ARMFlow sampler on one actor clip (see [`crate::clip`]): `actor` is
-    /// `[frames, frame_dim]` with 1 to `clip.frames` frames (zero-padded to `clip.frames`);
-    /// `condition` the text condition (`None`: the null condition). Needs an `armflow` bundle
-    /// with a `clip` section, exported from the official layout (`onnx/cli.py armflow export
-    /// --preset interhuman | interx`).
-    ///
-    /// ```no_run
-    /// use ndarray::Array2;
-    /// use troupe::{ClipOptions, Model};
-    /// let model = Model::load("onnx/bundles/armflow-tiny-interhuman")?;
-    /// let actor = Array2::<f32>::zeros((120, model.frame_dim()));
-    /// let clip = model.generate_clip(actor.view(), None, &ClipOptions { seed: 1, ..Default::default() })?;
-    /// assert_eq!(clip.frames.nrows(), 300);
-    /// # Ok::<(), troupe::Error>(())
-    /// ```
-    pub fn generate_clip(
+    /// Runs the official sampler on one actor clip (`[1..=clip.frames, frame_dim]`).
+    pub(crate) fn generate_clip(
         &self,
         actor: ArrayView2<f32>,
         condition: Option<&[f32]>,
         options: &ClipOptions,
     ) -> Result<Clip> {
         let clip = self.require_clip()?.clone();
-        let (spec, nets) = self.armflow()?;
+        let spec = &self.spec;
         let (d, lat, c) = (self.frame_dim(), self.latent_dim(), spec.context.width);
         let n = clip.tokens;
         if actor.ncols() != d || actor.nrows() == 0 || actor.nrows() > clip.frames {
@@ -140,7 +122,7 @@ impl Model {
             None => self.clip_noise(options.seed)?,
         };
         let cond = self.conditioning(condition)?;
-        let full = nets
+        let full = self
             .context_full
             .as_ref()
             .expect("validated: clip needs context_full");
@@ -195,49 +177,13 @@ impl Model {
         })
     }
 
-    /// Runs the official text branch: CLIP's token features `[tokens, text_token_dim]` (the
-    /// output of CLIP's final LayerNorm for one prompt) and the index of its end-of-text token
-    /// (the argmax of CLIP's token ids) give the condition vector `[condition_dim]`. Needs a
-    /// bundle with a `text_branch` graph ([`Model::text_token_dim`] is then `Some`): ARMFlow's
-    /// official bundles, and UMF's, whose condition is `[P-Flow text ; S-Flow text]`.
-    pub fn encode_text(&self, clip_tokens: ArrayView2<f32>, eot_index: usize) -> Result<Vec<f32>> {
-        let (graph, width) = self.text_branch()?;
-        let dim = self.condition_dim();
-        let t = clip_tokens.nrows();
-        if clip_tokens.ncols() != width || t == 0 {
-            return Err(Error::InvalidInput(format!(
-                "CLIP token features are {t}x{}, expected at least one token of {width} floats",
-                clip_tokens.ncols()
-            )));
-        }
-        if eot_index >= t {
-            return Err(Error::InvalidInput(format!(
-                "end-of-text index {eot_index} is outside the {t} tokens"
-            )));
-        }
-        let flat: Vec<f32> = clip_tokens.iter().copied().collect();
-        check_finite("CLIP token features", &flat)?;
-        let eot = tract_onnx::prelude::Tensor::from_shape(&[1], &[eot_index as i64])
-            .expect("shape matches data");
-        let out = graph.run(vec![f32_tensor(&[1, t, width], &flat), eot.into()])?;
-        Ok(read_f32("text_branch", "condition", &out[0], &[1, dim])?.to_vec())
-    }
-
-    /// The width of the CLIP token features [`Model::encode_text`] reads, or `None` when the
-    /// bundle has no text branch.
-    pub fn text_token_dim(&self) -> Option<usize> {
-        self.text_branch().ok().map(|(_, width)| width)
-    }
-
     fn require_clip(&self) -> Result<&ClipSpec> {
-        if self.armflow_spec().is_none() {
-            return Err(self.wrong_family("armflow", "clip generation"));
-        }
-        self.clip_spec().ok_or_else(|| {
+        self.spec.clip.as_ref().ok_or_else(|| {
             Error::InvalidInput(format!(
                 "bundle `{}` has no `clip` section: clip generation needs a bundle exported \
-                 from the official layout (onnx/cli.py armflow export --preset interhuman | interx)",
-                self.manifest().name
+                 from the official layout (onnx/cli.py armflow export --preset interhuman | \
+                 interx)",
+                self.io.name
             ))
         })
     }

@@ -6,7 +6,7 @@ use std::collections::HashMap;
 use std::io::Read;
 use std::path::{Path, PathBuf};
 
-use crate::error::{Error, Result};
+use crate::shared::error::{Error, Result};
 
 /// The files of one bundle.
 #[derive(Debug)]

@@ -14,8 +14,8 @@
 //!
 //! Because the generator is counter-based, the noise of token `j` does not depend on what was
 //! drawn before it: changing the sampler steps or CFG never shifts later tokens' noise, and
-//! `reset()` needs no generator state. `onnx/troupe_onnx/shared/noise.py::philox_normals` is the same
-//! algorithm in Python and the golden tests check both agree bit for bit.
+//! `reset()` needs no generator state. `philox_normals` in `onnx/troupe_onnx/shared/noise.py` is
+//! the same algorithm in Python and the golden tests check both agree bit for bit.
 
 /// Stream id of the actor posterior sample `xi`.
 pub const STREAM_ACTOR_POSTERIOR: u32 = 0;

@@ -7,9 +7,9 @@
 //! [`Session::step`](super::Session::step) is a batch of one lane through the same code.
 
 use super::{Session, StepOutput, StreamState, TokenNoise, TokenTrace};
-use crate::error::Result;
-use crate::manifest::{ActorLatent, ArmFlowSpec};
-use crate::model::{Model, VaeState};
+use crate::armflow::networks::{Networks, VaeState};
+use crate::armflow::spec::{ActorLatent, ArmFlowSpec};
+use crate::shared::error::Result;
 
 /// One stream's part in a step.
 pub(super) struct Lane<'s> {
@@ -72,8 +72,8 @@ impl<'s> Lane<'s> {
 
 /// Appends each lane's new actor frames (`chunks[i]`, already validated) and generates and
 /// decodes every token they complete.
-pub(super) fn advance(model: &Model, lanes: &mut [Lane], chunks: &[&[f32]]) -> Result<()> {
-    let dim = model.frame_dim();
+pub(super) fn advance(nets: &Networks, lanes: &mut [Lane], chunks: &[&[f32]]) -> Result<()> {
+    let dim = nets.frame_dim();
     for (lane, chunk) in lanes.iter_mut().zip(chunks) {
         lane.state.actor_frames.extend_from_slice(chunk);
         lane.state.frames_received += (chunk.len() / dim) as u64;
@@ -83,13 +83,13 @@ pub(super) fn advance(model: &Model, lanes: &mut [Lane], chunks: &[&[f32]]) -> R
         if ready.is_empty() {
             break;
         }
-        generate_tokens(model, &mut ready)?;
+        generate_tokens(nets, &mut ready)?;
         loop {
             let mut due: Vec<&mut Lane> = lanes.iter_mut().filter(|l| l.decode_due()).collect();
             if due.is_empty() {
                 break;
             }
-            decode_tokens(model, &mut due)?;
+            decode_tokens(nets, &mut due)?;
         }
     }
     for lane in lanes {
@@ -99,8 +99,8 @@ pub(super) fn advance(model: &Model, lanes: &mut [Lane], chunks: &[&[f32]]) -> R
 }
 
 /// The next token of every lane: actor posterior, context, MeanFlow.
-fn generate_tokens(model: &Model, lanes: &mut [&mut Lane]) -> Result<()> {
-    let lat = model.latent_dim();
+fn generate_tokens(nets: &Networks, lanes: &mut [&mut Lane]) -> Result<()> {
+    let lat = nets.latent_dim();
     let noise: Vec<TokenNoise> = lanes
         .iter_mut()
         .map(|l| {
@@ -113,7 +113,7 @@ fn generate_tokens(model: &Model, lanes: &mut [&mut Lane]) -> Result<()> {
         .collect();
 
     // 1. actor tokens `(mean + sqrt(exp(logvar)) * xi) * scale`, or `mean * scale`
-    let (mean, logvar) = posteriors(model, lanes)?;
+    let (mean, logvar) = posteriors(nets, lanes)?;
     let mut actor = vec![0f32; lanes.len() * lat];
     for (i, lane) in lanes.iter().enumerate() {
         let scale = lane.spec().latent.scale;
@@ -153,14 +153,14 @@ fn generate_tokens(model: &Model, lanes: &mut [&mut Lane]) -> Result<()> {
         .map(|s| &s.conditioning.modulation)
         .collect();
     let mut caches: Vec<_> = lanes.iter_mut().map(|l| &mut l.state.cache).collect();
-    let context = model.context_step(&mut caches, &tokens, &positions, &modulations)?;
+    let context = nets.context_step(&mut caches, &tokens, &positions, &modulations)?;
 
     // 3. MeanFlow from the noise
     let z: Vec<f32> = noise
         .iter()
         .flat_map(|n| n.reactor.iter().copied())
         .collect();
-    let reactor = sample(model, &sessions, &actor, &context, z)?;
+    let reactor = sample(nets, &sessions, &actor, &context, z)?;
 
     let c = context.len() / lanes.len();
     for (i, lane) in lanes.iter_mut().enumerate() {
@@ -184,11 +184,11 @@ fn generate_tokens(model: &Model, lanes: &mut [&mut Lane]) -> Result<()> {
 
 /// The posterior `(mean, logvar)` of each lane's next actor token, `[lanes, latent_dim]` each:
 /// one encoder step for all lanes that stream the VAE, a window for each lane that does not.
-fn posteriors(model: &Model, lanes: &mut [&mut Lane]) -> Result<(Vec<f32>, Vec<f32>)> {
-    let (dim, lat) = (model.frame_dim(), model.latent_dim());
+fn posteriors(nets: &Networks, lanes: &mut [&mut Lane]) -> Result<(Vec<f32>, Vec<f32>)> {
+    let (dim, lat) = (nets.frame_dim(), nets.latent_dim());
     let mut mean = vec![0f32; lanes.len() * lat];
     let mut logvar = vec![0f32; lanes.len() * lat];
-    let fpt = model.frames_per_token() as u64;
+    let fpt = nets.spec.latent.frames_per_token as u64;
     let token_start = |l: &Lane| l.state.tokens * fpt;
 
     let stepping: Vec<usize> = (0..lanes.len())
@@ -209,7 +209,7 @@ fn posteriors(model: &Model, lanes: &mut [&mut Lane]) -> Result<(Vec<f32>, Vec<f
             .iter_mut()
             .filter_map(|l| l.state.vae.as_mut())
             .collect();
-        let (m, lv) = model.encode_step(&frames, &mut states)?;
+        let (m, lv) = nets.encode_step(&frames, &mut states)?;
         for (row, &i) in stepping.iter().enumerate() {
             mean[i * lat..(i + 1) * lat].copy_from_slice(&m[row * lat..(row + 1) * lat]);
             logvar[i * lat..(i + 1) * lat].copy_from_slice(&lv[row * lat..(row + 1) * lat]);
@@ -223,7 +223,7 @@ fn posteriors(model: &Model, lanes: &mut [&mut Lane]) -> Result<(Vec<f32>, Vec<f
         let first = token_start(lane);
         let start = first.saturating_sub(enc.context_frames as u64);
         let end = first + fpt + enc.lookahead_frames as u64;
-        let (m, lv) = model.encode(lane.actor_frames(start, end, dim))?;
+        let (m, lv) = nets.encode(lane.actor_frames(start, end, dim))?;
         let row = (first - start) as usize / fpt as usize * lat;
         mean[i * lat..(i + 1) * lat].copy_from_slice(&m[row..row + lat]);
         logvar[i * lat..(i + 1) * lat].copy_from_slice(&lv[row..row + lat]);
@@ -235,13 +235,13 @@ fn posteriors(model: &Model, lanes: &mut [&mut Lane]) -> Result<(Vec<f32>, Vec<f
 /// lane with its own steps and CFG scale. A guided lane adds a null row right after its
 /// conditional row (zero actor token and context): `u = u_null + s * (u_cond - u_null)`.
 fn sample(
-    model: &Model,
+    nets: &Networks,
     sessions: &[&Session],
     actor: &[f32],
     context: &[f32],
     mut z: Vec<f32>,
 ) -> Result<Vec<f32>> {
-    let lat = model.latent_dim();
+    let lat = nets.latent_dim();
     let c = context.len() / sessions.len();
     let most_steps = sessions.iter().map(|s| s.settings.steps).max().unwrap_or(0);
     for k in 0..most_steps as usize {
@@ -262,7 +262,7 @@ fn sample(
                 t.push(s.grid[k]);
             }
         }
-        let u = model.velocity(&a, &noisy, &ctx, &r, &t)?;
+        let u = nets.velocity(&a, &noisy, &ctx, &r, &t)?;
         let mut row = 0;
         for (i, s) in sessions.iter().enumerate().filter(|(_, s)| active(s)) {
             let scale = s.settings.cfg_scale;
@@ -288,8 +288,8 @@ fn sample(
 
 /// Decodes the oldest undecoded token of every lane: one decoder step for all lanes that stream
 /// the VAE, a window for each lane that does not.
-fn decode_tokens(model: &Model, lanes: &mut [&mut Lane]) -> Result<()> {
-    let (dim, fpt) = (model.frame_dim(), model.frames_per_token());
+fn decode_tokens(nets: &Networks, lanes: &mut [&mut Lane]) -> Result<()> {
+    let (dim, fpt) = (nets.frame_dim(), nets.spec.latent.frames_per_token);
     let next = |l: &Lane| l.state.frames_emitted / fpt as u64;
     let latent = |l: &Lane, k: u64| -> Vec<f32> {
         let scale = l.spec().latent.scale;
@@ -310,7 +310,7 @@ fn decode_tokens(model: &Model, lanes: &mut [&mut Lane]) -> Result<()> {
             .iter_mut()
             .filter_map(|l| l.state.vae.as_mut())
             .collect();
-        let frames = model.decode_step(&latents, &mut states)?;
+        let frames = nets.decode_step(&latents, &mut states)?;
         let per = fpt * dim;
         for (row, &i) in stepping.iter().enumerate() {
             lanes[i]
@@ -325,7 +325,7 @@ fn decode_tokens(model: &Model, lanes: &mut [&mut Lane]) -> Result<()> {
             let start = k.saturating_sub(dec.context_tokens as u64);
             let end = k + 1 + dec.lookahead_tokens as u64;
             let latents: Vec<f32> = (start..end).flat_map(|j| latent(lane, j)).collect();
-            let motion = model.decode(&latents)?;
+            let motion = nets.decode(&latents)?;
             let row = (k - start) as usize * fpt * dim;
             lane.frames.extend_from_slice(&motion[row..row + fpt * dim]);
         }

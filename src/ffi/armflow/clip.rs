@@ -1,13 +1,13 @@
 //! `troupe_clip_generate` and `troupe_text_encode`: the official ARMFlow clip loop and text
-//! branch (see `crate::clip`).
+//! branch (see `crate::armflow::clip`).
 
 use ndarray::ArrayView2;
 
-use super::boundary::{
+use crate::ffi::boundary::{
     self, non_null, troupe_status, FfiError, FfiResult, TROUPE_ERR_BUFFER_TOO_SMALL,
 };
-use super::model::{optional_condition, troupe_model};
-use crate::{ClipNoise, ClipOptions, Model};
+use crate::ffi::model::{optional_condition, property, troupe_model};
+use crate::{ClipNoise, ClipOptions};
 
 /// The random draws of one clip, given instead of seeded. Arrays are row-major float32, each
 /// borrowed for the call; lengths are in floats.
@@ -30,13 +30,8 @@ pub struct troupe_clip_noise {
 /// # Safety
 /// `model` must be NULL or a live handle.
 #[no_mangle]
-pub unsafe extern "C" fn troupe_model_clip_tokens(model: *const troupe_model) -> usize {
-    // SAFETY: NULL or live per the contract.
-    boundary::get(0, || {
-        unsafe { model.as_ref() }
-            .and_then(|m| m.model.clip_spec())
-            .map_or(0, |c| c.tokens)
-    })
+pub unsafe extern "C" fn troupe_model_clip_tokens(model: Option<&troupe_model>) -> usize {
+    property(model, |m| m.clip_spec().map_or(0, |c| c.tokens))
 }
 
 /// Width of the CLIP token features `troupe_text_encode` reads (the bundle's CLIP width: the
@@ -46,13 +41,8 @@ pub unsafe extern "C" fn troupe_model_clip_tokens(model: *const troupe_model) ->
 /// # Safety
 /// `model` must be NULL or a live handle.
 #[no_mangle]
-pub unsafe extern "C" fn troupe_model_text_token_dim(model: *const troupe_model) -> usize {
-    // SAFETY: NULL or live per the contract.
-    boundary::get(0, || {
-        unsafe { model.as_ref() }
-            .and_then(|m| m.model.text_token_dim())
-            .unwrap_or(0)
-    })
+pub unsafe extern "C" fn troupe_model_text_token_dim(model: Option<&troupe_model>) -> usize {
+    property(model, |m| m.text_token_dim().unwrap_or(0))
 }
 
 /// Runs the official ARMFlow sampler on one actor clip and writes the reactor motion, row-major
@@ -81,7 +71,7 @@ pub unsafe extern "C" fn troupe_model_text_token_dim(model: *const troupe_model)
 #[no_mangle]
 #[allow(clippy::too_many_arguments)]
 pub unsafe extern "C" fn troupe_clip_generate(
-    model: *const troupe_model,
+    model: Option<&troupe_model>,
     actor: *const f32,
     n_actor_frames: usize,
     condition: *const f32,
@@ -98,9 +88,7 @@ pub unsafe extern "C" fn troupe_clip_generate(
         "troupe_clip_generate",
         || {},
         || {
-            non_null(model, "model")?;
-            // SAFETY: non-NULL live handle per the contract.
-            let model: &Model = unsafe { &(*model).model };
+            let model = &boundary::required(model, "model")?.model;
             let d = model.frame_dim();
             let n = boundary::checked_mul(n_actor_frames, d, "n_actor_frames * frame_dim")?;
             // SAFETY: readable for `n` floats per the contract.
@@ -154,7 +142,7 @@ pub unsafe extern "C" fn troupe_clip_generate(
 /// `condition` writable for `condition_capacity` floats and not overlapping `clip_tokens`.
 #[no_mangle]
 pub unsafe extern "C" fn troupe_text_encode(
-    model: *const troupe_model,
+    model: Option<&troupe_model>,
     clip_tokens: *const f32,
     n_tokens: usize,
     eot_index: usize,
@@ -165,10 +153,8 @@ pub unsafe extern "C" fn troupe_text_encode(
         "troupe_text_encode",
         || {},
         || {
-            non_null(model, "model")?;
-            // SAFETY: non-NULL live handle per the contract.
-            let model: &Model = unsafe { &(*model).model };
-            let (dim, (_, width)) = (model.condition_dim(), model.text_branch()?);
+            let model = &boundary::required(model, "model")?.model;
+            let (dim, width) = (model.condition_dim(), model.text_branch()?.token_dim);
             let n = boundary::checked_mul(n_tokens, width, "n_tokens * text_token_dim")?;
             // SAFETY: readable for `n` floats per the contract.
             let tokens = unsafe { boundary::slice(clip_tokens, n, "clip_tokens") }?;

@@ -8,9 +8,9 @@
 
 use tract_onnx::prelude::{IntoTValue, TValue, Tensor, TractResult};
 
-use crate::error::{Error, Result};
-use crate::graph::{f32_tensor, f32_tensor_owned, read_f32};
-use crate::manifest::ContextSpec;
+use super::spec::ContextSpec;
+use crate::shared::error::{Error, Result};
+use crate::shared::graph::{f32_tensor, f32_tensor_owned, read_f32};
 
 /// What `key_mask` adds to the score of a padding entry: the softmax gives it weight 0.
 const MASKED: f32 = -1e30;

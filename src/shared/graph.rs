@@ -6,10 +6,10 @@ use std::sync::Arc;
 
 use tract_onnx::prelude::*;
 
-use crate::bundle::BundleFiles;
-use crate::error::{Error, Result};
-use crate::logging::{log, Level};
-use crate::manifest::{DType, Dim, GraphSpec, TensorSpec};
+use crate::shared::bundle::BundleFiles;
+use crate::shared::error::{Error, Result};
+use crate::shared::graph_spec::{DType, Dim, GraphSpec, TensorSpec};
+use crate::shared::logging::{log, Level};
 
 /// A loaded, optimised graph whose inputs and outputs are addressed in manifest order.
 #[derive(Debug)]
@@ -81,6 +81,37 @@ impl Graph {
             .map(|&slot| std::mem::replace(&mut outputs[slot], Tensor::default().into_tvalue()))
             .collect())
     }
+}
+
+/// Loads and optimises `wanted` graphs (role and declaration) on all cores (optimisation
+/// dominates load time and each graph is independent); returns them in order, or the first
+/// error in that order.
+pub(crate) fn load_graphs(
+    files: &BundleFiles,
+    wanted: &[(&'static str, &GraphSpec)],
+) -> Result<Vec<Graph>> {
+    let workers = std::thread::available_parallelism()
+        .map_or(1, |n| n.get())
+        .min(wanted.len());
+    let next = std::sync::atomic::AtomicUsize::new(0);
+    let mut slots: Vec<Option<Result<Graph>>> = (0..wanted.len()).map(|_| None).collect();
+    let done = std::sync::Mutex::new(&mut slots);
+    std::thread::scope(|scope| {
+        for _ in 0..workers {
+            scope.spawn(|| loop {
+                let i = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                let Some(&(role, spec)) = wanted.get(i) else {
+                    break;
+                };
+                let graph = Graph::load(role, files, spec);
+                done.lock().unwrap_or_else(|e| e.into_inner())[i] = Some(graph);
+            });
+        }
+    });
+    slots
+        .into_iter()
+        .map(|slot| slot.expect("every graph was attempted"))
+        .collect()
 }
 
 type Positions = (Vec<usize>, Vec<usize>);

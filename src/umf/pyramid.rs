@@ -15,7 +15,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use crate::error::{Error, Result};
+use crate::shared::error::{Error, Result};
 
 /// How latent tokens are arranged for pooling.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -218,7 +218,7 @@ fn cholesky_f32(a: &[f64], n: usize) -> Result<Vec<f32>> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::noise::fill_normals;
+    use crate::shared::noise::fill_normals;
 
     #[test]
     fn umf_coefficients_and_paper_limit() {

@@ -2,12 +2,12 @@
 
 use std::cell::Cell;
 
-use super::boundary::{
+use crate::ffi::boundary::{
     self, check_struct_size, checked_mul, non_null, read_versioned, troupe_status, write_versioned,
     FfiError, FfiResult, TROUPE_ERR_BUFFER_TOO_SMALL, TROUPE_ERR_INVALID_ARG, TROUPE_ERR_POISONED,
     TROUPE_ERR_SHAPE,
 };
-use super::model::troupe_model;
+use crate::ffi::model::troupe_model;
 use crate::{ActorLatent, Session, SessionOptions, TokenNoise};
 
 /// Actor tokens are the VAE posterior sample `(mean + std * noise) * scale` (the official choice).
@@ -71,7 +71,7 @@ const _: () = assert!(std::mem::size_of::<troupe_session_options>() == OPTIONS_V
 /// `model` must be a live handle; `options` must be writable for `options_size` bytes.
 #[no_mangle]
 pub unsafe extern "C" fn troupe_session_options_init(
-    model: *const troupe_model,
+    model: Option<&troupe_model>,
     options: *mut troupe_session_options,
     options_size: usize,
 ) -> troupe_status {
@@ -79,11 +79,9 @@ pub unsafe extern "C" fn troupe_session_options_init(
         "troupe_session_options_init",
         || {},
         || {
-            non_null(model, "model")?;
+            let model = &boundary::required(model, "model")?.model;
             non_null(options, "options")?;
             check_struct_size(options_size, OPTIONS_V1_SIZE, "troupe_session_options")?;
-            // SAFETY: non-NULL live handle per the contract.
-            let model = unsafe { &(*model).model };
             let m = model
                 .armflow_spec()
                 .ok_or_else(|| model.wrong_family("armflow", "troupe_session_options"))?;
@@ -173,7 +171,7 @@ unsafe fn read_options(options: *const troupe_session_options) -> FfiResult<Sess
 /// writable.
 #[no_mangle]
 pub unsafe extern "C" fn troupe_session_new(
-    model: *const troupe_model,
+    model: Option<&troupe_model>,
     options: *const troupe_session_options,
     out: *mut *mut troupe_session,
 ) -> troupe_status {
@@ -184,15 +182,14 @@ pub unsafe extern "C" fn troupe_session_new(
             non_null(out, "out")?;
             // SAFETY: checked non-NULL; writable per the contract.
             unsafe { *out = std::ptr::null_mut() };
-            non_null(model, "model")?;
+            let model = &boundary::required(model, "model")?.model;
             let options = if options.is_null() {
                 SessionOptions::default()
             } else {
                 // SAFETY: readable per the contract.
                 unsafe { read_options(options) }?
             };
-            // SAFETY: non-NULL live handle per the contract.
-            let session = unsafe { &(*model).model }.session(options)?;
+            let session = model.session(options)?;
             let handle = troupe_session {
                 session,
                 poisoned: Cell::new(false),
@@ -285,7 +282,7 @@ pub unsafe extern "C" fn troupe_session_step(
     unsafe {
         with_session(session, "troupe_session_step", |s| {
             non_null(n_written, "n_written")?;
-            let dim = s.model().frame_dim();
+            let dim = s.frame_dim();
             let n_in = checked_mul(n_actor_frames, dim, "n_actor_frames * frame_dim")?;
             let actor = boundary::slice(actor, n_in, "actor")?;
             let ready = s.frames_ready_after(n_actor_frames);
@@ -405,7 +402,7 @@ pub unsafe extern "C" fn troupe_sessions_step(
             }
             live.push(session);
         }
-        let dim = live[0].model().frame_dim();
+        let dim = live[0].frame_dim();
         let mut chunks = Vec::with_capacity(n_sessions);
         for i in 0..n_sessions {
             let n_in = checked_mul(n_actor_frames[i], dim, "n_actor_frames[i] * frame_dim")?;
@@ -425,7 +422,7 @@ pub unsafe extern "C" fn troupe_sessions_step(
                 non_null(out[i], &format!("out[{i}]"))?;
             }
         }
-        let outputs = crate::session::step_sessions_bounded(&mut live, &chunks, capacity)?;
+        let outputs = crate::armflow::step_sessions_bounded(&mut live, &chunks, capacity)?;
         for (i, output) in outputs.iter().enumerate() {
             let frames = output.frames.as_slice().expect("standard layout");
             if !frames.is_empty() {
@@ -571,7 +568,7 @@ pub unsafe extern "C" fn troupe_session_set_condition(
             if condition.is_null() && len == 0 {
                 return Ok(s.set_condition(None)?);
             }
-            let dim = s.model().condition_dim();
+            let dim = s.condition_dim();
             if len != dim {
                 return Err(FfiError::new(
                     TROUPE_ERR_SHAPE,
@@ -605,7 +602,7 @@ pub unsafe extern "C" fn troupe_session_queue_noise(
     // SAFETY: forwarded contract.
     unsafe {
         with_session(session, "troupe_session_queue_noise", |s| {
-            let lat = s.model().latent_dim();
+            let lat = s.latent_dim();
             if len != lat {
                 return Err(FfiError::new(
                     TROUPE_ERR_SHAPE,

@@ -7,9 +7,10 @@
 //! 2. **Context**: the context encoder appends `<sos>` (for `j = 0`) or the previous pair
 //!    `(a_{j-1} || b_{j-1})` at position `j` to its key/value cache and gives `c_j`.
 //! 3. **MeanFlow**: from `z = eps_j`, for `k = 0..steps`:
-//!    `z <- z - (tau_k - tau_{k+1}) * u(z, r = tau_{k+1}, t = tau_k)` with `tau` = [`meanflow_grid`];
-//!    one step is `b_j = eps_j - u(eps_j, 0, 1)`. With CFG scale `s != 1`,
-//!    `u = u_null + s * (u_cond - u_null)` where the null branch zeroes actor token and context.
+//!    `z <- z - (tau_k - tau_{k+1}) * u(z, r = tau_{k+1}, t = tau_k)` with `tau` =
+//!    [`meanflow_grid`](crate::meanflow_grid); one step is `b_j = eps_j - u(eps_j, 0, 1)`. With
+//!    CFG scale `s != 1`, `u = u_null + s * (u_cond - u_null)` where the null branch zeroes actor
+//!    token and context.
 //! 4. **Frames**: once token `j + lookahead_tokens` exists, the decoder runs on the reactor
 //!    tokens `[max(0, j - context_tokens), j + 1 + lookahead_tokens)` divided by `scale`, and the
 //!    frames of token `j` are returned.
@@ -18,15 +19,17 @@
 //! of the stream state, committed at the end.
 
 use std::collections::VecDeque;
+use std::sync::Arc;
 
 use ndarray::{Array2, ArrayView2};
 
-use crate::error::{Error, Result};
-use crate::kv_cache::KvCache;
-use crate::manifest::{ActorLatent, ArmFlowSpec};
-use crate::model::VaeState;
-use crate::model::{check_finite, Conditioning, Model};
-use crate::noise::{fill_normals, STREAM_ACTOR_POSTERIOR, STREAM_REACTOR_NOISE};
+use crate::armflow::kv_cache::KvCache;
+use crate::armflow::meanflow::meanflow_grid;
+use crate::armflow::networks::{Conditioning, Networks, VaeState};
+use crate::armflow::spec::{ActorLatent, ArmFlowSpec};
+use crate::shared::checks::check_finite;
+use crate::shared::error::{Error, Result};
+use crate::shared::noise::{fill_normals, STREAM_ACTOR_POSTERIOR, STREAM_REACTOR_NOISE};
 
 mod lanes;
 use lanes::Lane;
@@ -43,7 +46,7 @@ pub struct SessionOptions {
     pub cfg_scale: Option<f32>,
     /// Conditioning vector of `condition_dim` floats; `None` is the null condition (zeros).
     pub condition: Option<Vec<f32>>,
-    /// Tokens kept in the context cache, `<sos>` included (>= 2). See [`crate::kv_cache`].
+    /// Tokens kept in the context cache, `<sos>` included (>= 2). See `armflow/kv_cache.rs`.
     pub context_capacity: Option<usize>,
     /// Posterior sample (default) or mean for the actor's latent tokens.
     pub actor_latent: Option<ActorLatent>,
@@ -118,11 +121,12 @@ struct StreamState {
     vae: Option<VaeState>,
 }
 
-/// One actor/reactor stream over a shared [`Model`]. `Send`, not `Sync`: use it from one
-/// thread at a time.
+/// One actor/reactor stream over a shared [`crate::Model`] (made by
+/// [`crate::Model::session`]). `Send`, not `Sync`: use it from one thread at a time.
 #[derive(Debug)]
 pub struct Session {
-    model: Model,
+    /// The model's networks, shared with it and with its other sessions.
+    nets: Arc<Networks>,
     settings: Settings,
     conditioning: Conditioning,
     grid: Vec<f32>,
@@ -131,19 +135,10 @@ pub struct Session {
     vae_start: Option<VaeState>,
 }
 
-/// MeanFlow time grid `tau_k = (n - k) / n`, k = 0..=n, each rounded once to f32. t = 1 is
-/// noise and t = 0 is data (models.md 1.6).
-pub fn meanflow_grid(steps: u32) -> Vec<f32> {
-    (0..=steps)
-        .map(|k| (f64::from(steps - k) / f64::from(steps)) as f32)
-        .collect()
-}
-
 impl Session {
-    pub(crate) fn new(model: Model, options: SessionOptions) -> Result<Self> {
-        let m = model
-            .armflow_spec()
-            .ok_or_else(|| model.wrong_family("armflow", "a streaming session"))?;
+    /// A fresh stream over `nets` (the family was checked by [`crate::Model::session`]).
+    pub(crate) fn new(nets: Arc<Networks>, options: SessionOptions) -> Result<Self> {
+        let m = &nets.spec;
         let settings = Settings {
             seed: options.seed,
             steps: options.steps.unwrap_or(m.sampler.steps),
@@ -165,23 +160,21 @@ impl Session {
         let vae_start = if options.vae_windows {
             None
         } else {
-            model.vae_state()?
+            nets.vae_state()
         };
         Ok(Self {
-            conditioning: model.conditioning(settings.condition.as_deref())?,
+            conditioning: nets.conditioning(settings.condition.as_deref())?,
             grid: meanflow_grid(settings.steps),
             state: StreamState::new(m, vae_start.clone()),
             vae_start,
             settings,
-            model,
+            nets,
         })
     }
 
-    /// The bundle's `armflow` fields (the family was checked when the session was made).
+    /// The bundle's `armflow` fields.
     fn spec(&self) -> &ArmFlowSpec {
-        self.model
-            .armflow_spec()
-            .expect("a session is only made for an armflow model")
+        &self.nets.spec
     }
 
     /// Whether this session runs the bundle's per-token VAE steps (O(1) per token) rather than
@@ -190,9 +183,19 @@ impl Session {
         self.vae_start.is_some()
     }
 
-    /// The model this session runs.
-    pub fn model(&self) -> &Model {
-        &self.model
+    /// Floats per motion frame, in and out.
+    pub fn frame_dim(&self) -> usize {
+        self.nets.frame_dim()
+    }
+
+    /// Floats per latent token (the length of each [`TokenNoise`] vector).
+    pub fn latent_dim(&self) -> usize {
+        self.nets.latent_dim()
+    }
+
+    /// Floats in the conditioning vector [`Session::set_condition`] takes.
+    pub fn condition_dim(&self) -> usize {
+        self.nets.io.condition.dim
     }
 
     /// Feeds any number of actor frames (`[n, frame_dim]`, n may be 0) and returns the reactor
@@ -204,12 +207,12 @@ impl Session {
 
     /// [`Session::step`], also returning the latent tokens and contexts it computed.
     pub fn step_detailed(&mut self, actor: ArrayView2<f32>) -> Result<StepOutput> {
-        let dim = self.model.frame_dim();
+        let dim = self.nets.frame_dim();
         if actor.ncols() != dim {
             return Err(Error::InvalidInput(format!(
                 "actor frames have {} features, the bundle's `{}` layout has {dim}",
                 actor.ncols(),
-                self.model.manifest().motion.layout
+                self.nets.io.motion.layout
             )));
         }
         let owned;
@@ -231,10 +234,10 @@ impl Session {
     /// [`Session::step_flat`] that fails, leaving the session unchanged, when more than
     /// `max_frames` frames would come out (the C ABI's caller-sized buffer).
     pub(crate) fn step_bounded(&mut self, actor: &[f32], max_frames: usize) -> Result<StepOutput> {
-        let dim = self.model.frame_dim();
+        let dim = self.nets.frame_dim();
         check_actor_chunk(actor, dim)?;
         let mut lanes = [Lane::new(self)];
-        lanes::advance(&self.model, &mut lanes, &[actor])?;
+        lanes::advance(&self.nets, &mut lanes, &[actor])?;
         let [lane] = lanes;
         let (next, output) = lane.finish(dim);
         check_output_room(&output, max_frames, None)?;
@@ -271,7 +274,7 @@ impl Session {
     /// Sets the conditioning vector (`None`: the null condition). Runs the conditioning graph
     /// once; applies to tokens generated from now on.
     pub fn set_condition(&mut self, condition: Option<&[f32]>) -> Result<()> {
-        self.conditioning = self.model.conditioning(condition)?;
+        self.conditioning = self.nets.conditioning(condition)?;
         self.settings.condition = condition.map(<[f32]>::to_vec);
         Ok(())
     }
@@ -279,7 +282,7 @@ impl Session {
     /// Queues the noise of the next token not yet generated; queued noise is used in order
     /// before the seeded generator. Both vectors hold `latent_dim` finite floats.
     pub fn queue_noise(&mut self, noise: TokenNoise) -> Result<()> {
-        let lat = self.model.latent_dim();
+        let lat = self.nets.latent_dim();
         for (what, v) in [
             ("actor noise", &noise.actor),
             ("reactor noise", &noise.reactor),
@@ -298,7 +301,7 @@ impl Session {
 
     /// The noise the seeded generator gives token `index` with the current seed.
     pub fn seeded_noise(&self, index: u64) -> TokenNoise {
-        let lat = self.model.latent_dim();
+        let lat = self.nets.latent_dim();
         let mut noise = TokenNoise {
             actor: vec![0.0; lat],
             reactor: vec![0.0; lat],
@@ -345,7 +348,7 @@ impl Session {
         let floats = st.actor_frames.capacity()
             + st.last_pair.capacity()
             + st.reactor_latents.iter().map(Vec::capacity).sum::<usize>()
-            + st.injected.len() * 2 * self.model.latent_dim()
+            + st.injected.len() * 2 * self.nets.latent_dim()
             + self.conditioning.modulation.len()
             + self.conditioning.start_token.len();
         std::mem::size_of::<Self>()
@@ -410,7 +413,7 @@ impl StreamState {
 /// a token to generate, so the weights are read once per round rather than once per session;
 /// each session's outputs equal stepping it alone up to float rounding (<= 1e-5 in the tests).
 ///
-/// Sessions may differ in everything but their model (same [`Model`] or a clone of it): seed,
+/// Sessions may differ in everything but their model (same [`crate::Model`] or a clone): seed,
 /// steps, CFG, condition, capacity, history length, and how many frames they are given. On error
 /// every session is unchanged.
 pub fn step_sessions(sessions: &mut [&mut Session], actor: &[&[f32]]) -> Result<Vec<StepOutput>> {
@@ -434,10 +437,10 @@ pub(crate) fn step_sessions_bounded(
     let Some(first) = sessions.first() else {
         return Ok(Vec::new());
     };
-    let model = first.model.clone();
-    let dim = model.frame_dim();
+    let nets = Arc::clone(&first.nets);
+    let dim = nets.frame_dim();
     for (i, (session, chunk)) in sessions.iter().zip(actor).enumerate() {
-        if !session.model.same_as(&model) {
+        if !Arc::ptr_eq(&session.nets, &nets) {
             return Err(Error::InvalidInput(format!(
                 "session {i} runs another model: sessions stepped together must share one"
             )));
@@ -448,7 +451,7 @@ pub(crate) fn step_sessions_bounded(
         })?;
     }
     let mut lanes: Vec<Lane> = sessions.iter().map(|s| Lane::new(s)).collect();
-    lanes::advance(&model, &mut lanes, actor)?;
+    lanes::advance(&nets, &mut lanes, actor)?;
     let finished: Vec<_> = lanes.into_iter().map(|l| l.finish(dim)).collect();
     for (i, (_, output)) in finished.iter().enumerate() {
         check_output_room(

@@ -1,10 +1,10 @@
 //! `troupe_group_generate`: text-to-group generation with a `umf` bundle.
 
-use super::boundary::{
+use crate::ffi::boundary::{
     self, check_struct_size, checked_mul, non_null, read_versioned, troupe_status, write_versioned,
     FfiError, FfiResult, TROUPE_ERR_BUFFER_TOO_SMALL, TROUPE_ERR_INVALID_ARG, TROUPE_ERR_SHAPE,
 };
-use super::model::{optional_condition, troupe_model};
+use crate::ffi::model::{optional_condition, property, troupe_model};
 use crate::manifest::UmfSpec;
 use crate::{GroupNoise, GroupNoiseShape, GroupOptions, Method, Model, Solver};
 
@@ -93,10 +93,8 @@ fn solver_from(code: u32, steps: u32, what: &str) -> FfiResult<Solver> {
 }
 
 /// The model behind a handle and its `umf` fields, or an error for NULL or another family.
-fn umf_model<'a>(model: *const troupe_model) -> FfiResult<(&'a Model, &'a UmfSpec)> {
-    non_null(model, "model")?;
-    // SAFETY: non-NULL live handle per the callers' contracts.
-    let model = unsafe { &(*model).model };
+fn umf_model(model: Option<&troupe_model>) -> FfiResult<(&Model, &UmfSpec)> {
+    let model = &boundary::required(model, "model")?.model;
     let spec = model
         .umf_spec()
         .ok_or_else(|| model.wrong_family("umf", "group generation"))?;
@@ -121,7 +119,7 @@ fn umf_model<'a>(model: *const troupe_model) -> FfiResult<(&'a Model, &'a UmfSpe
 /// `model` must be a live handle; `options` must be writable for `options_size` bytes.
 #[no_mangle]
 pub unsafe extern "C" fn troupe_group_options_init(
-    model: *const troupe_model,
+    model: Option<&troupe_model>,
     options: *mut troupe_group_options,
     options_size: usize,
 ) -> troupe_status {
@@ -169,9 +167,9 @@ pub unsafe extern "C" fn troupe_group_options_init(
 /// # Safety
 /// `model` must be NULL or a live handle.
 #[no_mangle]
-pub unsafe extern "C" fn troupe_model_group_stages(model: *const troupe_model) -> usize {
-    boundary::get(0, || {
-        umf_model(model).map_or(0, |(_, u)| u.pyramid.stages.len())
+pub unsafe extern "C" fn troupe_model_group_stages(model: Option<&troupe_model>) -> usize {
+    property(model, |m| {
+        m.umf_spec().map_or(0, |u| u.pyramid.stages.len())
     })
 }
 
@@ -181,8 +179,8 @@ pub unsafe extern "C" fn troupe_model_group_stages(model: *const troupe_model) -
 /// # Safety
 /// `model` must be NULL or a live handle.
 #[no_mangle]
-pub unsafe extern "C" fn troupe_model_group_tokens(model: *const troupe_model) -> usize {
-    boundary::get(0, || umf_model(model).map_or(0, |(_, u)| u.latent.tokens))
+pub unsafe extern "C" fn troupe_model_group_tokens(model: Option<&troupe_model>) -> usize {
+    property(model, |m| m.umf_spec().map_or(0, |u| u.latent.tokens))
 }
 
 /// Frames of motion per clip (0 for other bundles or NULL): per person of
@@ -192,11 +190,8 @@ pub unsafe extern "C" fn troupe_model_group_tokens(model: *const troupe_model) -
 /// # Safety
 /// `model` must be NULL or a live handle.
 #[no_mangle]
-pub unsafe extern "C" fn troupe_model_clip_frames(model: *const troupe_model) -> usize {
-    // SAFETY: NULL or live per the contract.
-    boundary::get(0, || {
-        unsafe { model.as_ref() }.map_or(0, |m| m.model.clip_frames())
-    })
+pub unsafe extern "C" fn troupe_model_clip_frames(model: Option<&troupe_model>) -> usize {
+    property(model, Model::clip_frames)
 }
 
 /// Writes the lengths, in floats, of the three arrays of a `troupe_group_noise` for `people`
@@ -209,7 +204,7 @@ pub unsafe extern "C" fn troupe_model_clip_frames(model: *const troupe_model) ->
 /// `model` must be a live handle; each non-NULL out-pointer writable.
 #[no_mangle]
 pub unsafe extern "C" fn troupe_group_noise_lengths(
-    model: *const troupe_model,
+    model: Option<&troupe_model>,
     people: u32,
     prior_len: *mut usize,
     jumps_len: *mut usize,
@@ -268,7 +263,7 @@ pub unsafe extern "C" fn troupe_group_noise_lengths(
 #[no_mangle]
 #[allow(clippy::too_many_arguments)]
 pub unsafe extern "C" fn troupe_group_generate(
-    model: *const troupe_model,
+    model: Option<&troupe_model>,
     options: *const troupe_group_options,
     condition: *const f32,
     condition_len: usize,

@@ -3,9 +3,12 @@
 
 use serde::{Deserialize, Serialize};
 
-use super::{contract, ensure, float, sym, text_branch_contract, Dim, GraphSpec, Manifest};
-use crate::pyramid::{Jump, Layout};
-use crate::solver::Solver;
+use super::pyramid::{Jump, Layout};
+use crate::shared::bundle_io::{ConditionSpec, MotionSpec};
+use crate::shared::checks::ensure;
+use crate::shared::graph_spec::{contract, float, sym, Dim, GraphSpec};
+use crate::shared::solver::Solver;
+use crate::shared::text_branch::text_branch_contract;
 
 /// The manifest fields of a `umf` bundle.
 #[derive(Debug, Clone, Serialize, Deserialize)]
@@ -100,7 +103,7 @@ pub struct UmfGraphs {
 
 impl UmfSpec {
     /// The jump into each stage after the first.
-    pub(crate) fn jumps(&self) -> crate::Result<Vec<Jump>> {
+    pub(crate) fn jumps(&self) -> crate::shared::error::Result<Vec<Jump>> {
         let p = &self.pyramid;
         p.stages
             .windows(2)
@@ -108,17 +111,17 @@ impl UmfSpec {
             .collect()
     }
 
-    pub(super) fn validate(&self, manifest: &Manifest) -> Result<(), String> {
+    pub(crate) fn validate(&self, condition: &ConditionSpec) -> Result<(), String> {
         let (l, p) = (&self.latent, &self.pyramid);
         ensure(l.tokens > 0 && l.dim > 0 && self.clip_frames > 0, || {
             "latent.tokens, latent.dim and clip_frames must be positive".into()
         })?;
         ensure(
-            self.text.prior_dim + self.text.reaction_dim == manifest.condition.dim,
+            self.text.prior_dim + self.text.reaction_dim == condition.dim,
             || {
                 format!(
                     "text.prior_dim {} + text.reaction_dim {} must equal condition.dim {}",
-                    self.text.prior_dim, self.text.reaction_dim, manifest.condition.dim
+                    self.text.prior_dim, self.text.reaction_dim, condition.dim
                 )
             },
         )?;
@@ -200,9 +203,11 @@ impl UmfSpec {
         })
     }
 
-    pub(super) fn graph_contract<'a>(
+    /// Each graph as declared, next to the interface the runtime requires of it.
+    pub(crate) fn graph_contract<'a>(
         &'a self,
-        manifest: &Manifest,
+        motion: &MotionSpec,
+        condition: &ConditionSpec,
     ) -> Vec<(&'static str, &'a GraphSpec, GraphSpec)> {
         let (n, f) = (Dim::Fixed, float);
         let (tokens, dim) = (self.latent.tokens, self.latent.dim);
@@ -252,14 +257,14 @@ impl UmfSpec {
                     vec![f("latents", vec![sym("B"), n(tokens), n(dim)])],
                     vec![f(
                         "motion",
-                        vec![sym("B"), n(self.clip_frames), n(manifest.motion.frame_dim)],
+                        vec![sym("B"), n(self.clip_frames), n(motion.frame_dim)],
                     )],
                 ),
             ),
         ];
         if let Some(text) = &g.text_branch {
             // Both text encoders read CLIP's token features, as wide as each one's output.
-            let contract = text_branch_contract(text, self.text.prior_dim, manifest.condition.dim);
+            let contract = text_branch_contract(text, self.text.prior_dim, condition.dim);
             contracts.push(("text_branch", text, contract));
         }
         contracts

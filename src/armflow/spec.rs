@@ -3,9 +3,10 @@
 
 use serde::{Deserialize, Serialize};
 
-use super::{
-    contract, ensure, float, sym, text_branch_contract, DType, Dim, GraphSpec, Manifest, TensorSpec,
-};
+use crate::shared::bundle_io::{ConditionSpec, MotionSpec};
+use crate::shared::checks::ensure;
+use crate::shared::graph_spec::{contract, float, sym, DType, Dim, GraphSpec, TensorSpec};
+use crate::shared::text_branch::text_branch_contract;
 
 /// The manifest fields of an `armflow` bundle.
 #[derive(Debug, Clone, Serialize, Deserialize)]
@@ -146,7 +147,7 @@ pub struct ArmFlowGraphs {
 }
 
 impl ArmFlowSpec {
-    pub(super) fn validate(&self, _manifest: &Manifest) -> std::result::Result<(), String> {
+    pub(crate) fn validate(&self) -> std::result::Result<(), String> {
         let check = |ok: bool, msg: &dyn Fn() -> String| ensure(ok, msg);
         let (l, c) = (&self.latent, &self.context);
         check(l.dim > 0 && l.frames_per_token > 0, &|| {
@@ -225,15 +226,12 @@ impl ArmFlowSpec {
     }
 
     /// Each graph as declared, next to the interface the runtime requires of it.
-    pub(super) fn graph_contract<'a>(
+    pub(crate) fn graph_contract<'a>(
         &'a self,
-        manifest: &Manifest,
+        motion: &MotionSpec,
+        condition: &ConditionSpec,
     ) -> Vec<(&'static str, &'a GraphSpec, GraphSpec)> {
-        let (c, lat, d) = (
-            self.context.width,
-            self.latent.dim,
-            manifest.motion.frame_dim,
-        );
+        let (c, lat, d) = (self.context.width, self.latent.dim, motion.frame_dim);
         let (h, dh) = (self.context.heads, self.context.head_dim);
         let (f, n, s) = (float, Dim::Fixed, sym);
         let kv = |prefix: &str, len: &str| -> Vec<TensorSpec> {
@@ -275,7 +273,7 @@ impl ArmFlowSpec {
                 &g.conditioning,
                 spec(
                     &g.conditioning,
-                    vec![f("condition", vec![n(1), n(manifest.condition.dim)])],
+                    vec![f("condition", vec![n(1), n(condition.dim)])],
                     vec![
                         f("modulation", vec![n(1), n(self.context.layers), n(6), n(c)]),
                         f("start_token", vec![n(1), n(1), n(c)]),
@@ -342,7 +340,7 @@ impl ArmFlowSpec {
             ));
         }
         if let Some(text) = &g.text_branch {
-            let cond = manifest.condition.dim;
+            let cond = condition.dim;
             contracts.push(("text_branch", text, text_branch_contract(text, cond, cond)));
         }
         let fpt = self.latent.frames_per_token;

@@ -1,0 +1,173 @@
+//! `troupe.json`: the manifest of a model bundle (contract documented in `onnx/README.md`).
+//!
+//! The manifest states everything the runtime needs; nothing is inferred from file names. It is
+//! checked twice at load: against itself (dimensions that must agree) and, when each graph
+//! loads, against the ONNX graphs it names.
+//!
+//! This module sits above the families, beside [`crate::Model`]: it reads the common header and
+//! hands each family its own section (`crate::armflow::spec`, `crate::umf::spec`). The types a
+//! manifest is made of are re-exported here under the paths they have always had.
+
+use std::path::Path;
+
+use serde::{Deserialize, Serialize};
+
+use crate::shared::bundle::BundleFiles;
+use crate::shared::bundle_io::BundleIo;
+use crate::shared::checks::ensure;
+use crate::shared::error::{Error, Result};
+use crate::shared::graph_spec::check_contract;
+
+pub use crate::armflow::spec::{
+    ActorLatent, ArmFlowGraphs, ArmFlowSpec, ClipSpec, ContextSpec, DecoderWindow, EncoderWindow,
+    LatentSpec, SamplerSpec, VaeSpec,
+};
+pub use crate::shared::bundle_io::{ConditionSpec, MotionSpec};
+pub use crate::shared::graph_spec::{DType, Dim, GraphSpec, TensorSpec};
+pub use crate::umf::spec::{
+    PyramidSpec, StageSpec, TextSpec, UmfGraphs, UmfLatentSpec, UmfSamplerSpec, UmfSpec,
+};
+
+/// Value of the manifest's `format` field.
+pub const FORMAT: &str = "troupe-bundle";
+/// The manifest format version this runtime reads.
+pub const FORMAT_VERSION: u32 = 1;
+
+/// A parsed and validated `troupe.json`.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct Manifest {
+    /// Always [`FORMAT`].
+    pub format: String,
+    /// Always [`FORMAT_VERSION`] for bundles this runtime can run.
+    pub format_version: u32,
+    /// Human-readable bundle name.
+    pub name: String,
+    /// Free-form provenance (exporter, preset, seed); not interpreted.
+    #[serde(default)]
+    pub producer: serde_json::Value,
+    /// Per-frame motion features.
+    pub motion: MotionSpec,
+    /// Conditioning vector (e.g. a text embedding).
+    pub condition: ConditionSpec,
+    /// What the family's sampler needs: its latents, graphs and defaults. Serialised as the
+    /// `family` tag plus the family's own top-level fields.
+    #[serde(flatten)]
+    pub family: Family,
+}
+
+/// The model families troupe runs, each with the manifest fields of its own.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(tag = "family", rename_all = "lowercase")]
+pub enum Family {
+    /// ARMFlow: online reaction, streamed token by token ([`crate::Session`]).
+    Armflow(Box<ArmFlowSpec>),
+    /// UMF: text-to-group generation ([`crate::Model::generate_group`]).
+    Umf(Box<UmfSpec>),
+}
+
+/// The family names this runtime reads, as they appear in `troupe.json`.
+pub const FAMILIES: [&str; 2] = ["armflow", "umf"];
+
+impl Manifest {
+    /// Reads and validates `troupe.json` from a bundle.
+    pub(crate) fn load(files: &BundleFiles) -> Result<Self> {
+        let path = files.path_of("troupe.json");
+        let bytes = files.read("troupe.json")?;
+        let text = std::str::from_utf8(&bytes).map_err(|_| Error::Manifest {
+            path: path.clone(),
+            message: "not UTF-8 text".into(),
+        })?;
+        Self::parse(text, &path)
+    }
+
+    /// Parses and validates manifest text; `path` is only used in messages.
+    pub fn parse(text: &str, path: &Path) -> Result<Self> {
+        let bad = |message: String| Error::Manifest {
+            path: path.to_path_buf(),
+            message,
+        };
+        let value: serde_json::Value =
+            serde_json::from_str(text).map_err(|e| bad(e.to_string()))?;
+        check_header(&value).map_err(bad)?;
+        let manifest: Manifest = serde_json::from_value(value).map_err(|e| bad(e.to_string()))?;
+        manifest.validate().map_err(bad)?;
+        Ok(manifest)
+    }
+
+    /// The family name as written in the manifest.
+    pub fn family_name(&self) -> &'static str {
+        match self.family {
+            Family::Armflow(_) => "armflow",
+            Family::Umf(_) => "umf",
+        }
+    }
+
+    fn validate(&self) -> std::result::Result<(), String> {
+        let m = &self.motion;
+        ensure(m.frame_dim > 0 && m.fps > 0, || {
+            "motion.frame_dim and motion.fps must be positive".into()
+        })?;
+        if let Some(null) = &self.condition.null {
+            ensure(null.len() == self.condition.dim, || {
+                format!(
+                    "condition.null holds {} floats, condition.dim is {}",
+                    null.len(),
+                    self.condition.dim
+                )
+            })?;
+            ensure(null.iter().all(|v| v.is_finite()), || {
+                "condition.null holds a non-finite value".into()
+            })?;
+        }
+        match &self.family {
+            Family::Armflow(spec) => spec.validate()?,
+            Family::Umf(spec) => spec.validate(&self.condition)?,
+        }
+        for (role, declared, expected) in self.graph_contract() {
+            check_contract(role, declared, &expected)?;
+        }
+        Ok(())
+    }
+
+    /// Each graph as declared, next to the interface the runtime requires of it.
+    pub(crate) fn graph_contract(&self) -> Vec<(&'static str, &GraphSpec, GraphSpec)> {
+        let (motion, condition) = (&self.motion, &self.condition);
+        match &self.family {
+            Family::Armflow(spec) => spec.graph_contract(motion, condition),
+            Family::Umf(spec) => spec.graph_contract(motion, condition),
+        }
+    }
+
+    /// The common facts every family keeps beside its graphs.
+    pub(crate) fn bundle_io(&self) -> BundleIo {
+        BundleIo {
+            name: self.name.clone(),
+            motion: self.motion.clone(),
+            condition: self.condition.clone(),
+        }
+    }
+}
+
+/// Format, version and family, checked before the family's fields are read so that an
+/// unsupported bundle gets a message about what it is rather than about a missing field.
+fn check_header(value: &serde_json::Value) -> std::result::Result<(), String> {
+    let field = |name: &str| value.get(name);
+    let format = field("format").and_then(|v| v.as_str()).unwrap_or("");
+    ensure(format == FORMAT, || {
+        format!("format is `{format}`, expected `{FORMAT}`")
+    })?;
+    let version = field("format_version").and_then(|v| v.as_u64());
+    ensure(version == Some(u64::from(FORMAT_VERSION)), || {
+        format!(
+            "format_version {} is not supported (this runtime reads version {FORMAT_VERSION})",
+            field("format_version").map_or("(missing)".into(), |v| v.to_string())
+        )
+    })?;
+    let family = field("family").and_then(|v| v.as_str()).unwrap_or("");
+    ensure(FAMILIES.contains(&family), || {
+        format!(
+            "family `{family}` is not supported (this runtime reads {})",
+            FAMILIES.join(", ")
+        )
+    })
+}

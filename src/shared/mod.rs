@@ -1,0 +1,13 @@
+//! The machinery every family stands on, one concept per module. Nothing here knows a family or
+//! the [`crate::Model`] handle: a module of this layer imports only from this layer.
+
+pub mod bundle;
+pub(crate) mod bundle_io;
+pub(crate) mod checks;
+pub mod error;
+pub(crate) mod graph;
+pub mod graph_spec;
+pub(crate) mod logging;
+pub mod noise;
+pub mod solver;
+pub(crate) mod text_branch;

@@ -1,0 +1,21 @@
+//! The `umf` family: text to a group of any size (models.md §2). The first person comes from
+//! Pyramid Flow (coarse-to-fine stages with a jump-renoise between them), every further person
+//! from Semi-Noise Flow over a context of everyone before, then one decode.
+//!
+//! - [`spec`]: the family's manifest section and the interface it requires of its graphs;
+//! - `networks`: the loaded graphs;
+//! - [`pyramid`]: the resolution ladder and its block-correlated jump noise;
+//! - `group`: the sampler, [`crate::Model::generate_group`].
+//!
+//! Like every family, this folder imports only from `crate::shared` and itself.
+
+mod group;
+pub(crate) mod networks;
+pub mod pyramid;
+pub mod spec;
+
+pub use group::{
+    Group, GroupNoise, GroupNoiseShape, GroupOptions, MAX_PEOPLE, STREAM_JUMP_NOISE,
+    STREAM_PRIOR_NOISE, STREAM_REACTION_NOISE,
+};
+pub(crate) use networks::Networks;
