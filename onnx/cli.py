@@ -50,7 +50,13 @@ def main(argv: list[str]) -> None:
     family, command = argv[0], argv[1] if len(argv) > 1 else None
     if family not in found or command not in found[family][1]:
         sys.exit(f"{usage(found)}\n\nerror: unknown command: {' '.join(argv[:2])}")
-    module = importlib.import_module(f"troupe_onnx.{family}.{found[family][1][command][0]}")
+    try:
+        module = importlib.import_module(f"troupe_onnx.{family}.{found[family][1][command][0]}")
+    except ModuleNotFoundError as missing:
+        if missing.name and missing.name.split(".")[0] == "troupe_onnx":
+            raise
+        sys.exit(f"{family} {command} needs the Python package `{missing.name}`: "
+                 "pip install torch onnx onnxruntime numpy")
     module.main(argv[2:], prog=f"{Path(sys.argv[0]).name} {family} {command}")
 
 
