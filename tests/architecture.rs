@@ -10,6 +10,8 @@
 //! `#[cfg(test)]` modules are left out. The Python tooling under `onnx/troupe_onnx/` has the
 //! same rule, checked by `onnx/tests/test_layout.py`, which the last test here runs.
 
+mod common;
+
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
 
@@ -421,26 +423,20 @@ fn no_import_cycle_between_modules() {
 
 #[test]
 fn the_python_tooling_keeps_the_same_layers() {
-    let out = std::process::Command::new("python3")
-        .current_dir(env!("CARGO_MANIFEST_DIR"))
-        .args([
+    let (ok, text) = common::run_python(
+        &[
             "-m",
             "pytest",
             "-q",
             "-p",
             "no:cacheprovider",
             "onnx/tests/test_layout.py",
-        ])
-        .output()
-        .expect("run python3 (with pytest: `pip install pytest`)");
-    let text = format!(
-        "{}{}",
-        String::from_utf8_lossy(&out.stdout),
-        String::from_utf8_lossy(&out.stderr)
+        ],
+        &[],
     );
     assert!(
-        out.status.success(),
-        "onnx/tests/test_layout.py failed:\n{text}"
+        ok,
+        "onnx/tests/test_layout.py failed (it needs pytest):\n{text}"
     );
     assert!(text.contains("3 passed"), "{text}");
 }

@@ -102,3 +102,29 @@ pub fn c_libraries() -> &'static Path {
             .join("debug")
     })
 }
+
+/// The Python interpreter on PATH: `python3`, or `python` where there is no `python3`.
+pub fn python_command() -> &'static str {
+    if Command::new("python3").arg("--version").output().is_ok() {
+        "python3"
+    } else {
+        "python"
+    }
+}
+
+/// Runs Python with `args` and the extra environment `env` in the repository root; returns
+/// whether it exited with 0, and its stdout and stderr together.
+pub fn run_python(args: &[&str], env: &[(&str, &str)]) -> (bool, String) {
+    let out = Command::new(python_command())
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .args(args)
+        .envs(env.iter().copied())
+        .output()
+        .unwrap_or_else(|e| panic!("run {} {args:?}: {e}", python_command()));
+    let text = format!(
+        "{}{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    (out.status.success(), text)
+}
