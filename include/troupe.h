@@ -8,6 +8,10 @@
  * - Families. An `armflow` bundle streams reactions through troupe_session; a `umf` bundle
  *   generates whole groups with troupe_group_generate. Calling one family's functions on the
  *   other's model returns TROUPE_ERR_INVALID_ARG.
+ * - Motion. troupe_motion_* speak joint positions of the 22-joint SMPL/HumanML3D "t2m" skeleton
+ *   (troupe_motion_skeleton) in the caller's units, up axis, handedness and frame rate
+ *   (troupe_joints_format), and convert them to and from an `interhuman262` bundle's features.
+ *   A troupe_motion_stream is one person's stream: one thread at a time, like a session.
  * - Handles. troupe_model is a loaded bundle: immutable, and every function taking a
  *   `const troupe_model *` may be called from any thread at any time. troupe_session is one
  *   actor/reactor stream: not synchronised, so one thread at a time (it may move between
@@ -65,6 +69,51 @@
 #define TROUPE_LOG_DEBUG 4
 
 /*
+ Positions in metres.
+ */
+#define TROUPE_UNITS_METERS 0
+
+/*
+ Positions in centimetres.
+ */
+#define TROUPE_UNITS_CENTIMETERS 1
+
+/*
+ Positions in millimetres.
+ */
+#define TROUPE_UNITS_MILLIMETERS 2
+
+/*
+ Positions in inches.
+ */
+#define TROUPE_UNITS_INCHES 3
+
+/*
+ +Y is up (troupe, Unity, glTF, most BVH).
+ */
+#define TROUPE_UP_Y 0
+
+/*
+ +Z is up (SMPL raw data, Blender, ROS, Unreal); converted as `(x, y, z) -> (x, z, -y)`.
+ */
+#define TROUPE_UP_Z 1
+
+/*
+ Right-handed axes.
+ */
+#define TROUPE_RIGHT_HANDED 0
+
+/*
+ Left-handed axes (Unity, Unreal): x is negated first.
+ */
+#define TROUPE_LEFT_HANDED 1
+
+/*
+ Joints of the t2m-22 skeleton every `interhuman262` bundle speaks.
+ */
+#define TROUPE_MOTION_JOINTS 22
+
+/*
  ABI version of this library. Bumped on every incompatible change of the C ABI; bindings
  check `troupe_abi_version() == TROUPE_ABI_VERSION` when they load the library.
  */
@@ -96,11 +145,23 @@
 #define TROUPE_MAX_STAGES 8
 
 /*
+ A rotation as a unit quaternion `w + xi + yj + zk`.
+ */
+typedef struct Quat Quat;
+
+/*
  A loaded bundle. Immutable and thread-safe: every function taking a `const troupe_model*`
  may be called from any number of threads at once. Free it with `troupe_model_free`; sessions
  created from it keep it alive, so it may be freed before them.
  */
 typedef struct troupe_model troupe_model;
+
+/*
+ A stream turning joint-position frames into feature frames for one person. Not
+ synchronised: one thread at a time. Free with `troupe_motion_stream_free`; it does not need
+ its model after creation.
+ */
+typedef struct troupe_motion_stream troupe_motion_stream;
 
 /*
  One stream. Not internally synchronised: use a session from one thread at a time (it may
@@ -118,6 +179,104 @@ typedef int32_t troupe_status;
  and valid only during the call.
  */
 typedef void (*troupe_log_fn)(void *user_data, int32_t level, const char *target, const char *message);
+
+/*
+ How the caller measures joint positions. Fill with `troupe_joints_format_init` (metres, Y up,
+ right-handed, 30 fps), then change fields. Fields are only ever appended.
+ */
+typedef struct troupe_joints_format {
+  /*
+   `sizeof(troupe_joints_format)` as the caller compiled it (set by `_init`).
+   */
+  uint32_t struct_size;
+  /*
+   `TROUPE_UNITS_*`.
+   */
+  uint32_t units;
+  /*
+   `TROUPE_UP_Y` or `TROUPE_UP_Z`.
+   */
+  uint32_t up_axis;
+  /*
+   `TROUPE_RIGHT_HANDED` or `TROUPE_LEFT_HANDED`.
+   */
+  uint32_t handedness;
+  /*
+   Frames per second of the caller's motion, in [1, 1000]; resampled to the bundle's rate.
+   */
+  float fps;
+  /*
+   Must be 0.
+   */
+  uint32_t reserved;
+} troupe_joints_format;
+
+/*
+ Where a clip's canonical frame sits in the caller's world (InterGen's canonicalisation): the
+ floor height and first-frame root x, z in troupe's axes (metres, Y up), and the turn about +Y
+ that makes frame 0 face +Z. Written by `troupe_motion_encode` and the streams; pass it back to
+ put generated motion where the caller's was, and to put a second person in the first one's
+ frame. A plain value: copy it freely.
+ */
+typedef struct troupe_placement {
+  /*
+   Floor height, metres.
+   */
+  double floor;
+  /*
+   First-frame root x, metres.
+   */
+  double origin_x;
+  /*
+   First-frame root z, metres.
+   */
+  double origin_z;
+  /*
+   The turn as a unit quaternion `[w, x, y, z]`.
+   */
+  double heading[4];
+} troupe_placement;
+
+/*
+ Where `troupe_motion_decode` writes each part of a pose; any pointer may be NULL (with
+ length 0) to skip that part. Lengths are in floats. Every part is in the caller's world and
+ axes.
+ */
+typedef struct troupe_pose_buffers {
+  /*
+   Joint positions `[frames][22][3]`.
+   */
+  float *positions;
+  /*
+   Length of `positions`.
+   */
+  size_t positions_len;
+  /*
+   Rotations `[frames][22][4]` as `[w, x, y, z]`: joint 0 the root's world orientation, the
+   others local to their parent.
+   */
+  float *rotations;
+  /*
+   Length of `rotations`.
+   */
+  size_t rotations_len;
+  /*
+   The same rotations as 6-D vectors `[frames][22][6]`.
+   */
+  float *rotations_6d;
+  /*
+   Length of `rotations_6d`.
+   */
+  size_t rotations_6d_len;
+  /*
+   Contacts `[frames][4]`: left ankle, left foot, right ankle, right foot.
+   */
+  float *contacts;
+  /*
+   Length of `contacts`.
+   */
+  size_t contacts_len;
+} troupe_pose_buffers;
 
 /*
  The random draws of one clip, given instead of seeded. Arrays are row-major float32, each
@@ -303,6 +462,8 @@ typedef struct troupe_group_noise {
  */
 #define TROUPE_ERR_PANIC 9
 
+
+
 #ifdef __cplusplus
 extern "C" {
 #endif // __cplusplus
@@ -423,6 +584,171 @@ size_t troupe_model_latent_dim(const struct troupe_model *model);
  `model` must be NULL or a live handle.
  */
 size_t troupe_model_max_output_frames(const struct troupe_model *model, size_t n_actor_frames);
+
+/*
+ Fills `*format` with the defaults: metres, Y up, right-handed, 30 fps. `format_size` is
+ `sizeof(troupe_joints_format)`.
+
+ Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (a size smaller than
+ the first version's). Thread-safe.
+
+ # Safety
+ `format` must be writable for `format_size` bytes.
+ */
+troupe_status troupe_joints_format_init(struct troupe_joints_format *format, size_t format_size);
+
+/*
+ Joints of the t2m-22 skeleton (22). Thread-safe.
+ */
+size_t troupe_motion_joint_count(void);
+
+/*
+ The name of t2m-22 joint `joint` (`"pelvis"`, `"left_hip"`, ...; SMPL's order), or NULL when
+ `joint >= 22`. Static storage: never free it. Thread-safe.
+ */
+const char *troupe_motion_joint_name(size_t joint);
+
+/*
+ Writes the t2m-22 skeleton: `parents[22]` (each joint's parent, -1 for the root; parents
+ come before children) and `rest_offsets[22 * 3]` (each joint's rest offset from its parent in
+ metres, Y up, facing +Z, +X the body's left; the root's is its rest position). Either may be
+ NULL with length 0 to skip it.
+
+ Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_SHAPE` (a length other than 22 or
+ 66). Thread-safe.
+
+ # Safety
+ Non-NULL arrays must be writable for their lengths.
+ */
+troupe_status troupe_motion_skeleton(int32_t *parents, size_t parents_len, float *rest_offsets, size_t rest_offsets_len);
+
+/*
+ Writes to `*n_frames_out` how many feature frames `troupe_motion_encode` gives for a clip of
+ `n_frames` position frames measured as `format` says: the clip resampled to the bundle's
+ rate, less one (velocities look one frame ahead).
+
+ Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (a bad format, or a
+ bundle whose features are not `interhuman262`). Thread-safe.
+
+ # Safety
+ `format` readable, `n_frames_out` writable.
+ */
+troupe_status troupe_motion_encoded_frames(const struct troupe_model *model, const struct troupe_joints_format *format, size_t n_frames, size_t *n_frames_out);
+
+/*
+ Turns a clip of joint positions (`positions`: float32 `[n_frames][22][3]` measured as
+ `format` says) into the bundle's features (`features_out`: `[frames][frame_dim]`, capacity
+ `out_capacity_frames` frames; the count goes to `*n_written`, see
+ `troupe_motion_encoded_frames`). The clip is resampled to the bundle's rate and put in its
+ canonical frame: InterGen's (floor under the clip's lowest joint, origin and facing from
+ frame 0) when `placement` is NULL, else the given one (e.g. the first person's, for the
+ second). The placement used is written to `placement_out` unless it is NULL.
+
+ Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (NaN or infinite
+ positions, naming frame and joint; a clip too short; a bad format or placement; a bundle
+ whose features are not `interhuman262`), `TROUPE_ERR_BUFFER_TOO_SMALL`, `TROUPE_ERR_PANIC`.
+ Nothing is written on error. Thread-safe.
+
+ # Safety
+ `positions` readable for `n_frames * 66` floats; `features_out` writable for
+ `out_capacity_frames * frame_dim` floats; the rest readable/writable as their types say.
+ */
+troupe_status troupe_motion_encode(const struct troupe_model *model, const struct troupe_joints_format *format, const float *positions, size_t n_frames, const struct troupe_placement *placement, float *features_out, size_t out_capacity_frames, size_t *n_written, struct troupe_placement *placement_out);
+
+/*
+ Turns `n_frames` feature frames (`features`: `[n_frames][frame_dim]`) into poses in the
+ caller's world: positions, rotations (quaternions and 6-D) and contacts, into the buffers of
+ `*out` (see `troupe_pose_buffers`), using the `placement` the actor's motion was encoded
+ with and the caller's axes and units from `format` (its `fps` is not used).
+
+ Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_SHAPE` (a buffer length other than
+ the frames need), `TROUPE_ERR_INVALID_ARG` (non-finite features, a bad format or placement, a
+ bundle whose features are not `interhuman262`), `TROUPE_ERR_PANIC`. Nothing is written on
+ error. Thread-safe.
+
+ # Safety
+ `features` readable for `n_frames * frame_dim` floats; `format`, `placement`, `out` readable;
+ the buffers in `out` writable for their lengths and not overlapping `features`.
+ */
+troupe_status troupe_motion_decode(const struct troupe_model *model, const struct troupe_joints_format *format, const struct troupe_placement *placement, const float *features, size_t n_frames, const struct troupe_pose_buffers *out);
+
+/*
+ Starts a stream turning one person's joint-position frames (measured as `format` says) into
+ the bundle's feature frames, for a session's actor input. The canonical frame is fixed by
+ the first frame (origin and facing as InterGen takes them, the floor under that frame's
+ lowest joint) unless `placement` is given (e.g. another person's). Feature frame t is ready
+ when position frame t + 1 has arrived: one frame of latency
+ (`troupe_motion_stream_latency_frames`). `*out` is set to NULL on entry and to the new
+ stream on success; free it with `troupe_motion_stream_free`.
+
+ Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (bad format or
+ placement, a bundle whose features are not `interhuman262`), `TROUPE_ERR_PANIC`.
+ Thread-safe.
+
+ # Safety
+ `format` and a non-NULL `placement` readable; `out` writable.
+ */
+troupe_status troupe_motion_stream_new(const struct troupe_model *model, const struct troupe_joints_format *format, const struct troupe_placement *placement, struct troupe_motion_stream **out);
+
+/*
+ Frames of latency a stream adds (1): feature frame t needs position frame t + 1.
+ Thread-safe.
+ */
+size_t troupe_motion_stream_latency_frames(void);
+
+/*
+ The most feature frames one `troupe_motion_stream_push` writes (1 unless the caller's rate
+ is above the bundle's), or 0 for a NULL stream. One thread at a time per stream.
+ */
+size_t troupe_motion_stream_max_frames(const struct troupe_motion_stream *stream);
+
+/*
+ Feeds one frame of joint positions (`frame`: float32 `[22][3]`, `frame_len` = 66) and writes
+ the feature frames it completes into `features_out` (capacity `out_capacity_frames` frames of
+ `frame_dim` floats), their count into `*n_written` (0 for the first frame).
+
+ Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_SHAPE` (`frame_len` not 66),
+ `TROUPE_ERR_INVALID_ARG` (a NaN or infinite position, naming the joint; a first frame whose
+ hips give no facing), `TROUPE_ERR_BUFFER_TOO_SMALL` (capacity below
+ `troupe_motion_stream_max_frames`), `TROUPE_ERR_PANIC`. On error the stream is as before the
+ call. One thread at a time per stream.
+
+ # Safety
+ `stream` a live handle; `frame` readable for `frame_len` floats; `features_out` writable for
+ `out_capacity_frames * frame_dim` floats; `n_written` writable.
+ */
+troupe_status troupe_motion_stream_push(struct troupe_motion_stream *stream, const float *frame, size_t frame_len, float *features_out, size_t out_capacity_frames, size_t *n_written);
+
+/*
+ Writes the stream's placement (fixed by its first frame, or the one it was given) to `*out`.
+
+ Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (no frame yet and no
+ placement given). One thread at a time per stream.
+
+ # Safety
+ `out` writable.
+ */
+troupe_status troupe_motion_stream_placement(const struct troupe_motion_stream *stream, struct troupe_placement *out);
+
+/*
+ Forgets the stream's motion and placement, as if new (keeping its format), or fixes the
+ placement to `placement` when it is not NULL.
+
+ Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (a bad placement; the
+ stream is then unchanged). One thread at a time per stream.
+
+ # Safety
+ `stream` a live handle; a non-NULL `placement` readable.
+ */
+troupe_status troupe_motion_stream_reset(struct troupe_motion_stream *stream, const struct troupe_placement *placement);
+
+/*
+ Frees a stream. NULL is a no-op.
+
+ # Safety
+ `stream` must be NULL or a live handle from `troupe_motion_stream_new`, not used afterwards.
+ */
+void troupe_motion_stream_free(struct troupe_motion_stream *stream);
 
 /*
  The library version, e.g. `"0.1.0"`.

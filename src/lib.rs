@@ -32,6 +32,7 @@ pub mod armflow;
 pub mod ffi;
 pub mod manifest;
 mod model;
+pub mod motion;
 pub(crate) mod shared;
 pub mod umf;
 

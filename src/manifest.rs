@@ -107,6 +107,7 @@ impl Manifest {
         ensure(m.frame_dim > 0 && m.fps > 0, || {
             "motion.frame_dim and motion.fps must be positive".into()
         })?;
+        crate::motion::check_layout(m)?;
         if let Some(null) = &self.condition.null {
             ensure(null.len() == self.condition.dim, || {
                 format!(

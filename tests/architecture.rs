@@ -1,8 +1,10 @@
 //! The crate's layering, checked on its sources (`docs/ARCHITECTURE.md`):
 //! - `src/shared/` imports only from `src/shared/`;
+//! - `src/motion/` (skeletons, joint positions, feature layouts: what every family speaks)
+//!   imports only from `src/shared/` and itself;
 //! - a family folder (`src/armflow/`, `src/umf/`, and each one added beside them) imports only
-//!   from `src/shared/` and itself: never the `Model` handle, the manifest, the C ABI, the crate
-//!   root's re-exports, or another family;
+//!   from `src/shared/`, `src/motion/` and itself: never the `Model` handle, the manifest, the C
+//!   ABI, the crate root's re-exports, or another family;
 //! - no import cycle between modules (files, with a folder's submodules counted as the folder:
 //!   `armflow/session/lanes.rs` is part of `armflow::session`).
 //!
@@ -16,7 +18,10 @@ use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
 
 /// Folders under `src/` that are layers rather than families.
-const NOT_FAMILIES: [&str; 2] = ["shared", "ffi"];
+const NOT_FAMILIES: [&str; 3] = ["shared", "motion", "ffi"];
+
+/// What each layer beneath the families may import besides itself.
+const LOWER_LAYERS: [(&str, &[&str]); 2] = [("shared", &[]), ("motion", &["shared"])];
 
 struct SourceFile {
     /// Path relative to `src/`, for messages.
@@ -278,32 +283,35 @@ fn the_parser_reads_use_trees_and_paths() {
 }
 
 #[test]
-fn the_shared_layer_imports_only_itself() {
+fn the_layers_beneath_the_families_import_only_downward() {
     let files = load();
     let mut bad = Vec::new();
-    for f in files
-        .iter()
-        .filter(|f| f.module.first().is_some_and(|m| m == "shared"))
-    {
-        for import in &f.imports {
-            if import.first().is_none_or(|m| m != "shared") {
-                bad.push(format!(
-                    "{}: crate::{}",
-                    f.path.display(),
-                    import.join("::")
-                ));
+    for (layer, below) in LOWER_LAYERS {
+        for f in files
+            .iter()
+            .filter(|f| f.module.first().is_some_and(|m| m == layer))
+        {
+            for import in &f.imports {
+                let top = import.first().map(String::as_str).unwrap_or("(crate root)");
+                if top != layer && !below.contains(&top) {
+                    bad.push(format!(
+                        "{}: crate::{}",
+                        f.path.display(),
+                        import.join("::")
+                    ));
+                }
             }
         }
     }
     assert!(
         bad.is_empty(),
-        "the shared layer reaches above itself:\n{}",
+        "a layer beneath the families reaches above itself:\n{}",
         bad.join("\n")
     );
 }
 
 #[test]
-fn a_family_imports_only_the_shared_layer_and_itself() {
+fn a_family_imports_only_the_layers_beneath_and_itself() {
     let files = load();
     let families = families();
     assert!(
@@ -317,7 +325,7 @@ fn a_family_imports_only_the_shared_layer_and_itself() {
         };
         for import in &f.imports {
             let top = import.first().map(String::as_str).unwrap_or("(crate root)");
-            if top != "shared" && top != family {
+            if top != "shared" && top != "motion" && top != family {
                 bad.push(format!(
                     "{}: crate::{}",
                     f.path.display(),

@@ -265,6 +265,41 @@ fn c_smoke_under_valgrind() {
     let [official, streaming] = clip_args();
     let text = run(&valgrind, &clip, &[&official, &streaming]);
     assert!(text.contains("ERROR SUMMARY: 0 errors"), "{text}");
+    let motion = compile(
+        "cc",
+        &["-std=c99", "-g"],
+        &[&root().join("tests/c/motion.c")],
+        &shared_link(),
+        "motion_valgrind",
+    );
+    let [interhuman, interx] = motion_args();
+    let text = run(&valgrind, &motion, &[&interhuman, &interx]);
+    assert!(text.contains("ERROR SUMMARY: 0 errors"), "{text}");
+}
+
+fn motion_args() -> [PathBuf; 2] {
+    [
+        root().join("onnx/bundles/armflow-tiny"),
+        root().join("onnx/bundles/armflow-tiny-interx"),
+    ]
+}
+
+/// Skeleton, joint positions to features and back, and streams through the header: round
+/// trips, every bad input, as C99 and as C++17.
+#[test]
+fn c_motion_as_c99_and_cpp17() {
+    let src = root().join("tests/c/motion.c");
+    let c = compile("cc", &["-std=c99"], &[&src], &shared_link(), "motion_c");
+    let [interhuman, interx] = motion_args();
+    println!("{}", run(&[], &c, &[&interhuman, &interx]));
+    let cpp = compile(
+        "c++",
+        &["-std=c++17", "-x", "c++"],
+        &[&src],
+        &shared_link(),
+        "motion_cpp",
+    );
+    run(&[], &cpp, &[&interhuman, &interx]);
 }
 
 fn clip_args() -> [PathBuf; 2] {

@@ -23,6 +23,7 @@
 pub mod boundary;
 pub mod log;
 pub mod model;
+pub mod motion;
 pub mod version;
 
 // One module per family, mirroring `src/<family>/`.

@@ -13,6 +13,14 @@ pub struct MotionSpec {
     pub frame_dim: usize,
     /// Frames per second of the motion.
     pub fps: u32,
+    /// The skeleton the features are defined on (`t2m22` when absent, the skeleton of
+    /// `interhuman262`).
+    #[serde(default = "default_skeleton")]
+    pub skeleton: String,
+}
+
+fn default_skeleton() -> String {
+    "t2m22".into()
 }
 
 /// Conditioning vector.

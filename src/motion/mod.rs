@@ -1,0 +1,34 @@
+//! Motion people have, in and out: skeletons, joint positions in a caller's world, and the
+//! feature vectors the networks speak.
+//!
+//! A layer beside [`crate::shared`]: it knows no model family, and every family may use it.
+//!
+//! - [`skeleton`]: the t2m-22 skeleton as data (names, parents, rest offsets of a neutral body);
+//! - [`world`]: how a caller measures positions (units, up axis, handedness, frame rate);
+//! - [`placement`]: InterGen's canonical frame of a clip, kept to put output back;
+//! - [`ik`]: joint rotations from positions and back;
+//! - [`features`]: the `interhuman262` layout, positions to features and features to a pose;
+//! - [`stream`]: the same one frame at a time, for sessions;
+//! - [`resample`]: frame-rate conversion at the boundary;
+//! - [`quat`]: the 3-D algebra beneath.
+
+pub mod features;
+pub mod ik;
+pub mod placement;
+pub mod quat;
+pub mod resample;
+pub mod skeleton;
+pub mod stream;
+pub mod world;
+
+pub use features::{
+    check_layout, decode_frame, encode_clip, joints_layout, EncodedClip, Pose, FEATURE_DIM,
+    INTERHUMAN262,
+};
+pub use placement::Placement;
+pub use skeleton::{Skeleton, T2M22, T2M22_JOINTS};
+pub use stream::{FeatureStream, STREAM_LATENCY_FRAMES};
+pub use world::{Handedness, JointsFormat, Units, UpAxis};
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,204 @@
+/* ABI test of the motion functions (skeleton, joint positions <-> features, streams) through
+ * include/troupe.h only. Compiled as C99 and C++17 with -Wall -Wextra -Werror -pedantic and run
+ * under valgrind (tests/c_abi.rs). Usage: motion INTERHUMAN262_BUNDLE_DIR INTERX_BUNDLE_DIR */
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "troupe.h"
+#include "check.h"
+
+#define J 22
+#define FRAMES 24
+
+/* A z-up centimetre world: canonical (x, y, z) metres -> (100 x, -100 z, 100 y). */
+static void to_world(const float c[3], float w[3]) {
+    w[0] = 100.0f * c[0];
+    w[1] = -100.0f * c[2];
+    w[2] = 100.0f * c[1];
+}
+
+/* The neutral body's rest pose walking forward 1.5 cm per frame, turned 0.3 rad, in that world. */
+static void make_clip(float *positions) {
+    int parents[J];
+    float offsets[3 * J], rest[3 * J];
+    size_t t, j;
+    troupe_motion_skeleton(parents, J, offsets, 3 * J);
+    for (j = 0; j < J; j++) {
+        int d;
+        for (d = 0; d < 3; d++)
+            rest[3 * j + d] = offsets[3 * j + d] + (parents[j] >= 0 ? rest[3 * parents[j] + d] : 0.0f);
+    }
+    for (t = 0; t < FRAMES; t++) {
+        for (j = 0; j < J; j++) {
+            float c[3], x = rest[3 * j], z = rest[3 * j + 2];
+            float s = sinf(0.3f), k = cosf(0.3f);
+            c[0] = k * x + s * z + 0.4f;
+            c[1] = rest[3 * j + 1] + 0.01f * sinf(0.5f * (float)t);
+            c[2] = -s * x + k * z + 0.015f * (float)t - 1.0f;
+            to_world(c, &positions[(t * J + j) * 3]);
+        }
+    }
+}
+
+int main(int argc, char **argv) {
+    troupe_model *model = NULL, *interx = NULL;
+    troupe_joints_format format;
+    troupe_placement placement, again;
+    troupe_pose_buffers pose;
+    troupe_motion_stream *stream = NULL;
+    float *clip, *features, *positions, *rotations, *contacts, *streamed, *row, sentinel;
+    int parents[J];
+    float offsets[3 * J];
+    size_t n = 0, dim, frames, t, i, written;
+    float worst = 0.0f;
+
+    if (argc < 3) {
+        fprintf(stderr, "usage: %s INTERHUMAN262_BUNDLE_DIR INTERX_BUNDLE_DIR\n", argv[0]);
+        return 2;
+    }
+    EXPECT(troupe_model_load_file(argv[1], &model), TROUPE_OK);
+    EXPECT(troupe_model_load_file(argv[2], &interx), TROUPE_OK);
+    if (!model || !interx) return 1;
+    dim = troupe_model_frame_dim(model);
+    CHECK(dim == 262);
+
+    /* the skeleton as data */
+    CHECK(troupe_motion_joint_count() == J && TROUPE_MOTION_JOINTS == J);
+    CHECK(strcmp(troupe_motion_joint_name(0), "pelvis") == 0);
+    CHECK(strcmp(troupe_motion_joint_name(21), "right_wrist") == 0);
+    CHECK(troupe_motion_joint_name(22) == NULL);
+    EXPECT(troupe_motion_skeleton(parents, J, offsets, 3 * J), TROUPE_OK);
+    CHECK(parents[0] == -1 && parents[4] == 1 && parents[13] == 9 && parents[21] == 19);
+    CHECK(offsets[3 * 1] > 0.0f && offsets[3 * 2] < 0.0f); /* left hip at +x */
+    EXPECT(troupe_motion_skeleton(parents, J - 1, NULL, 0), TROUPE_ERR_SHAPE);
+    EXPECT(troupe_motion_skeleton(NULL, J, NULL, 0), TROUPE_ERR_NULL_ARG);
+    EXPECT(troupe_motion_skeleton(NULL, 0, offsets, 3 * J + 1), TROUPE_ERR_SHAPE);
+
+    /* formats */
+    EXPECT(troupe_joints_format_init(&format, sizeof format), TROUPE_OK);
+    CHECK(format.units == TROUPE_UNITS_METERS && format.up_axis == TROUPE_UP_Y && format.fps == 30.0f);
+    EXPECT(troupe_joints_format_init(&format, 4), TROUPE_ERR_INVALID_ARG);
+    EXPECT(troupe_joints_format_init(NULL, sizeof format), TROUPE_ERR_NULL_ARG);
+    format.units = TROUPE_UNITS_CENTIMETERS;
+    format.up_axis = TROUPE_UP_Z;
+
+    clip = (float *)malloc(sizeof(float) * FRAMES * J * 3);
+    features = (float *)malloc(sizeof(float) * FRAMES * dim);
+    positions = (float *)malloc(sizeof(float) * FRAMES * J * 3);
+    rotations = (float *)malloc(sizeof(float) * FRAMES * J * 4);
+    contacts = (float *)malloc(sizeof(float) * FRAMES * 4);
+    streamed = (float *)malloc(sizeof(float) * FRAMES * dim);
+    if (!clip || !features || !positions || !rotations || !contacts || !streamed) return 1;
+    make_clip(clip);
+
+    /* batch: positions -> features -> positions, in the caller's world */
+    EXPECT(troupe_motion_encoded_frames(model, &format, FRAMES, &frames), TROUPE_OK);
+    CHECK(frames == FRAMES - 1);
+    EXPECT(troupe_motion_encode(model, &format, clip, FRAMES, NULL, features, FRAMES, &n, &placement), TROUPE_OK);
+    CHECK(n == FRAMES - 1);
+    CHECK(fabsf(features[0]) < 1e-5f && fabsf(features[2]) < 1e-5f); /* root xz at the origin */
+    CHECK(features[3] > features[6]);                                 /* left hip at +x */
+    memset(&pose, 0, sizeof pose);
+    pose.positions = positions;
+    pose.positions_len = n * J * 3;
+    pose.rotations = rotations;
+    pose.rotations_len = n * J * 4;
+    pose.contacts = contacts;
+    pose.contacts_len = n * 4;
+    EXPECT(troupe_motion_decode(model, &format, &placement, features, n, &pose), TROUPE_OK);
+    for (i = 0; i < n * J * 3; i++) {
+        float e = fabsf(positions[i] - clip[i]);
+        if (e > worst) worst = e;
+    }
+    CHECK(worst < 1e-3f); /* centimetres: 1e-5 m */
+    printf("positions -> features -> positions: max error %g cm\n", (double)worst);
+    /* the rest pose has no local rotation; the root is turned by the walk's heading */
+    CHECK(fabsf(rotations[4 * 4] - 1.0f) < 1e-5f);
+    CHECK(fabsf(rotations[0] - cosf(0.15f)) < 1e-4f);
+
+    /* bad input: a clear error, nothing written */
+    sentinel = features[0];
+    clip[(3 * J + 13) * 3 + 1] = NAN;
+    n = 777;
+    EXPECT(troupe_motion_encode(model, &format, clip, FRAMES, NULL, features, FRAMES, &n, NULL), TROUPE_ERR_INVALID_ARG);
+    CHECK(strstr(troupe_last_error_message(), "frame 3") != NULL);
+    CHECK(strstr(troupe_last_error_message(), "left_collar") != NULL);
+    CHECK(n == 777 && features[0] == sentinel);
+    make_clip(clip);
+    EXPECT(troupe_motion_encode(model, &format, clip, FRAMES, NULL, features, FRAMES - 2, &n, NULL), TROUPE_ERR_BUFFER_TOO_SMALL);
+    EXPECT(troupe_motion_encode(model, &format, clip, 1, NULL, features, FRAMES, &n, NULL), TROUPE_ERR_INVALID_ARG);
+    CHECK(strstr(troupe_last_error_message(), "at least 2") != NULL);
+    EXPECT(troupe_motion_encode(model, &format, clip, 0, NULL, features, FRAMES, &n, NULL), TROUPE_ERR_INVALID_ARG);
+    EXPECT(troupe_motion_encode(model, &format, NULL, FRAMES, NULL, features, FRAMES, &n, NULL), TROUPE_ERR_NULL_ARG);
+    EXPECT(troupe_motion_encode(NULL, &format, clip, FRAMES, NULL, features, FRAMES, &n, NULL), TROUPE_ERR_NULL_ARG);
+    EXPECT(troupe_motion_encode(model, &format, clip, (size_t)-1, NULL, features, FRAMES, &n, NULL), TROUPE_ERR_INVALID_ARG);
+    EXPECT(troupe_motion_encode(interx, &format, clip, FRAMES, NULL, features, FRAMES, &n, NULL), TROUPE_ERR_INVALID_ARG);
+    CHECK(strstr(troupe_last_error_message(), "interhuman262") != NULL);
+    format.units = 9;
+    EXPECT(troupe_motion_encode(model, &format, clip, FRAMES, NULL, features, FRAMES, &n, NULL), TROUPE_ERR_INVALID_ARG);
+    CHECK(strstr(troupe_last_error_message(), "units") != NULL);
+    format.units = TROUPE_UNITS_CENTIMETERS;
+    format.fps = 0.0f;
+    EXPECT(troupe_motion_encode(model, &format, clip, FRAMES, NULL, features, FRAMES, &n, NULL), TROUPE_ERR_INVALID_ARG);
+    format.fps = NAN;
+    EXPECT(troupe_motion_encoded_frames(model, &format, FRAMES, &frames), TROUPE_ERR_INVALID_ARG);
+    format.fps = 30.0f;
+    again = placement;
+    again.heading[0] = 2.0;
+    EXPECT(troupe_motion_encode(model, &format, clip, FRAMES, &again, features, FRAMES, &n, NULL), TROUPE_ERR_INVALID_ARG);
+    EXPECT(troupe_motion_decode(model, &format, &again, features, 2, &pose), TROUPE_ERR_INVALID_ARG);
+    pose.positions_len = 5;
+    EXPECT(troupe_motion_decode(model, &format, &placement, features, FRAMES - 1, &pose), TROUPE_ERR_SHAPE);
+    pose.positions_len = (FRAMES - 1) * J * 3;
+    sentinel = positions[0];
+    features[dim + 7] = INFINITY;
+    EXPECT(troupe_motion_decode(model, &format, &placement, features, FRAMES - 1, &pose), TROUPE_ERR_INVALID_ARG);
+    CHECK(strstr(troupe_last_error_message(), "frame 1") != NULL && positions[0] == sentinel);
+    EXPECT(troupe_motion_decode(model, &format, NULL, features, FRAMES - 1, &pose), TROUPE_ERR_NULL_ARG);
+    EXPECT(troupe_motion_encode(model, &format, clip, FRAMES, NULL, features, FRAMES, &n, NULL), TROUPE_OK);
+
+    /* a stream gives the batch features one frame late */
+    EXPECT(troupe_motion_stream_new(model, &format, NULL, &stream), TROUPE_OK);
+    CHECK(troupe_motion_stream_latency_frames() == 1 && troupe_motion_stream_max_frames(stream) == 1);
+    EXPECT(troupe_motion_stream_placement(stream, &again), TROUPE_ERR_INVALID_ARG);
+    written = 0;
+    for (t = 0; t < FRAMES; t++) {
+        if (t == 5) {
+            /* refused frames leave the stream as it was */
+            EXPECT(troupe_motion_stream_push(stream, clip, 65, streamed, 1, &n), TROUPE_ERR_SHAPE);
+            sentinel = clip[7];
+            clip[7] = NAN;
+            EXPECT(troupe_motion_stream_push(stream, clip, 66, streamed, 1, &n), TROUPE_ERR_INVALID_ARG);
+            CHECK(strstr(troupe_last_error_message(), "joint 2") != NULL);
+            clip[7] = sentinel;
+            EXPECT(troupe_motion_stream_push(stream, clip, 66, streamed, 0, &n), TROUPE_ERR_BUFFER_TOO_SMALL);
+        }
+        EXPECT(troupe_motion_stream_push(stream, &clip[t * J * 3], J * 3, &streamed[written * dim], 1, &n), TROUPE_OK);
+        CHECK(n == (t > 0 ? 1u : 0u));
+        written += n;
+    }
+    CHECK(written == FRAMES - 1);
+    EXPECT(troupe_motion_stream_placement(stream, &again), TROUPE_OK);
+    EXPECT(troupe_motion_encode(model, &format, clip, FRAMES, &again, features, FRAMES, &n, NULL), TROUPE_OK);
+    CHECK(memcmp(features, streamed, sizeof(float) * written * dim) == 0);
+    EXPECT(troupe_motion_stream_reset(stream, NULL), TROUPE_OK);
+    EXPECT(troupe_motion_stream_placement(stream, &again), TROUPE_ERR_INVALID_ARG);
+    row = streamed;
+    EXPECT(troupe_motion_stream_push(NULL, clip, 66, row, 1, &n), TROUPE_ERR_NULL_ARG);
+    troupe_motion_stream_free(stream);
+    EXPECT(troupe_motion_stream_new(interx, &format, NULL, &stream), TROUPE_ERR_INVALID_ARG);
+    CHECK(stream == NULL);
+    troupe_motion_stream_free(NULL);
+
+    free(clip);
+    free(features);
+    free(positions);
+    free(rotations);
+    free(contacts);
+    free(streamed);
+    troupe_model_free(model);
+    troupe_model_free(interx);
+    printf("motion: %d passed, %d failed\n", passed, failed);
+    return failed != 0;
+}
