@@ -10,10 +10,13 @@
 //! - [`features`]: the `interhuman262` layout, positions to features and features to a pose;
 //! - [`stream`]: the same one frame at a time, for sessions;
 //! - [`resample`]: frame-rate conversion at the boundary;
+//! - [`bvh`]: BVH files in and out, and [`joint_map`]: which rig joint is which t2m-22 joint;
 //! - [`quat`]: the 3-D algebra beneath.
 
+pub mod bvh;
 pub mod features;
 pub mod ik;
+pub mod joint_map;
 pub mod placement;
 pub mod quat;
 pub mod resample;
@@ -25,6 +28,7 @@ pub use features::{
     check_layout, decode_frame, encode_clip, joints_layout, EncodedClip, Pose, FEATURE_DIM,
     INTERHUMAN262,
 };
+pub use joint_map::JointMap;
 pub use placement::Placement;
 pub use skeleton::{Skeleton, T2M22, T2M22_JOINTS};
 pub use stream::{FeatureStream, STREAM_LATENCY_FRAMES};

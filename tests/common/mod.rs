@@ -128,3 +128,39 @@ pub fn run_python(args: &[&str], env: &[(&str, &str)]) -> (bool, String) {
     );
     (out.status.success(), text)
 }
+
+/// The unpacked source distribution of `requirement` (`name==version`) from PyPI, downloaded
+/// once into `target/pypi/` with pip: how tests reach motion-capture files whose licences let
+/// them be used but not committed (LAFAN1 is CC BY-NC-ND). A download failure fails the test.
+pub fn pypi_sdist(requirement: &str) -> PathBuf {
+    static LOCK: std::sync::Mutex<()> = std::sync::Mutex::new(());
+    let _guard = LOCK.lock().unwrap_or_else(|e| e.into_inner());
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let dir = root
+        .join("target/pypi")
+        .join(requirement.replace("==", "-"));
+    let unpacked = dir.join("unpacked");
+    if !unpacked.is_dir() {
+        let script = "import pathlib, subprocess, sys, tarfile\n\
+            req, dest = sys.argv[1], pathlib.Path(sys.argv[2])\n\
+            dest.mkdir(parents=True, exist_ok=True)\n\
+            subprocess.check_call([sys.executable, '-m', 'pip', 'download', '--quiet', \
+            '--disable-pip-version-check', '--no-deps', '--no-binary', ':all:', req, '-d', \
+            str(dest)])\n\
+            (tar,) = dest.glob('*.tar.gz')\n\
+            tmp = dest / 'unpacking'\n\
+            tarfile.open(tar).extractall(tmp)\n\
+            tmp.rename(dest / 'unpacked')\n";
+        let (ok, text) = run_python(&["-c", script, requirement, dir.to_str().unwrap()], &[]);
+        assert!(
+            ok,
+            "downloading {requirement} from PyPI failed (the test needs the package index):\n{text}"
+        );
+    }
+    std::fs::read_dir(&unpacked)
+        .unwrap()
+        .next()
+        .expect("an unpacked sdist")
+        .unwrap()
+        .path()
+}

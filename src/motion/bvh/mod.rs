@@ -1,0 +1,237 @@
+//! BVH (Biovision Hierarchy) files: read as motion-capture tools write them, and written for
+//! the t2m-22 skeleton.
+//!
+//! Why troupe reads BVH itself: the one Rust BVH crate (`bvh_anim`) calls itself alpha quality
+//! and has not been released since 2020, and a runtime embedded in other programs needs what it
+//! does not promise: allocation bounded by the file's size before anything is allocated, and
+//! errors that name the file, line, joint and frame.
+//!
+//! Conventions (those of the format's authors and of Blender, MotionBuilder and the CMU, LAFAN1
+//! and Mixamo files): a joint's rotation channels apply in the order listed, as intrinsic
+//! rotations (`Zrotation Xrotation Yrotation` is `Rz · Rx · Ry`), in degrees; a joint with
+//! position channels is placed at those values instead of its `OFFSET`; a joint's world
+//! transform is its parent's times its own.
+
+mod parse;
+mod write;
+
+pub use parse::{parse_bvh, read_bvh, MAX_BVH_BYTES, MAX_BVH_JOINTS};
+pub use write::{write_bvh, BvhPerson, BvhWriteOptions};
+
+use ndarray::{s, Array3};
+
+use crate::motion::joint_map::JointMap;
+use crate::motion::quat::{add, Quat, Vec3};
+use crate::motion::world::{JointsFormat, Units};
+use crate::shared::error::{Error, Result};
+
+/// One channel of a BVH joint.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Channel {
+    /// Translation along x.
+    XPosition,
+    /// Translation along y.
+    YPosition,
+    /// Translation along z.
+    ZPosition,
+    /// Rotation about x, degrees.
+    XRotation,
+    /// Rotation about y, degrees.
+    YRotation,
+    /// Rotation about z, degrees.
+    ZRotation,
+}
+
+impl Channel {
+    /// The channel's name as BVH files write it.
+    pub fn name(self) -> &'static str {
+        match self {
+            Channel::XPosition => "Xposition",
+            Channel::YPosition => "Yposition",
+            Channel::ZPosition => "Zposition",
+            Channel::XRotation => "Xrotation",
+            Channel::YRotation => "Yrotation",
+            Channel::ZRotation => "Zrotation",
+        }
+    }
+
+    fn parse(token: &str) -> Option<Channel> {
+        Some(match token.to_ascii_lowercase().as_str() {
+            "xposition" => Channel::XPosition,
+            "yposition" => Channel::YPosition,
+            "zposition" => Channel::ZPosition,
+            "xrotation" => Channel::XRotation,
+            "yrotation" => Channel::YRotation,
+            "zrotation" => Channel::ZRotation,
+            _ => return None,
+        })
+    }
+
+    /// The unit axis of a rotation channel, or `None` for a position channel.
+    fn rotation_axis(self) -> Option<Vec3> {
+        match self {
+            Channel::XRotation => Some([1.0, 0.0, 0.0]),
+            Channel::YRotation => Some([0.0, 1.0, 0.0]),
+            Channel::ZRotation => Some([0.0, 0.0, 1.0]),
+            _ => None,
+        }
+    }
+}
+
+/// A joint of a BVH hierarchy.
+#[derive(Debug, Clone, PartialEq)]
+pub struct BvhJoint {
+    /// The joint's name.
+    pub name: String,
+    /// Its parent's index (`None` for the root).
+    pub parent: Option<usize>,
+    /// Offset from the parent, in the file's units.
+    pub offset: Vec3,
+    /// Its channels, in file order.
+    pub channels: Vec<Channel>,
+    /// The offset of its `End Site`, if it has one.
+    pub end_site: Option<Vec3>,
+}
+
+/// A parsed BVH file: the hierarchy and every frame's channel values.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Bvh {
+    /// Joints in file order (parents before children).
+    pub joints: Vec<BvhJoint>,
+    /// Seconds per frame.
+    pub frame_time: f64,
+    /// Channel values, `frames × channels` in file order.
+    pub values: Vec<f32>,
+    /// Channels per frame (the sum over joints).
+    pub channels_per_frame: usize,
+}
+
+impl Bvh {
+    /// Number of frames.
+    pub fn frames(&self) -> usize {
+        self.values
+            .len()
+            .checked_div(self.channels_per_frame)
+            .unwrap_or(0)
+    }
+
+    /// Frames per second.
+    pub fn fps(&self) -> f64 {
+        1.0 / self.frame_time
+    }
+
+    /// The index of the joint called `name`.
+    pub fn joint(&self, name: &str) -> Option<usize> {
+        self.joints.iter().position(|j| j.name == name)
+    }
+
+    /// Every joint's world position in every frame (`[frames, joints, 3]`, file units and
+    /// axes), by forward kinematics.
+    pub fn positions(&self) -> Array3<f32> {
+        let (n, frames) = (self.joints.len(), self.frames());
+        let mut out = Array3::<f32>::zeros((frames, n, 3));
+        let mut world_rot = vec![Quat::IDENTITY; n];
+        let mut world_pos = vec![[0.0f64; 3]; n];
+        for t in 0..frames {
+            let row = &self.values[t * self.channels_per_frame..(t + 1) * self.channels_per_frame];
+            let mut at = 0;
+            for (j, joint) in self.joints.iter().enumerate() {
+                let (translation, rotation) = local_transform(joint, &row[at..]);
+                at += joint.channels.len();
+                let (pos, rot) = match joint.parent {
+                    Some(p) => (
+                        add(world_pos[p], world_rot[p].rotate(translation)),
+                        world_rot[p] * rotation,
+                    ),
+                    None => (translation, rotation),
+                };
+                world_pos[j] = pos;
+                world_rot[j] = rot;
+                for d in 0..3 {
+                    out[[t, j, d]] = pos[d] as f32;
+                }
+            }
+        }
+        out
+    }
+}
+
+/// A BVH clip as t2m-22 joint positions, with the format that says how to read them.
+#[derive(Debug, Clone)]
+pub struct BvhJoints {
+    /// `[frames, 22, 3]` positions in the file's units and axes.
+    pub positions: Array3<f32>,
+    /// The file's units (declared or guessed), Y up, right-handed, and its frame rate.
+    pub format: JointsFormat,
+}
+
+impl Bvh {
+    /// The t2m-22 joints of this clip: `map` says which rig joint each is (`label` names the
+    /// file in messages). `units`: the file's length unit, or `None` to guess it from the
+    /// figure's height in the first frame (above 10 units: centimetres, else metres). BVH is Y
+    /// up by convention.
+    pub fn to_t2m22(&self, map: &JointMap, units: Option<Units>, label: &str) -> Result<BvhJoints> {
+        let frames = self.frames();
+        if frames == 0 {
+            return Err(Error::InvalidInput(format!(
+                "{label}: the file has no frames"
+            )));
+        }
+        let fps = self.fps();
+        if !crate::motion::world::FPS_RANGE.contains(&(fps as f32)) {
+            return Err(Error::InvalidInput(format!(
+                "{label}: Frame Time {} s is {fps} fps, outside [1, 1000]",
+                self.frame_time
+            )));
+        }
+        let names: Vec<String> = self.joints.iter().map(|j| j.name.clone()).collect();
+        let index = map.resolve(&names, label)?;
+        let all = self.positions();
+        let mut positions = Array3::<f32>::zeros((frames, index.len(), 3));
+        for (j, &i) in index.iter().enumerate() {
+            positions
+                .slice_mut(s![.., j, ..])
+                .assign(&all.slice(s![.., i, ..]));
+        }
+        let units = units.unwrap_or_else(|| {
+            let heights = all.slice(s![0, .., 1]);
+            let (lo, hi) = heights
+                .iter()
+                .fold((f32::INFINITY, f32::NEG_INFINITY), |(a, b), &v| {
+                    (a.min(v), b.max(v))
+                });
+            if hi - lo > 10.0 {
+                Units::Centimeters
+            } else {
+                Units::Meters
+            }
+        });
+        Ok(BvhJoints {
+            positions,
+            format: JointsFormat {
+                units,
+                fps: fps as f32,
+                ..JointsFormat::default()
+            },
+        })
+    }
+}
+
+/// A joint's translation and rotation relative to its parent from its channel values.
+fn local_transform(joint: &BvhJoint, values: &[f32]) -> (Vec3, Quat) {
+    let mut translation = joint.offset;
+    let mut rotation = Quat::IDENTITY;
+    for (c, v) in joint.channels.iter().zip(values) {
+        let v = f64::from(*v);
+        match c {
+            Channel::XPosition => translation[0] = v,
+            Channel::YPosition => translation[1] = v,
+            Channel::ZPosition => translation[2] = v,
+            _ => {
+                let axis = c.rotation_axis().expect("rotation channel");
+                rotation = rotation * Quat::from_axis_angle(axis, v.to_radians());
+            }
+        }
+    }
+    (translation, rotation)
+}
