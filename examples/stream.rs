@@ -1,44 +1,82 @@
 //! The streaming demo: feed an actor's motion to troupe as a game engine would, tick by tick,
-//! write the reactor's motion to `.npy`, and report per-step latency and the real-time factor.
+//! get the reactor's motion back, write it to `.npy` with a picture beside it (an HTML player and
+//! a GIF of actor and reactor), and report per-step latency and the real-time factor.
+//!
+//! By default the actor is 8 s of real motion capture (a CMU subject, `tests/data/mocap/`) given
+//! as joint positions, and the reactor comes back as joint positions in the same world.
 //!
 //! ```text
 //! cargo run --release --example stream -- [options]
 //!   --bundle DIR        model bundle (default: onnx/bundles/armflow-tiny)
-//!   --actor FILE.npy    actor motion, float32 [T, frame_dim] (default: a synthetic actor)
-//!   --frames N          length of the synthetic actor (default: 600 = 20 s at 30 fps)
-//!   --tick N            actor frames per step() call (default: 1, i.e. every frame)
-//!   --out FILE.npy      where to write the reactor motion (default: reactor.npy)
+//!   --joints FILE       actor joint positions: a .bvh file, or .npy float32 [T, 22, 3] (t2m-22)
+//!                       (default: tests/data/mocap/cmu-playground-120fps.npy, metres, z up, 120 fps)
+//!   --units m|cm|mm|in --up y|z --fps N     how a .npy's positions are measured
+//!   --actor FILE.npy    actor *features* instead, float32 [T, frame_dim]
+//!   --synthetic         a synthetic actor in feature space (for timing at any --frames)
+//!   --frames N          at most N actor frames (synthetic: exactly N; default 600)
+//!   --tick N            actor frames per step call (default: 1, i.e. every frame)
+//!   --out FILE.npy      the reactor's motion: joint positions [T, 22, 3] in the actor's world
+//!                       (features [T, frame_dim] for --actor/--synthetic); FILE.html and
+//!                       FILE.gif beside it (default: reactor.npy)
+//!   --no-pictures       skip the HTML player and GIF
 //!   --seed S --steps K --cfg X --capacity C     session options
 //!   --warmup-tokens H   tokens streamed before timing starts (to time at a given history)
 //!   --vae-windows       run the VAE over windows even when the bundle has per-token steps
 //! ```
 
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use ndarray::{s, Array2};
+use ndarray::{s, Array2, Array3, ArrayView3, Axis};
 use ndarray_npy::{read_npy, write_npy};
+use troupe::motion::bvh::read_bvh;
+use troupe::motion::resample::Resampler;
+use troupe::motion::{
+    decode_frame, JointMap, JointsFormat, Placement, Pose, Units, UpAxis, T2M22_JOINTS,
+};
+use troupe::viewer::{GifOptions, Scene};
 use troupe::{Model, SessionOptions};
 
 mod common;
 use common::{percentile, synthetic_actor};
 
+/// Where the actor comes from.
+enum Source {
+    Joints(PathBuf),
+    Features(PathBuf),
+    Synthetic,
+}
+
 struct Args {
     bundle: String,
-    actor: Option<String>,
-    frames: usize,
+    source: Source,
+    units: Option<Units>,
+    up: Option<UpAxis>,
+    fps: Option<f32>,
+    frames: Option<usize>,
     tick: usize,
-    out: String,
+    out: PathBuf,
+    pictures: bool,
     options: SessionOptions,
     warmup_tokens: u64,
 }
 
+const DEFAULT_CLIP: &str = concat!(
+    env!("CARGO_MANIFEST_DIR"),
+    "/tests/data/mocap/cmu-playground-120fps.npy"
+);
+
 fn parse_args() -> Result<Args, String> {
     let mut a = Args {
         bundle: concat!(env!("CARGO_MANIFEST_DIR"), "/onnx/bundles/armflow-tiny").into(),
-        actor: None,
-        frames: 600,
+        source: Source::Joints(DEFAULT_CLIP.into()),
+        units: None,
+        up: None,
+        fps: None,
+        frames: None,
         tick: 1,
         out: "reactor.npy".into(),
+        pictures: true,
         options: SessionOptions::default(),
         warmup_tokens: 0,
     };
@@ -48,10 +86,30 @@ fn parse_args() -> Result<Args, String> {
         let num = |v: String| v.parse::<f64>().map_err(|e| format!("{flag}: {e}"));
         match flag.as_str() {
             "--bundle" => a.bundle = value()?,
-            "--actor" => a.actor = Some(value()?),
-            "--frames" => a.frames = num(value()?)? as usize,
+            "--joints" => a.source = Source::Joints(value()?.into()),
+            "--actor" => a.source = Source::Features(value()?.into()),
+            "--synthetic" => a.source = Source::Synthetic,
+            "--units" => {
+                a.units = Some(match value()?.as_str() {
+                    "m" => Units::Meters,
+                    "cm" => Units::Centimeters,
+                    "mm" => Units::Millimeters,
+                    "in" => Units::Inches,
+                    other => return Err(format!("--units {other}: m, cm, mm or in")),
+                })
+            }
+            "--up" => {
+                a.up = Some(match value()?.as_str() {
+                    "y" => UpAxis::Y,
+                    "z" => UpAxis::Z,
+                    other => return Err(format!("--up {other}: y or z")),
+                })
+            }
+            "--fps" => a.fps = Some(num(value()?)? as f32),
+            "--frames" => a.frames = Some(num(value()?)? as usize),
             "--tick" => a.tick = (num(value()?)? as usize).max(1),
-            "--out" => a.out = value()?,
+            "--out" => a.out = value()?.into(),
+            "--no-pictures" => a.pictures = false,
             "--seed" => a.options.seed = num(value()?)? as u64,
             "--steps" => a.options.steps = Some(num(value()?)? as u32),
             "--cfg" => a.options.cfg_scale = Some(num(value()?)? as f32),
@@ -68,65 +126,213 @@ fn parse_args() -> Result<Args, String> {
     Ok(a)
 }
 
+/// The actor's joint positions `[T, 22, 3]` and how they are measured.
+fn load_joints(path: &Path, a: &Args) -> Result<(Array3<f32>, JointsFormat), troupe::Error> {
+    let (positions, mut format) = if path.extension().is_some_and(|e| e == "bvh") {
+        let label = path.display().to_string();
+        let joints = read_bvh(path)?.to_t2m22(&JointMap::builtin(), a.units, &label)?;
+        (joints.positions, joints.format)
+    } else {
+        let positions: Array3<f32> = read_npy(path)
+            .map_err(|e| troupe::Error::InvalidInput(format!("{}: {e}", path.display())))?;
+        // The default clip is CMU's: metres, z up, 120 fps.
+        let default_clip = path == Path::new(DEFAULT_CLIP);
+        let format = JointsFormat {
+            units: a.units.unwrap_or(Units::Meters),
+            up: a
+                .up
+                .unwrap_or(if default_clip { UpAxis::Z } else { UpAxis::Y }),
+            fps: a.fps.unwrap_or(if default_clip { 120.0 } else { 30.0 }),
+            ..JointsFormat::default()
+        };
+        (positions, format)
+    };
+    if let Some(up) = a.up {
+        format.up = up;
+    }
+    Ok((positions, format))
+}
+
+/// Positions of poses `[T, 22, 3]`.
+fn pose_positions(poses: &[Pose]) -> Array3<f32> {
+    Array3::from_shape_fn((poses.len(), T2M22_JOINTS, 3), |(t, j, d)| {
+        poses[t].positions[j][d]
+    })
+}
+
+/// `clip` at `fps` frames per second (for the picture, which plays both people at one rate).
+fn resampled(clip: ArrayView3<f32>, from: f32, to: f32) -> Array3<f32> {
+    let mut resampler = Resampler::new(from, to);
+    let mut out = Vec::new();
+    for frame in clip.outer_iter() {
+        let f = frame
+            .outer_iter()
+            .map(|p| [f64::from(p[0]), f64::from(p[1]), f64::from(p[2])])
+            .collect();
+        resampler.push(f, &mut out);
+    }
+    Array3::from_shape_fn((out.len(), T2M22_JOINTS, 3), |(t, j, d)| {
+        out[t][j][d] as f32
+    })
+}
+
+struct Timing {
+    all_calls: Vec<f64>,
+    token_calls: Vec<f64>,
+    timed_ms: f64,
+    timed_frames: usize,
+}
+
+impl Timing {
+    fn record(&mut self, ms: f64, frames_in: usize, produced: bool) {
+        self.timed_ms += ms;
+        self.timed_frames += frames_in;
+        self.all_calls.push(ms);
+        if produced {
+            self.token_calls.push(ms);
+        }
+    }
+}
+
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args = parse_args()?;
     let t0 = Instant::now();
     let model = Model::load(&args.bundle)?;
     let mut session = model.session(args.options.clone())?;
     let load_ms = t0.elapsed().as_secs_f64() * 1e3;
-    let actor: Array2<f32> = match &args.actor {
-        Some(path) => read_npy(path)?,
-        None => synthetic_actor(args.frames, model.frame_dim()),
-    };
     println!(
-        "bundle {} ({}): {} features at {} fps, {} frames per token, latency {} frames; loaded in {load_ms:.0} ms",
+        "bundle {} ({}): {} features at {} fps, {} frames per token, latency {} frames ({} from joint positions); loaded in {load_ms:.0} ms",
         args.bundle,
         model.manifest().name,
         model.frame_dim(),
         model.fps(),
         model.frames_per_token(),
-        model.latency_frames()
+        model.latency_frames(),
+        model.joints_latency_frames(),
     );
+    let mut timing = Timing {
+        all_calls: Vec::new(),
+        token_calls: Vec::new(),
+        timed_ms: 0.0,
+        timed_frames: 0,
+    };
+    let html = args.out.with_extension("html");
+    let gif = args.out.with_extension("gif");
+    let scene_title = format!("troupe: {} reacting", model.manifest().name);
 
-    let mut reactor = Vec::with_capacity(actor.len());
-    let (mut all_calls, mut token_calls) = (Vec::new(), Vec::new());
-    let mut timed = 0.0f64;
-    let mut start = 0;
-    while start < actor.nrows() {
-        let end = (start + args.tick).min(actor.nrows());
-        let warm = session.tokens_generated() >= args.warmup_tokens;
-        let t = Instant::now();
-        let out = session.step(actor.slice(s![start..end, ..]))?;
-        let ms = t.elapsed().as_secs_f64() * 1e3;
-        if warm {
-            timed += ms;
-            all_calls.push(ms);
-            if out.nrows() > 0 {
-                token_calls.push(ms);
+    let (input_frames, input_fps, scene) = match &args.source {
+        Source::Joints(path) => {
+            let (all, format) = load_joints(path, &args)?;
+            let n = args.frames.unwrap_or(all.shape()[0]).min(all.shape()[0]);
+            let actor = all.slice(s![..n, .., ..]);
+            session.set_joints_format(format)?;
+            let mut reactor: Vec<Pose> = Vec::new();
+            for chunk in actor.axis_chunks_iter(Axis(0), args.tick) {
+                let warm = session.tokens_generated() >= args.warmup_tokens;
+                let t = Instant::now();
+                let poses = session.step_joints(chunk)?;
+                let ms = t.elapsed().as_secs_f64() * 1e3;
+                if warm {
+                    timing.record(ms, chunk.shape()[0], !poses.is_empty());
+                }
+                reactor.extend(poses);
             }
+            let reactor = pose_positions(&reactor);
+            write_npy(&args.out, &reactor)?;
+            println!(
+                "{} actor frames of joint positions ({}, {:?}, {:?} up, {} fps) -> {} reactor poses at {} fps -> {}",
+                n,
+                path.display(),
+                format.units,
+                format.up,
+                format.fps,
+                reactor.shape()[0],
+                model.fps(),
+                args.out.display()
+            );
+            let scene = if args.pictures && reactor.shape()[0] > 0 {
+                let fps = model.fps() as f32;
+                let view = JointsFormat { fps, ..format };
+                let actor = resampled(actor, format.fps, fps);
+                Some(Scene::from_world(
+                    scene_title,
+                    &view,
+                    &[("actor", actor.view()), ("reactor", reactor.view())],
+                )?)
+            } else {
+                None
+            };
+            (n, format.fps, scene)
         }
-        reactor.extend(out.iter().copied());
-        start = end;
+        Source::Features(_) | Source::Synthetic => {
+            let actor: Array2<f32> = match &args.source {
+                Source::Features(path) => read_npy(path)?,
+                _ => synthetic_actor(args.frames.unwrap_or(600), model.frame_dim()),
+            };
+            let n = args.frames.unwrap_or(actor.nrows()).min(actor.nrows());
+            let mut reactor = Vec::with_capacity(n * model.frame_dim());
+            for chunk in actor
+                .slice(s![..n, ..])
+                .axis_chunks_iter(Axis(0), args.tick)
+            {
+                let warm = session.tokens_generated() >= args.warmup_tokens;
+                let t = Instant::now();
+                let out = session.step(chunk)?;
+                let ms = t.elapsed().as_secs_f64() * 1e3;
+                if warm {
+                    timing.record(ms, chunk.nrows(), out.nrows() > 0);
+                }
+                reactor.extend(out.iter().copied());
+            }
+            let rows = reactor.len() / model.frame_dim();
+            let reactor = Array2::from_shape_vec((rows, model.frame_dim()), reactor)?;
+            write_npy(&args.out, &reactor)?;
+            println!(
+                "{n} actor feature frames -> {rows} reactor frames -> {}",
+                args.out.display()
+            );
+            // Features are already in the canonical frame: show them there.
+            let placement = Placement::identity(JointsFormat::default());
+            let decode = |frames: ndarray::ArrayView2<f32>| -> Result<Array3<f32>, troupe::Error> {
+                let poses = frames
+                    .outer_iter()
+                    .map(|r| decode_frame(r, &placement))
+                    .collect::<Result<Vec<_>, _>>()?;
+                Ok(pose_positions(&poses))
+            };
+            let scene = if args.pictures
+                && rows > 0
+                && troupe::motion::joints_layout(&model.manifest().motion).is_ok()
+            {
+                let mut scene = Scene::new(model.fps() as f32, scene_title)?;
+                scene.add_person("actor", decode(actor.slice(s![..n, ..]))?.view())?;
+                scene.add_person("reactor", decode(reactor.view())?.view())?;
+                Some(scene)
+            } else {
+                None
+            };
+            (n, model.fps() as f32, scene)
+        }
+    };
+    if let Some(scene) = scene {
+        scene.write_pictures(Some(&html), Some(&gif), &GifOptions::default())?;
+        println!(
+            "pictures: {} (open it in a browser: play, pause, scrub, drag to orbit) and {}",
+            html.display(),
+            gif.display()
+        );
     }
-    let n = reactor.len() / model.frame_dim();
-    write_npy(
-        &args.out,
-        &Array2::from_shape_vec((n, model.frame_dim()), reactor)?,
-    )?;
 
-    for v in [&mut all_calls, &mut token_calls] {
+    for v in [&mut timing.all_calls, &mut timing.token_calls] {
         v.sort_by(f64::total_cmp);
     }
-    let timed_frames = all_calls.len() as f64 * args.tick as f64;
     println!(
-        "streamed {} actor frames in ticks of {}, wrote {n} reactor frames to {}",
-        actor.nrows(),
-        args.tick,
-        args.out
+        "streamed {input_frames} actor frames in ticks of {}",
+        args.tick
     );
     for (what, v) in [
-        ("every call", &all_calls),
-        ("calls that produced a token", &token_calls),
+        ("every call", &timing.all_calls),
+        ("calls that produced a token", &timing.token_calls),
     ] {
         println!(
             "step latency, {what} ({} calls): p50 {:.3} ms  p99 {:.3} ms  max {:.3} ms",
@@ -136,11 +342,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             v.last().copied().unwrap_or(f64::NAN)
         );
     }
-    let motion_ms = timed_frames / f64::from(model.fps()) * 1e3;
+    let motion_ms = timing.timed_frames as f64 / f64::from(input_fps) * 1e3;
     println!(
-        "real-time factor {:.1}x ({:.0} ms of motion computed in {timed:.0} ms; context holds {} tokens)",
-        motion_ms / timed,
+        "real-time factor {:.1}x ({:.0} ms of motion computed in {:.0} ms; context holds {} tokens)",
+        motion_ms / timing.timed_ms,
         motion_ms,
+        timing.timed_ms,
         session.context_len()
     );
     Ok(())

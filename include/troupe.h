@@ -114,6 +114,11 @@
 #define TROUPE_MOTION_JOINTS 22
 
 /*
+ Let `troupe_bvh_read` guess a file's units from the figure's height.
+ */
+#define TROUPE_UNITS_AUTO 4294967295
+
+/*
  ABI version of this library. Bumped on every incompatible change of the C ABI; bindings
  check `troupe_abi_version() == TROUPE_ABI_VERSION` when they load the library.
  */
@@ -148,6 +153,12 @@
  A rotation as a unit quaternion `w + xi + yj + zk`.
  */
 typedef struct Quat Quat;
+
+/*
+ A BVH take read as t2m-22 joint positions. Immutable: any thread may query it. Free with
+ `troupe_bvh_free`.
+ */
+typedef struct troupe_bvh troupe_bvh;
 
 /*
  A loaded bundle. Immutable and thread-safe: every function taking a `const troupe_model*`
@@ -751,6 +762,100 @@ troupe_status troupe_motion_stream_reset(struct troupe_motion_stream *stream, co
 void troupe_motion_stream_free(struct troupe_motion_stream *stream);
 
 /*
+ Reads the BVH file at `path` (UTF-8) as t2m-22 joint positions. `joint_map_json`: a joint
+ map (JSON, see the built-in `src/motion/rigs/t2m22-joint-names.json`) or NULL for the
+ built-in one (LAFAN1, Mixamo, CMU, HumanIK and SMPL names). `units`: the file's length unit
+ (`TROUPE_UNITS_*`), or `TROUPE_UNITS_AUTO` to guess from the figure's height. `*out` is set
+ to NULL on entry and to the take on success.
+
+ Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_IO` (unreadable file),
+ `TROUPE_ERR_INVALID_ARG` (malformed file, naming line, joint and frame; a rig lacking a
+ t2m-22 joint, naming it and the names tried; a bad map or units), `TROUPE_ERR_PANIC`.
+ Thread-safe.
+
+ # Safety
+ `path` and a non-NULL `joint_map_json` NUL-terminated; `out` writable.
+ */
+troupe_status troupe_bvh_read(const char *path, const char *joint_map_json, uint32_t units, struct troupe_bvh **out);
+
+/*
+ Frames of a take; 0 for NULL. Thread-safe.
+ */
+size_t troupe_bvh_frames(const struct troupe_bvh *bvh);
+
+/*
+ Writes how to read the take's positions (its units, Y up, right-handed, its frame rate) into
+ `*format` (`format_size` = `sizeof(troupe_joints_format)`): pass it to the conversion
+ functions with the positions.
+
+ Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (a size smaller than
+ the first version's). Thread-safe.
+
+ # Safety
+ `format` writable for `format_size` bytes.
+ */
+troupe_status troupe_bvh_format(const struct troupe_bvh *bvh, struct troupe_joints_format *format, size_t format_size);
+
+/*
+ Copies the take's t2m-22 joint positions, float32 `[frames][22][3]` in the file's units and
+ axes, into `positions` (`positions_len` = frames × 66).
+
+ Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_SHAPE` (another length).
+ Thread-safe.
+
+ # Safety
+ `positions` writable for `positions_len` floats.
+ */
+troupe_status troupe_bvh_positions(const struct troupe_bvh *bvh, float *positions, size_t positions_len);
+
+/*
+ Frees a take. NULL is a no-op.
+
+ # Safety
+ `bvh` NULL or a live handle from `troupe_bvh_read`, not used afterwards.
+ */
+void troupe_bvh_free(struct troupe_bvh *bvh);
+
+/*
+ Writes a BVH file at `path` (UTF-8; atomically: nothing is left on error) holding `n_people`
+ people on the t2m-22 skeleton: `positions` is float32 `[n_people][n_frames][22][3]` in the
+ caller's world as `format` says (its `fps` becomes the file's rate), `names` their names (NULL
+ for "person1", "person2", ...; prefixed to joint names when there are several people, who then
+ share a root joint called `scene`; at most 64 people). Rotations come from inverse kinematics; each person's bone
+ lengths are measured from their motion when `fit_skeleton` is non-zero (the file then
+ reproduces the positions), else troupe's neutral body is used. `units`: the file's length unit
+ (`TROUPE_UNITS_*`; centimetres are what most tools expect). The file is Y up.
+
+ Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (NaN or infinite
+ positions, no people or frames, a bad format, units or name), `TROUPE_ERR_IO`,
+ `TROUPE_ERR_PANIC`. Thread-safe.
+
+ # Safety
+ `path` NUL-terminated; `positions` readable for `n_people * n_frames * 66` floats; `format`
+ readable; a non-NULL `names` readable for `n_people` NUL-terminated strings.
+ */
+troupe_status troupe_bvh_write(const char *path, const float *positions, size_t n_people, size_t n_frames, const struct troupe_joints_format *format, const char *const *names, uint32_t units, uint32_t fit_skeleton);
+
+/*
+ Writes people's poses as a JSON document at `path` (UTF-8; atomically: nothing is left on
+ error): per person and frame, the 22 joint positions and rotations (unit quaternions
+ `[w, x, y, z]`: joint 0 the root's world orientation, the others local to their parent, from
+ inverse kinematics) and the 4 foot contacts, with the skeleton (joint names and parents),
+ units, up axis, handedness and frame rate stated in the document. `positions` is float32
+ `[n_people][n_frames][22][3]` in the caller's world as `format` says, which the document
+ keeps; `names` as for `troupe_bvh_write` (NULL: "person 1", ...; at most 64 people).
+
+ Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (NaN or infinite
+ positions, naming person, frame and joint; no people or frames; a bad format or name),
+ `TROUPE_ERR_IO`, `TROUPE_ERR_PANIC`. Thread-safe.
+
+ # Safety
+ `path` NUL-terminated; `positions` readable for `n_people * n_frames * 66` floats; `format`
+ readable; a non-NULL `names` readable for `n_people` pointers, each NULL or NUL-terminated.
+ */
+troupe_status troupe_motion_write_json(const char *path, const float *positions, size_t n_people, size_t n_frames, const struct troupe_joints_format *format, const char *const *names);
+
+/*
  The library version, e.g. `"0.1.0"`.
 
  Returns a static NUL-terminated string (never free it). Thread-safe.
@@ -796,6 +901,34 @@ const char *troupe_last_error_message(void);
  `buf` must be writable for `capacity` bytes; `needed` must be writable.
  */
 troupe_status troupe_last_error_copy(char *buf, size_t capacity, size_t *needed);
+
+/*
+ Writes pictures of `n_people` people moving on the t2m-22 skeleton: a self-contained HTML
+ player (no network; drag to orbit, wheel to zoom, play/pause, frame slider, speed) to
+ `html_path`, and an animated GIF (480 × 360, at most 15 frames per second, from the
+ player's starting view) to `gif_path`. Either path may be NULL, not both.
+
+ `positions` holds float32 `[n_people][n_frames][22][3]` joint positions measured as `format`
+ says (units, up axis, handedness; its `fps` is the playback rate). `names` holds `n_people`
+ UTF-8 names for the legend (at most 64 characters each); NULL names them "person 1",
+ "person 2", ..., as does a NULL entry. `title` is a UTF-8 title (at most 200 characters) or
+ NULL for none. People are coloured blue (#1f77b4), orange (#ff7f0e), green, red, purple,
+ brown, pink, cyan, in order.
+
+ Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG` (`positions` or `format` NULL, or both paths
+ NULL), `TROUPE_ERR_INVALID_ARG` (`n_people` not in 1..=8; `n_frames` not in 1..=18000; a
+ non-finite position or one farther than 10 km, naming the person, frame and joint; a bad
+ format; a path, name or title not UTF-8 or too long), `TROUPE_ERR_IO` (a file that cannot be
+ written, e.g. its directory is missing), `TROUPE_ERR_PANIC`. Nothing is written on error:
+ both files are rendered and written to temporary files beside them first, then renamed into
+ place. Thread-safe.
+
+ # Safety
+ `positions` readable for `n_people * n_frames * 66` floats; `format` readable for its
+ `struct_size` bytes; a non-NULL `names` readable for `n_people` pointers, each NULL or
+ NUL-terminated; non-NULL `html_path`, `gif_path` and `title` NUL-terminated.
+ */
+troupe_status troupe_viewer_write(const char *html_path, const char *gif_path, const float *positions, size_t n_people, size_t n_frames, const struct troupe_joints_format *format, const char *const *names, const char *title);
 
 /*
  Tokens of the official clip of an `armflow` bundle exported from the official layout (75
@@ -861,6 +994,74 @@ troupe_status troupe_clip_generate(const struct troupe_model *model, const float
  `condition` writable for `condition_capacity` floats and not overlapping `clip_tokens`.
  */
 troupe_status troupe_text_encode(const struct troupe_model *model, const float *clip_tokens, size_t n_tokens, size_t eot_index, float *condition, size_t condition_capacity);
+
+/*
+ Sets how `troupe_session_step_joints` reads actor positions (units, up axis, handedness,
+ frame rate; resampled to the bundle's rate) and forgets the joint stream's frames and
+ placement. Without it, positions are metres, Y up, right-handed, at the bundle's rate.
+
+ Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (a bad format, or a
+ bundle whose features are not `interhuman262`; the session is then unchanged),
+ `TROUPE_ERR_POISONED`, `TROUPE_ERR_PANIC`. One thread at a time per session.
+
+ # Safety
+ `session` a live handle; `format` readable for its `struct_size` bytes.
+ */
+troupe_status troupe_session_set_joints_format(struct troupe_session *session, const struct troupe_joints_format *format);
+
+/*
+ Feeds `n_frames` actor frames of joint positions (`actor`: float32 `[n_frames][22][3]`,
+ measured as `troupe_session_set_joints_format` said; may be NULL when `n_frames` is 0) and
+ writes the reactor poses that became ready, in the caller's world, into the buffers of
+ `*out` (each non-NULL buffer must hold `out_capacity_frames` frames of its part), their count
+ into `*n_written`. `troupe_session_joints_ready_after` gives the exact count. The joint
+ stream adds one frame of latency (`troupe_model_joints_latency_frames`).
+
+ On any error nothing is written and the session is exactly as before the call, except after
+ `TROUPE_ERR_PANIC`, which poisons it.
+
+ Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_SHAPE` (a buffer smaller than its
+ capacity says), `TROUPE_ERR_INVALID_ARG` (a NaN or infinite position, naming frame and
+ joint; a bundle whose features are not `interhuman262`), `TROUPE_ERR_BUFFER_TOO_SMALL`,
+ `TROUPE_ERR_INFERENCE`, `TROUPE_ERR_POISONED`, `TROUPE_ERR_PANIC`. One thread at a time per
+ session.
+
+ # Safety
+ `session` a live handle; `actor` readable for `n_frames * 66` floats; `out` readable and its
+ buffers writable for their lengths, overlapping nothing else; `n_written` writable.
+ */
+troupe_status troupe_session_step_joints(struct troupe_session *session, const float *actor, size_t n_frames, const struct troupe_pose_buffers *out, size_t out_capacity_frames, size_t *n_written);
+
+/*
+ Writes to `*n_out` how many reactor poses `troupe_session_step_joints` returns for the next
+ `n_frames` actor joint frames.
+
+ Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (a bundle whose
+ features are not `interhuman262`), `TROUPE_ERR_POISONED`, `TROUPE_ERR_PANIC`. One thread at
+ a time per session.
+
+ # Safety
+ `session` a live handle; `n_out` writable.
+ */
+troupe_status troupe_session_joints_ready_after(struct troupe_session *session, size_t n_frames, size_t *n_out);
+
+/*
+ Writes the joint stream's placement (fixed by the first actor joint frame: where the
+ reactor's poses are put) to `*out`.
+
+ Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (no joint frame yet),
+ `TROUPE_ERR_POISONED`, `TROUPE_ERR_PANIC`. One thread at a time per session.
+
+ # Safety
+ `session` a live handle; `out` writable.
+ */
+troupe_status troupe_session_joints_placement(struct troupe_session *session, struct troupe_placement *out);
+
+/*
+ Latency in frames when the actor streams joint positions: `troupe_model_latency_frames` plus
+ the one frame velocities and contacts wait for; 0 for NULL or a `umf` model. Thread-safe.
+ */
+size_t troupe_model_joints_latency_frames(const struct troupe_model *model);
 
 /*
  `sizeof(troupe_session_options)` in this library, for bindings to check their mirror.

@@ -35,13 +35,14 @@ mod model;
 pub mod motion;
 pub(crate) mod shared;
 pub mod umf;
+pub mod viewer;
 
 // `clip`, `noise`, `solver` and `pyramid` keep the public paths they had before the family
 // folders (`troupe::noise::fill_normals`, ...).
 pub use armflow::clip;
 pub use armflow::{
-    meanflow_grid, step_sessions, Clip, ClipNoise, ClipOptions, Session, SessionOptions,
-    StepOutput, TokenNoise, TokenTrace,
+    meanflow_grid, step_sessions, step_sessions_joints, Clip, ClipNoise, ClipOptions, Session,
+    SessionOptions, StepOutput, TokenNoise, TokenTrace,
 };
 pub use manifest::{ActorLatent, Manifest};
 pub use model::Model;

@@ -129,10 +129,19 @@ impl Model {
     /// reactor's frame `t` is returned, at worst. For a streaming VAE this is
     /// `frames_per_token - 1`: the first frame of a token waits for the token's last frame.
     /// 0 for a `umf` model, which does not stream.
+    ///
+    /// Actor *joint positions* add [`crate::motion::STREAM_LATENCY_FRAMES`] (one frame, for the
+    /// velocities): see [`Model::joints_latency_frames`].
     pub fn latency_frames(&self) -> usize {
+        self.armflow_spec().map_or(0, ArmFlowSpec::latency_frames)
+    }
+
+    /// Latency in frames when the actor streams joint positions ([`Session::step_joints`]):
+    /// [`Model::latency_frames`] plus the frame that velocities and contacts wait for. 0 for a
+    /// `umf` model.
+    pub fn joints_latency_frames(&self) -> usize {
         self.armflow_spec().map_or(0, |a| {
-            let fpt = a.latent.frames_per_token;
-            fpt - 1 + a.vae.encoder.lookahead_frames + fpt * a.vae.decoder.lookahead_tokens
+            a.latency_frames() + crate::motion::STREAM_LATENCY_FRAMES
         })
     }
 

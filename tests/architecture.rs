@@ -2,6 +2,8 @@
 //! - `src/shared/` imports only from `src/shared/`;
 //! - `src/motion/` (skeletons, joint positions, feature layouts: what every family speaks)
 //!   imports only from `src/shared/` and itself;
+//! - `src/viewer/` (pictures of motion: the HTML player, the GIF) imports only from
+//!   `src/shared/`, `src/motion/` and itself;
 //! - a family folder (`src/armflow/`, `src/umf/`, and each one added beside them) imports only
 //!   from `src/shared/`, `src/motion/` and itself: never the `Model` handle, the manifest, the C
 //!   ABI, the crate root's re-exports, or another family;
@@ -18,10 +20,14 @@ use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
 
 /// Folders under `src/` that are layers rather than families.
-const NOT_FAMILIES: [&str; 3] = ["shared", "motion", "ffi"];
+const NOT_FAMILIES: [&str; 4] = ["shared", "motion", "ffi", "viewer"];
 
 /// What each layer beneath the families may import besides itself.
-const LOWER_LAYERS: [(&str, &[&str]); 2] = [("shared", &[]), ("motion", &["shared"])];
+const LOWER_LAYERS: [(&str, &[&str]); 3] = [
+    ("shared", &[]),
+    ("motion", &["shared"]),
+    ("viewer", &["shared", "motion"]),
+];
 
 struct SourceFile {
     /// Path relative to `src/`, for messages.

@@ -198,7 +198,7 @@ fn cpp_wrapper_without_exceptions() {
         "wrapper_cpp",
     );
     let [umf, armflow] = group_args();
-    println!("{}", run(&[], &bin, &[&armflow, &umf]));
+    println!("{}", run(&[], &bin, &[&armflow, &umf, scratch()]));
 }
 
 #[test]
@@ -211,7 +211,7 @@ fn cpp_wrapper_with_its_exception_helpers() {
         "wrapper_cpp_exceptions",
     );
     let [umf, armflow] = group_args();
-    run(&[], &bin, &[&armflow, &umf]);
+    run(&[], &bin, &[&armflow, &umf, scratch()]);
 }
 
 /// No leak and no invalid access in the C smoke and group tests. valgrind is on the CI machine; where it
@@ -272,15 +272,16 @@ fn c_smoke_under_valgrind() {
         &shared_link(),
         "motion_valgrind",
     );
-    let [interhuman, interx] = motion_args();
-    let text = run(&valgrind, &motion, &[&interhuman, &interx]);
+    let [interhuman, interx, dir] = motion_args();
+    let text = run(&valgrind, &motion, &[&interhuman, &interx, &dir]);
     assert!(text.contains("ERROR SUMMARY: 0 errors"), "{text}");
 }
 
-fn motion_args() -> [PathBuf; 2] {
+fn motion_args() -> [PathBuf; 3] {
     [
         root().join("onnx/bundles/armflow-tiny"),
         root().join("onnx/bundles/armflow-tiny-interx"),
+        scratch().to_path_buf(),
     ]
 }
 
@@ -290,8 +291,8 @@ fn motion_args() -> [PathBuf; 2] {
 fn c_motion_as_c99_and_cpp17() {
     let src = root().join("tests/c/motion.c");
     let c = compile("cc", &["-std=c99"], &[&src], &shared_link(), "motion_c");
-    let [interhuman, interx] = motion_args();
-    println!("{}", run(&[], &c, &[&interhuman, &interx]));
+    let [interhuman, interx, dir] = motion_args();
+    println!("{}", run(&[], &c, &[&interhuman, &interx, &dir]));
     let cpp = compile(
         "c++",
         &["-std=c++17", "-x", "c++"],
@@ -299,7 +300,7 @@ fn c_motion_as_c99_and_cpp17() {
         &shared_link(),
         "motion_cpp",
     );
-    run(&[], &cpp, &[&interhuman, &interx]);
+    run(&[], &cpp, &[&interhuman, &interx, &dir]);
 }
 
 fn clip_args() -> [PathBuf; 2] {
@@ -365,8 +366,9 @@ fn c_streaming_demo_runs() {
     let npy = scratch().join("reactor_c.npy");
     let out = Command::new(&bin)
         .arg(root().join("onnx/bundles/armflow-tiny"))
-        .args(["40", "3"])
+        .args(["200", "3"])
         .arg(&npy)
+        .arg(root().join("tests/data/mocap/cmu-playground-120fps.npy"))
         .output()
         .unwrap();
     let text = String::from_utf8_lossy(&out.stdout);
@@ -375,10 +377,35 @@ fn c_streaming_demo_runs() {
         "{text}{}",
         String::from_utf8_lossy(&out.stderr)
     );
+    // 200 frames at 120 fps: 50 at 30 fps, 49 feature frames, 12 tokens of 4 reactor frames.
     assert!(
-        text.contains("40 reactor frames") && text.contains("real-time factor"),
+        text.contains("200 actor frames") && text.contains("48 reactor frames"),
         "{text}"
     );
-    let frames: ndarray::Array2<f32> = ndarray_npy::read_npy(&npy).unwrap();
-    assert_eq!(frames.dim(), (40, 262));
+    assert!(text.contains("real-time factor"), "{text}");
+    let frames: ndarray::Array3<f32> = ndarray_npy::read_npy(&npy).unwrap();
+    assert_eq!(frames.dim(), (48, 22, 3));
+    let html = std::fs::read_to_string(npy.with_extension("html")).unwrap();
+    assert!(html.contains("reactor") && html.contains("actor"));
+    let gif = std::fs::read(npy.with_extension("gif")).unwrap();
+    assert_eq!(&gif[..3], b"GIF");
+}
+
+/// The viewer through the header: both pictures written, every bad input refused with nothing
+/// written, as C99 and as C++17.
+#[test]
+fn c_viewer_as_c99_and_cpp17() {
+    let src = root().join("tests/c/viewer.c");
+    let dir = scratch().join("viewer");
+    std::fs::create_dir_all(&dir).unwrap();
+    let c = compile("cc", &["-std=c99"], &[&src], &shared_link(), "viewer_c");
+    println!("{}", run(&[], &c, &[&dir]));
+    let cpp = compile(
+        "c++",
+        &["-std=c++17", "-x", "c++"],
+        &[&src],
+        &shared_link(),
+        "viewer_cpp",
+    );
+    run(&[], &cpp, &[&dir]);
 }

@@ -146,7 +146,7 @@ fn python_streaming_demo_runs() {
         &[
             "examples/python/stream.py",
             "--frames",
-            "40",
+            "200",
             "--tick",
             "3",
             "--out",
@@ -158,9 +158,13 @@ fn python_streaming_demo_runs() {
         ],
         false,
     );
+    // 200 frames at 120 fps: 50 at 30 fps, 49 feature frames, 12 tokens of 4 reactor frames.
     assert!(
-        text.contains("40 reactor frames") && text.contains("real-time factor"),
+        text.contains("200 actor frames") && text.contains("48 reactor frames"),
         "{text}"
     );
-    assert!(npy.exists());
+    assert!(text.contains("real-time factor"), "{text}");
+    let reactor: ndarray::Array3<f32> = ndarray_npy::read_npy(&npy).unwrap();
+    assert_eq!(reactor.dim(), (48, 22, 3));
+    assert!(npy.with_extension("html").is_file() && npy.with_extension("gif").is_file());
 }

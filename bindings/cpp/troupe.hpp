@@ -202,6 +202,37 @@ class Session {
     Status output_frames(std::size_t n_actor_frames, std::size_t &n_frames) {
         return Status::from(troupe_session_output_frames(handle_, n_actor_frames, &n_frames));
     }
+    // ---- joint positions in, poses out (interhuman262 bundles) ----
+    /// How step_joints reads positions; forgets the joint stream's frames and placement.
+    Status set_joints_format(const troupe_joints_format &format) {
+        return Status::from(troupe_session_set_joints_format(handle_, &format));
+    }
+    /// Feeds `n_frames` frames of [22][3] actor positions; `positions` (and, when non-null,
+    /// `rotations` wxyz) become the reactor poses that are ready ([m][22][3], [m][22][4]) in the
+    /// caller's world. On failure they are left as they were.
+    Status step_joints(const float *actor, std::size_t n_frames, std::vector<float> &positions,
+                       std::vector<float> *rotations = nullptr) {
+        std::size_t ready = 0, written = 0;
+        Status s = Status::from(troupe_session_joints_ready_after(handle_, n_frames, &ready));
+        if (!s) return s;
+        std::vector<float> p(ready * TROUPE_MOTION_JOINTS * 3), r(rotations ? ready * TROUPE_MOTION_JOINTS * 4 : 0);
+        troupe_pose_buffers out = {p.data(), p.size(), rotations ? r.data() : nullptr, r.size(), nullptr, 0, nullptr, 0};
+        s = Status::from(troupe_session_step_joints(handle_, actor, n_frames, &out, ready, &written));
+        if (s) {
+            p.resize(written * TROUPE_MOTION_JOINTS * 3);
+            positions.swap(p);
+            if (rotations) {
+                r.resize(written * TROUPE_MOTION_JOINTS * 4);
+                rotations->swap(r);
+            }
+        }
+        return s;
+    }
+    /// Where the reactor's poses are put (fixed by the first actor joint frame).
+    Status joints_placement(troupe_placement &out) {
+        return Status::from(troupe_session_joints_placement(handle_, &out));
+    }
+
     bool valid() const { return handle_ != nullptr; }
     std::size_t frame_dim() const { return dim_; }
     troupe_session *get() { return handle_; }
@@ -240,6 +271,131 @@ inline Status step_sessions(const std::vector<Session *> &sessions, const std::v
     }
     return s;
 }
+
+/// Motion people have: the t2m-22 skeleton, joint positions to features and back, BVH and JSON
+/// files, pictures. Positions are float32 [frames][22][3] measured as a troupe_joints_format says.
+namespace motion {
+
+/// A format: `units` TROUPE_UNITS_*, `up_axis` TROUPE_UP_Y/Z, `fps` the positions' rate.
+inline troupe_joints_format format(std::uint32_t units = TROUPE_UNITS_METERS, std::uint32_t up_axis = TROUPE_UP_Y,
+                                   float fps = 30.0f, std::uint32_t handedness = TROUPE_RIGHT_HANDED) {
+    troupe_joints_format f;
+    troupe_joints_format_init(&f, sizeof f);
+    f.units = units;
+    f.up_axis = up_axis;
+    f.fps = fps;
+    f.handedness = handedness;
+    return f;
+}
+
+/// The t2m-22 skeleton: names, parents (-1 for the root), rest offsets [22][3] in metres.
+struct Skeleton {
+    std::vector<std::string> names;
+    std::vector<std::int32_t> parents;
+    std::vector<float> rest_offsets;
+};
+
+inline Skeleton skeleton() {
+    Skeleton s;
+    const std::size_t n = troupe_motion_joint_count();
+    s.parents.resize(n);
+    s.rest_offsets.resize(3 * n);
+    troupe_motion_skeleton(s.parents.data(), n, s.rest_offsets.data(), 3 * n);
+    for (std::size_t j = 0; j < n; j++) s.names.emplace_back(troupe_motion_joint_name(j));
+    return s;
+}
+
+/// Features of `n_frames` frames of positions; `placement` receives the canonical frame used
+/// (pass `given` to use another person's). On failure `features` is left as it was.
+inline Status encode(const Model &model, const troupe_joints_format &format, const float *positions,
+                     std::size_t n_frames, std::vector<float> &features, troupe_placement &placement,
+                     const troupe_placement *given = nullptr) {
+    std::size_t frames = 0, written = 0;
+    Status s = Status::from(troupe_motion_encoded_frames(model.get(), &format, n_frames, &frames));
+    if (!s) return s;
+    std::vector<float> out(frames * model.frame_dim());
+    troupe_placement used;
+    s = Status::from(troupe_motion_encode(model.get(), &format, positions, n_frames, given, out.data(), frames,
+                                          &written, &used));
+    if (s) {
+        features.swap(out);
+        placement = used;
+    }
+    return s;
+}
+
+/// Positions [n][22][3] (and rotations [n][22][4] wxyz when non-null) of `n_frames` feature
+/// frames, in the caller's world.
+inline Status decode(const Model &model, const troupe_joints_format &format, const troupe_placement &placement,
+                     const float *features, std::size_t n_frames, std::vector<float> &positions,
+                     std::vector<float> *rotations = nullptr) {
+    std::vector<float> p(n_frames * TROUPE_MOTION_JOINTS * 3), r(rotations ? n_frames * TROUPE_MOTION_JOINTS * 4 : 0);
+    troupe_pose_buffers out = {p.data(), p.size(), rotations ? r.data() : nullptr, r.size(), nullptr, 0, nullptr, 0};
+    Status s = Status::from(troupe_motion_decode(model.get(), &format, &placement, features, n_frames, &out));
+    if (s) {
+        positions.swap(p);
+        if (rotations) rotations->swap(r);
+    }
+    return s;
+}
+
+/// A BVH take read as t2m-22 positions (file units, Y up) and the format to read them with.
+struct Take {
+    std::vector<float> positions;
+    troupe_joints_format format;
+    std::size_t frames = 0;
+};
+
+/// Reads a BVH file; `units` TROUPE_UNITS_* or TROUPE_UNITS_AUTO; `joint_map_json` null for
+/// the built-in map.
+inline Status read_bvh(const std::string &path, Take &out, std::uint32_t units = TROUPE_UNITS_AUTO,
+                       const char *joint_map_json = nullptr) {
+    troupe_bvh *h = nullptr;
+    Status s = Status::from(troupe_bvh_read(path.c_str(), joint_map_json, units, &h));
+    if (!s) return s;
+    Take t;
+    t.frames = troupe_bvh_frames(h);
+    t.positions.resize(t.frames * TROUPE_MOTION_JOINTS * 3);
+    s = Status::from(troupe_bvh_positions(h, t.positions.data(), t.positions.size()));
+    if (s) s = Status::from(troupe_bvh_format(h, &t.format, sizeof t.format));
+    troupe_bvh_free(h);
+    if (s) out = std::move(t);
+    return s;
+}
+
+/// `names.size()` people's positions ([people][frames][22][3] in `positions`).
+inline std::vector<const char *> c_names(const std::vector<std::string> &names) {
+    std::vector<const char *> out;
+    for (const auto &n : names) out.push_back(n.c_str());
+    return out;
+}
+
+/// Writes people on the t2m-22 skeleton to a BVH file (units TROUPE_UNITS_*).
+inline Status write_bvh(const std::string &path, const std::vector<std::string> &names, const float *positions,
+                        std::size_t n_frames, const troupe_joints_format &format,
+                        std::uint32_t units = TROUPE_UNITS_CENTIMETERS, bool fit_skeleton = true) {
+    auto c = c_names(names);
+    return Status::from(troupe_bvh_write(path.c_str(), positions, names.size(), n_frames, &format, c.data(), units,
+                                         fit_skeleton ? 1u : 0u));
+}
+
+/// Writes people's poses as a JSON document for robots and tools.
+inline Status write_json(const std::string &path, const std::vector<std::string> &names, const float *positions,
+                         std::size_t n_frames, const troupe_joints_format &format) {
+    auto c = c_names(names);
+    return Status::from(troupe_motion_write_json(path.c_str(), positions, names.size(), n_frames, &format, c.data()));
+}
+
+/// Writes the HTML player and/or GIF of people (an empty path skips that file).
+inline Status write_pictures(const std::string &html, const std::string &gif, const std::vector<std::string> &names,
+                             const float *positions, std::size_t n_frames, const troupe_joints_format &format,
+                             const std::string &title = "troupe") {
+    auto c = c_names(names);
+    return Status::from(troupe_viewer_write(html.empty() ? nullptr : html.c_str(), gif.empty() ? nullptr : gif.c_str(),
+                                            positions, names.size(), n_frames, &format, c.data(), title.c_str()));
+}
+
+}  // namespace motion
 
 }  // namespace troupe
 

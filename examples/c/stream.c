@@ -1,20 +1,27 @@
-/* The streaming demo through the C header only: feed a synthetic actor frame by frame (or in
- * ticks of N frames) as an engine would, write the reactor motion to a .npy file, and print
- * per-step latency and the real-time factor.
+/* The streaming demo through the C header only: feed an actor's joint positions frame by frame
+ * (or in ticks of N frames) as an engine would, get the reactor's joint positions back, write
+ * them to a .npy file with a picture beside it (an HTML player and a GIF of both people), and
+ * print per-step latency and the real-time factor.
  *
  *   cargo build --release
  *   cc -std=c99 -O2 -Iinclude examples/c/stream.c -Ltarget/release -ltroupe \
  *      -Wl,-rpath,$PWD/target/release -lm -o stream_c
- *   ./stream_c [BUNDLE] [FRAMES] [TICK] [OUT.npy]
+ *   ./stream_c [BUNDLE] [FRAMES] [TICK] [OUT.npy] [JOINTS.npy]
+ *
+ * JOINTS.npy: float32 [T, 22, 3] t2m-22 positions, metres, z up, 120 fps (default: the CMU
+ * excerpt in tests/data/mocap). OUT.npy gets float32 [T, 22, 3] in the same world; OUT.html and
+ * OUT.gif go beside it.
  */
 #define _POSIX_C_SOURCE 199309L
 #include "troupe.h"
 
-#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <time.h>
+
+#define J 22
+#define CLIP_FPS 120.0f
 
 static double now_ms(void) {
     struct timespec ts;
@@ -27,60 +34,98 @@ static int cmp_double(const void *a, const void *b) {
     return (x > y) - (x < y);
 }
 
-/* Writes float32 [rows, cols] as a .npy (format 1.0) file. */
-static int write_npy(const char *path, const float *data, size_t rows, size_t cols) {
+/* Writes float32 [rows, J, 3] as a .npy (format 1.0) file. */
+static int write_npy(const char *path, const float *data, size_t rows) {
     char header[128];
     int len;
     FILE *f = fopen(path, "wb");
     if (!f) return -1;
-    len = snprintf(header, sizeof header, "{'descr': '<f4', 'fortran_order': False, 'shape': (%lu, %lu), }",
-                   (unsigned long)rows, (unsigned long)cols);
+    len = snprintf(header, sizeof header, "{'descr': '<f4', 'fortran_order': False, 'shape': (%lu, %d, 3), }",
+                   (unsigned long)rows, J);
     while ((10 + len + 1) % 64 != 0) header[len++] = ' ';
     header[len++] = '\n';
     fwrite("\x93NUMPY\x01\x00", 1, 8, f);
     fputc(len & 0xff, f);
     fputc((len >> 8) & 0xff, f);
     fwrite(header, 1, (size_t)len, f);
-    fwrite(data, sizeof(float), rows * cols, f);
+    fwrite(data, sizeof(float), rows * J * 3, f);
     return fclose(f);
+}
+
+/* Reads a little-endian float32 [T, 22, 3] .npy (format 1.0); returns T, or 0 on failure. */
+static size_t read_joints(const char *path, float **out) {
+    char magic[8];
+    unsigned char len_bytes[2];
+    size_t header_len, bytes, frames;
+    long end;
+    FILE *f = fopen(path, "rb");
+    if (!f) return 0;
+    if (fread(magic, 1, 8, f) != 8 || memcmp(magic, "\x93NUMPY", 6) != 0 || fread(len_bytes, 1, 2, f) != 2) {
+        fclose(f);
+        return 0;
+    }
+    header_len = (size_t)len_bytes[0] | ((size_t)len_bytes[1] << 8);
+    fseek(f, 0, SEEK_END);
+    end = ftell(f);
+    bytes = (size_t)end - 10 - header_len;
+    frames = bytes / (sizeof(float) * J * 3);
+    fseek(f, (long)(10 + header_len), SEEK_SET);
+    *out = (float *)malloc(frames * J * 3 * sizeof(float));
+    if (!*out || fread(*out, sizeof(float) * J * 3, frames, f) != frames) frames = 0;
+    fclose(f);
+    return frames;
 }
 
 int main(int argc, char **argv) {
     const char *bundle = argc > 1 ? argv[1] : "onnx/bundles/armflow-tiny";
-    size_t frames = argc > 2 ? (size_t)atol(argv[2]) : 600, tick = argc > 3 ? (size_t)atol(argv[3]) : 1;
+    size_t limit = argc > 2 ? (size_t)atol(argv[2]) : 0, tick = argc > 3 ? (size_t)atol(argv[3]) : 1;
     const char *out_path = argc > 4 ? argv[4] : "reactor_c.npy";
+    const char *joints_path = argc > 5 ? argv[5] : "tests/data/mocap/cmu-playground-120fps.npy";
     troupe_model *model = NULL;
     troupe_session *session = NULL;
     troupe_session_options opt;
-    size_t dim, t, d, done = 0, written = 0, calls = 0, token_calls = 0;
-    float *actor, *reactor;
+    troupe_joints_format format;
+    troupe_pose_buffers pose;
+    size_t frames, t, done = 0, written = 0, calls = 0, token_calls = 0, stride, shown;
+    float *actor = NULL, *reactor, *both;
     double *latency, *token_latency, total = 0.0;
+    char html[1024], gif[1024];
+    const char *names[2] = {"actor", "reactor"};
 
     if (tick == 0) tick = 1;
+    frames = read_joints(joints_path, &actor);
+    if (frames == 0) {
+        fprintf(stderr, "could not read float32 [T, 22, 3] joint positions from %s\n", joints_path);
+        return 1;
+    }
+    if (limit > 0 && limit < frames) frames = limit;
     if (troupe_model_load_file(bundle, &model) != TROUPE_OK) {
         fprintf(stderr, "load: %s\n", troupe_last_error_message());
         return 1;
     }
     troupe_session_options_init(model, &opt, sizeof opt);
     opt.seed = 7;
-    if (troupe_session_new(model, &opt, &session) != TROUPE_OK) {
+    troupe_joints_format_init(&format, sizeof format);
+    format.units = TROUPE_UNITS_METERS;
+    format.up_axis = TROUPE_UP_Z;
+    format.fps = CLIP_FPS;
+    if (troupe_session_new(model, &opt, &session) != TROUPE_OK ||
+        troupe_session_set_joints_format(session, &format) != TROUPE_OK) {
         fprintf(stderr, "session: %s\n", troupe_last_error_message());
         return 1;
     }
-    dim = troupe_model_frame_dim(model);
-    actor = (float *)malloc(frames * dim * sizeof(float));
-    reactor = (float *)malloc((frames + tick) * dim * sizeof(float));
+    reactor = (float *)malloc((frames + tick) * J * 3 * sizeof(float));
     latency = (double *)malloc((frames / tick + 1) * sizeof(double));
     token_latency = (double *)malloc((frames / tick + 1) * sizeof(double));
-    for (t = 0; t < frames; t++)
-        for (d = 0; d < dim; d++)
-            actor[t * dim + d] = 0.5f * (float)sin(2.0 * 3.14159265 * (0.2 + 0.05 * (double)(d % 37)) * (double)t / 30.0 + (double)d);
+    memset(&pose, 0, sizeof pose);
 
     while (done < frames) {
-        size_t n = frames - done < tick ? frames - done : tick, got = 0;
+        size_t n = frames - done < tick ? frames - done : tick, got = 0, room = frames + tick - written;
         double t0 = now_ms(), ms;
-        troupe_status st = troupe_session_step(session, actor + done * dim, n, reactor + written * dim,
-                                               troupe_model_max_output_frames(model, n), &got);
+        troupe_status st;
+        pose.positions = reactor + written * J * 3;
+        pose.positions_len = room * J * 3;
+        st = troupe_session_step_joints(session, actor + done * J * 3, n, &pose, room, &got);
         ms = now_ms() - t0;
         if (st != TROUPE_OK) {
             fprintf(stderr, "step: %s\n", troupe_last_error_message());
@@ -94,19 +139,37 @@ int main(int argc, char **argv) {
     }
     qsort(latency, calls, sizeof(double), cmp_double);
     qsort(token_latency, token_calls, sizeof(double), cmp_double);
-    if (write_npy(out_path, reactor, written, dim) != 0) fprintf(stderr, "could not write %s\n", out_path);
-    printf("troupe %s, bundle %s: %lu actor frames in ticks of %lu, %lu reactor frames -> %s\n",
-           troupe_version_string(), bundle, (unsigned long)frames, (unsigned long)tick, (unsigned long)written, out_path);
+    if (write_npy(out_path, reactor, written) != 0) fprintf(stderr, "could not write %s\n", out_path);
+    printf("troupe %s, bundle %s: %lu actor frames (%.0f fps) in ticks of %lu, %lu reactor frames -> %s\n",
+           troupe_version_string(), bundle, (unsigned long)frames, (double)CLIP_FPS, (unsigned long)tick,
+           (unsigned long)written, out_path);
+
+    /* The picture plays both people at the bundle's rate: every stride-th actor frame. */
+    stride = (size_t)(CLIP_FPS / (float)troupe_model_fps(model) + 0.5f);
+    shown = written;
+    both = (float *)malloc(2 * shown * J * 3 * sizeof(float) + 1);
+    for (t = 0; t < shown; t++) memcpy(both + t * J * 3, actor + t * stride * J * 3, sizeof(float) * J * 3);
+    if (shown > 0) memcpy(both + shown * J * 3, reactor, sizeof(float) * shown * J * 3);
+    snprintf(html, sizeof html, "%.*s.html", (int)(strlen(out_path) - (strstr(out_path, ".npy") ? 4 : 0)), out_path);
+    snprintf(gif, sizeof gif, "%.*s.gif", (int)(strlen(out_path) - (strstr(out_path, ".npy") ? 4 : 0)), out_path);
+    format.fps = (float)troupe_model_fps(model);
+    if (shown == 0)
+        printf("no reactor frames yet: no picture\n");
+    else if (troupe_viewer_write(html, gif, both, 2, shown, &format, names, "troupe: C streaming demo") != TROUPE_OK)
+        fprintf(stderr, "pictures: %s\n", troupe_last_error_message());
+    else
+        printf("pictures: %s (open it in a browser) and %s\n", html, gif);
     if (token_calls > 0)
         printf("step latency (calls that produced a token, %lu): p50 %.3f ms  p99 %.3f ms  max %.3f ms\n",
                (unsigned long)token_calls, token_latency[token_calls / 2],
                token_latency[(size_t)((double)(token_calls - 1) * 0.99 + 0.5)], token_latency[token_calls - 1]);
-    printf("real-time factor %.1fx\n", (double)frames / (double)troupe_model_fps(model) * 1e3 / total);
+    printf("real-time factor %.1fx\n", (double)frames / (double)CLIP_FPS * 1e3 / total);
 
     troupe_session_free(session);
     troupe_model_free(model);
     free(actor);
     free(reactor);
+    free(both);
     free(latency);
     free(token_latency);
     return 0;

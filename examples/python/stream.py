@@ -1,57 +1,78 @@
 #!/usr/bin/env python3
-"""The streaming demo through the Python package: feed an actor tick by tick, write the reactor
-motion to .npy, print per-step latency and the real-time factor.
+"""The streaming demo through the Python package: feed an actor's joint positions tick by tick,
+get the reactor's joint positions back, write them to .npy with a picture beside it (an HTML
+player and a GIF of both people), print per-step latency and the real-time factor.
 
     pip install ./bindings/python      # or: PYTHONPATH=bindings/python TROUPE_LIBRARY_PATH=target/release
-    python examples/python/stream.py [--bundle DIR] [--actor FILE.npy] [--frames N] [--tick N] [--out FILE.npy]
+    python examples/python/stream.py [--bundle DIR] [--joints FILE.npy|FILE.bvh] [--units m] [--up z]
+                                     [--fps 120] [--frames N] [--tick N] [--out FILE.npy]
+
+The default actor is 8 s of real motion capture (tests/data/mocap/cmu-playground-120fps.npy:
+t2m-22 joints, metres, z up, 120 fps).
 """
 
 import argparse
 import time
+from pathlib import Path
 
 import numpy as np
 
 import troupe
+from troupe import motion, viewer
 
-
-def synthetic_actor(frames: int, dim: int) -> np.ndarray:
-    t = np.arange(frames)[:, None] / 30.0
-    d = np.arange(dim)[None, :]
-    return (0.5 * np.sin(2 * np.pi * (0.2 + 0.05 * (d % 37)) * t + d)).astype(np.float32)
+REPO = Path(__file__).resolve().parents[2]
+DEFAULT_CLIP = REPO / "tests" / "data" / "mocap" / "cmu-playground-120fps.npy"
 
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--bundle", default="onnx/bundles/armflow-tiny")
-    ap.add_argument("--actor", help="float32 [T, frame_dim] .npy (default: synthetic)")
-    ap.add_argument("--frames", type=int, default=600)
+    ap.add_argument("--bundle", default=str(REPO / "onnx" / "bundles" / "armflow-tiny"))
+    ap.add_argument("--joints", default=str(DEFAULT_CLIP), help="float32 [T, 22, 3] .npy or a .bvh file")
+    ap.add_argument("--units", default="m", choices=["m", "cm", "mm", "in"], help="units of a .npy")
+    ap.add_argument("--up", default="z", choices=["y", "z"], help="up axis of a .npy")
+    ap.add_argument("--fps", type=float, default=120.0, help="frame rate of a .npy")
+    ap.add_argument("--frames", type=int, default=0, help="at most this many actor frames (0: all)")
     ap.add_argument("--tick", type=int, default=1)
     ap.add_argument("--seed", type=int, default=7)
     ap.add_argument("--out", default="reactor_py.npy")
     args = ap.parse_args()
 
+    if args.joints.endswith(".bvh"):
+        actor, fmt = motion.read_bvh(args.joints)
+    else:
+        actor, fmt = np.load(args.joints), motion.JointsFormat(args.units, args.up, fps=args.fps)
+    if args.frames:
+        actor = actor[: args.frames]
     with troupe.Model(args.bundle) as model, model.session(seed=args.seed) as session:
-        fps = model.fps
-        actor = np.load(args.actor) if args.actor else synthetic_actor(args.frames, model.frame_dim)
-        out = np.empty((model.max_output_frames(args.tick), model.frame_dim), np.float32)
+        session.set_joints_format(fmt)
         reactor, token_ms = [], []
         start = time.perf_counter()
         for i in range(0, len(actor), args.tick):
             t0 = time.perf_counter()
-            frames = session.step(actor[i : i + args.tick], out=out)
-            if len(frames):
+            poses = session.step_joints(actor[i : i + args.tick])
+            if len(poses.positions):
                 token_ms.append((time.perf_counter() - t0) * 1e3)
-                reactor.append(frames.copy())
+                reactor.append(poses.positions)
         total = time.perf_counter() - start
-    reactor = np.concatenate(reactor) if reactor else np.zeros((0, model.frame_dim), np.float32)
-    np.save(args.out, reactor)
+        model_fps = model.fps
+    reactor = np.concatenate(reactor) if reactor else np.zeros((0, 22, 3), np.float32)
+    out = Path(args.out)
+    np.save(out, reactor)
+    print(f"troupe {troupe.version()}: {len(actor)} actor frames ({fmt.fps:g} fps) in ticks of {args.tick}, "
+          f"{len(reactor)} reactor frames -> {out}")
+    if len(reactor):
+        # The picture plays both people at the bundle's rate.
+        stride = max(1, round(fmt.fps / model_fps))
+        shown = actor[::stride][: len(reactor)]
+        view = motion.JointsFormat(fmt.units, fmt.up, fmt.handedness, fps=model_fps)
+        viewer.write({"actor": shown, "reactor": reactor[: len(shown)]}, html=out.with_suffix(".html"),
+                     gif=out.with_suffix(".gif"), fmt=view, title="troupe: Python streaming demo")
+        print(f"pictures: {out.with_suffix('.html')} (open it in a browser) and {out.with_suffix('.gif')}")
     ms = np.sort(token_ms)
-    print(f"troupe {troupe.version()}: {len(actor)} actor frames in ticks of {args.tick}, "
-          f"{len(reactor)} reactor frames -> {args.out}")
     if len(ms):
         print(f"step latency (calls that produced a token, {len(ms)}): p50 {np.percentile(ms, 50):.3f} ms  "
               f"p99 {np.percentile(ms, 99):.3f} ms  max {ms[-1]:.3f} ms")
-    print(f"real-time factor {len(actor) / fps / total:.1f}x")
+    print(f"real-time factor {len(actor) / fmt.fps / total:.1f}x")
 
 
 if __name__ == "__main__":

@@ -23,4 +23,7 @@ pub use clip::{Clip, ClipNoise, ClipOptions};
 pub use meanflow::meanflow_grid;
 pub(crate) use networks::Networks;
 pub(crate) use session::step_sessions_bounded;
-pub use session::{step_sessions, Session, SessionOptions, StepOutput, TokenNoise, TokenTrace};
+pub use session::{
+    step_sessions, step_sessions_joints, Session, SessionOptions, StepOutput, TokenNoise,
+    TokenTrace,
+};

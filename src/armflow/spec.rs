@@ -147,6 +147,14 @@ pub struct ArmFlowGraphs {
 }
 
 impl ArmFlowSpec {
+    /// Algorithmic latency in frames: how many actor frames after frame `t` arrive before the
+    /// reactor's frame `t` is out, at worst (`frames_per_token - 1` for a streaming VAE: a
+    /// token's first frame waits for its last).
+    pub fn latency_frames(&self) -> usize {
+        let fpt = self.latent.frames_per_token;
+        fpt - 1 + self.vae.encoder.lookahead_frames + fpt * self.vae.decoder.lookahead_tokens
+    }
+
     pub(crate) fn validate(&self) -> std::result::Result<(), String> {
         let check = |ok: bool, msg: &dyn Fn() -> String| ensure(ok, msg);
         let (l, c) = (&self.latent, &self.context);

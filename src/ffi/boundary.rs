@@ -2,7 +2,7 @@
 //! panic capture, and checked views of caller memory.
 
 use std::cell::RefCell;
-use std::ffi::{c_char, CString};
+use std::ffi::{c_char, CStr, CString};
 use std::panic::{catch_unwind, AssertUnwindSafe};
 
 use crate::shared::logging::{log, Level};
@@ -148,6 +148,33 @@ pub(crate) fn required<'a, T>(handle: Option<&'a T>, what: &str) -> FfiResult<&'
 
 fn null_arg(what: &str) -> FfiError {
     FfiError::new(TROUPE_ERR_NULL_ARG, format!("`{what}` is NULL"))
+}
+
+/// A NUL-terminated UTF-8 string, or `None` for NULL.
+///
+/// # Safety
+/// A non-NULL `ptr` must be NUL-terminated and readable up to its NUL for the call.
+pub(crate) unsafe fn optional_str<'a>(
+    ptr: *const c_char,
+    what: &str,
+) -> FfiResult<Option<&'a str>> {
+    if ptr.is_null() {
+        return Ok(None);
+    }
+    // SAFETY: non-NULL and NUL-terminated per the contract.
+    let text = unsafe { CStr::from_ptr(ptr) }
+        .to_str()
+        .map_err(|_| FfiError::new(TROUPE_ERR_INVALID_ARG, format!("`{what}` is not UTF-8")))?;
+    Ok(Some(text))
+}
+
+/// A NUL-terminated UTF-8 string that must not be NULL.
+///
+/// # Safety
+/// As [`optional_str`].
+pub(crate) unsafe fn required_str<'a>(ptr: *const c_char, what: &str) -> FfiResult<&'a str> {
+    // SAFETY: forwarded contract.
+    unsafe { optional_str(ptr, what) }?.ok_or_else(|| null_arg(what))
 }
 
 /// A borrowed slice of `len` elements at `ptr` (`ptr` may be NULL only when `len` is 0).

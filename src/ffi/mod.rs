@@ -25,6 +25,7 @@ pub mod log;
 pub mod model;
 pub mod motion;
 pub mod version;
+pub mod viewer;
 
 // One module per family, mirroring `src/<family>/`.
 pub mod armflow;

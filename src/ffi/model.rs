@@ -1,10 +1,8 @@
 //! `troupe_model`: loading bundles and querying them.
 
-use std::ffi::{c_char, CStr};
+use std::ffi::c_char;
 
-use super::boundary::{
-    self, non_null, troupe_status, FfiError, FfiResult, TROUPE_ERR_INVALID_ARG, TROUPE_ERR_SHAPE,
-};
+use super::boundary::{self, non_null, troupe_status, FfiError, FfiResult, TROUPE_ERR_SHAPE};
 use crate::shared::logging::{log, Level};
 use crate::Model;
 
@@ -86,11 +84,8 @@ pub unsafe extern "C" fn troupe_model_load_file(
             non_null(out, "out")?;
             // SAFETY: checked non-NULL; writable per the contract.
             unsafe { *out = std::ptr::null_mut() };
-            non_null(path, "path")?;
-            // SAFETY: non-NULL and NUL-terminated per the contract.
-            let path = unsafe { CStr::from_ptr(path) }
-                .to_str()
-                .map_err(|_| FfiError::new(TROUPE_ERR_INVALID_ARG, "`path` is not UTF-8"))?;
+            // SAFETY: forwarded contract.
+            let path = unsafe { boundary::required_str(path, "path") }?;
             publish(Model::load(path)?, out);
             Ok(())
         },

@@ -93,12 +93,23 @@ pub(crate) fn feature_frame(skeleton: &Skeleton, now: &[Vec3], next: &[Vec3], ou
             out[ROTATIONS + 6 * (j - 1) + d] = *v as f32;
         }
     }
-    for (k, &joint) in FOOT_JOINTS.iter().enumerate() {
-        let step = sub(next[joint], now[joint]);
-        let moving = norm(step).powi(2) >= CONTACT_STEP2;
-        let high = now[joint][1] >= CONTACT_HEIGHTS[k % 2];
-        out[CONTACTS + k] = if moving || high { 0.0 } else { 1.0 };
-    }
+    out[CONTACTS..CONTACTS + 4].copy_from_slice(&contacts(now, next));
+}
+
+/// InterGen's foot contacts of a frame (canonical positions) given the next: left ankle, left
+/// foot, right ankle, right foot; 1 when the joint's squared step is below [`CONTACT_STEP2`] and
+/// its height below [`CONTACT_HEIGHTS`].
+pub(crate) fn contacts(now: &[Vec3], next: &[Vec3]) -> [f32; 4] {
+    std::array::from_fn(|k| {
+        let joint = FOOT_JOINTS[k];
+        let still = norm(sub(next[joint], now[joint])).powi(2) < CONTACT_STEP2;
+        let low = now[joint][1] < CONTACT_HEIGHTS[k % 2];
+        if still && low {
+            1.0
+        } else {
+            0.0
+        }
+    })
 }
 
 /// Checks one caller frame (`[22, 3]`, finite) and returns it in canonical axes.

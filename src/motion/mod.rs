@@ -11,9 +11,11 @@
 //! - [`stream`]: the same one frame at a time, for sessions;
 //! - [`resample`]: frame-rate conversion at the boundary;
 //! - [`bvh`]: BVH files in and out, and [`joint_map`]: which rig joint is which t2m-22 joint;
+//! - [`export`]: poses as JSON for robots and tools;
 //! - [`quat`]: the 3-D algebra beneath.
 
 pub mod bvh;
+pub mod export;
 pub mod features;
 pub mod ik;
 pub mod joint_map;

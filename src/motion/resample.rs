@@ -46,6 +46,17 @@ impl Resampler {
         (span + 1e-9).floor() as usize + 1
     }
 
+    /// How many output frames the next `n` input frames complete.
+    pub fn outputs_after(&self, n: usize) -> usize {
+        if n == 0 {
+            return 0;
+        }
+        let last = (self.received + n as u64 - 1) as f64;
+        // Output frames k with k fps_in <= last fps_out, less those already emitted.
+        let due = ((last * self.fps_out + 1e-9 * self.fps_out) / self.fps_in).floor() as u64 + 1;
+        due.saturating_sub(self.emitted) as usize
+    }
+
     /// Takes the next input frame; appends the output frames it completes to `out`.
     pub fn push(&mut self, frame: Vec<Vec3>, out: &mut Vec<Vec<Vec3>>) {
         let i = self.received as f64;
@@ -79,8 +90,18 @@ mod tests {
     fn run(fps_in: f32, fps_out: f32, n: usize) -> Vec<f64> {
         let mut r = Resampler::new(fps_in, fps_out);
         let mut out = Vec::new();
+        assert_eq!(
+            r.outputs_after(n),
+            Resampler::output_len(fps_in, fps_out, n)
+        );
         for i in 0..n {
+            let (before, predicted) = (out.len(), r.outputs_after(1));
             r.push(vec![[i as f64 / f64::from(fps_in), 0.0, 0.0]], &mut out);
+            assert_eq!(
+                out.len() - before,
+                predicted,
+                "{fps_in} -> {fps_out}, frame {i}"
+            );
         }
         assert_eq!(out.len(), Resampler::output_len(fps_in, fps_out, n));
         out.iter().map(|f| f[0][0]).collect()

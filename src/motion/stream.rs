@@ -60,6 +60,13 @@ impl FeatureStream {
         self.resampler.max_out_per_frame()
     }
 
+    /// How many feature frames the next `n` position frames give (the first resampled frame
+    /// of a stream gives none).
+    pub fn rows_after(&self, n: usize) -> usize {
+        let frames = self.resampler.outputs_after(n);
+        frames - usize::from(self.previous.is_none() && frames > 0)
+    }
+
     /// Takes one frame of positions (`[22, 3]`) and returns the feature frames it completes
     /// (none for the first frame at equal rates; more than one when upsampling). A refused
     /// frame leaves the stream as it was.

@@ -135,7 +135,12 @@ fn streaming_at_another_rate_resamples_to_the_bundles() {
     let mut stream = FeatureStream::new(format, 30.0, None).unwrap();
     let n: usize = clip
         .outer_iter()
-        .map(|f| stream.push(f).unwrap().len())
+        .map(|f| {
+            let predicted = stream.rows_after(1);
+            let got = stream.push(f).unwrap().len();
+            assert_eq!(predicted, got);
+            got
+        })
         .sum();
     assert_eq!(
         n, 30,

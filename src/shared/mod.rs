@@ -5,6 +5,7 @@ pub mod bundle;
 pub(crate) mod bundle_io;
 pub(crate) mod checks;
 pub mod error;
+pub(crate) mod files;
 pub(crate) mod graph;
 pub mod graph_spec;
 pub(crate) mod logging;

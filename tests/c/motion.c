@@ -1,6 +1,7 @@
 /* ABI test of the motion functions (skeleton, joint positions <-> features, streams) through
  * include/troupe.h only. Compiled as C99 and C++17 with -Wall -Wextra -Werror -pedantic and run
- * under valgrind (tests/c_abi.rs). Usage: motion INTERHUMAN262_BUNDLE_DIR INTERX_BUNDLE_DIR */
+ * under valgrind (tests/c_abi.rs). Usage: motion INTERHUMAN262_BUNDLE_DIR INTERX_BUNDLE_DIR
+ * [SCRATCH_DIR for the BVH files] */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -189,7 +190,155 @@ int main(int argc, char **argv) {
     troupe_motion_stream_free(stream);
     EXPECT(troupe_motion_stream_new(interx, &format, NULL, &stream), TROUPE_ERR_INVALID_ARG);
     CHECK(stream == NULL);
+
+    /* a session fed joint positions gives the poses of the feature path */
+    {
+        troupe_session_options options;
+        troupe_session *joints = NULL, *plain = NULL;
+        float *reactor = (float *)malloc(sizeof(float) * FRAMES * dim);
+        float *posed = (float *)malloc(sizeof(float) * FRAMES * J * 3);
+        size_t ready = 0, got = 0, n_reactor = 0, k;
+        if (!reactor || !posed) return 1;
+        EXPECT(troupe_session_options_init(model, &options, sizeof options), TROUPE_OK);
+        options.seed = 3;
+        EXPECT(troupe_session_new(model, &options, &joints), TROUPE_OK);
+        EXPECT(troupe_session_new(model, &options, &plain), TROUPE_OK);
+        CHECK(troupe_model_joints_latency_frames(model) == troupe_model_latency_frames(model) + 1);
+        CHECK(troupe_model_joints_latency_frames(NULL) == 0);
+        EXPECT(troupe_session_joints_placement(joints, &again), TROUPE_ERR_INVALID_ARG);
+        EXPECT(troupe_session_set_joints_format(joints, &format), TROUPE_OK);
+        EXPECT(troupe_session_joints_ready_after(joints, FRAMES, &ready), TROUPE_OK);
+        CHECK(ready == 20); /* 23 feature frames: 5 whole tokens of 4 */
+        memset(&pose, 0, sizeof pose);
+        pose.positions = posed;
+        pose.positions_len = FRAMES * J * 3;
+        /* refused: a buffer too small, a NaN; the session stays as it was */
+        EXPECT(troupe_session_step_joints(joints, clip, FRAMES, &pose, ready - 1, &got), TROUPE_ERR_BUFFER_TOO_SMALL);
+        pose.positions_len = 3;
+        EXPECT(troupe_session_step_joints(joints, clip, FRAMES, &pose, FRAMES, &got), TROUPE_ERR_SHAPE);
+        pose.positions_len = FRAMES * J * 3;
+        clip[(9 * J + 4) * 3] = INFINITY;
+        EXPECT(troupe_session_step_joints(joints, clip, FRAMES, &pose, FRAMES, &got), TROUPE_ERR_INVALID_ARG);
+        CHECK(strstr(troupe_last_error_message(), "frame 9") != NULL);
+        make_clip(clip);
+        EXPECT(troupe_session_step_joints(joints, clip, FRAMES, &pose, FRAMES, &got), TROUPE_OK);
+        CHECK(got == ready);
+        /* the same through features: encode with the session's placement, step, decode */
+        EXPECT(troupe_session_joints_placement(joints, &again), TROUPE_OK);
+        EXPECT(troupe_motion_encode(model, &format, clip, FRAMES, &again, features, FRAMES, &n, NULL), TROUPE_OK);
+        EXPECT(troupe_session_step(plain, features, n, reactor, FRAMES, &n_reactor), TROUPE_OK);
+        CHECK(n_reactor == got);
+        pose.positions = positions;
+        pose.positions_len = n_reactor * J * 3;
+        pose.rotations = NULL;
+        pose.rotations_len = 0;
+        pose.contacts = NULL;
+        pose.contacts_len = 0;
+        EXPECT(troupe_motion_decode(model, &format, &again, reactor, n_reactor, &pose), TROUPE_OK);
+        worst = 0.0f;
+        for (k = 0; k < n_reactor * J * 3; k++) {
+            float e = fabsf(positions[k] - posed[k]);
+            if (e > worst) worst = e;
+        }
+        CHECK(worst == 0.0f);
+        EXPECT(troupe_session_step_joints(NULL, clip, 1, &pose, 4, &got), TROUPE_ERR_NULL_ARG);
+        troupe_session_free(joints);
+        EXPECT(troupe_session_new(interx, NULL, &joints), TROUPE_OK);
+        EXPECT(troupe_session_set_joints_format(joints, &format), TROUPE_ERR_INVALID_ARG);
+        troupe_session_free(joints);
+        troupe_session_free(plain);
+        free(reactor);
+        free(posed);
+    }
     troupe_motion_stream_free(NULL);
+
+    /* BVH out and back in */
+    if (argc > 3) {
+        char path[1024], bad[1024];
+        troupe_bvh *bvh = NULL;
+        troupe_joints_format read_format;
+        const char *names[2] = {"actor", "reactor"};
+        const char *self = strrchr(argv[0], '/') ? strrchr(argv[0], '/') + 1 : argv[0];
+        float *back = (float *)malloc(sizeof(float) * FRAMES * J * 3);
+        FILE *f;
+        if (!back) return 1;
+        /* named after this binary: the C, C++ and valgrind runs may share the directory */
+        snprintf(path, sizeof path, "%s/%s.bvh", argv[3], self);
+        snprintf(bad, sizeof bad, "%s/%s_bad.bvh", argv[3], self);
+        EXPECT(troupe_bvh_write(path, clip, 1, FRAMES, &format, names, TROUPE_UNITS_CENTIMETERS, 1), TROUPE_OK);
+        EXPECT(troupe_bvh_read(path, NULL, TROUPE_UNITS_AUTO, &bvh), TROUPE_OK);
+        CHECK(troupe_bvh_frames(bvh) == FRAMES && troupe_bvh_frames(NULL) == 0);
+        EXPECT(troupe_bvh_format(bvh, &read_format, sizeof read_format), TROUPE_OK);
+        CHECK(read_format.units == TROUPE_UNITS_CENTIMETERS && read_format.up_axis == TROUPE_UP_Y);
+        CHECK(fabsf(read_format.fps - 30.0f) < 1e-3f);
+        EXPECT(troupe_bvh_positions(bvh, back, FRAMES * J * 3 - 1), TROUPE_ERR_SHAPE);
+        EXPECT(troupe_bvh_positions(bvh, back, FRAMES * J * 3), TROUPE_OK);
+        /* the file is Y up; the clip Z up: BVH (x, y, z) is our world's (x, -z, y) */
+        worst = 0.0f;
+        for (i = 0; i < FRAMES * J; i++) {
+            float e = fabsf(back[3 * i] - clip[3 * i]) + fabsf(-back[3 * i + 2] - clip[3 * i + 1]) +
+                      fabsf(back[3 * i + 1] - clip[3 * i + 2]);
+            if (e > worst) worst = e;
+        }
+        CHECK(worst < 1e-2f); /* centimetres */
+        printf("BVH written and read back: max error %g cm\n", (double)worst);
+        troupe_bvh_free(bvh);
+        troupe_bvh_free(NULL);
+        EXPECT(troupe_bvh_write(path, features, 0, FRAMES, &format, NULL, TROUPE_UNITS_CENTIMETERS, 1), TROUPE_ERR_INVALID_ARG);
+        clip[5] = NAN;
+        EXPECT(troupe_bvh_write(bad, clip, 1, FRAMES, &format, names, TROUPE_UNITS_CENTIMETERS, 1), TROUPE_ERR_INVALID_ARG);
+        CHECK(strstr(troupe_last_error_message(), "person 0, frame 0, joint 1 (left_hip)") != NULL);
+        f = fopen(bad, "rb");
+        CHECK(f == NULL); /* nothing written */
+        if (f) fclose(f);
+        make_clip(clip);
+        EXPECT(troupe_bvh_write(path, clip, 1, FRAMES, &format, names, 77, 1), TROUPE_ERR_INVALID_ARG);
+        EXPECT(troupe_bvh_write("/nonexistent/dir/x.bvh", clip, 1, FRAMES, &format, names, TROUPE_UNITS_CENTIMETERS, 1), TROUPE_ERR_IO);
+        /* bad files: missing, malformed (naming the line), a rig without the t2m-22 joints */
+        EXPECT(troupe_bvh_read("/nonexistent/x.bvh", NULL, TROUPE_UNITS_AUTO, &bvh), TROUPE_ERR_IO);
+        CHECK(bvh == NULL);
+        f = fopen(bad, "wb");
+        if (f) {
+            fputs("HIERARCHY\nROOT Hips\n{\n  OFFSET 0 0 0\n  CHANNELS 3 Xposition Yposition Qrotation\n}\n", f);
+            fclose(f);
+        }
+        EXPECT(troupe_bvh_read(bad, NULL, TROUPE_UNITS_AUTO, &bvh), TROUPE_ERR_INVALID_ARG);
+        CHECK(strstr(troupe_last_error_message(), ":5:") != NULL);
+        CHECK(strstr(troupe_last_error_message(), "Qrotation") != NULL);
+        f = fopen(bad, "wb");
+        if (f) {
+            fputs("HIERARCHY\nROOT Hips\n{\n  OFFSET 0 0 0\n  CHANNELS 3 Xposition Yposition Zposition\n}\n"
+                  "MOTION\nFrames: 1\nFrame Time: 0.0333\n0 0 0\n", f);
+            fclose(f);
+        }
+        EXPECT(troupe_bvh_read(bad, NULL, TROUPE_UNITS_AUTO, &bvh), TROUPE_ERR_INVALID_ARG);
+        CHECK(strstr(troupe_last_error_message(), "left_hip") != NULL);
+        EXPECT(troupe_bvh_read(bad, "{\"not\": \"a map\"}", TROUPE_UNITS_AUTO, &bvh), TROUPE_ERR_INVALID_ARG);
+        EXPECT(troupe_bvh_read(bad, NULL, 12345, &bvh), TROUPE_ERR_INVALID_ARG);
+        EXPECT(troupe_bvh_read(NULL, NULL, TROUPE_UNITS_AUTO, &bvh), TROUPE_ERR_NULL_ARG);
+        /* poses as JSON for robots */
+        snprintf(path, sizeof path, "%s/%s.json", argv[3], self);
+        EXPECT(troupe_motion_write_json(path, clip, 1, FRAMES, &format, names), TROUPE_OK);
+        f = fopen(path, "rb");
+        CHECK(f != NULL);
+        if (f) {
+            char head[64] = {0};
+            CHECK(fread(head, 1, sizeof head - 1, f) > 0 && strstr(head, "\"troupe-poses\"") != NULL);
+            fclose(f);
+        }
+        remove(path);
+        clip[(2 * J + 5) * 3] = NAN;
+        EXPECT(troupe_motion_write_json(path, clip, 1, FRAMES, &format, names), TROUPE_ERR_INVALID_ARG);
+        CHECK(strstr(troupe_last_error_message(), "person 0, frame 2, joint 5") != NULL);
+        f = fopen(path, "rb");
+        CHECK(f == NULL);
+        if (f) fclose(f);
+        make_clip(clip);
+        EXPECT(troupe_motion_write_json(NULL, clip, 1, FRAMES, &format, names), TROUPE_ERR_NULL_ARG);
+        EXPECT(troupe_motion_write_json(path, clip, 1, 0, &format, names), TROUPE_ERR_INVALID_ARG);
+        remove(bad);
+        free(back);
+    }
 
     free(clip);
     free(features);

@@ -1,10 +1,13 @@
 // The C++ wrapper, compiled with -fno-exceptions: RAII, moves, status returns.
-// Usage: wrapper ARMFLOW_BUNDLE_DIR UMF_BUNDLE_DIR
+// Usage: wrapper ARMFLOW_BUNDLE_DIR UMF_BUNDLE_DIR [SCRATCH_DIR]
 #include "troupe.hpp"
 #include "../c/check.h"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
+#include <string>
 #include <vector>
 
 static std::vector<float> run(troupe::Session &s, const std::vector<float> &actor, std::size_t frames) {
@@ -94,6 +97,66 @@ int main(int argc, char **argv) {
     troupe::Status none = umf.generate_group(nullptr, 0, 0, g2, &gopt);
     CHECK(none.code() == TROUPE_ERR_INVALID_ARG && g1 == g2);
     CHECK(other.generate_group(nullptr, 0, 1, g2).code() == TROUPE_ERR_NULL_ARG);
+
+    // ---- motion: skeleton, positions <-> features, joint sessions, files ----
+    {
+        troupe::Model model;
+        CHECK(troupe::Model::load(argv[1], model).ok());
+        const troupe::motion::Skeleton skel = troupe::motion::skeleton();
+        CHECK(skel.names.size() == 22 && skel.names[0] == "pelvis" && skel.parents[4] == 1);
+        // The neutral body walking along x, 40 frames, metres, y up, 30 fps.
+        const std::size_t frames = 40;
+        std::vector<float> clip(frames * 22 * 3), rest(22 * 3);
+        for (std::size_t j = 0; j < 22; j++)
+            for (int d = 0; d < 3; d++)
+                rest[j * 3 + d] = skel.rest_offsets[j * 3 + d] + (skel.parents[j] >= 0 ? rest[skel.parents[j] * 3 + d] : 0.0f);
+        for (std::size_t t = 0; t < frames; t++)
+            for (std::size_t j = 0; j < 22; j++)
+                for (int d = 0; d < 3; d++) clip[(t * 22 + j) * 3 + d] = rest[j * 3 + d] + (d == 2 ? 0.02f * t : 0.0f);
+        const troupe_joints_format fmt = troupe::motion::format(TROUPE_UNITS_METERS, TROUPE_UP_Y, 30.0f);
+        std::vector<float> features, back, rotations;
+        troupe_placement placement;
+        CHECK(troupe::motion::encode(model, fmt, clip.data(), frames, features, placement).ok());
+        CHECK(features.size() == (frames - 1) * 262);
+        CHECK(troupe::motion::decode(model, fmt, placement, features.data(), frames - 1, back, &rotations).ok());
+        float worst = 0.0f;
+        for (std::size_t i = 0; i < back.size(); i++) worst = std::max(worst, std::fabs(back[i] - clip[i]));
+        CHECK(worst < 1e-5f && rotations.size() == (frames - 1) * 22 * 4);
+        std::vector<float> kept = features;
+        clip[5] = NAN;
+        CHECK(troupe::motion::encode(model, fmt, clip.data(), frames, features, placement).code() ==
+              TROUPE_ERR_INVALID_ARG);
+        CHECK(features == kept);
+        clip[5] = rest[5];
+
+        troupe::Session joints;
+        CHECK(troupe::Session::create(model, &opt, joints).ok());
+        CHECK(joints.set_joints_format(fmt).ok());
+        std::vector<float> poses;
+        CHECK(joints.step_joints(clip.data(), frames, poses).ok());
+        CHECK(poses.size() == 36 * 22 * 3);  // 39 feature frames: 9 tokens of 4
+        CHECK(joints.joints_placement(placement).ok());
+
+        if (argc > 3) {
+            // Named after this binary: the builds with and without exceptions share the directory.
+            const std::string self = std::strrchr(argv[0], '/') ? std::strrchr(argv[0], '/') + 1 : argv[0];
+            const std::string base = std::string(argv[3]) + "/" + self;
+            const std::string bvh = base + ".bvh", json = base + ".json", html = base + ".html";
+            CHECK(troupe::motion::write_bvh(bvh, {"actor"}, clip.data(), frames, fmt).ok());
+            troupe::motion::Take take;
+            CHECK(troupe::motion::read_bvh(bvh, take).ok() && take.frames == frames);
+            CHECK(take.format.units == TROUPE_UNITS_CENTIMETERS);
+            CHECK(std::fabs(take.positions[3 * 15 + 1] / 100.0f - clip[3 * 15 + 1]) < 1e-4f);
+            CHECK(troupe::motion::read_bvh(base + "-missing.bvh", take).code() == TROUPE_ERR_IO);
+            CHECK(troupe::motion::write_json(json, {"actor"}, clip.data(), frames, fmt).ok());
+            CHECK(troupe::motion::write_pictures(html, "", {"actor"}, clip.data(), frames, fmt).ok());
+            CHECK(troupe::motion::write_pictures("", "", {"actor"}, clip.data(), frames, fmt).code() ==
+                  TROUPE_ERR_NULL_ARG);
+            std::remove(bvh.c_str());
+            std::remove(json.c_str());
+            std::remove(html.c_str());
+        }
+    }
 
 #ifdef TROUPE_CPP_EXCEPTIONS
     bool thrown = false;

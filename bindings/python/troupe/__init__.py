@@ -19,7 +19,7 @@ import numpy as np
 
 from . import _native
 
-__all__ = ["Model", "Session", "TroupeError", "step_sessions", "version", "ACTOR_LATENT_SAMPLE", "ACTOR_LATENT_MEAN",
+__all__ = ["Model", "Session", "TroupeError", "motion", "viewer", "step_sessions", "version", "ACTOR_LATENT_SAMPLE", "ACTOR_LATENT_MEAN",
            "EULER", "RK4"]
 
 ACTOR_LATENT_SAMPLE = 0
@@ -88,6 +88,8 @@ class Model:
     fps = property(lambda self: _lib.troupe_model_fps(self._h()), doc="frames per second")
     frames_per_token = property(lambda self: _lib.troupe_model_frames_per_token(self._h()))
     latency_frames = property(lambda self: _lib.troupe_model_latency_frames(self._h()))
+    joints_latency_frames = property(lambda self: _lib.troupe_model_joints_latency_frames(self._h()),
+                                     doc="latency when the actor streams joint positions (one frame more)")
     condition_dim = property(lambda self: _lib.troupe_model_condition_dim(self._h()))
     latent_dim = property(lambda self: _lib.troupe_model_latent_dim(self._h()))
 
@@ -316,6 +318,39 @@ class Session:
         self._call(_lib.troupe_session_step, _ptr(a), a.shape[0], _ptr(out), out.shape[0], ctypes.byref(written))
         return out[: written.value]
 
+    def set_joints_format(self, fmt) -> None:
+        """How `step_joints` reads actor positions (a `troupe.motion.JointsFormat`); forgets the
+        joint stream's frames and placement."""
+        c = fmt._c()
+        self._call(_lib.troupe_session_set_joints_format, ctypes.byref(c))
+
+    def step_joints(self, positions):
+        """Feeds actor joint positions ([n, 22, 3], as `set_joints_format` said; metres, Y up at the
+        bundle's rate by default) and returns the reactor poses that became ready, in the caller's
+        world (a `troupe.motion.Poses`). One frame more latency than `step`."""
+        from .motion import _pose_buffers, _positions
+
+        p = _positions(positions, "positions")
+        n = ctypes.c_size_t()
+        self._call(_lib.troupe_session_joints_ready_after, p.shape[0], ctypes.byref(n))
+        poses, buffers = _pose_buffers(n.value)
+        written = ctypes.c_size_t()
+        self._call(_lib.troupe_session_step_joints, _ptr(p), p.shape[0], ctypes.byref(buffers), n.value,
+                   ctypes.byref(written))
+        return type(poses)(*(a[: written.value] for a in poses))
+
+    @property
+    def joints_placement(self):
+        """Where the reactor's poses are put (fixed by the first actor joint frame), or None."""
+        from .motion import Placement
+
+        c = _native.Placement()
+        try:
+            self._call(_lib.troupe_session_joints_placement, ctypes.byref(c))
+        except TroupeError:
+            return None
+        return Placement(c)
+
     def output_frames(self, n_actor_frames: int) -> int:
         """Exactly how many frames a step with `n_actor_frames` frames would return now."""
         n = ctypes.c_size_t()
@@ -361,3 +396,5 @@ class Session:
 
     def __exit__(self, *exc):
         self.close()
+from . import motion  # noqa: E402  (needs the names above)
+from . import viewer  # noqa: E402

@@ -74,10 +74,53 @@ class ClipNoise(ctypes.Structure):
     ]
 
 
+class JointsFormat(ctypes.Structure):
+    """Mirror of `troupe_joints_format`."""
+
+    _fields_ = [
+        ("struct_size", ctypes.c_uint32),
+        ("units", ctypes.c_uint32),
+        ("up_axis", ctypes.c_uint32),
+        ("handedness", ctypes.c_uint32),
+        ("fps", ctypes.c_float),
+        ("reserved", ctypes.c_uint32),
+    ]
+
+
+class Placement(ctypes.Structure):
+    """Mirror of `troupe_placement` (a plain value)."""
+
+    _fields_ = [
+        ("floor", ctypes.c_double),
+        ("origin_x", ctypes.c_double),
+        ("origin_z", ctypes.c_double),
+        ("heading", ctypes.c_double * 4),
+    ]
+
+
+class PoseBuffers(ctypes.Structure):
+    """Mirror of `troupe_pose_buffers`."""
+
+    _fields_ = [
+        ("positions", ctypes.POINTER(ctypes.c_float)),
+        ("positions_len", ctypes.c_size_t),
+        ("rotations", ctypes.POINTER(ctypes.c_float)),
+        ("rotations_len", ctypes.c_size_t),
+        ("rotations_6d", ctypes.POINTER(ctypes.c_float)),
+        ("rotations_6d_len", ctypes.c_size_t),
+        ("contacts", ctypes.POINTER(ctypes.c_float)),
+        ("contacts_len", ctypes.c_size_t),
+    ]
+
+
 LOG_FN = ctypes.CFUNCTYPE(None, ctypes.c_void_p, ctypes.c_int32, ctypes.c_char_p, ctypes.c_char_p)
 
 model_p = ctypes.c_void_p
 session_p = ctypes.c_void_p
+stream_p = ctypes.c_void_p
+bvh_p = ctypes.c_void_p
+fmt_p = ctypes.POINTER(JointsFormat)
+placement_p = ctypes.POINTER(Placement)
 
 # name: (restype, argtypes) for every function of include/troupe.h.
 PROTOTYPES = {
@@ -128,6 +171,37 @@ PROTOTYPES = {
         model_p, f32p, c_size, f32p, c_size, ctypes.c_uint64, ctypes.c_uint32, ctypes.POINTER(ClipNoise),
         f32p, c_size, f32p, c_size]),
     "troupe_text_encode": (status, [model_p, f32p, c_size, c_size, f32p, c_size]),
+    "troupe_joints_format_init": (status, [fmt_p, c_size]),
+    "troupe_motion_joint_count": (c_size, []),
+    "troupe_motion_joint_name": (ctypes.c_char_p, [c_size]),
+    "troupe_motion_skeleton": (status, [ctypes.POINTER(ctypes.c_int32), c_size, f32p, c_size]),
+    "troupe_motion_encoded_frames": (status, [model_p, fmt_p, c_size, ctypes.POINTER(c_size)]),
+    "troupe_motion_encode": (status, [model_p, fmt_p, f32p, c_size, placement_p, f32p, c_size,
+                                      ctypes.POINTER(c_size), placement_p]),
+    "troupe_motion_decode": (status, [model_p, fmt_p, placement_p, f32p, c_size, ctypes.POINTER(PoseBuffers)]),
+    "troupe_motion_stream_new": (status, [model_p, fmt_p, placement_p, ctypes.POINTER(stream_p)]),
+    "troupe_motion_stream_latency_frames": (c_size, []),
+    "troupe_motion_stream_max_frames": (c_size, [stream_p]),
+    "troupe_motion_stream_push": (status, [stream_p, f32p, c_size, f32p, c_size, ctypes.POINTER(c_size)]),
+    "troupe_motion_stream_placement": (status, [stream_p, placement_p]),
+    "troupe_motion_stream_reset": (status, [stream_p, placement_p]),
+    "troupe_motion_stream_free": (None, [stream_p]),
+    "troupe_bvh_read": (status, [ctypes.c_char_p, ctypes.c_char_p, ctypes.c_uint32, ctypes.POINTER(bvh_p)]),
+    "troupe_bvh_frames": (c_size, [bvh_p]),
+    "troupe_bvh_format": (status, [bvh_p, fmt_p, c_size]),
+    "troupe_bvh_positions": (status, [bvh_p, f32p, c_size]),
+    "troupe_bvh_free": (None, [bvh_p]),
+    "troupe_bvh_write": (status, [ctypes.c_char_p, f32p, c_size, c_size, fmt_p, ctypes.POINTER(ctypes.c_char_p),
+                                  ctypes.c_uint32, ctypes.c_uint32]),
+    "troupe_session_set_joints_format": (status, [session_p, fmt_p]),
+    "troupe_session_step_joints": (status, [session_p, f32p, c_size, ctypes.POINTER(PoseBuffers), c_size,
+                                            ctypes.POINTER(c_size)]),
+    "troupe_session_joints_ready_after": (status, [session_p, c_size, ctypes.POINTER(c_size)]),
+    "troupe_session_joints_placement": (status, [session_p, placement_p]),
+    "troupe_model_joints_latency_frames": (c_size, [model_p]),
+    "troupe_motion_write_json": (status, [ctypes.c_char_p, f32p, c_size, c_size, fmt_p, ctypes.POINTER(ctypes.c_char_p)]),
+    "troupe_viewer_write": (status, [ctypes.c_char_p, ctypes.c_char_p, f32p, c_size, c_size, fmt_p,
+                                     ctypes.POINTER(ctypes.c_char_p), ctypes.c_char_p]),
 }
 
 

@@ -27,11 +27,14 @@ use crate::armflow::kv_cache::KvCache;
 use crate::armflow::meanflow::meanflow_grid;
 use crate::armflow::networks::{Conditioning, Networks, VaeState};
 use crate::armflow::spec::{ActorLatent, ArmFlowSpec};
+use crate::motion::FeatureStream;
 use crate::shared::checks::check_finite;
 use crate::shared::error::{Error, Result};
 use crate::shared::noise::{fill_normals, STREAM_ACTOR_POSTERIOR, STREAM_REACTOR_NOISE};
 
+mod joints;
 mod lanes;
+pub use joints::step_sessions_joints;
 use lanes::Lane;
 
 /// Options of a session. Fields left `None` take the bundle's defaults (`sampler` and
@@ -133,6 +136,9 @@ pub struct Session {
     state: StreamState,
     /// The VAE steps' zero state, when the session uses step graphs rather than windows.
     vae_start: Option<VaeState>,
+    /// Actor joint positions to features, for [`Session::step_joints`] (`None` until used or
+    /// configured).
+    joints: Option<FeatureStream>,
 }
 
 impl Session {
@@ -169,6 +175,7 @@ impl Session {
             vae_start,
             settings,
             nets,
+            joints: None,
         })
     }
 
@@ -249,6 +256,15 @@ impl Session {
     /// steps, CFG, condition, capacity). Queued noise is dropped.
     pub fn reset(&mut self) {
         self.state = StreamState::new(self.spec(), self.vae_start.clone());
+        if let Some(joints) = &mut self.joints {
+            joints.reset(None);
+        }
+    }
+
+    /// Algorithmic latency in frames (as [`crate::Model::latency_frames`]): how many actor
+    /// frames after frame `t` arrive before the reactor frame `t` is out.
+    pub fn latency_frames(&self) -> usize {
+        self.spec().latency_frames()
     }
 
     /// Sets the noise seed; applies to tokens generated from now on.

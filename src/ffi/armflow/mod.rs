@@ -2,4 +2,5 @@
 //! the official clip loop with its text branch.
 
 pub mod clip;
+pub mod joints;
 pub mod session;

@@ -218,7 +218,7 @@ pub unsafe extern "C" fn troupe_session_free(session: *mut troupe_session) {
 ///
 /// # Safety
 /// `session` must be NULL or a live handle used by no other thread.
-unsafe fn with_session(
+pub(crate) unsafe fn with_session(
     session: *mut troupe_session,
     name: &'static str,
     body: impl FnOnce(&mut Session) -> FfiResult,

@@ -16,7 +16,7 @@ mod parse;
 mod write;
 
 pub use parse::{parse_bvh, read_bvh, MAX_BVH_BYTES, MAX_BVH_JOINTS};
-pub use write::{write_bvh, BvhPerson, BvhWriteOptions};
+pub use write::{write_bvh, write_bvh_file, BvhPerson, BvhWriteOptions};
 
 use ndarray::{s, Array3};
 

@@ -181,6 +181,17 @@ fn depth_first(skeleton: &Skeleton, joint: usize) -> Vec<usize> {
     out
 }
 
+/// [`write_bvh`] into the file at `path`, atomically: the text goes to a temporary file beside
+/// it, renamed over `path` once complete, so a failure leaves no partial file.
+pub fn write_bvh_file(
+    path: &std::path::Path,
+    people: &[BvhPerson],
+    options: &BvhWriteOptions,
+) -> Result<()> {
+    let text = write_bvh(people, options)?;
+    crate::shared::files::write_atomically(path, text.as_bytes())
+}
+
 fn write_joint(
     out: &mut String,
     skeleton: &Skeleton,

@@ -3,9 +3,14 @@
 //! layout are the bundle's own.
 
 use std::ffi::{c_char, CString};
+
+use ndarray::ArrayView3;
 use std::sync::OnceLock;
 
-use ndarray::{ArrayView2, ArrayView3};
+use ndarray::ArrayView2;
+
+pub mod bvh;
+pub mod export;
 
 use crate::ffi::boundary::{
     self, check_struct_size, checked_mul, non_null, read_versioned, required, troupe_status,
@@ -17,7 +22,7 @@ use crate::motion::quat::Quat;
 use crate::motion::resample::Resampler;
 use crate::motion::{
     decode_frame, encode_clip, joints_layout, FeatureStream, Handedness, JointsFormat, Placement,
-    Skeleton, Units, UpAxis, T2M22_JOINTS,
+    Pose, Skeleton, Units, UpAxis, T2M22_JOINTS,
 };
 use crate::Model;
 
@@ -60,7 +65,7 @@ pub struct troupe_joints_format {
     pub reserved: u32,
 }
 
-const FORMAT_V1_SIZE: usize = 24;
+pub(crate) const FORMAT_V1_SIZE: usize = 24;
 const _: () = assert!(std::mem::size_of::<troupe_joints_format>() == FORMAT_V1_SIZE);
 
 /// Where a clip's canonical frame sits in the caller's world (InterGen's canonicalisation): the
@@ -115,6 +120,29 @@ pub struct troupe_motion_stream {
 }
 
 impl troupe_joints_format {
+    /// The C form of `format`, for a caller's struct of `size` bytes.
+    pub(crate) fn from_rust(format: &JointsFormat, size: usize) -> Self {
+        troupe_joints_format {
+            struct_size: size.min(FORMAT_V1_SIZE) as u32,
+            units: match format.units {
+                Units::Meters => TROUPE_UNITS_METERS,
+                Units::Centimeters => TROUPE_UNITS_CENTIMETERS,
+                Units::Millimeters => TROUPE_UNITS_MILLIMETERS,
+                Units::Inches => TROUPE_UNITS_INCHES,
+            },
+            up_axis: match format.up {
+                UpAxis::Y => TROUPE_UP_Y,
+                UpAxis::Z => TROUPE_UP_Z,
+            },
+            handedness: match format.handedness {
+                Handedness::Right => TROUPE_RIGHT_HANDED,
+                Handedness::Left => TROUPE_LEFT_HANDED,
+            },
+            fps: format.fps,
+            reserved: 0,
+        }
+    }
+
     fn to_rust(self) -> FfiResult<JointsFormat> {
         let bad = |what: &str, v: u32| {
             FfiError::new(
@@ -154,7 +182,7 @@ impl troupe_joints_format {
 }
 
 impl troupe_placement {
-    fn to_rust(self, format: JointsFormat) -> FfiResult<Placement> {
+    pub(crate) fn to_rust(self, format: JointsFormat) -> FfiResult<Placement> {
         let q = Quat::from_wxyz(self.heading);
         let norm = (q.w * q.w + q.x * q.x + q.y * q.y + q.z * q.z).sqrt();
         let finite = [self.floor, self.origin_x, self.origin_z]
@@ -175,7 +203,7 @@ impl troupe_placement {
         })
     }
 
-    fn from_rust(p: &Placement) -> Self {
+    pub(crate) fn from_rust(p: &Placement) -> Self {
         troupe_placement {
             floor: p.floor,
             origin_x: p.origin[0],
@@ -185,11 +213,72 @@ impl troupe_placement {
     }
 }
 
+/// People's joint positions handed over by the caller: `[n_people][n_frames][22][3]` floats
+/// with a name each.
+pub(crate) struct People<'a> {
+    /// Each person's name: from `names`, or `person 1`, `person 2`, ... where it is NULL.
+    pub names: Vec<String>,
+    /// Each person's `[n_frames, 22, 3]` positions, borrowed from the caller.
+    pub positions: Vec<ArrayView3<'a, f32>>,
+}
+
+/// Reads people's positions: `n_people` in 1..=`max_people`, `n_frames` in 1..=`max_frames`
+/// (bounds checked before anything is read).
+///
+/// # Safety
+/// `positions` readable for `n_people * n_frames * 66` floats; a non-NULL `names` readable for
+/// `n_people` pointers, each NULL or NUL-terminated.
+pub(crate) unsafe fn read_people<'a>(
+    positions: *const f32,
+    n_people: usize,
+    n_frames: usize,
+    names: *const *const c_char,
+    max_people: usize,
+    max_frames: usize,
+) -> FfiResult<People<'a>> {
+    if n_people == 0 || n_people > max_people {
+        return Err(FfiError::new(
+            TROUPE_ERR_INVALID_ARG,
+            format!("n_people is {n_people}; 1 to {max_people} people are allowed"),
+        ));
+    }
+    if n_frames == 0 || n_frames > max_frames {
+        return Err(FfiError::new(
+            TROUPE_ERR_INVALID_ARG,
+            format!("n_frames is {n_frames}; 1 to {max_frames} frames are allowed"),
+        ));
+    }
+    let per_person = checked_mul(n_frames, 3 * T2M22_JOINTS, "n_frames * 66")?;
+    let len = checked_mul(n_people, per_person, "n_people * n_frames * 66")?;
+    // SAFETY: forwarded contract.
+    let flat = unsafe { boundary::slice(positions, len, "positions") }?;
+    let mut labels = Vec::with_capacity(n_people);
+    for i in 0..n_people {
+        let given = if names.is_null() {
+            None
+        } else {
+            // SAFETY: `names` readable for `n_people` pointers; each NULL or NUL-terminated.
+            unsafe { boundary::optional_str(names.add(i).read(), &format!("names[{i}]")) }?
+        };
+        labels.push(given.map_or_else(|| format!("person {}", i + 1), str::to_string));
+    }
+    let views = flat
+        .chunks_exact(per_person)
+        .map(|chunk| {
+            ArrayView3::from_shape((n_frames, T2M22_JOINTS, 3), chunk).expect("length checked")
+        })
+        .collect();
+    Ok(People {
+        names: labels,
+        positions: views,
+    })
+}
+
 /// Reads the caller's format, checked.
 ///
 /// # Safety
 /// A non-NULL `format` must be readable for its `struct_size` bytes.
-unsafe fn read_format(format: *const troupe_joints_format) -> FfiResult<JointsFormat> {
+pub(crate) unsafe fn read_format(format: *const troupe_joints_format) -> FfiResult<JointsFormat> {
     non_null(format, "format")?;
     // SAFETY: non-NULL, readable per the contract.
     let f = unsafe {
@@ -228,15 +317,7 @@ pub unsafe extern "C" fn troupe_joints_format_init(
         || {
             non_null(format, "format")?;
             check_struct_size(format_size, FORMAT_V1_SIZE, "troupe_joints_format")?;
-            let d = JointsFormat::default();
-            let value = troupe_joints_format {
-                struct_size: format_size.min(FORMAT_V1_SIZE) as u32,
-                units: TROUPE_UNITS_METERS,
-                up_axis: TROUPE_UP_Y,
-                handedness: TROUPE_RIGHT_HANDED,
-                fps: d.fps,
-                reserved: 0,
-            };
+            let value = troupe_joints_format::from_rust(&JointsFormat::default(), format_size);
             // SAFETY: writable for `format_size` bytes per the contract.
             unsafe { write_versioned(format, format_size, &value) };
             Ok(())
@@ -440,31 +521,69 @@ pub unsafe extern "C" fn troupe_motion_encode(
     )
 }
 
-/// An output part of `troupe_pose_buffers`: skipped when NULL with length 0, else exactly
-/// `frames * per_frame` floats.
-///
-/// # Safety
-/// A non-NULL `ptr` must be writable for `len` floats.
-unsafe fn pose_part<'a>(
-    ptr: *mut f32,
-    len: usize,
-    frames: usize,
-    per_frame: usize,
-    what: &str,
-) -> FfiResult<Option<&'a mut [f32]>> {
-    if ptr.is_null() && len == 0 {
-        return Ok(None);
+/// The four parts of `troupe_pose_buffers`, checked: each NULL with length 0 (skipped) or
+/// holding `frames` frames of its part (exactly, or at least when `exact` is false: a step's
+/// capacity).
+pub(crate) struct PoseParts<'a>([Option<&'a mut [f32]>; 4]);
+
+/// Floats per frame of each part: positions, rotations, 6-D rotations, contacts.
+const PART_FLOATS: [usize; 4] = [3 * T2M22_JOINTS, 4 * T2M22_JOINTS, 6 * T2M22_JOINTS, 4];
+const PART_NAMES: [&str; 4] = ["positions", "rotations", "rotations_6d", "contacts"];
+
+impl PoseParts<'_> {
+    /// Checks the buffers of `out` for `frames` frames.
+    ///
+    /// # Safety
+    /// `out` readable; its non-NULL buffers writable for their lengths for the call.
+    pub(crate) unsafe fn check<'a>(
+        out: *const troupe_pose_buffers,
+        frames: usize,
+        exact: bool,
+    ) -> FfiResult<PoseParts<'a>> {
+        non_null(out, "out")?;
+        // SAFETY: non-NULL, readable per the contract.
+        let out = unsafe { out.read_unaligned() };
+        let raw = [
+            (out.positions, out.positions_len),
+            (out.rotations, out.rotations_len),
+            (out.rotations_6d, out.rotations_6d_len),
+            (out.contacts, out.contacts_len),
+        ];
+        let mut parts: [Option<&'a mut [f32]>; 4] = [None, None, None, None];
+        for (k, (ptr, len)) in raw.into_iter().enumerate() {
+            let what = PART_NAMES[k];
+            if ptr.is_null() && len == 0 {
+                continue;
+            }
+            non_null(ptr, what)?;
+            let want = checked_mul(frames, PART_FLOATS[k], what)?;
+            if len < want || (exact && len != want) {
+                return Err(FfiError::new(
+                    TROUPE_ERR_SHAPE,
+                    format!("{what}_len is {len}, {frames} frames need {want}"),
+                ));
+            }
+            // SAFETY: non-NULL, writable for `len` floats per the contract.
+            parts[k] = Some(unsafe { std::slice::from_raw_parts_mut(ptr, len) });
+        }
+        Ok(PoseParts(parts))
     }
-    non_null(ptr, what)?;
-    let want = checked_mul(frames, per_frame, what)?;
-    if len != want {
-        return Err(FfiError::new(
-            TROUPE_ERR_SHAPE,
-            format!("{what}_len is {len}, {frames} frames need {want}"),
-        ));
+
+    /// Writes `poses` from the start of each part.
+    pub(crate) fn fill(self, poses: &[Pose]) {
+        for (k, part) in self.0.into_iter().enumerate() {
+            let Some(buffer) = part else { continue };
+            for (pose, dst) in poses.iter().zip(buffer.chunks_exact_mut(PART_FLOATS[k])) {
+                let src: &[f32] = match k {
+                    0 => pose.positions.as_flattened(),
+                    1 => pose.rotations.as_flattened(),
+                    2 => pose.rotations_6d.as_flattened(),
+                    _ => &pose.contacts,
+                };
+                dst.copy_from_slice(src);
+            }
+        }
     }
-    // SAFETY: non-NULL, writable for `len` floats per the contract.
-    Ok(Some(unsafe { std::slice::from_raw_parts_mut(ptr, len) }))
 }
 
 /// Turns `n_frames` feature frames (`features`: `[n_frames][frame_dim]`) into poses in the
@@ -500,8 +619,7 @@ pub unsafe extern "C" fn troupe_motion_decode(
             non_null(placement, "placement")?;
             non_null(out, "out")?;
             // SAFETY: non-NULL, readable per the contract.
-            let (placement, out) = unsafe { (placement.read_unaligned(), out.read_unaligned()) };
-            let placement = placement.to_rust(format)?;
+            let placement = unsafe { placement.read_unaligned() }.to_rust(format)?;
             let dim = model.frame_dim();
             let len = checked_mul(n_frames, dim, "n_frames * frame_dim")?;
             // SAFETY: forwarded contract.
@@ -517,47 +635,8 @@ pub unsafe extern "C" fn troupe_motion_decode(
                     })
                 })
                 .collect::<FfiResult<Vec<_>>>()?;
-            let j = T2M22_JOINTS;
-            // SAFETY (all four): forwarded contract on the buffers of `out`.
-            let parts = unsafe {
-                [
-                    pose_part(
-                        out.positions,
-                        out.positions_len,
-                        n_frames,
-                        3 * j,
-                        "positions",
-                    )?,
-                    pose_part(
-                        out.rotations,
-                        out.rotations_len,
-                        n_frames,
-                        4 * j,
-                        "rotations",
-                    )?,
-                    pose_part(
-                        out.rotations_6d,
-                        out.rotations_6d_len,
-                        n_frames,
-                        6 * j,
-                        "rotations_6d",
-                    )?,
-                    pose_part(out.contacts, out.contacts_len, n_frames, 4, "contacts")?,
-                ]
-            };
-            let per_frame = [3 * j, 4 * j, 6 * j, 4];
-            for (k, part) in parts.into_iter().enumerate() {
-                let Some(buffer) = part else { continue };
-                for (pose, dst) in poses.iter().zip(buffer.chunks_exact_mut(per_frame[k])) {
-                    let src: &[f32] = match k {
-                        0 => pose.positions.as_flattened(),
-                        1 => pose.rotations.as_flattened(),
-                        2 => pose.rotations_6d.as_flattened(),
-                        _ => &pose.contacts,
-                    };
-                    dst.copy_from_slice(src);
-                }
-            }
+            // SAFETY: forwarded contract on the buffers of `out`.
+            unsafe { PoseParts::check(out, n_frames, true) }?.fill(&poses);
             Ok(())
         },
     )

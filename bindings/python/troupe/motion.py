@@ -1,0 +1,261 @@
+"""Motion people have, in and out: the t2m-22 skeleton, joint positions to a bundle's features and
+back, streams, and BVH files. numpy in, numpy out.
+
+    import troupe
+    from troupe import motion
+    model = troupe.Model("onnx/bundles/armflow-tiny")
+    fmt = motion.JointsFormat(units="cm", up="z", fps=120)       # how your positions are measured
+    features, placement = motion.encode(model, positions, fmt)  # positions: [T, 22, 3]
+    poses = motion.decode(model, reactor_features, placement, fmt)
+    poses.positions  # [T, 22, 3] in your world; .rotations [T, 22, 4] wxyz; .rotations_6d; .contacts
+
+Rotations: joint 0's is the root's world orientation, every other joint's is local to its parent
+(as SMPL, BVH and engines use them). See docs/MOTION.md.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import os
+from typing import NamedTuple
+
+import numpy as np
+
+from . import _native
+from . import _check, _floats, _lib, _ptr
+
+__all__ = ["JointsFormat", "Placement", "Poses", "Skeleton", "FeatureStream", "skeleton", "encode", "decode",
+           "read_bvh", "write_bvh", "write_json", "save_npz", "JOINTS"]
+
+JOINTS = 22
+_UNITS = {"m": 0, "cm": 1, "mm": 2, "in": 3}
+_UP = {"y": 0, "z": 1}
+_HANDED = {"right": 0, "left": 1}
+_UNITS_AUTO = 0xFFFFFFFF
+
+
+class JointsFormat:
+    """How positions are measured: units ("m", "cm", "mm", "in"), up axis ("y" or "z"),
+    handedness ("right" or "left") and frame rate (resampled to the bundle's)."""
+
+    def __init__(self, units: str = "m", up: str = "y", handedness: str = "right", fps: float = 30.0):
+        for value, table, what in ((units, _UNITS, "units"), (up, _UP, "up"), (handedness, _HANDED, "handedness")):
+            if value not in table:
+                raise ValueError(f"{what} must be one of {sorted(table)}, got {value!r}")
+        self.units, self.up, self.handedness, self.fps = units, up, handedness, float(fps)
+
+    def _c(self) -> _native.JointsFormat:
+        f = _native.JointsFormat()
+        _check(_lib.troupe_joints_format_init(ctypes.byref(f), ctypes.sizeof(f)))
+        f.units, f.up_axis, f.handedness, f.fps = _UNITS[self.units], _UP[self.up], _HANDED[self.handedness], self.fps
+        return f
+
+    @classmethod
+    def _from_c(cls, f: _native.JointsFormat) -> "JointsFormat":
+        name = lambda table, code: next(k for k, v in table.items() if v == code)  # noqa: E731
+        return cls(name(_UNITS, f.units), name(_UP, f.up_axis), name(_HANDED, f.handedness), f.fps)
+
+    def __repr__(self) -> str:
+        return f"JointsFormat(units={self.units!r}, up={self.up!r}, handedness={self.handedness!r}, fps={self.fps})"
+
+
+class Placement:
+    """Where a clip's canonical frame sits in the caller's world (InterGen's canonicalisation):
+    floor height, first-frame root x and z (metres, Y up) and the heading quaternion (wxyz)."""
+
+    def __init__(self, c: _native.Placement):
+        self._c = c
+
+    floor = property(lambda self: self._c.floor)
+    origin = property(lambda self: (self._c.origin_x, self._c.origin_z))
+    heading = property(lambda self: tuple(self._c.heading))
+
+    def __eq__(self, other) -> bool:
+        return isinstance(other, Placement) and bytes(self._c) == bytes(other._c)
+
+    def __repr__(self) -> str:
+        return f"Placement(floor={self.floor:.4f}, origin={self.origin}, heading={self.heading})"
+
+
+class Poses(NamedTuple):
+    """Poses in the caller's world: positions [T, 22, 3], rotations [T, 22, 4] (wxyz),
+    rotations_6d [T, 22, 6], contacts [T, 4] (left ankle, left foot, right ankle, right foot)."""
+
+    positions: np.ndarray
+    rotations: np.ndarray
+    rotations_6d: np.ndarray
+    contacts: np.ndarray
+
+
+class Skeleton(NamedTuple):
+    """The t2m-22 skeleton: joint names, parents (-1 for the root) and rest offsets [22, 3] in
+    metres (Y up, facing +Z, +X the body's left)."""
+
+    names: list
+    parents: np.ndarray
+    rest_offsets: np.ndarray
+
+
+def skeleton() -> Skeleton:
+    """The t2m-22 skeleton troupe's features are defined on."""
+    n = _lib.troupe_motion_joint_count()
+    parents = np.empty(n, np.int32)
+    offsets = np.empty((n, 3), np.float32)
+    _check(_lib.troupe_motion_skeleton(parents.ctypes.data_as(ctypes.POINTER(ctypes.c_int32)), n, _ptr(offsets),
+                                       offsets.size))
+    return Skeleton([_lib.troupe_motion_joint_name(j).decode() for j in range(n)], parents, offsets)
+
+
+def _positions(x, what: str) -> np.ndarray:
+    a = _floats(x, what)
+    if a.ndim != 3 or a.shape[1:] != (JOINTS, 3):
+        raise ValueError(f"{what} must be [frames, 22, 3], got {list(a.shape)}")
+    return a
+
+
+def _pose_buffers(frames: int):
+    poses = Poses(np.empty((frames, JOINTS, 3), np.float32), np.empty((frames, JOINTS, 4), np.float32),
+                  np.empty((frames, JOINTS, 6), np.float32), np.empty((frames, 4), np.float32))
+    b = _native.PoseBuffers(_ptr(poses.positions), poses.positions.size, _ptr(poses.rotations), poses.rotations.size,
+                            _ptr(poses.rotations_6d), poses.rotations_6d.size, _ptr(poses.contacts),
+                            poses.contacts.size)
+    return poses, b
+
+
+def encode(model, positions, fmt: JointsFormat | None = None, placement: Placement | None = None):
+    """Features of a clip of joint positions ([T, 22, 3] as `fmt` says), resampled to the bundle's
+    rate, in InterGen's canonical frame (or `placement`'s). Returns (features [T' - 1, frame_dim],
+    the Placement used)."""
+    fmt = fmt or JointsFormat(fps=model.fps)
+    p = _positions(positions, "positions")
+    c = fmt._c()
+    n = ctypes.c_size_t()
+    _check(_lib.troupe_motion_encoded_frames(model._h(), ctypes.byref(c), p.shape[0], ctypes.byref(n)))
+    out = np.empty((n.value, model.frame_dim), np.float32)
+    used = _native.Placement()
+    given = ctypes.byref(placement._c) if placement is not None else None
+    written = ctypes.c_size_t()
+    _check(_lib.troupe_motion_encode(model._h(), ctypes.byref(c), _ptr(p), p.shape[0], given, _ptr(out),
+                                     out.shape[0], ctypes.byref(written), ctypes.byref(used)))
+    return out[: written.value], Placement(used)
+
+
+def decode(model, features, placement: Placement, fmt: JointsFormat | None = None) -> Poses:
+    """Poses of feature frames ([T, frame_dim]) in the caller's world (`placement` from `encode`
+    or a stream; `fmt`'s axes and units)."""
+    fmt = fmt or JointsFormat(fps=model.fps)
+    f = _floats(features, "features")
+    if f.ndim != 2 or f.shape[1] != model.frame_dim:
+        raise ValueError(f"features must be [frames, {model.frame_dim}], got {list(f.shape)}")
+    poses, buffers = _pose_buffers(f.shape[0])
+    c = fmt._c()
+    _check(_lib.troupe_motion_decode(model._h(), ctypes.byref(c), ctypes.byref(placement._c), _ptr(f), f.shape[0],
+                                     ctypes.byref(buffers)))
+    return poses
+
+
+class FeatureStream:
+    """Joint-position frames in, feature frames out, one frame at a time (one frame of latency:
+    velocities need the next frame). One thread at a time."""
+
+    def __init__(self, model, fmt: JointsFormat | None = None, placement: Placement | None = None):
+        fmt = fmt or JointsFormat(fps=model.fps)
+        handle = _native.stream_p()
+        c = fmt._c()
+        given = ctypes.byref(placement._c) if placement is not None else None
+        _check(_lib.troupe_motion_stream_new(model._h(), ctypes.byref(c), given, ctypes.byref(handle)))
+        self._handle, self._dim = handle, model.frame_dim
+
+    def push(self, frame) -> np.ndarray:
+        """One frame of positions ([22, 3]) in; the feature frames it completes out ([k, frame_dim])."""
+        f = _floats(frame, "frame", JOINTS * 3)
+        cap = _lib.troupe_motion_stream_max_frames(self._handle)
+        out = np.empty((cap, self._dim), np.float32)
+        n = ctypes.c_size_t()
+        _check(_lib.troupe_motion_stream_push(self._handle, _ptr(f), f.size, _ptr(out), cap, ctypes.byref(n)))
+        return out[: n.value]
+
+    @property
+    def placement(self) -> Placement | None:
+        """The canonical frame, once the first frame has fixed it."""
+        c = _native.Placement()
+        if _lib.troupe_motion_stream_placement(self._handle, ctypes.byref(c)) != 0:
+            return None
+        return Placement(c)
+
+    def reset(self, placement: Placement | None = None) -> None:
+        _check(_lib.troupe_motion_stream_reset(self._handle, ctypes.byref(placement._c) if placement else None))
+
+    def close(self) -> None:
+        if self._handle:
+            _lib.troupe_motion_stream_free(self._handle)
+            self._handle = None
+
+    __del__ = close
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+
+def read_bvh(path: str | os.PathLike, units: str | None = None, joint_map: str | None = None):
+    """A BVH take as t2m-22 joint positions: (positions [T, 22, 3] in the file's units and axes,
+    its JointsFormat). `units`: the file's ("m", "cm", ...), or None to guess from the figure's
+    height; `joint_map`: a joint-map JSON text to use instead of the built-in one."""
+    handle = _native.bvh_p()
+    code = _UNITS_AUTO if units is None else _UNITS[units]
+    jm = joint_map.encode() if joint_map is not None else None
+    _check(_lib.troupe_bvh_read(os.fsencode(path), jm, code, ctypes.byref(handle)))
+    try:
+        frames = _lib.troupe_bvh_frames(handle)
+        out = np.empty((frames, JOINTS, 3), np.float32)
+        _check(_lib.troupe_bvh_positions(handle, _ptr(out), out.size))
+        c = _native.JointsFormat()
+        _check(_lib.troupe_bvh_format(handle, ctypes.byref(c), ctypes.sizeof(c)))
+        return out, JointsFormat._from_c(c)
+    finally:
+        _lib.troupe_bvh_free(handle)
+
+
+def write_bvh(path: str | os.PathLike, people, fmt: JointsFormat | None = None, units: str = "cm",
+              fit_skeleton: bool = True) -> None:
+    """Writes people on the t2m-22 skeleton to a BVH file (atomically). `people`: a dict
+    {name: positions [T, 22, 3]} (or one array for one person) in the world `fmt` describes (its
+    fps is the file's rate). `fit_skeleton`: each person keeps their bone lengths (the file
+    reproduces the positions) rather than troupe's neutral body."""
+    stacked, names, c = _people(people, fmt)
+    _check(_lib.troupe_bvh_write(os.fsencode(path), _ptr(stacked), stacked.shape[0], stacked.shape[1], ctypes.byref(c),
+                                 names, _UNITS[units], int(fit_skeleton)))
+
+
+def _people(people, fmt):
+    if not isinstance(people, dict):
+        people = {"person 1": people}
+    arrays = [_positions(p, f"positions of {name}") for name, p in people.items()]
+    if len({a.shape[0] for a in arrays}) > 1:
+        raise ValueError("every person needs the same number of frames")
+    names = (ctypes.c_char_p * len(arrays))(*[n.encode() for n in people])
+    return np.ascontiguousarray(np.stack(arrays)), names, (fmt or JointsFormat())._c()
+
+
+def write_json(path: str | os.PathLike, people, fmt: JointsFormat | None = None) -> None:
+    """Writes people's poses ({name: positions [T, 22, 3]} in the world `fmt` describes) as a
+    JSON document for robots and tools: per frame, joint positions, rotations (wxyz; joint 0 the
+    root's world orientation, the others local to their parent) and contacts, with the skeleton,
+    units, axes and frame rate stated in it."""
+    stacked, names, c = _people(people, fmt)
+    _check(_lib.troupe_motion_write_json(os.fsencode(path), _ptr(stacked), stacked.shape[0], stacked.shape[1],
+                                         ctypes.byref(c), names))
+
+
+def save_npz(path: str | os.PathLike, poses: Poses, fmt: JointsFormat | None = None) -> None:
+    """Saves poses (from `decode` or `Session.step_joints`) as an .npz for robot pipelines:
+    positions [T, 22, 3], rotations_wxyz [T, 22, 4], rotations_6d, contacts, joint_names,
+    parents, and the axes they are in (units, up, handedness, fps)."""
+    fmt = fmt or JointsFormat()
+    s = skeleton()
+    np.savez(path, positions=poses.positions, rotations_wxyz=poses.rotations, rotations_6d=poses.rotations_6d,
+             contacts=poses.contacts, joint_names=np.array(s.names), parents=s.parents, units=fmt.units, up=fmt.up,
+             handedness=fmt.handedness, fps=np.float32(fmt.fps))

@@ -1,0 +1,269 @@
+//! `troupe_bvh_*`: BVH files in (as t2m-22 joint positions) and out.
+
+use std::ffi::c_char;
+use std::path::Path;
+
+use ndarray::Array3;
+
+use super::{read_format, read_people, troupe_joints_format};
+use super::{TROUPE_UNITS_CENTIMETERS, TROUPE_UNITS_METERS};
+use super::{TROUPE_UNITS_INCHES, TROUPE_UNITS_MILLIMETERS};
+use crate::ffi::boundary::{
+    self, non_null, required, troupe_status, write_versioned, FfiError, FfiResult,
+    TROUPE_ERR_INVALID_ARG, TROUPE_ERR_SHAPE,
+};
+use crate::motion::bvh::{read_bvh, write_bvh_file, BvhPerson, BvhWriteOptions};
+use crate::motion::features::{read_frame, MAX_CLIP_FRAMES};
+use crate::motion::{JointMap, JointsFormat, Units};
+
+/// The most people one BVH file troupe writes may hold.
+const MAX_BVH_PEOPLE: usize = 64;
+
+/// Let `troupe_bvh_read` guess a file's units from the figure's height.
+pub const TROUPE_UNITS_AUTO: u32 = 0xFFFF_FFFF;
+
+/// A BVH take read as t2m-22 joint positions. Immutable: any thread may query it. Free with
+/// `troupe_bvh_free`.
+pub struct troupe_bvh {
+    positions: Array3<f32>,
+    format: JointsFormat,
+}
+
+fn units_from(code: u32, what: &str) -> FfiResult<Units> {
+    Ok(match code {
+        TROUPE_UNITS_METERS => Units::Meters,
+        TROUPE_UNITS_CENTIMETERS => Units::Centimeters,
+        TROUPE_UNITS_MILLIMETERS => Units::Millimeters,
+        TROUPE_UNITS_INCHES => Units::Inches,
+        v => {
+            return Err(FfiError::new(
+                TROUPE_ERR_INVALID_ARG,
+                format!("{what} is {v}, not a TROUPE_UNITS_* code"),
+            ))
+        }
+    })
+}
+
+/// Reads the BVH file at `path` (UTF-8) as t2m-22 joint positions. `joint_map_json`: a joint
+/// map (JSON, see the built-in `src/motion/rigs/t2m22-joint-names.json`) or NULL for the
+/// built-in one (LAFAN1, Mixamo, CMU, HumanIK and SMPL names). `units`: the file's length unit
+/// (`TROUPE_UNITS_*`), or `TROUPE_UNITS_AUTO` to guess from the figure's height. `*out` is set
+/// to NULL on entry and to the take on success.
+///
+/// Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_IO` (unreadable file),
+/// `TROUPE_ERR_INVALID_ARG` (malformed file, naming line, joint and frame; a rig lacking a
+/// t2m-22 joint, naming it and the names tried; a bad map or units), `TROUPE_ERR_PANIC`.
+/// Thread-safe.
+///
+/// # Safety
+/// `path` and a non-NULL `joint_map_json` NUL-terminated; `out` writable.
+#[no_mangle]
+pub unsafe extern "C" fn troupe_bvh_read(
+    path: *const c_char,
+    joint_map_json: *const c_char,
+    units: u32,
+    out: *mut *mut troupe_bvh,
+) -> troupe_status {
+    boundary::call(
+        "troupe_bvh_read",
+        || {},
+        || {
+            non_null(out, "out")?;
+            // SAFETY: checked non-NULL, writable per the contract.
+            unsafe { *out = std::ptr::null_mut() };
+            // SAFETY: forwarded contract.
+            let path = unsafe { boundary::required_str(path, "path") }?;
+            let map = if joint_map_json.is_null() {
+                JointMap::builtin()
+            } else {
+                // SAFETY: forwarded contract.
+                JointMap::from_json(unsafe {
+                    boundary::required_str(joint_map_json, "joint_map_json")
+                }?)?
+            };
+            let units = match units {
+                TROUPE_UNITS_AUTO => None,
+                code => Some(units_from(code, "units")?),
+            };
+            let joints = read_bvh(path)?.to_t2m22(&map, units, path)?;
+            let handle = Box::new(troupe_bvh {
+                positions: joints.positions,
+                format: joints.format,
+            });
+            // SAFETY: as above.
+            unsafe { *out = Box::into_raw(handle) };
+            Ok(())
+        },
+    )
+}
+
+/// Frames of a take; 0 for NULL. Thread-safe.
+#[no_mangle]
+pub extern "C" fn troupe_bvh_frames(bvh: Option<&troupe_bvh>) -> usize {
+    boundary::get(0, || bvh.map_or(0, |b| b.positions.shape()[0]))
+}
+
+/// Writes how to read the take's positions (its units, Y up, right-handed, its frame rate) into
+/// `*format` (`format_size` = `sizeof(troupe_joints_format)`): pass it to the conversion
+/// functions with the positions.
+///
+/// Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (a size smaller than
+/// the first version's). Thread-safe.
+///
+/// # Safety
+/// `format` writable for `format_size` bytes.
+#[no_mangle]
+pub unsafe extern "C" fn troupe_bvh_format(
+    bvh: Option<&troupe_bvh>,
+    format: *mut troupe_joints_format,
+    format_size: usize,
+) -> troupe_status {
+    boundary::call(
+        "troupe_bvh_format",
+        || {},
+        || {
+            let bvh = required(bvh, "bvh")?;
+            non_null(format, "format")?;
+            boundary::check_struct_size(
+                format_size,
+                super::FORMAT_V1_SIZE,
+                "troupe_joints_format",
+            )?;
+            let value = super::troupe_joints_format::from_rust(&bvh.format, format_size);
+            // SAFETY: writable for `format_size` bytes per the contract.
+            unsafe { write_versioned(format, format_size, &value) };
+            Ok(())
+        },
+    )
+}
+
+/// Copies the take's t2m-22 joint positions, float32 `[frames][22][3]` in the file's units and
+/// axes, into `positions` (`positions_len` = frames × 66).
+///
+/// Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_SHAPE` (another length).
+/// Thread-safe.
+///
+/// # Safety
+/// `positions` writable for `positions_len` floats.
+#[no_mangle]
+pub unsafe extern "C" fn troupe_bvh_positions(
+    bvh: Option<&troupe_bvh>,
+    positions: *mut f32,
+    positions_len: usize,
+) -> troupe_status {
+    boundary::call(
+        "troupe_bvh_positions",
+        || {},
+        || {
+            let bvh = required(bvh, "bvh")?;
+            let src = bvh.positions.as_slice().expect("standard layout");
+            if positions_len != src.len() {
+                return Err(FfiError::new(
+                    TROUPE_ERR_SHAPE,
+                    format!(
+                        "positions_len is {positions_len}, the take has {}",
+                        src.len()
+                    ),
+                ));
+            }
+            if !src.is_empty() {
+                non_null(positions, "positions")?;
+                // SAFETY: writable for `positions_len` floats per the contract.
+                unsafe { std::ptr::copy_nonoverlapping(src.as_ptr(), positions, src.len()) };
+            }
+            Ok(())
+        },
+    )
+}
+
+/// Frees a take. NULL is a no-op.
+///
+/// # Safety
+/// `bvh` NULL or a live handle from `troupe_bvh_read`, not used afterwards.
+#[no_mangle]
+pub unsafe extern "C" fn troupe_bvh_free(bvh: *mut troupe_bvh) {
+    if !bvh.is_null() {
+        // SAFETY: a live handle from Box::into_raw per the contract.
+        boundary::get((), || drop(unsafe { Box::from_raw(bvh) }));
+    }
+}
+
+/// Writes a BVH file at `path` (UTF-8; atomically: nothing is left on error) holding `n_people`
+/// people on the t2m-22 skeleton: `positions` is float32 `[n_people][n_frames][22][3]` in the
+/// caller's world as `format` says (its `fps` becomes the file's rate), `names` their names (NULL
+/// for "person1", "person2", ...; prefixed to joint names when there are several people, who then
+/// share a root joint called `scene`; at most 64 people). Rotations come from inverse kinematics; each person's bone
+/// lengths are measured from their motion when `fit_skeleton` is non-zero (the file then
+/// reproduces the positions), else troupe's neutral body is used. `units`: the file's length unit
+/// (`TROUPE_UNITS_*`; centimetres are what most tools expect). The file is Y up.
+///
+/// Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (NaN or infinite
+/// positions, no people or frames, a bad format, units or name), `TROUPE_ERR_IO`,
+/// `TROUPE_ERR_PANIC`. Thread-safe.
+///
+/// # Safety
+/// `path` NUL-terminated; `positions` readable for `n_people * n_frames * 66` floats; `format`
+/// readable; a non-NULL `names` readable for `n_people` NUL-terminated strings.
+#[no_mangle]
+#[allow(clippy::too_many_arguments)]
+pub unsafe extern "C" fn troupe_bvh_write(
+    path: *const c_char,
+    positions: *const f32,
+    n_people: usize,
+    n_frames: usize,
+    format: *const troupe_joints_format,
+    names: *const *const c_char,
+    units: u32,
+    fit_skeleton: u32,
+) -> troupe_status {
+    boundary::call(
+        "troupe_bvh_write",
+        || {},
+        || {
+            // SAFETY (all): forwarded contract.
+            let path = unsafe { boundary::required_str(path, "path") }?;
+            let format = unsafe { read_format(format) }?;
+            let units = units_from(units, "units")?;
+            let people = unsafe {
+                read_people(
+                    positions,
+                    n_people,
+                    n_frames,
+                    names,
+                    MAX_BVH_PEOPLE,
+                    MAX_CLIP_FRAMES,
+                )
+            }?;
+            // Troupe's axes (metres, Y up): what the BVH writer takes.
+            let clips = people
+                .positions
+                .iter()
+                .enumerate()
+                .map(|(i, person)| {
+                    person
+                        .outer_iter()
+                        .enumerate()
+                        .map(|(t, frame)| {
+                            read_frame(&format, frame, &format!("person {i}, frame {t}"))
+                        })
+                        .collect::<crate::Result<Vec<_>>>()
+                })
+                .collect::<crate::Result<Vec<_>>>()?;
+            let people: Vec<BvhPerson> = clips
+                .iter()
+                .zip(&people.names)
+                .map(|(c, n)| BvhPerson {
+                    name: n,
+                    positions: c,
+                })
+                .collect();
+            let options = BvhWriteOptions {
+                units,
+                fps: format.fps,
+                fit_skeleton: fit_skeleton != 0,
+            };
+            write_bvh_file(Path::new(path), &people, &options)?;
+            Ok(())
+        },
+    )
+}

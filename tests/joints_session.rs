@@ -1,0 +1,136 @@
+//! Sessions that speak joint positions: `Session::step_joints` and `step_sessions_joints` on
+//! real motion capture (the committed CMU excerpt, 120 fps, Z up), against the feature path.
+
+mod common;
+
+use ndarray::{s, Array2, Array3, Axis};
+use ndarray_npy::read_npy;
+use troupe::motion::{decode_frame, FeatureStream, JointsFormat, Units, UpAxis};
+use troupe::{step_sessions_joints, Model};
+
+fn cmu() -> Array3<f32> {
+    read_npy(
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("tests/data/mocap/cmu-playground-120fps.npy"),
+    )
+    .unwrap()
+}
+
+fn format() -> JointsFormat {
+    JointsFormat {
+        units: Units::Meters,
+        up: UpAxis::Z,
+        fps: 120.0,
+        ..Default::default()
+    }
+}
+
+#[test]
+fn joints_in_poses_out_equal_the_feature_path() {
+    let model = common::model();
+    let clip = cmu().slice(s![..200, .., ..]).to_owned();
+    let mut joints = model.session(common::default_options()).unwrap();
+    joints.set_joints_format(format()).unwrap();
+    assert_eq!(joints.joints_latency_frames(), model.latency_frames() + 1);
+    assert_eq!(model.joints_latency_frames(), model.latency_frames() + 1);
+    // The same motion through an explicit feature stream and the feature session.
+    let mut features = model.session(common::default_options()).unwrap();
+    let mut stream = FeatureStream::new(format(), model.fps() as f32, None).unwrap();
+    let (mut poses, mut expected) = (Vec::new(), Vec::new());
+    for chunk in clip.axis_chunks_iter(Axis(0), 7) {
+        poses.extend(joints.step_joints(chunk).unwrap());
+        let rows: Vec<f32> = chunk
+            .outer_iter()
+            .flat_map(|f| stream.push(f).unwrap())
+            .flatten()
+            .collect();
+        let rows = Array2::from_shape_vec((rows.len() / 262, 262), rows).unwrap();
+        let out = features.step(rows.view()).unwrap();
+        let placement = *stream.placement().unwrap();
+        expected.extend(
+            out.outer_iter()
+                .map(|r| decode_frame(r, &placement).unwrap()),
+        );
+    }
+    // 200 frames at 120 fps are 50 at 30 fps, 49 feature frames, 12 whole tokens of 4 frames.
+    assert_eq!(poses.len(), 48);
+    assert_eq!(poses, expected);
+    assert_eq!(joints.joints_placement(), stream.placement());
+    // Poses are in the caller's world: z up, near where the actor is.
+    let root = poses[0].root_translation();
+    let actor_root = [clip[[0, 0, 0]], clip[[0, 0, 1]]];
+    let distance = ((root[0] - actor_root[0]).powi(2) + (root[1] - actor_root[1]).powi(2)).sqrt();
+    assert!(
+        distance < 10.0,
+        "reactor root {root:?}, actor {actor_root:?}"
+    );
+}
+
+#[test]
+fn a_refused_chunk_leaves_the_session_and_its_joint_stream_unchanged() {
+    let model = common::model();
+    let clip = cmu().slice(s![..80, .., ..]).to_owned();
+    let mut a = model.session(common::default_options()).unwrap();
+    let mut b = model.session(common::default_options()).unwrap();
+    for session in [&mut a, &mut b] {
+        session.set_joints_format(format()).unwrap();
+        session.step_joints(clip.slice(s![..40, .., ..])).unwrap();
+    }
+    let mut bad = clip.slice(s![40..60, .., ..]).to_owned();
+    bad[[13, 5, 2]] = f32::NAN;
+    let err = a.step_joints(bad.view()).unwrap_err().to_string();
+    assert!(
+        err.contains("frame 13") && err.contains("right_knee"),
+        "{err}"
+    );
+    let wrong = Array3::<f32>::zeros((3, 24, 3));
+    assert!(a.step_joints(wrong.view()).is_err());
+    let rest = clip.slice(s![40.., .., ..]);
+    assert_eq!(a.step_joints(rest).unwrap(), b.step_joints(rest).unwrap());
+}
+
+#[test]
+fn many_sessions_at_once_equal_each_alone() {
+    let model = common::model();
+    let clip = cmu();
+    let chunks = [
+        clip.slice(s![..64, .., ..]),
+        clip.slice(s![300..340, .., ..]),
+    ];
+    let make = || -> Vec<troupe::Session> {
+        (0..2)
+            .map(|i| {
+                let mut s = model
+                    .session(troupe::SessionOptions {
+                        seed: 5 + i,
+                        ..Default::default()
+                    })
+                    .unwrap();
+                s.set_joints_format(format()).unwrap();
+                s
+            })
+            .collect()
+    };
+    let (mut together, mut alone) = (make(), make());
+    let mut refs: Vec<_> = together.iter_mut().collect();
+    let batched = step_sessions_joints(&mut refs, &chunks).unwrap();
+    for (i, s) in alone.iter_mut().enumerate() {
+        assert_eq!(batched[i], s.step_joints(chunks[i]).unwrap(), "session {i}");
+    }
+}
+
+#[test]
+fn bundles_without_joint_features_refuse_joints() {
+    let interx = Model::load(
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("onnx/bundles/armflow-tiny-interx"),
+    )
+    .unwrap();
+    let mut session = interx.session(common::default_options()).unwrap();
+    let err = session.set_joints_format(format()).unwrap_err().to_string();
+    assert!(err.contains("interhuman262"), "{err}");
+    let err = session
+        .step_joints(cmu().slice(s![..4, .., ..]))
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("interhuman262"), "{err}");
+}
