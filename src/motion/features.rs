@@ -54,11 +54,12 @@ pub const MAX_CLIP_FRAMES: usize = 1_080_000;
 /// Checks a bundle's motion section: `interhuman262` means 262 floats on the `t2m22` skeleton.
 /// Other layouts pass (their bundles take features only), but [`joints_layout`] refuses them.
 pub fn check_layout(spec: &MotionSpec) -> std::result::Result<(), String> {
-    if spec.layout == INTERHUMAN262 && (spec.frame_dim != FEATURE_DIM || spec.skeleton != T2M22) {
+    if spec.layout == INTERHUMAN262 && (spec.frame_dim != FEATURE_DIM || spec.skeleton() != T2M22) {
         return Err(format!(
             "motion: layout {INTERHUMAN262} has {FEATURE_DIM} floats per frame on skeleton \
              {T2M22}, the manifest says {} on {:?}",
-            spec.frame_dim, spec.skeleton
+            spec.frame_dim,
+            spec.skeleton()
         ));
     }
     Ok(())
@@ -286,4 +287,39 @@ pub fn decode_frame(frame: ArrayView1<f32>, placement: &Placement) -> Result<Pos
         pose.rotations_6d[j] = q.to_6d().map(|v| v as f32);
     }
     Ok(pose)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn spec(layout: &str, frame_dim: usize, skeleton: Option<&str>) -> MotionSpec {
+        MotionSpec {
+            layout: layout.into(),
+            frame_dim,
+            fps: 30,
+            declared_skeleton: skeleton.map(String::from),
+        }
+    }
+
+    #[test]
+    fn manifests_declare_a_layout_and_the_skeleton_it_is_on() {
+        assert!(check_layout(&spec("interhuman262", 262, None)).is_ok());
+        assert!(check_layout(&spec("interhuman262", 262, Some("t2m22"))).is_ok());
+        let err = check_layout(&spec("interhuman262", 262, Some("smplx55"))).unwrap_err();
+        assert!(
+            err.contains("skeleton t2m22") && err.contains("smplx55"),
+            "{err}"
+        );
+        assert!(check_layout(&spec("interhuman262", 263, None)).is_err());
+        assert!(check_layout(&spec("interx336", 336, None)).is_ok());
+        assert_eq!(spec("interx336", 336, None).skeleton(), "smplx55");
+        let err = joints_layout(&spec("interx336", 336, None))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.contains("interx336") && err.contains("interhuman262"),
+            "{err}"
+        );
+    }
 }

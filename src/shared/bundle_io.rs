@@ -13,14 +13,23 @@ pub struct MotionSpec {
     pub frame_dim: usize,
     /// Frames per second of the motion.
     pub fps: u32,
-    /// The skeleton the features are defined on (`t2m22` when absent, the skeleton of
-    /// `interhuman262`).
-    #[serde(default = "default_skeleton")]
-    pub skeleton: String,
+    /// The skeleton the features are defined on; when absent, the layout's own (see
+    /// [`MotionSpec::skeleton`]).
+    #[serde(default, skip_serializing_if = "Option::is_none", rename = "skeleton")]
+    pub declared_skeleton: Option<String>,
 }
 
-fn default_skeleton() -> String {
-    "t2m22".into()
+impl MotionSpec {
+    /// The skeleton the features are defined on: the declared one, else the layout's own
+    /// (`t2m22` for `interhuman262`, `smplx55` for `interx336`, `unknown` otherwise).
+    pub fn skeleton(&self) -> &str {
+        match (&self.declared_skeleton, self.layout.as_str()) {
+            (Some(s), _) => s,
+            (None, "interhuman262") => "t2m22",
+            (None, "interx336") => "smplx55",
+            (None, _) => "unknown",
+        }
+    }
 }
 
 /// Conditioning vector.

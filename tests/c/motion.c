@@ -314,6 +314,25 @@ int main(int argc, char **argv) {
         EXPECT(troupe_bvh_read(bad, NULL, TROUPE_UNITS_AUTO, &bvh), TROUPE_ERR_INVALID_ARG);
         CHECK(strstr(troupe_last_error_message(), "left_hip") != NULL);
         EXPECT(troupe_bvh_read(bad, "{\"not\": \"a map\"}", TROUPE_UNITS_AUTO, &bvh), TROUPE_ERR_INVALID_ARG);
+        /* a truncated file, and one declaring an absurd number of frames: refused, nothing allocated */
+        f = fopen(bad, "wb");
+        if (f) {
+            fputs("HIERARCHY\nROOT Hips\n{\n  OFFSET 0 0 0\n  CHANNELS 3 Xposition Yposition Zposition\n}\n"
+                  "MOTION\nFrames: 3\nFrame Time: 0.0333\n0 0 0\n1 1 1\n2 2\n", f);
+            fclose(f);
+        }
+        EXPECT(troupe_bvh_read(bad, NULL, TROUPE_UNITS_AUTO, &bvh), TROUPE_ERR_INVALID_ARG);
+        CHECK(strstr(troupe_last_error_message(), "truncated") != NULL);
+        CHECK(strstr(troupe_last_error_message(), "frame 2") != NULL);
+        f = fopen(bad, "wb");
+        if (f) {
+            fputs("HIERARCHY\nROOT Hips\n{\n  OFFSET 0 0 0\n  CHANNELS 3 Xposition Yposition Zposition\n}\n"
+                  "MOTION\nFrames: 1000000000000\nFrame Time: 0.0333\n0 0 0\n", f);
+            fclose(f);
+        }
+        EXPECT(troupe_bvh_read(bad, NULL, TROUPE_UNITS_AUTO, &bvh), TROUPE_ERR_INVALID_ARG);
+        CHECK(strstr(troupe_last_error_message(), "Frames") != NULL);
+        CHECK(bvh == NULL);
         EXPECT(troupe_bvh_read(bad, NULL, 12345, &bvh), TROUPE_ERR_INVALID_ARG);
         EXPECT(troupe_bvh_read(NULL, NULL, TROUPE_UNITS_AUTO, &bvh), TROUPE_ERR_NULL_ARG);
         /* poses as JSON for robots */

@@ -43,6 +43,8 @@ from troupe_onnx.shared.noise import philox_normals
 
 TOOL = "onnx/cli.py armflow export"  # the manifest's `producer.tool`
 LAYOUTS = {262: "interhuman262", 336: "interx336"}
+# The skeleton each layout's features are defined on (troupe.json `motion.skeleton`).
+SKELETONS = {"interhuman262": "t2m22", "interx336": "smplx55"}
 
 PRESETS = {
     # Small enough to commit and to run the test-suite in seconds; every architectural feature
@@ -298,7 +300,8 @@ def export_bundle(preset: str, out_dir: Path, seed: int = 0, checkpoint: Path | 
         "family": "armflow",
         "name": f"armflow-{preset}",
         "producer": producer,
-        "motion": {"layout": LAYOUTS[cfg.frame_dim], "frame_dim": cfg.frame_dim, "fps": cfg.fps},
+        "motion": {"layout": LAYOUTS[cfg.frame_dim], "frame_dim": cfg.frame_dim, "fps": cfg.fps,
+                   "skeleton": SKELETONS[LAYOUTS[cfg.frame_dim]]},
         "latent": {"dim": lat, "scale": cfg.latent_scale, "frames_per_token": cfg.frames_per_token},
         "condition": {"dim": cfg.cond_dim},
         "context": {

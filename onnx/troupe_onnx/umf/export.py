@@ -276,7 +276,7 @@ def export_bundle(
             **({"checkpoint": checkpoint.name} if checkpoint else {"seed": seed}),
             "dataset": DATASET_NAMES[cfg.dataset_label],
         },
-        "motion": {"layout": "interhuman262", "frame_dim": cfg.frame_dim, "fps": cfg.fps},
+        "motion": {"layout": "interhuman262", "frame_dim": cfg.frame_dim, "fps": cfg.fps, "skeleton": "t2m22"},
         "condition": {"dim": cfg.condition_dim, "null": [float(v) for v in model.null_condition]},
         "latent": {"tokens": cfg.tokens, "dim": cfg.latent_dim},
         "clip_frames": cfg.clip_frames,
