@@ -820,7 +820,8 @@ void troupe_bvh_free(struct troupe_bvh *bvh);
  Writes a BVH file at `path` (UTF-8; atomically: nothing is left on error) holding `n_people`
  people on the t2m-22 skeleton: `positions` is float32 `[n_people][n_frames][22][3]` in the
  caller's world as `format` says (its `fps` becomes the file's rate), `names` their names (NULL
- for "person1", "person2", ...; prefixed to joint names when there are several people, who then
+ or a NULL entry for "person1", "person2", ...; prefixed to joint names when there are several
+ people, who then
  share a root joint called `scene`; at most 64 people). Rotations come from inverse kinematics; each person's bone
  lengths are measured from their motion when `fit_skeleton` is non-zero (the file then
  reproduces the positions), else troupe's neutral body is used. `units`: the file's length unit
@@ -843,7 +844,7 @@ troupe_status troupe_bvh_write(const char *path, const float *positions, size_t 
  inverse kinematics) and the 4 foot contacts, with the skeleton (joint names and parents),
  units, up axis, handedness and frame rate stated in the document. `positions` is float32
  `[n_people][n_frames][22][3]` in the caller's world as `format` says, which the document
- keeps; `names` as for `troupe_bvh_write` (NULL: "person 1", ...; at most 64 people).
+ keeps; `names` as for `troupe_bvh_write` (NULL: "person1", ...; at most 64 people).
 
  Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (NaN or infinite
  positions, naming person, frame and joint; no people or frames; a bad format or name),
@@ -910,8 +911,8 @@ troupe_status troupe_last_error_copy(char *buf, size_t capacity, size_t *needed)
 
  `positions` holds float32 `[n_people][n_frames][22][3]` joint positions measured as `format`
  says (units, up axis, handedness; its `fps` is the playback rate). `names` holds `n_people`
- UTF-8 names for the legend (at most 64 characters each); NULL names them "person 1",
- "person 2", ..., as does a NULL entry. `title` is a UTF-8 title (at most 200 characters) or
+ UTF-8 names for the legend (at most 64 characters each); NULL names them "person1",
+ "person2", ..., as does a NULL entry. `title` is a UTF-8 title (at most 200 characters) or
  NULL for none. People are coloured blue (#1f77b4), orange (#ff7f0e), green, red, purple,
  brown, pink, cyan, in order.
 

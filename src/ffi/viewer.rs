@@ -17,8 +17,8 @@ use crate::viewer::{GifOptions, Scene, MAX_FRAMES, MAX_PEOPLE};
 ///
 /// `positions` holds float32 `[n_people][n_frames][22][3]` joint positions measured as `format`
 /// says (units, up axis, handedness; its `fps` is the playback rate). `names` holds `n_people`
-/// UTF-8 names for the legend (at most 64 characters each); NULL names them "person 1",
-/// "person 2", ..., as does a NULL entry. `title` is a UTF-8 title (at most 200 characters) or
+/// UTF-8 names for the legend (at most 64 characters each); NULL names them "person1",
+/// "person2", ..., as does a NULL entry. `title` is a UTF-8 title (at most 200 characters) or
 /// NULL for none. People are coloured blue (#1f77b4), orange (#ff7f0e), green, red, purple,
 /// brown, pink, cyan, in order.
 ///

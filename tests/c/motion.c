@@ -284,6 +284,17 @@ int main(int argc, char **argv) {
         printf("BVH written and read back: max error %g cm\n", (double)worst);
         troupe_bvh_free(bvh);
         troupe_bvh_free(NULL);
+        /* two unnamed people in one scene */
+        {
+            float *pair = (float *)malloc(sizeof(float) * 2 * FRAMES * J * 3);
+            if (!pair) return 1;
+            memcpy(pair, clip, sizeof(float) * FRAMES * J * 3);
+            memcpy(pair + FRAMES * J * 3, clip, sizeof(float) * FRAMES * J * 3);
+            EXPECT(troupe_bvh_write(path, pair, 2, FRAMES, &format, NULL, TROUPE_UNITS_CENTIMETERS, 1), TROUPE_OK);
+            EXPECT(troupe_bvh_read(path, NULL, TROUPE_UNITS_AUTO, &bvh), TROUPE_ERR_INVALID_ARG); /* person1_pelvis... */
+            CHECK(strstr(troupe_last_error_message(), "pelvis") != NULL);
+            free(pair);
+        }
         EXPECT(troupe_bvh_write(path, features, 0, FRAMES, &format, NULL, TROUPE_UNITS_CENTIMETERS, 1), TROUPE_ERR_INVALID_ARG);
         clip[5] = NAN;
         EXPECT(troupe_bvh_write(bad, clip, 1, FRAMES, &format, names, TROUPE_UNITS_CENTIMETERS, 1), TROUPE_ERR_INVALID_ARG);

@@ -232,7 +232,7 @@ def write_bvh(path: str | os.PathLike, people, fmt: JointsFormat | None = None, 
 
 def _people(people, fmt):
     if not isinstance(people, dict):
-        people = {"person 1": people}
+        people = {"person1": people}
     arrays = [_positions(p, f"positions of {name}") for name, p in people.items()]
     if len({a.shape[0] for a in arrays}) > 1:
         raise ValueError("every person needs the same number of frames")

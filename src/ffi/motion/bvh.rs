@@ -191,7 +191,8 @@ pub unsafe extern "C" fn troupe_bvh_free(bvh: *mut troupe_bvh) {
 /// Writes a BVH file at `path` (UTF-8; atomically: nothing is left on error) holding `n_people`
 /// people on the t2m-22 skeleton: `positions` is float32 `[n_people][n_frames][22][3]` in the
 /// caller's world as `format` says (its `fps` becomes the file's rate), `names` their names (NULL
-/// for "person1", "person2", ...; prefixed to joint names when there are several people, who then
+/// or a NULL entry for "person1", "person2", ...; prefixed to joint names when there are several
+/// people, who then
 /// share a root joint called `scene`; at most 64 people). Rotations come from inverse kinematics; each person's bone
 /// lengths are measured from their motion when `fit_skeleton` is non-zero (the file then
 /// reproduces the positions), else troupe's neutral body is used. `units`: the file's length unit

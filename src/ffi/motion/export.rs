@@ -17,7 +17,7 @@ const MAX_JSON_PEOPLE: usize = 64;
 /// inverse kinematics) and the 4 foot contacts, with the skeleton (joint names and parents),
 /// units, up axis, handedness and frame rate stated in the document. `positions` is float32
 /// `[n_people][n_frames][22][3]` in the caller's world as `format` says, which the document
-/// keeps; `names` as for `troupe_bvh_write` (NULL: "person 1", ...; at most 64 people).
+/// keeps; `names` as for `troupe_bvh_write` (NULL: "person1", ...; at most 64 people).
 ///
 /// Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (NaN or infinite
 /// positions, naming person, frame and joint; no people or frames; a bad format or name),

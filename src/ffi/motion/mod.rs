@@ -216,7 +216,8 @@ impl troupe_placement {
 /// People's joint positions handed over by the caller: `[n_people][n_frames][22][3]` floats
 /// with a name each.
 pub(crate) struct People<'a> {
-    /// Each person's name: from `names`, or `person 1`, `person 2`, ... where it is NULL.
+    /// Each person's name: from `names`, or `person1`, `person2`, ... where it is NULL (names
+    /// that can prefix BVH joint names).
     pub names: Vec<String>,
     /// Each person's `[n_frames, 22, 3]` positions, borrowed from the caller.
     pub positions: Vec<ArrayView3<'a, f32>>,
@@ -260,7 +261,7 @@ pub(crate) unsafe fn read_people<'a>(
             // SAFETY: `names` readable for `n_people` pointers; each NULL or NUL-terminated.
             unsafe { boundary::optional_str(names.add(i).read(), &format!("names[{i}]")) }?
         };
-        labels.push(given.map_or_else(|| format!("person {}", i + 1), str::to_string));
+        labels.push(given.map_or_else(|| format!("person{}", i + 1), str::to_string));
     }
     let views = flat
         .chunks_exact(per_person)
