@@ -82,7 +82,7 @@ int main(int argc, char **argv) {
     format.up_axis = TROUPE_UP_Z;
     format.fps = 20.0f;
 
-    /* Both pictures; the second name defaults ("person 2"). */
+    /* Both pictures; the second name defaults ("person2"). */
     EXPECT(troupe_viewer_write(html, gif, positions, PEOPLE, FRAMES, &format, names, "from C"),
            TROUPE_OK);
     CHECK(troupe_last_error_message() == NULL);
@@ -114,7 +114,7 @@ int main(int argc, char **argv) {
     EXPECT(troupe_viewer_write(nan_html, NULL, positions, PEOPLE, FRAMES, &format, names, NULL),
            TROUPE_ERR_INVALID_ARG);
     CHECK(troupe_last_error_message() != NULL &&
-          strstr(troupe_last_error_message(), "person 2: frame 0, joint 3") != NULL);
+          strstr(troupe_last_error_message(), "person2: frame 0, joint 3") != NULL);
     CHECK(!exists(nan_html));
     make_people(positions);
     /* The GIF's directory is missing: the HTML is not written either. */
