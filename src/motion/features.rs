@@ -23,7 +23,7 @@ use crate::motion::ik::inverse_kinematics;
 use crate::motion::placement::Placement;
 use crate::motion::quat::{norm, sub, Quat, Vec3};
 use crate::motion::resample::Resampler;
-use crate::motion::skeleton::{branch_rotation, Skeleton, FOOT_JOINTS, T2M22, T2M22_JOINTS};
+use crate::motion::skeleton::{Skeleton, FOOT_JOINTS, T2M22, T2M22_JOINTS};
 use crate::motion::world::JointsFormat;
 use crate::shared::bundle_io::MotionSpec;
 use crate::shared::error::{Error, Result};
@@ -137,6 +137,12 @@ pub(crate) fn read_frame(
         out.push(format.to_canonical_axes(p));
     }
     Ok(out)
+}
+
+/// Feature frames a clip of `n` position frames at `fps_in` gives at `fps_out`: the clip's
+/// length at the output rate, less one (velocities look one frame ahead).
+pub fn encoded_frames(fps_in: f32, fps_out: f32, n: usize) -> usize {
+    Resampler::output_len(fps_in, fps_out, n).saturating_sub(1)
 }
 
 /// A clip turned into features, with the placement that puts output back in the caller's world.
@@ -261,12 +267,8 @@ pub fn decode_frame(frame: ArrayView1<f32>, placement: &Placement) -> Result<Pos
         .map(|j| std::array::from_fn(|d| f64::from(frame[POSITIONS + 3 * j + d])))
         .collect();
     let skeleton = Skeleton::t2m22();
-    let root = skeleton.branch_frames()[0]
-        .and_then(|f| {
-            let across = sub(canonical[f.across.0], canonical[f.across.1]);
-            branch_rotation(across, sub(canonical[f.up], canonical[0]))
-                .map(|posed| posed * skeleton.rest_frame(f).conj())
-        })
+    let root = skeleton
+        .branch_world_rotation(0, &canonical)
         .unwrap_or(Quat::IDENTITY);
     let mut pose = Pose {
         positions: [[0.0; 3]; T2M22_JOINTS],

@@ -21,7 +21,7 @@
 //! spine hang off one bone, as in LAFAN1 and Mixamo BVH files).
 
 use crate::motion::quat::{add, sub, Quat, Vec3};
-use crate::motion::skeleton::{branch_rotation, Skeleton};
+use crate::motion::skeleton::Skeleton;
 
 /// Local rotations of every joint of one pose. Positions are canonical (y up, metres), indexed
 /// like the skeleton's joints.
@@ -31,11 +31,9 @@ pub fn inverse_kinematics(skeleton: &Skeleton, positions: &[Vec3]) -> Vec<Quat> 
     let mut local = vec![Quat::IDENTITY; n];
     for j in 0..n {
         let parent_world = skeleton.parents()[j].map_or(Quat::IDENTITY, |p| world[p]);
-        let w = if let Some(frame) = skeleton.branch_frames()[j] {
-            let across = sub(positions[frame.across.0], positions[frame.across.1]);
-            let up = sub(positions[frame.up], positions[j]);
-            branch_rotation(across, up)
-                .map(|posed| posed * skeleton.rest_frame(frame).conj())
+        let w = if skeleton.branch_frames()[j].is_some() {
+            skeleton
+                .branch_world_rotation(j, positions)
                 .unwrap_or(parent_world)
         } else {
             let mut children = skeleton.children(j);

@@ -271,6 +271,17 @@ impl Skeleton {
         branch_rotation(across, self.offsets[frame.up]).unwrap_or(Quat::IDENTITY)
     }
 
+    /// The world rotation of branch joint `joint` in a pose (canonical positions indexed like
+    /// the joints): the frame its children span in the pose times the inverse of the one they
+    /// span at rest. `None` when `joint` has no branch frame or its children span none (they
+    /// coincide or are collinear).
+    pub(crate) fn branch_world_rotation(&self, joint: usize, pose: &[Vec3]) -> Option<Quat> {
+        let frame = self.branch_frames[joint]?;
+        let across = sub(pose[frame.across.0], pose[frame.across.1]);
+        let posed = branch_rotation(across, sub(pose[frame.up], pose[joint]))?;
+        Some(posed * self.rest_frame(frame).conj())
+    }
+
     /// This skeleton with its bone lengths and branch shapes measured from a clip of canonical
     /// joint positions (`[T][joints]`): single-child bones keep their rest direction and take
     /// the clip's mean length; children of a branch joint take their mean position in the
@@ -283,15 +294,11 @@ impl Skeleton {
                 continue;
             };
             match self.branch_frames[parent] {
-                Some(frame) => {
-                    let rest = self.rest_frame(frame);
+                Some(_) => {
                     let mut sum = [0.0; 3];
                     let mut n = 0.0;
                     for pose in clip {
-                        let across = sub(pose[frame.across.0], pose[frame.across.1]);
-                        let up = sub(pose[frame.up], pose[parent]);
-                        if let Some(posed) = branch_rotation(across, up) {
-                            let world = posed * rest.conj();
+                        if let Some(world) = self.branch_world_rotation(parent, pose) {
                             let local = world.conj().rotate(sub(pose[j], pose[parent]));
                             sum = crate::motion::quat::add(sum, local);
                             n += 1.0;

@@ -18,8 +18,8 @@ use crate::ffi::boundary::{
     TROUPE_ERR_SHAPE,
 };
 use crate::ffi::model::troupe_model;
+use crate::motion::features::encoded_frames;
 use crate::motion::quat::Quat;
-use crate::motion::resample::Resampler;
 use crate::motion::{
     decode_frame, encode_clip, joints_layout, FeatureStream, Handedness, JointsFormat, Placement,
     Pose, Skeleton, Units, UpAxis, T2M22_JOINTS,
@@ -275,6 +275,21 @@ pub(crate) unsafe fn read_people<'a>(
     })
 }
 
+/// The caller's placement, checked, or `None` for NULL.
+///
+/// # Safety
+/// A non-NULL `placement` must be readable.
+unsafe fn optional_placement(
+    placement: *const troupe_placement,
+    format: JointsFormat,
+) -> FfiResult<Option<Placement>> {
+    if placement.is_null() {
+        return Ok(None);
+    }
+    // SAFETY: non-NULL, readable per the contract.
+    Ok(Some(unsafe { placement.read_unaligned() }.to_rust(format)?))
+}
+
 /// Reads the caller's format, checked.
 ///
 /// # Safety
@@ -437,7 +452,7 @@ pub unsafe extern "C" fn troupe_motion_encoded_frames(
             // SAFETY: forwarded contract.
             let format = unsafe { read_format(format) }?;
             let fps = motion_fps(model)?;
-            let n = Resampler::output_len(format.fps, fps, n_frames).saturating_sub(1);
+            let n = encoded_frames(format.fps, fps, n_frames);
             // SAFETY: checked non-NULL, writable per the contract.
             unsafe { *n_frames_out = n };
             Ok(())
@@ -483,18 +498,14 @@ pub unsafe extern "C" fn troupe_motion_encode(
             // SAFETY: forwarded contract.
             let format = unsafe { read_format(format) }?;
             let fps = motion_fps(model)?;
-            let given = if placement.is_null() {
-                None
-            } else {
-                // SAFETY: non-NULL, readable per the contract.
-                Some(unsafe { placement.read_unaligned() }.to_rust(format)?)
-            };
+            // SAFETY: forwarded contract.
+            let given = unsafe { optional_placement(placement, format) }?;
             let len = checked_mul(n_frames, 3 * T2M22_JOINTS, "n_frames * 66")?;
             // SAFETY: forwarded contract.
             let flat = unsafe { boundary::slice(positions, len, "positions") }?;
             let view = ArrayView3::from_shape((n_frames, T2M22_JOINTS, 3), flat)
                 .expect("length checked above");
-            let needed = Resampler::output_len(format.fps, fps, n_frames).saturating_sub(1);
+            let needed = encoded_frames(format.fps, fps, n_frames);
             if needed > out_capacity_frames {
                 return Err(FfiError::new(
                 TROUPE_ERR_BUFFER_TOO_SMALL,
@@ -675,12 +686,8 @@ pub unsafe extern "C" fn troupe_motion_stream_new(
             // SAFETY: forwarded contract.
             let format = unsafe { read_format(format) }?;
             let fps = motion_fps(model)?;
-            let placement = if placement.is_null() {
-                None
-            } else {
-                // SAFETY: non-NULL, readable per the contract.
-                Some(unsafe { placement.read_unaligned() }.to_rust(format)?)
-            };
+            // SAFETY: forwarded contract.
+            let placement = unsafe { optional_placement(placement, format) }?;
             let stream = FeatureStream::new(format, fps, placement)?;
             let handle = Box::new(troupe_motion_stream {
                 stream,
@@ -823,12 +830,8 @@ pub unsafe extern "C" fn troupe_motion_stream_reset(
             non_null(stream, "stream")?;
             // SAFETY: a live handle per the contract.
             let s = unsafe { &mut *stream };
-            let placement = if placement.is_null() {
-                None
-            } else {
-                // SAFETY: non-NULL, readable per the contract.
-                Some(unsafe { placement.read_unaligned() }.to_rust(s.stream.format())?)
-            };
+            // SAFETY: forwarded contract.
+            let placement = unsafe { optional_placement(placement, s.stream.format()) }?;
             s.stream.reset(placement);
             Ok(())
         },
