@@ -2,12 +2,17 @@
 //! get the reactor's motion back, write it to `.npy` with a picture beside it (an HTML player and
 //! a GIF of actor and reactor), and report per-step latency and the real-time factor.
 //!
-//! By default the actor is 8 s of real motion capture (a CMU subject, `tests/data/mocap/`) given
-//! as joint positions, and the reactor comes back as joint positions in the same world.
+//! By default the model is troupe's trained demo (`onnx/bundles/armflow-demo`: an ARMFlow trained
+//! on real motion capture to be a rule-defined partner, docs/DEMO.md), the actor is 8 s of real
+//! motion capture it never saw (a CMU subject, `tests/data/mocap/`) given as joint positions, and
+//! the reactor comes back as joint positions in the same world. The demo then prints how far the
+//! reactor is from what the rule says (mean per-joint error).
 //!
 //! ```text
 //! cargo run --release --example stream -- [options]
-//!   --bundle DIR        model bundle (default: onnx/bundles/armflow-tiny)
+//!   --bundle DIR        model bundle (default: onnx/bundles/armflow-demo)
+//!   --rule NAME         a named condition of the bundle (the demo's partner rules: mirror,
+//!                       follow, keep-away; default: mirror for bundles that have labels)
 //!   --joints FILE       actor joint positions: a .bvh file, or .npy float32 [T, 22, 3] (t2m-22)
 //!                       (default: tests/data/mocap/cmu-playground-120fps.npy, metres, z up, 120 fps)
 //!   --units m|cm|mm|in --up y|z --fps N     how a .npy's positions are measured
@@ -49,6 +54,7 @@ enum Source {
 
 struct Args {
     bundle: String,
+    rule: Option<String>,
     source: Source,
     units: Option<Units>,
     up: Option<UpAxis>,
@@ -68,7 +74,8 @@ const DEFAULT_CLIP: &str = concat!(
 
 fn parse_args() -> Result<Args, String> {
     let mut a = Args {
-        bundle: concat!(env!("CARGO_MANIFEST_DIR"), "/onnx/bundles/armflow-tiny").into(),
+        bundle: concat!(env!("CARGO_MANIFEST_DIR"), "/onnx/bundles/armflow-demo").into(),
+        rule: None,
         source: Source::Joints(DEFAULT_CLIP.into()),
         units: None,
         up: None,
@@ -86,6 +93,7 @@ fn parse_args() -> Result<Args, String> {
         let num = |v: String| v.parse::<f64>().map_err(|e| format!("{flag}: {e}"));
         match flag.as_str() {
             "--bundle" => a.bundle = value()?,
+            "--rule" => a.rule = Some(value()?),
             "--joints" => a.source = Source::Joints(value()?.into()),
             "--actor" => a.source = Source::Features(value()?.into()),
             "--synthetic" => a.source = Source::Synthetic,
@@ -194,10 +202,40 @@ impl Timing {
     }
 }
 
+/// The rule's partner of the default clip, when the demo streams it (`onnx/cli.py demo partners`).
+fn rule_partner(path: &Path, rule: &str) -> Option<Array3<f32>> {
+    if path != Path::new(DEFAULT_CLIP) {
+        return None;
+    }
+    read_npy(path.with_file_name(format!("cmu-playground.{rule}.npy"))).ok()
+}
+
+/// Mean distance (cm) between the joints of `a` and `b` over their common frames.
+fn mpjpe_cm(a: ArrayView3<f32>, b: ArrayView3<f32>) -> f64 {
+    let n = a.shape()[0].min(b.shape()[0]);
+    let mut sum = 0.0;
+    for t in 0..n {
+        for j in 0..T2M22_JOINTS {
+            let d: f64 = (0..3)
+                .map(|k| f64::from(a[[t, j, k]] - b[[t, j, k]]).powi(2))
+                .sum();
+            sum += d.sqrt();
+        }
+    }
+    100.0 * sum / (n * T2M22_JOINTS).max(1) as f64
+}
+
 fn main() -> Result<(), Box<dyn std::error::Error>> {
-    let args = parse_args()?;
+    let mut args = parse_args()?;
     let t0 = Instant::now();
     let model = Model::load(&args.bundle)?;
+    let rule = args.rule.clone().or_else(|| {
+        let labels = model.condition_labels();
+        labels.first().map(|l| l.name.clone())
+    });
+    if let Some(rule) = &rule {
+        args.options.condition = Some(model.condition_for(rule)?);
+    }
     let mut session = model.session(args.options.clone())?;
     let load_ms = t0.elapsed().as_secs_f64() * 1e3;
     println!(
@@ -218,7 +256,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     };
     let html = args.out.with_extension("html");
     let gif = args.out.with_extension("gif");
-    let scene_title = format!("troupe: {} reacting", model.manifest().name);
+    let scene_title = match &rule {
+        Some(rule) => format!("troupe: {} ({rule}) reacting", model.manifest().name),
+        None => format!("troupe: {} reacting", model.manifest().name),
+    };
 
     let (input_frames, input_fps, scene) = match &args.source {
         Source::Joints(path) => {
@@ -250,6 +291,22 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 model.fps(),
                 args.out.display()
             );
+            if let Some(truth) = rule.as_deref().and_then(|r| rule_partner(path, r)) {
+                // Over the frames the reactor has, for the reactor and the baseline alike.
+                let n = reactor.shape()[0].min(truth.shape()[0]);
+                let truth = truth.slice(s![..n, .., ..]);
+                let still = truth
+                    .slice(s![..1, .., ..])
+                    .broadcast(truth.dim())
+                    .unwrap()
+                    .to_owned();
+                println!(
+                    "the {} rule's partner vs the reactor: {:.1} cm mean per-joint error (a partner standing still at the rule's first pose: {:.1} cm)",
+                    rule.as_deref().unwrap_or_default(),
+                    mpjpe_cm(reactor.view(), truth.view()),
+                    mpjpe_cm(still.view(), truth.view()),
+                );
+            }
             let scene = if args.pictures && reactor.shape()[0] > 0 {
                 let fps = model.fps() as f32;
                 let view = JointsFormat { fps, ..format };

@@ -578,6 +578,41 @@ size_t troupe_model_latency_frames(const struct troupe_model *model);
 size_t troupe_model_condition_dim(const struct troupe_model *model);
 
 /*
+ Named conditions the bundle was trained on (the demo model's partner rules `mirror`,
+ `follow`, `keep-away`); 0 for NULL and for bundles conditioned on free vectors. Thread-safe.
+
+ # Safety
+ `model` must be NULL or a live handle.
+ */
+size_t troupe_model_condition_label_count(const struct troupe_model *model);
+
+/*
+ The name of condition label `index` (`0 <= index < troupe_model_condition_label_count`), or
+ NULL for NULL or an index out of range. The string is owned by the model and valid until
+ `troupe_model_free`; never free it. Thread-safe.
+
+ # Safety
+ `model` must be NULL or a live handle.
+ */
+const char *troupe_model_condition_label(const struct troupe_model *model, size_t index);
+
+/*
+ Writes the conditioning vector of the label `label` (UTF-8, borrowed for the call) into
+ `condition[0 .. troupe_model_condition_dim)`, ready for `troupe_session_set_condition`,
+ `troupe_clip_generate` or `troupe_group_generate`.
+
+ Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (no such label: the
+ message lists the bundle's labels; or `label` not UTF-8), `TROUPE_ERR_BUFFER_TOO_SMALL`
+ (`capacity` below the condition's length), `TROUPE_ERR_PANIC`. `condition` is untouched on
+ failure. Thread-safe.
+
+ # Safety
+ `model` must be NULL or a live handle; `label` NUL-terminated; `condition` writable for
+ `capacity` floats.
+ */
+troupe_status troupe_model_condition_for_label(const struct troupe_model *model, const char *label, float *condition, size_t capacity);
+
+/*
  Floats per latent token (the length of injected noise vectors, per token); 0 for NULL.
  Thread-safe.
 

@@ -44,7 +44,7 @@ pub use armflow::{
     meanflow_grid, step_sessions, step_sessions_joints, Clip, ClipNoise, ClipOptions, Session,
     SessionOptions, StepOutput, TokenNoise, TokenTrace,
 };
-pub use manifest::{ActorLatent, Manifest};
+pub use manifest::{ActorLatent, ConditionLabel, Manifest};
 pub use model::Model;
 pub use shared::error::{Error, Result};
 pub use shared::noise;

@@ -22,7 +22,7 @@ pub use crate::armflow::spec::{
     ActorLatent, ArmFlowGraphs, ArmFlowSpec, ClipSpec, ContextSpec, DecoderWindow, EncoderWindow,
     LatentSpec, SamplerSpec, VaeSpec,
 };
-pub use crate::shared::bundle_io::{ConditionSpec, MotionSpec};
+pub use crate::shared::bundle_io::{ConditionLabel, ConditionSpec, MotionSpec};
 pub use crate::shared::graph_spec::{DType, Dim, GraphSpec, TensorSpec};
 pub use crate::umf::spec::{
     PyramidSpec, StageSpec, TextSpec, UmfGraphs, UmfLatentSpec, UmfSamplerSpec, UmfSpec,
@@ -108,18 +108,7 @@ impl Manifest {
             "motion.frame_dim and motion.fps must be positive".into()
         })?;
         crate::motion::check_layout(m)?;
-        if let Some(null) = &self.condition.null {
-            ensure(null.len() == self.condition.dim, || {
-                format!(
-                    "condition.null holds {} floats, condition.dim is {}",
-                    null.len(),
-                    self.condition.dim
-                )
-            })?;
-            ensure(null.iter().all(|v| v.is_finite()), || {
-                "condition.null holds a non-finite value".into()
-            })?;
-        }
+        self.condition.validate()?;
         match &self.family {
             Family::Armflow(spec) => spec.validate()?,
             Family::Umf(spec) => spec.validate(&self.condition)?,

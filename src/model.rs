@@ -10,7 +10,7 @@ use std::sync::Arc;
 use ndarray::ArrayView2;
 
 use crate::armflow::{self, Clip, ClipOptions, Session, SessionOptions};
-use crate::manifest::{ArmFlowSpec, ClipSpec, Family, Manifest, UmfSpec};
+use crate::manifest::{ArmFlowSpec, ClipSpec, ConditionLabel, Family, Manifest, UmfSpec};
 use crate::shared::bundle::BundleFiles;
 use crate::shared::error::{Error, Result};
 use crate::shared::text_branch::TextBranch;
@@ -123,6 +123,36 @@ impl Model {
     /// The condition that stands for "none": the bundle's `condition.null`, or zeros.
     pub fn null_condition(&self) -> Vec<f32> {
         self.inner.manifest.condition.null_or_zeros()
+    }
+
+    /// The named conditions the bundle was trained on (empty for most bundles): the demo
+    /// model's partner rules `mirror`, `follow`, `keep-away`.
+    pub fn condition_labels(&self) -> &[ConditionLabel] {
+        &self.inner.manifest.condition.labels
+    }
+
+    /// The conditioning vector of the label `name`; an [`Error::InvalidInput`] naming the labels
+    /// the bundle has when it has no such label.
+    pub fn condition_for(&self, name: &str) -> Result<Vec<f32>> {
+        let condition = &self.inner.manifest.condition;
+        condition
+            .labelled(name)
+            .map(<[f32]>::to_vec)
+            .ok_or_else(|| {
+                let known: Vec<&str> = condition.labels.iter().map(|l| l.name.as_str()).collect();
+                Error::InvalidInput(if known.is_empty() {
+                    format!(
+                        "no condition `{name}`: bundle `{}` has no named conditions",
+                        self.inner.manifest.name
+                    )
+                } else {
+                    format!(
+                        "no condition `{name}`; bundle `{}` has: {}",
+                        self.inner.manifest.name,
+                        known.join(", ")
+                    )
+                })
+            })
     }
 
     /// Algorithmic latency in frames: how many actor frames after frame `t` arrive before the

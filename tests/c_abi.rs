@@ -198,7 +198,8 @@ fn cpp_wrapper_without_exceptions() {
         "wrapper_cpp",
     );
     let [umf, armflow] = group_args();
-    println!("{}", run(&[], &bin, &[&armflow, &umf, scratch()]));
+    let demo = root().join("onnx/bundles/armflow-demo");
+    println!("{}", run(&[], &bin, &[&armflow, &umf, scratch(), &demo]));
 }
 
 #[test]
@@ -211,7 +212,8 @@ fn cpp_wrapper_with_its_exception_helpers() {
         "wrapper_cpp_exceptions",
     );
     let [umf, armflow] = group_args();
-    run(&[], &bin, &[&armflow, &umf, scratch()]);
+    let demo = root().join("onnx/bundles/armflow-demo");
+    run(&[], &bin, &[&armflow, &umf, scratch(), &demo]);
 }
 
 /// No leak and no invalid access in the C smoke and group tests. valgrind is on the CI machine; where it
@@ -303,6 +305,27 @@ fn c_motion_as_c99_and_cpp17() {
     run(&[], &cpp, &[&interhuman, &interx, &dir]);
 }
 
+/// Named conditions (the demo model's partner rules) through the header, as C99 and C++17.
+#[test]
+fn c_condition_labels_as_c99_and_cpp17() {
+    let src = root().join("tests/c/labels.c");
+    let args = [
+        root().join("onnx/bundles/armflow-demo"),
+        root().join("onnx/bundles/armflow-tiny"),
+    ];
+    let args: Vec<&Path> = args.iter().map(PathBuf::as_path).collect();
+    let c = compile("cc", &["-std=c99"], &[&src], &shared_link(), "labels_c");
+    println!("{}", run(&[], &c, &args));
+    let cpp = compile(
+        "c++",
+        &["-std=c++17", "-x", "c++"],
+        &[&src],
+        &shared_link(),
+        "labels_cpp",
+    );
+    run(&[], &cpp, &args);
+}
+
 fn clip_args() -> [PathBuf; 2] {
     [
         root().join("onnx/bundles/armflow-tiny-interhuman"),
@@ -363,20 +386,26 @@ fn c_streaming_demo_runs() {
         &shared_link(),
         "stream_c",
     );
+    // Runs the demo from the repository root; its stdout.
+    let demo = |args: &[&str]| -> String {
+        let out = Command::new(&bin)
+            .current_dir(root())
+            .args(args)
+            .output()
+            .unwrap();
+        let text = String::from_utf8_lossy(&out.stdout).into_owned();
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(out.status.success(), "{text}{stderr}");
+        text
+    };
     let npy = scratch().join("reactor_c.npy");
-    let out = Command::new(&bin)
-        .arg(root().join("onnx/bundles/armflow-tiny"))
-        .args(["200", "3"])
-        .arg(&npy)
-        .arg(root().join("tests/data/mocap/cmu-playground-120fps.npy"))
-        .output()
-        .unwrap();
-    let text = String::from_utf8_lossy(&out.stdout);
-    assert!(
-        out.status.success(),
-        "{text}{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    let text = demo(&[
+        "onnx/bundles/armflow-tiny",
+        "200",
+        "3",
+        npy.to_str().unwrap(),
+        "tests/data/mocap/cmu-playground-120fps.npy",
+    ]);
     // 200 frames at 120 fps: 50 at 30 fps, 49 feature frames, 12 tokens of 4 reactor frames.
     assert!(
         text.contains("200 actor frames") && text.contains("48 reactor frames"),
@@ -389,6 +418,19 @@ fn c_streaming_demo_runs() {
     assert!(html.contains("reactor") && html.contains("actor"));
     let gif = std::fs::read(npy.with_extension("gif")).unwrap();
     assert_eq!(&gif[..3], b"GIF");
+
+    // The trained demo model with its defaults (its first rule, the whole default clip, from the
+    // repository root), and the error against the rule's partner.
+    let out = scratch().join("demo_c.npy");
+    let text = demo(&["onnx/bundles/armflow-demo", "0", "1", out.to_str().unwrap()]);
+    assert!(
+        text.contains("bundle onnx/bundles/armflow-demo") && text.contains("960 actor frames"),
+        "{text}"
+    );
+    assert!(
+        text.contains("the mirror rule's partner vs the reactor: "),
+        "{text}"
+    );
 }
 
 /// The viewer through the header: both pictures written, every bad input refused with nothing

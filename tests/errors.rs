@@ -319,3 +319,55 @@ fn inconsistent_vae_step_graphs_are_rejected() {
         "{text}"
     );
 }
+
+#[test]
+fn condition_labels_are_checked_at_load_and_named_on_use() {
+    let one_hot = |k: usize| -> Vec<f32> { (0..32).map(|i| f32::from(i == k)).collect() };
+    let dir = bundle_copy();
+    edit_manifest(dir.path(), |v| {
+        v["condition"]["labels"] = serde_json::json!([
+            {"name": "mirror", "vector": one_hot(0), "about": "mirrors"},
+            {"name": "follow", "vector": one_hot(1)},
+        ])
+    });
+    let model = Model::load(dir.path()).unwrap();
+    let names: Vec<&str> = model
+        .condition_labels()
+        .iter()
+        .map(|l| l.name.as_str())
+        .collect();
+    assert_eq!(names, ["mirror", "follow"]);
+    assert_eq!(model.condition_for("follow").unwrap(), one_hot(1));
+    let text = message(model.condition_for("dance").unwrap_err());
+    assert!(
+        text.contains("no condition `dance`") && text.contains("has: mirror, follow"),
+        "{text}"
+    );
+    let plain = message(common::model().condition_for("mirror").unwrap_err());
+    assert!(plain.contains("has no named conditions"), "{plain}");
+
+    let bad: [(serde_json::Value, &str); 4] = [
+        (
+            serde_json::json!([{"name": "mirror", "vector": [1.0, 0.0]}]),
+            "condition.labels[0] (`mirror`) holds 2 floats, condition.dim is 32",
+        ),
+        (
+            serde_json::json!([{"name": "a", "vector": one_hot(0)}, {"name": "a", "vector": one_hot(1)}]),
+            "condition.labels: `a` is named twice",
+        ),
+        (
+            serde_json::json!([{"name": "", "vector": one_hot(0)}]),
+            "condition.labels[0] has an empty or NUL-holding name",
+        ),
+        (
+            serde_json::json!([{"name": "x", "vector": one_hot(0)}, {"vector": one_hot(1)}]),
+            "missing field `name`",
+        ),
+    ];
+    for (labels, want) in bad {
+        let dir = bundle_copy();
+        edit_manifest(dir.path(), |v| v["condition"]["labels"] = labels);
+        let text = load_error(dir.path());
+        assert!(text.contains(want), "{text}");
+    }
+}

@@ -1,7 +1,8 @@
 //! The committed bundles are exactly what their exporters produce:
 //! `onnx/cli.py armflow export --preset tiny` (and `tiny-interhuman`, `tiny-interx`, the
-//! official-layout parity bundles) and `onnx/cli.py umf export --preset tiny | tiny-temporal`,
-//! goldens included.
+//! official-layout parity bundles), `onnx/cli.py umf export --preset tiny | tiny-temporal` and
+//! `onnx/cli.py demo export` of the committed demo checkpoint, goldens included; and (slow, on
+//! request) the demo's training reproduces its committed quality.
 //!
 //! Needs Python with torch and onnx. CI does not install torch (about 4 GB); where it is missing
 //! this test prints why it did not run and passes.
@@ -14,7 +15,7 @@ mod common;
 
 use std::process::Command;
 
-use common::{python_command, run_python};
+use common::{c_libraries, python_command, run_python};
 
 /// Selects torch's AVX2 kernels on any x86 machine (ignored elsewhere).
 const AVX2_KERNELS: [(&str, &str); 3] = [
@@ -97,5 +98,102 @@ fn official_checkpoints_load_strictly() {
         );
         assert!(ok, "{text}");
         assert!(text.contains("15 passed"), "{text}");
+    }
+}
+
+/// The committed demo bundle is exactly what its exporter makes of the committed checkpoint
+/// (`onnx/checkpoints/armflow-demo.pt`, written by `onnx/cli.py demo train`), goldens included.
+#[test]
+fn committed_demo_bundle_is_reproducible_from_its_checkpoint() {
+    if torch_available("committed_demo_bundle_is_reproducible_from_its_checkpoint") {
+        let (ok, text) = run_python(
+            &[
+                "onnx/cli.py",
+                "demo",
+                "export",
+                "--checkpoint",
+                "onnx/checkpoints/armflow-demo.pt",
+                "--check",
+                "onnx/bundles/armflow-demo",
+            ],
+            &AVX2_KERNELS,
+        );
+        assert!(ok && text.contains("reproducible"), "{text}");
+    }
+}
+
+/// Re-running the demo's training reproduces the committed model's quality: each rule's error on
+/// the held-out clips (`docs/demo-results.json`, LAFAN1 aside) within 10 %. Training takes about
+/// 25 minutes on 2 cores, so this runs only with torch and `TROUPE_SLOW_TESTS=1`.
+#[test]
+fn demo_training_reproduces_the_committed_metrics() {
+    let test = "demo_training_reproduces_the_committed_metrics";
+    if std::env::var_os("TROUPE_SLOW_TESTS").is_none() {
+        println!("SKIPPED {test}: retraining takes about 25 minutes; set TROUPE_SLOW_TESTS=1");
+        return;
+    }
+    if !torch_available(test) {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let (train, bundle, results) = (
+        dir.path().join("train"),
+        dir.path().join("bundle"),
+        dir.path().join("results.json"),
+    );
+    let path = |p: &std::path::Path| p.to_str().unwrap().to_owned();
+    for args in [
+        vec!["onnx/cli.py", "demo", "train", "--out", &path(&train)],
+        vec![
+            "onnx/cli.py",
+            "demo",
+            "export",
+            "--checkpoint",
+            &path(&train.join("armflow.pt")),
+            "--out",
+            &path(&bundle),
+        ],
+    ] {
+        let (ok, text) = run_python(&args, &AVX2_KERNELS);
+        assert!(ok, "{args:?}:\n{text}");
+    }
+    let lib = c_libraries().join("libtroupe.so");
+    let bindings = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("bindings/python");
+    let (ok, text) = run_python(
+        &[
+            "onnx/cli.py",
+            "demo",
+            "evaluate",
+            "--no-lafan",
+            "--bundle",
+            &path(&bundle),
+            "--out",
+            &path(&results),
+        ],
+        &[
+            ("TROUPE_LIBRARY_PATH", lib.to_str().unwrap()),
+            ("PYTHONPATH", bindings.to_str().unwrap()),
+        ],
+    );
+    assert!(ok, "{text}");
+    let read = |p: &std::path::Path| -> serde_json::Value {
+        serde_json::from_str(&std::fs::read_to_string(p).unwrap()).unwrap()
+    };
+    let (fresh, committed) = (
+        read(&results),
+        read(&std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("docs/demo-results.json")),
+    );
+    for rule in ["mirror", "follow", "keep-away"] {
+        let metric = |v: &serde_json::Value| {
+            v["held_out_without_lafan"][rule]["mpjpe_cm_steps1"]
+                .as_f64()
+                .unwrap()
+        };
+        let (now, then) = (metric(&fresh["summary"]), metric(&committed["summary"]));
+        println!("{rule}: {now:.2} cm now, {then:.2} cm committed");
+        assert!(
+            (now - then).abs() <= 0.1 * then,
+            "{rule}: retrained error {now:.2} cm, committed {then:.2} cm"
+        );
     }
 }

@@ -2,7 +2,7 @@
 //! against the freshly built cdylib, then again from a wheel built by `pip wheel` and installed
 //! into a scratch site directory (the library found next to the package).
 //!
-//! Needs python3 with numpy, pytest, setuptools and wheel (`.ci/run` installs them).
+//! Needs numpy, pytest, setuptools and wheel (`scripts/test.sh` installs them into target/venv).
 
 mod common;
 
@@ -16,7 +16,7 @@ fn root() -> &'static Path {
 }
 
 fn python(args: &[&str], env: &[(&str, &Path)], unset_library: bool) -> String {
-    let mut cmd = Command::new("python3");
+    let mut cmd = Command::new(common::python_command());
     cmd.current_dir(root()).args(args);
     for (k, v) in env {
         cmd.env(k, v);
@@ -35,13 +35,13 @@ fn python(args: &[&str], env: &[(&str, &Path)], unset_library: bool) -> String {
 }
 
 fn require_python_tools() {
-    let probe = Command::new("python3")
+    let probe = Command::new(common::python_command())
         .args(["-c", "import numpy, pytest, setuptools, wheel"])
         .output();
     assert!(
         matches!(probe, Ok(ref o) if o.status.success()),
-        "the Python binding tests need python3 with numpy, pytest, setuptools and wheel: \
-         `pip install numpy pytest setuptools wheel`"
+        "the Python binding tests need numpy, pytest, setuptools and wheel: run the suite \
+         through `scripts/test.sh`, which installs them into target/venv"
     );
 }
 
@@ -135,7 +135,8 @@ fn wheel_carries_the_library_and_passes_the_suite() {
     pytest_suite(&[("PYTHONPATH", &site)], true);
 }
 
-/// The Python streaming demo runs on the tiny bundle and writes the reactor motion.
+/// The Python streaming demo runs with its defaults (the trained demo model, its first rule),
+/// writes the reactor motion and measures it against the rule's partner.
 #[test]
 fn python_streaming_demo_runs() {
     require_python_tools();
@@ -164,6 +165,10 @@ fn python_streaming_demo_runs() {
         "{text}"
     );
     assert!(text.contains("real-time factor"), "{text}");
+    assert!(
+        text.contains("the mirror rule's partner vs the reactor: "),
+        "{text}"
+    );
     let reactor: ndarray::Array3<f32> = ndarray_npy::read_npy(&npy).unwrap();
     assert_eq!(reactor.dim(), (48, 22, 3));
     assert!(npy.with_extension("html").is_file() && npy.with_extension("gif").is_file());

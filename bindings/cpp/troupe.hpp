@@ -114,6 +114,20 @@ class Model {
     std::size_t latency_frames() const { return troupe_model_latency_frames(handle_); }
     std::size_t condition_dim() const { return troupe_model_condition_dim(handle_); }
     std::size_t latent_dim() const { return troupe_model_latent_dim(handle_); }
+    /// The named conditions the bundle was trained on (the demo model's partner rules).
+    std::vector<std::string> condition_labels() const {
+        std::vector<std::string> out;
+        for (std::size_t i = 0, n = troupe_model_condition_label_count(handle_); i < n; ++i)
+            out.emplace_back(troupe_model_condition_label(handle_, i));
+        return out;
+    }
+    /// The vector of a named condition; `out` is resized to condition_dim() on success only.
+    Status condition_for(const std::string &label, std::vector<float> &out) const {
+        std::vector<float> v(condition_dim());
+        Status s = Status::from(troupe_model_condition_for_label(handle_, label.c_str(), v.data(), v.size()));
+        if (s) out = std::move(v);
+        return s;
+    }
     std::size_t max_output_frames(std::size_t n_actor_frames) const {
         return troupe_model_max_output_frames(handle_, n_actor_frames);
     }

@@ -6,8 +6,11 @@
  *   cargo build --release
  *   cc -std=c99 -O2 -Iinclude examples/c/stream.c -Ltarget/release -ltroupe \
  *      -Wl,-rpath,$PWD/target/release -lm -o stream_c
- *   ./stream_c [BUNDLE] [FRAMES] [TICK] [OUT.npy] [JOINTS.npy]
+ *   ./stream_c [BUNDLE] [FRAMES] [TICK] [OUT.npy] [JOINTS.npy] [RULE]
  *
+ * BUNDLE defaults to the trained demo model (onnx/bundles/armflow-demo) and RULE to its first
+ * named condition (mirror; follow and keep-away are the others). On the default clip the demo
+ * prints how far the reactor is from the rule's partner (tests/data/mocap/cmu-playground.RULE.npy).
  * JOINTS.npy: float32 [T, 22, 3] t2m-22 positions, metres, z up, 120 fps (default: the CMU
  * excerpt in tests/data/mocap). OUT.npy gets float32 [T, 22, 3] in the same world; OUT.html and
  * OUT.gif go beside it.
@@ -15,6 +18,7 @@
 #define _POSIX_C_SOURCE 199309L
 #include "troupe.h"
 
+#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -76,11 +80,25 @@ static size_t read_joints(const char *path, float **out) {
     return frames;
 }
 
+/* Mean per-joint distance in cm between two [frames, 22, 3] clips. */
+static double mpjpe_cm(const float *a, const float *b, size_t frames) {
+    double sum = 0.0;
+    size_t i;
+    for (i = 0; i < frames * J; i++) {
+        double dx = a[3 * i] - b[3 * i], dy = a[3 * i + 1] - b[3 * i + 1], dz = a[3 * i + 2] - b[3 * i + 2];
+        sum += sqrt(dx * dx + dy * dy + dz * dz);
+    }
+    return frames ? 100.0 * sum / (double)(frames * J) : 0.0;
+}
+
 int main(int argc, char **argv) {
-    const char *bundle = argc > 1 ? argv[1] : "onnx/bundles/armflow-tiny";
+    const char *bundle = argc > 1 ? argv[1] : "onnx/bundles/armflow-demo";
     size_t limit = argc > 2 ? (size_t)atol(argv[2]) : 0, tick = argc > 3 ? (size_t)atol(argv[3]) : 1;
     const char *out_path = argc > 4 ? argv[4] : "reactor_c.npy";
-    const char *joints_path = argc > 5 ? argv[5] : "tests/data/mocap/cmu-playground-120fps.npy";
+    const char *default_clip = "tests/data/mocap/cmu-playground-120fps.npy";
+    const char *joints_path = argc > 5 ? argv[5] : default_clip;
+    const char *rule = argc > 6 ? argv[6] : NULL;
+    float *condition = NULL;
     troupe_model *model = NULL;
     troupe_session *session = NULL;
     troupe_session_options opt;
@@ -105,11 +123,20 @@ int main(int argc, char **argv) {
     }
     troupe_session_options_init(model, &opt, sizeof opt);
     opt.seed = 7;
+    if (!rule && troupe_model_condition_label_count(model) > 0) rule = troupe_model_condition_label(model, 0);
+    if (rule) {
+        condition = (float *)malloc(troupe_model_condition_dim(model) * sizeof(float));
+        if (troupe_model_condition_for_label(model, rule, condition, troupe_model_condition_dim(model)) != TROUPE_OK) {
+            fprintf(stderr, "rule: %s\n", troupe_last_error_message());
+            return 1;
+        }
+    }
     troupe_joints_format_init(&format, sizeof format);
     format.units = TROUPE_UNITS_METERS;
     format.up_axis = TROUPE_UP_Z;
     format.fps = CLIP_FPS;
     if (troupe_session_new(model, &opt, &session) != TROUPE_OK ||
+        (condition && troupe_session_set_condition(session, condition, troupe_model_condition_dim(model)) != TROUPE_OK) ||
         troupe_session_set_joints_format(session, &format) != TROUPE_OK) {
         fprintf(stderr, "session: %s\n", troupe_last_error_message());
         return 1;
@@ -143,6 +170,17 @@ int main(int argc, char **argv) {
     printf("troupe %s, bundle %s: %lu actor frames (%.0f fps) in ticks of %lu, %lu reactor frames -> %s\n",
            troupe_version_string(), bundle, (unsigned long)frames, (double)CLIP_FPS, (unsigned long)tick,
            (unsigned long)written, out_path);
+    if (rule && strcmp(joints_path, default_clip) == 0) {
+        char truth_path[256];
+        float *truth = NULL;
+        size_t truth_frames;
+        snprintf(truth_path, sizeof truth_path, "tests/data/mocap/cmu-playground.%s.npy", rule);
+        truth_frames = read_joints(truth_path, &truth);
+        if (truth_frames > 0)
+            printf("the %s rule's partner vs the reactor: %.1f cm mean per-joint error\n", rule,
+                   mpjpe_cm(reactor, truth, written < truth_frames ? written : truth_frames));
+        free(truth);
+    }
 
     /* The picture plays both people at the bundle's rate: every stride-th actor frame. */
     stride = (size_t)(CLIP_FPS / (float)troupe_model_fps(model) + 0.5f);
@@ -168,6 +206,7 @@ int main(int argc, char **argv) {
     troupe_session_free(session);
     troupe_model_free(model);
     free(actor);
+    free(condition);
     free(reactor);
     free(both);
     free(latency);

@@ -4,11 +4,14 @@ get the reactor's joint positions back, write them to .npy with a picture beside
 player and a GIF of both people), print per-step latency and the real-time factor.
 
     pip install ./bindings/python      # or: PYTHONPATH=bindings/python TROUPE_LIBRARY_PATH=target/release
-    python examples/python/stream.py [--bundle DIR] [--joints FILE.npy|FILE.bvh] [--units m] [--up z]
+    python examples/python/stream.py [--bundle DIR] [--rule mirror|follow|keep-away]
+                                     [--joints FILE.npy|FILE.bvh] [--units m] [--up z]
                                      [--fps 120] [--frames N] [--tick N] [--out FILE.npy]
 
-The default actor is 8 s of real motion capture (tests/data/mocap/cmu-playground-120fps.npy:
-t2m-22 joints, metres, z up, 120 fps).
+The default model is troupe's trained demo (onnx/bundles/armflow-demo, docs/DEMO.md) with its
+first rule (mirror); the default actor is 8 s of real motion capture it never saw
+(tests/data/mocap/cmu-playground-120fps.npy: t2m-22 joints, metres, z up, 120 fps). On that clip
+the demo prints how far the reactor is from the rule's partner.
 """
 
 import argparse
@@ -26,7 +29,8 @@ DEFAULT_CLIP = REPO / "tests" / "data" / "mocap" / "cmu-playground-120fps.npy"
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--bundle", default=str(REPO / "onnx" / "bundles" / "armflow-tiny"))
+    ap.add_argument("--bundle", default=str(REPO / "onnx" / "bundles" / "armflow-demo"))
+    ap.add_argument("--rule", help="a named condition of the bundle (default: its first, if any)")
     ap.add_argument("--joints", default=str(DEFAULT_CLIP), help="float32 [T, 22, 3] .npy or a .bvh file")
     ap.add_argument("--units", default="m", choices=["m", "cm", "mm", "in"], help="units of a .npy")
     ap.add_argument("--up", default="z", choices=["y", "z"], help="up axis of a .npy")
@@ -44,6 +48,9 @@ def main():
     if args.frames:
         actor = actor[: args.frames]
     with troupe.Model(args.bundle) as model, model.session(seed=args.seed) as session:
+        rule = args.rule or next(iter(model.condition_labels), None)
+        if rule:
+            session.set_condition(rule)
         session.set_joints_format(fmt)
         reactor, token_ms = [], []
         start = time.perf_counter()
@@ -60,6 +67,11 @@ def main():
     np.save(out, reactor)
     print(f"troupe {troupe.version()}: {len(actor)} actor frames ({fmt.fps:g} fps) in ticks of {args.tick}, "
           f"{len(reactor)} reactor frames -> {out}")
+    truth_path = DEFAULT_CLIP.with_name(f"cmu-playground.{rule}.npy")
+    if rule and Path(args.joints) == DEFAULT_CLIP and truth_path.exists() and len(reactor):
+        truth = np.load(truth_path)[: len(reactor)]
+        error = 100 * np.linalg.norm(reactor[: len(truth)] - truth, axis=-1).mean()
+        print(f"the {rule} rule's partner vs the reactor: {error:.1f} cm mean per-joint error")
     if len(reactor):
         # The picture plays both people at the bundle's rate.
         stride = max(1, round(fmt.fps / model_fps))

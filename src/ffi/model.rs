@@ -1,8 +1,11 @@
 //! `troupe_model`: loading bundles and querying them.
 
-use std::ffi::c_char;
+use std::ffi::{c_char, CString};
 
-use super::boundary::{self, non_null, troupe_status, FfiError, FfiResult, TROUPE_ERR_SHAPE};
+use super::boundary::{
+    self, non_null, troupe_status, FfiError, FfiResult, TROUPE_ERR_BUFFER_TOO_SMALL,
+    TROUPE_ERR_SHAPE,
+};
 use crate::shared::logging::{log, Level};
 use crate::Model;
 
@@ -11,6 +14,9 @@ use crate::Model;
 /// created from it keep it alive, so it may be freed before them.
 pub struct troupe_model {
     pub(crate) model: Model,
+    /// The names of the bundle's condition labels, NUL-terminated for C (the manifest refuses
+    /// names holding NUL); they live as long as the handle.
+    label_names: Vec<CString>,
 }
 
 /// The condition a generation call was given: NULL with length 0 is the null condition
@@ -50,8 +56,14 @@ fn publish(model: Model, out: *mut *mut troupe_model) {
             model.source().display()
         )
     });
+    let label_names = model
+        .condition_labels()
+        .iter()
+        .map(|l| CString::new(l.name.as_str()).unwrap_or_default())
+        .collect();
+    let handle = troupe_model { model, label_names };
     // SAFETY: `out` was checked non-NULL by the caller of `publish`.
-    unsafe { *out = Box::into_raw(Box::new(troupe_model { model })) };
+    unsafe { *out = Box::into_raw(Box::new(handle)) };
 }
 
 /// Loads a bundle from `path` (UTF-8): a bundle directory, or an uncompressed tar archive of
@@ -184,6 +196,76 @@ pub unsafe extern "C" fn troupe_model_latency_frames(model: Option<&troupe_model
 #[no_mangle]
 pub unsafe extern "C" fn troupe_model_condition_dim(model: Option<&troupe_model>) -> usize {
     property(model, Model::condition_dim)
+}
+
+/// Named conditions the bundle was trained on (the demo model's partner rules `mirror`,
+/// `follow`, `keep-away`); 0 for NULL and for bundles conditioned on free vectors. Thread-safe.
+///
+/// # Safety
+/// `model` must be NULL or a live handle.
+#[no_mangle]
+pub unsafe extern "C" fn troupe_model_condition_label_count(model: Option<&troupe_model>) -> usize {
+    model.map_or(0, |m| m.label_names.len())
+}
+
+/// The name of condition label `index` (`0 <= index < troupe_model_condition_label_count`), or
+/// NULL for NULL or an index out of range. The string is owned by the model and valid until
+/// `troupe_model_free`; never free it. Thread-safe.
+///
+/// # Safety
+/// `model` must be NULL or a live handle.
+#[no_mangle]
+pub unsafe extern "C" fn troupe_model_condition_label(
+    model: Option<&troupe_model>,
+    index: usize,
+) -> *const c_char {
+    model
+        .and_then(|m| m.label_names.get(index))
+        .map_or(std::ptr::null(), |n| n.as_ptr())
+}
+
+/// Writes the conditioning vector of the label `label` (UTF-8, borrowed for the call) into
+/// `condition[0 .. troupe_model_condition_dim)`, ready for `troupe_session_set_condition`,
+/// `troupe_clip_generate` or `troupe_group_generate`.
+///
+/// Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (no such label: the
+/// message lists the bundle's labels; or `label` not UTF-8), `TROUPE_ERR_BUFFER_TOO_SMALL`
+/// (`capacity` below the condition's length), `TROUPE_ERR_PANIC`. `condition` is untouched on
+/// failure. Thread-safe.
+///
+/// # Safety
+/// `model` must be NULL or a live handle; `label` NUL-terminated; `condition` writable for
+/// `capacity` floats.
+#[no_mangle]
+pub unsafe extern "C" fn troupe_model_condition_for_label(
+    model: Option<&troupe_model>,
+    label: *const c_char,
+    condition: *mut f32,
+    capacity: usize,
+) -> troupe_status {
+    boundary::call(
+        "troupe_model_condition_for_label",
+        || {},
+        || {
+            let model = &boundary::required(model, "model")?.model;
+            // SAFETY: NUL-terminated per the contract.
+            let label = unsafe { boundary::required_str(label, "label") }?;
+            non_null(condition, "condition")?;
+            let vector = model.condition_for(label)?;
+            if capacity < vector.len() {
+                return Err(FfiError::new(
+                    TROUPE_ERR_BUFFER_TOO_SMALL,
+                    format!(
+                        "the condition needs {} floats, the buffer holds {capacity}",
+                        vector.len()
+                    ),
+                ));
+            }
+            // SAFETY: non-NULL and writable for capacity >= vector.len() floats.
+            unsafe { std::ptr::copy_nonoverlapping(vector.as_ptr(), condition, vector.len()) };
+            Ok(())
+        },
+    )
 }
 
 /// Floats per latent token (the length of injected noise vectors, per token); 0 for NULL.

@@ -41,12 +41,71 @@ pub struct ConditionSpec {
     /// branch, and what `None` means). Zeros when absent.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub null: Option<Vec<f32>>,
+    /// Named conditions a bundle was trained on (the demo model's partner rules), in the order
+    /// the bundle lists them. Empty for bundles conditioned on free vectors (text features).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub labels: Vec<ConditionLabel>,
+}
+
+/// A named condition: what to pass for a behaviour the bundle knows by name.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct ConditionLabel {
+    /// The name a caller asks for (`mirror`).
+    pub name: String,
+    /// The conditioning vector, `condition.dim` floats.
+    pub vector: Vec<f32>,
+    /// One line on what the condition makes the model do.
+    #[serde(default, skip_serializing_if = "String::is_empty")]
+    pub about: String,
 }
 
 impl ConditionSpec {
     /// The condition that stands for "none": `null`, or zeros.
     pub fn null_or_zeros(&self) -> Vec<f32> {
         self.null.clone().unwrap_or_else(|| vec![0f32; self.dim])
+    }
+
+    /// The vector of the label called `name`, if the bundle has one.
+    pub fn labelled(&self, name: &str) -> Option<&[f32]> {
+        self.labels
+            .iter()
+            .find(|l| l.name == name)
+            .map(|l| l.vector.as_slice())
+    }
+
+    /// `null` and every label: the right length, finite; label names non-empty and unique.
+    pub(crate) fn validate(&self) -> Result<(), String> {
+        let check = |what: &str, v: &[f32]| -> Result<(), String> {
+            if v.len() != self.dim {
+                return Err(format!(
+                    "{what} holds {} floats, condition.dim is {}",
+                    v.len(),
+                    self.dim
+                ));
+            }
+            if !v.iter().all(|x| x.is_finite()) {
+                return Err(format!("{what} holds a non-finite value"));
+            }
+            Ok(())
+        };
+        if let Some(null) = &self.null {
+            check("condition.null", null)?;
+        }
+        for (i, label) in self.labels.iter().enumerate() {
+            if label.name.is_empty() || label.name.contains('\0') {
+                return Err(format!(
+                    "condition.labels[{i}] has an empty or NUL-holding name"
+                ));
+            }
+            if self.labels[..i].iter().any(|l| l.name == label.name) {
+                return Err(format!("condition.labels: `{}` is named twice", label.name));
+            }
+            check(
+                &format!("condition.labels[{i}] (`{}`)", label.name),
+                &label.vector,
+            )?;
+        }
+        Ok(())
     }
 }
 

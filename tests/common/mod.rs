@@ -1,6 +1,8 @@
 //! Helpers shared by the integration tests: the committed tiny bundle and its golden files.
 #![allow(dead_code)]
 
+pub mod pictures;
+
 use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::sync::OnceLock;
@@ -103,13 +105,20 @@ pub fn c_libraries() -> &'static Path {
     })
 }
 
-/// The Python interpreter on PATH: `python3`, or `python` where there is no `python3`.
+/// The Python interpreter the tests run: `TROUPE_PYTHON`, else the project's environment that
+/// `scripts/test.sh` makes (`target/venv`), else `python3` on PATH.
 pub fn python_command() -> &'static str {
-    if Command::new("python3").arg("--version").output().is_ok() {
-        "python3"
-    } else {
-        "python"
-    }
+    static PYTHON: OnceLock<String> = OnceLock::new();
+    PYTHON.get_or_init(|| {
+        if let Ok(p) = std::env::var("TROUPE_PYTHON") {
+            return p;
+        }
+        let venv = Path::new(env!("CARGO_MANIFEST_DIR")).join("target/venv/bin/python3");
+        if venv.is_file() {
+            return venv.to_string_lossy().into_owned();
+        }
+        "python3".to_owned()
+    })
 }
 
 /// Runs Python with `args` and the extra environment `env` in the repository root; returns

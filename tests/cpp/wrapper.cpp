@@ -35,6 +35,22 @@ int main(int argc, char **argv) {
 
     troupe::Model model;
     CHECK(troupe::Model::load(argv[1], model).ok());
+
+    // Named conditions: none on the plain bundle; the demo bundle's partner rules by name.
+    {
+        std::vector<float> v{9.0f};
+        CHECK(model.condition_labels().empty());
+        CHECK(!model.condition_for("mirror", v) && v.size() == 1 && v[0] == 9.0f);
+        troupe::Model demo;
+        if (argc > 4 && troupe::Model::load(argv[4], demo).ok()) {
+            CHECK((demo.condition_labels() == std::vector<std::string>{"mirror", "follow", "keep-away"}));
+            CHECK(demo.condition_for("follow", v).ok() && (v == std::vector<float>{0.0f, 1.0f, 0.0f}));
+            troupe::Status unknown = demo.condition_for("dance", v);
+            CHECK(unknown.code() == TROUPE_ERR_INVALID_ARG && v.size() == 3);
+        } else {
+            CHECK(argc <= 4);
+        }
+    }
     troupe_session_options opt;
     CHECK(model.default_options(opt).ok());
     opt.seed = 5;

@@ -298,3 +298,19 @@ def test_official_clip_loop_and_text_branch_match_the_reference():
         troupe.Model(BUNDLE).generate_clip(np.zeros((4, 262), np.float32))
     with pytest.raises(ValueError, match="clip_tokens must be"):
         m.encode_text(np.zeros((5, 7), np.float32), 0)
+
+
+def test_named_conditions_of_the_demo_bundle(model):
+    assert model.condition_labels == []
+    with pytest.raises(troupe.TroupeError, match="has no named conditions"):
+        model.condition("mirror")
+    with troupe.Model(REPO / "onnx" / "bundles" / "armflow-demo") as demo:
+        assert demo.condition_labels == ["mirror", "follow", "keep-away"]
+        np.testing.assert_array_equal(demo.condition("keep-away"), [0.0, 0.0, 1.0])
+        with pytest.raises(troupe.TroupeError, match="has: mirror, follow, keep-away"):
+            demo.condition("dance")
+        # a session takes a label wherever it takes a condition vector
+        actor = np.zeros((8, demo.frame_dim), np.float32)
+        with demo.session(seed=3, condition="follow") as by_name, \
+                demo.session(seed=3, condition=demo.condition("follow")) as by_vector:
+            np.testing.assert_array_equal(by_name.step(actor), by_vector.step(actor))

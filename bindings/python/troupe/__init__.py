@@ -93,6 +93,19 @@ class Model:
     condition_dim = property(lambda self: _lib.troupe_model_condition_dim(self._h()))
     latent_dim = property(lambda self: _lib.troupe_model_latent_dim(self._h()))
 
+    @property
+    def condition_labels(self) -> list[str]:
+        """The named conditions the bundle was trained on (the demo model's partner rules)."""
+        h = self._h()
+        n = _lib.troupe_model_condition_label_count(h)
+        return [_lib.troupe_model_condition_label(h, i).decode() for i in range(n)]
+
+    def condition(self, label: str) -> np.ndarray:
+        """The conditioning vector of a named condition (`model.condition("mirror")`)."""
+        out = np.empty(self.condition_dim, np.float32)
+        _check(_lib.troupe_model_condition_for_label(self._h(), label.encode(), _ptr(out), out.size))
+        return out
+
     def max_output_frames(self, n_actor_frames: int) -> int:
         """The most reactor frames one step with `n_actor_frames` frames can return."""
         return _lib.troupe_model_max_output_frames(self._h(), n_actor_frames)
@@ -281,6 +294,7 @@ class Session:
         self.condition_dim = model.condition_dim
         self.latent_dim = model.latent_dim
         self._frames_per_token = model.frames_per_token
+        self._model = model
         if condition is not None:
             self.set_condition(condition)
 
@@ -371,10 +385,13 @@ class Session:
         self._call(_lib.troupe_session_set_cfg_scale, scale)
 
     def set_condition(self, condition) -> None:
-        """Sets the conditioning vector (condition_dim floats); None selects the null condition."""
+        """Sets the conditioning vector (condition_dim floats, or the name of one of the model's
+        `condition_labels`); None selects the null condition."""
         if condition is None:
             self._call(_lib.troupe_session_set_condition, None, 0)
             return
+        if isinstance(condition, str):
+            condition = self._model.condition(condition)
         c = _floats(condition, "condition")
         self._call(_lib.troupe_session_set_condition, _ptr(c), c.size)
 

@@ -237,10 +237,10 @@ def graph_specs(model: Armflow) -> dict:
     return specs
 
 
-def build_model(preset: str, seed: int, checkpoint: Path | None = None) -> Armflow:
-    """The preset's model with seeded random weights, or the weights of `checkpoint`."""
+def build_model(preset: str, seed: int, checkpoint: Path | None = None, config: ArmflowConfig | None = None) -> Armflow:
+    """The preset's model (or `config`'s) with seeded random weights, or the weights of `checkpoint`."""
     torch.manual_seed(seed)
-    model = Armflow(PRESETS[preset]).eval()
+    model = Armflow(config or PRESETS[preset]).eval()
     if checkpoint is not None:
         load_checkpoint(model, checkpoint, IGNORED)
         return model
@@ -254,9 +254,14 @@ def build_model(preset: str, seed: int, checkpoint: Path | None = None) -> Armfl
     return model
 
 
-def export_bundle(preset: str, out_dir: Path, seed: int = 0, checkpoint: Path | None = None) -> Armflow:
-    cfg = PRESETS[preset]
-    model = build_model(preset, seed, checkpoint)
+def export_bundle(
+    preset: str, out_dir: Path, seed: int = 0, checkpoint: Path | None = None,
+    config: ArmflowConfig | None = None, manifest_extra: dict | None = None,
+) -> Armflow:
+    """Write the bundle of `preset` (or of `config`, named `preset`). `manifest_extra` adds to
+    the manifest's sections (a trained model's `producer.training`, `condition.labels`)."""
+    cfg = config or PRESETS[preset]
+    model = build_model(preset, seed, checkpoint, config)
     out_dir.mkdir(parents=True, exist_ok=True)
     specs = graph_specs(model)
     c, lat, h, dh = cfg.width, cfg.latent_dim, cfg.heads, cfg.head_dim
@@ -303,7 +308,7 @@ def export_bundle(preset: str, out_dir: Path, seed: int = 0, checkpoint: Path | 
         "motion": {"layout": LAYOUTS[cfg.frame_dim], "frame_dim": cfg.frame_dim, "fps": cfg.fps,
                    "skeleton": SKELETONS[LAYOUTS[cfg.frame_dim]]},
         "latent": {"dim": lat, "scale": cfg.latent_scale, "frames_per_token": cfg.frames_per_token},
-        "condition": {"dim": cfg.cond_dim},
+        "condition": {"dim": cfg.cond_dim} | ({"null": list(cfg.null_condition)} if cfg.null_condition else {}),
         "context": {
             "width": c, "layers": cfg.layers, "heads": h, "head_dim": dh,
             "capacity_tokens": cfg.context_capacity,
@@ -318,6 +323,9 @@ def export_bundle(preset: str, out_dir: Path, seed: int = 0, checkpoint: Path | 
     }
     if cfg.clip_frames:
         manifest["clip"] = {"frames": cfg.clip_frames, "tokens": clip_tokens(cfg)}
+    for section, values in (manifest_extra or {}).items():
+        merge = isinstance(values, dict) and isinstance(manifest.get(section), dict)
+        manifest[section] = {**manifest[section], **values} if merge else values
     (out_dir / "troupe.json").write_text(json.dumps(manifest, indent=2) + "\n")
     return model
 
@@ -340,7 +348,9 @@ def synthetic_actor(frames: int, dim: int, seed: int = 1) -> np.ndarray:
     return (amp * np.sin(2 * np.pi * freq * t + phase)).astype(np.float32)
 
 
-def write_golden(model: Armflow, out_dir: Path):
+def write_golden(model: Armflow, out_dir: Path, actor: np.ndarray | None = None):
+    """Goldens of the stream loop; `actor` (features, at least 194 frames) replaces the synthetic
+    actor (a trained model is better held to real motion)."""
     if model.cfg.clip_frames:
         return write_clip_golden(model, out_dir)
     cfg = model.cfg
@@ -348,7 +358,8 @@ def write_golden(model: Armflow, out_dir: Path):
     g.mkdir(exist_ok=True)
     rng = np.random.default_rng(2)
     frames = GOLDEN_TOKENS * cfg.frames_per_token + 2  # two trailing frames of an unfinished token
-    actor = synthetic_actor(frames, cfg.frame_dim)
+    actor = synthetic_actor(frames, cfg.frame_dim) if actor is None else np.ascontiguousarray(actor[:frames], np.float32)
+    assert actor.shape == (frames, cfg.frame_dim), f"the golden actor needs {frames} frames"
     np.save(g / "actor.npy", actor)
     cases = {
         "default": dict(steps=1, cfg_scale=1.0, capacity=None,

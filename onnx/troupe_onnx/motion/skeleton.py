@@ -116,3 +116,12 @@ def t2m22() -> Skeleton:
     """The built-in t2m-22 skeleton (the neutral body's rest offsets); a fresh copy each call."""
     s = _t2m22()
     return s.with_offsets(s.offsets)
+
+
+def clip_bone_lengths(positions) -> tuple[np.ndarray, np.ndarray]:
+    """A t2m-22 clip `[T, 22, 3]` as float64, checked for shape, and its bone lengths `[T, 21]`
+    (joint j's distance from its parent, j = 1..21): what the capture readers' checks measure."""
+    clip = np.asarray(positions, dtype=np.float64)
+    assert clip.ndim == 3 and clip.shape[1:] == (22, 3), f"positions {clip.shape}: [T, 22, 3] expected"
+    parents = t2m22().parents
+    return clip, np.linalg.norm(clip[:, 1:] - clip[:, list(parents[1:])], axis=-1)

@@ -74,6 +74,20 @@ def compare_bundles(committed: Path, fresh: Path) -> list[str]:
     return problems
 
 
+def check_reexport(committed: Path, rebuild) -> None:
+    """`--check`: `rebuild(dir, golden)` writes the bundle afresh into a temporary directory
+    (goldens too when `committed` has them); exits 0 when it is byte-identical to `committed`,
+    1 naming every difference otherwise."""
+    with tempfile.TemporaryDirectory() as tmp:
+        fresh = Path(tmp) / "bundle"
+        rebuild(fresh, (committed / "golden").exists())
+        problems = compare_bundles(committed, fresh)
+    for p in problems:
+        print(f"MISMATCH {p}")
+    print("reproducible" if not problems else f"{len(problems)} difference(s)")
+    sys.exit(1 if problems else 0)
+
+
 def exporter_cli(
     doc: str, presets: dict, export_bundle, write_golden, write_checkpoint=None, normaliser: bool = False,
     argv: list[str] | None = None, prog: str | None = None,
@@ -108,16 +122,13 @@ def exporter_cli(
             ap.error("--mean and --std go together")
         checkpoint["normaliser"] = (args.mean, args.std)
     if args.check:
-        with tempfile.TemporaryDirectory() as tmp:
-            fresh = Path(tmp) / "bundle"
+
+        def rebuild(fresh: Path, golden: bool):
             model = export_bundle(args.preset, fresh, args.seed)
-            if (args.check / "golden").exists():
+            if golden:
                 write_golden(model, fresh)
-            problems = compare_bundles(args.check, fresh)
-        for p in problems:
-            print(f"MISMATCH {p}")
-        print("reproducible" if not problems else f"{len(problems)} difference(s)")
-        sys.exit(1 if problems else 0)
+
+        check_reexport(args.check, rebuild)
     if not args.out:
         ap.error("--out, --check or --write-checkpoint is required")
     try:

@@ -1,0 +1,75 @@
+#!/usr/bin/env bash
+# The project's test command: on a machine with only the Rust toolchain, a C compiler and a bare
+# python3, it installs what the suite needs (a project-local virtual environment for the Python
+# tests, Debian's chromium for the picture tests) and runs every check CI runs.
+#
+#   scripts/test.sh              format, lint, every test, the demo and benchmark smoke runs
+#   TROUPE_SLOW_TESTS=1 ...      also the long forms (training reproduction, soak, long fuzz)
+#
+# Extra arguments go to `cargo test` (e.g. `scripts/test.sh --test streaming`), which then runs
+# alone, without the format, lint and smoke steps.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+venv=target/venv
+requirements=tests/requirements.txt
+
+# 1. Python: a virtual environment under target/ (never the system's site-packages), refreshed
+#    when tests/requirements.txt changes.
+if [ ! -x "$venv/bin/python3" ]; then
+    echo "== python: creating $venv"
+    if ! python3 -m venv "$venv" 2>/dev/null; then
+        # Debian's python3 keeps venv in a separate package.
+        rm -rf "$venv"
+        apt_get=(env DEBIAN_FRONTEND=noninteractive apt-get)
+        [ "$(id -u)" -eq 0 ] || apt_get=(sudo -n "${apt_get[@]}")
+        "${apt_get[@]}" install -y -qq --no-install-recommends python3-venv
+        python3 -m venv "$venv"
+    fi
+fi
+stamp="$venv/.requirements"
+if ! cmp -s "$requirements" "$stamp"; then
+    echo "== python: installing $requirements"
+    "$venv/bin/python3" -m pip install --quiet --disable-pip-version-check -r "$requirements"
+    cp "$requirements" "$stamp"
+fi
+# The tests run `python3`: the environment's comes first on PATH.
+PATH="$PWD/$venv/bin:$PATH"
+export PATH
+
+# 2. Chromium: the viewer and demo tests screenshot the HTML player.
+if [ -z "${TROUPE_CHROMIUM:-}" ] && ! command -v chromium >/dev/null 2>&1; then
+    echo "== chromium: installing Debian's package"
+    apt_get=(env DEBIAN_FRONTEND=noninteractive apt-get)
+    [ "$(id -u)" -eq 0 ] || apt_get=(sudo -n "${apt_get[@]}")
+    "${apt_get[@]}" update -qq || true
+    "${apt_get[@]}" install -y -qq --no-install-recommends chromium || true
+    if ! command -v chromium >/dev/null 2>&1; then
+        echo "chromium is missing and could not be installed; the picture tests need it" \
+            "(apt-get install chromium, or set TROUPE_CHROMIUM to a Chromium binary)" >&2
+        exit 1
+    fi
+fi
+
+if [ "$#" -gt 0 ]; then
+    exec cargo test "$@"
+fi
+
+if command -v rustup >/dev/null 2>&1; then
+    rustup component add rustfmt clippy >/dev/null 2>&1 || true
+fi
+
+echo "== format"
+cargo fmt --check
+
+echo "== lint"
+cargo clippy --all-targets -- -D warnings
+
+echo "== tests"
+cargo test
+
+echo "== streaming demo smoke run"
+cargo run --example stream -- --frames 120 --tick 3 --out target/ci-reactor.npy
+
+echo "== benchmark smoke run (each benchmark once, tiny bundle; speed is not checked here)"
+cargo bench --bench step -- --test
