@@ -168,15 +168,16 @@ typedef struct troupe_bvh troupe_bvh;
 typedef struct troupe_model troupe_model;
 
 /*
- A stream turning joint-position frames into feature frames for one person. Not
- synchronised: one thread at a time. Free with `troupe_motion_stream_free`; it does not need
- its model after creation.
+ A stream turning joint-position frames into feature frames for one person, used from one
+ thread at a time (a call while another thread uses it fails with `TROUPE_ERR_BUSY`). Free
+ with `troupe_motion_stream_free`; it does not need its model after creation.
  */
 typedef struct troupe_motion_stream troupe_motion_stream;
 
 /*
- One stream. Not internally synchronised: use a session from one thread at a time (it may
- move between threads). Distinct sessions run fully in parallel.
+ One stream. A session is used from one thread at a time (it may move between threads);
+ distinct sessions run fully in parallel. A call on a session that another thread is using
+ fails with `TROUPE_ERR_BUSY` instead of racing.
  */
 typedef struct troupe_session troupe_session;
 
@@ -184,6 +185,79 @@ typedef struct troupe_session troupe_session;
  Status returned by every fallible function: `TROUPE_OK` or one of the `TROUPE_ERR_*` codes.
  */
 typedef int32_t troupe_status;
+
+/*
+ troupe's limits. Fill with `troupe_limits_get`. A call given more than a limit fails with
+ `TROUPE_ERR_INVALID_ARG` (a caller's value) or `TROUPE_ERR_MODEL` / `TROUPE_ERR_IO` (a
+ bundle's), naming the limit, before anything is allocated. Fields are only ever appended.
+ */
+typedef struct troupe_limits {
+  /*
+   `sizeof(troupe_limits)` as the caller compiled it (set by `troupe_limits_get`).
+   */
+  uint32_t struct_size;
+  /*
+   Always 0.
+   */
+  uint32_t reserved;
+  /*
+   Bytes of a whole bundle (archive file or memory, or a directory's files together).
+   */
+  uint64_t max_bundle_bytes;
+  /*
+   Bytes of a bundle's `troupe.json`.
+   */
+  uint64_t max_manifest_bytes;
+  /*
+   Members of a tar bundle.
+   */
+  uint64_t max_archive_members;
+  /*
+   Nodes of one ONNX graph.
+   */
+  uint64_t max_graph_nodes;
+  /*
+   Elements of one tensor a graph declares or builds from constants, or that a manifest's
+   numbers make the runtime allocate.
+   */
+  uint64_t max_tensor_elements;
+  /*
+   Solver steps per token or per stage.
+   */
+  uint64_t max_steps;
+  /*
+   Magnitude of a classifier-free guidance scale.
+   */
+  uint64_t max_cfg_scale;
+  /*
+   Magnitude of a motion feature, condition or noise value passed in.
+   */
+  uint64_t max_abs_input;
+  /*
+   Motion frames passed to one call.
+   */
+  uint64_t max_frames_per_call;
+  /*
+   Tokens of noise queued on a session.
+   */
+  uint64_t max_queued_noise_tokens;
+  /*
+   Tokens kept in a session's context cache.
+   */
+  uint64_t max_context_capacity;
+  /*
+   People in one generated group.
+   */
+  uint64_t max_people;
+  /*
+   CLIP tokens passed to `troupe_text_encode`.
+   */
+  uint64_t max_text_tokens;
+  /*
+   Any count or dimension a manifest declares.
+   */
+  uint64_t max_manifest_dim;
+} troupe_limits;
 
 /*
  A log callback: `level` is one of `TROUPE_LOG_*`; `target` and `message` are NUL-terminated
@@ -473,11 +547,29 @@ typedef struct troupe_group_noise {
  */
 #define TROUPE_ERR_PANIC 9
 
+/*
+ The handle is in use by another thread: a session or joint stream is used from one thread
+ at a time. Nothing was done; the call may be retried once the other thread is done.
+ */
+#define TROUPE_ERR_BUSY 10
+
 
 
 #ifdef __cplusplus
 extern "C" {
 #endif // __cplusplus
+
+/*
+ Writes troupe's limits to `out` (pass `sizeof(troupe_limits)` as `size`; the library writes
+ only that many bytes, zeroing fields it does not know).
+
+ Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (`size` smaller than the
+ first version of the struct). Thread-safe.
+
+ # Safety
+ `out` must be writable for `size` bytes.
+ */
+troupe_status troupe_limits_get(struct troupe_limits *out, size_t size);
 
 /*
  Routes the library's log lines at `max_level` or more severe (`TROUPE_LOG_ERROR` ..
@@ -491,6 +583,20 @@ extern "C" {
  Returns `TROUPE_OK`, or `TROUPE_ERR_INVALID_ARG` for a level outside 1..=4.
  */
 troupe_status troupe_set_log_callback(troupe_log_fn callback, void *user_data, int32_t max_level);
+
+/*
+ Sets how many threads a model load may use: 0 (the default) one per core, 1 only the calling
+ thread. Loading optimises the bundle's graphs in parallel on scoped threads that are all
+ joined before the load returns; no other call starts a thread. Applies to loads that start
+ afterwards, process-wide. Thread-safe.
+ */
+void troupe_set_load_threads(size_t threads);
+
+/*
+ How many threads a model load uses now (the `troupe_set_load_threads` setting, or the number
+ of cores). Thread-safe.
+ */
+size_t troupe_load_threads(void);
 
 /*
  Loads a bundle from `path` (UTF-8): a bundle directory, or an uncompressed tar archive of
@@ -744,7 +850,7 @@ size_t troupe_motion_stream_latency_frames(void);
 
 /*
  The most feature frames one `troupe_motion_stream_push` writes (1 unless the caller's rate
- is above the bundle's), or 0 for a NULL stream. One thread at a time per stream.
+ is above the bundle's), or 0 for a NULL stream. Thread-safe.
  */
 size_t troupe_motion_stream_max_frames(const struct troupe_motion_stream *stream);
 
@@ -1149,11 +1255,12 @@ troupe_status troupe_session_options_init(const struct troupe_model *model, stru
 troupe_status troupe_session_new(const struct troupe_model *model, const struct troupe_session_options *options, struct troupe_session **out);
 
 /*
- Frees a session. NULL is a no-op. The handle must not be used afterwards.
+ Frees a session. NULL is a no-op. The handle must not be used afterwards. A session that
+ another thread is using at that moment is not freed (that would free memory in use): the
+ call logs an error and leaks it.
 
  # Safety
- `session` must be NULL or a handle from `troupe_session_new` not freed before, and not in
- use by another thread.
+ `session` must be NULL or a handle from `troupe_session_new` not freed before.
  */
 void troupe_session_free(struct troupe_session *session);
 

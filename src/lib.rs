@@ -19,7 +19,12 @@
 //! ```
 //!
 //! Threading: [`Model`] is `Send + Sync` and shared by any number of sessions; a [`Session`] is
-//! `Send` and used from one thread at a time.
+//! `Send` and used from one thread at a time. Loading a model optimises its graphs on up to one
+//! scoped thread per core ([`set_load_threads`] bounds them), all joined before it returns; no
+//! other call starts a thread.
+//!
+//! Limits: every size that comes from a file or a caller is checked against [`LIMITS`] before
+//! anything is allocated for it.
 //!
 //! Layout (see `docs/ARCHITECTURE.md`): `shared` machinery at the bottom (bundle files,
 //! graphs, noise, solvers, errors), one folder per model family above it ([`armflow`], [`umf`]),
@@ -47,6 +52,8 @@ pub use armflow::{
 pub use manifest::{ActorLatent, ConditionLabel, Manifest};
 pub use model::Model;
 pub use shared::error::{Error, Result};
+pub use shared::graph::{load_threads, set_load_threads};
+pub use shared::limits::{Limits, LIMITS};
 pub use shared::noise;
 pub use shared::solver::{self, Method, Solver};
 pub use umf::pyramid;

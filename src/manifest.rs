@@ -17,6 +17,7 @@ use crate::shared::bundle_io::BundleIo;
 use crate::shared::checks::ensure;
 use crate::shared::error::{Error, Result};
 use crate::shared::graph_spec::check_contract;
+use crate::shared::limits::LIMITS;
 
 pub use crate::armflow::spec::{
     ActorLatent, ArmFlowGraphs, ArmFlowSpec, ClipSpec, ContextSpec, DecoderWindow, EncoderWindow,
@@ -72,7 +73,7 @@ impl Manifest {
     /// Reads and validates `troupe.json` from a bundle.
     pub(crate) fn load(files: &BundleFiles) -> Result<Self> {
         let path = files.path_of("troupe.json");
-        let bytes = files.read("troupe.json")?;
+        let bytes = files.read("troupe.json", LIMITS.max_manifest_bytes)?;
         let text = std::str::from_utf8(&bytes).map_err(|_| Error::Manifest {
             path: path.clone(),
             message: "not UTF-8 text".into(),
@@ -89,6 +90,7 @@ impl Manifest {
         let value: serde_json::Value =
             serde_json::from_str(text).map_err(|e| bad(e.to_string()))?;
         check_header(&value).map_err(bad)?;
+        check_integers(&value, "").map_err(bad)?;
         let manifest: Manifest = serde_json::from_value(value).map_err(|e| bad(e.to_string()))?;
         manifest.validate().map_err(bad)?;
         Ok(manifest)
@@ -110,7 +112,7 @@ impl Manifest {
         crate::motion::check_layout(m)?;
         self.condition.validate()?;
         match &self.family {
-            Family::Armflow(spec) => spec.validate()?,
+            Family::Armflow(spec) => spec.validate(m.frame_dim)?,
             Family::Umf(spec) => spec.validate(&self.condition)?,
         }
         for (role, declared, expected) in self.graph_contract() {
@@ -135,6 +137,36 @@ impl Manifest {
             motion: self.motion.clone(),
             condition: self.condition.clone(),
         }
+    }
+}
+
+/// Every integer of the manifest outside `producer` (dimensions, counts, frames, steps) is at most
+/// `LIMITS.max_manifest_dim`, so that no product of a few of them overflows and nothing sized by
+/// one is allocated before the graphs are checked against it.
+fn check_integers(value: &serde_json::Value, path: &str) -> std::result::Result<(), String> {
+    use serde_json::Value;
+    match value {
+        Value::Object(map) => map
+            .iter()
+            .filter(|(key, _)| !(path.is_empty() && key.as_str() == "producer"))
+            .try_for_each(|(key, v)| check_integers(v, &format!("{path}.{key}"))),
+        Value::Array(items) => items
+            .iter()
+            .enumerate()
+            .try_for_each(|(i, v)| check_integers(v, &format!("{path}[{i}]"))),
+        Value::Number(n) if n.is_u64() || n.is_i64() => {
+            let limit = LIMITS.max_manifest_dim;
+            let ok = n.as_u64().is_some_and(|v| v <= limit)
+                || n.as_i64().is_some_and(|v| v.unsigned_abs() <= limit);
+            ensure(ok, || {
+                format!(
+                    "{} is {n}, above troupe's limit of {limit} for a manifest's counts and \
+                     dimensions",
+                    path.trim_start_matches('.')
+                )
+            })
+        }
+        _ => Ok(()),
     }
 }
 

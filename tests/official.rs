@@ -244,7 +244,10 @@ fn bad_clip_inputs_are_rejected_with_a_message() {
         steps: Some(0),
         ..Default::default()
     };
-    assert!(err(m.generate_clip(ok.view(), None, &zero_steps)).contains("steps"));
+    match m.generate_clip(ok.view(), None, &zero_steps) {
+        Err(Error::InvalidOption(msg)) => assert!(msg.contains("steps"), "{msg}"),
+        other => panic!("expected InvalidOption, got {other:?}"),
+    }
     let tokens = Array2::<f32>::zeros((5, m.condition_dim()));
     assert!(err(m.encode_text(tokens.view(), 5)).contains("outside"));
 

@@ -21,9 +21,10 @@ use ndarray::{Array2, ArrayView2};
 use super::meanflow::meanflow_grid;
 use super::networks::Networks;
 use super::spec::ClipSpec;
-use crate::shared::checks::check_finite;
+use crate::shared::checks::{check_input, check_output};
 use crate::shared::error::{Error, Result};
 use crate::shared::graph::{f32_tensor, read_f32, stack_rows};
+use crate::shared::limits::check_steps;
 use crate::shared::noise::{fill_normals, STREAM_ACTOR_POSTERIOR, STREAM_REACTOR_NOISE};
 
 /// The random draws of one clip. Pass them to reproduce another implementation's draws
@@ -106,14 +107,12 @@ impl Networks {
             )));
         }
         let steps = options.steps.unwrap_or(spec.sampler.steps);
-        if steps == 0 {
-            return Err(Error::InvalidInput("steps must be >= 1".into()));
-        }
+        check_steps("clip steps", steps)?;
         let mut padded = vec![0f32; clip.frames * d];
         for (dst, src) in padded.iter_mut().zip(actor.iter()) {
             *dst = *src;
         }
-        check_finite("actor clip", &padded[..actor.len()])?;
+        check_input("actor clip", &padded[..actor.len()])?;
         let noise = match &options.noise {
             Some(noise) => {
                 check_clip_noise(noise, n, lat)?;
@@ -154,7 +153,8 @@ impl Networks {
                     *zv -= dt * uv;
                 }
             }
-            check_finite("generated reactor token", &z)?;
+            check_output("velocity", &format!("reactor token {i}"), &z)?;
+            check_output("context_full", &format!("context {i}"), &context)?;
             sequence.extend_from_slice(a);
             sequence.extend_from_slice(&z);
             reactor.extend_from_slice(&z);
@@ -164,6 +164,7 @@ impl Networks {
         // 4. One decode of all tokens, padded to the clip by repeating the last frame.
         let unscaled: Vec<f32> = reactor.iter().map(|v| v / scale).collect();
         let mut frames = self.decode(&unscaled)?;
+        check_output("vae_decoder", "decoded clip", &frames)?;
         let last = frames[frames.len() - d..].to_vec();
         while frames.len() < clip.frames * d {
             frames.extend_from_slice(&last);
@@ -201,6 +202,6 @@ fn check_clip_noise(noise: &ClipNoise, tokens: usize, lat: usize) -> Result<()> 
             )));
         }
     }
-    check_finite("clip noise actor_posterior", &noise.actor_posterior)?;
-    check_finite("clip noise reactor_noise", &noise.reactor_noise)
+    check_input("clip noise actor_posterior", &noise.actor_posterior)?;
+    check_input("clip noise reactor_noise", &noise.reactor_noise)
 }

@@ -138,12 +138,17 @@ impl KvCache {
 
     /// Drops the oldest entries after `<sos>` so that at most `keep` remain (`keep >= 1`).
     pub(crate) fn evict_to(&mut self, keep: usize) -> Result<()> {
+        let keep = keep.max(1);
         if self.len <= keep {
             return Ok(());
         }
         let from = self.len - (keep - 1);
         let evict = |t: &TValue| -> TractResult<TValue> {
             let sos = t.slice(SEQ_AXIS, 0, 1)?;
+            // keep == 1 (capacity 2) keeps `<sos>` alone: tract refuses an empty slice.
+            if from == self.len {
+                return Ok(sos.into_tvalue());
+            }
             let newest = t.slice(SEQ_AXIS, from, self.len)?;
             Ok(Tensor::stack_tensors(SEQ_AXIS, &[sos, newest])?.into_tvalue())
         };

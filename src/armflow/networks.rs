@@ -8,7 +8,7 @@ use super::kv_cache::KvCache;
 use super::spec::ArmFlowSpec;
 use crate::shared::bundle::BundleFiles;
 use crate::shared::bundle_io::BundleIo;
-use crate::shared::checks::check_finite;
+use crate::shared::checks::check_input;
 use crate::shared::error::{Error, Result};
 use crate::shared::graph::{f32_tensor, load_graphs, read_f32, split_rows, stack_rows, Graph};
 use crate::shared::graph_spec::{Dim, GraphSpec};
@@ -49,6 +49,25 @@ impl VaeState {
             .chain(&self.decoder)
             .map(|t| t.len() * 4)
             .sum()
+    }
+
+    /// How many values of the encoder's (or decoder's) state are not finite, and of how many.
+    pub(crate) fn non_finite(&self, encoder: bool) -> (usize, usize) {
+        let tensors = if encoder {
+            &self.encoder
+        } else {
+            &self.decoder
+        };
+        tensors.iter().fold((0, 0), |(bad, total), t| {
+            let values = t
+                .try_as_plain_ram()
+                .and_then(|v| v.as_slice::<f32>())
+                .unwrap_or(&[]);
+            (
+                bad + values.iter().filter(|v| !v.is_finite()).count(),
+                total + values.len(),
+            )
+        })
     }
 }
 
@@ -142,7 +161,7 @@ impl Networks {
                 pairs.len()
             )));
         }
-        check_finite("history", pairs)?;
+        check_input("history", pairs)?;
         let cond = self.conditioning(condition)?;
         let mut tokens = cond.start_token.clone();
         tokens.extend_from_slice(pairs);
@@ -166,7 +185,7 @@ impl Networks {
                         c.len()
                     )));
                 }
-                check_finite("condition", c)?;
+                check_input("condition", c)?;
                 c
             }
             None => {

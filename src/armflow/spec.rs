@@ -6,6 +6,7 @@ use serde::{Deserialize, Serialize};
 use crate::shared::bundle_io::{ConditionSpec, MotionSpec};
 use crate::shared::checks::ensure;
 use crate::shared::graph_spec::{contract, float, sym, DType, Dim, GraphSpec, TensorSpec};
+use crate::shared::limits::{check_cfg, check_steps, product_at_most, LIMITS};
 use crate::shared::text_branch::text_branch_contract;
 
 /// The manifest fields of an `armflow` bundle.
@@ -155,7 +156,7 @@ impl ArmFlowSpec {
         fpt - 1 + self.vae.encoder.lookahead_frames + fpt * self.vae.decoder.lookahead_tokens
     }
 
-    pub(crate) fn validate(&self) -> std::result::Result<(), String> {
+    pub(crate) fn validate(&self, frame_dim: usize) -> std::result::Result<(), String> {
         let check = |ok: bool, msg: &dyn Fn() -> String| ensure(ok, msg);
         let (l, c) = (&self.latent, &self.context);
         check(l.dim > 0 && l.frames_per_token > 0, &|| {
@@ -224,12 +225,48 @@ impl ArmFlowSpec {
                 },
             )?;
         }
-        check(self.sampler.steps >= 1, &|| {
-            "sampler.steps must be >= 1".into()
-        })?;
-        check(self.sampler.cfg_scale.is_finite(), &|| {
-            "sampler.cfg_scale must be finite".into()
-        })?;
+        check_steps("sampler.steps", self.sampler.steps).map_err(|e| e.to_string())?;
+        check_cfg(self.sampler.cfg_scale).map_err(|e| format!("sampler.cfg_scale: {e}"))?;
+        // What the runtime allocates from these numbers alone, before a graph has produced
+        // anything: bounded so that a manifest cannot make it abort.
+        let most = LIMITS.max_tensor_elements;
+        let (lat, fpt, d) = (l.dim as u64, l.frames_per_token as u64, frame_dim as u64);
+        let mut sizes = vec![
+            ("a token's frames", vec![fpt, d]),
+            (
+                "a token's keys and values",
+                vec![2, c.layers as u64, c.width as u64],
+            ),
+            (
+                "an encoder window",
+                vec![
+                    self.vae.encoder.context_frames as u64
+                        + fpt
+                        + self.vae.encoder.lookahead_frames as u64,
+                    d,
+                ],
+            ),
+            (
+                "a decoder window",
+                vec![
+                    (self.vae.decoder.context_tokens + 1 + self.vae.decoder.lookahead_tokens)
+                        as u64,
+                    fpt,
+                    d,
+                ],
+            ),
+        ];
+        if let Some(clip) = &self.clip {
+            sizes.push(("a clip's frames", vec![clip.frames as u64, d]));
+            sizes.push(("a clip's latents", vec![clip.tokens as u64, lat]));
+            sizes.push((
+                "a clip's contexts",
+                vec![clip.tokens as u64 + 1, c.width as u64],
+            ));
+        }
+        for (what, factors) in sizes {
+            product_at_most(what, &factors, most)?;
+        }
         Ok(())
     }
 

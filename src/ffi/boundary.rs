@@ -1,11 +1,13 @@
 //! The boundary every C entry point goes through: status codes, the thread-local last error,
 //! panic capture, and checked views of caller memory.
 
-use std::cell::RefCell;
+use std::cell::{RefCell, UnsafeCell};
 use std::ffi::{c_char, CStr, CString};
-use std::panic::{catch_unwind, AssertUnwindSafe};
+use std::ops::{Deref, DerefMut};
+use std::sync::atomic::{AtomicBool, Ordering};
 
 use crate::shared::logging::{log, Level};
+use crate::shared::panics;
 use crate::Error;
 
 /// Status returned by every fallible function: `TROUPE_OK` or one of the `TROUPE_ERR_*` codes.
@@ -31,6 +33,9 @@ pub const TROUPE_ERR_INFERENCE: troupe_status = 7;
 pub const TROUPE_ERR_POISONED: troupe_status = 8;
 /// An internal panic was caught; a session involved is poisoned.
 pub const TROUPE_ERR_PANIC: troupe_status = 9;
+/// The handle is in use by another thread: a session or joint stream is used from one thread
+/// at a time. Nothing was done; the call may be retried once the other thread is done.
+pub const TROUPE_ERR_BUSY: troupe_status = 10;
 
 /// An error on its way to C: a status and the message for `troupe_last_error_message`.
 pub(crate) struct FfiError {
@@ -96,20 +101,14 @@ pub(crate) fn call(
     on_panic: impl FnOnce(),
     body: impl FnOnce() -> FfiResult,
 ) -> troupe_status {
-    let outcome = catch_unwind(AssertUnwindSafe(body));
-    let (status, message) = match outcome {
+    let (status, message) = match panics::catch(true, body) {
         Ok(Ok(())) => (TROUPE_OK, None),
         Ok(Err(e)) => (e.status, Some(format!("{name}: {}", e.message))),
-        Err(payload) => {
+        Err(reason) => {
             on_panic();
-            let what = payload
-                .downcast_ref::<&str>()
-                .map(|s| s.to_string())
-                .or_else(|| payload.downcast_ref::<String>().cloned())
-                .unwrap_or_else(|| "unknown panic payload".into());
             (
                 TROUPE_ERR_PANIC,
-                Some(format!("internal panic in {name}: {what}")),
+                Some(format!("internal panic in {name}: {reason}")),
             )
         }
     };
@@ -127,7 +126,7 @@ pub(crate) fn call(
 
 /// Runs an infallible getter, giving `default` on a panic (and leaving the last error alone).
 pub(crate) fn get<T>(default: T, body: impl FnOnce() -> T) -> T {
-    catch_unwind(AssertUnwindSafe(body)).unwrap_or(default)
+    panics::catch(true, body).unwrap_or(default)
 }
 
 /// Rejects a NULL pointer, naming the parameter.
@@ -276,4 +275,67 @@ pub(crate) fn checked_mul(a: usize, b: usize, what: &str) -> FfiResult<usize> {
             format!("{what}: {a} x {b} overflows"),
         )
     })
+}
+
+/// A value behind a handle that is used from one thread at a time: a call claims it (an atomic
+/// flag, no lock to wait on) and a second thread's call meanwhile fails with `TROUPE_ERR_BUSY`
+/// instead of racing on it.
+pub(crate) struct Exclusive<T> {
+    /// Only touched through a [`Claim`].
+    value: UnsafeCell<T>,
+    busy: AtomicBool,
+}
+
+impl<T> Exclusive<T> {
+    pub(crate) fn new(value: T) -> Self {
+        Self {
+            value: UnsafeCell::new(value),
+            busy: AtomicBool::new(false),
+        }
+    }
+
+    /// The value for the calling thread until the claim drops, or `TROUPE_ERR_BUSY` naming
+    /// `what` when another thread holds it.
+    pub(crate) fn claim(&self, what: &str) -> FfiResult<Claim<'_, T>> {
+        if self
+            .busy
+            .compare_exchange(false, true, Ordering::Acquire, Ordering::Relaxed)
+            .is_err()
+        {
+            return Err(FfiError::new(
+                TROUPE_ERR_BUSY,
+                format!(
+                    "{what} is in use by another thread (it is used from one thread at a time)"
+                ),
+            ));
+        }
+        Ok(Claim { cell: self })
+    }
+}
+
+/// Exclusive use of an [`Exclusive`] value for the length of one call.
+pub(crate) struct Claim<'a, T> {
+    cell: &'a Exclusive<T>,
+}
+
+impl<T> Deref for Claim<'_, T> {
+    type Target = T;
+    fn deref(&self) -> &T {
+        // SAFETY: `busy` was set by this claim and is cleared only when it drops: no other
+        // reference into the cell exists meanwhile.
+        unsafe { &*self.cell.value.get() }
+    }
+}
+
+impl<T> DerefMut for Claim<'_, T> {
+    fn deref_mut(&mut self) -> &mut T {
+        // SAFETY: as in `deref`; `&mut self` makes this the only reference through the claim.
+        unsafe { &mut *self.cell.value.get() }
+    }
+}
+
+impl<T> Drop for Claim<'_, T> {
+    fn drop(&mut self) {
+        self.cell.busy.store(false, Ordering::Release);
+    }
 }

@@ -4,16 +4,22 @@
 //!
 //! Conventions (repeated at the top of the header):
 //! - Handles: `troupe_model` is immutable and thread-safe; `troupe_session` is one stream, used by
-//!   one thread at a time. A session keeps its model alive, so handles may be freed in any order.
-//!   `_free(NULL)` is a no-op.
+//!   one thread at a time (a call while another thread uses it fails with `TROUPE_ERR_BUSY`). A
+//!   session keeps its model alive, so handles may be freed in any order. `_free(NULL)` is a
+//!   no-op.
+//! - Threads: the library starts threads only while loading a model (up to one per core, or
+//!   `troupe_set_load_threads`), all joined before the load returns. Every other call runs on
+//!   the caller's thread.
+//! - Sizes: every size from a file or a caller is checked against `troupe_limits_get` before
+//!   anything is allocated for it.
 //! - Every fallible function returns a `troupe_status`; out-parameters are written only on
 //!   success; `troupe_last_error_message()` then says what failed (per thread, cleared by a
 //!   success). A failed call leaves the session as it was.
 //! - Memory: inputs are borrowed for the duration of the call only; outputs go into caller
 //!   buffers; nothing returned needs freeing except handles. Frames are contiguous row-major
 //!   float32 `[frames][frame_dim]`. Input and output buffers must not overlap.
-//! - No panic crosses the boundary: a panic returns `TROUPE_ERR_PANIC` and poisons the session
-//!   involved until `troupe_session_reset`.
+//! - No panic crosses the boundary: a panic returns `TROUPE_ERR_PANIC` (its reason in the last
+//!   error, nothing printed) and poisons the session involved until `troupe_session_reset`.
 //!
 //! Deviation from `shared/spec/c-api.md`: `troupe_session_options_init` takes the model, so the
 //! defaults it writes are the bundle's own (sampler steps, CFG, capacity) rather than sentinels.
@@ -21,6 +27,7 @@
 
 // The boundary every entry point goes through, and what every bundle answers.
 pub mod boundary;
+pub mod limits;
 pub mod log;
 pub mod model;
 pub mod motion;

@@ -66,6 +66,22 @@ fn publish(model: Model, out: *mut *mut troupe_model) {
     unsafe { *out = Box::into_raw(Box::new(handle)) };
 }
 
+/// Sets how many threads a model load may use: 0 (the default) one per core, 1 only the calling
+/// thread. Loading optimises the bundle's graphs in parallel on scoped threads that are all
+/// joined before the load returns; no other call starts a thread. Applies to loads that start
+/// afterwards, process-wide. Thread-safe.
+#[no_mangle]
+pub extern "C" fn troupe_set_load_threads(threads: usize) {
+    boundary::get((), || crate::set_load_threads(threads));
+}
+
+/// How many threads a model load uses now (the `troupe_set_load_threads` setting, or the number
+/// of cores). Thread-safe.
+#[no_mangle]
+pub extern "C" fn troupe_load_threads() -> usize {
+    boundary::get(1, crate::load_threads)
+}
+
 /// Loads a bundle from `path` (UTF-8): a bundle directory, or an uncompressed tar archive of
 /// one. Loading parses, validates and optimises every graph; it takes a fraction of a second.
 ///

@@ -49,6 +49,7 @@ pub extern "C" fn troupe_status_name(status: troupe_status) -> *const c_char {
         7 => "TROUPE_ERR_INFERENCE\0",
         8 => "TROUPE_ERR_POISONED\0",
         9 => "TROUPE_ERR_PANIC\0",
+        10 => "TROUPE_ERR_BUSY\0",
         _ => "TROUPE_ERR_UNKNOWN\0",
     };
     name.as_ptr().cast()

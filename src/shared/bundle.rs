@@ -1,18 +1,32 @@
 //! Where a bundle's files come from: a directory, or a tar archive of that directory (a file on
 //! disk or bytes in memory, for engines that pack their assets).
+//!
+//! A bundle may come from anyone, so reading one trusts nothing in it: only regular files are
+//! read (never a device, FIFO or socket, which could block or never end), files are opened
+//! without blocking and without following a final symlink, a directory bundle's files must
+//! resolve inside the directory, names must be plain relative paths, and every size (a tar
+//! member's declared size included) is checked against [`LIMITS`] before anything is allocated.
 
 use std::borrow::Cow;
 use std::collections::HashMap;
+use std::fs::File;
 use std::io::Read;
-use std::path::{Path, PathBuf};
+use std::path::{Component, Path, PathBuf};
+use std::sync::atomic::{AtomicU64, Ordering};
 
 use crate::shared::error::{Error, Result};
+use crate::shared::limits::LIMITS;
 
 /// The files of one bundle.
 #[derive(Debug)]
 pub(crate) enum BundleFiles {
     /// A directory holding `troupe.json` and the graphs.
-    Dir(PathBuf),
+    Dir {
+        /// The directory, with every symlink resolved.
+        dir: PathBuf,
+        /// Bytes read from it so far, bounded by `LIMITS.max_bundle_bytes`.
+        read: AtomicU64,
+    },
     /// The regular files of an uncompressed tar archive, by name (leading `./` stripped).
     Archive {
         label: PathBuf,
@@ -20,42 +34,188 @@ pub(crate) enum BundleFiles {
     },
 }
 
-impl BundleFiles {
-    /// A directory is read file by file; any other path is read as a tar archive.
-    pub(crate) fn open(path: &Path) -> Result<Self> {
-        if path.is_dir() {
-            return Ok(Self::Dir(path.to_path_buf()));
-        }
-        if !path.exists() {
-            return Err(Error::Io {
-                path: path.join("troupe.json"),
-                source: std::io::Error::new(std::io::ErrorKind::NotFound, "no such bundle"),
-            });
-        }
-        let bytes = std::fs::read(path).map_err(|source| Error::Io {
+fn io_error(path: &Path, kind: std::io::ErrorKind, message: impl Into<String>) -> Error {
+    Error::Io {
+        path: path.to_path_buf(),
+        source: std::io::Error::new(kind, message.into()),
+    }
+}
+
+fn invalid(path: &Path, message: impl Into<String>) -> Error {
+    io_error(path, std::io::ErrorKind::InvalidData, message)
+}
+
+/// Opens `path` for reading without blocking (a FIFO would otherwise wait for a writer) and
+/// without following a symlink in its last component, and checks that it is a regular file of
+/// at most `limit` bytes. Returns the file and its length.
+fn open_regular(path: &Path, limit: u64, what: &str) -> Result<(File, u64)> {
+    let mut options = std::fs::OpenOptions::new();
+    options.read(true);
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::OpenOptionsExt;
+        options.custom_flags(libc::O_NONBLOCK | libc::O_NOFOLLOW);
+    }
+    let file = options.open(path).map_err(|source| Error::Io {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    let meta = file.metadata().map_err(|source| Error::Io {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    if !meta.file_type().is_file() {
+        return Err(invalid(
+            path,
+            format!("the {what} is not a regular file (a device, FIFO, socket or directory)"),
+        ));
+    }
+    if meta.len() > limit {
+        return Err(invalid(
+            path,
+            format!(
+                "the {what} is {} bytes, above troupe's limit of {limit}",
+                meta.len()
+            ),
+        ));
+    }
+    Ok((file, meta.len()))
+}
+
+/// Reads at most `len` bytes (the length checked when the file was opened) and fails if the file
+/// grew or shrank since.
+fn read_exactly(mut file: File, len: u64, path: &Path) -> Result<Vec<u8>> {
+    let mut bytes = Vec::with_capacity(len as usize);
+    (&mut file)
+        .take(len + 1)
+        .read_to_end(&mut bytes)
+        .map_err(|source| Error::Io {
             path: path.to_path_buf(),
             source,
         })?;
-        Self::from_archive(&bytes, path)
+    if bytes.len() as u64 != len {
+        return Err(invalid(path, "the file changed size while it was read"));
+    }
+    Ok(bytes)
+}
+
+/// A bundle file's name as the manifest or archive gives it: a plain relative path (no `..`, no
+/// root, no empty or NUL-holding name), leading `./` dropped.
+fn plain_name(name: &str) -> Option<String> {
+    let path = Path::new(name);
+    let mut parts = Vec::new();
+    for part in path.components() {
+        match part {
+            Component::Normal(p) => parts.push(p.to_str()?),
+            Component::CurDir => {}
+            _ => return None,
+        }
+    }
+    if parts.is_empty() || name.contains('\0') {
+        return None;
+    }
+    Some(parts.join("/"))
+}
+
+impl BundleFiles {
+    /// A directory is read file by file; any other path is read as a tar archive (a regular file
+    /// of at most `LIMITS.max_bundle_bytes`).
+    pub(crate) fn open(path: &Path) -> Result<Self> {
+        let meta = std::fs::metadata(path).map_err(|source| Error::Io {
+            path: path.join("troupe.json"),
+            source: std::io::Error::new(source.kind(), format!("no such bundle ({source})")),
+        })?;
+        if meta.is_dir() {
+            let dir = path.canonicalize().map_err(|source| Error::Io {
+                path: path.to_path_buf(),
+                source,
+            })?;
+            return Ok(Self::Dir {
+                dir,
+                read: AtomicU64::new(0),
+            });
+        }
+        let (file, len) = open_regular(path, LIMITS.max_bundle_bytes, "bundle archive")?;
+        Self::read_archive(std::io::BufReader::new(file), len, path)
     }
 
     /// Reads an uncompressed tar archive held in memory; `label` names it in messages.
     pub(crate) fn from_archive(bytes: &[u8], label: &Path) -> Result<Self> {
-        let bad = |e: std::io::Error| Error::Io {
-            path: label.to_path_buf(),
-            source: std::io::Error::new(e.kind(), format!("not a readable tar archive: {e}")),
-        };
-        let mut files = HashMap::new();
-        let mut archive = tar::Archive::new(bytes);
+        if bytes.len() as u64 > LIMITS.max_bundle_bytes {
+            return Err(invalid(
+                label,
+                format!(
+                    "the archive is {} bytes, above troupe's limit of {}",
+                    bytes.len(),
+                    LIMITS.max_bundle_bytes
+                ),
+            ));
+        }
+        Self::read_archive(bytes, bytes.len() as u64, label)
+    }
+
+    /// The regular files of the tar archive read from `reader` (`len` bytes in all). Member
+    /// sizes are checked against what is left of the archive before any is read; links, devices
+    /// and FIFOs, unsafe or repeated names, and too many members are refused.
+    fn read_archive(reader: impl Read, len: u64, label: &Path) -> Result<Self> {
+        let bad = |e: std::io::Error| invalid(label, format!("not a readable tar archive: {e}"));
+        let mut files: HashMap<String, Vec<u8>> = HashMap::new();
+        let mut archive = tar::Archive::new(reader);
+        let (mut members, mut total) = (0u64, 0u64);
         for entry in archive.entries().map_err(bad)? {
             let mut entry = entry.map_err(bad)?;
-            if !entry.header().entry_type().is_file() {
+            members += 1;
+            if members > LIMITS.max_archive_members {
+                return Err(invalid(
+                    label,
+                    format!(
+                        "the archive has more than troupe's limit of {} members",
+                        LIMITS.max_archive_members
+                    ),
+                ));
+            }
+            let raw = entry.path().map_err(bad)?.to_string_lossy().into_owned();
+            let kind = entry.header().entry_type();
+            if kind.is_dir() || kind.is_pax_global_extensions() {
                 continue;
             }
-            let name = entry.path().map_err(bad)?.to_string_lossy().into_owned();
-            let name = name.trim_start_matches("./").to_owned();
-            let mut data = Vec::with_capacity(entry.size() as usize);
-            entry.read_to_end(&mut data).map_err(bad)?;
+            if !kind.is_file() && !kind.is_contiguous() {
+                return Err(invalid(
+                    label,
+                    format!(
+                        "member `{raw}` is a {kind:?} entry; a bundle holds only regular files \
+                         and directories"
+                    ),
+                ));
+            }
+            let name = plain_name(&raw).ok_or_else(|| {
+                invalid(
+                    label,
+                    format!("member `{raw}` is not a plain relative path"),
+                )
+            })?;
+            let size = entry.size();
+            total = total.saturating_add(size);
+            if size > len || total > len {
+                return Err(invalid(
+                    label,
+                    format!(
+                        "member `{name}` declares {size} bytes, more than the {len}-byte archive \
+                         holds"
+                    ),
+                ));
+            }
+            if files.contains_key(&name) {
+                return Err(invalid(label, format!("member `{name}` appears twice")));
+            }
+            let mut data = Vec::with_capacity(size as usize);
+            (&mut entry)
+                .take(size)
+                .read_to_end(&mut data)
+                .map_err(bad)?;
+            if data.len() as u64 != size {
+                return Err(invalid(label, format!("member `{name}` is truncated")));
+            }
             files.insert(name, data);
         }
         Ok(Self::Archive {
@@ -67,30 +227,72 @@ impl BundleFiles {
     /// How a file of the bundle is named in messages.
     pub(crate) fn path_of(&self, name: &str) -> PathBuf {
         match self {
-            Self::Dir(dir) => dir.join(name),
+            Self::Dir { dir, .. } => dir.join(name),
             Self::Archive { label, .. } => label.join(name),
         }
     }
 
-    /// The contents of one file of the bundle (borrowed from an archive, read from a directory).
-    pub(crate) fn read(&self, name: &str) -> Result<Cow<'_, [u8]>> {
+    /// The contents of one file of the bundle (borrowed from an archive, read from a directory),
+    /// at most `limit` bytes.
+    pub(crate) fn read(&self, name: &str, limit: u64) -> Result<Cow<'_, [u8]>> {
+        let path = self.path_of(name);
+        let plain = plain_name(name).ok_or_else(|| {
+            invalid(
+                &path,
+                "a bundle file must be named by a plain relative path (no `..`, no root)",
+            )
+        })?;
         match self {
-            Self::Dir(dir) => std::fs::read(dir.join(name))
-                .map(Cow::Owned)
-                .map_err(|source| Error::Io {
-                    path: dir.join(name),
-                    source,
-                }),
-            Self::Archive { files, .. } => files
-                .get(name)
-                .map(|bytes| Cow::Borrowed(bytes.as_slice()))
-                .ok_or_else(|| Error::Io {
-                    path: self.path_of(name),
-                    source: std::io::Error::new(
+            Self::Dir { dir, read } => {
+                let resolved = dir
+                    .join(&plain)
+                    .canonicalize()
+                    .map_err(|source| Error::Io {
+                        path: path.clone(),
+                        source,
+                    })?;
+                if !resolved.starts_with(dir) {
+                    return Err(invalid(
+                        &path,
+                        format!(
+                            "the file resolves to {}, outside the bundle directory",
+                            resolved.display()
+                        ),
+                    ));
+                }
+                let left = LIMITS.max_bundle_bytes
+                    - read.load(Ordering::Relaxed).min(LIMITS.max_bundle_bytes);
+                let (file, len) = open_regular(&resolved, limit.min(left), "bundle file").map_err(
+                    |e| match e {
+                        Error::Io { source, .. } => Error::Io {
+                            path: path.clone(),
+                            source,
+                        },
+                        other => other,
+                    },
+                )?;
+                read.fetch_add(len, Ordering::Relaxed);
+                read_exactly(file, len, &path).map(Cow::Owned)
+            }
+            Self::Archive { files, .. } => {
+                let bytes = files.get(&plain).ok_or_else(|| {
+                    io_error(
+                        &path,
                         std::io::ErrorKind::NotFound,
                         "the archive holds no such file",
-                    ),
-                }),
+                    )
+                })?;
+                if bytes.len() as u64 > limit {
+                    return Err(invalid(
+                        &path,
+                        format!(
+                            "the file is {} bytes, above troupe's limit of {limit}",
+                            bytes.len()
+                        ),
+                    ));
+                }
+                Ok(Cow::Borrowed(bytes.as_slice()))
+            }
         }
     }
 }

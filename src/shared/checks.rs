@@ -1,7 +1,8 @@
-//! Small validation helpers every layer uses: finite inputs, and manifest rules stated as
-//! conditions with their messages.
+//! Small validation helpers every layer uses: finite values in range, and manifest rules stated
+//! as conditions with their messages.
 
 use crate::shared::error::{Error, Result};
+use crate::shared::limits::LIMITS;
 
 /// Rejects NaN and infinities, naming the first offending index.
 pub(crate) fn check_finite(what: &str, values: &[f32]) -> Result<()> {
@@ -14,6 +15,38 @@ pub(crate) fn check_finite(what: &str, values: &[f32]) -> Result<()> {
     }
 }
 
+/// Checks values a caller passes in (motion features, conditions, noise): finite, and within
+/// `±LIMITS.max_abs_input`, beyond which the networks' arithmetic overflows. Names the first
+/// offending index.
+pub(crate) fn check_input(what: &str, values: &[f32]) -> Result<()> {
+    check_finite(what, values)?;
+    let limit = LIMITS.max_abs_input as f32;
+    match values.iter().position(|v| v.abs() > limit) {
+        None => Ok(()),
+        Some(i) => Err(Error::InvalidInput(format!(
+            "{what} holds {:e} at index {i}, beyond troupe's limit of ±{limit:e}",
+            values[i]
+        ))),
+    }
+}
+
+/// Checks values a network computed: a non-finite one (extreme inputs or settings overflowed the
+/// arithmetic) fails the call with an [`Error::Inference`] naming `graph` and `what`.
+pub(crate) fn check_output(graph: &'static str, what: &str, values: &[f32]) -> Result<()> {
+    let bad = values.iter().filter(|v| !v.is_finite()).count();
+    if bad == 0 {
+        return Ok(());
+    }
+    Err(Error::Inference {
+        graph,
+        message: format!(
+            "{bad} of {} values of the {what} are not finite (extreme inputs or settings \
+             overflowed the network)",
+            values.len()
+        ),
+    })
+}
+
 /// `Ok` when `ok`, else the message.
 pub(crate) fn ensure(
     ok: bool,
@@ -23,5 +56,19 @@ pub(crate) fn ensure(
         Ok(())
     } else {
         Err(message())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn inputs_beyond_the_limit_or_not_finite_are_named_by_index() {
+        assert!(check_input("x", &[0.0, -1e6, 1e6, -0.0, 1e-40]).is_ok());
+        let e = check_input("x", &[0.0, f32::MAX]).unwrap_err().to_string();
+        assert!(e.contains("index 1") && e.contains("limit"), "{e}");
+        let e = check_input("x", &[f32::NAN]).unwrap_err().to_string();
+        assert!(e.contains("non-finite"), "{e}");
     }
 }

@@ -9,7 +9,10 @@ use tract_onnx::prelude::*;
 use crate::shared::bundle::BundleFiles;
 use crate::shared::error::{Error, Result};
 use crate::shared::graph_spec::{DType, Dim, GraphSpec, TensorSpec};
+use crate::shared::limits::LIMITS;
 use crate::shared::logging::{log, Level};
+use crate::shared::onnx_guard;
+use crate::shared::panics;
 
 /// A loaded, optimised graph whose inputs and outputs are addressed in manifest order.
 #[derive(Debug)]
@@ -26,15 +29,21 @@ impl Graph {
     /// Loads `spec.file` from the bundle, checks it against `spec`, and optimises it.
     pub(crate) fn load(role: &'static str, files: &BundleFiles, spec: &GraphSpec) -> Result<Self> {
         let file = files.path_of(&spec.file);
-        let bytes = files.read(&spec.file)?;
+        let bytes = files.read(&spec.file, LIMITS.max_bundle_bytes)?;
         let bad = |message: String| Error::Graph {
             file: file.clone(),
             message,
         };
         let started = std::time::Instant::now();
-        let model = tract_onnx::onnx()
-            .model_for_read(&mut &bytes[..])
+        let onnx = tract_onnx::onnx();
+        let proto = onnx
+            .proto_model_for_read(&mut &bytes[..])
             .map_err(|e| bad(format!("not a loadable ONNX model: {e:#}")))?;
+        onnx_guard::check_model(&proto).map_err(&bad)?;
+        let model = onnx
+            .model_for_proto_model(&proto)
+            .map_err(|e| bad(format!("not a loadable ONNX model: {e:#}")))?;
+        drop(proto);
         let model = model
             .into_typed()
             .map_err(|e| bad(format!("shapes cannot be resolved: {e:#}")))?;
@@ -83,16 +92,31 @@ impl Graph {
     }
 }
 
-/// Loads and optimises `wanted` graphs (role and declaration) on all cores (optimisation
-/// dominates load time and each graph is independent); returns them in order, or the first
-/// error in that order.
+/// Loads and optimises `wanted` graphs (role and declaration) on up to [`load_threads`] scoped
+/// threads (optimisation dominates load time and each graph is independent; every thread is
+/// joined before this returns); returns them in order, or the first error in that order. A
+/// panic while loading a graph (tract on a hostile graph) becomes that graph's error, with its
+/// reason.
 pub(crate) fn load_graphs(
     files: &BundleFiles,
     wanted: &[(&'static str, &GraphSpec)],
 ) -> Result<Vec<Graph>> {
-    let workers = std::thread::available_parallelism()
-        .map_or(1, |n| n.get())
-        .min(wanted.len());
+    let workers = load_threads().min(wanted.len()).max(1);
+    let quiet = panics::is_quiet();
+    let load = |role: &'static str, spec: &GraphSpec| {
+        panics::catch(quiet, || Graph::load(role, files, spec)).unwrap_or_else(|reason| {
+            Err(Error::Graph {
+                file: files.path_of(&spec.file),
+                message: format!("loading the graph panicked: {reason}"),
+            })
+        })
+    };
+    if workers == 1 {
+        return wanted
+            .iter()
+            .map(|&(role, spec)| load(role, spec))
+            .collect();
+    }
     let next = std::sync::atomic::AtomicUsize::new(0);
     let mut slots: Vec<Option<Result<Graph>>> = (0..wanted.len()).map(|_| None).collect();
     let done = std::sync::Mutex::new(&mut slots);
@@ -103,7 +127,7 @@ pub(crate) fn load_graphs(
                 let Some(&(role, spec)) = wanted.get(i) else {
                     break;
                 };
-                let graph = Graph::load(role, files, spec);
+                let graph = load(role, spec);
                 done.lock().unwrap_or_else(|e| e.into_inner())[i] = Some(graph);
             });
         }
@@ -112,6 +136,23 @@ pub(crate) fn load_graphs(
         .into_iter()
         .map(|slot| slot.expect("every graph was attempted"))
         .collect()
+}
+
+/// Threads a model load may use at once; 0 (the default): one per core.
+static LOAD_THREADS: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
+
+/// Sets how many threads loading a model may use (0: one per core, 1: only the calling thread).
+/// Applies to loads that start afterwards, in the whole process.
+pub fn set_load_threads(threads: usize) {
+    LOAD_THREADS.store(threads, std::sync::atomic::Ordering::Relaxed);
+}
+
+/// How many threads loading a model uses: the [`set_load_threads`] setting, or one per core.
+pub fn load_threads() -> usize {
+    match LOAD_THREADS.load(std::sync::atomic::Ordering::Relaxed) {
+        0 => std::thread::available_parallelism().map_or(1, |n| n.get()),
+        n => n,
+    }
 }
 
 type Positions = (Vec<usize>, Vec<usize>);

@@ -124,8 +124,8 @@ impl Solver {
 }
 
 /// Upper bound on intervals per solve: far beyond any useful setting, low enough that a typo
-/// cannot start an hours-long call.
-pub const MAX_STEPS: u32 = 10_000;
+/// cannot start an hours-long call ([`crate::shared::limits::LIMITS`]`.max_steps`).
+pub const MAX_STEPS: u32 = crate::shared::limits::LIMITS.max_steps as u32;
 
 // torchdiffeq's `_one_third` and `_two_thirds` are Python floats, rounded to f32 when they meet
 // a float32 tensor.

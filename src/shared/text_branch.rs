@@ -4,10 +4,11 @@
 use ndarray::ArrayView2;
 use tract_onnx::prelude::Tensor;
 
-use crate::shared::checks::check_finite;
+use crate::shared::checks::check_input;
 use crate::shared::error::{Error, Result};
 use crate::shared::graph::{f32_tensor, read_f32, Graph};
 use crate::shared::graph_spec::{contract, float, sym, DType, Dim, GraphSpec, TensorSpec};
+use crate::shared::limits::{at_most, LIMITS};
 
 /// The interface a `text_branch` graph must have: CLIP's token features `[B, T, token_dim]` and
 /// the end-of-text index `[B]` give the condition `[B, condition_dim]`.
@@ -62,13 +63,14 @@ impl TextBranch<'_> {
                 clip_tokens.ncols()
             )));
         }
+        at_most("CLIP tokens", t as u64, LIMITS.max_text_tokens, false)?;
         if eot_index >= t {
             return Err(Error::InvalidInput(format!(
                 "end-of-text index {eot_index} is outside the {t} tokens"
             )));
         }
         let flat: Vec<f32> = clip_tokens.iter().copied().collect();
-        check_finite("CLIP token features", &flat)?;
+        check_input("CLIP token features", &flat)?;
         let eot = Tensor::from_shape(&[1], &[eot_index as i64]).expect("shape matches data");
         let out = self
             .graph

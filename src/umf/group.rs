@@ -23,9 +23,10 @@ use tract_onnx::prelude::TValue;
 use super::networks::Networks;
 use super::pyramid::Jump;
 use super::spec::UmfSpec;
-use crate::shared::checks::check_finite;
+use crate::shared::checks::{check_input, check_output};
 use crate::shared::error::{Error, Result};
 use crate::shared::graph::{f32_tensor, read_f32, Graph};
+use crate::shared::limits::{check_cfg, product_at_most, LIMITS};
 use crate::shared::noise::fill_normals;
 use crate::shared::solver::Solver;
 
@@ -38,7 +39,7 @@ pub const STREAM_REACTION_NOISE: u32 = 4;
 
 /// The most people one call generates; the cost grows with the square of the count (each new
 /// person's context reads all previous ones).
-pub const MAX_PEOPLE: usize = 256;
+pub const MAX_PEOPLE: usize = crate::shared::limits::LIMITS.max_people as usize;
 
 /// Settings of one [`crate::Model::generate_group`] call; `None` takes the bundle's default.
 #[derive(Debug, Clone, Default)]
@@ -110,7 +111,7 @@ impl Networks {
         options: &GroupOptions,
     ) -> Result<Group> {
         let spec = &self.spec;
-        check_people(people)?;
+        self.check_group_size(people)?;
         let plan = self.plan(spec, options)?;
         let texts = self.texts(spec, condition)?;
         let noise = match &options.noise {
@@ -145,6 +146,8 @@ impl Networks {
             .decoder
             .run(vec![f32_tensor(&[people, tokens, dim], &latents)])?;
         let motion = read_f32("decoder", "motion", &out[0], &[people, frames, frame_dim])?.to_vec();
+        check_output("denoisers", "generated latents", &latents)?;
+        check_output("decoder", "decoded motion", &motion)?;
         Ok(Group {
             latents: Array3::from_shape_vec((people, tokens, dim), latents)
                 .expect("people * tokens * dim"),
@@ -187,7 +190,7 @@ impl Networks {
     /// The shape of the [`GroupNoise`] of `people` people (1 to [`MAX_PEOPLE`]).
     pub(crate) fn group_noise_shape(&self, people: usize) -> Result<GroupNoiseShape> {
         let spec = &self.spec;
-        check_people(people)?;
+        self.check_group_size(people)?;
         let dim = spec.latent.dim;
         let stages = &spec.pyramid.stages;
         Ok(GroupNoiseShape {
@@ -216,11 +219,7 @@ impl Networks {
         let reaction = options.reaction.unwrap_or(spec.sampler.reaction);
         reaction.check("reaction solver")?;
         let cfg_scale = options.cfg_scale.unwrap_or(spec.sampler.cfg_scale);
-        if !cfg_scale.is_finite() {
-            return Err(Error::InvalidOption(format!(
-                "CFG scale must be finite, got {cfg_scale}"
-            )));
-        }
+        check_cfg(cfg_scale)?;
         Ok(Plan {
             spec,
             jumps: spec.jumps()?,
@@ -246,7 +245,7 @@ impl Networks {
                         spec.text.reaction_dim
                     )));
                 }
-                check_finite("condition", c)?;
+                check_input("condition", c)?;
                 c.to_vec()
             }
             None => null.clone(),
@@ -276,7 +275,7 @@ impl Networks {
                     floats / dim
                 )));
             }
-            check_finite(&what, values)
+            check_input(&what, values)
         };
         check("prior noise".into(), &noise.prior, shape.prior)?;
         if noise.jumps.len() != shape.jumps.len() || noise.reactions.len() != shape.reactions {
@@ -329,6 +328,29 @@ impl Networks {
             })?;
         }
         Ok(z)
+    }
+}
+
+impl Networks {
+    /// `people` within 1..=[`MAX_PEOPLE`], and the group's latents and motion within
+    /// `LIMITS.max_tensor_elements` floats each (checked before any is allocated).
+    fn check_group_size(&self, people: usize) -> Result<()> {
+        check_people(people)?;
+        let spec = &self.spec;
+        let (p, frames, d) = (
+            people as u64,
+            spec.clip_frames as u64,
+            self.io.frame_dim() as u64,
+        );
+        let (tokens, dim) = (spec.latent.tokens as u64, spec.latent.dim as u64);
+        for (what, factors) in [
+            ("the group's latents", [p, tokens, dim]),
+            ("the group's motion", [p, frames, d]),
+        ] {
+            product_at_most(what, &factors, LIMITS.max_tensor_elements)
+                .map_err(Error::InvalidInput)?;
+        }
+        Ok(())
     }
 }
 

@@ -5,15 +5,22 @@
 //! every lane that has the frames for one, with one network call per graph for all of them, so
 //! the weights are read once per round however many streams there are. A single
 //! [`Session::step`](super::Session::step) is a batch of one lane through the same code.
+//!
+//! Every token's actor latent, context, reactor latent, VAE state and decoded frames are checked
+//! to be finite before the loop goes on: extreme settings or inputs can overflow a network, and
+//! a non-finite value must fail the step (leaving the session as it was) rather than be returned
+//! or carried into the next token.
 
 use super::{Session, StepOutput, StreamState, TokenNoise, TokenTrace};
 use crate::armflow::networks::{Networks, VaeState};
 use crate::armflow::spec::{ActorLatent, ArmFlowSpec};
-use crate::shared::error::Result;
+use crate::shared::error::{Error, Result};
 
 /// One stream's part in a step.
 pub(super) struct Lane<'s> {
     pub(super) session: &'s Session,
+    /// The session's index in a batched call (for messages); `None` when stepped alone.
+    pub(super) index: Option<usize>,
     /// Committed to the session only when the whole step succeeds.
     pub(super) state: StreamState,
     /// Reactor frames produced so far in this step, row-major.
@@ -22,9 +29,10 @@ pub(super) struct Lane<'s> {
 }
 
 impl<'s> Lane<'s> {
-    pub(super) fn new(session: &'s Session) -> Self {
+    pub(super) fn new(session: &'s Session, index: Option<usize>) -> Self {
         Self {
             session,
+            index,
             state: session.state.clone(),
             frames: Vec::new(),
             tokens: Vec::new(),
@@ -61,6 +69,37 @@ impl<'s> Lane<'s> {
         let fpt = m.latent.frames_per_token as u64;
         let st = &self.state;
         st.tokens > st.frames_emitted / fpt + m.vae.decoder.lookahead_tokens as u64
+    }
+
+    /// Fails when `values`, computed by `graph` for this lane's current token, are not all
+    /// finite.
+    fn check_finite(&self, graph: &'static str, what: &str, values: &[f32]) -> Result<()> {
+        let bad = values.iter().filter(|v| !v.is_finite()).count();
+        self.check_counted(graph, what, bad, values.len())
+    }
+
+    /// [`Lane::check_finite`] given the count of non-finite values among `total`.
+    fn check_counted(
+        &self,
+        graph: &'static str,
+        what: &str,
+        bad: usize,
+        total: usize,
+    ) -> Result<()> {
+        if bad == 0 {
+            return Ok(());
+        }
+        let whose = self
+            .index
+            .map_or(String::new(), |i| format!("session {i}: "));
+        Err(Error::Inference {
+            graph,
+            message: format!(
+                "{whose}token {}: {bad} of {} values of the {what} are not finite (extreme \
+                 inputs or settings overflowed the network); the session is unchanged",
+                self.state.tokens, total
+            ),
+        })
     }
 
     /// Actor frames `[start, end)` (absolute indices), row-major.
@@ -131,6 +170,18 @@ fn generate_tokens(nets: &Networks, lanes: &mut [&mut Lane]) -> Result<()> {
         }
     }
 
+    for (i, lane) in lanes.iter().enumerate() {
+        lane.check_finite(
+            "vae_encoder",
+            "actor latent",
+            &actor[i * lat..(i + 1) * lat],
+        )?;
+        if let Some(vae) = &lane.state.vae {
+            let (bad, total) = vae.non_finite(true);
+            lane.check_counted("vae_encoder", "encoder state", bad, total)?;
+        }
+    }
+
     // 2. context over [<sos>, pairs...]: append token j (<sos> or the last pair) to each cache
     let sessions: Vec<&Session> = lanes.iter().map(|l| l.session).collect();
     let mut tokens = Vec::new();
@@ -163,6 +214,14 @@ fn generate_tokens(nets: &Networks, lanes: &mut [&mut Lane]) -> Result<()> {
     let reactor = sample(nets, &sessions, &actor, &context, z)?;
 
     let c = context.len() / lanes.len();
+    for (i, lane) in lanes.iter().enumerate() {
+        lane.check_finite("context_step", "context", &context[i * c..(i + 1) * c])?;
+        lane.check_finite(
+            "velocity",
+            "reactor latent",
+            &reactor[i * lat..(i + 1) * lat],
+        )?;
+    }
     for (i, lane) in lanes.iter_mut().enumerate() {
         let (a, b) = (
             &actor[i * lat..(i + 1) * lat],
@@ -313,9 +372,14 @@ fn decode_tokens(nets: &Networks, lanes: &mut [&mut Lane]) -> Result<()> {
         let frames = nets.decode_step(&latents, &mut states)?;
         let per = fpt * dim;
         for (row, &i) in stepping.iter().enumerate() {
-            lanes[i]
-                .frames
-                .extend_from_slice(&frames[row * per..(row + 1) * per]);
+            let lane = &mut lanes[i];
+            let mine = &frames[row * per..(row + 1) * per];
+            lane.check_finite("vae_decoder", "decoded frames", mine)?;
+            if let Some(vae) = &lane.state.vae {
+                let (bad, total) = vae.non_finite(false);
+                lane.check_counted("vae_decoder", "decoder state", bad, total)?;
+            }
+            lane.frames.extend_from_slice(mine);
         }
     }
     for lane in lanes.iter_mut() {
@@ -327,7 +391,9 @@ fn decode_tokens(nets: &Networks, lanes: &mut [&mut Lane]) -> Result<()> {
             let latents: Vec<f32> = (start..end).flat_map(|j| latent(lane, j)).collect();
             let motion = nets.decode(&latents)?;
             let row = (k - start) as usize * fpt * dim;
-            lane.frames.extend_from_slice(&motion[row..row + fpt * dim]);
+            let mine = &motion[row..row + fpt * dim];
+            lane.check_finite("vae_decoder", "decoded frames", mine)?;
+            lane.frames.extend_from_slice(mine);
         }
         lane.state.frames_emitted += fpt as u64;
     }

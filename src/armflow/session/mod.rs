@@ -28,8 +28,9 @@ use crate::armflow::meanflow::meanflow_grid;
 use crate::armflow::networks::{Conditioning, Networks, VaeState};
 use crate::armflow::spec::{ActorLatent, ArmFlowSpec};
 use crate::motion::FeatureStream;
-use crate::shared::checks::check_finite;
+use crate::shared::checks::check_input;
 use crate::shared::error::{Error, Result};
+use crate::shared::limits::{at_most, check_cfg, check_steps, LIMITS};
 use crate::shared::noise::{fill_normals, STREAM_ACTOR_POSTERIOR, STREAM_REACTOR_NOISE};
 
 mod joints;
@@ -155,7 +156,7 @@ impl Session {
             actor_latent: options.actor_latent.unwrap_or(m.sampler.actor_latent),
             condition: options.condition,
         };
-        check_steps(settings.steps)?;
+        check_steps("sampler steps", settings.steps)?;
         check_cfg(settings.cfg_scale)?;
         if settings.capacity < 2 {
             return Err(Error::InvalidOption(format!(
@@ -163,6 +164,12 @@ impl Session {
                 settings.capacity
             )));
         }
+        at_most(
+            "context capacity",
+            settings.capacity as u64,
+            LIMITS.max_context_capacity,
+            true,
+        )?;
         let vae_start = if options.vae_windows {
             None
         } else {
@@ -243,7 +250,7 @@ impl Session {
     pub(crate) fn step_bounded(&mut self, actor: &[f32], max_frames: usize) -> Result<StepOutput> {
         let dim = self.nets.frame_dim();
         check_actor_chunk(actor, dim)?;
-        let mut lanes = [Lane::new(self)];
+        let mut lanes = [Lane::new(self, None)];
         lanes::advance(&self.nets, &mut lanes, &[actor])?;
         let [lane] = lanes;
         let (next, output) = lane.finish(dim);
@@ -274,7 +281,7 @@ impl Session {
 
     /// Sets the number of MeanFlow steps per token (>= 1).
     pub fn set_steps(&mut self, steps: u32) -> Result<()> {
-        check_steps(steps)?;
+        check_steps("sampler steps", steps)?;
         self.settings.steps = steps;
         self.grid = meanflow_grid(steps);
         Ok(())
@@ -296,7 +303,8 @@ impl Session {
     }
 
     /// Queues the noise of the next token not yet generated; queued noise is used in order
-    /// before the seeded generator. Both vectors hold `latent_dim` finite floats.
+    /// before the seeded generator. Both vectors hold `latent_dim` finite floats; at most
+    /// [`LIMITS`]`.max_queued_noise_tokens` tokens wait at once.
     pub fn queue_noise(&mut self, noise: TokenNoise) -> Result<()> {
         let lat = self.nets.latent_dim();
         for (what, v) in [
@@ -309,8 +317,14 @@ impl Session {
                     v.len()
                 )));
             }
-            check_finite(what, v)?;
+            check_input(what, v)?;
         }
+        at_most(
+            "queued noise (tokens)",
+            self.state.injected.len() as u64 + 1,
+            LIMITS.max_queued_noise_tokens,
+            false,
+        )?;
         self.state.injected.push_back(noise);
         Ok(())
     }
@@ -466,7 +480,11 @@ pub(crate) fn step_sessions_bounded(
             other => other,
         })?;
     }
-    let mut lanes: Vec<Lane> = sessions.iter().map(|s| Lane::new(s)).collect();
+    let mut lanes: Vec<Lane> = sessions
+        .iter()
+        .enumerate()
+        .map(|(i, s)| Lane::new(s, Some(i)))
+        .collect();
     lanes::advance(&nets, &mut lanes, actor)?;
     let finished: Vec<_> = lanes.into_iter().map(|l| l.finish(dim)).collect();
     for (i, (_, output)) in finished.iter().enumerate() {
@@ -493,7 +511,13 @@ fn check_actor_chunk(actor: &[f32], dim: usize) -> Result<()> {
             actor.len()
         )));
     }
-    check_finite("actor frames", actor)
+    at_most(
+        "actor frames in one call",
+        (actor.len() / dim) as u64,
+        LIMITS.max_frames_per_call,
+        false,
+    )?;
+    check_input("actor frames", actor)
 }
 
 fn check_output_room(output: &StepOutput, max_frames: usize, session: Option<usize>) -> Result<()> {
@@ -505,22 +529,4 @@ fn check_output_room(output: &StepOutput, max_frames: usize, session: Option<usi
         "{whose}this call returns {} frames, the output holds {max_frames}",
         output.frames.nrows()
     )))
-}
-
-fn check_steps(steps: u32) -> Result<()> {
-    if steps == 0 {
-        return Err(Error::InvalidOption(
-            "sampler steps must be at least 1".into(),
-        ));
-    }
-    Ok(())
-}
-
-fn check_cfg(scale: f32) -> Result<()> {
-    if !scale.is_finite() {
-        return Err(Error::InvalidOption(format!(
-            "CFG scale must be finite, got {scale}"
-        )));
-    }
-    Ok(())
 }

@@ -1,11 +1,11 @@
 //! `troupe_session`: one actor/reactor stream.
 
-use std::cell::Cell;
+use std::sync::atomic::{AtomicBool, Ordering};
 
 use crate::ffi::boundary::{
     self, check_struct_size, checked_mul, non_null, read_versioned, troupe_status, write_versioned,
-    FfiError, FfiResult, TROUPE_ERR_BUFFER_TOO_SMALL, TROUPE_ERR_INVALID_ARG, TROUPE_ERR_POISONED,
-    TROUPE_ERR_SHAPE,
+    Exclusive, FfiError, FfiResult, TROUPE_ERR_BUFFER_TOO_SMALL, TROUPE_ERR_INVALID_ARG,
+    TROUPE_ERR_POISONED, TROUPE_ERR_SHAPE,
 };
 use crate::ffi::model::troupe_model;
 use crate::{ActorLatent, Session, SessionOptions, TokenNoise};
@@ -36,11 +36,13 @@ pub struct troupe_session_options {
     pub reserved: u32,
 }
 
-/// One stream. Not internally synchronised: use a session from one thread at a time (it may
-/// move between threads). Distinct sessions run fully in parallel.
+/// One stream. A session is used from one thread at a time (it may move between threads);
+/// distinct sessions run fully in parallel. A call on a session that another thread is using
+/// fails with `TROUPE_ERR_BUSY` instead of racing.
 pub struct troupe_session {
-    session: Session,
-    poisoned: Cell<bool>,
+    session: Exclusive<Session>,
+    /// Set by a panic inside a call; cleared by `troupe_session_reset`.
+    poisoned: AtomicBool,
 }
 
 /// `sizeof(troupe_session_options)` in this library, for bindings to check their mirror.
@@ -189,10 +191,9 @@ pub unsafe extern "C" fn troupe_session_new(
                 // SAFETY: readable per the contract.
                 unsafe { read_options(options) }?
             };
-            let session = model.session(options)?;
             let handle = troupe_session {
-                session,
-                poisoned: Cell::new(false),
+                session: Exclusive::new(model.session(options)?),
+                poisoned: AtomicBool::new(false),
             };
             // SAFETY: checked non-NULL above.
             unsafe { *out = Box::into_raw(Box::new(handle)) };
@@ -201,44 +202,71 @@ pub unsafe extern "C" fn troupe_session_new(
     )
 }
 
-/// Frees a session. NULL is a no-op. The handle must not be used afterwards.
+/// Frees a session. NULL is a no-op. The handle must not be used afterwards. A session that
+/// another thread is using at that moment is not freed (that would free memory in use): the
+/// call logs an error and leaks it.
 ///
 /// # Safety
-/// `session` must be NULL or a handle from `troupe_session_new` not freed before, and not in
-/// use by another thread.
+/// `session` must be NULL or a handle from `troupe_session_new` not freed before.
 #[no_mangle]
 pub unsafe extern "C" fn troupe_session_free(session: *mut troupe_session) {
-    if !session.is_null() {
-        // SAFETY: a live handle created by Box::into_raw, freed once per the contract.
-        boundary::get((), || drop(unsafe { Box::from_raw(session) }));
+    if session.is_null() {
+        return;
     }
+    // SAFETY: a live handle per the contract; only its atomic flag is read through `&`.
+    let handle = unsafe { &*session };
+    if handle.session.claim("the session").is_err() {
+        crate::shared::logging::log(crate::shared::logging::Level::Error, "troupe::ffi", || {
+            "troupe_session_free: the session is in use by another thread; not freed".into()
+        });
+        return;
+    }
+    // SAFETY: created by Box::into_raw, freed once per the contract, and no other thread is in
+    // a call on it (the claim above succeeded; its guard was dropped at the end of the `if`).
+    boundary::get((), || drop(unsafe { Box::from_raw(session) }));
 }
 
-/// Runs `body` on a live session: NULL and poison checks, panic capture (which poisons).
+/// Runs `body` on a live session: NULL, busy and poison checks, panic capture (which poisons).
 ///
 /// # Safety
-/// `session` must be NULL or a live handle used by no other thread.
+/// `session` must be NULL or a live handle.
 pub(crate) unsafe fn with_session(
     session: *mut troupe_session,
     name: &'static str,
     body: impl FnOnce(&mut Session) -> FfiResult,
 ) -> troupe_status {
-    if session.is_null() {
+    // SAFETY: forwarded contract.
+    unsafe { run_on_session(session, name, false, body) }
+}
+
+/// [`with_session`]; `reset` clears the poison of an earlier panic instead of refusing.
+///
+/// # Safety
+/// As [`with_session`].
+unsafe fn run_on_session(
+    session: *mut troupe_session,
+    name: &'static str,
+    reset: bool,
+    body: impl FnOnce(&mut Session) -> FfiResult,
+) -> troupe_status {
+    // SAFETY: NULL or a live handle per the contract; shared access only until claimed.
+    let Some(handle) = (unsafe { session.as_ref() }) else {
         return boundary::call(name, || {}, || non_null(session, "session"));
-    }
-    // SAFETY: a live handle, exclusively ours for the call, per the contract.
-    let troupe_session { session, poisoned } = unsafe { &mut *session };
+    };
     boundary::call(
         name,
-        || poisoned.set(true),
+        || handle.poisoned.store(true, Ordering::Relaxed),
         || {
-            if poisoned.get() {
+            let mut session = handle.session.claim("the session")?;
+            if reset {
+                handle.poisoned.store(false, Ordering::Relaxed);
+            } else if handle.poisoned.load(Ordering::Relaxed) {
                 return Err(FfiError::new(
                     TROUPE_ERR_POISONED,
                     "the session panicked earlier; call troupe_session_reset",
                 ));
             }
-            body(session)
+            body(&mut session)
         },
     )
 }
@@ -354,9 +382,9 @@ pub unsafe extern "C" fn troupe_sessions_step(
     };
     let poison_all = || {
         for &h in handles {
-            if !h.is_null() {
-                // SAFETY: live handles per the contract; only the flag is touched.
-                unsafe { (*h).poisoned.set(true) };
+            // SAFETY: NULL or live handles per the contract; only the atomic flag is touched.
+            if let Some(handle) = unsafe { h.as_ref() } {
+                handle.poisoned.store(true, Ordering::Relaxed);
             }
         }
     };
@@ -389,19 +417,21 @@ pub unsafe extern "C" fn troupe_sessions_step(
                 ));
             }
         }
-        let mut live: Vec<&mut Session> = Vec::with_capacity(n_sessions);
+        let mut claims = Vec::with_capacity(n_sessions);
         for (i, &h) in handles.iter().enumerate() {
             non_null(h, &format!("sessions[{i}]"))?;
-            // SAFETY: a live handle, distinct from every other (checked above), ours for the call.
-            let troupe_session { session, poisoned } = unsafe { &mut *h };
-            if poisoned.get() {
+            // SAFETY: a live handle per the contract; shared access only until claimed. Each
+            // handle appears once (checked above), so the claims are of distinct sessions.
+            let handle = unsafe { &*h };
+            claims.push(handle.session.claim(&format!("sessions[{i}]"))?);
+            if handle.poisoned.load(Ordering::Relaxed) {
                 return Err(FfiError::new(
                     TROUPE_ERR_POISONED,
                     format!("sessions[{i}] panicked earlier; call troupe_session_reset"),
                 ));
             }
-            live.push(session);
         }
+        let mut live: Vec<&mut Session> = claims.iter_mut().map(|c| &mut **c).collect();
         let dim = live[0].frame_dim();
         let mut chunks = Vec::with_capacity(n_sessions);
         for i in 0..n_sessions {
@@ -471,13 +501,9 @@ pub unsafe extern "C" fn troupe_session_output_frames(
 /// `session` must be NULL or a live handle.
 #[no_mangle]
 pub unsafe extern "C" fn troupe_session_reset(session: *mut troupe_session) -> troupe_status {
-    if !session.is_null() {
-        // SAFETY: a live handle per the contract.
-        unsafe { (*session).poisoned.set(false) };
-    }
     // SAFETY: forwarded contract.
     unsafe {
-        with_session(session, "troupe_session_reset", |s| {
+        run_on_session(session, "troupe_session_reset", true, |s| {
             s.reset();
             Ok(())
         })

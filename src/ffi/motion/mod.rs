@@ -14,8 +14,8 @@ pub mod export;
 
 use crate::ffi::boundary::{
     self, check_struct_size, checked_mul, non_null, read_versioned, required, troupe_status,
-    write_versioned, FfiError, FfiResult, TROUPE_ERR_BUFFER_TOO_SMALL, TROUPE_ERR_INVALID_ARG,
-    TROUPE_ERR_SHAPE,
+    write_versioned, Exclusive, FfiError, FfiResult, TROUPE_ERR_BUFFER_TOO_SMALL,
+    TROUPE_ERR_INVALID_ARG, TROUPE_ERR_SHAPE,
 };
 use crate::ffi::model::troupe_model;
 use crate::motion::features::encoded_frames;
@@ -24,6 +24,7 @@ use crate::motion::{
     decode_frame, encode_clip, joints_layout, FeatureStream, Handedness, JointsFormat, Placement,
     Pose, Skeleton, Units, UpAxis, T2M22_JOINTS,
 };
+use crate::shared::logging::{log, Level};
 use crate::Model;
 
 /// Positions in metres.
@@ -111,12 +112,14 @@ pub struct troupe_pose_buffers {
     pub contacts_len: usize,
 }
 
-/// A stream turning joint-position frames into feature frames for one person. Not
-/// synchronised: one thread at a time. Free with `troupe_motion_stream_free`; it does not need
-/// its model after creation.
+/// A stream turning joint-position frames into feature frames for one person, used from one
+/// thread at a time (a call while another thread uses it fails with `TROUPE_ERR_BUSY`). Free
+/// with `troupe_motion_stream_free`; it does not need its model after creation.
 pub struct troupe_motion_stream {
-    stream: FeatureStream,
+    stream: Exclusive<FeatureStream>,
     frame_dim: usize,
+    /// The most feature frames one push gives (fixed by the format at creation).
+    max_out_per_frame: usize,
 }
 
 impl troupe_joints_format {
@@ -690,7 +693,8 @@ pub unsafe extern "C" fn troupe_motion_stream_new(
             let placement = unsafe { optional_placement(placement, format) }?;
             let stream = FeatureStream::new(format, fps, placement)?;
             let handle = Box::new(troupe_motion_stream {
-                stream,
+                max_out_per_frame: stream.max_out_per_frame(),
+                stream: Exclusive::new(stream),
                 frame_dim: model.frame_dim(),
             });
             // SAFETY: as above.
@@ -708,10 +712,10 @@ pub extern "C" fn troupe_motion_stream_latency_frames() -> usize {
 }
 
 /// The most feature frames one `troupe_motion_stream_push` writes (1 unless the caller's rate
-/// is above the bundle's), or 0 for a NULL stream. One thread at a time per stream.
+/// is above the bundle's), or 0 for a NULL stream. Thread-safe.
 #[no_mangle]
 pub extern "C" fn troupe_motion_stream_max_frames(stream: Option<&troupe_motion_stream>) -> usize {
-    boundary::get(0, || stream.map_or(0, |s| s.stream.max_out_per_frame()))
+    boundary::get(0, || stream.map_or(0, |s| s.max_out_per_frame))
 }
 
 /// Feeds one frame of joint positions (`frame`: float32 `[22][3]`, `frame_len` = 66) and writes
@@ -740,10 +744,10 @@ pub unsafe extern "C" fn troupe_motion_stream_push(
         "troupe_motion_stream_push",
         || {},
         || {
-            non_null(stream, "stream")?;
+            // SAFETY: NULL or a live handle per the contract; shared access until claimed.
+            let s = required(unsafe { stream.as_ref() }, "stream")?;
             non_null(n_written, "n_written")?;
-            // SAFETY: a live handle per the contract, used by one thread at a time.
-            let s = unsafe { &mut *stream };
+            let mut feature_stream = s.stream.claim("the stream")?;
             if frame_len != 3 * T2M22_JOINTS {
                 return Err(FfiError::new(
                     TROUPE_ERR_SHAPE,
@@ -752,7 +756,7 @@ pub unsafe extern "C" fn troupe_motion_stream_push(
             }
             // SAFETY: forwarded contract.
             let flat = unsafe { boundary::slice(frame, frame_len, "frame") }?;
-            let most = s.stream.max_out_per_frame();
+            let most = s.max_out_per_frame;
             if out_capacity_frames < most {
                 return Err(FfiError::new(
                 TROUPE_ERR_BUFFER_TOO_SMALL,
@@ -761,7 +765,7 @@ pub unsafe extern "C" fn troupe_motion_stream_push(
             }
             non_null(features_out, "features_out")?;
             let view = ArrayView2::from_shape((T2M22_JOINTS, 3), flat).expect("length checked");
-            let rows = s.stream.push(view)?;
+            let rows = feature_stream.push(view)?;
             for (i, row) in rows.iter().enumerate() {
                 // SAFETY: rows.len() <= most <= out_capacity_frames frames of frame_dim floats.
                 unsafe {
@@ -797,7 +801,8 @@ pub unsafe extern "C" fn troupe_motion_stream_placement(
         || {
             let s = required(stream, "stream")?;
             non_null(out, "out")?;
-            let p = s.stream.placement().ok_or_else(|| {
+            let stream = s.stream.claim("the stream")?;
+            let p = stream.placement().ok_or_else(|| {
                 FfiError::new(
                     TROUPE_ERR_INVALID_ARG,
                     "the stream has no placement before its first frame",
@@ -827,12 +832,13 @@ pub unsafe extern "C" fn troupe_motion_stream_reset(
         "troupe_motion_stream_reset",
         || {},
         || {
-            non_null(stream, "stream")?;
-            // SAFETY: a live handle per the contract.
-            let s = unsafe { &mut *stream };
+            // SAFETY: NULL or a live handle per the contract; shared access until claimed.
+            let mut s = required(unsafe { stream.as_ref() }, "stream")?
+                .stream
+                .claim("the stream")?;
             // SAFETY: forwarded contract.
-            let placement = unsafe { optional_placement(placement, s.stream.format()) }?;
-            s.stream.reset(placement);
+            let placement = unsafe { optional_placement(placement, s.format()) }?;
+            s.reset(placement);
             Ok(())
         },
     )
@@ -844,8 +850,16 @@ pub unsafe extern "C" fn troupe_motion_stream_reset(
 /// `stream` must be NULL or a live handle from `troupe_motion_stream_new`, not used afterwards.
 #[no_mangle]
 pub unsafe extern "C" fn troupe_motion_stream_free(stream: *mut troupe_motion_stream) {
-    if !stream.is_null() {
-        // SAFETY: a live handle from Box::into_raw per the contract.
-        boundary::get((), || drop(unsafe { Box::from_raw(stream) }));
+    // SAFETY: NULL or a live handle per the contract; only its atomic flag is read through `&`.
+    let Some(handle) = (unsafe { stream.as_ref() }) else {
+        return;
+    };
+    if handle.stream.claim("the stream").is_err() {
+        log(Level::Error, "troupe::ffi", || {
+            "troupe_motion_stream_free: the stream is in use by another thread; not freed".into()
+        });
+        return;
     }
+    // SAFETY: from Box::into_raw, freed once per the contract, no call on it in progress.
+    boundary::get((), || drop(unsafe { Box::from_raw(stream) }));
 }

@@ -1,0 +1,394 @@
+//! Hostile files and extreme inputs (issue 16): each case once aborted the process, hung, read
+//! outside the bundle, returned non-finite motion or broke the session. Each must now give a
+//! clear error before anything is allocated, and leave the session usable.
+
+mod common;
+
+use std::path::Path;
+use std::sync::mpsc;
+use std::time::Duration;
+
+use common::*;
+use ndarray::Array2;
+use troupe::{ClipOptions, Error, Model, SessionOptions, TokenNoise, LIMITS};
+
+/// A copy of the tiny bundle's files in a fresh directory.
+fn bundle_copy() -> tempfile::TempDir {
+    let dir = tempfile::tempdir().unwrap();
+    for entry in std::fs::read_dir(bundle_dir()).unwrap() {
+        let path = entry.unwrap().path();
+        if path.is_file() {
+            std::fs::copy(&path, dir.path().join(path.file_name().unwrap())).unwrap();
+        }
+    }
+    dir
+}
+
+fn edit_manifest(dir: &Path, edit: impl FnOnce(&mut serde_json::Value)) {
+    let path = dir.join("troupe.json");
+    let mut v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
+    edit(&mut v);
+    std::fs::write(&path, serde_json::to_string_pretty(&v).unwrap()).unwrap();
+}
+
+/// Loads `path` on another thread; fails the test if the load has not returned in 60 s (a hang)
+/// rather than hanging the suite.
+fn load_without_hanging(path: &Path) -> Result<Model, Error> {
+    let (tx, rx) = mpsc::channel();
+    let path = path.to_path_buf();
+    std::thread::spawn(move || tx.send(Model::load(&path)).ok());
+    rx.recv_timeout(Duration::from_secs(60))
+        .expect("the load returned instead of blocking")
+}
+
+fn tar_header(name: &str, kind: tar::EntryType, size: u64) -> [u8; 512] {
+    let mut header = tar::Header::new_gnu();
+    // The raw name field: `set_path` refuses the `..` a hostile archive may hold.
+    header.as_old_mut().name[..name.len()].copy_from_slice(name.as_bytes());
+    header.set_entry_type(kind);
+    header.set_size(size);
+    header.set_mode(0o644);
+    header.set_cksum();
+    *header.as_bytes()
+}
+
+/// An archive of raw 512-byte blocks: the headers and data given, then the end marker.
+fn raw_archive(blocks: &[&[u8]]) -> Vec<u8> {
+    let mut out = Vec::new();
+    for block in blocks {
+        out.extend_from_slice(block);
+        out.resize(out.len().div_ceil(512) * 512, 0);
+    }
+    out.extend_from_slice(&[0u8; 1024]);
+    out
+}
+
+#[test]
+fn tar_members_declaring_huge_sizes_are_refused_before_allocating() {
+    let huge = tar_header("troupe.json", tar::EntryType::Regular, 1 << 50);
+    let bytes = raw_archive(&[&huge, b"{}"]);
+    let e = Model::from_archive_bytes(&bytes, "huge.troupe").unwrap_err();
+    assert!(
+        e.to_string().contains("declares 1125899906842624 bytes"),
+        "{e}"
+    );
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("huge.troupe");
+    std::fs::write(&file, &bytes).unwrap();
+    let e = Model::load(&file).unwrap_err();
+    assert!(e.to_string().contains("declares"), "{e}");
+
+    // A PAX extended header overriding the member's size with 10^15.
+    let record = "25 size=1000000000000000\n";
+    assert_eq!(record.len(), 25);
+    let pax = tar_header("pax", tar::EntryType::XHeader, record.len() as u64);
+    let small = tar_header("troupe.json", tar::EntryType::Regular, 2);
+    let bytes = raw_archive(&[&pax, record.as_bytes(), &small, b"{}"]);
+    let e = Model::from_archive_bytes(&bytes, "pax.troupe").unwrap_err();
+    assert!(e.to_string().contains("1000000000000000"), "{e}");
+}
+
+#[test]
+fn archives_with_links_devices_or_repeated_members_are_refused() {
+    let manifest = std::fs::read(bundle_dir().join("troupe.json")).unwrap();
+    let member = tar_header(
+        "troupe.json",
+        tar::EntryType::Regular,
+        manifest.len() as u64,
+    );
+    let twice = raw_archive(&[&member, &manifest, &member, &manifest]);
+    let e = Model::from_archive_bytes(&twice, "twice.troupe").unwrap_err();
+    assert!(e.to_string().contains("`troupe.json` appears twice"), "{e}");
+
+    for kind in [
+        tar::EntryType::Symlink,
+        tar::EntryType::Link,
+        tar::EntryType::Char,
+        tar::EntryType::Fifo,
+    ] {
+        let link = tar_header("velocity.onnx", kind, 0);
+        let e = Model::from_archive_bytes(&raw_archive(&[&link]), "links.troupe").unwrap_err();
+        assert!(
+            e.to_string().contains("only regular files"),
+            "{kind:?}: {e}"
+        );
+    }
+    let escape = tar_header("../troupe.json", tar::EntryType::Regular, 2);
+    let e = Model::from_archive_bytes(&raw_archive(&[&escape, b"{}"]), "escape.troupe");
+    assert!(
+        e.unwrap_err()
+            .to_string()
+            .contains("not a plain relative path"),
+        "a member outside the bundle"
+    );
+}
+
+#[cfg(unix)]
+#[test]
+fn bundle_files_outside_the_directory_devices_and_fifos_are_refused_without_blocking() {
+    use std::os::unix::fs::symlink;
+
+    // A graph that is a symlink to a file outside the bundle.
+    let outside = tempfile::tempdir().unwrap();
+    let dir = bundle_copy();
+    let graph = dir.path().join("velocity.onnx");
+    std::fs::rename(&graph, outside.path().join("velocity.onnx")).unwrap();
+    symlink(outside.path().join("velocity.onnx"), &graph).unwrap();
+    let e = load_without_hanging(dir.path()).unwrap_err();
+    assert!(
+        e.to_string().contains("outside the bundle directory"),
+        "{e}"
+    );
+
+    // A symlink inside the bundle is followed.
+    let dir = bundle_copy();
+    let graph = dir.path().join("velocity.onnx");
+    std::fs::rename(&graph, dir.path().join("velocity.real.onnx")).unwrap();
+    symlink("velocity.real.onnx", &graph).unwrap();
+    load_without_hanging(dir.path()).expect("an in-bundle symlink loads");
+
+    // Devices: never read (they never end).
+    for device in ["/dev/zero", "/dev/urandom"] {
+        for name in ["velocity.onnx", "troupe.json"] {
+            let dir = bundle_copy();
+            std::fs::remove_file(dir.path().join(name)).unwrap();
+            symlink(device, dir.path().join(name)).unwrap();
+            let e = load_without_hanging(dir.path()).unwrap_err();
+            assert!(
+                e.to_string().contains("outside the bundle"),
+                "{name} -> {device}: {e}"
+            );
+        }
+        let e = load_without_hanging(Path::new(device)).unwrap_err();
+        assert!(
+            e.to_string().contains("not a regular file"),
+            "{device}: {e}"
+        );
+    }
+
+    // FIFOs as graph, manifest, or the bundle itself: refused at once, no writer awaited.
+    let fifo = |path: &Path| {
+        let c = std::ffi::CString::new(path.to_str().unwrap()).unwrap();
+        // SAFETY: a valid NUL-terminated path.
+        assert_eq!(unsafe { libc::mkfifo(c.as_ptr(), 0o600) }, 0);
+    };
+    for name in ["velocity.onnx", "troupe.json"] {
+        let dir = bundle_copy();
+        std::fs::remove_file(dir.path().join(name)).unwrap();
+        fifo(&dir.path().join(name));
+        let e = load_without_hanging(dir.path()).unwrap_err();
+        assert!(e.to_string().contains("not a regular file"), "{name}: {e}");
+    }
+    let dir = tempfile::tempdir().unwrap();
+    fifo(&dir.path().join("bundle.troupe"));
+    let e = load_without_hanging(&dir.path().join("bundle.troupe")).unwrap_err();
+    assert!(e.to_string().contains("not a regular file"), "{e}");
+}
+
+#[test]
+fn oversized_bundle_files_are_refused_before_being_read() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("sparse.troupe");
+    let file = std::fs::File::create(&path).unwrap();
+    file.set_len(LIMITS.max_bundle_bytes + 1).unwrap();
+    let e = load_without_hanging(&path).unwrap_err();
+    assert!(e.to_string().contains("above troupe's limit"), "{e}");
+    // Within the limit, a file of zeros ends at its first (empty) tar block: nothing more is read.
+    file.set_len(3 << 29).unwrap();
+    let e = load_without_hanging(&path).unwrap_err();
+    assert!(e.to_string().contains("troupe.json"), "{e}");
+
+    let big = bundle_copy();
+    let manifest = big.path().join("troupe.json");
+    std::fs::File::options()
+        .append(true)
+        .open(&manifest)
+        .unwrap()
+        .set_len(LIMITS.max_manifest_bytes + 1)
+        .unwrap();
+    let e = load_without_hanging(big.path()).unwrap_err();
+    assert!(e.to_string().contains("above troupe's limit"), "{e}");
+}
+
+#[test]
+fn manifest_numbers_beyond_the_limits_are_refused_at_load() {
+    type Edit = fn(&mut serde_json::Value);
+    let cases: [(&str, Edit); 4] = [
+        ("context.layers", |v| {
+            v["context"]["layers"] = serde_json::json!((1u64 << 40) + 1)
+        }),
+        ("vae.encoder.lookahead_frames", |v| {
+            v["vae"]["encoder"]["lookahead_frames"] = serde_json::json!(u64::MAX)
+        }),
+        ("sampler.steps", |v| {
+            v["sampler"]["steps"] = serde_json::json!(u32::MAX)
+        }),
+        ("latent.dim", |v| {
+            v["latent"]["dim"] = serde_json::json!(1u64 << 62)
+        }),
+    ];
+    for (field, edit) in cases {
+        let dir = bundle_copy();
+        edit_manifest(dir.path(), edit);
+        let e = Model::load(dir.path()).unwrap_err();
+        assert!(matches!(e, Error::Manifest { .. }), "{field}: {e}");
+        assert!(e.to_string().contains(field), "{field}: {e}");
+    }
+    let dir = bundle_copy();
+    edit_manifest(dir.path(), |v| {
+        v["sampler"]["cfg_scale"] = serde_json::json!(3e38)
+    });
+    let e = Model::load(dir.path()).unwrap_err();
+    assert!(e.to_string().contains("CFG scale"), "{e}");
+}
+
+/// `bytes` (an ONNX ModelProto) with one more `opset_import` of the default domain: field 8, a
+/// message `{domain: "", version}`. Protobuf appends repeated fields, so the graph now declares
+/// that operator set too.
+fn with_opset(bytes: &[u8], version: u8) -> Vec<u8> {
+    assert!(version < 0x80, "a one-byte varint");
+    let mut out = bytes.to_vec();
+    out.extend_from_slice(&[0x42, 0x04, 0x0a, 0x00, 0x10, version]);
+    out
+}
+
+#[test]
+fn graphs_of_an_unknown_operator_set_are_refused() {
+    let dir = bundle_copy();
+    let path = dir.path().join("velocity.onnx");
+    let bytes = std::fs::read(&path).unwrap();
+    std::fs::write(&path, with_opset(&bytes, 99)).unwrap();
+    let e = Model::load(dir.path()).unwrap_err();
+    assert!(matches!(e, Error::Graph { .. }), "{e}");
+    assert!(e.to_string().contains("operator set 99"), "{e}");
+}
+
+#[test]
+fn sizes_from_the_caller_are_bounded() {
+    let m = model();
+    let huge_steps = SessionOptions {
+        steps: Some(u32::MAX),
+        ..default_options()
+    };
+    let e = m.session(huge_steps).unwrap_err();
+    assert!(matches!(e, Error::InvalidOption(_)), "{e}");
+    assert!(e.to_string().contains("limit of 10000"), "{e}");
+    let mut s = m.session(default_options()).unwrap();
+    assert!(s.set_steps(u32::MAX).is_err());
+    let huge_capacity = SessionOptions {
+        context_capacity: Some(usize::MAX),
+        ..default_options()
+    };
+    assert!(m.session(huge_capacity).is_err());
+
+    let lat = m.latent_dim();
+    let noise = TokenNoise {
+        actor: vec![0.5; lat],
+        reactor: vec![0.5; lat],
+    };
+    for _ in 0..LIMITS.max_queued_noise_tokens {
+        s.queue_noise(noise.clone()).unwrap();
+    }
+    let e = s.queue_noise(noise).unwrap_err();
+    assert!(e.to_string().contains("queued noise"), "{e}");
+    s.reset();
+    let out = s.step(actor().view()).unwrap();
+    assert!(out.iter().all(|v| v.is_finite()));
+}
+
+#[test]
+fn extreme_settings_and_inputs_are_refused_or_give_finite_output_and_the_session_recovers() {
+    let m = model();
+    let d = m.frame_dim();
+    let mut s = m.session(default_options()).unwrap();
+    assert!(s.set_cfg_scale(f32::MAX).is_err());
+    assert!(s.set_cfg_scale(-f32::MAX).is_err());
+    let cfg = SessionOptions {
+        cfg_scale: Some(f32::MAX),
+        ..default_options()
+    };
+    assert!(m.session(cfg).is_err());
+
+    // ±FLT_MAX frames are refused; 200 ordinary frames afterwards are all finite.
+    for extreme in [f32::MAX, -f32::MAX, f32::MIN_POSITIVE / 2.0] {
+        let frames = Array2::from_elem((4, d), extreme);
+        let refused = s.step(frames.view());
+        if extreme.abs() > 1.0 {
+            assert!(refused.is_err(), "{extreme} refused");
+        }
+    }
+    let actor = actor();
+    let rest = run_chunked(&mut s, &actor, 7).0;
+    assert!(!rest.is_empty() && rest.iter().all(|v| v.is_finite()));
+
+    // At the limits: every frame out is finite, or the step fails and the session goes on.
+    for (cfg, value) in [
+        (1000.0, 0.0),
+        (-1000.0, 0.0),
+        (1.0, 1e6),
+        (1.0, -1e6),
+        (1.0, -0.0),
+    ] {
+        let mut s = m
+            .session(SessionOptions {
+                cfg_scale: Some(cfg),
+                ..default_options()
+            })
+            .unwrap();
+        match s.step(Array2::from_elem((8, d), value).view()) {
+            Ok(out) => assert!(
+                out.iter().all(|v| v.is_finite()),
+                "cfg {cfg}, value {value}"
+            ),
+            Err(e) => assert!(e.to_string().contains("not finite"), "{e}"),
+        }
+        s.set_cfg_scale(1.0).unwrap();
+        s.reset();
+        let out = run_chunked(&mut s, &actor, 5).0;
+        assert!(
+            out.iter().all(|v| v.is_finite()),
+            "after cfg {cfg}, value {value}"
+        );
+    }
+}
+
+#[test]
+fn a_long_stream_with_the_smallest_cache_runs() {
+    let mut s = model()
+        .session(SessionOptions {
+            context_capacity: Some(2),
+            ..default_options()
+        })
+        .unwrap();
+    let actor = actor();
+    let mut out = 0;
+    for _ in 0..3 {
+        let (frames, _) = run_chunked(&mut s, &actor, 3);
+        assert!(frames.iter().all(|v| v.is_finite()));
+        out += frames.len();
+        assert_eq!(s.context_len(), 2);
+    }
+    assert_eq!(out / model().frame_dim(), 3 * actor.nrows() / 4 * 4);
+}
+
+#[test]
+fn clip_and_text_sizes_are_bounded() {
+    let bundle = Path::new(env!("CARGO_MANIFEST_DIR")).join("onnx/bundles/armflow-tiny-interhuman");
+    let m = Model::load(bundle).unwrap();
+    let actor = Array2::<f32>::zeros((10, m.frame_dim()));
+    let steps = ClipOptions {
+        steps: Some(u32::MAX),
+        ..Default::default()
+    };
+    assert!(matches!(
+        m.generate_clip(actor.view(), None, &steps),
+        Err(Error::InvalidOption(_))
+    ));
+    let width = m.text_token_dim().expect("a text branch");
+    let tokens = Array2::<f32>::zeros((30_000, width));
+    let e = m.encode_text(tokens.view(), 0).unwrap_err();
+    assert!(e.to_string().contains("limit of 77"), "{e}");
+    let tokens = Array2::<f32>::zeros((77, width));
+    assert!(m.encode_text(tokens.view(), 76).is_ok());
+}
