@@ -364,6 +364,15 @@ typedef struct troupe_pose_buffers {
 } troupe_pose_buffers;
 
 /*
+ A progress callback: `done` of `total` units of a long call are finished. Return 0 to go on,
+ anything else to cancel the call (it then fails with `TROUPE_ERR_CANCELLED`, having written
+ nothing). Called on the thread that made the call, between units of work; it must not unwind
+ (throw) into the library. It may call troupe functions; a long call it makes runs without a
+ callback.
+ */
+typedef int32_t (*troupe_progress_fn)(void *user_data, uint64_t done, uint64_t total);
+
+/*
  The random draws of one clip, given instead of seeded. Arrays are row-major float32, each
  borrowed for the call; lengths are in floats.
  */
@@ -552,6 +561,12 @@ typedef struct troupe_group_noise {
  at a time. Nothing was done; the call may be retried once the other thread is done.
  */
 #define TROUPE_ERR_BUSY 10
+
+/*
+ The call was stopped by the calling thread's progress callback
+ (`troupe_set_progress_callback`); nothing was written.
+ */
+#define TROUPE_ERR_CANCELLED 11
 
 
 
@@ -996,6 +1011,25 @@ troupe_status troupe_bvh_write(const char *path, const float *positions, size_t 
  readable; a non-NULL `names` readable for `n_people` pointers, each NULL or NUL-terminated.
  */
 troupe_status troupe_motion_write_json(const char *path, const float *positions, size_t n_people, size_t n_frames, const struct troupe_joints_format *format, const char *const *names);
+
+/*
+ Sets the calling thread's progress callback (NULL removes it): from now on, long calls made
+ on this thread (`troupe_model_load_file`, `troupe_model_load_memory`,
+ `troupe_group_generate`, `troupe_clip_generate`) report to it between units of work (graphs
+ loaded, people generated, clip tokens) and stop with `TROUPE_ERR_CANCELLED` when it returns
+ non-zero. To cancel from another thread, have the callback read a flag that thread sets.
+ `user_data` is passed back untouched and must stay valid while the callback is set.
+ Per thread, like the last error; thread-safe.
+
+ ```c
+ static int32_t keep_going(void *stop, uint64_t done, uint64_t total) {
+     (void)done; (void)total;
+     return atomic_load((atomic_int *)stop);   // non-zero cancels
+ }
+ troupe_set_progress_callback(keep_going, &stop);
+ ```
+ */
+void troupe_set_progress_callback(troupe_progress_fn callback, void *user_data);
 
 /*
  The library version, e.g. `"0.1.0"`.

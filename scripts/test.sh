@@ -72,4 +72,6 @@ echo "== streaming demo smoke run"
 cargo run --example stream -- --frames 120 --tick 3 --out target/ci-reactor.npy
 
 echo "== benchmark smoke run (each benchmark once, tiny bundle; speed is not checked here)"
-cargo bench --bench step -- --test
+# `cargo test` runs a criterion benchmark once, in the test profile the suite already built
+# (`cargo bench` would build everything again, optimised, for no check it adds).
+cargo test --bench step

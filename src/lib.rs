@@ -55,6 +55,7 @@ pub use shared::error::{Error, Result};
 pub use shared::graph::{load_threads, set_load_threads};
 pub use shared::limits::{Limits, LIMITS};
 pub use shared::noise;
+pub use shared::progress::with_progress;
 pub use shared::solver::{self, Method, Solver};
 pub use umf::pyramid;
 pub use umf::{

@@ -126,6 +126,12 @@ fn run(wrapper: &[&str], binary: &Path, args: &[&Path]) -> String {
     );
     assert!(out.status.success(), "{} failed:\n{text}", binary.display());
     assert!(text.contains(" 0 failed"), "{text}");
+    // A panic inside the library (the smoke test provokes one) must reach the caller as an
+    // error only: nothing printed on the host's stderr.
+    assert!(
+        !text.contains("panicked at"),
+        "a panic was printed:\n{text}"
+    );
     text
 }
 
@@ -216,22 +222,42 @@ fn cpp_wrapper_with_its_exception_helpers() {
     run(&[], &bin, &[&armflow, &umf, scratch(), &demo]);
 }
 
-/// No leak and no invalid access in the C smoke and group tests. valgrind is on the CI machine; where it
-/// is not installed this test says so and passes. `tests/c/valgrind.supp` suppresses only
-/// tract's uninitialised-padding comparisons at model load (explained there).
+/// Whether the long forms run (`TROUPE_SLOW_TESTS=1`): every C test under valgrind, not only
+/// the smoke test.
+fn slow_tests() -> bool {
+    std::env::var_os("TROUPE_SLOW_TESTS").is_some_and(|v| v == "1")
+}
+
+/// The C test programs with their arguments: (source, arguments, extra compiler flags).
+fn c_programs() -> Vec<(&'static str, Vec<PathBuf>, &'static [&'static str])> {
+    vec![
+        ("smoke", smoke_args().to_vec(), &[]),
+        ("group", group_args().to_vec(), &[]),
+        ("clip", clip_args().to_vec(), &[]),
+        ("motion", motion_args().to_vec(), &[]),
+        ("threads", threads_args().to_vec(), &["-pthread"]),
+        (
+            "labels",
+            vec![
+                root().join("onnx/bundles/armflow-demo"),
+                root().join("onnx/bundles/armflow-tiny"),
+            ],
+            &[],
+        ),
+        ("viewer", vec![scratch().join("viewer-sanitized")], &[]),
+    ]
+}
+
+/// No leak and no invalid access under valgrind: the smoke test always (about a minute on 2
+/// cores), every C test with `TROUPE_SLOW_TESTS=1` (seven more). valgrind is on the CI machine;
+/// where it is not installed this test says so and passes. `tests/c/valgrind.supp` suppresses
+/// only tract's uninitialised-padding comparisons at model load (explained there).
 #[test]
-fn c_smoke_under_valgrind() {
+fn c_tests_under_valgrind() {
     if Command::new("valgrind").arg("--version").output().is_err() {
-        println!("SKIPPED c_smoke_under_valgrind: valgrind is not installed");
+        println!("SKIPPED c_tests_under_valgrind: valgrind is not installed");
         return;
     }
-    let bin = compile(
-        "cc",
-        &["-std=c99", "-g"],
-        &[&root().join("tests/c/smoke.c")],
-        &shared_link(),
-        "smoke_valgrind",
-    );
     let supp = format!(
         "--suppressions={}",
         root().join("tests/c/valgrind.supp").display()
@@ -244,39 +270,96 @@ fn c_smoke_under_valgrind() {
         "--errors-for-leak-kinds=definite,indirect",
         "--show-leak-kinds=definite,indirect",
     ];
-    let [dir, archive] = smoke_args();
-    let text = run(&valgrind, &bin, &[&dir, &archive]);
-    assert!(text.contains("ERROR SUMMARY: 0 errors"), "{text}");
-    let group = compile(
+    let programs = c_programs();
+    let chosen = if slow_tests() {
+        &programs[..]
+    } else {
+        &programs[..1]
+    };
+    for (name, args, flags) in chosen {
+        let mut all_flags = vec!["-std=c99", "-g"];
+        all_flags.extend_from_slice(flags);
+        let bin = compile(
+            "cc",
+            &all_flags,
+            &[&root().join(format!("tests/c/{name}.c"))],
+            &shared_link(),
+            &format!("{name}_valgrind"),
+        );
+        let args: Vec<&Path> = args.iter().map(PathBuf::as_path).collect();
+        let text = run(&valgrind, &bin, &args);
+        assert!(text.contains("ERROR SUMMARY: 0 errors"), "{name}: {text}");
+    }
+}
+
+/// Every C test built with AddressSanitizer (LeakSanitizer included) and
+/// UndefinedBehaviorSanitizer, any report fatal. The programs print the sanitizer they were
+/// built with, so the log shows it ran.
+#[test]
+fn c_tests_under_address_and_undefined_behaviour_sanitizers() {
+    std::fs::create_dir_all(scratch().join("viewer-sanitized")).unwrap();
+    for (name, args, flags) in c_programs() {
+        let mut all_flags = vec![
+            "-std=c99",
+            "-g",
+            "-fsanitize=address,undefined",
+            "-fno-sanitize-recover=all",
+            "-fno-omit-frame-pointer",
+        ];
+        all_flags.extend_from_slice(flags);
+        let bin = compile(
+            "cc",
+            &all_flags,
+            &[&root().join(format!("tests/c/{name}.c"))],
+            &shared_link(),
+            &format!("{name}_asan"),
+        );
+        let args: Vec<&Path> = args.iter().map(PathBuf::as_path).collect();
+        let out = Command::new(&bin)
+            .args(&args)
+            .env(
+                "ASAN_OPTIONS",
+                "detect_leaks=1:abort_on_error=0:exitcode=23",
+            )
+            .env("UBSAN_OPTIONS", "print_stacktrace=1:halt_on_error=1")
+            .output()
+            .expect("run the sanitized test");
+        let text = format!(
+            "{}{}",
+            String::from_utf8_lossy(&out.stdout),
+            String::from_utf8_lossy(&out.stderr)
+        );
+        assert!(out.status.success(), "{name} under ASan/UBSan:\n{text}");
+        assert!(
+            text.contains("sanitizer: address"),
+            "{name} was not instrumented:\n{text}"
+        );
+        assert!(text.contains(" 0 failed"), "{text}");
+        println!(
+            "{name} under ASan + UBSan: {}",
+            text.lines().last().unwrap_or("")
+        );
+    }
+}
+
+fn threads_args() -> [PathBuf; 1] {
+    [root().join("onnx/bundles/armflow-tiny")]
+}
+
+/// One model shared by 8 threads x 8 sessions (bit-identical to each alone), two threads racing
+/// on one session, a batched call and a joint stream (TROUPE_ERR_BUSY, never a race), and the
+/// limits at the C boundary.
+#[test]
+fn c_threads_share_a_model_and_racing_calls_are_refused() {
+    let bin = compile(
         "cc",
-        &["-std=c99", "-g"],
-        &[&root().join("tests/c/group.c")],
+        &["-std=c99", "-pthread"],
+        &[&root().join("tests/c/threads.c")],
         &shared_link(),
-        "group_valgrind",
+        "threads_c",
     );
-    let [umf, armflow] = group_args();
-    let text = run(&valgrind, &group, &[&umf, &armflow]);
-    assert!(text.contains("ERROR SUMMARY: 0 errors"), "{text}");
-    let clip = compile(
-        "cc",
-        &["-std=c99", "-g"],
-        &[&root().join("tests/c/clip.c")],
-        &shared_link(),
-        "clip_valgrind",
-    );
-    let [official, streaming] = clip_args();
-    let text = run(&valgrind, &clip, &[&official, &streaming]);
-    assert!(text.contains("ERROR SUMMARY: 0 errors"), "{text}");
-    let motion = compile(
-        "cc",
-        &["-std=c99", "-g"],
-        &[&root().join("tests/c/motion.c")],
-        &shared_link(),
-        "motion_valgrind",
-    );
-    let [interhuman, interx, dir] = motion_args();
-    let text = run(&valgrind, &motion, &[&interhuman, &interx, &dir]);
-    assert!(text.contains("ERROR SUMMARY: 0 errors"), "{text}");
+    let [dir] = threads_args();
+    println!("{}", run(&[], &bin, &[&dir]));
 }
 
 fn motion_args() -> [PathBuf; 3] {

@@ -392,3 +392,65 @@ fn clip_and_text_sizes_are_bounded() {
     let tokens = Array2::<f32>::zeros((77, width));
     assert!(m.encode_text(tokens.view(), 76).is_ok());
 }
+
+#[test]
+fn long_calls_report_progress_and_stop_when_the_callback_says_so() {
+    use std::sync::{Arc, Mutex};
+    let seen = Arc::new(Mutex::new(Vec::new()));
+    let calls = |stop_after: u64| {
+        let log = Arc::clone(&seen);
+        log.lock().unwrap().clear();
+        move |done: u64, total: u64| {
+            log.lock().unwrap().push((done, total));
+            done < stop_after
+        }
+    };
+
+    // A load, on one thread and on several.
+    for threads in [1, 0] {
+        troupe::set_load_threads(threads);
+        let e = troupe::with_progress(calls(1), || Model::load(bundle_dir())).unwrap_err();
+        assert!(matches!(e, Error::Cancelled(_)), "{e}");
+        assert!(e.to_string().contains("loading the bundle"), "{e}");
+        assert_eq!(
+            seen.lock().unwrap().len(),
+            1,
+            "the load stopped at the first report"
+        );
+        let total = seen.lock().unwrap()[0].1;
+        let model = troupe::with_progress(calls(u64::MAX), || Model::load(bundle_dir())).unwrap();
+        let reports = seen.lock().unwrap().clone();
+        assert_eq!(reports.len() as u64, total, "one report per graph");
+        assert!(reports
+            .iter()
+            .enumerate()
+            .all(|(i, &(d, t))| d == i as u64 + 1 && t == total));
+        drop(model);
+    }
+    troupe::set_load_threads(0);
+
+    // A group of four people stops after the second.
+    let umf =
+        Model::load(Path::new(env!("CARGO_MANIFEST_DIR")).join("onnx/bundles/umf-tiny")).unwrap();
+    let options = troupe::GroupOptions::default();
+    let e = troupe::with_progress(calls(2), || umf.generate_group(None, 4, &options)).unwrap_err();
+    assert!(matches!(e, Error::Cancelled(_)), "{e}");
+    assert_eq!(*seen.lock().unwrap(), [(1, 4), (2, 4)]);
+    assert!(
+        umf.generate_group(None, 4, &options).is_ok(),
+        "no callback outside the scope"
+    );
+
+    // A clip stops after its third token.
+    let official = Model::load(
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("onnx/bundles/armflow-tiny-interhuman"),
+    )
+    .unwrap();
+    let actor = Array2::<f32>::zeros((20, official.frame_dim()));
+    let e = troupe::with_progress(calls(3), || {
+        official.generate_clip(actor.view(), None, &ClipOptions::default())
+    })
+    .unwrap_err();
+    assert!(e.to_string().contains("the clip was cancelled"), "{e}");
+    assert_eq!(seen.lock().unwrap().len(), 3);
+}

@@ -26,6 +26,7 @@ use crate::shared::error::{Error, Result};
 use crate::shared::graph::{f32_tensor, read_f32, stack_rows};
 use crate::shared::limits::check_steps;
 use crate::shared::noise::{fill_normals, STREAM_ACTOR_POSTERIOR, STREAM_REACTOR_NOISE};
+use crate::shared::progress;
 
 /// The random draws of one clip. Pass them to reproduce another implementation's draws
 /// exactly; leave them out and troupe draws them from the seed.
@@ -155,6 +156,7 @@ impl Networks {
             }
             check_output("velocity", &format!("reactor token {i}"), &z)?;
             check_output("context_full", &format!("context {i}"), &context)?;
+            progress::report("the clip", i as u64 + 1, n as u64)?;
             sequence.extend_from_slice(a);
             sequence.extend_from_slice(&z);
             reactor.extend_from_slice(&z);

@@ -36,6 +36,9 @@ pub const TROUPE_ERR_PANIC: troupe_status = 9;
 /// The handle is in use by another thread: a session or joint stream is used from one thread
 /// at a time. Nothing was done; the call may be retried once the other thread is done.
 pub const TROUPE_ERR_BUSY: troupe_status = 10;
+/// The call was stopped by the calling thread's progress callback
+/// (`troupe_set_progress_callback`); nothing was written.
+pub const TROUPE_ERR_CANCELLED: troupe_status = 11;
 
 /// An error on its way to C: a status and the message for `troupe_last_error_message`.
 pub(crate) struct FfiError {
@@ -59,6 +62,7 @@ impl From<Error> for FfiError {
             Error::Manifest { .. } | Error::Graph { .. } => TROUPE_ERR_MODEL,
             Error::InvalidInput(_) | Error::InvalidOption(_) => TROUPE_ERR_INVALID_ARG,
             Error::Inference { .. } => TROUPE_ERR_INFERENCE,
+            Error::Cancelled(_) => TROUPE_ERR_CANCELLED,
         };
         Self::new(status, e.to_string())
     }

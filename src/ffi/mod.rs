@@ -31,6 +31,7 @@ pub mod limits;
 pub mod log;
 pub mod model;
 pub mod motion;
+pub mod progress;
 pub mod version;
 pub mod viewer;
 

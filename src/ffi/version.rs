@@ -50,6 +50,7 @@ pub extern "C" fn troupe_status_name(status: troupe_status) -> *const c_char {
         8 => "TROUPE_ERR_POISONED\0",
         9 => "TROUPE_ERR_PANIC\0",
         10 => "TROUPE_ERR_BUSY\0",
+        11 => "TROUPE_ERR_CANCELLED\0",
         _ => "TROUPE_ERR_UNKNOWN\0",
     };
     name.as_ptr().cast()

@@ -40,6 +40,10 @@ pub enum Error {
     /// A session option is out of range.
     #[error("invalid option: {0}")]
     InvalidOption(String),
+    /// A long call was stopped by the calling thread's progress callback (see
+    /// [`crate::with_progress`]); nothing was written and no state changed.
+    #[error("cancelled: {0}")]
+    Cancelled(String),
     /// A graph failed while running; the session that ran it is left unchanged.
     #[error("{graph}: inference failed: {message}")]
     Inference {

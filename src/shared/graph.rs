@@ -2,6 +2,7 @@
 //! any number of sessions at the same time (a tract plan is `Send + Sync`; each call gets its own
 //! scratch state).
 
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::Arc;
 
 use tract_onnx::prelude::*;
@@ -13,6 +14,7 @@ use crate::shared::limits::LIMITS;
 use crate::shared::logging::{log, Level};
 use crate::shared::onnx_guard;
 use crate::shared::panics;
+use crate::shared::progress;
 
 /// A loaded, optimised graph whose inputs and outputs are addressed in manifest order.
 #[derive(Debug)]
@@ -96,7 +98,8 @@ impl Graph {
 /// threads (optimisation dominates load time and each graph is independent; every thread is
 /// joined before this returns); returns them in order, or the first error in that order. A
 /// panic while loading a graph (tract on a hostile graph) becomes that graph's error, with its
-/// reason.
+/// reason. Progress (graphs loaded) goes to the calling thread's progress callback, which may
+/// cancel the load.
 pub(crate) fn load_graphs(
     files: &BundleFiles,
     wanted: &[(&'static str, &GraphSpec)],
@@ -111,27 +114,52 @@ pub(crate) fn load_graphs(
             })
         })
     };
+    let total = wanted.len() as u64;
     if workers == 1 {
-        return wanted
-            .iter()
-            .map(|&(role, spec)| load(role, spec))
-            .collect();
+        let mut graphs = Vec::with_capacity(wanted.len());
+        for (i, &(role, spec)) in wanted.iter().enumerate() {
+            graphs.push(load(role, spec)?);
+            progress::report("loading the bundle", i as u64 + 1, total)?;
+        }
+        return Ok(graphs);
     }
-    let next = std::sync::atomic::AtomicUsize::new(0);
+    // Workers take graphs in order and send them back; this thread reports progress (so the
+    // callback runs on the caller's thread) and, when it is cancelled, stops the workers taking
+    // more.
+    let next = AtomicUsize::new(0);
+    let stop = AtomicBool::new(false);
+    let (done_tx, done_rx) = std::sync::mpsc::channel();
     let mut slots: Vec<Option<Result<Graph>>> = (0..wanted.len()).map(|_| None).collect();
-    let done = std::sync::Mutex::new(&mut slots);
+    let mut cancelled = Ok(());
     std::thread::scope(|scope| {
         for _ in 0..workers {
-            scope.spawn(|| loop {
-                let i = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+            let done_tx = done_tx.clone();
+            let (next, stop, load) = (&next, &stop, &load);
+            scope.spawn(move || loop {
+                if stop.load(Ordering::Relaxed) {
+                    break;
+                }
+                let i = next.fetch_add(1, Ordering::Relaxed);
                 let Some(&(role, spec)) = wanted.get(i) else {
                     break;
                 };
-                let graph = load(role, spec);
-                done.lock().unwrap_or_else(|e| e.into_inner())[i] = Some(graph);
+                if done_tx.send((i, load(role, spec))).is_err() {
+                    break;
+                }
             });
         }
+        drop(done_tx);
+        for (finished, (i, graph)) in done_rx.iter().enumerate() {
+            slots[i] = Some(graph);
+            if cancelled.is_ok() {
+                cancelled = progress::report("loading the bundle", finished as u64 + 1, total);
+                if cancelled.is_err() {
+                    stop.store(true, Ordering::Relaxed);
+                }
+            }
+        }
     });
+    cancelled?;
     slots
         .into_iter()
         .map(|slot| slot.expect("every graph was attempted"))
@@ -139,17 +167,17 @@ pub(crate) fn load_graphs(
 }
 
 /// Threads a model load may use at once; 0 (the default): one per core.
-static LOAD_THREADS: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
+static LOAD_THREADS: AtomicUsize = AtomicUsize::new(0);
 
 /// Sets how many threads loading a model may use (0: one per core, 1: only the calling thread).
 /// Applies to loads that start afterwards, in the whole process.
 pub fn set_load_threads(threads: usize) {
-    LOAD_THREADS.store(threads, std::sync::atomic::Ordering::Relaxed);
+    LOAD_THREADS.store(threads, Ordering::Relaxed);
 }
 
 /// How many threads loading a model uses: the [`set_load_threads`] setting, or one per core.
 pub fn load_threads() -> usize {
-    match LOAD_THREADS.load(std::sync::atomic::Ordering::Relaxed) {
+    match LOAD_THREADS.load(Ordering::Relaxed) {
         0 => std::thread::available_parallelism().map_or(1, |n| n.get()),
         n => n,
     }

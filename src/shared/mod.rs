@@ -13,5 +13,6 @@ pub(crate) mod logging;
 pub mod noise;
 pub(crate) mod onnx_guard;
 pub(crate) mod panics;
+pub mod progress;
 pub mod solver;
 pub(crate) mod text_branch;

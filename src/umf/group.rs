@@ -28,6 +28,7 @@ use crate::shared::error::{Error, Result};
 use crate::shared::graph::{f32_tensor, read_f32, Graph};
 use crate::shared::limits::{check_cfg, product_at_most, LIMITS};
 use crate::shared::noise::fill_normals;
+use crate::shared::progress;
 use crate::shared::solver::Solver;
 
 /// Stream id of the first person's starting noise (token index 0).
@@ -125,6 +126,7 @@ impl Networks {
 
         let mut latents = Vec::with_capacity(people * tokens * dim);
         latents.extend(self.first_person(&plan, &self.prior, &texts, &noise)?);
+        progress::report("the group", 1, people as u64)?;
         for (p, eps) in noise.reactions.iter().enumerate().map(|(i, e)| (i + 1, e)) {
             let context = read_context(&self.context, &latents[..p * tokens * dim], tokens, dim)?;
             let mut state = Vec::with_capacity(tokens * 2 * dim);
@@ -138,6 +140,7 @@ impl Networks {
             for k in 0..tokens {
                 latents.extend_from_slice(&state[(2 * k + 1) * dim..(2 * k + 2) * dim]);
             }
+            progress::report("the group", p as u64 + 1, people as u64)?;
         }
 
         let frames = spec.clip_frames;

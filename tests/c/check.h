@@ -23,4 +23,16 @@ static int passed = 0, failed = 0;
 
 #define EXPECT(call, status) CHECK((call) == (status))
 
+/* Which sanitizer the test was built with, printed so that a log shows it really ran. */
+#if defined(__SANITIZE_ADDRESS__)
+#define TROUPE_TEST_SANITIZER "address"
+#elif defined(__has_feature)
+#if __has_feature(address_sanitizer)
+#define TROUPE_TEST_SANITIZER "address"
+#endif
+#endif
+#ifndef TROUPE_TEST_SANITIZER
+#define TROUPE_TEST_SANITIZER "none"
+#endif
+
 #endif

@@ -121,6 +121,7 @@ int main(int argc, char **argv) {
     free(golden);
     troupe_model_free(model);
     troupe_model_free(streaming);
+    printf("sanitizer: %s\n", TROUPE_TEST_SANITIZER);
     printf("%d passed, %d failed\n", passed, failed);
     return failed != 0;
 }

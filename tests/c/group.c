@@ -215,6 +215,7 @@ int main(int argc, char **argv) {
     free(t_prior);
     free(t_jumps);
     free(t_reactions);
+    printf("sanitizer: %s\n", TROUPE_TEST_SANITIZER);
     printf("c group: %d passed, %d failed\n", passed, failed);
     return failed == 0 ? 0 : 1;
 }

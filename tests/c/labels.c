@@ -61,6 +61,7 @@ int main(int argc, char **argv) {
     }
     troupe_model_free(demo);
     troupe_model_free(plain);
+    printf("sanitizer: %s\n", TROUPE_TEST_SANITIZER);
     printf("labels: %d passed, %d failed\n", passed, failed);
     return failed ? 1 : 0;
 }

@@ -378,6 +378,7 @@ int main(int argc, char **argv) {
     free(streamed);
     troupe_model_free(model);
     troupe_model_free(interx);
+    printf("sanitizer: %s\n", TROUPE_TEST_SANITIZER);
     printf("motion: %d passed, %d failed\n", passed, failed);
     return failed != 0;
 }

@@ -341,6 +341,8 @@ int main(int argc, char **argv) {
     free(noise);
     free(cond);
 
+    printf("sanitizer: %s\n", TROUPE_TEST_SANITIZER);
+
     printf("c smoke: %d passed, %d failed\n", passed, failed);
     return failed == 0 ? 0 : 1;
 }

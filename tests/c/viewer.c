@@ -125,6 +125,7 @@ int main(int argc, char **argv) {
     remove(html);
     remove(gif);
     free(positions);
+    printf("sanitizer: %s\n", TROUPE_TEST_SANITIZER);
     printf("viewer: %d passed, %d failed\n", passed, failed);
     return failed != 0;
 }

@@ -216,6 +216,44 @@ def test_model_from_bytes_and_closing(model):
         m3.session()
 
 
+def test_limits_and_hostile_input_raise_instead_of_killing_the_interpreter(model):
+    lim = troupe.limits()
+    assert lim["max_steps"] == 10000 and lim["max_text_tokens"] == 77
+    # A tar member declaring 2^50 bytes: once an abort of the whole interpreter.
+    header = tarfile.TarInfo("troupe.json")
+    header.size = 2
+    block = bytearray(header.tobuf(format=tarfile.GNU_FORMAT))
+    block[124:136] = b"\x80" + (1 << 50).to_bytes(11, "big")  # base-256 size field
+    block[148:156] = b"        "
+    block[148:156] = b"%06o\0 " % sum(block)
+    with pytest.raises(troupe.TroupeError, match="declares 1125899906842624 bytes"):
+        troupe.Model.from_bytes(bytes(block) + b"{}" + b"\0" * 1534)
+    with pytest.raises(troupe.TroupeError, match="limit of 10000"):
+        model.session(steps=2**32 - 1)
+    with model.session() as s:
+        with pytest.raises(troupe.TroupeError, match="INVALID_ARG"):
+            s.step(np.full((4, model.frame_dim), 3.4e38, np.float32))
+        out = s.step(actor(8))
+        assert out.shape == (8, 262) and np.isfinite(out).all()
+    before = troupe._lib.troupe_load_threads()
+    troupe.set_load_threads(1)
+    assert troupe._lib.troupe_load_threads() == 1
+    troupe.set_load_threads(0)
+    assert troupe._lib.troupe_load_threads() == before
+
+
+def test_progress_callbacks_report_and_cancel_long_calls():
+    seen = []
+    with troupe.progress(lambda done, total: seen.append((done, total)) or done < 2):
+        with pytest.raises(troupe.TroupeError, match="CANCELLED"):
+            troupe.Model(BUNDLE)
+    assert seen == [(1, seen[0][1]), (2, seen[0][1])]
+    with pytest.raises(ZeroDivisionError):
+        with troupe.progress(lambda done, total: 1 / 0):
+            troupe.Model(BUNDLE)
+    troupe.Model(BUNDLE).close()  # no callback outside the block
+
+
 UMF = REPO / "onnx" / "bundles" / "umf-tiny"
 
 

@@ -19,8 +19,8 @@ import numpy as np
 
 from . import _native
 
-__all__ = ["Model", "Session", "TroupeError", "motion", "viewer", "step_sessions", "version", "ACTOR_LATENT_SAMPLE", "ACTOR_LATENT_MEAN",
-           "EULER", "RK4"]
+__all__ = ["Model", "Session", "TroupeError", "motion", "viewer", "step_sessions", "version", "limits",
+           "set_load_threads", "progress", "ACTOR_LATENT_SAMPLE", "ACTOR_LATENT_MEAN", "EULER", "RK4"]
 
 ACTOR_LATENT_SAMPLE = 0
 ACTOR_LATENT_MEAN = 1
@@ -49,6 +49,54 @@ def _check(status: int) -> None:
 def version() -> str:
     """The library's version string."""
     return _lib.troupe_version_string().decode()
+
+
+def limits() -> dict:
+    """troupe's limits (`troupe_limits`): every size from a file or a caller is checked against
+    them before anything is allocated. Keys: `max_steps`, `max_text_tokens`, ..."""
+    out = _native.Limits()
+    _check(_lib.troupe_limits_get(ctypes.byref(out), ctypes.sizeof(out)))
+    return {name: getattr(out, name) for name, _ in _native.Limits._fields_[2:]}
+
+
+def set_load_threads(threads: int) -> None:
+    """How many threads loading a model may use from now on (0: one per core, 1: only the
+    calling thread), process-wide."""
+    _lib.troupe_set_load_threads(int(threads))
+
+
+class progress:
+    """Reports the progress of long calls made by this thread inside the `with` block (model
+    loads, groups, clips) to `callback(done, total)`; a callback returning False cancels the call,
+    which raises `TroupeError` (`TROUPE_ERR_CANCELLED`). An exception in the callback cancels too
+    and is raised again after the call.
+
+        with troupe.progress(lambda done, total: not stop.is_set()):
+            group = model.generate_group(people=64)
+    """
+
+    def __init__(self, callback):
+        self._callback = callback
+        self._error = None
+
+        def call(_user, done, total):
+            try:
+                return 0 if self._callback(done, total) else 1
+            except BaseException as e:  # never unwind into the library
+                self._error = e
+                return 1
+
+        self._c_callback = _native.PROGRESS_FN(call)
+
+    def __enter__(self):
+        _lib.troupe_set_progress_callback(self._c_callback, None)
+        return self
+
+    def __exit__(self, kind, value, traceback):
+        _lib.troupe_set_progress_callback(_native.PROGRESS_FN(), None)
+        if self._error is not None and kind is not None:
+            raise self._error from value
+        return False
 
 
 def _floats(x, what: str, length: int | None = None) -> np.ndarray:

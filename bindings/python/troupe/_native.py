@@ -31,6 +31,20 @@ class SessionOptions(ctypes.Structure):
     ]
 
 
+class Limits(ctypes.Structure):
+    """Mirror of `troupe_limits`."""
+
+    _fields_ = [("struct_size", ctypes.c_uint32), ("reserved", ctypes.c_uint32)] + [
+        (name, ctypes.c_uint64)
+        for name in (
+            "max_bundle_bytes", "max_manifest_bytes", "max_archive_members", "max_graph_nodes",
+            "max_tensor_elements", "max_steps", "max_cfg_scale", "max_abs_input",
+            "max_frames_per_call", "max_queued_noise_tokens", "max_context_capacity", "max_people",
+            "max_text_tokens", "max_manifest_dim",
+        )
+    ]
+
+
 MAX_STAGES = 8  # TROUPE_MAX_STAGES
 
 
@@ -114,6 +128,7 @@ class PoseBuffers(ctypes.Structure):
 
 
 LOG_FN = ctypes.CFUNCTYPE(None, ctypes.c_void_p, ctypes.c_int32, ctypes.c_char_p, ctypes.c_char_p)
+PROGRESS_FN = ctypes.CFUNCTYPE(ctypes.c_int32, ctypes.c_void_p, ctypes.c_uint64, ctypes.c_uint64)
 
 model_p = ctypes.c_void_p
 session_p = ctypes.c_void_p
@@ -131,6 +146,10 @@ PROTOTYPES = {
     "troupe_last_error_message": (ctypes.c_char_p, []),
     "troupe_last_error_copy": (status, [ctypes.c_char_p, c_size, ctypes.POINTER(c_size)]),
     "troupe_set_log_callback": (status, [LOG_FN, ctypes.c_void_p, ctypes.c_int32]),
+    "troupe_limits_get": (status, [ctypes.POINTER(Limits), c_size]),
+    "troupe_set_load_threads": (None, [c_size]),
+    "troupe_set_progress_callback": (None, [PROGRESS_FN, ctypes.c_void_p]),
+    "troupe_load_threads": (c_size, []),
     "troupe_model_load_file": (status, [ctypes.c_char_p, ctypes.POINTER(model_p)]),
     "troupe_model_load_memory": (status, [ctypes.c_char_p, c_size, ctypes.POINTER(model_p)]),
     "troupe_model_free": (None, [model_p]),
