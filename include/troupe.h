@@ -14,22 +14,33 @@
  *   A troupe_motion_stream is one person's stream: one thread at a time, like a session.
  * - Handles. troupe_model is a loaded bundle: immutable, and every function taking a
  *   `const troupe_model *` may be called from any thread at any time. troupe_session is one
- *   actor/reactor stream: not synchronised, so one thread at a time (it may move between
- *   threads); distinct sessions run in parallel. A session keeps its model alive, so the two may
- *   be freed in any order. _free(NULL) is a no-op.
+ *   actor/reactor stream, used by one thread at a time (it may move between threads); a call on
+ *   a session or stream another thread is using fails with TROUPE_ERR_BUSY and does nothing.
+ *   Distinct sessions run in parallel. A session keeps its model alive, so the two may be freed
+ *   in any order. _free(NULL) is a no-op.
  * - Errors. Every fallible function returns a troupe_status (int32_t): TROUPE_OK or a
  *   TROUPE_ERR_* code. Out-parameters are written only on success (out-handles are set to NULL
  *   on entry). troupe_last_error_message() then says what failed; it is per thread and cleared
  *   by the next successful status-returning call (troupe_last_error_copy leaves it as it is).
  *   A failed call leaves the session exactly as it was.
- * - Panics never cross this boundary: an internal panic returns TROUPE_ERR_PANIC and poisons
- *   the session involved; it then returns TROUPE_ERR_POISONED until troupe_session_reset.
+ * - Panics never cross this boundary: an internal panic returns TROUPE_ERR_PANIC, its reason in
+ *   the last error (nothing is printed), and poisons the session involved; it then returns
+ *   TROUPE_ERR_POISONED until troupe_session_reset.
+ * - Limits. Every size from a file or a caller (bundle and member sizes, manifest numbers,
+ *   steps, CFG scale, value magnitudes, frames, queued noise, people, tokens) is checked against
+ *   troupe_limits_get before anything is allocated for it; beyond a limit the call fails with a
+ *   message naming it. Outputs are checked finite: a call that would return a non-finite value
+ *   fails with TROUPE_ERR_INFERENCE instead.
  * - Memory. Inputs (frames, paths, bytes) are borrowed for the duration of the call only.
  *   Outputs go into caller-owned buffers; nothing returned needs freeing except the handles.
  *   Frames are contiguous row-major float32 [frames][frame_dim], host endianness; input and
- *   output buffers must not overlap. NaN and infinite inputs are rejected.
- * - No global initialisation is needed; the library starts no threads: step() runs on the
- *   calling thread. Logging is silent unless troupe_set_log_callback is used.
+ *   output buffers must not overlap. NaN, infinite and out-of-range inputs are rejected.
+ * - Threads. No global initialisation is needed. The library starts threads only while loading
+ *   a model (up to one per core; troupe_set_load_threads bounds them), all joined before the
+ *   load returns; every other call, step() included, runs on the calling thread alone.
+ * - Long calls (loads, groups, clips) report progress to the calling thread's
+ *   troupe_set_progress_callback, which may cancel them (TROUPE_ERR_CANCELLED).
+ *   Logging is silent unless troupe_set_log_callback is used.
  * - Structs grow only at their tail; struct_size tells the library which version the caller
  *   compiled against. Status and option constants are #defines of fixed-width integers.
  */

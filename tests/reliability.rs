@@ -12,26 +12,6 @@ use common::*;
 use ndarray::Array2;
 use troupe::{ClipOptions, Error, Model, SessionOptions, TokenNoise, LIMITS};
 
-/// A copy of the tiny bundle's files in a fresh directory.
-fn bundle_copy() -> tempfile::TempDir {
-    let dir = tempfile::tempdir().unwrap();
-    for entry in std::fs::read_dir(bundle_dir()).unwrap() {
-        let path = entry.unwrap().path();
-        if path.is_file() {
-            std::fs::copy(&path, dir.path().join(path.file_name().unwrap())).unwrap();
-        }
-    }
-    dir
-}
-
-fn edit_manifest(dir: &Path, edit: impl FnOnce(&mut serde_json::Value)) {
-    let path = dir.join("troupe.json");
-    let mut v: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
-    edit(&mut v);
-    std::fs::write(&path, serde_json::to_string_pretty(&v).unwrap()).unwrap();
-}
-
 /// Loads `path` on another thread; fails the test if the load has not returned in 60 s (a hang)
 /// rather than hanging the suite.
 fn load_without_hanging(path: &Path) -> Result<Model, Error> {

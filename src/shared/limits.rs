@@ -125,7 +125,10 @@ mod tests {
         assert_eq!(product_at_most("p", &[2, 3], 6).unwrap(), 6);
         assert!(product_at_most("p", &[2, 4], 6).is_err());
         assert!(product_at_most("p", &[u64::MAX, 2], u64::MAX).is_err());
-        assert!(at_most("steps", 1025, LIMITS.max_steps, true).is_err());
-        assert!(at_most("steps", 1024, LIMITS.max_steps, true).is_ok());
+        let most = LIMITS.max_steps;
+        assert!(at_most("steps", most + 1, most, true).is_err());
+        assert!(at_most("steps", most, most, true).is_ok());
+        assert!(check_steps("steps", 0).is_err() && check_steps("steps", 10_000).is_ok());
+        assert!(check_cfg(f32::MAX).is_err() && check_cfg(-1000.0).is_ok());
     }
 }

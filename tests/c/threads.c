@@ -109,24 +109,28 @@ static void *race(void *arg) {
     return NULL;
 }
 
+/* Runs `a` and `b` (each 300 successful calls on the same handle) on two threads at once and
+ * checks that every call was either done or refused as busy. */
+static void run_race(racer *a, racer *b) {
+    pthread_t ta, tb;
+    a->calls = b->calls = 300;
+    CHECK(pthread_create(&ta, NULL, race, a) == 0);
+    CHECK(pthread_create(&tb, NULL, race, b) == 0);
+    pthread_join(ta, NULL);
+    pthread_join(tb, NULL);
+    CHECK(a->other == 0 && b->other == 0);
+    CHECK(a->ok == a->calls && b->ok == b->calls);
+}
+
 static void race_on_one_session(int batched_b) {
     troupe_session *s = NULL;
-    troupe_motion_stream *none = NULL;
     racer a, b;
-    pthread_t ta, tb;
     EXPECT(troupe_session_new(model, NULL, &s), TROUPE_OK);
     memset(&a, 0, sizeof a);
     memset(&b, 0, sizeof b);
     a.session = b.session = s;
-    a.stream = b.stream = none;
-    a.calls = b.calls = 300;
     b.batched = batched_b;
-    CHECK(pthread_create(&ta, NULL, race, &a) == 0);
-    CHECK(pthread_create(&tb, NULL, race, &b) == 0);
-    pthread_join(ta, NULL);
-    pthread_join(tb, NULL);
-    CHECK(a.other == 0 && b.other == 0);
-    CHECK(a.ok == a.calls && b.ok == b.calls);
+    run_race(&a, &b);
     /* The session saw exactly the frames of the calls that succeeded, one each, and returned
      * every complete token's frames to them. */
     CHECK(a.frames_out + b.frames_out == (size_t)((a.ok + b.ok) / 4 * 4));
@@ -144,19 +148,12 @@ static void race_on_one_stream(void) {
     troupe_joints_format format;
     troupe_motion_stream *stream = NULL;
     racer a, b;
-    pthread_t ta, tb;
     EXPECT(troupe_joints_format_init(&format, sizeof format), TROUPE_OK);
     EXPECT(troupe_motion_stream_new(model, &format, NULL, &stream), TROUPE_OK);
     memset(&a, 0, sizeof a);
     memset(&b, 0, sizeof b);
     a.stream = b.stream = stream;
-    a.calls = b.calls = 300;
-    CHECK(pthread_create(&ta, NULL, race, &a) == 0);
-    CHECK(pthread_create(&tb, NULL, race, &b) == 0);
-    pthread_join(ta, NULL);
-    pthread_join(tb, NULL);
-    CHECK(a.other == 0 && b.other == 0);
-    CHECK(a.ok == a.calls && b.ok == b.calls);
+    run_race(&a, &b);
     printf("stream race: %d + %d pushes succeeded, %d + %d were refused as busy\n", a.ok, b.ok,
            a.busy, b.busy);
     troupe_motion_stream_free(stream);

@@ -1,0 +1,280 @@
+//! The fuzz targets' bodies, shared by the coverage-guided cargo-fuzz binaries
+//! (`fuzz/fuzz_targets/*.rs`, nightly) and by `tests/fuzz.rs`, which replays the committed corpus
+//! and every crash ever found, then mutates the corpus for a bounded time on the stable
+//! toolchain. A body may return any error; what it must never do is panic, abort, hang, or let
+//! a non-finite value out.
+
+#![allow(dead_code)]
+
+use std::path::{Path, PathBuf};
+use std::sync::OnceLock;
+
+use troupe::{Model, SessionOptions};
+
+/// The committed tiny bundle every target builds on.
+pub fn bundle_dir() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .ancestors()
+        .find(|p| p.join("onnx/bundles/armflow-tiny").is_dir())
+        .expect("the repository root")
+        .join("onnx/bundles/armflow-tiny")
+}
+
+/// The tiny bundle's files, by name.
+pub fn bundle_files() -> &'static Vec<(String, Vec<u8>)> {
+    static FILES: OnceLock<Vec<(String, Vec<u8>)>> = OnceLock::new();
+    FILES.get_or_init(|| {
+        let mut files: Vec<_> = std::fs::read_dir(bundle_dir())
+            .unwrap()
+            .map(|e| e.unwrap().path())
+            .filter(|p| p.is_file())
+            .map(|p| {
+                let name = p.file_name().unwrap().to_str().unwrap().to_owned();
+                (name, std::fs::read(&p).unwrap())
+            })
+            .collect();
+        files.sort();
+        files
+    })
+}
+
+/// The tiny model, loaded once.
+pub fn model() -> &'static Model {
+    static MODEL: OnceLock<Model> = OnceLock::new();
+    MODEL.get_or_init(|| Model::load(bundle_dir()).expect("the committed bundle loads"))
+}
+
+/// A tar archive of the tiny bundle with `replace`'s file swapped for the given bytes.
+pub fn archive_with(replace: &str, bytes: &[u8]) -> Vec<u8> {
+    let mut builder = tar::Builder::new(Vec::new());
+    for (name, data) in bundle_files() {
+        let data = if name == replace { bytes } else { data };
+        let mut header = tar::Header::new_gnu();
+        header.set_size(data.len() as u64);
+        header.set_mode(0o644);
+        builder.append_data(&mut header, name, data).unwrap();
+    }
+    builder.into_inner().unwrap()
+}
+
+/// Tar archives: any bytes as a whole bundle.
+pub fn tar_archive(data: &[u8]) {
+    let _ = Model::from_archive_bytes(data, "fuzz.troupe");
+}
+
+/// Manifests: parsed and validated always; when valid, loaded with the real graphs.
+pub fn manifest(data: &[u8]) {
+    let Ok(text) = std::str::from_utf8(data) else {
+        return;
+    };
+    if troupe::Manifest::parse(text, Path::new("troupe.json")).is_ok() {
+        let _ = Model::from_archive_bytes(&archive_with("troupe.json", data), "fuzz.troupe");
+    }
+}
+
+/// ONNX bytes as the velocity graph of the tiny bundle, through the whole loader.
+pub fn onnx_graph(data: &[u8]) {
+    let _ = Model::from_archive_bytes(&archive_with("velocity.onnx", data), "fuzz.troupe");
+}
+
+/// Reads little-endian numbers off the front of the data.
+pub struct Bytes<'a>(pub &'a [u8]);
+
+impl Bytes<'_> {
+    pub fn u8(&mut self) -> u8 {
+        let Some((&b, rest)) = self.0.split_first() else {
+            return 0;
+        };
+        self.0 = rest;
+        b
+    }
+
+    pub fn u32(&mut self) -> u32 {
+        u32::from_le_bytes([self.u8(), self.u8(), self.u8(), self.u8()])
+    }
+
+    pub fn f32(&mut self) -> f32 {
+        f32::from_bits(self.u32())
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.0.is_empty()
+    }
+}
+
+/// A session stepped with arbitrary options, chunking and values: every step either fails
+/// (leaving the session usable) or gives finite frames.
+pub fn session_step(data: &[u8]) {
+    let model = model();
+    let d = model.frame_dim();
+    let mut bytes = Bytes(data);
+    let options = SessionOptions {
+        seed: u64::from(bytes.u32()),
+        steps: Some(u32::from(bytes.u8() % 4)),
+        cfg_scale: Some(match bytes.u8() % 4 {
+            0 => 1.0,
+            1 => bytes.f32(),
+            _ => f32::from(bytes.u8()) / 16.0,
+        }),
+        context_capacity: Some(usize::from(bytes.u8() % 12)),
+        ..SessionOptions::default()
+    };
+    let Ok(mut session) = model.session(options) else {
+        return;
+    };
+    while !bytes.is_empty() {
+        let frames = usize::from(bytes.u8() % 9);
+        let mode = bytes.u8();
+        let chunk: Vec<f32> = (0..frames * d)
+            .map(|i| match mode % 4 {
+                0 => ((i as f32) * 0.37).sin(),
+                1 => f32::from(bytes.u8()) / 32.0 - 4.0,
+                2 => bytes.f32(),
+                _ => 0.0,
+            })
+            .collect();
+        if let Ok(out) = session.step_flat(&chunk) {
+            assert!(
+                out.frames.iter().all(|v| v.is_finite()),
+                "a step returned a non-finite frame"
+            );
+        }
+        if mode == 255 {
+            session.reset();
+        }
+    }
+}
+
+/// Arbitrary sequences of C API calls on one model: sessions created, stepped, reconfigured,
+/// reset and freed in any order, with arbitrary sizes and NULLs. Only statuses may come back.
+pub fn c_api_sequence(data: &[u8]) {
+    use troupe::ffi::armflow::session::*;
+    use troupe::ffi::boundary::TROUPE_OK;
+    static HANDLE: OnceLock<usize> = OnceLock::new();
+    let model = *HANDLE.get_or_init(|| {
+        let path = std::ffi::CString::new(bundle_dir().to_str().unwrap()).unwrap();
+        let mut out = std::ptr::null_mut();
+        // SAFETY: a valid path and out-pointer.
+        let st = unsafe { troupe::ffi::model::troupe_model_load_file(path.as_ptr(), &mut out) };
+        assert_eq!(st, TROUPE_OK);
+        out as usize
+    });
+    // SAFETY: the handle loaded above lives for the process.
+    let model = unsafe { (model as *const troupe::ffi::model::troupe_model).as_ref() };
+    let d = 262usize;
+    let mut bytes = Bytes(data);
+    let mut sessions: Vec<*mut troupe_session> = Vec::new();
+    let frames: Vec<f32> = (0..16 * d).map(|i| ((i as f32) * 0.01).cos()).collect();
+    let mut out = vec![0f32; 16 * d];
+    let mut written = 0usize;
+    while !bytes.is_empty() {
+        let op = bytes.u8();
+        let pick = usize::from(bytes.u8());
+        let session = if sessions.is_empty() || pick == 255 {
+            std::ptr::null_mut()
+        } else {
+            sessions[pick % sessions.len()]
+        };
+        // SAFETY: every pointer passed is NULL, a live handle from `sessions`, or a buffer of
+        // the size passed with it; freed handles are removed from `sessions` at once.
+        unsafe {
+            match op % 10 {
+                0 if sessions.len() < 8 => {
+                    let mut options = std::mem::zeroed::<troupe_session_options>();
+                    let mut s = std::ptr::null_mut();
+                    if troupe_session_options_init(
+                        model,
+                        &mut options,
+                        std::mem::size_of_val(&options),
+                    ) == TROUPE_OK
+                    {
+                        options.steps = bytes.u32() % 5;
+                        options.cfg_scale = bytes.f32();
+                        options.context_capacity = bytes.u32() % 20;
+                        if troupe_session_new(model, &options, &mut s) == TROUPE_OK {
+                            sessions.push(s);
+                        }
+                    }
+                }
+                1 => {
+                    let n = usize::from(bytes.u8() % 17);
+                    let cap = usize::from(bytes.u8() % 17);
+                    troupe_session_step(
+                        session,
+                        frames.as_ptr(),
+                        n,
+                        out.as_mut_ptr(),
+                        cap,
+                        &mut written,
+                    );
+                    assert!(out[..written.min(16) * d].iter().all(|v| v.is_finite()));
+                }
+                2 => {
+                    troupe_session_set_steps(session, bytes.u32());
+                }
+                3 => {
+                    troupe_session_set_cfg_scale(session, bytes.f32());
+                }
+                4 => {
+                    troupe_session_reset(session);
+                }
+                5 => {
+                    let len = usize::from(bytes.u8());
+                    troupe_session_set_condition(session, frames.as_ptr(), len);
+                }
+                6 => {
+                    let len = usize::from(bytes.u8());
+                    troupe_session_queue_noise(session, frames.as_ptr(), frames.as_ptr(), len);
+                }
+                7 if !session.is_null() => {
+                    troupe_session_free(session);
+                    sessions.retain(|&s| s != session);
+                }
+                8 => {
+                    let n = usize::from(bytes.u8() % 5);
+                    let mut ready = 0;
+                    troupe_session_output_frames(session, n, &mut ready);
+                }
+                9 if !sessions.is_empty() => {
+                    let count = sessions.len().min(usize::from(bytes.u8() % 4) + 1);
+                    let ins: Vec<*const f32> = vec![frames.as_ptr(); count];
+                    let n_in: Vec<usize> =
+                        (0..count).map(|_| usize::from(bytes.u8() % 5)).collect();
+                    let mut outs: Vec<Vec<f32>> = vec![vec![0f32; 8 * d]; count];
+                    let out_ptrs: Vec<*mut f32> = outs.iter_mut().map(|o| o.as_mut_ptr()).collect();
+                    let caps = vec![8usize; count];
+                    let mut n_out = vec![0usize; count];
+                    troupe_sessions_step(
+                        sessions.as_ptr(),
+                        count,
+                        ins.as_ptr(),
+                        n_in.as_ptr(),
+                        out_ptrs.as_ptr(),
+                        caps.as_ptr(),
+                        n_out.as_mut_ptr(),
+                    );
+                    for (o, &n) in outs.iter().zip(&n_out) {
+                        assert!(o[..n.min(8) * d].iter().all(|v| v.is_finite()));
+                    }
+                }
+                _ => {}
+            }
+        }
+    }
+    for s in sessions {
+        // SAFETY: live handles, freed once.
+        unsafe { troupe_session_free(s) };
+    }
+}
+
+/// A target's body.
+pub type Target = fn(&[u8]);
+
+/// Every target by name, for the replay and mutation test.
+pub const TARGETS: [(&str, Target); 5] = [
+    ("tar_archive", tar_archive),
+    ("manifest", manifest),
+    ("onnx_graph", onnx_graph),
+    ("session_step", session_step),
+    ("c_api_sequence", c_api_sequence),
+];
