@@ -67,6 +67,34 @@ inline void check(const Status &s) {
 /// True when the loaded library speaks the ABI this header was written for.
 inline bool abi_compatible() { return troupe_abi_version() == TROUPE_ABI_VERSION; }
 
+/// The library's limits (troupe_limits_get): every size from a file or a caller is checked
+/// against them before anything is allocated.
+inline troupe_limits limits() {
+    troupe_limits l{};
+    troupe_limits_get(&l, sizeof l);
+    return l;
+}
+
+/// Reports the progress of long calls (loads, groups, clips) made by this thread while it lives
+/// to `callback(done, total)`; a callback returning false cancels the call
+/// (TROUPE_ERR_CANCELLED). The callback must not throw. Restores "no callback" when destroyed.
+template <class F>
+class ProgressScope {
+  public:
+    explicit ProgressScope(F callback) : callback_(std::move(callback)) {
+        troupe_set_progress_callback(&ProgressScope::call, this);
+    }
+    ~ProgressScope() { troupe_set_progress_callback(nullptr, nullptr); }
+    ProgressScope(const ProgressScope &) = delete;
+    ProgressScope &operator=(const ProgressScope &) = delete;
+
+  private:
+    static std::int32_t call(void *self, std::uint64_t done, std::uint64_t total) {
+        return static_cast<ProgressScope *>(self)->callback_(done, total) ? 0 : 1;
+    }
+    F callback_;
+};
+
 class Session;
 
 /// A loaded bundle. Move-only; freeing it while sessions exist is safe.

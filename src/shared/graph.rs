@@ -132,10 +132,11 @@ pub(crate) fn load_graphs(
     let mut slots: Vec<Option<Result<Graph>>> = (0..wanted.len()).map(|_| None).collect();
     let mut cancelled = Ok(());
     std::thread::scope(|scope| {
+        let mut handles = Vec::with_capacity(workers);
         for _ in 0..workers {
             let done_tx = done_tx.clone();
             let (next, stop, load) = (&next, &stop, &load);
-            scope.spawn(move || loop {
+            handles.push(scope.spawn(move || loop {
                 if stop.load(Ordering::Relaxed) {
                     break;
                 }
@@ -146,7 +147,7 @@ pub(crate) fn load_graphs(
                 if done_tx.send((i, load(role, spec))).is_err() {
                     break;
                 }
-            });
+            }));
         }
         drop(done_tx);
         for (finished, (i, graph)) in done_rx.iter().enumerate() {
@@ -157,6 +158,11 @@ pub(crate) fn load_graphs(
                     stop.store(true, Ordering::Relaxed);
                 }
             }
+        }
+        // Join each thread itself: the scope alone returns once the closures are done, while
+        // the threads may still be exiting (running their thread-local destructors).
+        for handle in handles {
+            let _ = handle.join();
         }
     });
     cancelled?;

@@ -29,12 +29,29 @@ static std::vector<float> run(troupe::Session &s, const std::vector<float> &acto
 int main(int argc, char **argv) {
     if (argc < 3) return 2;
     CHECK(troupe::abi_compatible());
+    CHECK(troupe::limits().max_steps == 10000);
     troupe::Model missing;
     troupe::Status bad = troupe::Model::load("/nonexistent/bundle", missing);
     CHECK(!bad && bad.code() == TROUPE_ERR_IO && !bad.message().empty() && !missing.valid());
 
     troupe::Model model;
-    CHECK(troupe::Model::load(argv[1], model).ok());
+    {
+        // A load cancelled at its first progress report, then one that reports every graph.
+        std::uint64_t reports = 0;
+        {
+            troupe::ProgressScope<bool (*)(std::uint64_t, std::uint64_t)> stop(
+                [](std::uint64_t, std::uint64_t) { return false; });
+            troupe::Status cancelled = troupe::Model::load(argv[1], model);
+            CHECK(cancelled.code() == TROUPE_ERR_CANCELLED && !model.valid());
+        }
+        auto count = [&reports](std::uint64_t done, std::uint64_t total) {
+            reports++;
+            return done <= total;
+        };
+        troupe::ProgressScope<decltype(count)> progress(count);
+        CHECK(troupe::Model::load(argv[1], model).ok());
+        CHECK(reports >= 5);
+    }
 
     // Named conditions: none on the plain bundle; the demo bundle's partner rules by name.
     {
