@@ -198,7 +198,72 @@ typedef struct troupe_session troupe_session;
 typedef int32_t troupe_status;
 
 /*
- troupe's limits. Fill with `troupe_limits_get`. A call given more than a limit fails with
+ troupe's limits, one value per build (`troupe_limit_values` in C, inside `troupe_limits`). A
+ call given more than a limit fails, naming it, before anything is allocated.
+ */
+typedef struct troupe_limit_values {
+  /*
+   Bytes of a whole bundle: the archive file or memory, or the sum of a directory bundle's
+   files. The paper-size ARMFlow bundle is about 200 MB.
+   */
+  uint64_t max_bundle_bytes;
+  /*
+   Bytes of `troupe.json`.
+   */
+  uint64_t max_manifest_bytes;
+  /*
+   Members of a tar bundle (graphs, manifest, directories).
+   */
+  uint64_t max_archive_members;
+  /*
+   Nodes of one ONNX graph.
+   */
+  uint64_t max_graph_nodes;
+  /*
+   Elements of any one tensor a graph declares or would build from constants.
+   */
+  uint64_t max_tensor_elements;
+  /*
+   Solver steps per token or per stage (MeanFlow, Euler, RK4).
+   */
+  uint64_t max_steps;
+  /*
+   Magnitude of a classifier-free guidance scale.
+   */
+  uint64_t max_cfg_scale;
+  /*
+   Magnitude of a motion feature or conditioning value a caller passes in.
+   */
+  uint64_t max_abs_input;
+  /*
+   Motion frames passed to one call (a step, a clip, an encoding).
+   */
+  uint64_t max_frames_per_call;
+  /*
+   Tokens of noise queued on a session and not yet used.
+   */
+  uint64_t max_queued_noise_tokens;
+  /*
+   Tokens kept in a session's context cache.
+   */
+  uint64_t max_context_capacity;
+  /*
+   People in one generated group.
+   */
+  uint64_t max_people;
+  /*
+   Text tokens passed to the text branch: CLIP's context, the most its text tower makes.
+   */
+  uint64_t max_text_tokens;
+  /*
+   Any integer a manifest declares outside `producer` (layers, heads, dimensions, token and
+   frame counts, steps).
+   */
+  uint64_t max_manifest_dim;
+} troupe_limit_values;
+
+/*
+ troupe's limits, for `troupe_limits_get`. A call given more than a limit fails with
  `TROUPE_ERR_INVALID_ARG` (a caller's value) or `TROUPE_ERR_MODEL` / `TROUPE_ERR_IO` (a
  bundle's), naming the limit, before anything is allocated. Fields are only ever appended.
  */
@@ -212,62 +277,9 @@ typedef struct troupe_limits {
    */
   uint32_t reserved;
   /*
-   Bytes of a whole bundle (archive file or memory, or a directory's files together).
+   The limits.
    */
-  uint64_t max_bundle_bytes;
-  /*
-   Bytes of a bundle's `troupe.json`.
-   */
-  uint64_t max_manifest_bytes;
-  /*
-   Members of a tar bundle.
-   */
-  uint64_t max_archive_members;
-  /*
-   Nodes of one ONNX graph.
-   */
-  uint64_t max_graph_nodes;
-  /*
-   Elements of one tensor a graph declares or builds from constants, or that a manifest's
-   numbers make the runtime allocate.
-   */
-  uint64_t max_tensor_elements;
-  /*
-   Solver steps per token or per stage.
-   */
-  uint64_t max_steps;
-  /*
-   Magnitude of a classifier-free guidance scale.
-   */
-  uint64_t max_cfg_scale;
-  /*
-   Magnitude of a motion feature, condition or noise value passed in.
-   */
-  uint64_t max_abs_input;
-  /*
-   Motion frames passed to one call.
-   */
-  uint64_t max_frames_per_call;
-  /*
-   Tokens of noise queued on a session.
-   */
-  uint64_t max_queued_noise_tokens;
-  /*
-   Tokens kept in a session's context cache.
-   */
-  uint64_t max_context_capacity;
-  /*
-   People in one generated group.
-   */
-  uint64_t max_people;
-  /*
-   CLIP tokens passed to `troupe_text_encode`.
-   */
-  uint64_t max_text_tokens;
-  /*
-   Any count or dimension a manifest declares.
-   */
-  uint64_t max_manifest_dim;
+  struct troupe_limit_values values;
 } troupe_limits;
 
 /*

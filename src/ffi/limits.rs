@@ -2,9 +2,9 @@
 //! `src/shared/limits.rs`), so that a host can validate its inputs the same way.
 
 use crate::ffi::boundary::{self, check_struct_size, non_null, troupe_status, write_versioned};
-use crate::shared::limits::LIMITS;
+use crate::shared::limits::{Limits, LIMITS};
 
-/// troupe's limits. Fill with `troupe_limits_get`. A call given more than a limit fails with
+/// troupe's limits, for `troupe_limits_get`. A call given more than a limit fails with
 /// `TROUPE_ERR_INVALID_ARG` (a caller's value) or `TROUPE_ERR_MODEL` / `TROUPE_ERR_IO` (a
 /// bundle's), naming the limit, before anything is allocated. Fields are only ever appended.
 #[repr(C)]
@@ -14,38 +14,11 @@ pub struct troupe_limits {
     pub struct_size: u32,
     /// Always 0.
     pub reserved: u32,
-    /// Bytes of a whole bundle (archive file or memory, or a directory's files together).
-    pub max_bundle_bytes: u64,
-    /// Bytes of a bundle's `troupe.json`.
-    pub max_manifest_bytes: u64,
-    /// Members of a tar bundle.
-    pub max_archive_members: u64,
-    /// Nodes of one ONNX graph.
-    pub max_graph_nodes: u64,
-    /// Elements of one tensor a graph declares or builds from constants, or that a manifest's
-    /// numbers make the runtime allocate.
-    pub max_tensor_elements: u64,
-    /// Solver steps per token or per stage.
-    pub max_steps: u64,
-    /// Magnitude of a classifier-free guidance scale.
-    pub max_cfg_scale: u64,
-    /// Magnitude of a motion feature, condition or noise value passed in.
-    pub max_abs_input: u64,
-    /// Motion frames passed to one call.
-    pub max_frames_per_call: u64,
-    /// Tokens of noise queued on a session.
-    pub max_queued_noise_tokens: u64,
-    /// Tokens kept in a session's context cache.
-    pub max_context_capacity: u64,
-    /// People in one generated group.
-    pub max_people: u64,
-    /// CLIP tokens passed to `troupe_text_encode`.
-    pub max_text_tokens: u64,
-    /// Any count or dimension a manifest declares.
-    pub max_manifest_dim: u64,
+    /// The limits.
+    pub values: Limits,
 }
 
-const LIMITS_V1_SIZE: usize = 8 + 14 * 8;
+const LIMITS_V1_SIZE: usize = 8 + std::mem::size_of::<Limits>();
 // No padding, so copying its bytes copies only initialised fields.
 const _: () = assert!(std::mem::size_of::<troupe_limits>() == LIMITS_V1_SIZE);
 
@@ -65,24 +38,10 @@ pub unsafe extern "C" fn troupe_limits_get(out: *mut troupe_limits, size: usize)
         || {
             non_null(out, "out")?;
             check_struct_size(size, LIMITS_V1_SIZE, "troupe_limits")?;
-            let l = LIMITS;
             let value = troupe_limits {
                 struct_size: size as u32,
                 reserved: 0,
-                max_bundle_bytes: l.max_bundle_bytes,
-                max_manifest_bytes: l.max_manifest_bytes,
-                max_archive_members: l.max_archive_members,
-                max_graph_nodes: l.max_graph_nodes,
-                max_tensor_elements: l.max_tensor_elements,
-                max_steps: l.max_steps,
-                max_cfg_scale: l.max_cfg_scale,
-                max_abs_input: l.max_abs_input,
-                max_frames_per_call: l.max_frames_per_call,
-                max_queued_noise_tokens: l.max_queued_noise_tokens,
-                max_context_capacity: l.max_context_capacity,
-                max_people: l.max_people,
-                max_text_tokens: l.max_text_tokens,
-                max_manifest_dim: l.max_manifest_dim,
+                values: LIMITS,
             };
             // SAFETY: writable for `size` bytes per the contract; no padding (asserted above).
             unsafe { write_versioned(out, size, &value) };

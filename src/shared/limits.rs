@@ -7,7 +7,9 @@
 
 use crate::shared::error::{Error, Result};
 
-/// The limits in force (one value per build; see the fields for what each bounds).
+/// troupe's limits, one value per build (`troupe_limit_values` in C, inside `troupe_limits`). A
+/// call given more than a limit fails, naming it, before anything is allocated.
+#[repr(C)]
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Limits {
     /// Bytes of a whole bundle: the archive file or memory, or the sum of a directory bundle's

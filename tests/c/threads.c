@@ -236,8 +236,8 @@ static void limits(void) {
     memset(&l, 0xff, sizeof l);
     EXPECT(troupe_limits_get(&l, sizeof l), TROUPE_OK);
     CHECK(l.struct_size == sizeof l && l.reserved == 0);
-    CHECK(l.max_steps == 10000 && l.max_text_tokens == 77 && l.max_people == 256);
-    CHECK(l.max_bundle_bytes >= ((uint64_t)1 << 30));
+    CHECK(l.values.max_steps == 10000 && l.values.max_text_tokens == 77 && l.values.max_people == 256);
+    CHECK(l.values.max_bundle_bytes >= ((uint64_t)1 << 30));
     EXPECT(troupe_limits_get(NULL, sizeof l), TROUPE_ERR_NULL_ARG);
     EXPECT(troupe_limits_get(&l, 4), TROUPE_ERR_INVALID_ARG);
     EXPECT(troupe_session_options_init(model, &opt, sizeof opt), TROUPE_OK);

@@ -29,7 +29,7 @@ static std::vector<float> run(troupe::Session &s, const std::vector<float> &acto
 int main(int argc, char **argv) {
     if (argc < 3) return 2;
     CHECK(troupe::abi_compatible());
-    CHECK(troupe::limits().max_steps == 10000);
+    CHECK(troupe::limits().values.max_steps == 10000);
     troupe::Model missing;
     troupe::Status bad = troupe::Model::load("/nonexistent/bundle", missing);
     CHECK(!bad && bad.code() == TROUPE_ERR_IO && !bad.message().empty() && !missing.valid());

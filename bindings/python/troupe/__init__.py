@@ -56,7 +56,7 @@ def limits() -> dict:
     them before anything is allocated. Keys: `max_steps`, `max_text_tokens`, ..."""
     out = _native.Limits()
     _check(_lib.troupe_limits_get(ctypes.byref(out), ctypes.sizeof(out)))
-    return {name: getattr(out, name) for name, _ in _native.Limits._fields_[2:]}
+    return {name: getattr(out.values, name) for name, _ in _native.LimitValues._fields_}
 
 
 def set_load_threads(threads: int) -> None:

@@ -31,10 +31,10 @@ class SessionOptions(ctypes.Structure):
     ]
 
 
-class Limits(ctypes.Structure):
-    """Mirror of `troupe_limits`."""
+class LimitValues(ctypes.Structure):
+    """Mirror of `troupe_limit_values`."""
 
-    _fields_ = [("struct_size", ctypes.c_uint32), ("reserved", ctypes.c_uint32)] + [
+    _fields_ = [
         (name, ctypes.c_uint64)
         for name in (
             "max_bundle_bytes", "max_manifest_bytes", "max_archive_members", "max_graph_nodes",
@@ -43,6 +43,12 @@ class Limits(ctypes.Structure):
             "max_text_tokens", "max_manifest_dim",
         )
     ]
+
+
+class Limits(ctypes.Structure):
+    """Mirror of `troupe_limits`."""
+
+    _fields_ = [("struct_size", ctypes.c_uint32), ("reserved", ctypes.c_uint32), ("values", LimitValues)]
 
 
 MAX_STAGES = 8  # TROUPE_MAX_STAGES
