@@ -317,6 +317,32 @@ impl<T> Exclusive<T> {
     }
 }
 
+/// Frees the boxed handle `handle` (NULL: nothing) unless another thread is in a call on it, as
+/// `exclusive` tells: freeing it then would free memory in use, so the handle is leaked and the
+/// C function `name` logs an error instead.
+///
+/// # Safety
+/// `handle` must be NULL or from `Box::into_raw`, not freed before.
+pub(crate) unsafe fn free_unless_busy<H, T>(
+    handle: *mut H,
+    exclusive: impl FnOnce(&H) -> &Exclusive<T>,
+    name: &'static str,
+) {
+    // SAFETY: NULL or a live handle per the contract; only its atomic flag is read through `&`.
+    let Some(live) = (unsafe { handle.as_ref() }) else {
+        return;
+    };
+    if exclusive(live).claim("the handle").is_err() {
+        log(Level::Error, "troupe::ffi", || {
+            format!("{name}: the handle is in use by another thread; not freed")
+        });
+        return;
+    }
+    // SAFETY: from Box::into_raw, freed once per the contract, and no call on it in progress
+    // (the claim above succeeded and was released).
+    get((), || drop(unsafe { Box::from_raw(handle) }));
+}
+
 /// Exclusive use of an [`Exclusive`] value for the length of one call.
 pub(crate) struct Claim<'a, T> {
     cell: &'a Exclusive<T>,

@@ -34,15 +34,24 @@ pub(crate) fn check_input(what: &str, values: &[f32]) -> Result<()> {
 /// arithmetic) fails the call with an [`Error::Inference`] naming `graph` and `what`.
 pub(crate) fn check_output(graph: &'static str, what: &str, values: &[f32]) -> Result<()> {
     let bad = values.iter().filter(|v| !v.is_finite()).count();
+    check_output_counted(graph, what, bad, values.len())
+}
+
+/// [`check_output`] for values counted elsewhere: `bad` of `total` are not finite.
+pub(crate) fn check_output_counted(
+    graph: &'static str,
+    what: &str,
+    bad: usize,
+    total: usize,
+) -> Result<()> {
     if bad == 0 {
         return Ok(());
     }
     Err(Error::Inference {
         graph,
         message: format!(
-            "{bad} of {} values of the {what} are not finite (extreme inputs or settings \
-             overflowed the network)",
-            values.len()
+            "{bad} of {total} values of the {what} are not finite (extreme inputs or settings \
+             overflowed the network)"
         ),
     })
 }

@@ -14,6 +14,7 @@
 use super::{Session, StepOutput, StreamState, TokenNoise, TokenTrace};
 use crate::armflow::networks::{Networks, VaeState};
 use crate::armflow::spec::{ActorLatent, ArmFlowSpec};
+use crate::shared::checks::{check_output, check_output_counted};
 use crate::shared::error::{Error, Result};
 
 /// One stream's part in a step.
@@ -71,34 +72,22 @@ impl<'s> Lane<'s> {
         st.tokens > st.frames_emitted / fpt + m.vae.decoder.lookahead_tokens as u64
     }
 
-    /// Fails when `values`, computed by `graph` for this lane's current token, are not all
-    /// finite.
-    fn check_finite(&self, graph: &'static str, what: &str, values: &[f32]) -> Result<()> {
-        let bad = values.iter().filter(|v| !v.is_finite()).count();
-        self.check_counted(graph, what, bad, values.len())
-    }
-
-    /// [`Lane::check_finite`] given the count of non-finite values among `total`.
-    fn check_counted(
-        &self,
-        graph: &'static str,
-        what: &str,
-        bad: usize,
-        total: usize,
-    ) -> Result<()> {
-        if bad == 0 {
-            return Ok(());
-        }
-        let whose = self
-            .index
-            .map_or(String::new(), |i| format!("session {i}: "));
-        Err(Error::Inference {
-            graph,
-            message: format!(
-                "{whose}token {}: {bad} of {} values of the {what} are not finite (extreme \
-                 inputs or settings overflowed the network); the session is unchanged",
-                self.state.tokens, total
-            ),
+    /// A failed output check of this lane's current token, with the session and token named.
+    fn in_token(&self, checked: Result<()>) -> Result<()> {
+        checked.map_err(|e| match e {
+            Error::Inference { graph, message } => {
+                let whose = self
+                    .index
+                    .map_or(String::new(), |i| format!("session {i}: "));
+                Error::Inference {
+                    graph,
+                    message: format!(
+                        "{whose}token {}: {message}; the session is unchanged",
+                        self.state.tokens
+                    ),
+                }
+            }
+            other => other,
         })
     }
 
@@ -171,14 +160,16 @@ fn generate_tokens(nets: &Networks, lanes: &mut [&mut Lane]) -> Result<()> {
     }
 
     for (i, lane) in lanes.iter().enumerate() {
-        lane.check_finite(
-            "vae_encoder",
-            "actor latent",
-            &actor[i * lat..(i + 1) * lat],
-        )?;
+        let latent = &actor[i * lat..(i + 1) * lat];
+        lane.in_token(check_output("vae_encoder", "actor latent", latent))?;
         if let Some(vae) = &lane.state.vae {
             let (bad, total) = vae.non_finite(true);
-            lane.check_counted("vae_encoder", "encoder state", bad, total)?;
+            lane.in_token(check_output_counted(
+                "vae_encoder",
+                "encoder state",
+                bad,
+                total,
+            ))?;
         }
     }
 
@@ -215,12 +206,12 @@ fn generate_tokens(nets: &Networks, lanes: &mut [&mut Lane]) -> Result<()> {
 
     let c = context.len() / lanes.len();
     for (i, lane) in lanes.iter().enumerate() {
-        lane.check_finite("context_step", "context", &context[i * c..(i + 1) * c])?;
-        lane.check_finite(
-            "velocity",
-            "reactor latent",
+        let (ci, bi) = (
+            &context[i * c..(i + 1) * c],
             &reactor[i * lat..(i + 1) * lat],
-        )?;
+        );
+        lane.in_token(check_output("context_step", "context", ci))?;
+        lane.in_token(check_output("velocity", "reactor latent", bi))?;
     }
     for (i, lane) in lanes.iter_mut().enumerate() {
         let (a, b) = (
@@ -374,10 +365,15 @@ fn decode_tokens(nets: &Networks, lanes: &mut [&mut Lane]) -> Result<()> {
         for (row, &i) in stepping.iter().enumerate() {
             let lane = &mut lanes[i];
             let mine = &frames[row * per..(row + 1) * per];
-            lane.check_finite("vae_decoder", "decoded frames", mine)?;
+            lane.in_token(check_output("vae_decoder", "decoded frames", mine))?;
             if let Some(vae) = &lane.state.vae {
                 let (bad, total) = vae.non_finite(false);
-                lane.check_counted("vae_decoder", "decoder state", bad, total)?;
+                lane.in_token(check_output_counted(
+                    "vae_decoder",
+                    "decoder state",
+                    bad,
+                    total,
+                ))?;
             }
             lane.frames.extend_from_slice(mine);
         }
@@ -392,7 +388,7 @@ fn decode_tokens(nets: &Networks, lanes: &mut [&mut Lane]) -> Result<()> {
             let motion = nets.decode(&latents)?;
             let row = (k - start) as usize * fpt * dim;
             let mine = &motion[row..row + fpt * dim];
-            lane.check_finite("vae_decoder", "decoded frames", mine)?;
+            lane.in_token(check_output("vae_decoder", "decoded frames", mine))?;
             lane.frames.extend_from_slice(mine);
         }
         lane.state.frames_emitted += fpt as u64;

@@ -210,20 +210,8 @@ pub unsafe extern "C" fn troupe_session_new(
 /// `session` must be NULL or a handle from `troupe_session_new` not freed before.
 #[no_mangle]
 pub unsafe extern "C" fn troupe_session_free(session: *mut troupe_session) {
-    if session.is_null() {
-        return;
-    }
-    // SAFETY: a live handle per the contract; only its atomic flag is read through `&`.
-    let handle = unsafe { &*session };
-    if handle.session.claim("the session").is_err() {
-        crate::shared::logging::log(crate::shared::logging::Level::Error, "troupe::ffi", || {
-            "troupe_session_free: the session is in use by another thread; not freed".into()
-        });
-        return;
-    }
-    // SAFETY: created by Box::into_raw, freed once per the contract, and no other thread is in
-    // a call on it (the claim above succeeded; its guard was dropped at the end of the `if`).
-    boundary::get((), || drop(unsafe { Box::from_raw(session) }));
+    // SAFETY: forwarded contract.
+    unsafe { boundary::free_unless_busy(session, |h| &h.session, "troupe_session_free") }
 }
 
 /// Runs `body` on a live session: NULL, busy and poison checks, panic capture (which poisons).

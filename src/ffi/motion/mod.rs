@@ -24,7 +24,6 @@ use crate::motion::{
     decode_frame, encode_clip, joints_layout, FeatureStream, Handedness, JointsFormat, Placement,
     Pose, Skeleton, Units, UpAxis, T2M22_JOINTS,
 };
-use crate::shared::logging::{log, Level};
 use crate::Model;
 
 /// Positions in metres.
@@ -850,16 +849,6 @@ pub unsafe extern "C" fn troupe_motion_stream_reset(
 /// `stream` must be NULL or a live handle from `troupe_motion_stream_new`, not used afterwards.
 #[no_mangle]
 pub unsafe extern "C" fn troupe_motion_stream_free(stream: *mut troupe_motion_stream) {
-    // SAFETY: NULL or a live handle per the contract; only its atomic flag is read through `&`.
-    let Some(handle) = (unsafe { stream.as_ref() }) else {
-        return;
-    };
-    if handle.stream.claim("the stream").is_err() {
-        log(Level::Error, "troupe::ffi", || {
-            "troupe_motion_stream_free: the stream is in use by another thread; not freed".into()
-        });
-        return;
-    }
-    // SAFETY: from Box::into_raw, freed once per the contract, no call on it in progress.
-    boundary::get((), || drop(unsafe { Box::from_raw(stream) }));
+    // SAFETY: forwarded contract.
+    unsafe { boundary::free_unless_busy(stream, |h| &h.stream, "troupe_motion_stream_free") }
 }
