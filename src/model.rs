@@ -13,7 +13,7 @@ use crate::armflow::{self, Clip, ClipOptions, Session, SessionOptions};
 use crate::manifest::{ArmFlowSpec, ClipSpec, ConditionLabel, Family, Manifest, UmfSpec};
 use crate::shared::bundle::BundleFiles;
 use crate::shared::error::{Error, Result};
-use crate::shared::text_branch::TextBranch;
+use crate::shared::text::branch::TextBranch;
 use crate::umf::{self, Group, GroupNoise, GroupNoiseShape, GroupOptions};
 
 /// A loaded bundle: manifest plus optimised graphs. An `armflow` model streams reactions

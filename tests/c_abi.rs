@@ -349,6 +349,125 @@ fn c_threads_share_a_model_and_racing_calls_are_refused() {
     println!("{}", run(&[], &bin, &[&dir]));
 }
 
+/// The same program under ThreadSanitizer, long form only (`TROUPE_SLOW_TESTS=1`): the library
+/// and every dependency, std included, rebuilt with `-Zsanitizer=thread` (nightly toolchain with
+/// `rust-src`, about 7 minutes on 2 cores, in `target/tsan`), the program compiled with gcc's
+/// `-fsanitize=thread` and linked to the runtime Rust ships (gcc 12's lacks entry points rustc's
+/// instrumentation calls). A deliberately racy control program must be reported first, so a
+/// clean run means the sanitizer was watching.
+#[test]
+fn c_threads_under_thread_sanitizer() {
+    if !slow_tests() {
+        println!("c_threads_under_thread_sanitizer runs in the long form (TROUPE_SLOW_TESTS=1)");
+        return;
+    }
+    let rustc = |args: &[&str]| {
+        let out = Command::new("rustc")
+            .arg("+nightly")
+            .args(args)
+            .output()
+            .expect("run rustc +nightly");
+        assert!(
+            out.status.success(),
+            "the ThreadSanitizer test needs the nightly toolchain (rustup toolchain install \
+             nightly --component rust-src): {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        String::from_utf8(out.stdout).unwrap()
+    };
+    let host = rustc(&["-vV"])
+        .lines()
+        .find_map(|l| l.strip_prefix("host: ").map(str::to_owned))
+        .unwrap();
+    let sysroot = PathBuf::from(rustc(&["--print", "sysroot"]).trim());
+    let runtime = sysroot.join(format!("lib/rustlib/{host}/lib/librustc-nightly_rt.tsan.a"));
+    assert!(
+        runtime.is_file(),
+        "no ThreadSanitizer runtime at {}",
+        runtime.display()
+    );
+
+    let target_dir = root().join("target/tsan");
+    let status = Command::new("cargo")
+        .current_dir(root())
+        .args(["+nightly", "build", "-Zbuild-std", "--release", "--lib"])
+        .args(["--target", &host, "--target-dir"])
+        .arg(&target_dir)
+        .env(
+            "RUSTFLAGS",
+            "-Zsanitizer=thread -Cdebuginfo=line-tables-only",
+        )
+        .env_remove("RUSTC")
+        .env_remove("RUSTUP_TOOLCHAIN")
+        .status()
+        .expect("run cargo +nightly");
+    assert!(
+        status.success(),
+        "the ThreadSanitizer build of the library failed"
+    );
+    let lib_dir = target_dir.join(&host).join("release");
+
+    // Compile instrumented, then link Rust's runtime whole (the program has no Rust code to pull
+    // it in) and the instrumented library.
+    let build = |name: &str| {
+        let object = compile(
+            "cc",
+            &["-std=c99", "-pthread", "-g", "-fsanitize=thread", "-c"],
+            &[&root().join(format!("tests/c/{name}.c"))],
+            &[],
+            &format!("{name}_tsan.o"),
+        );
+        let binary = scratch().join(format!("{name}_tsan"));
+        let status = Command::new("cc")
+            .arg(&object)
+            .arg("-o")
+            .arg(&binary)
+            .arg("-Wl,--whole-archive")
+            .arg(&runtime)
+            .args(["-Wl,--no-whole-archive", "-rdynamic"])
+            .arg(format!("-L{}", lib_dir.display()))
+            .arg(format!("-Wl,-rpath,{}", lib_dir.display()))
+            .args(["-ltroupe", "-lm", "-lpthread", "-ldl", "-lstdc++"])
+            .status()
+            .unwrap();
+        assert!(
+            status.success(),
+            "linking {name} with ThreadSanitizer failed"
+        );
+        binary
+    };
+    // Any report ends the program with status 66.
+    let options = "halt_on_error=1:exitcode=66";
+
+    let control = Command::new(build("data_race"))
+        .env("TSAN_OPTIONS", options)
+        .output()
+        .unwrap();
+    let report = String::from_utf8_lossy(&control.stderr);
+    assert!(
+        control.status.code() == Some(66) && report.contains("ThreadSanitizer: data race"),
+        "the control race was not reported: {report}"
+    );
+
+    let text = run(
+        // The library path first: cargo's LD_LIBRARY_PATH would otherwise load the ordinary,
+        // uninstrumented library, whose synchronisation the sanitizer cannot see.
+        &[
+            "env",
+            &format!("LD_LIBRARY_PATH={}", lib_dir.display()),
+            &format!("TSAN_OPTIONS={options}"),
+        ],
+        &build("threads"),
+        &[&threads_args()[0]],
+    );
+    assert!(
+        text.contains("sanitizer: thread"),
+        "not instrumented:\n{text}"
+    );
+    assert!(!text.contains("ThreadSanitizer"), "{text}");
+    println!("threads under ThreadSanitizer:\n{text}");
+}
+
 fn motion_args() -> [PathBuf; 3] {
     [
         root().join("onnx/bundles/armflow-tiny"),

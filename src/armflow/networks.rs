@@ -12,7 +12,7 @@ use crate::shared::checks::check_input;
 use crate::shared::error::{Error, Result};
 use crate::shared::graph::{f32_tensor, load_graphs, read_f32, split_rows, stack_rows, Graph};
 use crate::shared::graph_spec::{Dim, GraphSpec};
-use crate::shared::text_branch::TextBranch;
+use crate::shared::text::branch::TextBranch;
 
 /// An `armflow` bundle's graphs, loaded and optimised, with its own manifest section and the
 /// common facts it needs. Shared (`Arc`) by the [`crate::Model`] handles that loaded it and by

@@ -7,7 +7,7 @@ use crate::shared::bundle_io::{ConditionSpec, MotionSpec};
 use crate::shared::checks::ensure;
 use crate::shared::graph_spec::{contract, float, sym, DType, Dim, GraphSpec, TensorSpec};
 use crate::shared::limits::{check_cfg, check_steps, product_at_most, LIMITS};
-use crate::shared::text_branch::text_branch_contract;
+use crate::shared::text::branch::text_branch_contract;
 
 /// The manifest fields of an `armflow` bundle.
 #[derive(Debug, Clone, Serialize, Deserialize)]

@@ -15,4 +15,4 @@ pub(crate) mod onnx_guard;
 pub(crate) mod panics;
 pub mod progress;
 pub mod solver;
-pub(crate) mod text_branch;
+pub(crate) mod text;

@@ -4,7 +4,7 @@ use crate::shared::bundle::BundleFiles;
 use crate::shared::bundle_io::BundleIo;
 use crate::shared::error::Result;
 use crate::shared::graph::{load_graphs, Graph};
-use crate::shared::text_branch::TextBranch;
+use crate::shared::text::branch::TextBranch;
 
 use super::spec::UmfSpec;
 

@@ -8,7 +8,7 @@ use crate::shared::bundle_io::{ConditionSpec, MotionSpec};
 use crate::shared::checks::ensure;
 use crate::shared::graph_spec::{contract, float, sym, Dim, GraphSpec};
 use crate::shared::solver::Solver;
-use crate::shared::text_branch::text_branch_contract;
+use crate::shared::text::branch::text_branch_contract;
 
 /// The manifest fields of a `umf` bundle.
 #[derive(Debug, Clone, Serialize, Deserialize)]

@@ -26,9 +26,13 @@ static int passed = 0, failed = 0;
 /* Which sanitizer the test was built with, printed so that a log shows it really ran. */
 #if defined(__SANITIZE_ADDRESS__)
 #define TROUPE_TEST_SANITIZER "address"
+#elif defined(__SANITIZE_THREAD__)
+#define TROUPE_TEST_SANITIZER "thread"
 #elif defined(__has_feature)
 #if __has_feature(address_sanitizer)
 #define TROUPE_TEST_SANITIZER "address"
+#elif __has_feature(thread_sanitizer)
+#define TROUPE_TEST_SANITIZER "thread"
 #endif
 #endif
 #ifndef TROUPE_TEST_SANITIZER

@@ -1,5 +1,5 @@
 /* Threads through include/troupe.h (tests/c_abi.rs; also built with AddressSanitizer and
- * UndefinedBehaviorSanitizer, and with ThreadSanitizer where the toolchain has it):
+ * UndefinedBehaviorSanitizer, and in the long form with ThreadSanitizer):
  *  1. one model shared by 8 threads x 8 sessions: every session's output is bit-identical to
  *     the same session run alone on the main thread;
  *  2. two threads driving one session at once: every call returns TROUPE_OK or TROUPE_ERR_BUSY
