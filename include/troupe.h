@@ -161,6 +161,17 @@
 #define TROUPE_MAX_STAGES 8
 
 /*
+ Most merges SimpleTokenizer reads from a merges file: `49152 - 256 - 2`.
+ */
+#define ClipTokenizer_MAX_MERGES ((49152 - 256) - 2)
+
+/*
+ Longest prompt [`encode`](Self::encode) and [`tokenize`](Self::tokenize) accept, in bytes
+ of UTF-8 (CLIP reads 77 tokens, a few hundred characters).
+ */
+#define ClipTokenizer_MAX_PROMPT_BYTES (64 * 1024)
+
+/*
  A rotation as a unit quaternion `w + xi + yj + zk`.
  */
 typedef struct Quat Quat;
@@ -1055,6 +1066,63 @@ troupe_status troupe_motion_write_json(const char *path, const float *positions,
 void troupe_set_progress_callback(troupe_progress_fn callback, void *user_data);
 
 /*
+ 1 if the bundle turns text prompts into conditions (`troupe_text_prompt_encode`): it carries
+ CLIP's text tower, its tokenizer and a text branch; 0 otherwise or for NULL. Thread-safe.
+
+ # Safety
+ `model` must be NULL or a live handle.
+ */
+size_t troupe_model_takes_prompts(const struct troupe_model *model);
+
+/*
+ Encodes a text prompt into the bundle's condition vector, as the official code does: the
+ prompt tokenized as CLIP tokenizes it (lower-cased, cleaned, byte-pair encoded, cut at 77
+ tokens), CLIP's text tower, then the family's text branch at the end-of-text token. The
+ empty prompt `""` gives the official "no text". Writes `troupe_model_condition_dim` floats to
+ `condition` (capacity `condition_capacity` floats). The last 64 prompts are cached, so asking
+ again is cheap. Nothing is written unless the call succeeds.
+
+ Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (a bundle that takes no
+ prompts, text that is not UTF-8 or longer than 64 KiB), `TROUPE_ERR_BUFFER_TOO_SMALL`,
+ `TROUPE_ERR_INFERENCE`, `TROUPE_ERR_PANIC`. Thread-safe: any number of threads may encode on
+ one model at once.
+
+ # Safety
+ `model` must be a live handle; `prompt` a NUL-terminated string readable for the call;
+ `condition` writable for `condition_capacity` floats.
+ */
+troupe_status troupe_text_prompt_encode(const struct troupe_model *model, const char *prompt, float *condition, size_t condition_capacity);
+
+/*
+ Width of the CLIP token features `troupe_text_encode` reads (the bundle's CLIP width: the
+ condition dim of an official ARMFlow bundle, 768 for UMF as released); 0 for bundles without
+ a text branch, or NULL. Thread-safe.
+
+ # Safety
+ `model` must be NULL or a live handle.
+ */
+size_t troupe_model_text_token_dim(const struct troupe_model *model);
+
+/*
+ Runs the official text branch of a bundle that has one (`troupe_model_text_token_dim` > 0:
+ official ARMFlow and UMF bundles): CLIP's token features `clip_tokens`, row-major
+ `[n_tokens][text_token_dim]` (the output of CLIP's final LayerNorm for one prompt), and the
+ index of the end-of-text token (the argmax of CLIP's token ids) give the condition vector,
+ written to `condition` (capacity `condition_capacity` floats, at least
+ `troupe_model_condition_dim`). Inputs are borrowed; nothing is written unless the call
+ succeeds.
+
+ Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (no text branch, no
+ tokens, index out of range, non-finite input), `TROUPE_ERR_BUFFER_TOO_SMALL`,
+ `TROUPE_ERR_INFERENCE`, `TROUPE_ERR_PANIC`. Thread-safe.
+
+ # Safety
+ `model` must be a live handle; `clip_tokens` readable for `n_tokens * text_token_dim` floats;
+ `condition` writable for `condition_capacity` floats and not overlapping `clip_tokens`.
+ */
+troupe_status troupe_text_encode(const struct troupe_model *model, const float *clip_tokens, size_t n_tokens, size_t eot_index, float *condition, size_t condition_capacity);
+
+/*
  The library version, e.g. `"0.1.0"`.
 
  Returns a static NUL-terminated string (never free it). Thread-safe.
@@ -1139,16 +1207,6 @@ troupe_status troupe_viewer_write(const char *html_path, const char *gif_path, c
 size_t troupe_model_clip_tokens(const struct troupe_model *model);
 
 /*
- Width of the CLIP token features `troupe_text_encode` reads (the bundle's CLIP width: the
- condition dim of an official ARMFlow bundle, 768 for UMF as released); 0 for bundles without
- a text branch, or NULL. Thread-safe.
-
- # Safety
- `model` must be NULL or a live handle.
- */
-size_t troupe_model_text_token_dim(const struct troupe_model *model);
-
-/*
  Runs the official ARMFlow sampler on one actor clip and writes the reactor motion, row-major
  float32 `[clip_frames][frame_dim]`, into `frames` (capacity `frames_capacity` floats), and,
  when `reactor_latents` is not NULL, the reactor tokens `[clip_tokens][latent_dim]` into it
@@ -1174,25 +1232,6 @@ size_t troupe_model_text_token_dim(const struct troupe_model *model);
  not NULL) for `latents_capacity`, neither overlapping an input.
  */
 troupe_status troupe_clip_generate(const struct troupe_model *model, const float *actor, size_t n_actor_frames, const float *condition, size_t condition_len, uint64_t seed, uint32_t steps, const struct troupe_clip_noise *noise, float *frames, size_t frames_capacity, float *reactor_latents, size_t latents_capacity);
-
-/*
- Runs the official text branch of a bundle that has one (`troupe_model_text_token_dim` > 0:
- official ARMFlow and UMF bundles): CLIP's token features `clip_tokens`, row-major
- `[n_tokens][text_token_dim]` (the output of CLIP's final LayerNorm for one prompt), and the
- index of the end-of-text token (the argmax of CLIP's token ids) give the condition vector,
- written to `condition` (capacity `condition_capacity` floats, at least
- `troupe_model_condition_dim`). Inputs are borrowed; nothing is written unless the call
- succeeds.
-
- Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (no text branch, no
- tokens, index out of range, non-finite input), `TROUPE_ERR_BUFFER_TOO_SMALL`,
- `TROUPE_ERR_INFERENCE`, `TROUPE_ERR_PANIC`. Thread-safe.
-
- # Safety
- `model` must be a live handle; `clip_tokens` readable for `n_tokens * text_token_dim` floats;
- `condition` writable for `condition_capacity` floats and not overlapping `clip_tokens`.
- */
-troupe_status troupe_text_encode(const struct troupe_model *model, const float *clip_tokens, size_t n_tokens, size_t eot_index, float *condition, size_t condition_capacity);
 
 /*
  Sets how `troupe_session_step_joints` reads actor positions (units, up axis, handedness,
@@ -1454,6 +1493,21 @@ troupe_status troupe_session_set_cfg_scale(struct troupe_session *session, float
  `session` must be a live handle; `condition` readable for `len` floats.
  */
 troupe_status troupe_session_set_condition(struct troupe_session *session, const float *condition, size_t len);
+
+/*
+ Conditions the tokens generated from now on on a text prompt (a NUL-terminated UTF-8
+ string, borrowed for the call): the condition `troupe_text_prompt_encode` gives, for bundles
+ with `troupe_model_takes_prompts`. The model caches the last 64 prompts it encoded.
+
+ Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (a bundle that takes no
+ prompts, text that is not UTF-8 or longer than 64 KiB), `TROUPE_ERR_INFERENCE`,
+ `TROUPE_ERR_POISONED`, `TROUPE_ERR_BUSY`, `TROUPE_ERR_PANIC`. One thread at a time per
+ session.
+
+ # Safety
+ `session` must be a live handle; `prompt` NUL-terminated and readable for the call.
+ */
+troupe_status troupe_session_set_prompt(struct troupe_session *session, const char *prompt);
 
 /*
  Queues the noise of the next token not yet generated, to reproduce a run exactly:

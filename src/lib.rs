@@ -57,6 +57,7 @@ pub use shared::limits::{Limits, LIMITS};
 pub use shared::noise;
 pub use shared::progress::with_progress;
 pub use shared::solver::{self, Method, Solver};
+pub use shared::text::tokenizer::ClipTokenizer;
 pub use umf::pyramid;
 pub use umf::{
     Group, GroupNoise, GroupNoiseShape, GroupOptions, MAX_PEOPLE, STREAM_JUMP_NOISE,

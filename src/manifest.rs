@@ -18,6 +18,7 @@ use crate::shared::checks::ensure;
 use crate::shared::error::{Error, Result};
 use crate::shared::graph_spec::check_contract;
 use crate::shared::limits::LIMITS;
+use crate::shared::text::encoder::text_encoder_contract;
 
 pub use crate::armflow::spec::{
     ActorLatent, ArmFlowGraphs, ArmFlowSpec, ClipSpec, ContextSpec, DecoderWindow, EncoderWindow,
@@ -25,6 +26,7 @@ pub use crate::armflow::spec::{
 };
 pub use crate::shared::bundle_io::{ConditionLabel, ConditionSpec, MotionSpec};
 pub use crate::shared::graph_spec::{DType, Dim, GraphSpec, TensorSpec};
+pub use crate::shared::text::prompt::TokenizerSpec;
 pub use crate::umf::spec::{
     PyramidSpec, StageSpec, TextSpec, UmfGraphs, UmfLatentSpec, UmfSamplerSpec, UmfSpec,
 };
@@ -50,6 +52,9 @@ pub struct Manifest {
     pub motion: MotionSpec,
     /// Conditioning vector (e.g. a text embedding).
     pub condition: ConditionSpec,
+    /// How a prompt becomes token ids, for bundles with a text encoder.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub tokenizer: Option<TokenizerSpec>,
     /// What the family's sampler needs: its latents, graphs and defaults. Serialised as the
     /// `family` tag plus the family's own top-level fields.
     #[serde(flatten)]
@@ -115,19 +120,57 @@ impl Manifest {
             Family::Armflow(spec) => spec.validate(m.frame_dim)?,
             Family::Umf(spec) => spec.validate(&self.condition)?,
         }
+        let (encoder, branch) = self.text_graphs();
+        ensure(encoder.is_some() == self.tokenizer.is_some(), || {
+            "graphs.text_encoder and the `tokenizer` section come together".into()
+        })?;
+        ensure(encoder.is_none() || branch.is_some(), || {
+            "graphs.text_encoder needs graphs.text_branch (the features go through it)".into()
+        })?;
+        if let Some(tokenizer) = &self.tokenizer {
+            tokenizer.validate()?;
+        }
         for (role, declared, expected) in self.graph_contract() {
             check_contract(role, declared, &expected)?;
         }
         Ok(())
     }
 
+    /// The family's `text_encoder` and `text_branch` declarations.
+    fn text_graphs(&self) -> (Option<&GraphSpec>, Option<&GraphSpec>) {
+        match &self.family {
+            Family::Armflow(s) => (
+                s.graphs.text_encoder.as_ref(),
+                s.graphs.text_branch.as_ref(),
+            ),
+            Family::Umf(s) => (
+                s.graphs.text_encoder.as_ref(),
+                s.graphs.text_branch.as_ref(),
+            ),
+        }
+    }
+
+    /// Floats per CLIP token feature: the condition's width for ARMFlow, each text branch's
+    /// input (`text.prior_dim`) for UMF.
+    fn text_token_dim(&self) -> usize {
+        match &self.family {
+            Family::Armflow(_) => self.condition.dim,
+            Family::Umf(s) => s.text.prior_dim,
+        }
+    }
+
     /// Each graph as declared, next to the interface the runtime requires of it.
     pub(crate) fn graph_contract(&self) -> Vec<(&'static str, &GraphSpec, GraphSpec)> {
         let (motion, condition) = (&self.motion, &self.condition);
-        match &self.family {
+        let mut contracts = match &self.family {
             Family::Armflow(spec) => spec.graph_contract(motion, condition),
             Family::Umf(spec) => spec.graph_contract(motion, condition),
+        };
+        if let (Some(encoder), Some(tokenizer)) = (self.text_graphs().0, &self.tokenizer) {
+            let expected = text_encoder_contract(encoder, tokenizer.context, self.text_token_dim());
+            contracts.push(("text_encoder", encoder, expected));
         }
+        contracts
     }
 
     /// The common facts every family keeps beside its graphs.
@@ -136,6 +179,7 @@ impl Manifest {
             name: self.name.clone(),
             motion: self.motion.clone(),
             condition: self.condition.clone(),
+            tokenizer: self.tokenizer.clone(),
         }
     }
 }

@@ -14,6 +14,7 @@ use crate::manifest::{ArmFlowSpec, ClipSpec, ConditionLabel, Family, Manifest, U
 use crate::shared::bundle::BundleFiles;
 use crate::shared::error::{Error, Result};
 use crate::shared::text::branch::TextBranch;
+use crate::shared::text::prompt::{no_prompts, PromptEncoder};
 use crate::umf::{self, Group, GroupNoise, GroupNoiseShape, GroupOptions};
 
 /// A loaded bundle: manifest plus optimised graphs. An `armflow` model streams reactions
@@ -226,6 +227,35 @@ impl Model {
         self.text_branch().ok().map(|branch| branch.token_dim)
     }
 
+    /// The condition for a text prompt, as the official code computes it: the prompt tokenized
+    /// as CLIP tokenizes it (lower-cased, cleaned, byte-pair encoded, truncated to 77 tokens),
+    /// CLIP's text tower, then the family's text branch at the end-of-text token. `""` gives
+    /// the official "no text" (for such bundles, the manifest's null condition). The last 64
+    /// prompts are cached. Needs a bundle with a text encoder ([`Model::takes_prompts`]).
+    pub fn encode_prompt(&self, prompt: &str) -> Result<Vec<f32>> {
+        self.prompt_encoder()?.encode(prompt)
+    }
+
+    /// Whether the bundle turns text prompts into conditions ([`Model::encode_prompt`]): it
+    /// carries CLIP's text tower, its tokenizer and a text branch.
+    pub fn takes_prompts(&self) -> bool {
+        self.prompt_encoder().is_ok()
+    }
+
+    /// The token ids the bundle's text tower reads for `prompt` (CLIP's `tokenize` with
+    /// truncation: `<|startoftext|>`, the byte-pair ids, `<|endoftext|>`, zeros to 77).
+    pub fn prompt_token_ids(&self, prompt: &str) -> Result<Vec<i64>> {
+        self.prompt_encoder()?.prompts.token_ids(prompt)
+    }
+
+    fn prompt_encoder(&self) -> Result<PromptEncoder<'_>> {
+        let found = match &self.inner.networks {
+            Networks::ArmFlow(n) => n.prompt_encoder(),
+            Networks::Umf(n) => n.prompt_encoder(),
+        };
+        found.ok_or_else(|| no_prompts(&self.manifest().name))
+    }
+
     /// The bundle's text branch; an error naming the bundle when it has none.
     pub(crate) fn text_branch(&self) -> Result<TextBranch<'_>> {
         let found = match &self.inner.networks {
@@ -299,6 +329,17 @@ impl Model {
             .generate_clip(actor, condition, options)
     }
 
+    /// [`Model::generate_clip`] conditioned on a text prompt ([`Model::encode_prompt`]).
+    pub fn generate_clip_for_prompt(
+        &self,
+        actor: ArrayView2<f32>,
+        prompt: &str,
+        options: &ClipOptions,
+    ) -> Result<Clip> {
+        let condition = self.encode_prompt(prompt)?;
+        self.generate_clip(actor, Some(&condition), options)
+    }
+
     // ---- umf ----------------------------------------------------------------------------------
 
     /// Generates `people` persons' motion for `condition` (`[prior text ; reaction text]`,
@@ -318,6 +359,18 @@ impl Model {
         options: &GroupOptions,
     ) -> Result<Group> {
         self.umf()?.generate_group(condition, people, options)
+    }
+
+    /// [`Model::generate_group`] conditioned on a text prompt ([`Model::encode_prompt`]: for a
+    /// UMF bundle, `[prior text ; reaction text]` of the prompt).
+    pub fn generate_group_for_prompt(
+        &self,
+        prompt: &str,
+        people: usize,
+        options: &GroupOptions,
+    ) -> Result<Group> {
+        let condition = self.encode_prompt(prompt)?;
+        self.generate_group(Some(&condition), people, options)
     }
 
     /// The noise `generate_group` draws for `seed` and `people` when none is given: Philox

@@ -149,6 +149,16 @@ class Model {
             out.emplace_back(troupe_model_condition_label(handle_, i));
         return out;
     }
+    /// Whether encode_prompt works: the bundle carries CLIP's text tower and tokenizer.
+    bool takes_prompts() const { return troupe_model_takes_prompts(handle_) != 0; }
+    /// The condition for a text prompt (CLIP's tokenizer and text tower, then the bundle's text
+    /// branch; "" is the official "no text"); `out` is resized to condition_dim() on success only.
+    Status encode_prompt(const std::string &prompt, std::vector<float> &out) const {
+        std::vector<float> v(condition_dim());
+        Status s = Status::from(troupe_text_prompt_encode(handle_, prompt.c_str(), v.data(), v.size()));
+        if (s) out = std::move(v);
+        return s;
+    }
     /// The vector of a named condition; `out` is resized to condition_dim() on success only.
     Status condition_for(const std::string &label, std::vector<float> &out) const {
         std::vector<float> v(condition_dim());

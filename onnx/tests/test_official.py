@@ -112,7 +112,7 @@ def test_ignored_tensors_are_reported(official_checkpoint, tmp_path, capsys):
     export.export_bundle("tiny-interhuman", tmp_path / "bundle", checkpoint=official_checkpoint)
     out = capsys.readouterr().out
     assert "ignored 2 tensor(s) armflow.arnet.head_nm.*" in out
-    assert "ignored 1 tensor(s) text_encoder.clip_*" in out
+    assert "text_encoder.clip_" not in out  # CLIP's tower is loaded: it is the bundle's text encoder
 
 
 def test_text_branch_equals_torch_transformer_encoder():
@@ -125,12 +125,161 @@ def test_text_branch_equals_torch_transformer_encoder():
         "clipTrans": torch.nn.TransformerEncoder(layer, num_layers=2, enable_nested_tensor=False),
         "clipln": torch.nn.LayerNorm(cfg.cond_dim),
     }).eval()
-    official.load_state_dict(model.text_encoder.state_dict(), strict=True)
+    branch = {k: v for k, v in model.text_encoder.state_dict().items() if k.startswith(("clipTrans.", "clipln."))}
+    official.load_state_dict(branch, strict=True)
     tokens, eot = torch.randn(3, 77, cfg.cond_dim), torch.tensor([9, 76, 0])
     with torch.no_grad():
         want = official["clipln"](official["clipTrans"](tokens))[torch.arange(3), eot]
         got = model.text_encoder(tokens, eot)
     assert torch.allclose(got, want, atol=1e-5), (got - want).abs().max()
+
+
+def openai_clip_text(model_tower, width: int, layers: int, heads: int):
+    """OpenAI CLIP's own text Transformer (`clip/model.py` of the openai-clip package, loaded by
+    file) with the weights of our tower, and its `encode_text` up to ln_final."""
+    import importlib.util
+
+    spec = importlib.util.find_spec("clip")
+    if spec is None:
+        pytest.skip("openai-clip is not installed")
+    path = Path(spec.origin).parent / "model.py"
+    module_spec = importlib.util.spec_from_file_location("openai_clip_model", path)
+    clip_model = importlib.util.module_from_spec(module_spec)
+    module_spec.loader.exec_module(clip_model)
+    mask = torch.empty(77, 77).fill_(float("-inf")).triu_(1)
+    transformer = clip_model.Transformer(width, layers, heads, attn_mask=mask).eval()
+    transformer.load_state_dict(model_tower.state_dict(), strict=True)
+    return transformer
+
+
+@pytest.mark.parametrize("preset", ["tiny-interhuman", "umf-tiny"])
+def test_the_text_encoder_is_openai_clips_text_tower(preset):
+    """Our tower (batch first, written-out attention) against OpenAI's modules on the same
+    weights: the features after ln_final for random ids, within 1e-5."""
+    if preset == "umf-tiny":
+        m = export_umf.build_model("tiny", 0)
+        parts = (m.token_embedding, m.positional_embedding, m.clip_transformer, m.ln_final, m.clip_features)
+        width, layers, heads = m.cfg.text_dim, m.cfg.clip_layers, m.cfg.clip_heads
+    else:
+        t = export.build_model(preset, 0).text_encoder
+        parts = (t.clip_token_embedding, t.clip_positional_embedding, t.clip_transformer, t.clip_ln_final, t.clip_features)
+        cfg = export.PRESETS[preset]
+        width, layers, heads = cfg.cond_dim, cfg.clip_layers, cfg.clip_heads
+    embedding, positions, tower, ln_final, ours = parts
+    official = openai_clip_text(tower, width, layers, heads)
+    ids = torch.randint(0, embedding.num_embeddings, (3, 77))
+    with torch.no_grad():
+        x = (embedding(ids) + positions).permute(1, 0, 2)  # encode_text, sequence first
+        want = ln_final(official(x).permute(1, 0, 2))
+        got = ours(ids)
+    assert torch.allclose(got, want, atol=1e-5), (got - want).abs().max()
+
+
+def test_the_null_condition_of_armflow_is_the_empty_prompt(tmp_path):
+    """The official `encode_null_condition` encodes "" through CLIP and the text branch; the
+    exported manifest's null is that, not zeros, and the reference loop uses it for None."""
+    from troupe_onnx.shared.clip import reference_tokenizer, tokenize, write_merges
+
+    model = export.build_model("tiny-interhuman", 0)
+    tokenizer = reference_tokenizer(write_merges(tmp_path, model.cfg.clip_merges))
+    ids = torch.from_numpy(tokenize(tokenizer, ""))[None]
+    assert ids[0, :3].tolist() == [tokenizer.encoder["<|startoftext|>"], tokenizer.encoder["<|endoftext|>"], 0]
+    with torch.no_grad():
+        want = model.text_encoder(model.text_encoder.clip_features(ids), ids.argmax(dim=-1))[0]
+    manifest = export.condition_manifest(model)
+    assert manifest["null_source"] == "empty_prompt"
+    assert np.allclose(manifest["null"], want.numpy(), atol=1e-6)
+    assert np.abs(want.numpy()).max() > 0.1
+
+
+# --------------------------------------------------------------------------------------------
+# The checkpoint's stored configuration (Lightning `hyper_parameters`)
+# --------------------------------------------------------------------------------------------
+
+
+def with_hyper_parameters(path: Path, tmp_path: Path, edit) -> Path:
+    ckpt = torch.load(path, weights_only=True)
+    edit(ckpt["hyper_parameters"])
+    out = tmp_path / "configured.ckpt"
+    torch.save(ckpt, out)
+    return out
+
+
+def manifest_of(ckpt: Path, out: Path) -> dict:
+    export.export_bundle("tiny-interhuman", out, checkpoint=ckpt)
+    return json.loads((out / "troupe.json").read_text())
+
+
+def test_the_checkpoint_configuration_wins_over_the_preset(official_checkpoint, tmp_path, capsys):
+    def edit(hp):
+        hp["mf"]["nhead"] = 4  # same tensor shapes as 2 heads
+        hp["mf"]["scale_factor"] = 0.25
+        hp["mf"]["num_steps"] = 3
+        hp["mf"]["cfg_scale"] = 2.0
+        hp["mf"]["siloss"]["cfg_omega"] = 1.0  # guidance not baked in: cfg_scale stands
+
+    m = manifest_of(with_hyper_parameters(official_checkpoint, tmp_path, edit), tmp_path / "b")
+    assert (m["context"]["heads"], m["context"]["head_dim"]) == (4, 8)
+    assert m["latent"]["scale"] == 0.25
+    assert (m["sampler"]["steps"], m["sampler"]["cfg_scale"]) == (3, 2.0)
+    out = capsys.readouterr().out
+    for field in ("mf.nhead = 4", "mf.scale_factor = 0.25", "mf.num_steps = 3"):
+        assert field in out, out
+    # The same weights exported with heads=4 given by hand are the same graphs.
+    import dataclasses
+
+    by_hand = dataclasses.replace(export.PRESETS["tiny-interhuman"], heads=4, latent_scale=0.25, steps=3, cfg_scale=2.0)
+    bare = tmp_path / "bare.ckpt"
+    torch.save({"state_dict": torch.load(official_checkpoint, weights_only=True)["state_dict"]}, bare)
+    export.export_bundle("tiny-interhuman", tmp_path / "hand", checkpoint=bare, config=by_hand)
+    differences = compare_bundles(tmp_path / "b", tmp_path / "hand")
+    assert differences == ["troupe.json: contents differ"], differences
+
+
+def test_baked_in_guidance_turns_cfg_off_as_the_official_test_loop(official_checkpoint, tmp_path):
+    def edit(hp):
+        hp["mf"]["cfg_scale"] = 3.0
+        hp["mf"]["siloss"]["cfg_omega"] = 1.8
+
+    m = manifest_of(with_hyper_parameters(official_checkpoint, tmp_path, edit), tmp_path / "b")
+    assert m["sampler"]["cfg_scale"] == 1.0
+
+
+def test_configurations_troupe_cannot_follow_are_refused_by_field(official_checkpoint, tmp_path):
+    def edit(hp):
+        hp["mf"]["text_encoder"]["is_intergen_clip"] = "easy"
+        hp["vae"]["norm"] = "BN"
+        hp["mf"]["text_encoder"]["clip_version"] = "RN50"
+
+    msg = export_error(with_hyper_parameters(official_checkpoint, tmp_path, edit), tmp_path)
+    for field in ("mf.text_encoder.is_intergen_clip = 'easy'", "vae.norm = 'BN'", "clip_version = 'RN50'"):
+        assert field in msg, msg
+
+
+def test_a_checkpoint_without_configuration_exports_with_the_preset_and_says_so(official_checkpoint, tmp_path, capsys):
+    bare = tmp_path / "bare.ckpt"
+    torch.save({"state_dict": torch.load(official_checkpoint, weights_only=True)["state_dict"]}, bare)
+    export.export_bundle("tiny-interhuman", tmp_path / "b", checkpoint=bare)
+    assert "no stored configuration" in capsys.readouterr().out
+
+
+def test_umf_takes_its_configuration_from_a_file_and_says_so(tmp_path, capsys):
+    ckpt = tmp_path / "umf.ckpt"
+    export_umf.write_checkpoint("tiny", 0, ckpt)
+    export_umf.export_bundle("tiny", tmp_path / "plain", checkpoint=ckpt)
+    assert "store no configuration" in capsys.readouterr().out
+    config = tmp_path / "umf.json"
+    config.write_text(json.dumps({"gamma": -0.25, "cfg_scale": 2.5, "reaction_solver": {"method": "euler", "steps": 6}}))
+    export_umf.export_bundle("tiny", tmp_path / "configured", checkpoint=ckpt, config_file=config)
+    out = capsys.readouterr().out
+    assert "gamma = -0.25" in out and "cfg_scale = 2.5" in out
+    m = json.loads((tmp_path / "configured" / "troupe.json").read_text())
+    assert m["pyramid"]["gamma"] == -0.25 and m["sampler"]["cfg_scale"] == 2.5
+    assert m["sampler"]["reaction"] == {"method": "euler", "steps": 6}
+    assert m["producer"]["config"] == "umf.json"
+    config.write_text(json.dumps({"heads_typo": 3}))
+    with pytest.raises(CheckpointError, match="heads_typo"):
+        export_umf.export_bundle("tiny", tmp_path / "bad", checkpoint=ckpt, config_file=config)
 
 
 # --------------------------------------------------------------------------------------------
@@ -234,18 +383,14 @@ def test_umf_text_branches_equal_torch_transformer_encoders():
 
 def test_umf_null_condition_is_the_empty_prompt_through_clip():
     model = export_umf.build_model("tiny", 0)
+    vocab = model.cfg.clip_vocab
     ids = torch.zeros(1, 77, dtype=torch.long)
-    ids[0, :2] = torch.tensor([49406, 49407])  # clip.tokenize(""): <|startoftext|> <|endoftext|>
+    ids[0, :2] = torch.tensor([vocab - 2, vocab - 1])  # clip.tokenize(""): <|startoftext|> <|endoftext|>
+    tower = openai_clip_text(model.clip_transformer, model.cfg.text_dim, model.cfg.clip_layers, model.cfg.clip_heads)
     with torch.no_grad():
         # CLIP's text tower as OpenAI's CLIP runs it: sequence-first, causal mask, then ln_final.
         x = (model.token_embedding(ids) + model.positional_embedding).permute(1, 0, 2)
-        mask = torch.empty(77, 77).fill_(float("-inf")).triu_(1)
-        for block in model.clip_transformer.resblocks:
-            h = block.ln_1(x)
-            x = x + block.attn(h, h, h, need_weights=False, attn_mask=mask)[0]
-            h = block.mlp.c_fc(block.ln_2(x))
-            x = x + block.mlp.c_proj(h * torch.sigmoid(1.702 * h))  # QuickGELU
-        feats = model.ln_final(x.permute(1, 0, 2))
+        feats = model.ln_final(tower(x).permute(1, 0, 2))
         want = model.text_condition(feats, ids.argmax(dim=-1))[0]
     assert torch.allclose(model.null_condition, want, atol=1e-6)
     assert not torch.allclose(model.null_condition, torch.zeros_like(want))

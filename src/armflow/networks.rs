@@ -13,6 +13,7 @@ use crate::shared::error::{Error, Result};
 use crate::shared::graph::{f32_tensor, load_graphs, read_f32, split_rows, stack_rows, Graph};
 use crate::shared::graph_spec::{Dim, GraphSpec};
 use crate::shared::text::branch::TextBranch;
+use crate::shared::text::prompt::{PromptEncoder, Prompts};
 
 /// An `armflow` bundle's graphs, loaded and optimised, with its own manifest section and the
 /// common facts it needs. Shared (`Arc`) by the [`crate::Model`] handles that loaded it and by
@@ -32,6 +33,9 @@ pub(crate) struct Networks {
     pub context_full: Option<Graph>,
     /// The official text branch (CLIP token features -> condition), when present.
     text_branch: Option<Graph>,
+    /// CLIP's text tower and the tokenizer, when the bundle takes prompts.
+    text_encoder: Option<Graph>,
+    prompts: Option<Prompts>,
 }
 
 /// The convolution state of a stream's VAE steps: every `state_i` of the encoder and decoder.
@@ -101,6 +105,7 @@ impl Networks {
         let optional = [
             ("context_full", &g.context_full),
             ("text_branch", &g.text_branch),
+            ("text_encoder", &g.text_encoder),
         ];
         wanted.extend(
             optional
@@ -118,6 +123,12 @@ impl Networks {
             vae_steps: steps.map(|_| (next(), next())),
             context_full: g.context_full.as_ref().map(|_| next()),
             text_branch: g.text_branch.as_ref().map(|_| next()),
+            text_encoder: g.text_encoder.as_ref().map(|_| next()),
+            prompts: io
+                .tokenizer
+                .as_ref()
+                .map(|t| Prompts::load(files, t))
+                .transpose()?,
             io,
             spec,
         })
@@ -140,6 +151,15 @@ impl Networks {
             token_dim: self.io.condition.dim,
             condition_dim: self.io.condition.dim,
         })
+    }
+
+    /// The prompt encoder, when the bundle takes prompts.
+    pub(crate) fn prompt_encoder(&self) -> Option<PromptEncoder<'_>> {
+        PromptEncoder::assemble(
+            self.prompts.as_ref(),
+            self.text_encoder.as_ref(),
+            self.text_branch(),
+        )
     }
 
     /// Whether the bundle has per-token VAE steps (O(1) per token, no windows).

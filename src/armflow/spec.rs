@@ -145,6 +145,10 @@ pub struct ArmFlowGraphs {
     /// the condition vector. Optional.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub text_branch: Option<GraphSpec>,
+    /// CLIP's text tower: a prompt's token ids to the features the text branch reads (its
+    /// width is the condition's). Optional; comes with the manifest's `tokenizer`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub text_encoder: Option<GraphSpec>,
 }
 
 impl ArmFlowSpec {

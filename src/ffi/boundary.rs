@@ -369,3 +369,14 @@ impl<T> Drop for Claim<'_, T> {
         self.cell.busy.store(false, Ordering::Release);
     }
 }
+
+/// `TROUPE_ERR_BUFFER_TOO_SMALL` unless a buffer of `capacity` floats holds `need`.
+pub(crate) fn room(need: usize, capacity: usize, what: &str) -> FfiResult {
+    if capacity < need {
+        return Err(FfiError::new(
+            TROUPE_ERR_BUFFER_TOO_SMALL,
+            format!("{what} need {need} floats, the buffer holds {capacity}"),
+        ));
+    }
+    Ok(())
+}

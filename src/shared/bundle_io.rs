@@ -4,6 +4,8 @@
 
 use serde::{Deserialize, Serialize};
 
+use crate::shared::text::prompt::TokenizerSpec;
+
 /// Per-frame motion features.
 #[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct MotionSpec {
@@ -41,6 +43,12 @@ pub struct ConditionSpec {
     /// branch, and what `None` means). Zeros when absent.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub null: Option<Vec<f32>>,
+    /// What `null` is: `empty_prompt` (the prompt "" through the checkpoint's CLIP and text
+    /// branch, computed at export: the official meaning of "no text"), `zeros` (no `null`, or
+    /// all zeros), `label:NAME` (the vector of that label) or `vector` (a vector the producer
+    /// chose). Absent in older bundles: `zeros` without `null`, `vector` with it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub null_source: Option<String>,
     /// Named conditions a bundle was trained on (the demo model's partner rules), in the order
     /// the bundle lists them. Empty for bundles conditioned on free vectors (text features).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
@@ -63,6 +71,16 @@ impl ConditionSpec {
     /// The condition that stands for "none": `null`, or zeros.
     pub fn null_or_zeros(&self) -> Vec<f32> {
         self.null.clone().unwrap_or_else(|| vec![0f32; self.dim])
+    }
+
+    /// What the null condition is ([`ConditionSpec::null_source`], defaulted for older
+    /// bundles).
+    pub fn null_source(&self) -> &str {
+        match (&self.null_source, &self.null) {
+            (Some(source), _) => source,
+            (None, None) => "zeros",
+            (None, Some(_)) => "vector",
+        }
     }
 
     /// The vector of the label called `name`, if the bundle has one.
@@ -90,6 +108,34 @@ impl ConditionSpec {
         };
         if let Some(null) = &self.null {
             check("condition.null", null)?;
+        }
+        let null = self.null_or_zeros();
+        match self.null_source() {
+            "zeros" if null.iter().any(|&v| v != 0.0) => {
+                return Err("condition.null_source is `zeros` but condition.null is not".into())
+            }
+            "empty_prompt" | "vector" if self.null.is_none() => {
+                return Err(format!(
+                    "condition.null_source `{}` needs condition.null",
+                    self.null_source()
+                ))
+            }
+            "zeros" | "empty_prompt" | "vector" => {}
+            source => match source.strip_prefix("label:") {
+                Some(name) if self.labelled(name) == Some(&null[..]) => {}
+                Some(name) => {
+                    return Err(format!(
+                        "condition.null_source names label `{name}`, whose vector is not \
+                         condition.null"
+                    ))
+                }
+                None => {
+                    return Err(format!(
+                        "condition.null_source `{source}` is unknown (empty_prompt, zeros, \
+                         label:NAME or vector)"
+                    ))
+                }
+            },
         }
         for (i, label) in self.labels.iter().enumerate() {
             if label.name.is_empty() || label.name.contains('\0') {
@@ -120,6 +166,8 @@ pub(crate) struct BundleIo {
     pub motion: MotionSpec,
     /// The manifest's `condition` section.
     pub condition: ConditionSpec,
+    /// The manifest's `tokenizer` section, for bundles with a text encoder.
+    pub tokenizer: Option<TokenizerSpec>,
 }
 
 impl BundleIo {

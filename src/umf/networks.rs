@@ -5,6 +5,7 @@ use crate::shared::bundle_io::BundleIo;
 use crate::shared::error::Result;
 use crate::shared::graph::{load_graphs, Graph};
 use crate::shared::text::branch::TextBranch;
+use crate::shared::text::prompt::{PromptEncoder, Prompts};
 
 use super::spec::UmfSpec;
 
@@ -19,6 +20,9 @@ pub(crate) struct Networks {
     pub context: Graph,
     pub decoder: Graph,
     pub text_branch: Option<Graph>,
+    /// CLIP's text tower and the tokenizer, when the bundle takes prompts.
+    text_encoder: Option<Graph>,
+    prompts: Option<Prompts>,
 }
 
 impl Networks {
@@ -32,6 +36,7 @@ impl Networks {
             ("decoder", &g.decoder),
         ];
         wanted.extend(g.text_branch.as_ref().map(|t| ("text_branch", t)));
+        wanted.extend(g.text_encoder.as_ref().map(|t| ("text_encoder", t)));
         let mut graphs = load_graphs(files, &wanted)?.into_iter();
         let mut next = || graphs.next().expect("one graph per wanted entry");
         Ok(Self {
@@ -40,6 +45,12 @@ impl Networks {
             context: next(),
             decoder: next(),
             text_branch: g.text_branch.as_ref().map(|_| next()),
+            text_encoder: g.text_encoder.as_ref().map(|_| next()),
+            prompts: io
+                .tokenizer
+                .as_ref()
+                .map(|t| Prompts::load(files, t))
+                .transpose()?,
             io,
             spec,
         })
@@ -53,5 +64,14 @@ impl Networks {
             token_dim: self.spec.text.prior_dim,
             condition_dim: self.io.condition.dim,
         })
+    }
+
+    /// The prompt encoder, when the bundle takes prompts.
+    pub(crate) fn prompt_encoder(&self) -> Option<PromptEncoder<'_>> {
+        PromptEncoder::assemble(
+            self.prompts.as_ref(),
+            self.text_encoder.as_ref(),
+            self.text_branch(),
+        )
     }
 }

@@ -139,14 +139,13 @@ impl Jump {
         }
         let alpha = 1.0 / ((1.0 - 1.0 / gamma).sqrt() * (1.0 - o) + o);
         let beta = alpha * (1.0 - o) / (-gamma).sqrt();
+        // The covariance as UMF's `sample_block_noise` builds it, in f32:
+        // `eye * (1 - gamma) + ones * gamma + 1e-6 * eye`, each operation rounded to f32.
+        let diagonal = ((1.0 - gamma) as f32 + gamma as f32) + COVARIANCE_JITTER as f32;
         let sigma: Vec<f64> = (0..block * block)
             .map(|k| {
                 let diag = k / block == k % block;
-                if diag {
-                    1.0 + COVARIANCE_JITTER
-                } else {
-                    gamma
-                }
+                f64::from(if diag { diagonal } else { gamma as f32 })
             })
             .collect();
         Ok(Self {
@@ -192,8 +191,13 @@ impl Jump {
     }
 }
 
-/// Cholesky factor in f64, rounded to f32 (UMF factors the float32 covariance; the difference
-/// is below f32 resolution for these well-conditioned matrices).
+/// Cholesky factor of the f32 covariance `a`, computed in f64 and rounded once to f32: the
+/// correctly rounded factor, which LAPACK's f32 `spotrf` (torch's `linalg.cholesky`, which UMF
+/// calls) is within one ulp of. For the released gamma of -0.2 the two are equal bit for bit
+/// (`tests` below, against values written down from torch with MKL); across gammas MKL's
+/// rounding differs by one ulp in about one entry in ten, which no portable operation order we
+/// tried (f32 Crout with division or reciprocal, fused or not, either summation order)
+/// reproduces.
 fn cholesky_f32(a: &[f64], n: usize) -> Result<Vec<f32>> {
     let mut l = vec![0f64; n * n];
     for i in 0..n {
@@ -237,6 +241,24 @@ mod tests {
         assert!(Jump::new(Layout::Grid2d, -0.5, 0.5).is_err());
         assert!(Jump::new(Layout::Grid2d, 0.1, 0.5).is_err());
         assert!(Jump::new(Layout::Temporal, -0.5, 0.5).is_ok());
+    }
+
+    /// `torch.linalg.cholesky(torch.eye(4) * 1.2 + torch.ones(4, 4) * -0.2 + 1e-6 *
+    /// torch.eye(4))`, UMF's released covariance built and factored in f32 as its
+    /// `sample_block_noise` does, written down from torch 2.15 (MKL 2024.2) as bit patterns of
+    /// the lower triangle, row by row. Building the covariance in f64 instead moved 8 of these 10.
+    #[test]
+    fn the_block_covariance_factor_is_torchs_for_the_released_gamma() {
+        let want: [u32; 10] = [
+            0x3f800004, 0xbe4cccc7, 0x3f7ad3f0, 0xbe4cccc7, 0xbe7ad3dd, 0x3f72dcf2, 0xbe4cccc7,
+            0xbe7ad3dd, 0xbea1e891, 0x3f64f93a,
+        ];
+        let l = Jump::new(Layout::Grid2d, -0.2, 0.5).unwrap();
+        let lower: Vec<u32> = (0..4)
+            .flat_map(|i| (0..=i).map(move |j| (i, j)))
+            .map(|(i, j)| l.cholesky()[i * 4 + j].to_bits())
+            .collect();
+        assert_eq!(lower, want);
     }
 
     #[test]

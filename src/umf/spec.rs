@@ -99,6 +99,10 @@ pub struct UmfGraphs {
     /// the condition vector `[prior text ; reaction text]`. Optional.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub text_branch: Option<GraphSpec>,
+    /// CLIP's text tower: a prompt's token ids to the features both text branches read
+    /// (`text.prior_dim` wide). Optional; comes with the manifest's `tokenizer`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub text_encoder: Option<GraphSpec>,
 }
 
 impl UmfSpec {

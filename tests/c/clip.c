@@ -1,4 +1,5 @@
-/* ABI test of the official ARMFlow clip loop and text branch through include/troupe.h only.
+/* ABI test of the official ARMFlow clip loop, text branch and text prompts through
+ * include/troupe.h only.
  * Compiled as C99 and C++17 with -Wall -Wextra -Werror -pedantic and run under valgrind
  * (tests/c_abi.rs). Usage: clip OFFICIAL_LAYOUT_BUNDLE_DIR STREAMING_ONLY_BUNDLE_DIR */
 #include "troupe.h"
@@ -9,8 +10,8 @@ int main(int argc, char **argv) {
     troupe_model *model = NULL, *streaming = NULL;
     troupe_clip_noise noise;
     size_t frames, dim, tokens, lat, cdim, n_frames, n_lat, n = 0;
-    float *out, *again, *latents, *actor, *xi, *eps, *tokens_in, *golden, *cond;
-    float condition[64];
+    float *out, *again, *latents, *actor, *xi, *eps, *tokens_in, *golden, *cond, *prompt_conditions;
+    float condition[64], by_prompt[64];
     const char *dir;
 
     if (argc < 3) {
@@ -44,6 +45,46 @@ int main(int argc, char **argv) {
     EXPECT(troupe_text_encode(model, tokens_in, 77, 9, condition, cdim - 1), TROUPE_ERR_BUFFER_TOO_SMALL);
     EXPECT(troupe_text_encode(model, NULL, 77, 9, condition, 64), TROUPE_ERR_NULL_ARG);
     EXPECT(troupe_text_encode(streaming, tokens_in, 77, 9, condition, 64), TROUPE_ERR_INVALID_ARG);
+
+    /* prompts: the bundle's tokenizer, CLIP tower and text branch, as the reference */
+    prompt_conditions = read_npy(dir, "prompt_conditions", &n);
+    CHECK(prompt_conditions != NULL && n == 5 * cdim);
+    CHECK(troupe_model_takes_prompts(model) == 1 && troupe_model_takes_prompts(streaming) == 0);
+    CHECK(troupe_model_takes_prompts(NULL) == 0);
+    EXPECT(troupe_text_prompt_encode(model, "", by_prompt, 64), TROUPE_OK);
+    if (prompt_conditions) CHECK(max_abs(by_prompt, prompt_conditions, cdim) <= 1e-5f);
+    EXPECT(troupe_text_prompt_encode(model, "two people shake hands", by_prompt, 64), TROUPE_OK);
+    if (prompt_conditions) CHECK(max_abs(by_prompt, prompt_conditions + cdim, cdim) <= 1e-5f);
+    EXPECT(troupe_text_prompt_encode(model, "Ein Mensch l\xc3\xa4uft weg \xe2\x80\x93 der andere folgt! "
+                                            "\xf0\x9f\x8f\x83", by_prompt, 64), TROUPE_OK);
+    if (prompt_conditions) CHECK(max_abs(by_prompt, prompt_conditions + 3 * cdim, cdim) <= 1e-5f);
+    EXPECT(troupe_text_prompt_encode(model, NULL, by_prompt, 64), TROUPE_ERR_NULL_ARG);
+    EXPECT(troupe_text_prompt_encode(model, "hi", NULL, 64), TROUPE_ERR_NULL_ARG);
+    EXPECT(troupe_text_prompt_encode(NULL, "hi", by_prompt, 64), TROUPE_ERR_NULL_ARG);
+    EXPECT(troupe_text_prompt_encode(model, "hi", by_prompt, cdim - 1), TROUPE_ERR_BUFFER_TOO_SMALL);
+    EXPECT(troupe_text_prompt_encode(model, "bad \xff utf-8", by_prompt, 64), TROUPE_ERR_INVALID_ARG);
+    EXPECT(troupe_text_prompt_encode(streaming, "hi", by_prompt, 64), TROUPE_ERR_INVALID_ARG);
+    CHECK(strstr(troupe_last_error_message(), "takes no text prompts") != NULL);
+    {
+        /* a session conditioned on a prompt streams as one given its vector (40 frames: past
+         * the official VAE's 16-frame lookahead) */
+        troupe_session *a = NULL, *b = NULL;
+        static float in[40 * 262], out_a[40 * 262], out_b[40 * 262];
+        size_t got_a = 0, got_b = 0, i;
+        for (i = 0; i < 40 * 262; i++) in[i] = 0.01f * (float)(i % 97);
+        EXPECT(troupe_session_new(model, NULL, &a), TROUPE_OK);
+        EXPECT(troupe_session_new(model, NULL, &b), TROUPE_OK);
+        EXPECT(troupe_session_set_prompt(a, "two people shake hands"), TROUPE_OK);
+        EXPECT(troupe_text_prompt_encode(model, "two people shake hands", by_prompt, 64), TROUPE_OK);
+        EXPECT(troupe_session_set_condition(b, by_prompt, cdim), TROUPE_OK);
+        EXPECT(troupe_session_set_prompt(a, NULL), TROUPE_ERR_NULL_ARG);
+        EXPECT(troupe_session_set_prompt(NULL, "x"), TROUPE_ERR_NULL_ARG);
+        EXPECT(troupe_session_step(a, in, 40, out_a, 40, &got_a), TROUPE_OK);
+        EXPECT(troupe_session_step(b, in, 40, out_b, 40, &got_b), TROUPE_OK);
+        CHECK(got_a == got_b && got_a > 0 && memcmp(out_a, out_b, got_a * 262 * sizeof(float)) == 0);
+        troupe_session_free(a);
+        troupe_session_free(b);
+    }
 
     /* the clip loop with the reference's draws equals the reference */
     n_frames = frames * dim;
@@ -118,6 +159,7 @@ int main(int argc, char **argv) {
     free(eps);
     free(tokens_in);
     free(cond);
+    free(prompt_conditions);
     free(golden);
     troupe_model_free(model);
     troupe_model_free(streaming);

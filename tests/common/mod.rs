@@ -18,8 +18,17 @@ pub fn bundle_dir() -> PathBuf {
 
 /// A copy of the tiny bundle's files in a fresh directory.
 pub fn bundle_copy() -> tempfile::TempDir {
+    copy_of_bundle("armflow-tiny")
+}
+
+/// A copy of the files of the committed bundle `onnx/bundles/NAME` (not its goldens) in a
+/// fresh directory.
+pub fn copy_of_bundle(name: &str) -> tempfile::TempDir {
     let dir = tempfile::tempdir().unwrap();
-    for entry in std::fs::read_dir(bundle_dir()).unwrap() {
+    let from = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("onnx/bundles")
+        .join(name);
+    for entry in std::fs::read_dir(from).unwrap() {
         let path = entry.unwrap().path();
         if path.is_file() {
             std::fs::copy(&path, dir.path().join(path.file_name().unwrap())).unwrap();

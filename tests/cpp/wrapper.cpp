@@ -131,6 +131,14 @@ int main(int argc, char **argv) {
     CHECK(none.code() == TROUPE_ERR_INVALID_ARG && g1 == g2);
     CHECK(other.generate_group(nullptr, 0, 1, g2).code() == TROUPE_ERR_NULL_ARG);
 
+    // Prompts: the bundle's tokenizer, CLIP tower and text branches give a condition.
+    CHECK(umf.takes_prompts() && !other.takes_prompts());
+    std::vector<float> p1, p2;
+    CHECK(umf.encode_prompt("two people shake hands", p1).ok() && p1.size() == umf.condition_dim());
+    CHECK(umf.encode_prompt("two people shake hands", p2).ok() && p1 == p2);
+    CHECK(umf.generate_group(p1.data(), p1.size(), 2, g2, &gopt).ok() && g1 != g2);
+    CHECK(other.encode_prompt("hello", p2).code() == TROUPE_ERR_NULL_ARG && p1 == p2);
+
     // ---- motion: skeleton, positions <-> features, joint sessions, files ----
     {
         troupe::Model model;

@@ -352,3 +352,41 @@ def test_named_conditions_of_the_demo_bundle(model):
         with demo.session(seed=3, condition="follow") as by_name, \
                 demo.session(seed=3, condition=demo.condition("follow")) as by_vector:
             np.testing.assert_array_equal(by_name.step(actor), by_vector.step(actor))
+
+
+PROMPTS = REPO / "onnx" / "bundles" / "armflow-tiny-interhuman"
+
+
+def test_prompts_encode_as_the_reference_and_condition_sessions_clips_and_groups(model):
+    import json
+
+    golden = PROMPTS / "golden"
+    prompts = json.loads((golden / "prompts.json").read_text(encoding="utf-8"))
+    want = np.load(golden / "prompt_conditions.npy")
+    with troupe.Model(PROMPTS) as m:
+        assert m.takes_prompts
+        for p, c in zip(prompts, want):
+            assert np.abs(m.encode_prompt(p) - c).max() <= 1e-5, p
+        assert np.abs(m.encode_prompt("") - np.array(json.loads((PROMPTS / "troupe.json").read_text())["condition"]["null"])).max() <= 1e-5
+        actor_clip = np.load(golden / "clip_actor.npy")
+        by_vector = troupe.Session(m, seed=1, condition=m.encode_prompt(prompts[1])).step(actor_clip)
+        assert np.array_equal(troupe.Session(m, seed=1, prompt=prompts[1]).step(actor_clip), by_vector)
+        s = troupe.Session(m, seed=1)
+        s.set_prompt(prompts[1])
+        assert np.array_equal(s.step(actor_clip), by_vector)
+        assert np.array_equal(m.generate_clip(actor_clip, prompt=prompts[2], seed=3),
+                              m.generate_clip(actor_clip, m.encode_prompt(prompts[2]), seed=3))
+        with pytest.raises(ValueError, match="not both"):
+            troupe.Session(m, condition=by_vector[0, :m.condition_dim], prompt="x")
+        with pytest.raises(ValueError, match="NUL"):
+            m.encode_prompt("a\0b")
+        with pytest.raises(troupe.TroupeError, match="length in bytes"):
+            m.encode_prompt("x" * (1 << 20))
+    with troupe.Model(REPO / "onnx" / "bundles" / "umf-tiny") as u:
+        assert np.array_equal(u.generate_group(2, prompt="two people dance", seed=5),
+                              u.generate_group(2, u.encode_prompt("two people dance"), seed=5))
+    assert not model.takes_prompts
+    with pytest.raises(troupe.TroupeError, match="takes no text prompts"):
+        model.encode_prompt("hello")
+    with pytest.raises(troupe.TroupeError, match="takes no text prompts"):
+        troupe.Session(model, prompt="hello")

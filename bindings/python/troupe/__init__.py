@@ -169,21 +169,21 @@ class Model:
                            doc="tokens of an official ARMFlow clip (0 otherwise)")
 
     def generate_clip(self, actor, condition=None, seed: int = 0, steps: int = 0, noise=None,
-                      return_latents: bool = False):
+                      return_latents: bool = False, prompt: str | None = None):
         """The official ARMFlow clip loop (an armflow bundle exported from the official layout):
         `actor` [frames, frame_dim] with 1..clip_frames frames, zero-padded to the clip.
         Returns the reactor motion [clip_frames, frame_dim] (and the reactor tokens
         [clip_tokens, latent_dim] with `return_latents`).
 
-        `condition`: condition_dim floats, or None for the null condition. `steps`: MeanFlow
-        steps per token, 0 for the bundle's default. `noise`: (actor_posterior
-        [clip_tokens, latent_dim], reactor_noise [latent_dim]) replacing the seeded draws.
-        Releases the GIL."""
+        `condition`: condition_dim floats, or None for the null condition; or `prompt`, a text
+        (see encode_prompt). `steps`: MeanFlow steps per token, 0 for the bundle's default.
+        `noise`: (actor_posterior [clip_tokens, latent_dim], reactor_noise [latent_dim])
+        replacing the seeded draws. Releases the GIL."""
         h = self._h()
         a = _floats(actor, "actor")
         if a.ndim != 2 or a.shape[1] != self.frame_dim:
             raise ValueError(f"actor must be [frames, {self.frame_dim}], got {list(a.shape)}")
-        cond = None if condition is None else _floats(condition, "condition")
+        cond = self._condition_or_prompt(condition, prompt)
         noise_struct = None
         if noise is not None:
             # `arrays` stays alive until the call returns, so the struct's pointers stay valid.
@@ -213,14 +213,37 @@ class Model:
         _check(_lib.troupe_text_encode(self._h(), _ptr(t), t.shape[0], eot_index, _ptr(out), out.size))
         return out
 
+    def _condition_or_prompt(self, condition, prompt):
+        if prompt is not None:
+            if condition is not None:
+                raise ValueError("give a condition or a prompt, not both")
+            return self.encode_prompt(prompt)
+        return None if condition is None else _floats(condition, "condition")
+
+    takes_prompts = property(lambda self: bool(_lib.troupe_model_takes_prompts(self._h())),
+                             doc="whether encode_prompt works: the bundle carries CLIP's text tower and tokenizer")
+
+    def encode_prompt(self, prompt: str) -> np.ndarray:
+        """A text prompt -> the condition [condition_dim], as the official code computes it:
+        CLIP's tokenizer (lower-cased, cleaned, cut at 77 tokens), CLIP's text tower and the
+        bundle's text branch. "" is the official "no text". Cached per prompt in the model."""
+        if not isinstance(prompt, str):
+            raise TypeError(f"prompt must be a str, got {type(prompt).__name__}")
+        if "\0" in prompt:
+            raise ValueError("prompt holds a NUL character")
+        out = np.empty(self.condition_dim, np.float32)
+        _check(_lib.troupe_text_prompt_encode(self._h(), prompt.encode("utf-8"), _ptr(out), out.size))
+        return out
+
     def generate_group(self, people: int, condition=None, seed: int = 0, cfg: float | None = None,
-                       prior=None, reaction=None, noise=None, return_latents: bool = False):
+                       prior=None, reaction=None, noise=None, return_latents: bool = False,
+                       prompt: str | None = None):
         """Generates `people` persons' motion with a `umf` bundle: float32
         [people, clip_frames, frame_dim] (and [people, tokens, latent_dim] latents with
         `return_latents`).
 
         `condition`: condition_dim floats ([prior text ; reaction text]) or None for the null
-        condition. `prior`: one (method, steps) per pyramid stage, method "euler" or "rk4";
+        condition; or `prompt`, a text (see encode_prompt). `prior`: one (method, steps) per pyramid stage, method "euler" or "rk4";
         `reaction`: one (method, steps). `noise`: (prior, jumps, reactions) arrays replacing the
         seeded draws (lengths as troupe_group_noise_lengths gives). Releases the GIL."""
         h = self._h()
@@ -237,7 +260,7 @@ class Model:
                 opt.stage_solver[k], opt.stage_steps[k] = _solver(method), steps
         if reaction is not None:
             opt.reaction_solver, opt.reaction_steps = _solver(reaction[0]), reaction[1]
-        cond = None if condition is None else _floats(condition, "condition")
+        cond = self._condition_or_prompt(condition, prompt)
         noise_struct = None
         if noise is not None:
             # `arrays` stays alive until the call returns, so the struct's pointers stay valid.
@@ -322,7 +345,9 @@ class Session:
     """One actor/reactor stream. Use it from one thread at a time."""
 
     def __init__(self, model: Model, seed=0, steps=None, cfg=None, capacity=None, actor_latent=None,
-                 condition=None):
+                 condition=None, prompt: str | None = None):
+        if condition is not None and prompt is not None:
+            raise ValueError("give a condition or a prompt, not both")
         opt = _native.SessionOptions()
         _check(_lib.troupe_session_options_init(model._h(), ctypes.byref(opt), ctypes.sizeof(opt)))
         opt.seed = seed
@@ -345,6 +370,8 @@ class Session:
         self._model = model
         if condition is not None:
             self.set_condition(condition)
+        if prompt is not None:
+            self.set_prompt(prompt)
 
     def _call(self, fn, *args):
         if not self._handle:
@@ -442,6 +469,12 @@ class Session:
             condition = self._model.condition(condition)
         c = _floats(condition, "condition")
         self._call(_lib.troupe_session_set_condition, _ptr(c), c.size)
+
+    def set_prompt(self, prompt: str) -> None:
+        """Conditions the tokens from now on on a text prompt (bundles with takes_prompts)."""
+        if not isinstance(prompt, str) or "\0" in prompt:
+            raise ValueError("prompt must be a str without NUL characters")
+        self._call(_lib.troupe_session_set_prompt, prompt.encode("utf-8"))
 
     def set_noise(self, actor_noise, reactor_noise) -> None:
         """Queues one token's noise (latent_dim floats each), used before the seeded generator."""

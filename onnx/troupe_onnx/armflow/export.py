@@ -35,13 +35,26 @@ from troupe_onnx.armflow.reference import (
     VelocityGraph,
     clip_reference,
     clip_tokens,
+    null_condition,
     stream_reference,
 )
+from troupe_onnx.armflow.hparams import config_from_checkpoint, hyper_parameters, read_hyper_parameters
 from troupe_onnx.shared.checkpoint import load_checkpoint
+from troupe_onnx.shared.clip import (
+    CONTEXT,
+    FULL_MERGES,
+    TextEncoderGraph,
+    text_encoder_spec,
+    tokenizer_manifest,
+    vocab_size,
+    write_merges,
+    write_prompt_golden,
+)
 from troupe_onnx.shared.export import FORMAT_VERSION, OPSET, export_graph, exporter_cli
 from troupe_onnx.shared.noise import philox_normals
 
 TOOL = "onnx/cli.py armflow export"  # the manifest's `producer.tool`
+TINY_MERGES = 1000  # the tiny official-layout bundles' tokenizer: the first 1,000 of CLIP's merges
 LAYOUTS = {262: "interhuman262", 336: "interx336"}
 # The skeleton each layout's features are defined on (troupe.json `motion.skeleton`).
 SKELETONS = {"interhuman262": "t2m22", "interx336": "smplx55"}
@@ -74,6 +87,7 @@ def official(frame_dim: int, clip_frames: int, size: str, windows: VaeWindows) -
         frame_dim=frame_dim, latent_dim=256 if full else 16, cond_dim=768 if full else 32, layers=7,
         heads=8 if full else 2, mlp_blocks=5, context_capacity=128, clip_frames=clip_frames,
         text_branch=True, text_heads=8, text_ffn=2048 if full else 64,
+        clip_layers=12 if full else 1, clip_heads=12 if full else 2, clip_merges=FULL_MERGES if full else TINY_MERGES,
         vae=VaeConfig(encoder_width=512 if full else 32, decoder_width=256 if full else 32, depth=4,
                       kernel=7, norm_groups=32, causal=False),
         stream_windows=windows,
@@ -92,7 +106,6 @@ PRESETS |= {
 
 # Tensors of the official checkpoints that inference does not use, and why.
 IGNORED = {
-    "text_encoder.clip_": "the frozen CLIP text tower: the bundle takes its token features",
     "armflow.arnet.head_nm.": "constructed but never called by the official forward",
     "armflow.pe.": "sinusoidal table, recomputed",
     "vae.smpl_loss.": "SMPL-X body model of the InterX training loss",
@@ -216,7 +229,8 @@ def graph_specs(model: Armflow) -> dict:
             "inputs": [t("tokens", dims("B", "S", c)), t("modulation", dims("B", L, 6, c))],
             "outputs": [t("context", dims("B", c))],
         }
-    if cfg.text_branch:  # CLIP token features -> the condition, as the official text encoder
+    if cfg.text_branch:  # the official text encoder: CLIP's tower, then the trainable branch
+        specs["text_encoder"] = text_encoder_spec(cfg.cond_dim)
         specs["text_branch"] = {
             "file": "text_branch.onnx",
             "inputs": [t("clip_tokens", dims("B", "T", cfg.cond_dim)), t("eot_index", dims("B"), "int64")],
@@ -240,7 +254,10 @@ def graph_specs(model: Armflow) -> dict:
 def build_model(preset: str, seed: int, checkpoint: Path | None = None, config: ArmflowConfig | None = None) -> Armflow:
     """The preset's model (or `config`'s) with seeded random weights, or the weights of `checkpoint`."""
     torch.manual_seed(seed)
-    model = Armflow(config or PRESETS[preset]).eval()
+    cfg = config or PRESETS[preset]
+    if checkpoint is not None:
+        cfg = checkpoint_config(checkpoint, cfg)
+    model = Armflow(cfg).eval()
     if checkpoint is not None:
         load_checkpoint(model, checkpoint, IGNORED)
         return model
@@ -254,14 +271,26 @@ def build_model(preset: str, seed: int, checkpoint: Path | None = None, config: 
     return model
 
 
+def checkpoint_config(checkpoint: Path, preset: ArmflowConfig) -> ArmflowConfig:
+    """The preset with the configuration the checkpoint stores; says what it took from where."""
+    hp = read_hyper_parameters(checkpoint)
+    if hp is None:
+        print(f"{checkpoint.name}: no stored configuration (hyper_parameters); using the preset as it is")
+        return preset
+    cfg, notes = config_from_checkpoint(hp, preset)
+    for note in notes:
+        print(f"{checkpoint.name}: {note}")
+    return cfg
+
+
 def export_bundle(
     preset: str, out_dir: Path, seed: int = 0, checkpoint: Path | None = None,
     config: ArmflowConfig | None = None, manifest_extra: dict | None = None,
 ) -> Armflow:
     """Write the bundle of `preset` (or of `config`, named `preset`). `manifest_extra` adds to
     the manifest's sections (a trained model's `producer.training`, `condition.labels`)."""
-    cfg = config or PRESETS[preset]
     model = build_model(preset, seed, checkpoint, config)
+    cfg = model.cfg  # the checkpoint's own configuration where it stores one
     out_dir.mkdir(parents=True, exist_ok=True)
     specs = graph_specs(model)
     c, lat, h, dh = cfg.width, cfg.latent_dim, cfg.heads, cfg.head_dim
@@ -282,6 +311,9 @@ def export_bundle(
     }
     if "context_full" in specs:
         examples["context_full"] = (ContextFullGraph(model), (torch.randn(2, 3, c), torch.randn(2, cfg.layers, 6, c)))
+    if "text_encoder" in specs:
+        ids = torch.randint(0, vocab_size(cfg.clip_merges), (2, CONTEXT))
+        examples["text_encoder"] = (TextEncoderGraph(model.text_encoder, "clip_features"), (ids,))
     if "text_branch" in specs:
         examples["text_branch"] = (model.text_encoder, (torch.randn(2, 5, cfg.cond_dim), torch.tensor([4, 2])))
     if "vae_encoder_step" in specs:
@@ -308,7 +340,7 @@ def export_bundle(
         "motion": {"layout": LAYOUTS[cfg.frame_dim], "frame_dim": cfg.frame_dim, "fps": cfg.fps,
                    "skeleton": SKELETONS[LAYOUTS[cfg.frame_dim]]},
         "latent": {"dim": lat, "scale": cfg.latent_scale, "frames_per_token": cfg.frames_per_token},
-        "condition": {"dim": cfg.cond_dim} | ({"null": list(cfg.null_condition)} if cfg.null_condition else {}),
+        "condition": condition_manifest(model),
         "context": {
             "width": c, "layers": cfg.layers, "heads": h, "head_dim": dh,
             "capacity_tokens": cfg.context_capacity,
@@ -318,16 +350,32 @@ def export_bundle(
             "encoder": {"context_frames": windows.context_frames, "lookahead_frames": windows.lookahead_frames},
             "decoder": {"context_tokens": windows.context_tokens, "lookahead_tokens": windows.lookahead_tokens},
         },
-        "sampler": {"steps": 1, "cfg_scale": 1.0, "actor_latent": "sample"},
+        "sampler": {"steps": cfg.steps, "cfg_scale": cfg.cfg_scale, "actor_latent": "sample"},
         "graphs": specs,
     }
     if cfg.clip_frames:
         manifest["clip"] = {"frames": cfg.clip_frames, "tokens": clip_tokens(cfg)}
+    if cfg.text_branch:
+        write_merges(out_dir, cfg.clip_merges)
+        manifest["tokenizer"] = tokenizer_manifest(cfg.clip_merges)
     for section, values in (manifest_extra or {}).items():
         merge = isinstance(values, dict) and isinstance(manifest.get(section), dict)
         manifest[section] = {**manifest[section], **values} if merge else values
     (out_dir / "troupe.json").write_text(json.dumps(manifest, indent=2) + "\n")
     return model
+
+
+def condition_manifest(model: Armflow) -> dict:
+    """The manifest's `condition`: its width, and what "no condition" is and where it comes
+    from (`null_source`): the empty prompt through the checkpoint's CLIP and text branch (the
+    official meaning), a vector the configuration gives, or zeros."""
+    cfg = model.cfg
+    if cfg.text_branch:
+        null = null_condition(model)[0].tolist()
+        return {"dim": cfg.cond_dim, "null": [float(v) for v in null], "null_source": "empty_prompt"}
+    if cfg.null_condition is not None:
+        return {"dim": cfg.cond_dim, "null": list(cfg.null_condition), "null_source": "vector"}
+    return {"dim": cfg.cond_dim, "null_source": "zeros"}
 
 
 # --------------------------------------------------------------------------------------------
@@ -413,6 +461,7 @@ def write_clip_golden(model: Armflow, out_dir: Path):
     tokens = torch.from_numpy(arrays["text_clip_tokens"])[None]
     condition = model.text_encoder(tokens, torch.tensor([CLIP_EOT]))[0].numpy().astype(np.float32)
     arrays["text_condition"] = condition
+    write_prompt_golden(out_dir, model.text_encoder.clip_features, model.text_encoder)
     short = cfg.clip_frames * 2 // 3
     cases = {"clip": (synthetic_actor(short, cfg.frame_dim), condition),
              "clip_null": (synthetic_actor(cfg.clip_frames, cfg.frame_dim, seed=4), None)}
@@ -471,15 +520,18 @@ def write_checkpoint(preset: str, seed: int, path: Path, extras: bool = True):
     """Save the preset's seeded random weights as an official checkpoint: a Lightning-style
     `{"state_dict": ...}` under the official names. With `extras`, also tensors the official
     checkpoints carry that inference ignores (`IGNORED`), so that the loader meets them."""
-    state = build_model(preset, seed).state_dict()
+    model = build_model(preset, seed)
+    state = model.state_dict()
     if extras:
         cfg = PRESETS[preset]
         state |= {
             "armflow.arnet.head_nm.ada_lin.1.weight": torch.zeros(2 * cfg.width, cfg.cond_dim),
             "armflow.arnet.head_nm.ada_lin.1.bias": torch.zeros(2 * cfg.width),
-            "text_encoder.clip_ln_final.weight": torch.ones(cfg.cond_dim),
         }
-    torch.save({"state_dict": state, "epoch": 0}, path)
+    saved = {"state_dict": state, "epoch": 0}
+    if model.cfg.text_branch:  # the official layout: Lightning's copy of the training configuration
+        saved["hyper_parameters"] = hyper_parameters(model.cfg)
+    torch.save(saved, path)
 
 
 def main(argv: list[str] | None = None, prog: str | None = None):

@@ -17,6 +17,7 @@ import numpy as np
 import torch
 import torch.nn as nn
 import torch.nn.functional as F
+from troupe_onnx.shared.clip import CONTEXT, FULL_MERGES, ClipTransformer, clip_features, vocab_size
 from troupe_onnx.shared.transformer import EncoderStack, pick_token
 
 # --------------------------------------------------------------------------------------------
@@ -48,10 +49,15 @@ class ArmflowConfig:
     frames_per_token: int = 4
     fps: int = 30
     context_capacity: int = 256
+    steps: int = 1  # MeanFlow steps per token (the official num_steps)
+    cfg_scale: float = 1.0  # guidance at inference (1: none, as the official models run)
     clip_frames: int = 0  # official clip length (300 InterHuman, 150 InterX); 0: streaming only
-    text_branch: bool = False  # include the official trainable text branch
+    text_branch: bool = False  # the official text encoder: CLIP's text tower and the branch after it
     text_heads: int = 8
     text_ffn: int = 2048
+    clip_layers: int = 12  # CLIP ViT-L/14@336px's text tower (its width is cond_dim)
+    clip_heads: int = 12
+    clip_merges: int = FULL_MERGES  # the tokenizer's byte-pair merges
     stream_windows: VaeWindows | None = None  # stream-mode windows of a non-causal VAE
     null_condition: tuple[float, ...] | None = None  # what condition None means (zeros if unset)
     vae: VaeConfig = field(
@@ -487,17 +493,38 @@ class VelocityGraph(nn.Module):
 
 
 class TextBranch(nn.Module):
-    """The trainable part of the official text encoder (`text_encoder.clipTrans`, `.clipln`):
-    CLIP's token features [B, T, 768] -> 2 post-norm layers -> LayerNorm -> the feature at the
-    end-of-text token (the argmax of CLIP's token ids) = the condition [B, 768]."""
+    """The official text encoder (`models/armflow/textenc.py`, "intergen" style) under its
+    names: CLIP's frozen text tower (`clip_token_embedding`, `clip_positional_embedding`,
+    `clip_transformer`, `clip_ln_final`) gives token features [B, 77, 768]; the trainable part
+    (`clipTrans`: 2 post-norm layers, `clipln`) turns them into the condition [B, 768], read at
+    the end-of-text token (the argmax of CLIP's token ids)."""
 
     def __init__(self, cfg: ArmflowConfig):
         super().__init__()
-        self.clipTrans = EncoderStack(cfg.cond_dim, cfg.text_heads, cfg.text_ffn, 2)
-        self.clipln = nn.LayerNorm(cfg.cond_dim)
+        c = cfg.cond_dim
+        self.clip_token_embedding = nn.Embedding(vocab_size(cfg.clip_merges), c)
+        self.clip_transformer = ClipTransformer(c, cfg.clip_layers, cfg.clip_heads)
+        self.clip_positional_embedding = nn.Parameter(torch.randn(CONTEXT, c) * 0.01)
+        self.clip_ln_final = nn.LayerNorm(c)
+        self.clipTrans = EncoderStack(c, cfg.text_heads, cfg.text_ffn, 2)
+        self.clipln = nn.LayerNorm(c)
+
+    def clip_features(self, ids):  # [B, 77] int64 -> [B, 77, C]
+        return clip_features(
+            self.clip_token_embedding, self.clip_positional_embedding, self.clip_transformer, self.clip_ln_final, ids
+        )
 
     def forward(self, tokens, eot):  # [B, T, C] float, [B] int64
         return pick_token(self.clipln(self.clipTrans(tokens)), eot)
+
+    @torch.no_grad()
+    def empty_prompt(self) -> torch.Tensor:
+        """[1, C]: "" through CLIP and the branch, which the official code encodes for "no text"
+        (`encode_null_condition`): ids [<|startoftext|>, <|endoftext|>, 0, ...]."""
+        vocab = self.clip_token_embedding.num_embeddings  # the two special ids come last
+        ids = torch.zeros(1, CONTEXT, dtype=torch.long)
+        ids[0, 0], ids[0, 1] = vocab - 2, vocab - 1
+        return self(self.clip_features(ids), torch.tensor([1]))
 
 
 class Armflow(nn.Module):
@@ -527,8 +554,15 @@ STREAM_REACTOR_NOISE = 1
 
 
 def meanflow_grid(steps: int) -> list[float]:
-    """tau_k = (n - k) / n for k = 0..n, rounded once to float32 (1 is noise, 0 is data)."""
-    return [float(np.float32((steps - k) / steps)) for k in range(steps + 1)]
+    """The official `torch.linspace(1, 0, steps + 1)` in float32 as ATen's CUDA kernel (and the
+    CPU kernel's scalar path) computes it: step = -1 / steps, 1 + step * k for the first half
+    of the points, 0 - step * (steps - k) for the rest (1 is noise, 0 is data)."""
+    f = np.float32
+    points, step = steps + 1, f(f(-1) / f(steps))
+    return [
+        float(f(1) + f(step * f(k)) if k < points // 2 else f(0) - f(step * f(points - k - 1)))
+        for k in range(points)
+    ]
 
 
 @dataclass
@@ -561,13 +595,21 @@ class VaeWindows:
         )
 
 
-def condition_or_null(cfg: ArmflowConfig, condition: np.ndarray | None) -> torch.Tensor:
-    """[1, cond_dim]: the condition, or the configuration's null condition (zeros if unset)."""
-    if condition is not None:
-        return torch.from_numpy(condition)[None]
+def null_condition(model: Armflow) -> torch.Tensor:
+    """[1, cond_dim]: what "no condition" means: the empty prompt through the text encoder
+    when the model has one (the official meaning), else the configuration's null condition,
+    else zeros."""
+    cfg = model.cfg
+    if cfg.text_branch:
+        return model.text_encoder.empty_prompt()
     if cfg.null_condition is not None:
         return torch.tensor([cfg.null_condition], dtype=torch.float32)
     return torch.zeros(1, cfg.cond_dim)
+
+
+def condition_or_null(model: Armflow, condition: np.ndarray | None) -> torch.Tensor:
+    """[1, cond_dim]: the condition, or the model's null condition."""
+    return null_condition(model) if condition is None else torch.from_numpy(condition)[None]
 
 
 @torch.no_grad()
@@ -584,7 +626,7 @@ def stream_reference(
     w = windows or VaeWindows.of(model)
     capacity = opt.capacity or cfg.context_capacity
     n_tokens = (actor.shape[0] - w.lookahead_frames) // fpt
-    modulation = core.arnet.modulation(condition_or_null(cfg, opt.condition))
+    modulation = core.arnet.modulation(condition_or_null(model, opt.condition))
     h, dh = cfg.heads, cfg.head_dim
     past = [(torch.zeros(1, h, 0, dh), torch.zeros(1, h, 0, dh)) for _ in range(cfg.layers)]
     grid = meanflow_grid(opt.steps)
@@ -666,7 +708,7 @@ def clip_reference(model: Armflow, actor: np.ndarray, xi: np.ndarray, eps: np.nd
     padded[:frames_in] = actor
     mean, logvar = model.vae.encoder(torch.from_numpy(padded)[None])
     a = (mean + logvar.exp().pow(0.5) * torch.from_numpy(xi)[None]) * cfg.latent_scale  # [1, N, lat]
-    modulation = core.arnet.modulation(condition_or_null(cfg, condition))
+    modulation = core.arnet.modulation(condition_or_null(model, condition))
     grid = meanflow_grid(steps)
     e = torch.from_numpy(eps)[None]
     b_hist, c_hist = [], []

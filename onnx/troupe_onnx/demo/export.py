@@ -41,7 +41,7 @@ def manifest_extra(record: dict) -> dict:
     return {
         "name": "armflow-demo",
         "producer": {"tool": "onnx/cli.py demo export", "training": record},
-        "condition": {"labels": labels},
+        "condition": {"labels": labels, "null_source": "label:mirror"},  # train.py: no condition = mirror
     }
 
 

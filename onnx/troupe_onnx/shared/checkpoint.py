@@ -23,13 +23,19 @@ class CheckpointError(ValueError):
     """The checkpoint does not match the model configuration."""
 
 
-def read_state_dict(path: Path) -> dict[str, torch.Tensor]:
-    """The tensors of a checkpoint file: a Lightning checkpoint (`state_dict` inside) or a
-    plain state dict. Loaded with `weights_only=True`: a checkpoint cannot run code."""
+def read_checkpoint(path: Path):
+    """A checkpoint file's contents, loaded with `weights_only=True`: a checkpoint cannot run
+    code."""
     try:
-        obj = torch.load(path, map_location="cpu", weights_only=True)
+        return torch.load(path, map_location="cpu", weights_only=True)
     except Exception as e:  # noqa: BLE001 - torch raises many types for a bad file
         raise CheckpointError(f"{path}: not a readable torch checkpoint ({type(e).__name__}: {e})") from e
+
+
+def read_state_dict(path: Path) -> dict[str, torch.Tensor]:
+    """The tensors of a checkpoint file: a Lightning checkpoint (`state_dict` inside) or a
+    plain state dict."""
+    obj = read_checkpoint(path)
     if isinstance(obj, dict) and isinstance(obj.get("state_dict"), dict):
         obj = obj["state_dict"]
     if not isinstance(obj, dict) or not all(isinstance(v, torch.Tensor) for v in obj.values()):

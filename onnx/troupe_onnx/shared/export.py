@@ -90,14 +90,15 @@ def check_reexport(committed: Path, rebuild) -> None:
 
 def exporter_cli(
     doc: str, presets: dict, export_bundle, write_golden, write_checkpoint=None, normaliser: bool = False,
-    argv: list[str] | None = None, prog: str | None = None,
+    config_file: bool = False, argv: list[str] | None = None, prog: str | None = None,
 ):
     """The command line every exporter shares: `--preset P --out DIR [--golden]` writes a
     bundle; `--preset P --check DIR` re-exports into a temporary directory and exits non-zero
     unless it is byte-identical to DIR (goldens included when DIR has them). Exporters that
     take official checkpoints add `--checkpoint FILE` and `--write-checkpoint FILE`; those whose
-    feature normaliser lives outside the checkpoint add `--mean FILE --std FILE`. `argv` and
-    `prog` default to the process's."""
+    feature normaliser lives outside the checkpoint add `--mean FILE --std FILE`; those whose
+    checkpoints store no configuration add `--config FILE` (JSON: configuration fields that
+    replace the preset's). `argv` and `prog` default to the process's."""
     ap = argparse.ArgumentParser(prog=prog, description=doc, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--preset", choices=sorted(presets), required=True)
     ap.add_argument("--out", type=Path, help="bundle directory to write")
@@ -110,6 +111,8 @@ def exporter_cli(
     if normaliser:
         ap.add_argument("--mean", type=Path, help="the dataset's feature mean (.npy) to denormalise with")
         ap.add_argument("--std", type=Path, help="the dataset's feature std (.npy)")
+    if config_file:
+        ap.add_argument("--config", type=Path, help="JSON of configuration fields replacing the preset's")
     args = ap.parse_args(argv)
     torch.set_num_threads(1)
     if getattr(args, "write_checkpoint", None):
@@ -121,6 +124,8 @@ def exporter_cli(
         if not (args.mean and args.std):
             ap.error("--mean and --std go together")
         checkpoint["normaliser"] = (args.mean, args.std)
+    if getattr(args, "config", None):
+        checkpoint["config_file"] = args.config
     if args.check:
 
         def rebuild(fresh: Path, golden: bool):

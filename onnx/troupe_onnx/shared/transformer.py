@@ -24,8 +24,9 @@ class Attention(nn.Module):
         self.in_proj_bias = nn.Parameter(torch.zeros(3 * width))
         self.out_proj = nn.Linear(width, width)
 
-    def forward(self, x, memory=None):
-        """Self-attention over x [B, S, C], or x attending to memory [B, M, C]."""
+    def forward(self, x, memory=None, mask=None):
+        """Self-attention over x [B, S, C], or x attending to memory [B, M, C]; `mask` [S, M]
+        is added to the attention logits (CLIP's causal mask)."""
         w, b, c = self.in_proj_weight, self.in_proj_bias, x.shape[-1]
         if memory is None:
             q, k, v = F.linear(x, w, b).chunk(3, dim=-1)
@@ -33,7 +34,8 @@ class Attention(nn.Module):
             q = F.linear(x, w[:c], b[:c])
             k, v = F.linear(memory, w[c:], b[c:]).chunk(2, dim=-1)
         q, k, v = (t.unflatten(-1, (self.heads, -1)).transpose(1, 2) for t in (q, k, v))  # [B, H, S, Dh]
-        att = torch.softmax((q * self.scale) @ k.transpose(-2, -1), dim=-1)
+        logits = (q * self.scale) @ k.transpose(-2, -1)
+        att = torch.softmax(logits if mask is None else logits + mask, dim=-1)
         return self.out_proj((att @ v).transpose(1, 2).flatten(2))
 
 

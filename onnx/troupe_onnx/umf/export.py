@@ -22,6 +22,7 @@ the bundle comparison and the command line are shared with every family's export
 
 from __future__ import annotations
 
+import dataclasses
 import json
 from pathlib import Path
 
@@ -29,6 +30,7 @@ import numpy as np
 import torch
 
 from troupe_onnx.shared.checkpoint import CheckpointError, load_checkpoint
+from troupe_onnx.shared.clip import CONTEXT, text_encoder_spec, tokenizer_manifest, write_merges, write_prompt_golden
 from troupe_onnx.shared.export import FORMAT_VERSION, OPSET, export_graph, exporter_cli
 from troupe_onnx.umf.reference import (
     TIME_SCALE,
@@ -43,10 +45,11 @@ from troupe_onnx.umf.reference import (
 
 TOOL = "onnx/cli.py umf export"  # the manifest's `producer.tool`
 
+TINY_MERGES = 1000  # the tiny bundles' tokenizer: the first 1,000 of CLIP's merges
 _TINY = dict(
     latent_dim=8, width=32, heads=2, ffn=64, time_dim=32, prior_layers=3, prior_expert_layers=1,
     reaction_layers=3, prior_text_dim=16, reaction_text_dim=16, pe_length=32, clip_layers=1,
-    clip_heads=2, text_heads=2, text_ffn=32, context_heads=2, context_ffn=32, vae_width=32,
+    clip_heads=2, clip_merges=TINY_MERGES, text_heads=2, text_ffn=32, context_heads=2, context_ffn=32, vae_width=32,
     vae_layers=3, vae_heads=2, vae_ffn=64, vae_pe_length=64, clip_frames=40,
 )
 
@@ -134,15 +137,40 @@ def load_normaliser(model: Umf, mean_path: Path, std_path: Path):
     model.motion_std.copy_(arrays[1])
 
 
+def configuration(preset: str, checkpoint: Path | None, config_file: Path | None) -> UmfConfig:
+    """The preset, with the fields of `config_file` (JSON) replacing its own. UMF's checkpoints
+    store no configuration, so a checkpoint exported without a config file takes the preset, and
+    the exporter says so."""
+    cfg = PRESETS[preset]
+    if config_file is None:
+        if checkpoint is not None:
+            print(f"{checkpoint.name}: UMF checkpoints store no configuration; exporting with preset "
+                  f"`{preset}` (pass --config FILE to state the model's own)")
+        return cfg
+    fields = json.loads(config_file.read_text())
+    known = {f.name for f in dataclasses.fields(UmfConfig)}
+    unknown = sorted(set(fields) - known)
+    if not isinstance(fields, dict) or unknown:
+        raise CheckpointError(f"{config_file}: unknown configuration fields {unknown} (known: {sorted(known)})")
+    for name in ("prior_solvers", "reaction_solver"):
+        if name in fields:
+            solvers = [Solver(**s) for s in (fields[name] if name == "prior_solvers" else [fields[name]])]
+            fields[name] = solvers if name == "prior_solvers" else solvers[0]
+    for name, value in fields.items():
+        print(f"{config_file.name}: {name} = {value!r} (the preset has {getattr(cfg, name)!r})")
+    return dataclasses.replace(cfg, **fields)
+
+
 def build_model(
-    preset: str, seed: int, checkpoint: Path | None = None, normaliser: tuple[Path, Path] | None = None
+    preset: str, seed: int, checkpoint: Path | None = None, normaliser: tuple[Path, Path] | None = None,
+    config_file: Path | None = None,
 ) -> Umf:
-    """The preset's model with seeded random weights, or the weights of an official
-    `checkpoint`. The normaliser comes from `normaliser` (mean, std files), else it is random
-    with random weights and the identity with a checkpoint. The null condition is computed from
-    the weights: the empty prompt through CLIP and the text branches."""
+    """The preset's model (with `config_file`'s fields) with seeded random weights, or the
+    weights of an official `checkpoint`. The normaliser comes from `normaliser` (mean, std
+    files), else it is random with random weights and the identity with a checkpoint. The null
+    condition is computed from the weights: the empty prompt through CLIP and the text branches."""
     torch.manual_seed(seed)
-    model = Umf(PRESETS[preset]).eval()
+    model = Umf(configuration(preset, checkpoint, config_file)).eval()
     if checkpoint is not None:
         load_checkpoint(model, checkpoint, IGNORED, ALIASES)
     else:
@@ -169,9 +197,8 @@ class GraphModule(torch.nn.Module):
 
 GRAPH_METHODS = {
     "prior": "prior_velocity", "reaction": "reaction_velocity", "context": "context", "decoder": "decode",
-    "text_branch": "text_condition",
+    "text_encoder": "clip_features", "text_branch": "text_condition",
 }
-CLIP_TEXT_TOKENS = 77  # CLIP's context: the token features the golden text case feeds
 
 
 def graph_specs(cfg: UmfConfig) -> dict:
@@ -200,7 +227,9 @@ def graph_specs(cfg: UmfConfig) -> dict:
             "inputs": [t("latents", ["B", n, d])],
             "outputs": [t("motion", ["B", cfg.clip_frames, cfg.frame_dim])],
         },
-        # Optional: CLIP's token features -> the condition, exactly the official text branches.
+        # CLIP's text tower: a prompt's token ids -> the features the text branches read.
+        "text_encoder": text_encoder_spec(cfg.text_dim),
+        # CLIP's token features -> the condition, exactly the official text branches.
         "text_branch": {
             "file": "text_branch.onnx",
             "inputs": [t("clip_tokens", ["B", "T", cfg.text_dim]), {"name": "eot_index", "dtype": "int64", "shape": ["B"]}],
@@ -216,6 +245,7 @@ def example_inputs(cfg: UmfConfig, graph: str, batch: int, tokens: int | None = 
         "prior": lambda: (torch.randn(batch, tokens or n, d), torch.rand(batch), torch.randn(batch, cfg.prior_text_dim)),
         "reaction": lambda: (torch.randn(batch, n, 2 * d), torch.rand(batch), torch.randn(batch, cfg.reaction_text_dim)),
         "context": lambda: (torch.randn(1, tokens or 2, n, d),),
+        "text_encoder": lambda: (torch.randint(0, cfg.clip_vocab, (batch, CONTEXT)),),
         "decoder": lambda: (torch.randn(batch, n, d),),
         "text_branch": lambda: (
             torch.randn(batch, tokens or 7, cfg.text_dim), torch.arange(batch, dtype=torch.int64) * 3 % (tokens or 7)
@@ -233,7 +263,8 @@ def validate_graphs(model: Umf, out_dir: Path, specs: dict):
         "reaction": [(1, None), (2, None)],
         "context": [(1, 1), (1, 3)],
         "decoder": [(1, None), (2, None)],
-        "text_branch": [(1, CLIP_TEXT_TOKENS), (2, 5)],
+        "text_encoder": [(1, None), (2, None)],
+        "text_branch": [(1, CONTEXT), (2, 5)],
     }
     opts = ort.SessionOptions()
     opts.intra_op_num_threads = 1
@@ -256,16 +287,17 @@ def validate_graphs(model: Umf, out_dir: Path, specs: dict):
 
 def export_bundle(
     preset: str, out_dir: Path, seed: int = 0, checkpoint: Path | None = None,
-    normaliser: tuple[Path, Path] | None = None,
+    normaliser: tuple[Path, Path] | None = None, config_file: Path | None = None,
 ) -> Umf:
-    cfg = PRESETS[preset]
-    model = build_model(preset, seed, checkpoint, normaliser)
+    model = build_model(preset, seed, checkpoint, normaliser, config_file)
+    cfg = model.cfg
     out_dir.mkdir(parents=True, exist_ok=True)
     specs = graph_specs(cfg)
     torch.manual_seed(seed + 1)  # example inputs: dynamic dims get sizes >= 2 so none is specialised
     for name, spec in specs.items():
         export_graph(GraphModule(model, GRAPH_METHODS[name]), example_inputs(cfg, name, 2), spec, out_dir)
     validate_graphs(model, out_dir, specs)
+    write_merges(out_dir, cfg.clip_merges)
     manifest = {
         "format": "troupe-bundle",
         "format_version": FORMAT_VERSION,
@@ -274,10 +306,14 @@ def export_bundle(
         "producer": {
             "tool": TOOL, "preset": preset, "opset": OPSET,
             **({"checkpoint": checkpoint.name} if checkpoint else {"seed": seed}),
+            **({"config": config_file.name} if config_file else {}),
             "dataset": DATASET_NAMES[cfg.dataset_label],
         },
         "motion": {"layout": "interhuman262", "frame_dim": cfg.frame_dim, "fps": cfg.fps, "skeleton": "t2m22"},
-        "condition": {"dim": cfg.condition_dim, "null": [float(v) for v in model.null_condition]},
+        "condition": {
+            "dim": cfg.condition_dim, "null": [float(v) for v in model.null_condition], "null_source": "empty_prompt",
+        },
+        "tokenizer": tokenizer_manifest(cfg.clip_merges),
         "latent": {"tokens": cfg.tokens, "dim": cfg.latent_dim},
         "clip_frames": cfg.clip_frames,
         "text": {"prior_dim": cfg.prior_text_dim, "reaction_dim": cfg.reaction_text_dim},
@@ -340,13 +376,14 @@ def write_golden(model: Umf, out_dir: Path):
     rng = np.random.default_rng(2)
     normals = lambda *shape: rng.standard_normal(shape).astype(np.float32)  # noqa: E731
     tokens, d = stage_tokens(cfg), cfg.latent_dim
-    text = {"text_clip_tokens": normals(CLIP_TEXT_TOKENS, cfg.text_dim), "text_eot_index": np.array([9], np.int64)}
+    text = {"text_clip_tokens": normals(CONTEXT, cfg.text_dim), "text_eot_index": np.array([9], np.int64)}
     with torch.no_grad():
         text["text_condition"] = model.text_condition(
             torch.from_numpy(text["text_clip_tokens"])[None], torch.from_numpy(text["text_eot_index"])
         )[0].numpy()
     for k, v in text.items():
         np.save(g / f"{k}.npy", np.ascontiguousarray(v))
+    write_prompt_golden(out_dir, model.clip_features, model.text_condition)
     index = {}
     for name, (people, scale, source, prior, reaction, seed) in golden_cases(cfg).items():
         condition = {"normals": lambda: normals(cfg.condition_dim), "text": lambda: text["text_condition"]}
@@ -395,4 +432,7 @@ def write_checkpoint(preset: str, seed: int, path: Path, extras: bool = True):
 
 def main(argv: list[str] | None = None, prog: str | None = None):
     """`onnx/cli.py umf export`."""
-    exporter_cli(__doc__, PRESETS, export_bundle, write_golden, write_checkpoint, normaliser=True, argv=argv, prog=prog)
+    exporter_cli(
+        __doc__, PRESETS, export_bundle, write_golden, write_checkpoint, normaliser=True, config_file=True,
+        argv=argv, prog=prog,
+    )

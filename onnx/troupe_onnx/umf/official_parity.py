@@ -42,7 +42,7 @@ def main(argv: list[str] | None = None, prog: str | None = None):
     cfg = model.cfg
     rng = np.random.default_rng(11)
     normals = lambda *shape: rng.standard_normal(shape).astype(np.float32)  # noqa: E731
-    clip_tokens, eot = normals(cfg.clip_context, cfg.text_dim), 12
+    clip_tokens, eot = normals(CONTEXT, cfg.text_dim), 12
     with torch.no_grad():
         condition = model.text_condition(torch.from_numpy(clip_tokens)[None], torch.tensor([eot]))[0].numpy()
     coarse, fine, d = stage_tokens(cfg)[0], cfg.tokens, cfg.latent_dim

@@ -26,13 +26,13 @@ the names read there.
 from __future__ import annotations
 
 import math
-from collections import OrderedDict
 from dataclasses import dataclass, field
 
 import numpy as np
 import torch
 import torch.nn as nn
 import torch.nn.functional as F
+from troupe_onnx.shared.clip import CONTEXT, FULL_MERGES, ClipTransformer, clip_features, vocab_size
 from troupe_onnx.shared.noise import philox_normals
 from troupe_onnx.shared.transformer import Attention, EncoderLayer, EncoderStack, pick_token
 
@@ -81,12 +81,11 @@ class UmfConfig:
     reaction_text_dim: int = 768
     pe_length: int = 500  # learned positions of the denoisers
     dataset_label: int = 1  # P-Flow's dataset: 1 = InterHuman ("ih" expert), 0 = HumanML3D ("t2m")
-    # Text: CLIP ViT-L/14@336px's text tower (run at export only, for the empty prompt) and the
-    # official 2-layer encoders after it
+    # Text: CLIP ViT-L/14@336px's text tower (the bundle's `text_encoder` graph; its tokenizer
+    # has `clip_merges` byte-pair merges) and the official 2-layer encoders after it
     clip_layers: int = 12
     clip_heads: int = 12
-    clip_context: int = 77
-    clip_vocab: int = 49408
+    clip_merges: int = FULL_MERGES
     text_layers: int = 2
     text_heads: int = 8
     text_ffn: int = 2048
@@ -108,6 +107,11 @@ class UmfConfig:
     prior_solvers: list[Solver] = field(default_factory=lambda: [Solver("rk4", 4)] * 2)
     reaction_solver: Solver = Solver("rk4", 4)
     cfg_scale: float = 3.0
+
+    @property
+    def clip_vocab(self) -> int:
+        """CLIP's tokens: bytes, bytes ending a word, merges, <|startoftext|>, <|endoftext|>."""
+        return vocab_size(self.clip_merges)
 
     @property
     def text_dim(self) -> int:
@@ -230,11 +234,13 @@ def jump_coefficients(o: float, gamma: float) -> tuple[float, float]:
 
 
 def block_cholesky(layout: str, gamma: float) -> np.ndarray:
-    """Lower Cholesky factor of Sigma = (1 - gamma) I + gamma 1 1^T + 1e-6 I (float64, then
-    rounded to float32)."""
-    b = BLOCK[layout]
-    sigma = (1.0 - gamma) * np.eye(b) + gamma * np.ones((b, b)) + 1e-6 * np.eye(b)
-    return np.linalg.cholesky(sigma).astype(np.float32)
+    """Lower Cholesky factor of Sigma = (1 - gamma) I + gamma 1 1^T + 1e-6 I, Sigma built in
+    float32 as the official `sample_block_noise` builds it, factored in float64 and rounded
+    once to float32 (src/umf/pyramid.rs)."""
+    b, f = BLOCK[layout], np.float32
+    sigma = np.full((b, b), f(gamma), np.float32)
+    np.fill_diagonal(sigma, f(f(f(1.0 - gamma) + f(gamma)) + f(1e-6)))
+    return np.linalg.cholesky(sigma.astype(np.float64)).astype(np.float32)
 
 
 def block_noise_from_normals(e: np.ndarray, layout: str, fine_tokens: int, dim: int, gamma: float) -> np.ndarray:
@@ -276,9 +282,8 @@ def seeded_noise(cfg: UmfConfig, seed: int, people: int):
 # Networks under the official module and parameter names (models.md 2.1, 2.5, 2.6)
 # --------------------------------------------------------------------------------------------
 
-# CLIP's byte-pair ids of <|startoftext|> and <|endoftext|>: the empty prompt of guidance is
-# [SOT, EOT, 0, ...], so its end-of-text token (the argmax of the ids) sits at index 1.
-CLIP_SOT, CLIP_EOT = 49406, 49407
+# The empty prompt of guidance is [<|startoftext|>, <|endoftext|>, 0, ...], so its end-of-text
+# token (the argmax of the ids) sits at index 1.
 EMPTY_PROMPT_EOT = 1
 
 
@@ -427,46 +432,6 @@ class Vae(nn.Module):
         return self.final_layer(self.decoder(queries, memory))
 
 
-class QuickGELU(nn.Module):
-    def forward(self, x):
-        return x * torch.sigmoid(1.702 * x)
-
-
-class ClipBlock(nn.Module):
-    """CLIP's ResidualAttentionBlock: pre-norm, causal self-attention, QuickGELU MLP."""
-
-    def __init__(self, width: int, heads: int):
-        super().__init__()
-        self.attn = nn.MultiheadAttention(width, heads)
-        self.ln_1 = nn.LayerNorm(width)
-        self.mlp = nn.Sequential(
-            OrderedDict(c_fc=nn.Linear(width, 4 * width), gelu=QuickGELU(), c_proj=nn.Linear(4 * width, width))
-        )
-        self.ln_2 = nn.LayerNorm(width)
-
-    def forward(self, x, mask):  # x [T, B, C], sequence first as CLIP
-        h = self.ln_1(x)
-        x = x + self.attn(h, h, h, need_weights=False, attn_mask=mask)[0]
-        return x + self.mlp(self.ln_2(x))
-
-
-class ClipTransformer(nn.Module):
-    """CLIP's text Transformer (`resblocks`). The official model carries CLIP ViT-L/14@336px's
-    frozen text tower in its state dict; troupe runs it once, at export, to encode the empty
-    prompt that classifier-free guidance conditions its unconditional half on."""
-
-    def __init__(self, width: int, layers: int, heads: int):
-        super().__init__()
-        self.resblocks = nn.ModuleList(ClipBlock(width, heads) for _ in range(layers))
-
-    def forward(self, x):
-        t = x.shape[0]
-        mask = torch.full((t, t), float("-inf")).triu_(1)
-        for block in self.resblocks:
-            x = block(x, mask)
-        return x
-
-
 class Umf(nn.Module):
     """Every network of UMF as the official `UMF` module names it (`umf/models/modeltype/umf.py`):
     CLIP's text tower (`token_embedding`, `clip_transformer`, `positional_embedding`,
@@ -485,7 +450,7 @@ class Umf(nn.Module):
         self.expert = EXPERTS[cfg.dataset_label]
         self.token_embedding = nn.Embedding(cfg.clip_vocab, c)
         self.clip_transformer = ClipTransformer(c, cfg.clip_layers, cfg.clip_heads)
-        self.positional_embedding = nn.Parameter(torch.randn(cfg.clip_context, c) * 0.01)
+        self.positional_embedding = nn.Parameter(torch.randn(CONTEXT, c) * 0.01)
         self.ln_final = nn.LayerNorm(c)
         for name in ("t2m", "ih", "react"):
             setattr(self, f"clipTransEncoder_{name}", EncoderStack(c, cfg.text_heads, cfg.text_ffn, cfg.text_layers))
@@ -502,8 +467,7 @@ class Umf(nn.Module):
 
     def clip_features(self, ids):
         """CLIP's text tower: token ids [B, T] -> the features after ln_final [B, T, C]."""
-        x = self.token_embedding(ids) + self.positional_embedding[: ids.shape[1]]
-        return self.ln_final(self.clip_transformer(x.transpose(0, 1)).transpose(0, 1))
+        return clip_features(self.token_embedding, self.positional_embedding, self.clip_transformer, self.ln_final, ids)
 
     def text_condition(self, clip_tokens, eot_index):
         """The official text branches: CLIP's token features [B, T, C] and the end-of-text index
@@ -516,8 +480,9 @@ class Umf(nn.Module):
     def refresh_null_condition(self):
         """The unconditional half of guidance is the empty prompt "" through CLIP and the text
         branches, as the official `_apply_cfg_tokens` does."""
-        ids = torch.zeros(1, self.cfg.clip_context, dtype=torch.long)
-        ids[0, 0], ids[0, EMPTY_PROMPT_EOT] = CLIP_SOT, CLIP_EOT
+        ids = torch.zeros(1, CONTEXT, dtype=torch.long)
+        vocab = self.cfg.clip_vocab  # <|startoftext|> and <|endoftext|> are the last two ids
+        ids[0, 0], ids[0, EMPTY_PROMPT_EOT] = vocab - 2, vocab - 1
         eot = torch.tensor([EMPTY_PROMPT_EOT])
         self.null_condition.copy_(self.text_condition(self.clip_features(ids), eot)[0])
 

@@ -32,6 +32,7 @@ use crate::shared::checks::check_input;
 use crate::shared::error::{Error, Result};
 use crate::shared::limits::{at_most, check_cfg, check_steps, LIMITS};
 use crate::shared::noise::{fill_normals, STREAM_ACTOR_POSTERIOR, STREAM_REACTOR_NOISE};
+use crate::shared::text::prompt::no_prompts;
 
 mod joints;
 mod lanes;
@@ -48,8 +49,11 @@ pub struct SessionOptions {
     pub steps: Option<u32>,
     /// Classifier-free guidance scale; 1 disables guidance (one network call per step).
     pub cfg_scale: Option<f32>,
-    /// Conditioning vector of `condition_dim` floats; `None` is the null condition (zeros).
+    /// Conditioning vector of `condition_dim` floats; `None` is the bundle's null condition.
     pub condition: Option<Vec<f32>>,
+    /// A text prompt to condition on instead of `condition` (bundles that take prompts, see
+    /// [`crate::Model::encode_prompt`]); giving both is an error.
+    pub prompt: Option<String>,
     /// Tokens kept in the context cache, `<sos>` included (>= 2). See `armflow/kv_cache.rs`.
     pub context_capacity: Option<usize>,
     /// Posterior sample (default) or mean for the actor's latent tokens.
@@ -154,7 +158,15 @@ impl Session {
                 .context_capacity
                 .unwrap_or(m.context.capacity_tokens),
             actor_latent: options.actor_latent.unwrap_or(m.sampler.actor_latent),
-            condition: options.condition,
+            condition: match (options.condition, &options.prompt) {
+                (Some(_), Some(_)) => {
+                    return Err(Error::InvalidOption(
+                        "a session takes a condition or a prompt, not both".into(),
+                    ))
+                }
+                (None, Some(prompt)) => Some(encode_prompt(&nets, prompt)?),
+                (condition, None) => condition,
+            },
         };
         check_steps("sampler steps", settings.steps)?;
         check_cfg(settings.cfg_scale)?;
@@ -300,6 +312,13 @@ impl Session {
         self.conditioning = self.nets.conditioning(condition)?;
         self.settings.condition = condition.map(<[f32]>::to_vec);
         Ok(())
+    }
+
+    /// Conditions the tokens generated from now on on a text prompt: [`Session::set_condition`]
+    /// with [`crate::Model::encode_prompt`]'s condition (cached per prompt in the model).
+    pub fn set_prompt(&mut self, prompt: &str) -> Result<()> {
+        let condition = encode_prompt(&self.nets, prompt)?;
+        self.set_condition(Some(&condition))
     }
 
     /// Queues the noise of the next token not yet generated; queued noise is used in order
@@ -529,4 +548,12 @@ fn check_output_room(output: &StepOutput, max_frames: usize, session: Option<usi
         "{whose}this call returns {} frames, the output holds {max_frames}",
         output.frames.nrows()
     )))
+}
+
+/// The condition of `prompt` through the bundle's prompt encoder.
+fn encode_prompt(nets: &Networks, prompt: &str) -> Result<Vec<f32>> {
+    let encoder = nets
+        .prompt_encoder()
+        .ok_or_else(|| no_prompts(&nets.io.name))?;
+    encoder.encode(prompt)
 }

@@ -1,11 +1,8 @@
-//! `troupe_clip_generate` and `troupe_text_encode`: the official ARMFlow clip loop and text
-//! branch (see `crate::armflow::clip`).
+//! `troupe_clip_generate`: the official ARMFlow clip loop (see `crate::armflow::clip`).
 
 use ndarray::ArrayView2;
 
-use crate::ffi::boundary::{
-    self, non_null, troupe_status, FfiError, FfiResult, TROUPE_ERR_BUFFER_TOO_SMALL,
-};
+use crate::ffi::boundary::{self, non_null, troupe_status, FfiResult};
 use crate::ffi::model::{optional_condition, property, troupe_model};
 use crate::{ClipNoise, ClipOptions};
 
@@ -32,17 +29,6 @@ pub struct troupe_clip_noise {
 #[no_mangle]
 pub unsafe extern "C" fn troupe_model_clip_tokens(model: Option<&troupe_model>) -> usize {
     property(model, |m| m.clip_spec().map_or(0, |c| c.tokens))
-}
-
-/// Width of the CLIP token features `troupe_text_encode` reads (the bundle's CLIP width: the
-/// condition dim of an official ARMFlow bundle, 768 for UMF as released); 0 for bundles without
-/// a text branch, or NULL. Thread-safe.
-///
-/// # Safety
-/// `model` must be NULL or a live handle.
-#[no_mangle]
-pub unsafe extern "C" fn troupe_model_text_token_dim(model: Option<&troupe_model>) -> usize {
-    property(model, |m| m.text_token_dim().unwrap_or(0))
 }
 
 /// Runs the official ARMFlow sampler on one actor clip and writes the reactor motion, row-major
@@ -105,9 +91,9 @@ pub unsafe extern "C" fn troupe_clip_generate(
             let need = model.clip_frames() * d;
             let latent_need = tokens * model.latent_dim();
             non_null(frames, "frames")?;
-            room(need, frames_capacity, "the frames")?;
+            boundary::room(need, frames_capacity, "the frames")?;
             if !reactor_latents.is_null() {
-                room(latent_need, latents_capacity, "the reactor latents")?;
+                boundary::room(latent_need, latents_capacity, "the reactor latents")?;
             }
             let actor = ArrayView2::from_shape((n_actor_frames, d), actor)
                 .expect("n_actor_frames * frame_dim floats");
@@ -123,60 +109,6 @@ pub unsafe extern "C" fn troupe_clip_generate(
             Ok(())
         },
     )
-}
-
-/// Runs the official text branch of a bundle that has one (`troupe_model_text_token_dim` > 0:
-/// official ARMFlow and UMF bundles): CLIP's token features `clip_tokens`, row-major
-/// `[n_tokens][text_token_dim]` (the output of CLIP's final LayerNorm for one prompt), and the
-/// index of the end-of-text token (the argmax of CLIP's token ids) give the condition vector,
-/// written to `condition` (capacity `condition_capacity` floats, at least
-/// `troupe_model_condition_dim`). Inputs are borrowed; nothing is written unless the call
-/// succeeds.
-///
-/// Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (no text branch, no
-/// tokens, index out of range, non-finite input), `TROUPE_ERR_BUFFER_TOO_SMALL`,
-/// `TROUPE_ERR_INFERENCE`, `TROUPE_ERR_PANIC`. Thread-safe.
-///
-/// # Safety
-/// `model` must be a live handle; `clip_tokens` readable for `n_tokens * text_token_dim` floats;
-/// `condition` writable for `condition_capacity` floats and not overlapping `clip_tokens`.
-#[no_mangle]
-pub unsafe extern "C" fn troupe_text_encode(
-    model: Option<&troupe_model>,
-    clip_tokens: *const f32,
-    n_tokens: usize,
-    eot_index: usize,
-    condition: *mut f32,
-    condition_capacity: usize,
-) -> troupe_status {
-    boundary::call(
-        "troupe_text_encode",
-        || {},
-        || {
-            let model = &boundary::required(model, "model")?.model;
-            let (dim, width) = (model.condition_dim(), model.text_branch()?.token_dim);
-            let n = boundary::checked_mul(n_tokens, width, "n_tokens * text_token_dim")?;
-            // SAFETY: readable for `n` floats per the contract.
-            let tokens = unsafe { boundary::slice(clip_tokens, n, "clip_tokens") }?;
-            non_null(condition, "condition")?;
-            room(dim, condition_capacity, "the condition")?;
-            let view = ArrayView2::from_shape((n_tokens, width), tokens).expect("n floats");
-            let out = model.encode_text(view, eot_index)?;
-            // SAFETY: non-NULL, writable for condition_capacity >= dim floats.
-            unsafe { std::ptr::copy_nonoverlapping(out.as_ptr(), condition, out.len()) };
-            Ok(())
-        },
-    )
-}
-
-fn room(need: usize, capacity: usize, what: &str) -> FfiResult {
-    if capacity < need {
-        return Err(FfiError::new(
-            TROUPE_ERR_BUFFER_TOO_SMALL,
-            format!("{what} need {need} floats, the buffer holds {capacity}"),
-        ));
-    }
-    Ok(())
 }
 
 fn read_noise(n: &troupe_clip_noise) -> FfiResult<ClipNoise> {

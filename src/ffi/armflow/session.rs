@@ -1,5 +1,6 @@
 //! `troupe_session`: one actor/reactor stream.
 
+use std::ffi::c_char;
 use std::sync::atomic::{AtomicBool, Ordering};
 
 use crate::ffi::boundary::{
@@ -144,6 +145,7 @@ unsafe fn read_options(options: *const troupe_session_options) -> FfiResult<Sess
         steps: Some(o.steps),
         cfg_scale: Some(o.cfg_scale),
         condition: None,
+        prompt: None,
         context_capacity: Some(o.context_capacity as usize),
         actor_latent: Some(actor_latent),
         vae_windows: false,
@@ -591,6 +593,31 @@ pub unsafe extern "C" fn troupe_session_set_condition(
             }
             let condition = boundary::slice(condition, len, "condition")?;
             Ok(s.set_condition(Some(condition))?)
+        })
+    }
+}
+
+/// Conditions the tokens generated from now on on a text prompt (a NUL-terminated UTF-8
+/// string, borrowed for the call): the condition `troupe_text_prompt_encode` gives, for bundles
+/// with `troupe_model_takes_prompts`. The model caches the last 64 prompts it encoded.
+///
+/// Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (a bundle that takes no
+/// prompts, text that is not UTF-8 or longer than 64 KiB), `TROUPE_ERR_INFERENCE`,
+/// `TROUPE_ERR_POISONED`, `TROUPE_ERR_BUSY`, `TROUPE_ERR_PANIC`. One thread at a time per
+/// session.
+///
+/// # Safety
+/// `session` must be a live handle; `prompt` NUL-terminated and readable for the call.
+#[no_mangle]
+pub unsafe extern "C" fn troupe_session_set_prompt(
+    session: *mut troupe_session,
+    prompt: *const c_char,
+) -> troupe_status {
+    // SAFETY: forwarded contract.
+    unsafe {
+        with_session(session, "troupe_session_set_prompt", |s| {
+            let prompt = boundary::required_str(prompt, "prompt")?;
+            Ok(s.set_prompt(prompt)?)
         })
     }
 }
