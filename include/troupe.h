@@ -161,17 +161,6 @@
 #define TROUPE_MAX_STAGES 8
 
 /*
- Most merges SimpleTokenizer reads from a merges file: `49152 - 256 - 2`.
- */
-#define ClipTokenizer_MAX_MERGES ((49152 - 256) - 2)
-
-/*
- Longest prompt [`encode`](Self::encode) and [`tokenize`](Self::tokenize) accept, in bytes
- of UTF-8 (CLIP reads 77 tokens, a few hundred characters).
- */
-#define ClipTokenizer_MAX_PROMPT_BYTES (64 * 1024)
-
-/*
  A rotation as a unit quaternion `w + xi + yj + zk`.
  */
 typedef struct Quat Quat;
@@ -271,6 +260,10 @@ typedef struct troupe_limit_values {
    frame counts, steps).
    */
   uint64_t max_manifest_dim;
+  /*
+   Bytes of UTF-8 in one text prompt (a few hundred make 77 CLIP tokens; the rest is cut).
+   */
+  uint64_t max_prompt_bytes;
 } troupe_limit_values;
 
 /*

@@ -42,6 +42,8 @@ pub struct Limits {
     /// Any integer a manifest declares outside `producer` (layers, heads, dimensions, token and
     /// frame counts, steps).
     pub max_manifest_dim: u64,
+    /// Bytes of UTF-8 in one text prompt (a few hundred make 77 CLIP tokens; the rest is cut).
+    pub max_prompt_bytes: u64,
 }
 
 /// The limits of this build.
@@ -60,6 +62,7 @@ pub const LIMITS: Limits = Limits {
     max_people: 256,
     max_text_tokens: 77,
     max_manifest_dim: 1 << 16,
+    max_prompt_bytes: 1 << 16,
 };
 
 /// `Ok` when `value <= limit`, else an [`Error::InvalidOption`] or [`Error::InvalidInput`]

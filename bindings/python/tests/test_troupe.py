@@ -218,7 +218,7 @@ def test_model_from_bytes_and_closing(model):
 
 def test_limits_and_hostile_input_raise_instead_of_killing_the_interpreter(model):
     lim = troupe.limits()
-    assert lim["max_steps"] == 10000 and lim["max_text_tokens"] == 77
+    assert lim["max_steps"] == 10000 and lim["max_text_tokens"] == 77 and lim["max_prompt_bytes"] == 65536
     # A tar member declaring 2^50 bytes: once an abort of the whole interpreter.
     header = tarfile.TarInfo("troupe.json")
     header.size = 2

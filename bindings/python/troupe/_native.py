@@ -40,7 +40,7 @@ class LimitValues(ctypes.Structure):
             "max_bundle_bytes", "max_manifest_bytes", "max_archive_members", "max_graph_nodes",
             "max_tensor_elements", "max_steps", "max_cfg_scale", "max_abs_input",
             "max_frames_per_call", "max_queued_noise_tokens", "max_context_capacity", "max_people",
-            "max_text_tokens", "max_manifest_dim",
+            "max_text_tokens", "max_manifest_dim", "max_prompt_bytes",
         )
     ]
 

@@ -149,10 +149,15 @@ impl fmt::Debug for ClipTokenizer {
 
 impl ClipTokenizer {
     /// Most merges SimpleTokenizer reads from a merges file: `49152 - 256 - 2`.
+    ///
+    /// cbindgen:ignore
     pub const MAX_MERGES: usize = 49152 - 256 - 2;
     /// Longest prompt [`encode`](Self::encode) and [`tokenize`](Self::tokenize) accept, in bytes
-    /// of UTF-8 (CLIP reads 77 tokens, a few hundred characters).
-    pub const MAX_PROMPT_BYTES: usize = 64 * 1024;
+    /// of UTF-8 (CLIP reads 77 tokens, a few hundred characters): `max_prompt_bytes` of
+    /// [`LIMITS`].
+    ///
+    /// cbindgen:ignore
+    pub const MAX_PROMPT_BYTES: usize = LIMITS.max_prompt_bytes as usize;
 
     /// Builds the tokenizer from the text of a merges file: a header line holding `#version`,
     /// then 1 to [`MAX_MERGES`](Self::MAX_MERGES) lines of two symbols separated by whitespace,
