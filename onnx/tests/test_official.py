@@ -52,11 +52,19 @@ def test_checkpoint_exports_to_the_committed_bundle(preset, tmp_path):
     assert a == b
 
 
-def mutated(path: Path, tmp_path: Path, edit) -> Path:
+def mutated(path: Path, tmp_path: Path, edit, section: str = "state_dict") -> Path:
+    """A copy of the checkpoint at `path` with `edit` applied to one of its sections."""
     ckpt = torch.load(path, weights_only=True)
-    edit(ckpt["state_dict"])
+    edit(ckpt[section])
     out = tmp_path / "mutated.ckpt"
     torch.save(ckpt, out)
+    return out
+
+
+def bare(path: Path, tmp_path: Path) -> Path:
+    """A copy of the checkpoint at `path` holding only its state dict (no configuration)."""
+    out = tmp_path / "bare.ckpt"
+    torch.save({"state_dict": torch.load(path, weights_only=True)["state_dict"]}, out)
     return out
 
 
@@ -198,11 +206,7 @@ def test_the_null_condition_of_armflow_is_the_empty_prompt(tmp_path):
 
 
 def with_hyper_parameters(path: Path, tmp_path: Path, edit) -> Path:
-    ckpt = torch.load(path, weights_only=True)
-    edit(ckpt["hyper_parameters"])
-    out = tmp_path / "configured.ckpt"
-    torch.save(ckpt, out)
-    return out
+    return mutated(path, tmp_path, edit, section="hyper_parameters")
 
 
 def manifest_of(ckpt: Path, out: Path) -> dict:
@@ -229,9 +233,7 @@ def test_the_checkpoint_configuration_wins_over_the_preset(official_checkpoint, 
     import dataclasses
 
     by_hand = dataclasses.replace(export.PRESETS["tiny-interhuman"], heads=4, latent_scale=0.25, steps=3, cfg_scale=2.0)
-    bare = tmp_path / "bare.ckpt"
-    torch.save({"state_dict": torch.load(official_checkpoint, weights_only=True)["state_dict"]}, bare)
-    export.export_bundle("tiny-interhuman", tmp_path / "hand", checkpoint=bare, config=by_hand)
+    export.export_bundle("tiny-interhuman", tmp_path / "hand", checkpoint=bare(official_checkpoint, tmp_path), config=by_hand)
     differences = compare_bundles(tmp_path / "b", tmp_path / "hand")
     assert differences == ["troupe.json: contents differ"], differences
 
@@ -257,9 +259,7 @@ def test_configurations_troupe_cannot_follow_are_refused_by_field(official_check
 
 
 def test_a_checkpoint_without_configuration_exports_with_the_preset_and_says_so(official_checkpoint, tmp_path, capsys):
-    bare = tmp_path / "bare.ckpt"
-    torch.save({"state_dict": torch.load(official_checkpoint, weights_only=True)["state_dict"]}, bare)
-    export.export_bundle("tiny-interhuman", tmp_path / "b", checkpoint=bare)
+    export.export_bundle("tiny-interhuman", tmp_path / "b", checkpoint=bare(official_checkpoint, tmp_path))
     assert "no stored configuration" in capsys.readouterr().out
 
 
