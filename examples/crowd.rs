@@ -68,6 +68,8 @@ fn parse_args() -> Result<Args, String> {
             "--history" => args.history = number(value()?)?,
             "--rounds" => args.rounds = number(value()?)?,
             "--threads" => args.threads = number(value()?)?.max(1),
+            "--compute-threads" => troupe::set_compute_threads(number(value()?)?)
+                .map_err(|e| format!("--compute-threads: {e}"))?,
             "--mode" => {
                 args.modes = match value()?.as_str() {
                     "batched" => vec![Mode::Batched],

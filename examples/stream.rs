@@ -27,6 +27,7 @@
 //!   --seed S --steps K --cfg X --capacity C     session options
 //!   --warmup-tokens H   tokens streamed before timing starts (to time at a given history)
 //!   --vae-windows       run the VAE over windows even when the bundle has per-token steps
+//!   --compute-threads N threads the matrix products may split over (default 1: this thread)
 //! ```
 
 use std::path::{Path, PathBuf};
@@ -124,6 +125,9 @@ fn parse_args() -> Result<Args, String> {
             "--capacity" => a.options.context_capacity = Some(num(value()?)? as usize),
             "--warmup-tokens" => a.warmup_tokens = num(value()?)? as u64,
             "--vae-windows" => a.options.vae_windows = true,
+            "--compute-threads" => {
+                troupe::set_compute_threads(num(value()?)? as usize).map_err(|e| e.to_string())?
+            }
             "-h" | "--help" => {
                 println!("see the top of examples/stream.rs for the options");
                 std::process::exit(0);

@@ -35,9 +35,12 @@
  *   Outputs go into caller-owned buffers; nothing returned needs freeing except the handles.
  *   Frames are contiguous row-major float32 [frames][frame_dim], host endianness; input and
  *   output buffers must not overlap. NaN, infinite and out-of-range inputs are rejected.
- * - Threads. No global initialisation is needed. The library starts threads only while loading
- *   a model (up to one per core; troupe_set_load_threads bounds them), all joined before the
- *   load returns; every other call, step() included, runs on the calling thread alone.
+ * - Threads. No global initialisation is needed. By default the library starts threads only
+ *   while loading a model (up to one per core; troupe_set_load_threads bounds them), all joined
+ *   before the load returns, and every other call, step() included, runs on the calling thread
+ *   alone. troupe_set_compute_threads(n >= 2) opts in to a pool of n library-owned threads that
+ *   the matrix products of every call split over (kept until the setting changes); the host
+ *   bounds troupe's threads with these two settings.
  * - Long calls (loads, groups, clips) report progress to the calling thread's
  *   troupe_set_progress_callback, which may cancel them (TROUPE_ERR_CANCELLED).
  *   Logging is silent unless troupe_set_log_callback is used.
@@ -264,6 +267,10 @@ typedef struct troupe_limit_values {
    Bytes of UTF-8 in one text prompt (a few hundred make 77 CLIP tokens; the rest is cut).
    */
   uint64_t max_prompt_bytes;
+  /*
+   Threads of the compute pool (`troupe_set_compute_threads`).
+   */
+  uint64_t max_compute_threads;
 } troupe_limit_values;
 
 /*
@@ -639,6 +646,23 @@ void troupe_set_load_threads(size_t threads);
  of cores). Thread-safe.
  */
 size_t troupe_load_threads(void);
+
+/*
+ Sets how many threads the matrix products of every model may split over: 1 (the default)
+ runs all work on the calling thread; `n >= 2` starts a pool of `n` threads, owned by the
+ library and named `troupe-compute`, shared by every model and session of the process, and
+ kept until the setting changes (the old pool's threads then exit); 0 means one per core.
+ Sessions stepped from several host threads share the pool. Applies to calls that start
+ afterwards. Returns `TROUPE_OK`, or `TROUPE_ERR_INVALID_ARG` when `threads` is above 1024 or
+ the pool cannot be started (the setting is then unchanged). Thread-safe.
+ */
+troupe_status troupe_set_compute_threads(size_t threads);
+
+/*
+ How many threads the matrix products use now (`troupe_set_compute_threads`; 1 by default).
+ Thread-safe.
+ */
+size_t troupe_compute_threads(void);
 
 /*
  Loads a bundle from `path` (UTF-8): a bundle directory, or an uncompressed tar archive of

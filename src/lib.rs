@@ -51,6 +51,7 @@ pub use armflow::{
 };
 pub use manifest::{ActorLatent, ConditionLabel, Manifest};
 pub use model::Model;
+pub use shared::compute_threads::{compute_threads, set_compute_threads};
 pub use shared::error::{Error, Result};
 pub use shared::graph::{load_threads, set_load_threads};
 pub use shared::limits::{Limits, LIMITS};

@@ -7,9 +7,10 @@
 //!   one thread at a time (a call while another thread uses it fails with `TROUPE_ERR_BUSY`). A
 //!   session keeps its model alive, so handles may be freed in any order. `_free(NULL)` is a
 //!   no-op.
-//! - Threads: the library starts threads only while loading a model (up to one per core, or
-//!   `troupe_set_load_threads`), all joined before the load returns. Every other call runs on
-//!   the caller's thread.
+//! - Threads: by default the library starts threads only while loading a model (up to one per
+//!   core, or `troupe_set_load_threads`), all joined before the load returns, and every other
+//!   call runs on the caller's thread; `troupe_set_compute_threads` opts in to a library-owned
+//!   pool the matrix products split over.
 //! - Sizes: every size from a file or a caller is checked against `troupe_limits_get` before
 //!   anything is allocated for it.
 //! - Every fallible function returns a `troupe_status`; out-parameters are written only on

@@ -82,6 +82,32 @@ pub extern "C" fn troupe_load_threads() -> usize {
     boundary::get(1, crate::load_threads)
 }
 
+/// Sets how many threads the matrix products of every model may split over: 1 (the default)
+/// runs all work on the calling thread; `n >= 2` starts a pool of `n` threads, owned by the
+/// library and named `troupe-compute`, shared by every model and session of the process, and
+/// kept until the setting changes (the old pool's threads then exit); 0 means one per core.
+/// Sessions stepped from several host threads share the pool. Applies to calls that start
+/// afterwards. Returns `TROUPE_OK`, or `TROUPE_ERR_INVALID_ARG` when `threads` is above 1024 or
+/// the pool cannot be started (the setting is then unchanged). Thread-safe.
+#[no_mangle]
+pub extern "C" fn troupe_set_compute_threads(threads: usize) -> troupe_status {
+    boundary::call(
+        "troupe_set_compute_threads",
+        || {},
+        || {
+            crate::set_compute_threads(threads)?;
+            Ok(())
+        },
+    )
+}
+
+/// How many threads the matrix products use now (`troupe_set_compute_threads`; 1 by default).
+/// Thread-safe.
+#[no_mangle]
+pub extern "C" fn troupe_compute_threads() -> usize {
+    boundary::get(1, crate::compute_threads)
+}
+
 /// Loads a bundle from `path` (UTF-8): a bundle directory, or an uncompressed tar archive of
 /// one. Loading parses, validates and optimises every graph; it takes a fraction of a second.
 ///

@@ -44,6 +44,8 @@ pub struct Limits {
     pub max_manifest_dim: u64,
     /// Bytes of UTF-8 in one text prompt (a few hundred make 77 CLIP tokens; the rest is cut).
     pub max_prompt_bytes: u64,
+    /// Threads of the compute pool (`troupe_set_compute_threads`).
+    pub max_compute_threads: u64,
 }
 
 /// The limits of this build.
@@ -63,6 +65,7 @@ pub const LIMITS: Limits = Limits {
     max_text_tokens: 77,
     max_manifest_dim: 1 << 16,
     max_prompt_bytes: 1 << 16,
+    max_compute_threads: 1024,
 };
 
 /// `Ok` when `value <= limit`, else an [`Error::InvalidOption`] or [`Error::InvalidInput`]

@@ -4,6 +4,7 @@
 pub mod bundle;
 pub(crate) mod bundle_io;
 pub(crate) mod checks;
+pub(crate) mod compute_threads;
 pub mod error;
 pub(crate) mod files;
 pub mod graph;

@@ -390,3 +390,19 @@ def test_prompts_encode_as_the_reference_and_condition_sessions_clips_and_groups
         model.encode_prompt("hello")
     with pytest.raises(troupe.TroupeError, match="takes no text prompts"):
         troupe.Session(model, prompt="hello")
+
+
+def test_a_compute_pool_changes_no_output(model):
+    a = actor()
+    want = troupe.Session(model, seed=2).step(a)
+    assert troupe.compute_threads() == 1
+    troupe.set_compute_threads(2)
+    try:
+        assert troupe.compute_threads() == 2
+        assert np.array_equal(troupe.Session(model, seed=2).step(a), want)
+        with pytest.raises(troupe.TroupeError, match="compute threads"):
+            troupe.set_compute_threads(5000)
+        assert troupe.compute_threads() == 2
+    finally:
+        troupe.set_compute_threads(1)
+    assert troupe.compute_threads() == 1

@@ -20,7 +20,7 @@ import numpy as np
 from . import _native
 
 __all__ = ["Model", "Session", "TroupeError", "motion", "viewer", "step_sessions", "version", "limits",
-           "set_load_threads", "progress", "ACTOR_LATENT_SAMPLE", "ACTOR_LATENT_MEAN", "EULER", "RK4"]
+           "set_load_threads", "set_compute_threads", "compute_threads", "progress", "ACTOR_LATENT_SAMPLE", "ACTOR_LATENT_MEAN", "EULER", "RK4"]
 
 ACTOR_LATENT_SAMPLE = 0
 ACTOR_LATENT_MEAN = 1
@@ -63,6 +63,18 @@ def set_load_threads(threads: int) -> None:
     """How many threads loading a model may use from now on (0: one per core, 1: only the
     calling thread), process-wide."""
     _lib.troupe_set_load_threads(int(threads))
+
+
+def set_compute_threads(threads: int) -> None:
+    """How many threads the matrix products of every model may split over from now on (1, the
+    default: the calling thread only; n >= 2: a pool of n library-owned threads; 0: one per
+    core), process-wide."""
+    _check(_lib.troupe_set_compute_threads(int(threads)))
+
+
+def compute_threads() -> int:
+    """The `set_compute_threads` setting now (1 by default)."""
+    return _lib.troupe_compute_threads()
 
 
 class progress:

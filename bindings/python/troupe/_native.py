@@ -41,6 +41,7 @@ class LimitValues(ctypes.Structure):
             "max_tensor_elements", "max_steps", "max_cfg_scale", "max_abs_input",
             "max_frames_per_call", "max_queued_noise_tokens", "max_context_capacity", "max_people",
             "max_text_tokens", "max_manifest_dim", "max_prompt_bytes",
+            "max_compute_threads",
         )
     ]
 
@@ -156,6 +157,8 @@ PROTOTYPES = {
     "troupe_set_load_threads": (None, [c_size]),
     "troupe_set_progress_callback": (None, [PROGRESS_FN, ctypes.c_void_p]),
     "troupe_load_threads": (c_size, []),
+    "troupe_set_compute_threads": (status, [c_size]),
+    "troupe_compute_threads": (c_size, []),
     "troupe_model_load_file": (status, [ctypes.c_char_p, ctypes.POINTER(model_p)]),
     "troupe_model_load_memory": (status, [ctypes.c_char_p, c_size, ctypes.POINTER(model_p)]),
     "troupe_model_free": (None, [model_p]),
