@@ -21,7 +21,8 @@
 //! Threading: [`Model`] is `Send + Sync` and shared by any number of sessions; a [`Session`] is
 //! `Send` and used from one thread at a time. Loading a model optimises its graphs on up to one
 //! scoped thread per core ([`set_load_threads`] bounds them), all joined before it returns; no
-//! other call starts a thread.
+//! other call starts a thread unless [`set_compute_threads`] opts in to a pool that the matrix
+//! products split over.
 //!
 //! Limits: every size that comes from a file or a caller is checked against [`LIMITS`] before
 //! anything is allocated for it.
