@@ -1,7 +1,7 @@
 //! Motion people have, in and out: skeletons, joint positions in a caller's world, and the
 //! feature vectors the networks speak.
 //!
-//! A layer beside [`crate::shared`]: it knows no model family, and every family may use it.
+//! A layer beside `crate::shared`: it knows no model family, and every family may use it.
 //!
 //! - [`skeleton`]: the t2m-22 skeleton as data (names, parents, rest offsets of a neutral body);
 //! - [`world`]: how a caller measures positions (units, up axis, handedness, frame rate);
