@@ -20,6 +20,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from troupe_onnx.shared.clip import CONTEXT
 from troupe_onnx.umf import export as export_umf
 from troupe_onnx.umf.reference import block_noise_from_normals, generate_group, stage_tokens
 
