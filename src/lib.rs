@@ -52,14 +52,13 @@ pub use armflow::{
 };
 pub use manifest::{ActorLatent, ConditionLabel, Manifest};
 pub use model::Model;
-pub use shared::compute_threads::{compute_threads, set_compute_threads};
 pub use shared::error::{Error, Result};
-pub use shared::graph::{load_threads, set_load_threads};
 pub use shared::limits::{Limits, LIMITS};
 pub use shared::noise;
 pub use shared::progress::with_progress;
 pub use shared::solver::{self, Method, Solver};
 pub use shared::text::tokenizer::ClipTokenizer;
+pub use shared::threads::{compute_threads, load_threads, set_compute_threads, set_load_threads};
 pub use umf::pyramid;
 pub use umf::{
     Group, GroupNoise, GroupNoiseShape, GroupOptions, MAX_PEOPLE, STREAM_JUMP_NOISE,

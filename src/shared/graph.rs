@@ -15,6 +15,7 @@ use crate::shared::logging::{log, Level};
 use crate::shared::onnx_guard;
 use crate::shared::panics;
 use crate::shared::progress;
+use crate::shared::threads::load_threads;
 
 /// A loaded, optimised graph whose inputs and outputs are addressed in manifest order.
 #[derive(Debug)]
@@ -170,23 +171,6 @@ pub(crate) fn load_graphs(
         .into_iter()
         .map(|slot| slot.expect("every graph was attempted"))
         .collect()
-}
-
-/// Threads a model load may use at once; 0 (the default): one per core.
-static LOAD_THREADS: AtomicUsize = AtomicUsize::new(0);
-
-/// Sets how many threads loading a model may use (0: one per core, 1: only the calling thread).
-/// Applies to loads that start afterwards, in the whole process.
-pub fn set_load_threads(threads: usize) {
-    LOAD_THREADS.store(threads, Ordering::Relaxed);
-}
-
-/// How many threads loading a model uses: the [`set_load_threads`] setting, or one per core.
-pub fn load_threads() -> usize {
-    match LOAD_THREADS.load(Ordering::Relaxed) {
-        0 => std::thread::available_parallelism().map_or(1, |n| n.get()),
-        n => n,
-    }
 }
 
 type Positions = (Vec<usize>, Vec<usize>);

@@ -4,7 +4,6 @@
 pub mod bundle;
 pub(crate) mod bundle_io;
 pub(crate) mod checks;
-pub(crate) mod compute_threads;
 pub mod error;
 pub(crate) mod files;
 pub mod graph;
@@ -17,3 +16,4 @@ pub(crate) mod panics;
 pub mod progress;
 pub mod solver;
 pub(crate) mod text;
+pub(crate) mod threads;

@@ -17,7 +17,7 @@ import numpy as np
 import torch
 import torch.nn as nn
 import torch.nn.functional as F
-from troupe_onnx.shared.clip import CONTEXT, FULL_MERGES, ClipTransformer, clip_features, vocab_size
+from troupe_onnx.shared.clip import CONTEXT, FULL_MERGES, ClipTransformer, clip_features, empty_prompt, vocab_size
 from troupe_onnx.shared.transformer import EncoderStack, pick_token
 
 # --------------------------------------------------------------------------------------------
@@ -521,10 +521,8 @@ class TextBranch(nn.Module):
     def empty_prompt(self) -> torch.Tensor:
         """[1, C]: "" through CLIP and the branch, which the official code encodes for "no text"
         (`encode_null_condition`): ids [<|startoftext|>, <|endoftext|>, 0, ...]."""
-        vocab = self.clip_token_embedding.num_embeddings  # the two special ids come last
-        ids = torch.zeros(1, CONTEXT, dtype=torch.long)
-        ids[0, 0], ids[0, 1] = vocab - 2, vocab - 1
-        return self(self.clip_features(ids), torch.tensor([1]))
+        ids, eot = empty_prompt(self.clip_token_embedding.num_embeddings)
+        return self(self.clip_features(ids), eot)
 
 
 class Armflow(nn.Module):

@@ -87,6 +87,15 @@ def clip_features(token_embedding: nn.Embedding, positional_embedding: torch.Ten
     return ln_final(transformer(x))
 
 
+def empty_prompt(vocab: int) -> tuple[torch.Tensor, torch.Tensor]:
+    """`clip.tokenize("")` for a tokenizer of `vocab` ids, the official "no text": ids [1, 77]
+    `[<|startoftext|>, <|endoftext|>, 0, ...]` (the two special ids are the last two of the
+    vocabulary) and the index of its end-of-text token, [1]."""
+    ids = torch.zeros(1, CONTEXT, dtype=torch.long)
+    ids[0, 0], ids[0, 1] = vocab - 2, vocab - 1
+    return ids, torch.tensor([1])
+
+
 class TextEncoderGraph(nn.Module):
     """The bundle's `text_encoder` graph: `features` (a family's bound clip_features) as a
     module for torch.onnx.export."""

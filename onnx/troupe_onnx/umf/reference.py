@@ -32,7 +32,7 @@ import numpy as np
 import torch
 import torch.nn as nn
 import torch.nn.functional as F
-from troupe_onnx.shared.clip import CONTEXT, FULL_MERGES, ClipTransformer, clip_features, vocab_size
+from troupe_onnx.shared.clip import CONTEXT, FULL_MERGES, ClipTransformer, clip_features, empty_prompt, vocab_size
 from troupe_onnx.shared.noise import philox_normals
 from troupe_onnx.shared.transformer import Attention, EncoderLayer, EncoderStack, pick_token
 
@@ -282,11 +282,6 @@ def seeded_noise(cfg: UmfConfig, seed: int, people: int):
 # Networks under the official module and parameter names (models.md 2.1, 2.5, 2.6)
 # --------------------------------------------------------------------------------------------
 
-# The empty prompt of guidance is [<|startoftext|>, <|endoftext|>, 0, ...], so its end-of-text
-# token (the argmax of the ids) sits at index 1.
-EMPTY_PROMPT_EOT = 1
-
-
 class LearnedPositions(nn.Module):
     """MLD's learned 1-D positions: x [B, S, C] + pe[:S] (pe is stored [max_len, 1, C])."""
 
@@ -480,10 +475,7 @@ class Umf(nn.Module):
     def refresh_null_condition(self):
         """The unconditional half of guidance is the empty prompt "" through CLIP and the text
         branches, as the official `_apply_cfg_tokens` does."""
-        ids = torch.zeros(1, CONTEXT, dtype=torch.long)
-        vocab = self.cfg.clip_vocab  # <|startoftext|> and <|endoftext|> are the last two ids
-        ids[0, 0], ids[0, EMPTY_PROMPT_EOT] = vocab - 2, vocab - 1
-        eot = torch.tensor([EMPTY_PROMPT_EOT])
+        ids, eot = empty_prompt(self.cfg.clip_vocab)
         self.null_condition.copy_(self.text_condition(self.clip_features(ids), eot)[0])
 
     def prior_velocity(self, sample, timestep, text):

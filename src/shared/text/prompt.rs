@@ -142,12 +142,7 @@ impl<'g> PromptEncoder<'g> {
             return Ok(condition);
         }
         let ids = self.prompts.token_ids(prompt)?;
-        // CLIP reads the end-of-text token's feature: the largest id (<|endoftext|> is last).
-        let eot = ids
-            .iter()
-            .enumerate()
-            .max_by_key(|&(i, id)| (*id, std::cmp::Reverse(i)))
-            .map_or(0, |(i, _)| i);
+        let eot = ClipTokenizer::end_of_text_index(&ids).unwrap_or(0);
         let features = self.tower.features(&ids)?;
         let features =
             ndarray::ArrayView2::from_shape((ids.len(), self.tower.token_dim), &features)
