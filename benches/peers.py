@@ -19,8 +19,8 @@ Peers:
 
 - `ort`: onnxruntime on the bundle's graphs, sessions created once, `intra_op_num_threads =
   --threads`, `inter_op_num_threads = 1`. The context step uses IOBinding: the cache is bound
-  once as OrtValues and the `present_*` outputs stay in ORT-allocated memory (no copy to numpy);
-  in a live stream they would be bound as the next step's `past_*`.
+  once as OrtValues and the key/value outputs (`new_*`, or `present_*` in bundles exported
+  before the runtime owned the cache) stay in ORT-allocated memory (no copy to numpy).
 - `torch-kv`: the PyTorch reference (`troupe_onnx.armflow.reference`) built by the ARMFlow
   exporter's `build_model` with the bundle's `producer.preset` and `producer.seed`, so that it
   holds the same weights; eager, `torch.inference_mode()`, `SkipAdaLNTransformer.step` with the
@@ -36,8 +36,8 @@ Peers:
 History. A stream is warmed to H cached tokens by one prefill call, not by H full steps: a
 single `context_step` with S = H over `[sos, H-1 synthetic pairs]` (seeded normal values; the
 cost of a step does not depend on them) builds the cache, then 3 untimed full steps run. Every
-step (untimed and timed) runs against that same H-token cache: its `present_*` are computed and
-dropped, so each timed step sees exactly H cached tokens, as troupe's do with `--capacity H+1`
+step (untimed and timed) runs against that same H-token cache: its key/value outputs are computed
+and dropped, so each timed step sees exactly H cached tokens, as troupe's do with `--capacity H+1`
 (where the session drops the oldest pair before appending). The peers pay no eviction; troupe
 does. `torch-recompute` likewise recomputes over the same H tokens plus the new one.
 
@@ -201,15 +201,17 @@ class OrtStream:
         prefill |= {f"past_{kv}_{i}": empty for i in range(b.layers) for kv in ("key", "value")}
         outputs = [x.name for x in ctx.get_outputs()]
         present = dict(zip(outputs, ctx.run(None, prefill)))
+        # A bundle's step returns the new tokens' entries (`new_*`; the prefill's are the whole
+        # cache) or, exported before the runtime owned the cache, the whole cache (`present_*`).
         self.cache = {
-            n.replace("present_", "past_", 1): x for n, x in present.items() if n.startswith("present_")
+            "past_" + n.split("_", 1)[1]: x for n, x in present.items() if n.startswith(("new_", "present_"))
         }
         self.io = ctx.io_binding()
         self.io.bind_cpu_input("modulation", peer.modulation)
         self.io.bind_cpu_input("key_mask", np.zeros((1, inp.history), np.float32))
         for name, x in self.cache.items():  # OrtValues over self.cache's memory: no copy
             self.io.bind_ortvalue_input(name, ort.OrtValue.ortvalue_from_numpy(x))
-        for name in outputs:  # every output, so that ORT computes the presents
+        for name in outputs:  # every output, so that ORT computes the new entries
             self.io.bind_output(name, "cpu")
         self.position = np.array([[inp.history]], np.int64)
         self.enc_state = [np.zeros(s, np.float32) for _, s in b.state_shapes("vae_encoder_step")]
@@ -231,7 +233,7 @@ class OrtStream:
         self.io.bind_cpu_input("tokens", self.pair[None, None])
         self.io.bind_cpu_input("positions", self.position)
         s["context_step"].run_with_iobinding(self.io)
-        context = self.io.get_outputs()[0].numpy()  # the presents are dropped: fixed history
+        context = self.io.get_outputs()[0].numpy()  # the new entries are dropped: fixed history
         (u,) = s["velocity"].run(
             None, {"actor": a[None], "noisy": eps[None], "context": context, "r": self.r, "t": self.t}
         )
@@ -308,7 +310,7 @@ class TorchStream:
             tokens = torch.cat([self.prefix, token], dim=1)
             positions = torch.arange(self.history + 1)[None]
             context, _ = p.context.step(tokens, positions, p.modulation, self.empty)
-        else:  # the presents are dropped: fixed history
+        else:  # the new entries are dropped: fixed history
             context, _ = p.context.step(token, torch.tensor([[self.history]]), p.modulation, self.cache)
         u = p.velocity(a[None], eps[None], context, self.r, self.t)
         reactor = eps - u[0]

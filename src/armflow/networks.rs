@@ -186,7 +186,7 @@ impl Networks {
         let mut tokens = cond.start_token.clone();
         tokens.extend_from_slice(pairs);
         let positions: Vec<i64> = (0..(tokens.len() / width) as i64).collect();
-        let mut cache = KvCache::empty(&self.spec.context);
+        let mut cache = KvCache::empty(&self.spec.context, positions.len());
         self.context_step(&mut [&mut cache], &tokens, &positions, &[&cond.modulation])
     }
 
@@ -233,7 +233,8 @@ impl Networks {
     /// One context-encoder call for a batch of streams. Row `b` appends its tokens (`S` tokens
     /// of `width` floats at `positions[b * S..]`) to `caches[b]`, under `modulations[b]`
     /// (`[1, layers, 6, width]`). More than one stream needs `S = 1`. Returns the contexts at
-    /// the last position, `[B, width]` row-major.
+    /// the last position, `[B, width]` row-major. The caches are written in place and not
+    /// committed: the caller commits or rolls them back with the rest of the step.
     pub(crate) fn context_step(
         &self,
         caches: &mut [&mut KvCache],
@@ -243,27 +244,28 @@ impl Networks {
     ) -> Result<Vec<f32>> {
         let (c, b) = (self.spec.context.width, caches.len());
         let s = positions.len() / b.max(1);
-        let views: Vec<&KvCache> = caches.iter().map(|k| &**k).collect();
-        let (past, key_mask) = KvCache::batch_inputs(&views)?;
-        let padded = key_mask.shape()[1];
         let mut inputs = vec![
             f32_tensor(&[b, s, c], tokens),
             Tensor::from_shape(&[b, s], positions)
                 .expect("shape matches data")
                 .into(),
             stack_rows("context_step", modulations)?,
-            key_mask,
         ];
-        inputs.extend(past);
-        let mut out = self.context_step.run(inputs)?;
-        let context = read_f32("context_step", "context", &out[0], &[b, c])?.to_vec();
-        let present = out.split_off(1);
+        // From here to `restore`, a batch of one has lent its tensors to `past`: no early return.
+        let (past, key_mask) = KvCache::batch_inputs(caches, s)?;
+        let past_slots = key_mask.shape()[1];
+        inputs.push(key_mask);
+        inputs.extend(past.iter().cloned());
+        let ran = self.context_step.run(inputs);
         if let [cache] = caches {
-            cache.replace(present, s)?;
-        } else {
-            for (row, cache) in caches.iter_mut().enumerate() {
-                cache.take_row(&present, row, padded)?;
-            }
+            cache.restore(past); // the graph has dropped its references: no copy
+        }
+        let mut out = ran?;
+        let context = read_f32("context_step", "context", &out[0], &[b, c])?.to_vec();
+        let entries = out.split_off(1);
+        let returns = self.spec.context.step_returns;
+        for (row, cache) in caches.iter_mut().enumerate() {
+            cache.append(&entries, row, s, returns, past_slots)?;
         }
         Ok(context)
     }

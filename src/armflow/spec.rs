@@ -64,6 +64,25 @@ pub struct ContextSpec {
     pub head_dim: usize,
     /// Default number of tokens (`<sos>` included) kept in the key/value cache.
     pub capacity_tokens: usize,
+    /// What `context_step` returns besides the context; bundles written before this field
+    /// existed return the whole cache.
+    #[serde(default)]
+    pub step_returns: StepReturns,
+}
+
+/// The key/value outputs of a bundle's `context_step` graph.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum StepReturns {
+    /// `new_key_i` / `new_value_i`, `[B, heads, S, head_dim]`: only the entries of the new
+    /// tokens, which troupe writes into the cache it owns (no copy of the history per step).
+    NewEntries,
+    /// `present_key_i` / `present_value_i`, `[B, heads, P+S, head_dim]`: the past with the new
+    /// entries appended, as bundles exported before the runtime owned the cache; troupe takes
+    /// the new entries from the end. Still read; re-export to drop the graph's copy of the
+    /// cache (`python3 onnx/cli.py armflow export`).
+    #[default]
+    WholeCache,
 }
 
 /// Streaming properties of the VAE.
@@ -298,8 +317,8 @@ impl ArmFlowSpec {
         let spec = contract;
         let g = &self.graphs;
         // The streaming graphs take a batch of `B` streams (one row each), so that many sessions
-        // stepped together read the weights once; `key_mask` hides the padding of shorter
-        // histories in that batch.
+        // stepped together read the weights once; `key_mask` hides free slots of the caches and
+        // the padding of shorter caches in that batch.
         let mut step_inputs = vec![
             f("tokens", vec![s("B"), s("S"), n(c)]),
             TensorSpec {
@@ -315,7 +334,10 @@ impl ArmFlowSpec {
         ];
         step_inputs.extend(kv("past", "P"));
         let mut step_outputs = vec![f("context", vec![s("B"), n(c)])];
-        step_outputs.extend(kv("present", "P+S"));
+        step_outputs.extend(match self.context.step_returns {
+            StepReturns::NewEntries => kv("new", "S"),
+            StepReturns::WholeCache => kv("present", "P+S"),
+        });
         let mut contracts = vec![
             (
                 "conditioning",

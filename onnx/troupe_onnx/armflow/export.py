@@ -137,8 +137,8 @@ class ContextStepGraph(torch.nn.Module):
 
     def forward(self, tokens, positions, modulation, key_mask, *past_flat):
         past = list(zip(past_flat[0::2], past_flat[1::2]))
-        context, present = self.arnet.step(tokens, positions, modulation, past, key_mask)
-        return (context, *[t for kv in present for t in kv])
+        context, new = self.arnet.step(tokens, positions, modulation, past, key_mask)
+        return (context, *[t for kv in new for t in kv])
 
 
 class ContextFullGraph(torch.nn.Module):
@@ -178,7 +178,9 @@ def graph_specs(model: Armflow) -> dict:
     t = lambda name, shape, dtype="float32": {"name": name, "dtype": dtype, "shape": shape}  # noqa: E731
     # Streaming graphs take a batch of B streams, so that many sessions read the weights once.
     past = [t(f"past_{kv}_{i}", dims("B", h, "P", dh)) for i in range(L) for kv in ("key", "value")]
-    present = [t(f"present_{kv}_{i}", dims("B", h, "P+S", dh)) for i in range(L) for kv in ("key", "value")]
+    # Only the new tokens' keys and values come out: the runtime owns the cache and writes them
+    # into it in place (manifest `context.step_returns`).
+    new = [t(f"new_{kv}_{i}", dims("B", h, "S", dh)) for i in range(L) for kv in ("key", "value")]
 
     def state(stack, prefix):
         shapes = VaeStep(stack).state_shapes()
@@ -199,7 +201,7 @@ def graph_specs(model: Armflow) -> dict:
                 t("key_mask", dims("B", "P")),
                 *past,
             ],
-            "outputs": [t("context", dims("B", c)), *present],
+            "outputs": [t("context", dims("B", c)), *new],
         },
         "velocity": {
             "file": "velocity.onnx",
@@ -343,7 +345,7 @@ def export_bundle(
         "condition": condition_manifest(model),
         "context": {
             "width": c, "layers": cfg.layers, "heads": h, "head_dim": dh,
-            "capacity_tokens": cfg.context_capacity,
+            "capacity_tokens": cfg.context_capacity, "step_returns": "new_entries",
         },
         "vae": {
             "streaming": cfg.vae.causal,

@@ -319,17 +319,20 @@ class SelfAttention(nn.Module):
         self.register_buffer("zero_k_bias", torch.zeros(width))  # in the official state dict
         self.proj = nn.Linear(width, width)
 
-    def forward(self, x, past_k, past_v, mask):
+    def forward(self, x, past_k, past_v, past_mask, new_mask):
+        """x [B, S, C]; past_k/past_v [B, H, P, Dh] with past_mask [B, 1, 1, P] (0 keeps an
+        entry, -1e30 hides it); new_mask [S, S] over the new tokens. Returns (output, k, v) with
+        only the new tokens' keys and values: the caller owns the cache. Attention is split into
+        a past and a new part under one softmax, so no step copies the cache."""
         b, s, c = x.shape
         bias = torch.cat((self.q_bias, self.zero_k_bias, self.v_bias))
         qkv = F.linear(x, self.mat_qkv.weight, bias).view(b, s, 3, self.heads, self.head_dim)
         q, k, v = qkv.permute(2, 0, 3, 1, 4).unbind(0)  # [B, H, S, Dh]
-        k = torch.cat([past_k, k], dim=2)
-        v = torch.cat([past_v, v], dim=2)
-        att = (q @ k.transpose(-2, -1)) * self.scale
-        if mask is not None:
-            att = att + mask
-        out = att.softmax(dim=-1) @ v
+        p = past_k.shape[2]
+        on_past = (q @ past_k.transpose(-2, -1)) * self.scale + past_mask
+        on_new = (q @ k.transpose(-2, -1)) * self.scale + new_mask
+        att = torch.cat([on_past, on_new], dim=-1).softmax(dim=-1)  # scores only: [B, H, S, P+S]
+        out = att[..., :p] @ past_v + att[..., p:] @ v
         return self.proj(out.transpose(1, 2).reshape(b, s, c)), k, v
 
 
@@ -354,10 +357,10 @@ class AdaLNSelfAttn(nn.Module):
     def modulation(self, cond):  # [B, cond] -> [B, 6, C]
         return self.ada_lin(cond).view(-1, 6, self.width)
 
-    def forward(self, x, mod, past_k, past_v, mask):
+    def forward(self, x, mod, past_k, past_v, past_mask, new_mask):
         g1, g2, s1, s2, sh1, sh2 = mod[:, :, None, :].unbind(1)  # each [B, 1, C]
         ln = lambda t: F.layer_norm(t, (self.width,), eps=1e-6)  # noqa: E731
-        a, k, v = self.attn(ln(x) * (1 + s1) + sh1, past_k, past_v, mask)
+        a, k, v = self.attn(ln(x) * (1 + s1) + sh1, past_k, past_v, past_mask, new_mask)
         x = x + g1 * a
         x = x + g2 * self.ffn(ln(x) * (1 + s2) + sh2)
         return x, k, v
@@ -384,13 +387,14 @@ class SkipAdaLNTransformer(nn.Module):
     def modulation(self, cond):  # [B, cond] -> [B, L, 6, C]
         return torch.stack([blk.modulation(cond) for blk in self.blocks()], dim=1)
 
-    def run(self, x, modulation, past, mask):
-        """x [B, S, C] (positions added), past: L (k, v) pairs -> (output [B, S, C], present)."""
+    def run(self, x, modulation, past, past_mask, new_mask):
+        """x [B, S, C] (positions added), past: L (k, v) pairs -> (output [B, S, C], new), new
+        holding the new tokens' (k, v) per layer."""
         skips, present = [], []
         for i, blk in enumerate(self.blocks()):
             if i > self.n_in:  # out layers pop the skips LIFO
                 x = self.linear_layers[i - self.n_in - 1](torch.cat([x, skips.pop()], dim=-1))
-            x, k, v = blk(x, modulation[:, i], past[i][0], past[i][1], mask)
+            x, k, v = blk(x, modulation[:, i], past[i][0], past[i][1], past_mask, new_mask)
             present.append((k, v))
             if i < self.n_in:
                 skips.append(x)
@@ -399,18 +403,20 @@ class SkipAdaLNTransformer(nn.Module):
     def step(self, tokens, positions, modulation, past, key_mask=None):
         """tokens [B, S, C], positions int64 [B, S], modulation [B, L, 6, C], past: list of L
         (k, v) pairs [B, H, P, Dh], key_mask [B, P] added to the scores of the past keys (0 to
-        keep, -1e30 to skip a padding entry when streams of unequal history share a batch).
-        Returns (context [B, C] at the last position, present)."""
+        keep, -1e30 to skip a free slot or padding; the runtime's cache has both). The new
+        tokens see every kept past entry and, causally, each other. Returns (context [B, C] at
+        the last position, the new tokens' (k, v) pairs [B, H, S, Dh] per layer)."""
         p, s = past[0][0].shape[2], tokens.shape[1]
         if key_mask is None:
             key_mask = torch.zeros(tokens.shape[0], p)
-        key_pos = torch.arange(p + s)
-        query_pos = torch.arange(s) + p
-        causal = torch.where(key_pos[None, :] <= query_pos[:, None], 0.0, -1e30)  # [S, P+S]
-        keys = torch.cat([key_mask, tokens[:, :, 0] * 0.0], dim=1)  # [B, P+S]: new keys kept
-        mask = causal + keys[:, None, None, :]  # [B, 1, S, P+S]
-        x, present = self.run(tokens + sinusoid_positions(positions, self.width), modulation, past, mask)
-        return x[:, -1], present
+        # Absolute positions, as before the runtime owned the cache: a mask built from one
+        # `arange(S)` compared with itself is mis-shaped by tract 0.23's optimiser.
+        key_pos, query_pos = torch.arange(s) + p, torch.arange(p, p + s)
+        causal = torch.where(key_pos[None, :] <= query_pos[:, None], 0.0, -1e30)  # [S, S]
+        x, new = self.run(
+            tokens + sinusoid_positions(positions, self.width), modulation, past, key_mask[:, None, None, :], causal
+        )
+        return x[:, -1], new
 
     def full(self, tokens, modulation):
         """The official inference call: the whole prefix [B, S, C] at positions 0..S-1 with no
@@ -419,7 +425,7 @@ class SkipAdaLNTransformer(nn.Module):
         h = self.in_layers[0].attn
         empty = torch.zeros(b, h.heads, 0, h.head_dim)
         x = tokens + sinusoid_positions(torch.arange(s), self.width)[None]
-        x, _ = self.run(x, modulation, [(empty, empty)] * len(self.blocks()), None)
+        x, _ = self.run(x, modulation, [(empty, empty)] * len(self.blocks()), 0.0, 0.0)
         return x[:, -1]
 
 
@@ -643,7 +649,8 @@ def stream_reference(
         if held + 1 > capacity:  # slide: keep <sos> and the newest capacity - 2 pairs
             drop_to = held - (capacity - 2)
             past = [tuple(torch.cat([x[:, :, :1], x[:, :, drop_to:]], 2) for x in kv) for kv in past]
-        c, past = core.arnet.step(token, torch.tensor([[j]]), modulation, past)
+        c, new = core.arnet.step(token, torch.tensor([[j]]), modulation, past)
+        past = [tuple(torch.cat([old, n], 2) for old, n in zip(kv, new_kv)) for kv, new_kv in zip(past, new)]
         # 3. MeanFlow: z <- z - (tau_k - tau_{k+1}) u(z, r=tau_{k+1}, t=tau_k)
         z = torch.from_numpy(eps[j])[None]
         for k in range(opt.steps):

@@ -195,7 +195,7 @@ def causal_context(model: Armflow, actor, partner, positions, modulation):
     empty = torch.zeros(b, h.heads, 0, h.head_dim)
     x = tokens + sinusoid_positions(pos, core.arnet.width)
     mask = torch.triu(torch.full((n, n), -1e30), diagonal=1)[None, None]
-    out, _ = core.arnet.run(x, modulation, [(empty, empty)] * len(core.arnet.blocks()), mask)
+    out, _ = core.arnet.run(x, modulation, [(empty, empty)] * len(core.arnet.blocks()), 0.0, mask)
     return out
 
 

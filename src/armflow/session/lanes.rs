@@ -12,6 +12,7 @@
 //! or carried into the next token.
 
 use super::{Session, StepOutput, StreamState, TokenNoise, TokenTrace};
+use crate::armflow::kv_cache::KvCache;
 use crate::armflow::networks::{Networks, VaeState};
 use crate::armflow::spec::{ActorLatent, ArmFlowSpec};
 use crate::shared::checks::{check_output, check_output_counted};
@@ -30,17 +31,30 @@ pub(super) struct Lane<'s> {
 }
 
 impl<'s> Lane<'s> {
-    pub(super) fn new(session: &'s Session, index: Option<usize>) -> Self {
+    /// A lane over `session` that owns `cache`, the session's cache moved out for the step (so
+    /// the step writes it in place rather than into a copy).
+    pub(super) fn new(session: &'s Session, index: Option<usize>, cache: KvCache) -> Self {
+        let mut state = session.state.clone();
+        state.cache = cache;
         Self {
             session,
             index,
-            state: session.state.clone(),
+            state,
             frames: Vec::new(),
             tokens: Vec::new(),
         }
     }
 
-    /// Splits the lane into the state to commit and what the step returns.
+    /// The lane's cache with this step's writes undone, to give back to a session whose step
+    /// failed.
+    pub(super) fn rolled_back_cache(self) -> KvCache {
+        let mut cache = self.state.cache;
+        cache.rollback();
+        cache
+    }
+
+    /// Splits the lane into the state to commit (its cache's writes not yet committed) and
+    /// what the step returns.
     pub(super) fn finish(self, frame_dim: usize) -> (StreamState, StepOutput) {
         let n = self.frames.len() / frame_dim;
         let frames =
@@ -178,10 +192,6 @@ fn generate_tokens(nets: &Networks, lanes: &mut [&mut Lane]) -> Result<()> {
     let mut tokens = Vec::new();
     let mut positions = Vec::with_capacity(lanes.len());
     for lane in lanes.iter_mut() {
-        let capacity = lane.session.settings.capacity;
-        if lane.state.cache.len() + 1 > capacity {
-            lane.state.cache.evict_to(capacity - 1)?;
-        }
         let j = lane.state.tokens;
         tokens.extend_from_slice(if j == 0 {
             &lane.session.conditioning.start_token

@@ -190,7 +190,7 @@ impl Session {
         Ok(Self {
             conditioning: nets.conditioning(settings.condition.as_deref())?,
             grid: meanflow_grid(settings.steps),
-            state: StreamState::new(m, vae_start.clone()),
+            state: StreamState::new(m, settings.capacity, vae_start.clone()),
             vae_start,
             settings,
             nets,
@@ -262,11 +262,21 @@ impl Session {
     pub(crate) fn step_bounded(&mut self, actor: &[f32], max_frames: usize) -> Result<StepOutput> {
         let dim = self.nets.frame_dim();
         check_actor_chunk(actor, dim)?;
-        let mut lanes = [Lane::new(self, None)];
-        lanes::advance(&self.nets, &mut lanes, &[actor])?;
+        let cache = std::mem::take(&mut self.state.cache);
+        let mut lanes = [Lane::new(self, None, cache)];
+        let advanced = lanes::advance(&self.nets, &mut lanes, &[actor]);
         let [lane] = lanes;
-        let (next, output) = lane.finish(dim);
-        check_output_room(&output, max_frames, None)?;
+        if let Err(e) = advanced {
+            self.state.cache = lane.rolled_back_cache();
+            return Err(e);
+        }
+        let (mut next, output) = lane.finish(dim);
+        if let Err(e) = check_output_room(&output, max_frames, None) {
+            next.cache.rollback();
+            self.state.cache = next.cache;
+            return Err(e);
+        }
+        next.cache.commit();
         self.state = next;
         Ok(output)
     }
@@ -274,7 +284,7 @@ impl Session {
     /// Returns the session to the state of a fresh session with the current settings (seed,
     /// steps, CFG, condition, capacity). Queued noise is dropped.
     pub fn reset(&mut self) {
-        self.state = StreamState::new(self.spec(), self.vae_start.clone());
+        self.state = StreamState::new(self.spec(), self.settings.capacity, self.vae_start.clone());
         if let Some(joints) = &mut self.joints {
             joints.reset(None);
         }
@@ -413,14 +423,14 @@ impl Session {
 }
 
 impl StreamState {
-    fn new(spec: &ArmFlowSpec, vae: Option<VaeState>) -> Self {
+    fn new(spec: &ArmFlowSpec, capacity: usize, vae: Option<VaeState>) -> Self {
         Self {
             vae,
             frames_received: 0,
             actor_frames: Vec::new(),
             actor_base: 0,
             tokens: 0,
-            cache: KvCache::empty(&spec.context),
+            cache: KvCache::empty(&spec.context, capacity),
             last_pair: Vec::new(),
             reactor_latents: VecDeque::new(),
             reactor_base: 0,
@@ -499,19 +509,47 @@ pub(crate) fn step_sessions_bounded(
             other => other,
         })?;
     }
+    // Each session's cache moves into its lane (written in place, no copy) and comes back
+    // committed, or rolled back when anything fails.
+    let caches: Vec<KvCache> = sessions
+        .iter_mut()
+        .map(|s| std::mem::take(&mut s.state.cache))
+        .collect();
     let mut lanes: Vec<Lane> = sessions
         .iter()
+        .zip(caches)
         .enumerate()
-        .map(|(i, s)| Lane::new(s, Some(i)))
+        .map(|(i, (s, cache))| Lane::new(s, Some(i), cache))
         .collect();
-    lanes::advance(&nets, &mut lanes, actor)?;
-    let finished: Vec<_> = lanes.into_iter().map(|l| l.finish(dim)).collect();
-    for (i, (_, output)) in finished.iter().enumerate() {
-        check_output_room(
-            output,
-            max_frames.get(i).copied().unwrap_or(usize::MAX),
-            Some(i),
-        )?;
+    if let Err(e) = lanes::advance(&nets, &mut lanes, actor) {
+        let caches: Vec<KvCache> = lanes.into_iter().map(Lane::rolled_back_cache).collect();
+        for (session, cache) in sessions.iter_mut().zip(caches) {
+            session.state.cache = cache;
+        }
+        return Err(e);
+    }
+    let mut finished: Vec<_> = lanes.into_iter().map(|l| l.finish(dim)).collect();
+    let room = finished
+        .iter()
+        .enumerate()
+        .try_for_each(|(i, (_, output))| {
+            check_output_room(
+                output,
+                max_frames.get(i).copied().unwrap_or(usize::MAX),
+                Some(i),
+            )
+        });
+    for (state, _) in &mut finished {
+        match room {
+            Ok(()) => state.cache.commit(),
+            Err(_) => state.cache.rollback(),
+        }
+    }
+    if let Err(e) = room {
+        for (session, (state, _)) in sessions.iter_mut().zip(finished) {
+            session.state.cache = state.cache;
+        }
+        return Err(e);
     }
     Ok(sessions
         .iter_mut()
@@ -557,3 +595,6 @@ fn encode_prompt(nets: &Networks, prompt: &str) -> Result<Vec<f32>> {
         .ok_or_else(|| no_prompts(&nets.io.name))?;
     encoder.encode(prompt)
 }
+
+#[cfg(test)]
+mod tests;
