@@ -29,7 +29,7 @@ Peers:
   `[sos, pairs...]` plus the new token, from scratch, every step, as the official ARMFlow sampler
   does. Slow at long histories (paper bundle: ~0.1 s per step at H = 100, growing with H).
 - troupe itself, when `--troupe-binary` names the built `examples/stream` (tract, one thread
-  whatever `--threads` says): run once per history with `--capacity H+1 --warmup-tokens H
+  whatever `--threads` says): run once per history with `--synthetic --no-pictures --capacity H+1 --warmup-tokens H
   --frames 4*(H+steps) --tick 4`, so it streams H real tokens before timing; its p50/p99 over
   the calls that produced a token, and its load time, are parsed from its output.
 
@@ -408,7 +408,7 @@ def run_troupe(binary: str, bundle: Path, history: int, steps: int, bounded: boo
     with tempfile.TemporaryDirectory() as tmp:
         capacity = [] if bounded else ["--capacity", str(history + 1)]
         cmd = [
-            binary, "--bundle", str(bundle), *capacity,
+            binary, "--bundle", str(bundle), "--synthetic", "--no-pictures", *capacity,
             "--warmup-tokens", str(history), "--frames", str(4 * (history + steps)), "--tick", "4",
             "--out", str(Path(tmp) / "reactor.npy"),
         ]
@@ -423,7 +423,8 @@ def run_troupe(binary: str, bundle: Path, history: int, steps: int, bounded: boo
 def troupe_first_step(binary: str, bundle: Path) -> dict:
     """A fresh process: `Model::load` and a session (troupe's own report), then the first token."""
     with tempfile.TemporaryDirectory() as tmp:
-        cmd = [binary, "--bundle", str(bundle), "--frames", "4", "--tick", "4", "--out", str(Path(tmp) / "r.npy")]
+        cmd = [binary, "--bundle", str(bundle), "--synthetic", "--no-pictures", "--frames", "4", "--tick", "4",
+               "--out", str(Path(tmp) / "r.npy")]
         out = subprocess.run(cmd, capture_output=True, text=True, check=True).stdout
     load = re.search(r"loaded in ([\d.]+) ms", out)
     first = re.search(r"every call \(1 calls\): p50 ([\d.]+) ms", out)

@@ -113,7 +113,7 @@ fn a_full_cache_keeps_its_capacity_in_constant_memory() {
 
 #[test]
 fn a_cache_grown_past_its_first_slots_equals_a_full_recompute() {
-    // 160 tokens with every one kept: the cache allocates 128 slots, then doubles to 256.
+    // 160 tokens with every one kept: the cache allocates 16 slots and doubles up to 256.
     let m = model();
     let mut s = m.session(options(2, Some(1000))).unwrap();
     let actor = actor();

@@ -292,3 +292,26 @@ fn vae_steps_equal_vae_windows() {
         "{d_latents} {d_frames}"
     );
 }
+
+/// The window VAE of a bundle with per-token steps is optimised on its first call
+/// (`src/shared/graph.rs`): threads racing to that first call all get the same stream, the one a
+/// session gets once the graphs are ready.
+#[test]
+fn window_graphs_optimised_on_first_use_serve_racing_threads() {
+    let fresh = Model::load(bundle_dir()).unwrap();
+    let run = |model: &Model| {
+        let mut s = model
+            .session(SessionOptions {
+                vae_windows: true,
+                ..default_options()
+            })
+            .unwrap();
+        run_chunked(&mut s, &actor(), 8).0
+    };
+    let racing: Vec<Vec<f32>> = std::thread::scope(|scope| {
+        let handles: Vec<_> = (0..4).map(|_| scope.spawn(|| run(&fresh))).collect();
+        handles.into_iter().map(|h| h.join().unwrap()).collect()
+    });
+    let after = run(&fresh);
+    assert!(racing.iter().all(|r| *r == after));
+}

@@ -26,7 +26,7 @@ use crate::shared::graph::{f32_tensor, f32_tensor_owned, read_f32};
 const MASKED: f32 = -1e30;
 
 /// Slots a cache allocates on its first entry (or its capacity, when smaller).
-pub(crate) const PREALLOCATED_SLOTS: usize = 128;
+pub(crate) const PREALLOCATED_SLOTS: usize = 16;
 
 /// Keys and values of every layer in the graph's order (`key_0, value_0, key_1, ...`).
 #[derive(Debug, Clone, Default)]
@@ -411,7 +411,7 @@ mod tests {
                 sizes.push(c.slots());
             }
         }
-        assert_eq!(sizes, [PREALLOCATED_SLOTS, 256, 300]);
+        assert_eq!(sizes, [16, 32, 64, 128, 256, 300]);
         assert_eq!(held(&c), (0..300).map(|i| i as f32).collect::<Vec<_>>());
     }
 }

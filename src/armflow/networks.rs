@@ -112,7 +112,14 @@ impl Networks {
                 .iter()
                 .filter_map(|(n, g)| g.as_ref().map(|g| (*n, g))),
         );
-        let mut graphs = load_graphs(files, &wanted)?.into_iter();
+        // With per-token steps, only sessions that ask for windows (and clips) run the window
+        // VAE: its graphs are checked now and optimised on first use.
+        let deferred: &[&str] = if steps.is_some() {
+            &["vae_encoder", "vae_decoder"]
+        } else {
+            &[]
+        };
+        let mut graphs = load_graphs(files, &wanted, deferred)?.into_iter();
         let mut next = || graphs.next().expect("one graph per wanted entry");
         Ok(Self {
             conditioning: next(),

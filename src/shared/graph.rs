@@ -1,9 +1,13 @@
 //! One ONNX graph of a bundle: loaded, checked against the manifest, optimised once, and run by
 //! any number of sessions at the same time (a tract plan is `Send + Sync`; each call gets its own
 //! scratch state).
+//!
+//! A graph few sessions need (the VAE windows, when a bundle also has per-token steps) may be
+//! *deferred*: it is read and checked at load like any other, so a bad file still fails the load,
+//! but tract's optimisation, most of a graph's load time, waits for its first call.
 
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
-use std::sync::Arc;
+use std::sync::{Arc, Mutex, OnceLock};
 
 use tract_onnx::prelude::*;
 
@@ -17,11 +21,15 @@ use crate::shared::panics;
 use crate::shared::progress;
 use crate::shared::threads::load_threads;
 
-/// A loaded, optimised graph whose inputs and outputs are addressed in manifest order.
+/// A loaded graph whose inputs and outputs are addressed in manifest order.
 #[derive(Debug)]
 pub(crate) struct Graph {
     role: &'static str,
-    plan: Arc<TypedRunnableModel>,
+    file: std::path::PathBuf,
+    /// The optimised plan: set at load, or at the first call of a deferred graph.
+    plan: OnceLock<Arc<TypedRunnableModel>>,
+    /// A deferred graph's checked model until its first call optimises it.
+    deferred: Mutex<Option<TypedModel>>,
     /// For each manifest input, its position among the graph's inputs.
     input_order: Vec<usize>,
     /// For each manifest output, its position among the graph's outputs.
@@ -29,8 +37,14 @@ pub(crate) struct Graph {
 }
 
 impl Graph {
-    /// Loads `spec.file` from the bundle, checks it against `spec`, and optimises it.
-    pub(crate) fn load(role: &'static str, files: &BundleFiles, spec: &GraphSpec) -> Result<Self> {
+    /// Loads `spec.file` from the bundle, checks it against `spec`, and optimises it (or, when
+    /// `defer`, leaves the optimisation to the first call).
+    pub(crate) fn load(
+        role: &'static str,
+        files: &BundleFiles,
+        spec: &GraphSpec,
+        defer: bool,
+    ) -> Result<Self> {
         let file = files.path_of(&spec.file);
         let bytes = files.read(&spec.file, LIMITS.max_bundle_bytes)?;
         let bad = |message: String| Error::Graph {
@@ -51,23 +65,58 @@ impl Graph {
             .into_typed()
             .map_err(|e| bad(format!("shapes cannot be resolved: {e:#}")))?;
         let (input_order, output_order) = check_interface(&model, spec).map_err(&bad)?;
-        let plan = model
-            .into_optimized()
-            .and_then(|m| m.into_runnable())
-            .map_err(|e| bad(format!("cannot be optimised: {e:#}")))?;
+        let graph = Self {
+            role,
+            file: file.clone(),
+            plan: OnceLock::new(),
+            deferred: Mutex::new(Some(model)),
+            input_order,
+            output_order,
+        };
+        if !defer {
+            graph.plan()?;
+        }
         log(Level::Debug, "troupe::load", || {
             format!(
-                "{}: loaded and optimised in {:.0} ms",
+                "{}: loaded{} in {:.0} ms",
                 file.display(),
+                if defer {
+                    " (optimised on first use)"
+                } else {
+                    " and optimised"
+                },
                 started.elapsed().as_secs_f64() * 1e3
             )
         });
-        Ok(Self {
-            role,
-            plan,
-            input_order,
-            output_order,
+        Ok(graph)
+    }
+
+    /// The optimised plan, optimising a deferred graph once (other callers wait for it).
+    fn plan(&self) -> Result<&Arc<TypedRunnableModel>> {
+        if let Some(plan) = self.plan.get() {
+            return Ok(plan);
+        }
+        let bad = |message: String| Error::Graph {
+            file: self.file.clone(),
+            message,
+        };
+        // A panic while optimising poisons nothing we rely on: the model was taken out first.
+        let mut deferred = self.deferred.lock().unwrap_or_else(|p| p.into_inner());
+        if let Some(plan) = self.plan.get() {
+            return Ok(plan); // optimised by the caller we waited for
+        }
+        let model = deferred
+            .take()
+            .ok_or_else(|| bad("its optimisation failed on an earlier call".into()))?;
+        let quiet = panics::is_quiet();
+        let plan = panics::catch(quiet, || {
+            model
+                .into_optimized()
+                .and_then(|m| m.into_runnable())
+                .map_err(|e| bad(format!("cannot be optimised: {e:#}")))
         })
+        .unwrap_or_else(|reason| Err(bad(format!("optimising the graph panicked: {reason}"))))?;
+        Ok(self.plan.get_or_init(|| plan))
     }
 
     /// The graph's role in the bundle (`prior`, `context_step`, ...), for messages.
@@ -83,7 +132,7 @@ impl Graph {
             ordered[slot] = Some(value);
         }
         let ordered: TVec<TValue> = ordered.into_iter().flatten().collect();
-        let mut outputs = self.plan.run(ordered).map_err(|e| Error::Inference {
+        let mut outputs = self.plan()?.run(ordered).map_err(|e| Error::Inference {
             graph: self.role,
             message: format!("{e:#}"),
         })?;
@@ -97,18 +146,21 @@ impl Graph {
 
 /// Loads and optimises `wanted` graphs (role and declaration) on up to [`load_threads`] scoped
 /// threads (optimisation dominates load time and each graph is independent; every thread is
-/// joined before this returns); returns them in order, or the first error in that order. A
+/// joined before this returns), the roles in `deferred` checked but optimised on first use;
+/// returns them in order, or the first error in that order. A
 /// panic while loading a graph (tract on a hostile graph) becomes that graph's error, with its
 /// reason. Progress (graphs loaded) goes to the calling thread's progress callback, which may
 /// cancel the load.
 pub(crate) fn load_graphs(
     files: &BundleFiles,
     wanted: &[(&'static str, &GraphSpec)],
+    deferred: &[&str],
 ) -> Result<Vec<Graph>> {
     let workers = load_threads().min(wanted.len()).max(1);
     let quiet = panics::is_quiet();
     let load = |role: &'static str, spec: &GraphSpec| {
-        panics::catch(quiet, || Graph::load(role, files, spec)).unwrap_or_else(|reason| {
+        let defer = deferred.contains(&role);
+        panics::catch(quiet, || Graph::load(role, files, spec, defer)).unwrap_or_else(|reason| {
             Err(Error::Graph {
                 file: files.path_of(&spec.file),
                 message: format!("loading the graph panicked: {reason}"),

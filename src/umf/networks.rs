@@ -37,7 +37,7 @@ impl Networks {
         ];
         wanted.extend(g.text_branch.as_ref().map(|t| ("text_branch", t)));
         wanted.extend(g.text_encoder.as_ref().map(|t| ("text_encoder", t)));
-        let mut graphs = load_graphs(files, &wanted)?.into_iter();
+        let mut graphs = load_graphs(files, &wanted, &[])?.into_iter();
         let mut next = || graphs.next().expect("one graph per wanted entry");
         Ok(Self {
             prior: next(),
