@@ -595,6 +595,3 @@ fn encode_prompt(nets: &Networks, prompt: &str) -> Result<Vec<f32>> {
         .ok_or_else(|| no_prompts(&nets.io.name))?;
     encoder.encode(prompt)
 }
-
-#[cfg(test)]
-mod tests;

@@ -4,3 +4,6 @@
 pub mod clip;
 pub mod joints;
 pub mod session;
+
+#[cfg(test)]
+mod rollback_tests;

@@ -1,11 +1,12 @@
 //! A step that fails after its context step has written the caches (here: the caller's output
-//! room, checked last) leaves every session exactly as it was, alone or batched, with full
-//! rings whose oldest entries the failed step overwrote.
+//! room, which the C ABI's `troupe_session_step` and `troupe_sessions_step` pass and troupe
+//! checks last) leaves every session exactly as it was, alone or batched, with full rings whose
+//! oldest entries the failed step overwrote.
 
 use std::path::Path;
 
-use super::*;
-use crate::Model;
+use crate::armflow::step_sessions_bounded;
+use crate::{Model, SessionOptions};
 
 fn tiny() -> Model {
     Model::load(Path::new(env!("CARGO_MANIFEST_DIR")).join("onnx/bundles/armflow-tiny")).unwrap()
