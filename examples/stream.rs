@@ -252,6 +252,14 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         model.latency_frames(),
         model.joints_latency_frames(),
     );
+    let reduced = model.manifest().reduced_precision_graphs();
+    if !reduced.is_empty() {
+        let graphs: Vec<String> = reduced
+            .iter()
+            .map(|(role, w)| format!("{role} {}", w.name()))
+            .collect();
+        println!("reduced-precision weights: {}", graphs.join(", "));
+    }
     let mut timing = Timing {
         all_calls: Vec::new(),
         token_calls: Vec::new(),

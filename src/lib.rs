@@ -50,7 +50,7 @@ pub use armflow::{
     meanflow_grid, step_sessions, step_sessions_joints, Clip, ClipNoise, ClipOptions, Session,
     SessionOptions, StepOutput, TokenNoise, TokenTrace,
 };
-pub use manifest::{ActorLatent, ConditionLabel, Manifest};
+pub use manifest::{ActorLatent, ConditionLabel, Manifest, Weights};
 pub use model::Model;
 pub use shared::error::{Error, Result};
 pub use shared::limits::{Limits, LIMITS};

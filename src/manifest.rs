@@ -25,7 +25,7 @@ pub use crate::armflow::spec::{
     LatentSpec, SamplerSpec, VaeSpec,
 };
 pub use crate::shared::bundle_io::{ConditionLabel, ConditionSpec, MotionSpec};
-pub use crate::shared::graph_spec::{DType, Dim, GraphSpec, TensorSpec};
+pub use crate::shared::graph_spec::{DType, Dim, GraphSpec, TensorSpec, Weights};
 pub use crate::shared::text::prompt::TokenizerSpec;
 pub use crate::umf::spec::{
     PyramidSpec, StageSpec, TextSpec, UmfGraphs, UmfLatentSpec, UmfSamplerSpec, UmfSpec,
@@ -157,6 +157,16 @@ impl Manifest {
             Family::Armflow(_) => self.condition.dim,
             Family::Umf(s) => s.text.prior_dim,
         }
+    }
+
+    /// The graphs whose weights are not float32 (by role, in manifest order), as each graph's
+    /// `weights` declares and the load checked against its file. Empty for a float32 bundle.
+    pub fn reduced_precision_graphs(&self) -> Vec<(&'static str, Weights)> {
+        self.graph_contract()
+            .into_iter()
+            .filter(|(_, declared, _)| !declared.weights.is_float32())
+            .map(|(role, declared, _)| (role, declared.weights))
+            .collect()
     }
 
     /// Each graph as declared, next to the interface the runtime requires of it.

@@ -124,6 +124,26 @@ fn committed_demo_bundle_is_reproducible_from_its_checkpoint() {
     }
 }
 
+/// The committed int8 demo is exactly what `armflow quantize` makes of the float32 demo.
+#[test]
+fn committed_int8_demo_is_reproducible_from_the_float32_demo() {
+    if torch_available("committed_int8_demo_is_reproducible_from_the_float32_demo") {
+        let (ok, text) = run_python(
+            &[
+                "onnx/cli.py",
+                "armflow",
+                "quantize",
+                "--bundle",
+                "onnx/bundles/armflow-demo",
+                "--check",
+                "onnx/bundles/armflow-demo-int8",
+            ],
+            &AVX2_KERNELS,
+        );
+        assert!(ok && text.contains("reproducible"), "{text}");
+    }
+}
+
 /// Re-running the demo's training reproduces the committed model's quality: each rule's error on
 /// the held-out clips (`docs/demo-results.json`, LAFAN1 aside) within 10 %. Training takes about
 /// 25 minutes on 2 cores, so this runs only with torch and `TROUPE_SLOW_TESTS=1`.

@@ -57,6 +57,7 @@ impl Graph {
             .proto_model_for_read(&mut &bytes[..])
             .map_err(|e| bad(format!("not a loadable ONNX model: {e:#}")))?;
         onnx_guard::check_model(&proto).map_err(&bad)?;
+        onnx_guard::check_weights(&proto, spec.weights).map_err(&bad)?;
         let model = onnx
             .model_for_proto_model(&proto)
             .map_err(|e| bad(format!("not a loadable ONNX model: {e:#}")))?;

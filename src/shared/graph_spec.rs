@@ -16,6 +16,39 @@ pub struct GraphSpec {
     pub inputs: Vec<TensorSpec>,
     /// Outputs, by name.
     pub outputs: Vec<TensorSpec>,
+    /// How the graph stores the weights of its matrix products (float32 when absent). Checked
+    /// against the file at load, so a bundle cannot reduce precision silently.
+    #[serde(default, skip_serializing_if = "Weights::is_float32")]
+    pub weights: Weights,
+}
+
+/// The storage of a graph's matrix-product weights.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Weights {
+    /// 32-bit floats, as trained.
+    #[default]
+    Float32,
+    /// 8-bit integers with float scales (`MatMulInteger`), activations quantized per tensor at
+    /// run time (`DynamicQuantizeLinear`): `onnx/cli.py armflow quantize`. Smaller and faster;
+    /// outputs differ from float32 by the quantization error, and a session's output in a batch
+    /// depends on its batch mates within that error (one activation scale per batch).
+    Int8,
+}
+
+impl Weights {
+    /// Whether this is the float32 default.
+    pub fn is_float32(&self) -> bool {
+        *self == Weights::Float32
+    }
+
+    /// The manifest's name for it.
+    pub fn name(&self) -> &'static str {
+        match self {
+            Weights::Float32 => "float32",
+            Weights::Int8 => "int8",
+        }
+    }
 }
 
 /// Element type of a graph tensor.
@@ -93,6 +126,7 @@ pub(crate) fn contract(
         file: g.file.clone(),
         inputs,
         outputs,
+        weights: g.weights,
     }
 }
 

@@ -13,6 +13,7 @@ use std::collections::HashMap;
 
 use tract_onnx::pb::{self, tensor_proto::DataType};
 
+use crate::shared::graph_spec::Weights;
 use crate::shared::limits::LIMITS;
 
 /// The ONNX operator sets (default domain) this runtime accepts: the range tract supports.
@@ -47,6 +48,30 @@ pub(crate) fn check_model(model: &pb::ModelProto) -> Check {
     let graph = model.graph.as_ref().ok_or("holds no graph")?;
     let mut nodes = 0u64;
     check_graph(graph, &mut nodes)
+}
+
+/// Checks that the graph's matrix products hold the weights the manifest declares: int8 graphs
+/// have integer products (`MatMulInteger`, `ConvInteger`), float32 graphs none.
+pub(crate) fn check_weights(model: &pb::ModelProto, declared: Weights) -> Check {
+    const INTEGER: [&str; 2] = ["MatMulInteger", "ConvInteger"];
+    let integer = model.graph.as_ref().map_or(0, |g| {
+        g.node
+            .iter()
+            .filter(|n| INTEGER.contains(&n.op_type.as_str()))
+            .count()
+    });
+    match (declared, integer) {
+        (Weights::Int8, 0) => Err(
+            "is declared with int8 weights (`\"weights\": \"int8\"`) but has no integer matrix \
+             product"
+                .into(),
+        ),
+        (Weights::Float32, n) if n > 0 => Err(format!(
+            "has {n} integer matrix products but is declared with float32 weights; a bundle \
+             with reduced precision must say so (`\"weights\": \"int8\"` on the graph)"
+        )),
+        _ => Ok(()),
+    }
 }
 
 fn check_graph(graph: &pb::GraphProto, nodes: &mut u64) -> Check {

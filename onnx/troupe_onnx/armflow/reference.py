@@ -329,11 +329,15 @@ class SelfAttention(nn.Module):
         qkv = F.linear(x, self.mat_qkv.weight, bias).view(b, s, 3, self.heads, self.head_dim)
         q, k, v = qkv.permute(2, 0, 3, 1, 4).unbind(0)  # [B, H, S, Dh]
         p = past_k.shape[2]
-        on_past = (q @ past_k.transpose(-2, -1)) * self.scale + past_mask
-        on_new = (q @ k.transpose(-2, -1)) * self.scale + new_mask
-        att = torch.cat([on_past, on_new], dim=-1).softmax(dim=-1)  # scores only: [B, H, S, P+S]
-        out = att[..., :p] @ past_v + att[..., p:] @ v
-        return self.proj(out.transpose(1, 2).reshape(b, s, c)), k, v
+        # Written with keys as rows (scores [B, H, P+S, S]) so that with one new token every
+        # product has the cache's length as its long side: tract then runs its matrix-vector
+        # kernels on whole rows instead of padding a single query row to a 32-row tile.
+        flip = lambda m: m.transpose(-2, -1) if torch.is_tensor(m) and m.dim() >= 2 else m  # noqa: E731
+        on_past = (past_k @ q.transpose(-2, -1)) * self.scale + flip(past_mask)
+        on_new = (k @ q.transpose(-2, -1)) * self.scale + flip(new_mask)
+        att = torch.cat([on_past, on_new], dim=-2).softmax(dim=-2)  # scores only
+        out = past_v.transpose(-2, -1) @ att[..., :p, :] + v.transpose(-2, -1) @ att[..., p:, :]  # [B, H, Dh, S]
+        return self.proj(out.permute(0, 3, 1, 2).reshape(b, s, c)), k, v
 
 
 class FFN(nn.Module):
