@@ -785,6 +785,36 @@ const char *troupe_model_condition_label(const struct troupe_model *model, size_
 troupe_status troupe_model_condition_for_label(const struct troupe_model *model, const char *label, float *condition, size_t capacity);
 
 /*
+ How many of the bundle's graphs hold weights in reduced precision (a graph entry's
+ `"weights": "int8"`, checked against the file at load); 0 for a float32 bundle and for NULL.
+ Thread-safe.
+
+ # Safety
+ `model` must be NULL or a live handle.
+ */
+size_t troupe_model_reduced_precision_count(const struct troupe_model *model);
+
+/*
+ The role of reduced-precision graph `index` (`"context_step"`, `"velocity"`, ...;
+ `0 <= index < troupe_model_reduced_precision_count`), or NULL for NULL or an index out of
+ range. Owned by the model and valid until `troupe_model_free`; never free it. Thread-safe.
+
+ # Safety
+ `model` must be NULL or a live handle.
+ */
+const char *troupe_model_reduced_precision_graph(const struct troupe_model *model, size_t index);
+
+/*
+ How reduced-precision graph `index` stores its weights (`"int8"`), or NULL for NULL or an
+ index out of range. Owned by the model and valid until `troupe_model_free`; never free it.
+ Thread-safe.
+
+ # Safety
+ `model` must be NULL or a live handle.
+ */
+const char *troupe_model_reduced_precision_weights(const struct troupe_model *model, size_t index);
+
+/*
  Floats per latent token (the length of injected noise vectors, per token); 0 for NULL.
  Thread-safe.
 

@@ -207,7 +207,11 @@ fn cpp_wrapper_without_exceptions() {
     );
     let [umf, armflow] = group_args();
     let demo = root().join("onnx/bundles/armflow-demo");
-    println!("{}", run(&[], &bin, &[&armflow, &umf, scratch(), &demo]));
+    let int8 = root().join("onnx/bundles/armflow-demo-int8");
+    println!(
+        "{}",
+        run(&[], &bin, &[&armflow, &umf, scratch(), &demo, &int8])
+    );
 }
 
 #[test]
@@ -221,7 +225,8 @@ fn cpp_wrapper_with_its_exception_helpers() {
     );
     let [umf, armflow] = group_args();
     let demo = root().join("onnx/bundles/armflow-demo");
-    run(&[], &bin, &[&armflow, &umf, scratch(), &demo]);
+    let int8 = root().join("onnx/bundles/armflow-demo-int8");
+    run(&[], &bin, &[&armflow, &umf, scratch(), &demo, &int8]);
 }
 
 /// Whether the long forms run (`TROUPE_SLOW_TESTS=1`): every C test under valgrind, not only
@@ -243,6 +248,7 @@ fn c_programs() -> Vec<(&'static str, Vec<PathBuf>, &'static [&'static str])> {
             vec![
                 root().join("onnx/bundles/armflow-demo"),
                 root().join("onnx/bundles/armflow-tiny"),
+                root().join("onnx/bundles/armflow-demo-int8"),
             ],
             &[],
         ),
@@ -494,13 +500,15 @@ fn c_motion_as_c99_and_cpp17() {
     run(&[], &cpp, &[&interhuman, &interx, &dir]);
 }
 
-/// Named conditions (the demo model's partner rules) through the header, as C99 and C++17.
+/// Named conditions (the demo model's partner rules) and reduced-precision graphs through the
+/// header, as C99 and C++17.
 #[test]
 fn c_condition_labels_as_c99_and_cpp17() {
     let src = root().join("tests/c/labels.c");
     let args = [
         root().join("onnx/bundles/armflow-demo"),
         root().join("onnx/bundles/armflow-tiny"),
+        root().join("onnx/bundles/armflow-demo-int8"),
     ];
     let args: Vec<&Path> = args.iter().map(PathBuf::as_path).collect();
     let c = compile("cc", &["-std=c99"], &[&src], &shared_link(), "labels_c");

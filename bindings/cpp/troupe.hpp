@@ -149,6 +149,15 @@ class Model {
             out.emplace_back(troupe_model_condition_label(handle_, i));
         return out;
     }
+    /// The graphs whose weights are not float32, as (role, storage) pairs ({"velocity", "int8"});
+    /// empty for a float32 bundle.
+    std::vector<std::pair<std::string, std::string>> reduced_precision() const {
+        std::vector<std::pair<std::string, std::string>> out;
+        for (std::size_t i = 0, n = troupe_model_reduced_precision_count(handle_); i < n; ++i)
+            out.emplace_back(troupe_model_reduced_precision_graph(handle_, i),
+                             troupe_model_reduced_precision_weights(handle_, i));
+        return out;
+    }
     /// Whether encode_prompt works: the bundle carries CLIP's text tower and tokenizer.
     bool takes_prompts() const { return troupe_model_takes_prompts(handle_) != 0; }
     /// The condition for a text prompt (CLIP's tokenizer and text tower, then the bundle's text

@@ -17,6 +17,9 @@ pub struct troupe_model {
     /// The names of the bundle's condition labels, NUL-terminated for C (the manifest refuses
     /// names holding NUL); they live as long as the handle.
     label_names: Vec<CString>,
+    /// The graphs whose weights are not float32, by role, with their storage (`"int8"`),
+    /// NUL-terminated for C; they live as long as the handle.
+    reduced_precision: Vec<(CString, CString)>,
 }
 
 /// The condition a generation call was given: NULL with length 0 is the null condition
@@ -61,7 +64,22 @@ fn publish(model: Model, out: *mut *mut troupe_model) {
         .iter()
         .map(|l| CString::new(l.name.as_str()).unwrap_or_default())
         .collect();
-    let handle = troupe_model { model, label_names };
+    let reduced_precision = model
+        .manifest()
+        .reduced_precision_graphs()
+        .into_iter()
+        .map(|(role, weights)| {
+            (
+                CString::new(role).unwrap_or_default(),
+                CString::new(weights.name()).unwrap_or_default(),
+            )
+        })
+        .collect();
+    let handle = troupe_model {
+        model,
+        label_names,
+        reduced_precision,
+    };
     // SAFETY: `out` was checked non-NULL by the caller of `publish`.
     unsafe { *out = Box::into_raw(Box::new(handle)) };
 }
@@ -308,6 +326,51 @@ pub unsafe extern "C" fn troupe_model_condition_for_label(
             Ok(())
         },
     )
+}
+
+/// How many of the bundle's graphs hold weights in reduced precision (a graph entry's
+/// `"weights": "int8"`, checked against the file at load); 0 for a float32 bundle and for NULL.
+/// Thread-safe.
+///
+/// # Safety
+/// `model` must be NULL or a live handle.
+#[no_mangle]
+pub unsafe extern "C" fn troupe_model_reduced_precision_count(
+    model: Option<&troupe_model>,
+) -> usize {
+    model.map_or(0, |m| m.reduced_precision.len())
+}
+
+/// The role of reduced-precision graph `index` (`"context_step"`, `"velocity"`, ...;
+/// `0 <= index < troupe_model_reduced_precision_count`), or NULL for NULL or an index out of
+/// range. Owned by the model and valid until `troupe_model_free`; never free it. Thread-safe.
+///
+/// # Safety
+/// `model` must be NULL or a live handle.
+#[no_mangle]
+pub unsafe extern "C" fn troupe_model_reduced_precision_graph(
+    model: Option<&troupe_model>,
+    index: usize,
+) -> *const c_char {
+    model
+        .and_then(|m| m.reduced_precision.get(index))
+        .map_or(std::ptr::null(), |(role, _)| role.as_ptr())
+}
+
+/// How reduced-precision graph `index` stores its weights (`"int8"`), or NULL for NULL or an
+/// index out of range. Owned by the model and valid until `troupe_model_free`; never free it.
+/// Thread-safe.
+///
+/// # Safety
+/// `model` must be NULL or a live handle.
+#[no_mangle]
+pub unsafe extern "C" fn troupe_model_reduced_precision_weights(
+    model: Option<&troupe_model>,
+    index: usize,
+) -> *const c_char {
+    model
+        .and_then(|m| m.reduced_precision.get(index))
+        .map_or(std::ptr::null(), |(_, weights)| weights.as_ptr())
 }
 
 /// Floats per latent token (the length of injected noise vectors, per token); 0 for NULL.

@@ -1,23 +1,37 @@
 /* Named conditions through the header: the trained demo bundle's partner rules by name, and every
  * bad input (NULL, unknown label, short buffer, a bundle without labels) refused with the buffer
- * untouched. Arguments: the demo bundle, a bundle without labels. */
+ * untouched; and which graphs hold reduced-precision weights. Arguments: the demo bundle, a
+ * bundle without labels, the demo with int8 weights. */
 #include <string.h>
 
 #include "check.h"
 
 int main(int argc, char **argv) {
-    troupe_model *demo = NULL, *plain = NULL;
+    troupe_model *demo = NULL, *plain = NULL, *int8 = NULL;
     float v[8];
     size_t k, i;
     const char *rules[3] = {"mirror", "follow", "keep-away"};
 
-    if (argc < 3) {
-        fprintf(stderr, "usage: %s DEMO_BUNDLE PLAIN_BUNDLE\n", argv[0]);
+    if (argc < 4) {
+        fprintf(stderr, "usage: %s DEMO_BUNDLE PLAIN_BUNDLE INT8_DEMO_BUNDLE\n", argv[0]);
         return 2;
     }
     EXPECT(troupe_model_load_file(argv[1], &demo), TROUPE_OK);
     EXPECT(troupe_model_load_file(argv[2], &plain), TROUPE_OK);
-    if (!demo || !plain) return 1;
+    EXPECT(troupe_model_load_file(argv[3], &int8), TROUPE_OK);
+    if (!demo || !plain || !int8) return 1;
+
+    /* reduced precision: the int8 demo says which graphs, the float32 one none */
+    CHECK(troupe_model_reduced_precision_count(demo) == 0);
+    CHECK(troupe_model_reduced_precision_graph(demo, 0) == NULL);
+    CHECK(troupe_model_reduced_precision_count(int8) == 2);
+    CHECK(strcmp(troupe_model_reduced_precision_graph(int8, 0), "context_step") == 0);
+    CHECK(strcmp(troupe_model_reduced_precision_graph(int8, 1), "velocity") == 0);
+    CHECK(strcmp(troupe_model_reduced_precision_weights(int8, 1), "int8") == 0);
+    CHECK(troupe_model_reduced_precision_weights(int8, 2) == NULL);
+    CHECK(troupe_model_reduced_precision_count(NULL) == 0);
+    CHECK(troupe_model_reduced_precision_graph(NULL, 0) == NULL);
+    CHECK(troupe_model_reduced_precision_weights(NULL, 0) == NULL);
 
     CHECK(troupe_model_condition_dim(demo) == 3);
     CHECK(troupe_model_condition_label_count(demo) == 3);
@@ -61,6 +75,7 @@ int main(int argc, char **argv) {
     }
     troupe_model_free(demo);
     troupe_model_free(plain);
+    troupe_model_free(int8);
     printf("sanitizer: %s\n", TROUPE_TEST_SANITIZER);
     printf("labels: %d passed, %d failed\n", passed, failed);
     return failed ? 1 : 0;

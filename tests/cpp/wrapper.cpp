@@ -1,5 +1,5 @@
 // The C++ wrapper, compiled with -fno-exceptions: RAII, moves, status returns.
-// Usage: wrapper ARMFLOW_BUNDLE_DIR UMF_BUNDLE_DIR [SCRATCH_DIR]
+// Usage: wrapper ARMFLOW_BUNDLE_DIR UMF_BUNDLE_DIR [SCRATCH_DIR [DEMO_BUNDLE [INT8_DEMO_BUNDLE]]]
 #include "troupe.hpp"
 #include "../c/check.h"
 
@@ -57,6 +57,7 @@ int main(int argc, char **argv) {
     {
         std::vector<float> v{9.0f};
         CHECK(model.condition_labels().empty());
+        CHECK(model.reduced_precision().empty());
         CHECK(!model.condition_for("mirror", v) && v.size() == 1 && v[0] == 9.0f);
         troupe::Model demo;
         if (argc > 4 && troupe::Model::load(argv[4], demo).ok()) {
@@ -66,6 +67,13 @@ int main(int argc, char **argv) {
             CHECK(unknown.code() == TROUPE_ERR_INVALID_ARG && v.size() == 3);
         } else {
             CHECK(argc <= 4);
+        }
+        troupe::Model int8;
+        if (argc > 5 && troupe::Model::load(argv[5], int8).ok()) {
+            using Graphs = std::vector<std::pair<std::string, std::string>>;
+            CHECK((int8.reduced_precision() == Graphs{{"context_step", "int8"}, {"velocity", "int8"}}));
+        } else {
+            CHECK(argc <= 5);
         }
     }
     troupe_session_options opt;

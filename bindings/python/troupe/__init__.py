@@ -160,6 +160,18 @@ class Model:
         n = _lib.troupe_model_condition_label_count(h)
         return [_lib.troupe_model_condition_label(h, i).decode() for i in range(n)]
 
+    @property
+    def reduced_precision(self) -> dict[str, str]:
+        """The graphs whose weights are not float32, by role (`{"velocity": "int8", ...}`), as
+        the manifest declares and the load checked; empty for a float32 bundle."""
+        h = self._h()
+        n = _lib.troupe_model_reduced_precision_count(h)
+        return {
+            _lib.troupe_model_reduced_precision_graph(h, i).decode():
+                _lib.troupe_model_reduced_precision_weights(h, i).decode()
+            for i in range(n)
+        }
+
     def condition(self, label: str) -> np.ndarray:
         """The conditioning vector of a named condition (`model.condition("mirror")`)."""
         out = np.empty(self.condition_dim, np.float32)
