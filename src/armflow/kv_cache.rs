@@ -154,6 +154,10 @@ impl KvCache {
         returns: StepReturns,
         past_slots: usize,
     ) -> Result<()> {
+        if self.capacity < 2 {
+            // Only the placeholder a session leaves while a step holds its cache is this small.
+            return Err(cache_error(&"writing to a cache that holds no slots"));
+        }
         let (heads, dh) = (self.heads, self.head_dim);
         let returned = match returns {
             StepReturns::NewEntries => new,
@@ -244,14 +248,22 @@ impl KvCache {
     /// will overwrite are hidden.
     fn step_mask(&self, new: usize) -> Vec<f32> {
         let mut mask = self.mask.clone();
-        let ring = self.capacity as u64 - 1;
+        let ring = self.ring();
         for k in 0..new {
             if self.len + k >= self.capacity {
                 let slot = 1 + ((self.written + k as u64) % ring) as usize;
-                mask[slot] = MASKED;
+                if let Some(m) = mask.get_mut(slot) {
+                    *m = MASKED;
+                }
             }
         }
         mask
+    }
+
+    /// Slots in the ring after `<sos>` (at least 1, even for the empty placeholder a session
+    /// leaves while a step holds its cache).
+    fn ring(&self) -> u64 {
+        (self.capacity as u64).saturating_sub(1).max(1)
     }
 
     /// Whether `slot` holds an entry.
@@ -268,7 +280,7 @@ impl KvCache {
             return Ok(self.len);
         }
         // Full: overwrite the oldest entry after `<sos>` (slots 1..capacity form the ring).
-        Ok(1 + (self.written % (self.capacity as u64 - 1)) as usize)
+        Ok(1 + (self.written % self.ring()) as usize)
     }
 
     /// Allocates more slots, copying the held ones to the same indices (once per doubling).
