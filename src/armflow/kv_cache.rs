@@ -159,9 +159,9 @@ impl KvCache {
             return Err(cache_error(&"writing to a cache that holds no slots"));
         }
         let (heads, dh) = (self.heads, self.head_dim);
-        let returned = match returns {
-            StepReturns::NewEntries => new,
-            StepReturns::WholeCache => past_slots + new,
+        let (returned, what) = match returns {
+            StepReturns::NewEntries => (new, "new key/value"),
+            StepReturns::WholeCache => (past_slots + new, "present key/value"),
         };
         let batch = outputs.first().map_or(0, |t| t.shape()[0]);
         if outputs.len() != 2 * self.layers || row >= batch {
@@ -174,10 +174,6 @@ impl KvCache {
                 ),
             });
         }
-        let what = match returns {
-            StepReturns::NewEntries => "new key/value",
-            StepReturns::WholeCache => "present key/value",
-        };
         let sources = outputs
             .iter()
             .map(|t| read_f32("context_step", what, t, &[batch, heads, returned, dh]))

@@ -56,13 +56,14 @@ def quantize_bundle(src: Path, out: Path, graphs: list[str]) -> dict:
             op_types_to_quantize=["MatMul", "Gemm"],
         )
         manifest["graphs"][role]["weights"] = "int8"
-    manifest["name"] = f"{manifest['name']}-int8"
+    source_name = manifest["name"]
+    manifest["name"] = f"{source_name}-int8"
     manifest["producer"] = {
         **manifest.get("producer", {}),
         "quantized": {
             "tool": "onnx/cli.py armflow quantize (onnxruntime.quantization.quantize_dynamic)",
             "onnxruntime": onnxruntime.__version__,
-            "from": manifest["name"][: -len("-int8")],
+            "from": source_name,
             "graphs": list(graphs),
             "scheme": SCHEME,
         },

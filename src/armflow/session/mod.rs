@@ -262,23 +262,10 @@ impl Session {
     pub(crate) fn step_bounded(&mut self, actor: &[f32], max_frames: usize) -> Result<StepOutput> {
         let dim = self.nets.frame_dim();
         check_actor_chunk(actor, dim)?;
-        let cache = std::mem::take(&mut self.state.cache);
-        let mut lanes = [Lane::new(self, None, cache)];
-        let advanced = lanes::advance(&self.nets, &mut lanes, &[actor]);
-        let [lane] = lanes;
-        if let Err(e) = advanced {
-            self.state.cache = lane.rolled_back_cache();
-            return Err(e);
-        }
-        let (mut next, output) = lane.finish(dim);
-        if let Err(e) = check_output_room(&output, max_frames, None) {
-            next.cache.rollback();
-            self.state.cache = next.cache;
-            return Err(e);
-        }
-        next.cache.commit();
-        self.state = next;
-        Ok(output)
+        let nets = Arc::clone(&self.nets);
+        let mut outputs =
+            advance_sessions(&nets, &mut [&mut *self], &[actor], &[max_frames], false)?;
+        Ok(outputs.pop().expect("one session, one output"))
     }
 
     /// Returns the session to the state of a fresh session with the current settings (seed,
@@ -509,8 +496,21 @@ pub(crate) fn step_sessions_bounded(
             other => other,
         })?;
     }
-    // Each session's cache moves into its lane (written in place, no copy) and comes back
-    // committed, or rolled back when anything fails.
+    advance_sessions(&nets, sessions, actor, max_frames, true)
+}
+
+/// Runs the token loop over `sessions` (validated, all of `nets`), one lane each. Each session's
+/// cache moves into its lane (written in place, no copy) and comes back committed when every
+/// lane succeeded and fits its `max_frames` (missing: unbounded), rolled back otherwise, every
+/// session then unchanged. With `indexed`, messages name the session by its index.
+fn advance_sessions(
+    nets: &Networks,
+    sessions: &mut [&mut Session],
+    actor: &[&[f32]],
+    max_frames: &[usize],
+    indexed: bool,
+) -> Result<Vec<StepOutput>> {
+    let dim = nets.frame_dim();
     let caches: Vec<KvCache> = sessions
         .iter_mut()
         .map(|s| std::mem::take(&mut s.state.cache))
@@ -519,34 +519,26 @@ pub(crate) fn step_sessions_bounded(
         .iter()
         .zip(caches)
         .enumerate()
-        .map(|(i, (s, cache))| Lane::new(s, Some(i), cache))
+        .map(|(i, (s, cache))| Lane::new(s, indexed.then_some(i), cache))
         .collect();
-    if let Err(e) = lanes::advance(&nets, &mut lanes, actor) {
+    if let Err(e) = lanes::advance(nets, &mut lanes, actor) {
         let caches: Vec<KvCache> = lanes.into_iter().map(Lane::rolled_back_cache).collect();
         for (session, cache) in sessions.iter_mut().zip(caches) {
             session.state.cache = cache;
         }
         return Err(e);
     }
-    let mut finished: Vec<_> = lanes.into_iter().map(|l| l.finish(dim)).collect();
+    let finished: Vec<_> = lanes.into_iter().map(|l| l.finish(dim)).collect();
     let room = finished
         .iter()
         .enumerate()
         .try_for_each(|(i, (_, output))| {
-            check_output_room(
-                output,
-                max_frames.get(i).copied().unwrap_or(usize::MAX),
-                Some(i),
-            )
+            let max = max_frames.get(i).copied().unwrap_or(usize::MAX);
+            check_output_room(output, max, indexed.then_some(i))
         });
-    for (state, _) in &mut finished {
-        match room {
-            Ok(()) => state.cache.commit(),
-            Err(_) => state.cache.rollback(),
-        }
-    }
     if let Err(e) = room {
-        for (session, (state, _)) in sessions.iter_mut().zip(finished) {
+        for (session, (mut state, _)) in sessions.iter_mut().zip(finished) {
+            state.cache.rollback();
             session.state.cache = state.cache;
         }
         return Err(e);
@@ -554,7 +546,8 @@ pub(crate) fn step_sessions_bounded(
     Ok(sessions
         .iter_mut()
         .zip(finished)
-        .map(|(session, (state, output))| {
+        .map(|(session, (mut state, output))| {
+            state.cache.commit();
             session.state = state;
             output
         })
