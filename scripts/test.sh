@@ -80,3 +80,4 @@ echo "== benchmark smoke run (each benchmark once, tiny bundle; speed is not che
 # `cargo test` runs a criterion benchmark once, in the test profile the suite already built
 # (`cargo bench` would build everything again, optimised, for no check it adds).
 cargo test --bench step
+cargo test --bench graph_rows

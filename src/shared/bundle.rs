@@ -232,6 +232,17 @@ impl BundleFiles {
         }
     }
 
+    /// The size in bytes of the file `name`, or 0 when it cannot be known without reading it
+    /// (the read that follows reports why). Used only to schedule work.
+    pub(crate) fn size_hint(&self, name: &str) -> u64 {
+        match self {
+            Self::Dir { .. } => std::fs::metadata(self.path_of(name)).map_or(0, |m| m.len()),
+            Self::Archive { files, .. } => plain_name(name)
+                .and_then(|plain| files.get(&plain))
+                .map_or(0, |bytes| bytes.len() as u64),
+        }
+    }
+
     /// The contents of one file of the bundle (borrowed from an archive, read from a directory),
     /// at most `limit` bytes.
     pub(crate) fn read(&self, name: &str, limit: u64) -> Result<Cow<'_, [u8]>> {

@@ -46,25 +46,30 @@ impl Graph {
         defer: bool,
     ) -> Result<Self> {
         let file = files.path_of(&spec.file);
+        let started = std::time::Instant::now();
+        let mut phases = Phases::new();
         let bytes = files.read(&spec.file, LIMITS.max_bundle_bytes)?;
+        phases.mark("read");
         let bad = |message: String| Error::Graph {
             file: file.clone(),
             message,
         };
-        let started = std::time::Instant::now();
         let onnx = tract_onnx::onnx();
         let proto = onnx
             .proto_model_for_read(&mut &bytes[..])
             .map_err(|e| bad(format!("not a loadable ONNX model: {e:#}")))?;
         onnx_guard::check_model(&proto).map_err(&bad)?;
         onnx_guard::check_weights(&proto, spec.weights).map_err(&bad)?;
+        phases.mark("parsed");
         let model = onnx
             .model_for_proto_model(&proto)
             .map_err(|e| bad(format!("not a loadable ONNX model: {e:#}")))?;
         drop(proto);
+        phases.mark("built");
         let model = model
             .into_typed()
             .map_err(|e| bad(format!("shapes cannot be resolved: {e:#}")))?;
+        phases.mark("typed");
         let (input_order, output_order) = check_interface(&model, spec).map_err(&bad)?;
         let graph = Self {
             role,
@@ -76,17 +81,19 @@ impl Graph {
         };
         if !defer {
             graph.plan()?;
+            phases.mark("optimised");
         }
         log(Level::Debug, "troupe::load", || {
             format!(
-                "{}: loaded{} in {:.0} ms",
+                "{}: loaded{} in {:.0} ms ({})",
                 file.display(),
                 if defer {
                     " (optimised on first use)"
                 } else {
                     " and optimised"
                 },
-                started.elapsed().as_secs_f64() * 1e3
+                started.elapsed().as_secs_f64() * 1e3,
+                phases.summary()
             )
         });
         Ok(graph)
@@ -145,6 +152,37 @@ impl Graph {
     }
 }
 
+/// Durations of a graph load's phases, for the debug log.
+struct Phases {
+    last: std::time::Instant,
+    marks: Vec<(&'static str, f64)>,
+}
+
+impl Phases {
+    fn new() -> Self {
+        Self {
+            last: std::time::Instant::now(),
+            marks: Vec::new(),
+        }
+    }
+
+    fn mark(&mut self, phase: &'static str) {
+        let now = std::time::Instant::now();
+        self.marks
+            .push((phase, (now - self.last).as_secs_f64() * 1e3));
+        self.last = now;
+    }
+
+    fn summary(&self) -> String {
+        let parts: Vec<String> = self
+            .marks
+            .iter()
+            .map(|(phase, ms)| format!("{phase} {ms:.0} ms"))
+            .collect();
+        parts.join(", ")
+    }
+}
+
 /// Loads and optimises `wanted` graphs (role and declaration) on up to [`load_threads`] scoped
 /// threads (optimisation dominates load time and each graph is independent; every thread is
 /// joined before this returns), the roles in `deferred` checked but optimised on first use;
@@ -180,6 +218,16 @@ pub(crate) fn load_graphs(
     // Workers take graphs in order and send them back; this thread reports progress (so the
     // callback runs on the caller's thread) and, when it is cancelled, stops the workers taking
     // more.
+    // Largest graphs first, deferred ones (read and checked only) last: the load ends when its
+    // longest graph does, so starting that one first keeps the threads evenly busy.
+    let mut order: Vec<usize> = (0..wanted.len()).collect();
+    order.sort_by_key(|&i| {
+        let (role, spec) = wanted[i];
+        (
+            deferred.contains(&role),
+            std::cmp::Reverse(files.size_hint(&spec.file)),
+        )
+    });
     let next = AtomicUsize::new(0);
     let stop = AtomicBool::new(false);
     let (done_tx, done_rx) = std::sync::mpsc::channel();
@@ -189,15 +237,15 @@ pub(crate) fn load_graphs(
         let mut handles = Vec::with_capacity(workers);
         for _ in 0..workers {
             let done_tx = done_tx.clone();
-            let (next, stop, load) = (&next, &stop, &load);
+            let (next, stop, load, order) = (&next, &stop, &load, &order);
             handles.push(scope.spawn(move || loop {
                 if stop.load(Ordering::Relaxed) {
                     break;
                 }
-                let i = next.fetch_add(1, Ordering::Relaxed);
-                let Some(&(role, spec)) = wanted.get(i) else {
+                let Some(&i) = order.get(next.fetch_add(1, Ordering::Relaxed)) else {
                     break;
                 };
+                let (role, spec) = wanted[i];
                 if done_tx.send((i, load(role, spec))).is_err() {
                     break;
                 }

@@ -1,0 +1,142 @@
+//! What each streaming graph of a bundle costs per row (per stream) as the batch grows: the
+//! crowd path graph by graph, outside troupe's session code. Each graph is loaded and optimised
+//! by tract as troupe loads it, fed deterministic inputs of the manifest's shapes (`B` the batch,
+//! `S` = 1 new token, `P` the history), and timed over repeated calls on one thread.
+//!
+//!     cargo bench --bench graph_rows                                    # the committed tiny bundle
+//!     TROUPE_BENCH_BUNDLE=onnx/bundles/paper TROUPE_BENCH_BATCHES=1,16,64 \
+//!         TROUPE_BENCH_HISTORY=100 cargo bench --bench graph_rows       # paper size
+//!
+//! `TROUPE_BENCH_GRAPHS=context_step` times only the graphs named (to profile one under `perf`).
+//!
+//! `cargo test --bench graph_rows` (the suite's smoke run) runs every graph once at batch 2.
+//! Prints one line per graph and batch: median ms per call and per row, and the ratio of the
+//! per-row cost to batch 1's (how much a crowd saves by batching that graph).
+
+use std::collections::BTreeMap;
+use std::path::PathBuf;
+use std::time::Instant;
+
+use serde_json::Value;
+use tract_onnx::prelude::*;
+
+/// The graphs a streaming token runs, in the order a step runs them.
+const STEP_GRAPHS: [&str; 4] = [
+    "vae_encoder_step",
+    "context_step",
+    "velocity",
+    "vae_decoder_step",
+];
+
+fn env_or(name: &str, default: &str) -> String {
+    std::env::var(name).unwrap_or_else(|_| default.to_owned())
+}
+
+/// Deterministic inputs of the declared shapes: floats in [-0.5, 0.5), integers 0.
+fn inputs(spec: &Value, symbols: &BTreeMap<&str, usize>) -> TVec<TValue> {
+    spec["inputs"]
+        .as_array()
+        .expect("inputs")
+        .iter()
+        .map(|input| {
+            let shape: Vec<usize> = input["shape"]
+                .as_array()
+                .expect("shape")
+                .iter()
+                .map(|d| match d {
+                    Value::String(s) => symbols[s.as_str()],
+                    n => n.as_u64().expect("a dimension") as usize,
+                })
+                .collect();
+            let len: usize = shape.iter().product();
+            let tensor = if input["dtype"] == "int64" {
+                Tensor::from_shape(&shape, &vec![0i64; len])
+            } else {
+                let data: Vec<f32> = (0..len)
+                    .map(|i| ((i * 7919) % 1000) as f32 / 1000.0 - 0.5)
+                    .collect();
+                Tensor::from_shape(&shape, &data)
+            };
+            tensor.expect("shape matches data").into_tvalue()
+        })
+        .collect()
+}
+
+fn median_ms(call: impl Fn(), calls: usize) -> f64 {
+    let mut times: Vec<f64> = (0..calls)
+        .map(|_| {
+            let started = Instant::now();
+            call();
+            started.elapsed().as_secs_f64() * 1e3
+        })
+        .collect();
+    times.sort_by(f64::total_cmp);
+    times[times.len() / 2]
+}
+
+fn main() {
+    // `cargo test --bench graph_rows` runs the binary without `--bench`: one call each.
+    let smoke = !std::env::args().any(|a| a == "--bench");
+    let root = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
+    let bundle = std::env::var_os("TROUPE_BENCH_BUNDLE")
+        .map_or_else(|| root.join("onnx/bundles/armflow-tiny"), PathBuf::from);
+    let batches: Vec<usize> = if smoke {
+        vec![2]
+    } else {
+        env_or("TROUPE_BENCH_BATCHES", "1,16,64")
+            .split(',')
+            .map(|b| {
+                b.trim()
+                    .parse()
+                    .expect("TROUPE_BENCH_BATCHES: sizes like 1,16,64")
+            })
+            .collect()
+    };
+    let history: usize = env_or("TROUPE_BENCH_HISTORY", "100")
+        .parse()
+        .expect("TROUPE_BENCH_HISTORY: a number of tokens");
+    let (warmup, calls) = if smoke { (0, 1) } else { (3, 15) };
+    let manifest: Value = serde_json::from_slice(
+        &std::fs::read(bundle.join("troupe.json")).expect("the bundle's troupe.json"),
+    )
+    .expect("a JSON manifest");
+    println!(
+        "{}: history {history}, {calls} timed calls after {warmup} on one thread",
+        bundle.display()
+    );
+    let only = std::env::var("TROUPE_BENCH_GRAPHS").ok();
+    for role in STEP_GRAPHS {
+        if only
+            .as_deref()
+            .is_some_and(|only| !only.split(',').any(|g| g == role))
+        {
+            continue;
+        }
+        let Some(spec) = manifest["graphs"].get(role) else {
+            println!("{role}: not in this bundle");
+            continue;
+        };
+        let file = bundle.join(spec["file"].as_str().expect("file"));
+        let plan = tract_onnx::onnx()
+            .model_for_path(&file)
+            .and_then(|m| m.into_optimized())
+            .and_then(|m| m.into_runnable())
+            .unwrap_or_else(|e| panic!("{}: {e:#}", file.display()));
+        let mut batch_one = None;
+        for &batch in &batches {
+            let symbols = BTreeMap::from([("B", batch), ("S", 1), ("P", history)]);
+            let inputs = inputs(spec, &symbols);
+            let run = || {
+                plan.run(inputs.clone()).expect("the graph runs");
+            };
+            (0..warmup).for_each(|_| run());
+            let call = median_ms(run, calls);
+            let row = call / batch as f64;
+            let one = *batch_one.get_or_insert(row);
+            println!(
+                "{role:>16} B = {batch:>3}: {call:9.3} ms per call, {row:7.4} ms per row, {:.2}x the first batch's row",
+                row / one
+            );
+        }
+    }
+}
