@@ -1,10 +1,11 @@
 //! The committed bundles are exactly what their exporters produce:
 //! `onnx/cli.py armflow export --preset tiny` (and `tiny-interhuman`, `tiny-interx`, the
 //! official-layout parity bundles), `onnx/cli.py umf export --preset tiny | tiny-temporal` and
-//! `onnx/cli.py demo export` of the committed demo checkpoint, goldens included; and (slow, on
-//! request) the demo's training reproduces its committed quality.
+//! `onnx/cli.py demo export` of the committed demo checkpoint, `onnx/cli.py magnet export
+//! --preset tiny | tiny-trio`, goldens included; and (slow, on request) the demo's training
+//! reproduces its committed quality.
 //!
-//! Needs Python with torch and onnx. CI does not install torch (about 4 GB); where it is missing
+//! Needs Python with torch and onnx (MAGNet's also safetensors and pyyaml). CI does not install torch (about 4 GB); where it is missing
 //! this test prints why it did not run and passes.
 //!
 //! torch's CPU kernels are pinned to AVX2, the instruction set the goldens were exported with: on
@@ -26,14 +27,24 @@ const AVX2_KERNELS: [(&str, &str); 3] = [
 
 /// Whether python can import torch and onnx; prints why a test is skipped when not.
 fn torch_available(test: &str) -> bool {
+    python_has("torch, onnx", test)
+}
+
+/// Whether python can import `modules` (comma-separated); prints why a test is skipped when not.
+fn python_has(modules: &str, test: &str) -> bool {
     let probe = Command::new(python_command())
-        .args(["-c", "import torch, onnx"])
+        .args(["-c", &format!("import {modules}")])
         .output();
     let ok = matches!(probe, Ok(out) if out.status.success());
     if !ok {
-        println!("SKIPPED {test}: python with torch and onnx is not installed");
+        println!("SKIPPED {test}: python with {modules} is not installed");
     }
     ok
+}
+
+/// MAGNet's exporter reads released checkpoints (safetensors, config.yaml) besides torch.
+fn magnet_exporter_available(test: &str) -> bool {
+    python_has("torch, onnx, onnxruntime, safetensors, yaml", test)
 }
 
 /// Runs `onnx/cli.py family export --preset preset --check dir` and asserts the re-export is
@@ -82,6 +93,30 @@ fn committed_official_layout_bundles_are_reproducible_from_the_exporter() {
             "onnx/bundles/armflow-tiny-interhuman",
         );
         check("armflow", "tiny-interx", "onnx/bundles/armflow-tiny-interx");
+    }
+}
+
+#[test]
+fn committed_magnet_bundles_are_reproducible_from_the_exporter() {
+    if magnet_exporter_available("committed_magnet_bundles_are_reproducible_from_the_exporter") {
+        check("magnet", "tiny", "onnx/bundles/magnet-tiny");
+        check("magnet", "tiny-trio", "onnx/bundles/magnet-tiny-trio");
+    }
+}
+
+/// MAGNet's torch side (`onnx/tests/test_magnet_torch.py`): the hand-written guidance gradients
+/// equal autograd's; a checkpoint in the released layout (safetensors + config.yaml + statistics)
+/// loads strictly, names every bad tensor and refuses configurations by field; it exports to
+/// exactly the committed graphs, which onnxruntime runs as torch computes them.
+#[test]
+fn magnet_checkpoints_and_guidance_graphs() {
+    if magnet_exporter_available("magnet_checkpoints_and_guidance_graphs") {
+        let (ok, text) = run_python(
+            &["-m", "pytest", "-q", "onnx/tests/test_magnet_torch.py"],
+            &AVX2_KERNELS,
+        );
+        assert!(ok, "{text}");
+        assert!(text.contains("19 passed"), "{text}");
     }
 }
 

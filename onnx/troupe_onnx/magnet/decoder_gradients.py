@@ -1,0 +1,160 @@
+"""The x0-guidance gradients through the VQ decoder: by autograd (the ground truth), and written
+out by hand so that they export as plain ONNX (`shared/spec/magnet.md` §6.4, §6.5 option (a)): the decoder's forward keeps what its
+backward needs, then the loss's gradient runs back through transposed convolutions, the
+LayerNorm and GELU derivatives, ReLU masks and the upsampling's pair sums. Only the gradient
+with respect to the latents leaves the graph; the transform dims' analytic term is the runtime's
+(`guidance.transform_smoothing_gradient`).
+
+`onnx/tests/test_magnet_torch.py` checks the two against each other.
+"""
+
+from __future__ import annotations
+
+import math
+
+import torch
+import torch.nn as nn
+import torch.nn.functional as F
+
+import numpy as np
+
+from troupe_onnx.magnet.layout import BETAS, BODY_JOINTS, FOOT_JOINTS, FRAMES_PER_TOKEN, TRANSFORM
+from troupe_onnx.magnet.networks import Decoder, ResConv1DBlock
+
+def decoded_rotations(decoder, x0: torch.Tensor, betas: torch.Tensor, latent: int) -> torch.Tensor:
+    """R = Dec(x0's latents, [betas, x0's tm1_t])[..., :126] per person's window, unsnapped:
+    x0 [S, T, P, D], betas [S, P, 10] -> [S, 4T, P, 126]."""
+    s, t, p, _ = x0.shape
+    z = x0[..., :latent]
+    tm1_t = x0[..., latent : latent + FRAMES_PER_TOKEN * TRANSFORM]
+    cond = torch.cat([betas[:, None].expand(s, t, p, BETAS), tm1_t], dim=-1)
+    fold = lambda a: a.permute(0, 2, 1, 3).reshape(s * p, t, -1)  # noqa: E731 - persons into the batch
+    out = decoder(torch.cat([fold(z), fold(cond)], dim=-1).transpose(1, 2))  # [S*P, 4T, 135]
+    return out.reshape(s, p, FRAMES_PER_TOKEN * t, -1).permute(0, 2, 1, 3)[..., : BODY_JOINTS * 6]
+
+
+def smoothing_loss(r: torch.Tensor) -> torch.Tensor:
+    return ((r[:, :-2] - 2 * r[:, 1:-1] + r[:, 2:]) ** 2).mean()
+
+
+def foot_skating_loss(r: torch.Tensor) -> torch.Tensor:
+    s, f, p, _ = r.shape
+    feet = r.reshape(s, f, p, BODY_JOINTS, 6)[:, :, :, list(FOOT_JOINTS)]
+    return ((feet[:, 1:] - feet[:, :-1]) ** 2).mean()
+
+
+def pose_gradient(decoder, loss, x0: np.ndarray, betas: np.ndarray, latent: int) -> np.ndarray:
+    """d loss(R(x0)) / d x0 on the latent dims only (the rest zero), by autograd (§6.4)."""
+    xt = torch.from_numpy(np.ascontiguousarray(x0, dtype=np.float32)).requires_grad_(True)
+    value = loss(decoded_rotations(decoder, xt, torch.from_numpy(betas.astype(np.float32)), latent))
+    (grad,) = torch.autograd.grad(value, xt)
+    out = np.zeros_like(x0, dtype=np.float32)
+    out[..., :latent] = grad[..., :latent].numpy()
+    return out
+
+
+_INV_SQRT2 = 1.0 / math.sqrt(2.0)
+_INV_SQRT_2PI = 1.0 / math.sqrt(2.0 * math.pi)
+
+
+def _gelu_grad(x):
+    return 0.5 * (1.0 + torch.erf(x * _INV_SQRT2)) + x * torch.exp(-0.5 * x * x) * _INV_SQRT_2PI
+
+
+def _ln_forward(norm: nn.LayerNorm, x):
+    """LayerNorm over the channels of [N, C, T]; returns (output, x_hat, 1/sigma)."""
+    mean = x.mean(dim=1, keepdim=True)
+    centred = x - mean
+    inv = torch.rsqrt((centred * centred).mean(dim=1, keepdim=True) + norm.eps)
+    xhat = centred * inv
+    return xhat * norm.weight[None, :, None] + norm.bias[None, :, None], xhat, inv
+
+
+def _ln_backward(norm: nn.LayerNorm, g, xhat, inv):
+    gh = g * norm.weight[None, :, None]
+    return inv * (gh - gh.mean(dim=1, keepdim=True) - xhat * (gh * xhat).mean(dim=1, keepdim=True))
+
+
+def _conv_backward(conv: nn.Conv1d, g):
+    """The input gradient of a stride-1 conv: the transposed conv with the same weights."""
+    return F.conv_transpose1d(g, conv.weight, padding=conv.padding[0], dilation=conv.dilation[0])
+
+
+class DecoderVjp(nn.Module):
+    """x0 [B, T, P, D], betas [B, P, 10] -> d loss / d latents [B, T, P, latent] for the
+    smoothing (`"smoothing"`) or foot-skating (`"foot_skating"`) loss of §6.4."""
+
+    def __init__(self, decoder: Decoder, latent: int, loss: str):
+        super().__init__()
+        if loss not in ("smoothing", "foot_skating"):
+            raise ValueError(f"loss {loss!r}: smoothing or foot_skating")
+        self.decoder, self.latent, self.loss = decoder, latent, loss
+
+    def forward(self, x0, betas):
+        b, t, p, _ = x0.shape
+        lat = self.latent
+        tm1_t = x0[..., lat : lat + FRAMES_PER_TOKEN * TRANSFORM]
+        cond = torch.cat([betas[:, None].expand(b, t, p, BETAS), tm1_t], dim=-1)
+        h = torch.cat([x0[..., :lat], cond], dim=-1).permute(0, 2, 3, 1).reshape(b * p, -1, t)  # [BP, C, T]
+        m = self.decoder.model
+        tape = []
+        a = m[0](h)
+        tape.append(a)
+        h = F.relu(a)
+        for stage in (m[2], m[3]):
+            res, conv = stage[0], stage[2]
+            for block in res.model:
+                h = self._block_forward(block, h, tape)
+            h = conv(F.interpolate(h, scale_factor=2.0, mode="nearest"))
+        a4 = m[4](h)
+        out = m[6](F.relu(a4))  # [BP, 135, F]
+        r = out[:, : BODY_JOINTS * 6]
+        g = self._loss_grad(r, b, p)
+        g = F.pad(g, (0, 0, 0, out.shape[1] - g.shape[1]))  # d/d(out): zero on the root dims
+        g = _conv_backward(m[6], g) * (a4 > 0).to(g.dtype)
+        g = _conv_backward(m[4], g)
+        for stage in (m[3], m[2]):
+            res, conv = stage[0], stage[2]
+            g = _conv_backward(conv, g)
+            g = g.reshape(g.shape[0], g.shape[1], -1, 2).sum(-1)  # nearest x2's backward
+            for block in reversed(res.model):
+                g = self._block_backward(block, g, tape)
+        g = g * (tape.pop() > 0).to(g.dtype)
+        g = _conv_backward(m[0], g)[:, :lat]  # [BP, latent, T]
+        return g.reshape(b, p, lat, t).permute(0, 3, 1, 2)
+
+    @staticmethod
+    def _block_forward(block: ResConv1DBlock, x, tape):
+        u, xhat1, inv1 = _ln_forward(block.norm1, x)
+        c1 = block.conv1(F.gelu(u))
+        w, xhat2, inv2 = _ln_forward(block.norm2, c1)
+        tape.append((u, xhat1, inv1, w, xhat2, inv2))
+        return x + block.conv2(F.gelu(w))
+
+    @staticmethod
+    def _block_backward(block: ResConv1DBlock, g, tape):
+        u, xhat1, inv1, w, xhat2, inv2 = tape.pop()
+        gw = _conv_backward(block.conv2, g) * _gelu_grad(w)
+        gu = _conv_backward(block.conv1, _ln_backward(block.norm2, gw, xhat2, inv2)) * _gelu_grad(u)
+        return g + _ln_backward(block.norm1, gu, xhat1, inv1)
+
+    def _loss_grad(self, r, b, p):
+        """d loss / d R for R [B*P, 126, F] (frames last); the losses are means over the whole
+        batch, so the count comes from the tensors' shapes (the batch is dynamic)."""
+        if self.loss == "smoothing":
+            lap = r[..., :-2] - 2 * r[..., 1:-1] + r[..., 2:]
+            c = 2.0 / torch.ones_like(lap).sum()
+            g = F.pad(lap, (0, 2)) - 2 * F.pad(lap, (1, 1)) + F.pad(lap, (2, 0))
+            return c * g
+        feet = torch.cat([r[:, 6 * j : 6 * j + 6] for j in FOOT_JOINTS], dim=1)  # [BP, 24, F]
+        diff = feet[..., 1:] - feet[..., :-1]
+        c = 2.0 / torch.ones_like(diff).sum()
+        gf = c * (F.pad(diff, (1, 0)) - F.pad(diff, (0, 1)))
+        g = torch.zeros_like(r)
+        parts = []
+        at = 0
+        for j, joint in enumerate(sorted(FOOT_JOINTS)):
+            parts += [g[:, at : 6 * joint], gf[:, 6 * j : 6 * j + 6]]
+            at = 6 * joint + 6
+        parts.append(g[:, at:])
+        return torch.cat(parts, dim=1)

@@ -1,0 +1,352 @@
+"""MAGNet's exporter: a model into a troupe bundle (manifest + ONNX graphs + codebook [+ goldens]).
+
+    python3 onnx/cli.py magnet export --preset tiny      --out onnx/bundles/magnet-tiny --golden       # committed
+    python3 onnx/cli.py magnet export --preset tiny-trio --out onnx/bundles/magnet-tiny-trio --golden  # committed
+    python3 onnx/cli.py magnet export --preset dd100     --out onnx/bundles/magnet-dd100             # released size, random
+    python3 onnx/cli.py magnet export --preset tiny      --check onnx/bundles/magnet-tiny            # reproducible?
+
+    # a released checkpoint (the DFoT checkpoints_<step> folder; config.yaml, the VQ-VAE and the
+    # statistics are found from it as the official code finds them):
+    python3 onnx/cli.py magnet export --preset dd100 \
+        --checkpoint checkpoints/dfot/magnet_dd100/v0/checkpoints_500000 --out onnx/bundles/magnet-dd100
+
+    # random weights in the released layout (what the loader reads), under a root directory:
+    python3 onnx/cli.py magnet export --preset tiny --write-checkpoint /tmp/magnet-release
+
+Graphs (`shared/spec/magnet.md` §2.4): `denoiser` (x, levels -> x0; batch dynamic, the window
+and P fixed), `vq_encoder` and `vq_decoder` (batch and length dynamic), and the two x0-guidance
+gradients through the decoder (`guidance_smoothing`, `guidance_foot_skating`, §6.5 option (a),
+written out by hand in `decoder_gradients.py`). The codebook ships as `codebook.f32` (little-endian
+float32, `[code_nb, latent]`); the statistics, the schedule tables, the level table of every
+released config's step count and every released sampling configuration are in the manifest.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from troupe_onnx.magnet.checkpoint import load_release, write_release
+from troupe_onnx.magnet.configs import released_for
+from troupe_onnx.magnet.decoder_gradients import DecoderVjp, foot_skating_loss, pose_gradient, smoothing_loss
+from troupe_onnx.magnet.draws import RecordingDraws, SeededDraws
+from troupe_onnx.magnet.guidance import GuidanceConfig, X0Guidance
+from troupe_onnx.magnet.motion import Clip, Stats, body_quaternions, decode_tokens, encode_clip, world_roots
+from troupe_onnx.magnet.layout import BODY_JOINTS, DECODER_COND_DIM, ENCODER_COND_DIM, FRAMES_PER_TOKEN, POSE_DIM
+from troupe_onnx.magnet.networks import Magnet, MagnetConfig, VqConfig, init_random
+from troupe_onnx.magnet.schedule import COSINE_S, Schedule, level_table
+from troupe_onnx.magnet.tasks import Run, Sampling
+from troupe_onnx.magnet import tasks as T
+from troupe_onnx.shared.checkpoint import CheckpointError
+from troupe_onnx.shared.export import FORMAT_VERSION, OPSET, export_graph, exporter_cli
+
+TOOL = "onnx/cli.py magnet export"
+MAX_ABS_ERROR = 1e-4  # onnxruntime against torch, per graph, relative to the output's scale
+CODEBOOK_FILE = "codebook.f32"
+
+_TINY = dict(layers=2, heads=2, d_feedforward=64, embed_dim=16, vq=VqConfig(d_latent=32, d_hidden=32, code_nb=64))
+PRESETS = {
+    # The official layout at reduced width, committed with goldens for every task.
+    "tiny": MagnetConfig(persons=2, **_TINY),
+    # Three people, the `add` person embedding: the other architecture branch and P = 3.
+    "tiny-trio": MagnetConfig(persons=3, person_embedding_mode="add", **_TINY),
+    # Released sizes (§5.12, §9): DD100 (P = 2) and the Embody3D trio (P = 3, embedding mode from
+    # its config; `concat` as DD100's training YAML until a checkpoint says otherwise).
+    "dd100": MagnetConfig(persons=2),
+    "trio": MagnetConfig(persons=3),
+}
+
+
+def build_model(preset: str, seed: int, checkpoint: Path | None = None) -> tuple[Magnet, Stats, str]:
+    torch.backends.mha.set_fastpath_enabled(False)  # the math path: what the graphs compute
+    if checkpoint is not None:
+        model, stats, _ = load_release(checkpoint, PRESETS[preset])
+        return model, stats, str(checkpoint)
+    return init_random(Magnet(PRESETS[preset]), seed).eval(), Stats.random(seed + 1), ""
+
+
+def t(name: str, shape: list, dtype: str = "float32") -> dict:
+    return {"name": name, "dtype": dtype, "shape": shape}
+
+
+def graph_specs(cfg: MagnetConfig) -> dict:
+    """Every graph's file, inputs and outputs. Symbolic dims: B batch, N person-sequences,
+    T frames, Z tokens."""
+    w, p, d, lat = cfg.window, cfg.persons, cfg.token_dim, cfg.vq.d_latent
+    grad = lambda name: {  # noqa: E731
+        "file": f"{name}.onnx",
+        "inputs": [t("x0", ["B", w, p, d]), t("betas", ["B", p, 10])],
+        "outputs": [t("latent_gradient", ["B", w, p, lat])],
+    }
+    return {
+        "denoiser": {
+            "file": "denoiser.onnx",
+            "inputs": [t("x", ["B", w, p, d]), t("levels", ["B", w, p], "int64")],
+            "outputs": [t("x0", ["B", w, p, d])],
+        },
+        "vq_encoder": {
+            "file": "vq_encoder.onnx",
+            "inputs": [t("pose", ["N", "T", POSE_DIM]), t("condition", ["N", "T", ENCODER_COND_DIM])],
+            "outputs": [t("latents", ["N", "Z", lat])],
+        },
+        "vq_decoder": {
+            "file": "vq_decoder.onnx",
+            "inputs": [t("latents", ["N", "Z", lat]), t("condition", ["N", "Z", DECODER_COND_DIM])],
+            "outputs": [t("pose", ["N", "T", POSE_DIM])],
+        },
+        "guidance_smoothing": grad("guidance_smoothing"),
+        "guidance_foot_skating": grad("guidance_foot_skating"),
+    }
+
+
+class _Encoder(torch.nn.Module):
+    def __init__(self, model: Magnet):
+        super().__init__()
+        self.vq = model.vqvae
+
+    def forward(self, pose, condition):
+        return self.vq.encode_continuous(pose, condition)
+
+
+class _Decoder(torch.nn.Module):
+    def __init__(self, model: Magnet):
+        super().__init__()
+        self.vq = model.vqvae
+
+    def forward(self, latents, condition):
+        return self.vq.decode(latents, condition)
+
+
+def graph_modules(model: Magnet) -> dict:
+    lat = model.cfg.vq.d_latent
+    return {
+        "denoiser": model.denoiser,
+        "vq_encoder": _Encoder(model),
+        "vq_decoder": _Decoder(model),
+        "guidance_smoothing": DecoderVjp(model.vqvae.decoder, lat, "smoothing"),
+        "guidance_foot_skating": DecoderVjp(model.vqvae.decoder, lat, "foot_skating"),
+    }
+
+
+def example_inputs(cfg: MagnetConfig, name: str, batch: int, gen: torch.Generator) -> tuple:
+    w, p, d, lat = cfg.window, cfg.persons, cfg.token_dim, cfg.vq.d_latent
+    r = lambda *s: torch.randn(*s, generator=gen)  # noqa: E731
+    if name == "denoiser":
+        return (r(batch, w, p, d), torch.randint(-1, cfg.max_t, (batch, w, p), generator=gen))
+    if name == "vq_encoder":
+        return (r(batch, 8 * FRAMES_PER_TOKEN, POSE_DIM), r(batch, 8 * FRAMES_PER_TOKEN, ENCODER_COND_DIM))
+    if name == "vq_decoder":
+        return (r(batch, 8, lat), r(batch, 8, DECODER_COND_DIM))
+    return (r(batch, w, p, d), r(batch, p, 10))
+
+
+def validate_graphs(model: Magnet, out_dir: Path, specs: dict) -> dict:
+    """onnxruntime against torch on fresh inputs at two batch sizes; raises above MAX_ABS_ERROR
+    relative to the output's largest value. Returns the worst error per graph."""
+    import onnxruntime as ort
+
+    gen = torch.Generator().manual_seed(123)
+    worst = {}
+    for name, module in graph_modules(model).items():
+        sess = ort.InferenceSession(str(out_dir / specs[name]["file"]), providers=["CPUExecutionProvider"])
+        names = [i["name"] for i in specs[name]["inputs"]]
+        err = 0.0
+        for batch in (1, 3):
+            args = example_inputs(model.cfg, name, batch, gen)
+            with torch.no_grad():
+                want = module(*args).numpy()
+            got = sess.run(None, {n: a.numpy() for n, a in zip(names, args)})[0]
+            err = max(err, float(np.abs(got - want).max() / max(np.abs(want).max(), 1e-30)))
+        if err > MAX_ABS_ERROR:
+            raise RuntimeError(f"{name}: onnxruntime differs from torch by {err:.2e} (relative), above {MAX_ABS_ERROR}")
+        worst[name] = err
+    return worst
+
+
+def export_bundle(preset: str, out_dir: Path, seed: int = 0, checkpoint: Path | None = None):
+    model, stats, source = build_model(preset, seed, checkpoint)
+    cfg = model.cfg
+    out_dir.mkdir(parents=True, exist_ok=True)
+    specs = graph_specs(cfg)
+    gen = torch.Generator().manual_seed(seed + 2)
+    for name, module in graph_modules(model).items():
+        export_graph(module, example_inputs(cfg, name, 2, gen), specs[name], out_dir)
+    errors = validate_graphs(model, out_dir, specs)
+    codebook = model.vqvae.quantizer.codebook.numpy().astype("<f4")
+    (out_dir / CODEBOOK_FILE).write_bytes(codebook.tobytes())
+    sched = Schedule.cosine(cfg.max_t)
+    configs = released_for(cfg.persons)
+    steps = sorted({c.steps for c in configs.values()})
+    manifest = {
+        "format": "troupe-bundle",
+        "format_version": FORMAT_VERSION,
+        "family": "magnet",
+        "name": f"magnet-{preset}",
+        "producer": {
+            "tool": TOOL, "preset": preset, "opset": OPSET,
+            **({"checkpoint": Path(source).name} if source else {"seed": seed}),
+            "onnxruntime_max_error": {k: float(f"{v:.3g}") for k, v in errors.items()},
+        },
+        "motion": {
+            "representation": "smplx-body21-6d", "fps": 30, "frames_per_token": FRAMES_PER_TOKEN,
+            "body_joints": BODY_JOINTS, "up_axis": "y",
+        },
+        "model": cfg.to_json(),
+        "codebook": {"file": CODEBOOK_FILE, "dtype": "float32", "shape": list(codebook.shape)},
+        "statistics": {"mean": [float(v) for v in stats.mean], "std": [float(v) for v in stats.std]},
+        "schedule": {
+            "kind": "cosine", "s": COSINE_S, "max_t": cfg.max_t,
+            **sched.to_json(),
+            "levels": {str(n): [int(v) for v in level_table(n, cfg.max_t)] for n in steps},
+        },
+        "sampling": {name: c.to_json() for name, c in configs.items()},
+        "graphs": specs,
+    }
+    (out_dir / "troupe.json").write_text(json.dumps(manifest, indent=2) + "\n")
+    return model, stats
+
+
+# --------------------------------------------------------------------------------------------
+# Golden outputs (tiny presets)
+# --------------------------------------------------------------------------------------------
+
+
+def random_clip(persons: int, frames: int, seed: int) -> Clip:
+    """A clip of plausible features: rotations near identity, small steps, partners a metre
+    apart; every person present."""
+    rng = np.random.default_rng(seed)
+
+    def rot9(n, spread, shift=0.0):
+        out = np.zeros(n + (9,), np.float32)
+        ang = rng.standard_normal(n + (3,)).astype(np.float32) * spread
+        c, s = np.cos(ang[..., 0]), np.sin(ang[..., 0])
+        r = np.zeros(n + (3, 3), np.float32)
+        r[..., 0, 0], r[..., 0, 2], r[..., 1, 1], r[..., 2, 0], r[..., 2, 2] = c, s, 1, -s, c
+        out[..., :6] = np.concatenate([r[..., :, 0], r[..., :, 1]], -1) + rng.standard_normal(n + (6,)).astype(np.float32) * spread * 0.1
+        out[..., 6:] = rng.standard_normal(n + (3,)).astype(np.float32) * spread + shift
+        return out
+
+    body = (rot9((frames, persons, BODY_JOINTS), 0.3)[..., :6]).astype(np.float32)
+    return Clip(
+        body=body,
+        canonical_root=rot9((frames, persons), 0.2),
+        tm1_t=rot9((frames, persons), 0.02),
+        partner=rot9((frames, persons, persons - 1), 0.3, 1.0),
+        betas=rng.standard_normal((persons, 10)).astype(np.float32),
+        mask=np.ones((frames, persons), bool),
+        world_canonical=rot9((frames, persons), 0.5),
+        world_root=rot9((frames, persons), 0.5),
+    )
+
+
+def golden_sampling(task: str) -> Sampling:
+    """Each task at golden size: 4 DDIM steps, 2 samples, guidance on (weights as released),
+    lengths that give the AR and rolling loops more than one window."""
+    guidance = GuidanceConfig(smoothing=X0Guidance(2.0, 0.0, 1.0), foot_skating=X0Guidance(2.0, 0.0, 1.0))
+    base = Sampling(task=task.removesuffix("_eta"), steps=4, samples=2, guidance=guidance, seed=5)
+    per_task = {
+        "joint": dict(subseq_len=4, ar_seq_stride=16, seq_len=96, root_mode="temporal_partner"),
+        "joint_eta": dict(subseq_len=2, ar_seq_stride=16, seq_len=96, eta=1.0, root_mode="temporal",
+                          guidance=GuidanceConfig(scales=(("clean", 1.5), ("full", -0.5)), smoothing=None, foot_skating=None)),
+        "partner_prediction": dict(subseq_len=1, ar_seq_stride=8, seq_len=96),
+        "motion_control_live": dict(subseq_len=4, ar_seq_stride=8, seq_len=96, samples=1, root_mode="temporal"),
+        "partner_inpainting": dict(schedule="full_sequence", subseq_len=2, ar_seq_stride=32, seq_len=96),
+        "inbetweening": dict(subseq_len=2, ar_seq_stride=4, seq_len=64, samples=1, keyframes=(0, 60), root_mode="temporal"),
+        "agentic_turn_taking": dict(subseq_len=4, ar_seq_stride=8, seq_len=80, root_mode="temporal"),
+        "agentic_sync": dict(subseq_len=4, ar_seq_stride=8, seq_len=80, root_mode="temporal"),
+        "pp2joint": dict(subseq_len=1, ar_seq_stride=8, seq_len=64),
+    }
+    return replace(base, **per_task[task])
+
+
+def run_task(model: Magnet, stats: Stats, sampling: Sampling, name: str, clip: Clip, draws) -> np.ndarray:
+    """The reference run of one task on `clip` (its tokens, as §5.0 prepares them)."""
+    cfg = model.cfg
+    lat = cfg.vq.d_latent
+    tokens, mask = encode_clip(model.vqvae, clip, stats)
+    betas = stats.normalize("betas", clip.betas)
+
+    def denoise(x, k):
+        with torch.no_grad():
+            kk = torch.from_numpy(np.broadcast_to(k, x.shape[:-1]).astype(np.int64).copy())
+            return model.denoiser(torch.from_numpy(np.ascontiguousarray(x)), kk).numpy()
+
+    def grad(loss):
+        return lambda x0, b: pose_gradient(model.vqvae.decoder, loss, x0, b, lat)
+
+    run = Run(sampling, Schedule.cosine(cfg.max_t), denoise, draws, stats.transform_stats(), cfg.window,
+              cfg.persons, lat, betas, grad(smoothing_loss), grad(foot_skating_loss))
+    tc = sampling.context_tokens
+    if sampling.task in ("joint", "agentic_turn_taking", "agentic_sync"):
+        fn = {"joint": T.joint, "agentic_turn_taking": T.agentic_turn_taking, "agentic_sync": T.agentic_sync}[sampling.task]
+        return fn(run, tokens[:tc], mask[:tc])
+    if sampling.task == "inbetweening":
+        keys = np.zeros((cfg.window,) + tokens.shape[1:], np.float32)
+        key_mask = np.zeros(cfg.window, bool)
+        for kf in sampling.keyframes:
+            key_tokens, _ = encode_clip(model.vqvae, clip.slice(kf, kf + FRAMES_PER_TOKEN), stats)
+            keys[kf // FRAMES_PER_TOKEN] = key_tokens[0]
+            key_mask[kf // FRAMES_PER_TOKEN] = True
+        return T.inbetweening(run, keys, key_mask)
+    gt = tokens[: min(clip.frames, sampling.seq_len) // FRAMES_PER_TOKEN]
+    if sampling.task == "pp2joint":
+        return T.pp2joint(run, gt, sampling.seq_len)
+    return {"partner_prediction": T.partner_prediction, "motion_control_live": T.motion_control_live,
+            "partner_inpainting": T.partner_inpainting}[sampling.task](run, gt)
+
+
+def write_golden(exported, out_dir: Path):
+    """Per task: the clip's features (the input), the encoded tokens, the sampled tokens, the
+    decoded motion (body quaternions, roots in the world) and the draws' shapes. Draws come from
+    troupe's seeded generator, so the runtime regenerates them."""
+    model, stats = exported
+    cfg = model.cfg
+    g = out_dir / "golden"
+    g.mkdir(exist_ok=True)
+    clip = random_clip(cfg.persons, 128, seed=3)
+    tokens, mask = encode_clip(model.vqvae, clip, stats)
+    arrays = {"clip_body": clip.body, "clip_canonical_root": clip.canonical_root, "clip_tm1_t": clip.tm1_t,
+              "clip_partner": clip.partner, "clip_betas": clip.betas, "clip_mask": clip.mask.astype(np.float32),
+              "clip_world_canonical": clip.world_canonical, "clip_world_root": clip.world_root,
+              "clip_tokens": tokens}
+    for k, v in arrays.items():
+        np.save(g / f"{k}.npy", np.ascontiguousarray(v, dtype=np.float32))
+    tasks = ["joint", "joint_eta"] if cfg.persons != 2 else [
+        "joint", "joint_eta", "partner_prediction", "motion_control_live", "partner_inpainting", "inbetweening",
+        "agentic_turn_taking", "agentic_sync", "pp2joint"]
+    index = {}
+    for name in tasks:
+        sampling = golden_sampling(name)
+        draws = RecordingDraws(SeededDraws(sampling.seed))
+        out = run_task(model, stats, sampling, name, clip, draws)
+        betas = stats.normalize("betas", clip.betas)
+        decoded = decode_tokens(model.vqvae, out, betas, stats, cfg.vq.d_latent)
+        c = sampling.context_len if name != "inbetweening" else 0
+        anchor = clip.world_canonical[min(c, clip.frames - 1)]
+        roots = world_roots(decoded, c, anchor, clip.world_root)
+        results = {"tokens": out, "body": body_quaternions(decoded.body), "roots": roots}
+        for k, v in results.items():
+            np.save(g / f"{name}_{k}.npy", np.ascontiguousarray(v, dtype=np.float32))
+        index[name] = {"sampling": sampling.to_json(), "draws": draws.count, "tokens_shape": list(out.shape)}
+        print(f"  golden {name}: {out.shape}, {draws.count} draws, |tokens| {np.abs(out).mean():.3f}")
+    (g / "cases.json").write_text(json.dumps(index, indent=2) + "\n")
+
+
+def write_checkpoint(preset: str, seed: int, path: Path):
+    """The preset's seeded random weights and statistics in the released layout under `path`."""
+    model, stats, _ = build_model(preset, seed)
+    folder = write_release(model, stats, path, f"magnet_{preset.replace('-', '_')}")
+    print(f"DFoT checkpoint folder: {folder}")
+
+
+def main(argv: list[str] | None = None, prog: str | None = None):
+    """`onnx/cli.py magnet export`."""
+    try:
+        exporter_cli(__doc__, PRESETS, export_bundle, write_golden, write_checkpoint, argv=argv, prog=prog)
+    except CheckpointError as e:
+        raise SystemExit(f"error: {e}") from e
+
