@@ -352,3 +352,39 @@ def test_quaternions_of_known_rotations():
     np.testing.assert_allclose(quaternion_from_rotation(rz90), [half, 0, 0, half], atol=1e-6)
     q = quaternion_from_rotation(rx180)
     np.testing.assert_allclose(np.abs(q), [0, 1, 0, 0], atol=1e-6)
+
+
+# --------------------------------------------------------------------------------------------
+# troupe's frames -> MAGNet's features (§1.2)
+# --------------------------------------------------------------------------------------------
+
+
+def test_features_derived_from_frames_are_consistent():
+    from troupe_onnx.magnet.motion import FRAME_DIM, canonical_frames, clip_from_frames
+
+    rng = np.random.default_rng(11)
+    f, p = 6, 3
+    frames = np.zeros((f, p, FRAME_DIM), np.float32)
+    frames[..., :136] = rng.standard_normal((f, p, 136))
+    frames[..., 136:145] = rng.standard_normal((f, p, 9))
+    clip = clip_from_frames(frames)
+    world = from_9d(clip.world_canonical)
+    # canonical frames: yaw only, on the floor, facing the root's x axis projected on the floor
+    np.testing.assert_allclose(world[..., 1, :3], np.broadcast_to([0, 1, 0], world[..., 1, :3].shape), atol=1e-6)
+    np.testing.assert_allclose(world[..., 1, 3], 0.0, atol=1e-6)
+    root = from_9d(clip.world_root)
+    ex = root[..., :3, 0]
+    flat = ex * np.array([1, 0, 1])
+    np.testing.assert_allclose(world[..., :3, 0], flat / np.linalg.norm(flat, axis=-1, keepdims=True), atol=1e-5)
+    # chaining the transitions from frame 0 rebuilds every canonical frame
+    chained = world[0]
+    for t in range(1, f):
+        chained = compose(chained, from_9d(clip.tm1_t[t]))
+        np.testing.assert_allclose(chained, world[t], atol=1e-4)
+    np.testing.assert_allclose(clip.tm1_t[0], np.broadcast_to([1, 0, 0, 0, 1, 0, 0, 0, 0], (p, 9)), atol=1e-6)
+    # a partner's canonical frame seen from one's own; the root seen from one's canonical frame
+    np.testing.assert_allclose(compose(world[:, 0], from_9d(clip.partner[:, 0, 1])), world[:, 2], atol=1e-4)
+    np.testing.assert_allclose(compose(world[:, 2], from_9d(clip.partner[:, 2, 0])), world[:, 0], atol=1e-4)
+    np.testing.assert_allclose(compose(world, from_9d(clip.canonical_root)), root, atol=1e-4)
+    np.testing.assert_array_equal(clip.betas, frames[0, :, :10])
+    assert canonical_frames(clip.world_root).shape == (f, p, 4, 4)

@@ -35,7 +35,10 @@ from troupe_onnx.magnet.configs import released_for
 from troupe_onnx.magnet.decoder_gradients import DecoderVjp, foot_skating_loss, pose_gradient, smoothing_loss
 from troupe_onnx.magnet.draws import RecordingDraws, SeededDraws
 from troupe_onnx.magnet.guidance import GuidanceConfig, X0Guidance
-from troupe_onnx.magnet.motion import Clip, Stats, body_quaternions, decode_tokens, encode_clip, world_roots
+from troupe_onnx.magnet.motion import (
+    FRAME_DIM, FRAME_LAYOUT, Clip, Stats, clip_from_frames, decode_tokens, encode_clip, frames_from_decoded, world_roots,
+)
+from troupe_onnx.magnet.transforms import rotation_to_6d, to_9d
 from troupe_onnx.magnet.layout import BODY_JOINTS, DECODER_COND_DIM, ENCODER_COND_DIM, FRAMES_PER_TOKEN, POSE_DIM
 from troupe_onnx.magnet.networks import Magnet, MagnetConfig, VqConfig, init_random
 from troupe_onnx.magnet.schedule import COSINE_S, Schedule, level_table
@@ -191,11 +194,11 @@ def export_bundle(preset: str, out_dir: Path, seed: int = 0, checkpoint: Path | 
             **({"checkpoint": Path(source).name} if source else {"seed": seed}),
             "onnxruntime_max_error": {k: float(f"{v:.3g}") for k, v in errors.items()},
         },
-        "motion": {
-            "representation": "smplx-body21-6d", "fps": 30, "frames_per_token": FRAMES_PER_TOKEN,
-            "body_joints": BODY_JOINTS, "up_axis": "y",
-        },
-        "model": cfg.to_json(),
+        # Per person and frame: betas, the 21 body joints' 6-D rotations, the root in the world
+        # (9-D), y up (`motion.py`, FRAME); no condition.
+        "motion": {"layout": FRAME_LAYOUT, "frame_dim": FRAME_DIM, "fps": 30, "skeleton": "smplx-body21"},
+        "condition": {"dim": 0},
+        "model": cfg.to_json() | {"frames_per_token": FRAMES_PER_TOKEN, "body_joints": BODY_JOINTS},
         "codebook": {"file": CODEBOOK_FILE, "dtype": "float32", "shape": list(codebook.shape)},
         "statistics": {"mean": [float(v) for v in stats.mean], "std": [float(v) for v in stats.std]},
         "schedule": {
@@ -215,32 +218,37 @@ def export_bundle(preset: str, out_dir: Path, seed: int = 0, checkpoint: Path | 
 # --------------------------------------------------------------------------------------------
 
 
-def random_clip(persons: int, frames: int, seed: int) -> Clip:
-    """A clip of plausible features: rotations near identity, small steps, partners a metre
-    apart; every person present."""
+def random_frames(persons: int, frames: int, seed: int) -> np.ndarray:
+    """troupe frames [F, P, 145] of plausible motion: body rotations near identity, each person
+    walking a smooth curve a metre or two from the others, turning as it goes."""
     rng = np.random.default_rng(seed)
+    out = np.zeros((frames, persons, FRAME_DIM), np.float32)
+    out[..., :10] = rng.standard_normal((1, persons, 10)).astype(np.float32)
+    angles = np.cumsum(rng.standard_normal((frames, persons, BODY_JOINTS, 3)) * 0.02, axis=0) + rng.standard_normal((1, persons, BODY_JOINTS, 3)) * 0.2
+    out[..., 10:136] = rotation_to_6d(rotation_xyz(angles)).reshape(frames, persons, -1)
+    t = np.arange(frames)[:, None] / 30.0
+    heading = rng.uniform(-np.pi, np.pi, (1, persons)) + 0.3 * np.sin(t * rng.uniform(0.5, 1.5, (1, persons)))
+    tilt = rng.standard_normal((frames, persons, 2)) * 0.03
+    root = rotation_xyz(np.stack([tilt[..., 0], heading, tilt[..., 1]], -1))
+    start = rng.standard_normal((1, persons, 3)) * 1.5
+    step = np.stack([np.cos(heading), np.zeros_like(heading), -np.sin(heading)], -1) * 0.03
+    pos = start + np.cumsum(step, axis=0)
+    pos[..., 1] = 0.9 + 0.02 * np.sin(t * 6.0)
+    m = np.zeros((frames, persons, 4, 4), np.float32)
+    m[..., :3, :3], m[..., :3, 3], m[..., 3, 3] = root, pos, 1.0
+    out[..., 136:145] = to_9d(m)
+    return out
 
-    def rot9(n, spread, shift=0.0):
-        out = np.zeros(n + (9,), np.float32)
-        ang = rng.standard_normal(n + (3,)).astype(np.float32) * spread
-        c, s = np.cos(ang[..., 0]), np.sin(ang[..., 0])
-        r = np.zeros(n + (3, 3), np.float32)
-        r[..., 0, 0], r[..., 0, 2], r[..., 1, 1], r[..., 2, 0], r[..., 2, 2] = c, s, 1, -s, c
-        out[..., :6] = np.concatenate([r[..., :, 0], r[..., :, 1]], -1) + rng.standard_normal(n + (6,)).astype(np.float32) * spread * 0.1
-        out[..., 6:] = rng.standard_normal(n + (3,)).astype(np.float32) * spread + shift
-        return out
 
-    body = (rot9((frames, persons, BODY_JOINTS), 0.3)[..., :6]).astype(np.float32)
-    return Clip(
-        body=body,
-        canonical_root=rot9((frames, persons), 0.2),
-        tm1_t=rot9((frames, persons), 0.02),
-        partner=rot9((frames, persons, persons - 1), 0.3, 1.0),
-        betas=rng.standard_normal((persons, 10)).astype(np.float32),
-        mask=np.ones((frames, persons), bool),
-        world_canonical=rot9((frames, persons), 0.5),
-        world_root=rot9((frames, persons), 0.5),
-    )
+def rotation_xyz(angles: np.ndarray) -> np.ndarray:
+    """Rotations about x, then y, then z: [..., 3] angles -> [..., 3, 3] (R = Rz Ry Rx)."""
+    x, y, z = angles[..., 0], angles[..., 1], angles[..., 2]
+    cx, sx, cy, sy, cz, sz = np.cos(x), np.sin(x), np.cos(y), np.sin(y), np.cos(z), np.sin(z)
+    r = np.zeros(angles.shape[:-1] + (3, 3))
+    r[..., 0, 0], r[..., 0, 1], r[..., 0, 2] = cz * cy, cz * sy * sx - sz * cx, cz * sy * cx + sz * sx
+    r[..., 1, 0], r[..., 1, 1], r[..., 1, 2] = sz * cy, sz * sy * sx + cz * cx, sz * sy * cx - cz * sx
+    r[..., 2, 0], r[..., 2, 1], r[..., 2, 2] = -sy, cy * sx, cy * cx
+    return r.astype(np.float32)
 
 
 def golden_sampling(task: str) -> Sampling:
@@ -300,38 +308,36 @@ def run_task(model: Magnet, stats: Stats, sampling: Sampling, name: str, clip: C
 
 
 def write_golden(exported, out_dir: Path):
-    """Per task: the clip's features (the input), the encoded tokens, the sampled tokens, the
-    decoded motion (body quaternions, roots in the world) and the draws' shapes. Draws come from
-    troupe's seeded generator, so the runtime regenerates them."""
+    """One clip of troupe frames (`frames.npy` [F, P, 145], every person present) and its tokens;
+    per task, the sampled tokens and the frames they decode to (each person's root anchored as
+    the reference anchors it, §7.2). Draws come from troupe's seeded generator, so the runtime
+    regenerates them; `cases.json` holds each task's configuration and number of draws."""
     model, stats = exported
     cfg = model.cfg
     g = out_dir / "golden"
     g.mkdir(exist_ok=True)
-    clip = random_clip(cfg.persons, 128, seed=3)
-    tokens, mask = encode_clip(model.vqvae, clip, stats)
-    arrays = {"clip_body": clip.body, "clip_canonical_root": clip.canonical_root, "clip_tm1_t": clip.tm1_t,
-              "clip_partner": clip.partner, "clip_betas": clip.betas, "clip_mask": clip.mask.astype(np.float32),
-              "clip_world_canonical": clip.world_canonical, "clip_world_root": clip.world_root,
-              "clip_tokens": tokens}
-    for k, v in arrays.items():
-        np.save(g / f"{k}.npy", np.ascontiguousarray(v, dtype=np.float32))
+    frames = random_frames(cfg.persons, 128, seed=3)
+    clip = clip_from_frames(frames)
+    tokens, _ = encode_clip(model.vqvae, clip, stats)
+    np.save(g / "frames.npy", frames)
+    np.save(g / "tokens.npy", tokens)
     tasks = ["joint", "joint_eta"] if cfg.persons != 2 else [
         "joint", "joint_eta", "partner_prediction", "motion_control_live", "partner_inpainting", "inbetweening",
         "agentic_turn_taking", "agentic_sync", "pp2joint"]
     index = {}
+    betas = stats.normalize("betas", clip.betas)
     for name in tasks:
         sampling = golden_sampling(name)
         draws = RecordingDraws(SeededDraws(sampling.seed))
         out = run_task(model, stats, sampling, name, clip, draws)
-        betas = stats.normalize("betas", clip.betas)
         decoded = decode_tokens(model.vqvae, out, betas, stats, cfg.vq.d_latent)
-        c = sampling.context_len if name != "inbetweening" else 0
-        anchor = clip.world_canonical[min(c, clip.frames - 1)]
-        roots = world_roots(decoded, c, anchor, clip.world_root)
-        results = {"tokens": out, "body": body_quaternions(decoded.body), "roots": roots}
-        for k, v in results.items():
-            np.save(g / f"{name}_{k}.npy", np.ascontiguousarray(v, dtype=np.float32))
-        index[name] = {"sampling": sampling.to_json(), "draws": draws.count, "tokens_shape": list(out.shape)}
+        c = 0 if sampling.task == "inbetweening" else sampling.context_len
+        roots = world_roots(decoded, c, clip.world_canonical[c], clip.world_root)
+        result = frames_from_decoded(decoded, roots, clip.betas)
+        np.save(g / f"{name}_tokens.npy", np.ascontiguousarray(out, dtype=np.float32))
+        np.save(g / f"{name}_frames.npy", np.ascontiguousarray(result, dtype=np.float32))
+        index[name] = {"sampling": sampling.to_json(), "draws": draws.count, "tokens_shape": list(out.shape),
+                       "anchor_frame": c}
         print(f"  golden {name}: {out.shape}, {draws.count} draws, |tokens| {np.abs(out).mean():.3f}")
     (g / "cases.json").write_text(json.dumps(index, indent=2) + "\n")
 

@@ -1,6 +1,7 @@
 """Frames <-> MAGNet's motion tokens (`shared/spec/magnet.md` §1.3-§1.5, §5.0 step 3, §7): the
-normalisation statistics, the token layout, encoding a clip, decoding tokens and rebuilding each
-person's root in one world frame. Mirrored by `src/magnet/decoding.rs`.
+normalisation statistics, the token layout, deriving MAGNet's features from troupe's frames,
+encoding a clip, decoding tokens and rebuilding each person's root in one world frame. Mirrored
+by `src/magnet/motion.rs`. torch only where the VQ-VAE runs.
 
 Per-frame, per-person features (the packed layout of §1.1 without hands and contacts):
 body_joint_rotations [21, 6], T_canonical_root [9], T_canonical_tm1_canonical_t [9],
@@ -12,13 +13,18 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from typing import TYPE_CHECKING
+
 import numpy as np
-import torch
 
 from troupe_onnx.magnet.layout import BETAS, BODY_JOINTS, FRAMES_PER_TOKEN, TOKEN_TRANSFORMS, TRANSFORM
-from troupe_onnx.magnet.networks import PoseVQVAE
 from troupe_onnx.magnet.tasks import TransformStats
-from troupe_onnx.magnet.transforms import compose, from_9d, quaternion_from_rotation, rotation_from_6d, to_7d, to_9d
+from troupe_onnx.magnet.transforms import (
+    compose, from_9d, inverse, quaternion_from_rotation, rotation_from_6d, rotation_to_6d, to_9d,
+)
+
+if TYPE_CHECKING:
+    from troupe_onnx.magnet.networks import PoseVQVAE
 
 STATS_DIM = 361  # §1.3: the statistics' length (hands included, one partner block)
 STATS = {  # field -> [start, end) in the statistics (dataset_config.py:StdMeanIdx)
@@ -92,9 +98,11 @@ class Clip:
                     cut(self.mask), cut(self.world_canonical), cut(self.world_root))
 
 
-def encode_clip(vqvae: PoseVQVAE, clip: Clip, stats: Stats) -> tuple[np.ndarray, np.ndarray]:
+def encode_clip(vqvae: "PoseVQVAE", clip: Clip, stats: Stats) -> tuple[np.ndarray, np.ndarray]:
     """Tokens [F/4, P, D] and their mask [F/4, P] (§5.0 step 3, §1.5): latents are snapped
     codebook rows (zero where the person is absent), transforms normalised."""
+    import torch
+
     f, p = clip.frames, clip.persons
     if f % FRAMES_PER_TOKEN:
         raise ValueError(f"a clip of {f} frames: encoding needs a multiple of {FRAMES_PER_TOKEN}")
@@ -128,9 +136,11 @@ class Decoded:
     tm1_t: np.ndarray
 
 
-def decode_tokens(vqvae: PoseVQVAE, x: np.ndarray, betas: np.ndarray, stats: Stats, latent: int) -> Decoded:
+def decode_tokens(vqvae: "PoseVQVAE", x: np.ndarray, betas: np.ndarray, stats: Stats, latent: int) -> Decoded:
     """§7.1: snap the latents, decode each person's whole sequence with [betas, tm1_t] as the
     condition. x [S, T, P, D]; betas [P, 10] normalised."""
+    import torch
+
     s, t, p, _ = x.shape
     tm1 = x[..., latent : latent + TOKEN_TRANSFORMS]
     cond = np.concatenate([np.broadcast_to(betas[None, None], (s, t, p, BETAS)), tm1], axis=-1)
@@ -147,12 +157,12 @@ def decode_tokens(vqvae: PoseVQVAE, x: np.ndarray, betas: np.ndarray, stats: Sta
 
 def world_roots(decoded: Decoded, context_frames: int, anchor_world_canonical: np.ndarray,
                 gt_world_root: np.ndarray | None = None) -> np.ndarray:
-    """§7.2 (mode `temporal`): each person's root in the world, 7-D wxyz_xyz [S, F, P, 7].
+    """§7.2 (mode `temporal`): each person's root in the world, 4x4 [S, F, P, 4, 4].
     The canonical frame at `context_frames` is `anchor_world_canonical` [P, 9] (the reference
     passes the ground truth there, §11 A2); later frames chain the predicted transitions; the
     first `context_frames` frames are `gt_world_root` [>= context_frames, P, 9] when given."""
     s, f, p, _ = decoded.canonical_root.shape
-    c = context_frames
+    c = min(context_frames, f - 1)
     world = np.broadcast_to(from_9d(anchor_world_canonical)[None], (s, p, 4, 4)).copy()
     roots = np.zeros((s, f, p, 4, 4), np.float32)
     if gt_world_root is not None:
@@ -163,7 +173,7 @@ def world_roots(decoded: Decoded, context_frames: int, anchor_world_canonical: n
     for u in range(c + 1, f):
         world = compose(world, from_9d(decoded.tm1_t[:, u]))
         roots[:, u] = compose(world, from_9d(decoded.canonical_root[:, u]))
-    return to_7d(roots)
+    return roots
 
 
 def online_anchor(last_world_canonical: np.ndarray, first_tm1_t: np.ndarray) -> np.ndarray:
@@ -175,3 +185,63 @@ def online_anchor(last_world_canonical: np.ndarray, first_tm1_t: np.ndarray) -> 
 def body_quaternions(body6d: np.ndarray) -> np.ndarray:
     """[..., 21, 6] -> [..., 21, 4] wxyz."""
     return quaternion_from_rotation(rotation_from_6d(body6d))
+
+
+# --------------------------------------------------------------------------------------------
+# troupe's frame layout: what a caller gives and gets, per person and frame
+# --------------------------------------------------------------------------------------------
+
+FRAME_LAYOUT = "magnet-smplx145"
+FRAME = {"betas": (0, 10), "body": (10, 136), "world_root": (136, 145)}
+FRAME_DIM = 145  # betas, 21 body joints' 6-D rotations, the root's pose in the world (9-D)
+
+
+def canonical_frames(world_root: np.ndarray) -> np.ndarray:
+    """§1.2 step 4: each frame's canonical frame, [..., 4, 4]: the root's heading about y (the
+    yaw of its x axis) at the root's position on the floor (y = 0)."""
+    root = from_9d(world_root)
+    ex = root[..., :3, 0]
+    psi = -np.arctan2(ex[..., 2], ex[..., 0])
+    c, s = np.cos(psi).astype(np.float32), np.sin(psi).astype(np.float32)
+    out = np.zeros(root.shape, np.float32)
+    out[..., 0, 0], out[..., 0, 2], out[..., 1, 1], out[..., 2, 0], out[..., 2, 2] = c, s, 1.0, -s, c
+    out[..., 0, 3], out[..., 2, 3], out[..., 3, 3] = root[..., 0, 3], root[..., 2, 3], 1.0
+    return out
+
+
+def clip_from_frames(frames: np.ndarray, mask: np.ndarray | None = None) -> Clip:
+    """troupe's frames [F, P, 145] (betas from the first frame) -> every feature MAGNet reads,
+    derived as §1.2 step 6 does: transitions between consecutive canonical frames (identity at
+    frame 0), each partner's canonical frame in one's own, the root in one's canonical frame."""
+    f, p, _ = frames.shape
+    a, b = FRAME["world_root"]
+    world_root = frames[..., a:b].astype(np.float32)
+    canon = canonical_frames(world_root)
+    inv = inverse(canon)
+    tm1 = np.broadcast_to(np.eye(4, dtype=np.float32), canon.shape).copy()
+    tm1[1:] = compose(inv[:-1], canon[1:])
+    partner = np.zeros((f, p, max(p - 1, 0), 9), np.float32)
+    for i in range(p):
+        for j in range(p):
+            if j != i:
+                partner[:, i, j if j < i else j - 1] = to_9d(compose(inv[:, i], canon[:, j]))
+    a0, b0 = FRAME["betas"]
+    a1, b1 = FRAME["body"]
+    return Clip(
+        body=frames[..., a1:b1].reshape(f, p, BODY_JOINTS, 6).astype(np.float32),
+        canonical_root=to_9d(compose(inv, from_9d(world_root))),
+        tm1_t=to_9d(tm1),
+        partner=partner,
+        betas=frames[0, :, a0:b0].astype(np.float32),
+        mask=np.ones((f, p), bool) if mask is None else mask.astype(bool),
+        world_canonical=to_9d(canon),
+        world_root=world_root,
+    )
+
+
+def frames_from_decoded(decoded: Decoded, roots: np.ndarray, betas: np.ndarray) -> np.ndarray:
+    """Decoded tokens and world roots [S, F, P, 4, 4] -> troupe's frames [S, F, P, 145]; body
+    rotations orthonormalised (SO3.from_6d, as the reference saves them), betas as given."""
+    s, f, p = roots.shape[:3]
+    body = rotation_to_6d(rotation_from_6d(decoded.body)).reshape(s, f, p, -1)
+    return np.concatenate([np.broadcast_to(betas[None, None], (s, f, p, BETAS)), body, to_9d(roots)], axis=-1).astype(np.float32)
