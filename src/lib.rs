@@ -28,7 +28,8 @@
 //! anything is allocated for it.
 //!
 //! Layout (see `docs/ARCHITECTURE.md`): `shared` machinery at the bottom (bundle files,
-//! graphs, noise, solvers, errors), one folder per model family above it ([`armflow`], [`umf`]),
+//! graphs, noise, solvers, errors), one folder per model family above it ([`armflow`], [`umf`],
+//! [`magnet`]),
 //! each importing only from `shared` and itself, then [`Model`] and [`manifest`], which know
 //! every family, and the C ABI ([`ffi`]) on top.
 
@@ -36,6 +37,7 @@
 
 pub mod armflow;
 pub mod ffi;
+pub mod magnet;
 pub mod manifest;
 mod model;
 pub mod motion;
@@ -50,6 +52,7 @@ pub use armflow::{
     meanflow_grid, step_sessions, step_sessions_joints, Clip, ClipNoise, ClipOptions, Session,
     SessionOptions, StepOutput, TokenNoise, TokenTrace,
 };
+pub use magnet::{MagnetOptions, MagnetOutput};
 pub use manifest::{ActorLatent, ConditionLabel, Manifest, Weights};
 pub use model::Model;
 pub use shared::error::{Error, Result};

@@ -24,6 +24,7 @@ pub use crate::armflow::spec::{
     ActorLatent, ArmFlowGraphs, ArmFlowSpec, ClipSpec, ContextSpec, DecoderWindow, EncoderWindow,
     LatentSpec, SamplerSpec, VaeSpec,
 };
+pub use crate::magnet::spec::MagnetSpec;
 pub use crate::shared::bundle_io::{ConditionLabel, ConditionSpec, MotionSpec};
 pub use crate::shared::graph_spec::{DType, Dim, GraphSpec, TensorSpec, Weights};
 pub use crate::shared::text::prompt::TokenizerSpec;
@@ -69,10 +70,12 @@ pub enum Family {
     Armflow(Box<ArmFlowSpec>),
     /// UMF: text-to-group generation ([`crate::Model::generate_group`]).
     Umf(Box<UmfSpec>),
+    /// MAGNet: multi-agent diffusion forcing ([`crate::Model::magnet_generate`]).
+    Magnet(Box<MagnetSpec>),
 }
 
 /// The family names this runtime reads, as they appear in `troupe.json`.
-pub const FAMILIES: [&str; 2] = ["armflow", "umf"];
+pub const FAMILIES: [&str; 3] = ["armflow", "umf", "magnet"];
 
 impl Manifest {
     /// Reads and validates `troupe.json` from a bundle.
@@ -106,6 +109,7 @@ impl Manifest {
         match self.family {
             Family::Armflow(_) => "armflow",
             Family::Umf(_) => "umf",
+            Family::Magnet(_) => "magnet",
         }
     }
 
@@ -119,6 +123,7 @@ impl Manifest {
         match &self.family {
             Family::Armflow(spec) => spec.validate(m.frame_dim)?,
             Family::Umf(spec) => spec.validate(&self.condition)?,
+            Family::Magnet(spec) => spec.validate(m, &self.condition)?,
         }
         let (encoder, branch) = self.text_graphs();
         ensure(encoder.is_some() == self.tokenizer.is_some(), || {
@@ -147,6 +152,7 @@ impl Manifest {
                 s.graphs.text_encoder.as_ref(),
                 s.graphs.text_branch.as_ref(),
             ),
+            Family::Magnet(_) => (None, None),
         }
     }
 
@@ -154,7 +160,7 @@ impl Manifest {
     /// input (`text.prior_dim`) for UMF.
     fn text_token_dim(&self) -> usize {
         match &self.family {
-            Family::Armflow(_) => self.condition.dim,
+            Family::Armflow(_) | Family::Magnet(_) => self.condition.dim,
             Family::Umf(s) => s.text.prior_dim,
         }
     }
@@ -175,6 +181,7 @@ impl Manifest {
         let mut contracts = match &self.family {
             Family::Armflow(spec) => spec.graph_contract(motion, condition),
             Family::Umf(spec) => spec.graph_contract(motion, condition),
+            Family::Magnet(spec) => spec.graph_contract(),
         };
         if let (Some(encoder), Some(tokenizer)) = (self.text_graphs().0, &self.tokenizer) {
             let expected = text_encoder_contract(encoder, tokenizer.context, self.text_token_dim());

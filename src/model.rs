@@ -10,7 +10,10 @@ use std::sync::Arc;
 use ndarray::ArrayView2;
 
 use crate::armflow::{self, Clip, ClipOptions, Session, SessionOptions};
-use crate::manifest::{ArmFlowSpec, ClipSpec, ConditionLabel, Family, Manifest, UmfSpec};
+use crate::magnet::{self, MagnetOptions, MagnetOutput};
+use crate::manifest::{
+    ArmFlowSpec, ClipSpec, ConditionLabel, Family, MagnetSpec, Manifest, UmfSpec,
+};
 use crate::shared::bundle::BundleFiles;
 use crate::shared::error::{Error, Result};
 use crate::shared::text::branch::TextBranch;
@@ -39,6 +42,7 @@ struct Inner {
 enum Networks {
     ArmFlow(Arc<armflow::Networks>),
     Umf(Arc<umf::Networks>),
+    Magnet(Arc<magnet::Networks>),
 }
 
 impl Model {
@@ -69,6 +73,11 @@ impl Model {
             Family::Umf(spec) => {
                 Networks::Umf(Arc::new(umf::Networks::load(&files, io, (**spec).clone())?))
             }
+            Family::Magnet(spec) => Networks::Magnet(Arc::new(magnet::Networks::load(
+                &files,
+                io,
+                (**spec).clone(),
+            )?)),
         };
         let inner = Inner {
             manifest,
@@ -113,6 +122,7 @@ impl Model {
         match &self.inner.manifest.family {
             Family::Armflow(a) => a.latent.dim,
             Family::Umf(u) => u.latent.dim,
+            Family::Magnet(m) => m.model.token_dim,
         }
     }
 
@@ -200,7 +210,7 @@ impl Model {
     pub fn armflow_spec(&self) -> Option<&ArmFlowSpec> {
         match &self.inner.manifest.family {
             Family::Armflow(spec) => Some(spec),
-            Family::Umf(_) => None,
+            Family::Umf(_) | Family::Magnet(_) => None,
         }
     }
 
@@ -208,8 +218,52 @@ impl Model {
     pub fn umf_spec(&self) -> Option<&UmfSpec> {
         match &self.inner.manifest.family {
             Family::Umf(spec) => Some(spec),
-            Family::Armflow(_) => None,
+            Family::Armflow(_) | Family::Magnet(_) => None,
         }
+    }
+
+    /// The `magnet` manifest fields, if this is a MAGNet model.
+    pub fn magnet_spec(&self) -> Option<&MagnetSpec> {
+        match &self.inner.manifest.family {
+            Family::Magnet(spec) => Some(spec),
+            Family::Armflow(_) | Family::Umf(_) => None,
+        }
+    }
+
+    /// Runs the MAGNet sampling configuration `config` (one of the bundle's released ones, by
+    /// the official YAML's name: `dd100`, `dd100_partner_prediction`, ..., see
+    /// [`MagnetSpec::sampling`]) on a clip of `frames` `[F, P, 145]` (per person and frame:
+    /// betas, the 21 body joints' 6-D rotations, the root's pose in the world, y up;
+    /// `onnx/README.md`, "Family `magnet`"), every person present unless `mask` `[F, P]` says
+    /// otherwise. What the frames are depends on the task: the context (its first
+    /// `context_len` frames) for joint generation, turn-taking and sync; person 0's whole
+    /// motion (and the others' first `context_len` frames) for partner prediction, the live
+    /// partner, inpainting and pp2joint; the key frames for in-betweening. Returns the sampled
+    /// tokens and the frames they decode to, every person's root in the input's world frame.
+    pub fn magnet_generate(
+        &self,
+        config: &str,
+        frames: ndarray::ArrayView3<f32>,
+        mask: Option<ndarray::ArrayView2<bool>>,
+        options: &MagnetOptions,
+    ) -> Result<MagnetOutput> {
+        let nets = self.magnet("MAGNet generation")?;
+        let cfg = magnet::configuration(nets, config, options)?;
+        magnet::generate(nets, cfg, frames, mask, options.draws.clone())
+    }
+
+    /// [`Model::magnet_generate`] with a configuration of the caller's (checked as the
+    /// manifest's are: the task fits the model, lengths fit the window) and, optionally, every
+    /// draw of the run.
+    pub fn magnet_generate_with(
+        &self,
+        sampling: &crate::magnet::spec::SamplingSpec,
+        frames: ndarray::ArrayView3<f32>,
+        mask: Option<ndarray::ArrayView2<bool>>,
+        draws: Option<Vec<Vec<f32>>>,
+    ) -> Result<MagnetOutput> {
+        let nets = self.magnet("MAGNet generation")?;
+        magnet::generate(nets, sampling.clone(), frames, mask, draws)
     }
 
     /// Runs the official text branch: CLIP's token features `[tokens, text_token_dim]` (the
@@ -252,6 +306,7 @@ impl Model {
         let found = match &self.inner.networks {
             Networks::ArmFlow(n) => n.prompt_encoder(),
             Networks::Umf(n) => n.prompt_encoder(),
+            Networks::Magnet(_) => None,
         };
         found.ok_or_else(|| no_prompts(&self.manifest().name))
     }
@@ -261,6 +316,7 @@ impl Model {
         let found = match &self.inner.networks {
             Networks::ArmFlow(n) => n.text_branch(),
             Networks::Umf(n) => n.text_branch(),
+            Networks::Magnet(_) => None,
         };
         found.ok_or_else(|| {
             Error::InvalidInput(format!(
@@ -401,6 +457,14 @@ impl Model {
         match &self.inner.networks {
             Networks::Umf(nets) => Ok(nets),
             _ => Err(self.wrong_family("umf", "group generation")),
+        }
+    }
+
+    /// The MAGNet networks, or an error saying that `what` needs a `magnet` bundle.
+    fn magnet(&self, what: &str) -> Result<&magnet::Networks> {
+        match &self.inner.networks {
+            Networks::Magnet(nets) => Ok(nets),
+            _ => Err(self.wrong_family("magnet", what)),
         }
     }
 

@@ -272,10 +272,11 @@ def golden_sampling(task: str) -> Sampling:
 
 
 def run_task(model: Magnet, stats: Stats, sampling: Sampling, name: str, clip: Clip, draws) -> np.ndarray:
-    """The reference run of one task on `clip` (its tokens, as §5.0 prepares them)."""
+    """The reference run of one task on `clip`, its tokens prepared as §5.0 prepares them: the
+    context frames encoded on their own (joint, turn-taking, sync), the ground-truth span in one
+    pass (the rolling tasks, pp2joint), each key frame's 4 frames on their own (in-betweening)."""
     cfg = model.cfg
     lat = cfg.vq.d_latent
-    tokens, mask = encode_clip(model.vqvae, clip, stats)
     betas = stats.normalize("betas", clip.betas)
 
     def denoise(x, k):
@@ -288,19 +289,20 @@ def run_task(model: Magnet, stats: Stats, sampling: Sampling, name: str, clip: C
 
     run = Run(sampling, Schedule.cosine(cfg.max_t), denoise, draws, stats.transform_stats(), cfg.window,
               cfg.persons, lat, betas, grad(smoothing_loss), grad(foot_skating_loss))
-    tc = sampling.context_tokens
     if sampling.task in ("joint", "agentic_turn_taking", "agentic_sync"):
+        context, mask = encode_clip(model.vqvae, clip.slice(0, sampling.context_len), stats)
         fn = {"joint": T.joint, "agentic_turn_taking": T.agentic_turn_taking, "agentic_sync": T.agentic_sync}[sampling.task]
-        return fn(run, tokens[:tc], mask[:tc])
+        return fn(run, context, mask)
     if sampling.task == "inbetweening":
-        keys = np.zeros((cfg.window,) + tokens.shape[1:], np.float32)
+        keys = np.zeros((cfg.window, cfg.persons, cfg.token_dim), np.float32)
         key_mask = np.zeros(cfg.window, bool)
         for kf in sampling.keyframes:
             key_tokens, _ = encode_clip(model.vqvae, clip.slice(kf, kf + FRAMES_PER_TOKEN), stats)
             keys[kf // FRAMES_PER_TOKEN] = key_tokens[0]
             key_mask[kf // FRAMES_PER_TOKEN] = True
         return T.inbetweening(run, keys, key_mask)
-    gt = tokens[: min(clip.frames, sampling.seq_len) // FRAMES_PER_TOKEN]
+    span = min(clip.frames, sampling.seq_len) // FRAMES_PER_TOKEN * FRAMES_PER_TOKEN
+    gt, _ = encode_clip(model.vqvae, clip.slice(0, span), stats)
     if sampling.task == "pp2joint":
         return T.pp2joint(run, gt, sampling.seq_len)
     return {"partner_prediction": T.partner_prediction, "motion_control_live": T.motion_control_live,

@@ -117,11 +117,18 @@ class TransformerModel(nn.Module):
 
     def forward(self, x: torch.Tensor, k: torch.Tensor) -> torch.Tensor:
         b, t, p, _ = x.shape
-        person = self.p_embed.person_emb.weight[None, None].expand(b, t, p, -1)
-        parts = [x, level_embedding(k, self.cfg.embed_dim)]
+        person = self.p_embed.person_emb.weight  # [P, width]
+        first, rest = self.init_mlp[0], self.init_mlp[1:]
+        h = torch.cat([x, level_embedding(k, self.cfg.embed_dim)], dim=-1)
         if self.cfg.person_embedding_mode == "concat":
-            parts.append(person)
-        h = self.init_mlp(torch.cat(parts, dim=-1))
+            # Linear([x, e(k), E_p]) with the person's columns applied to E alone: the same sum
+            # (to float rounding) without concatenating a broadcast table, which tract 0.23.9
+            # mis-shapes when it splits the product.
+            width = h.shape[-1]
+            h = F.linear(h, first.weight[:, :width], first.bias) + F.linear(person, first.weight[:, width:])
+        else:
+            h = first(h)
+        h = rest(h)
         h = h + rope_add(h)
         if self.cfg.person_embedding_mode == "add":
             h = h + person

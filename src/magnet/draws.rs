@@ -1,0 +1,83 @@
+//! Where MAGNet's samplers get their standard normals, in the order of
+//! `shared/spec/magnet.md` §3.5: troupe's portable generator (draw `i` of a run is the Philox
+//! normals of token `i` on stream [`STREAM_MAGNET`], so every language and platform draws the
+//! same), or the caller's own draws, injected in order (for parity with another generator).
+
+use crate::shared::error::{Error, Result};
+use crate::shared::noise::fill_normals;
+
+/// troupe's Philox stream for MAGNet's draws.
+pub const STREAM_MAGNET: u32 = 8;
+
+/// The draws of one sampler run.
+#[derive(Debug, Clone)]
+pub enum Draws {
+    /// Philox normals keyed by `seed`, draw `i` on token `i`.
+    Seeded {
+        /// The run's seed.
+        seed: u64,
+        /// Draws made so far.
+        count: u64,
+    },
+    /// The caller's draws, used in order; each must have the size the sampler asks for.
+    Injected {
+        /// The draws, in the order of §3.5.
+        draws: Vec<Vec<f32>>,
+        /// Draws used so far.
+        count: usize,
+    },
+}
+
+impl Draws {
+    /// Seeded draws.
+    pub fn seeded(seed: u64) -> Self {
+        Draws::Seeded { seed, count: 0 }
+    }
+
+    /// The caller's draws, in order.
+    pub fn injected(draws: Vec<Vec<f32>>) -> Self {
+        Draws::Injected { draws, count: 0 }
+    }
+
+    /// Draws made so far.
+    pub fn count(&self) -> usize {
+        match self {
+            Draws::Seeded { count, .. } => *count as usize,
+            Draws::Injected { count, .. } => *count,
+        }
+    }
+
+    /// The next draw of `n` standard normals.
+    pub(crate) fn normal(&mut self, n: usize) -> Result<Vec<f32>> {
+        match self {
+            Draws::Seeded { seed, count } => {
+                let mut out = vec![0f32; n];
+                fill_normals(*seed, *count, STREAM_MAGNET, &mut out);
+                *count += 1;
+                Ok(out)
+            }
+            Draws::Injected { draws, count } => {
+                let i = *count;
+                let draw = draws.get(i).ok_or_else(|| {
+                    Error::InvalidInput(format!(
+                        "the run needs more than the {} injected draws",
+                        draws.len()
+                    ))
+                })?;
+                if draw.len() != n {
+                    return Err(Error::InvalidInput(format!(
+                        "injected draw {i} holds {} normals, the sampler needs {n} here",
+                        draw.len()
+                    )));
+                }
+                if draw.iter().any(|v| !v.is_finite()) {
+                    return Err(Error::InvalidInput(format!(
+                        "injected draw {i} holds a non-finite value"
+                    )));
+                }
+                *count += 1;
+                Ok(draw.clone())
+            }
+        }
+    }
+}

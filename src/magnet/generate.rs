@@ -1,0 +1,277 @@
+//! [`crate::Model::magnet_generate`]: one released sampling configuration run on a clip of
+//! troupe frames, from the frames in to the frames out.
+
+use ndarray::{s, Array2, Array3, Array4, ArrayView2, ArrayView3, Axis};
+
+use super::draws::Draws;
+use super::guidance::Guidance;
+use super::layout::{FRAMES_PER_TOKEN, FRAME_DIM};
+use super::motion::{self, Anchor};
+use super::networks::Networks;
+use super::schedule::Schedule;
+use super::spec::{SamplingSpec, Task};
+use super::tasks::{self, Run};
+use crate::shared::checks::check_input;
+use crate::shared::error::{Error, Result};
+
+/// Changes to a released configuration for one call; `None` keeps the configuration's value.
+#[derive(Debug, Clone, Default)]
+pub struct MagnetOptions {
+    /// Samples generated at once (S).
+    pub samples: Option<usize>,
+    /// DDIM steps (N).
+    pub steps: Option<usize>,
+    /// DDIM η.
+    pub eta: Option<f32>,
+    /// Frames to generate (`sampling_seq_len`).
+    pub seq_len: Option<usize>,
+    /// The seed of troupe's generator (the configuration's own seed when `None`).
+    pub seed: Option<u64>,
+    /// Turns the x0 corrections (smoothing, foot skating) off: about four times cheaper, not
+    /// the released behaviour (§6.5 option (c)).
+    pub without_x0_guidance: bool,
+    /// In-betweening's key frames within the window: frames `k..k + 4` set token `k / 4`, as
+    /// the reference does (multiples of 4 keep each key on its own frames, §11 A10).
+    pub keyframes: Option<Vec<usize>>,
+    /// Every draw of the run, in the order of §3.5, instead of troupe's generator.
+    pub draws: Option<Vec<Vec<f32>>>,
+}
+
+/// What [`crate::Model::magnet_generate`] returns.
+#[derive(Debug, Clone)]
+pub struct MagnetOutput {
+    /// The sampled tokens `[S, T, P, D]`.
+    pub tokens: Array4<f32>,
+    /// The frames they decode to, `[S, 4T, P, 145]`: betas as given, body rotations, each
+    /// person's root in the input's world frame.
+    pub frames: Array4<f32>,
+    /// The draws the run made.
+    pub draws: usize,
+}
+
+/// The configuration `name` with `options` applied, checked.
+pub(crate) fn configuration(
+    nets: &Networks,
+    name: &str,
+    options: &MagnetOptions,
+) -> Result<SamplingSpec> {
+    let spec = &nets.spec;
+    let mut cfg = spec.sampling.get(name).cloned().ok_or_else(|| {
+        Error::InvalidOption(format!(
+            "bundle `{}` has no sampling configuration `{name}` (it has: {})",
+            nets.io.name,
+            spec.sampling.keys().cloned().collect::<Vec<_>>().join(", ")
+        ))
+    })?;
+    if let Some(s) = options.samples {
+        cfg.samples = s;
+    }
+    if let Some(n) = options.steps {
+        cfg.steps = n;
+    }
+    if let Some(eta) = options.eta {
+        cfg.eta = eta;
+    }
+    if let Some(n) = options.seq_len {
+        cfg.seq_len = n;
+    }
+    if let Some(seed) = options.seed {
+        cfg.seed = seed;
+    }
+    if options.without_x0_guidance {
+        cfg.guidance.smoothing = None;
+        cfg.guidance.foot_skating = None;
+    }
+    if let Some(keys) = &options.keyframes {
+        cfg.keyframes = keys.clone();
+    }
+    Ok(cfg)
+}
+
+/// Checks a configuration against the model: the manifest's rules, and in-betweening's window.
+pub(crate) fn check_configuration(nets: &Networks, cfg: &SamplingSpec) -> Result<()> {
+    nets.spec
+        .validate_sampling(cfg)
+        .map_err(Error::InvalidOption)?;
+    let window_frames = nets.spec.model.window * FRAMES_PER_TOKEN;
+    if cfg.task == Task::Inbetweening {
+        if cfg.seq_len != window_frames {
+            return Err(Error::InvalidOption(format!(
+                "in-betweening covers one window of {window_frames} frames, not seq_len {}",
+                cfg.seq_len
+            )));
+        }
+        if let Some(k) = cfg.keyframes.iter().find(|&&k| k >= window_frames) {
+            return Err(Error::InvalidOption(format!(
+                "key frame {k}: key frames lie in the window's {window_frames} frames"
+            )));
+        }
+    }
+    Ok(())
+}
+
+/// Runs `cfg` on `frames` `[F, P, 145]` with presence `mask` `[F, P]`.
+pub(crate) fn generate(
+    nets: &Networks,
+    cfg: SamplingSpec,
+    frames: ArrayView3<f32>,
+    mask: Option<ArrayView2<bool>>,
+    draws: Option<Vec<Vec<f32>>>,
+) -> Result<MagnetOutput> {
+    check_configuration(nets, &cfg)?;
+    let m = &nets.spec.model;
+    let (f, p, width) = frames.dim();
+    if p != m.persons || width != FRAME_DIM {
+        return Err(Error::InvalidInput(format!(
+            "frames are [{f}, {p}, {width}]; bundle `{}` takes [frames, {}, {FRAME_DIM}] \
+             ({} people)",
+            nets.io.name, m.persons, m.persons
+        )));
+    }
+    let values = frames.as_standard_layout();
+    check_input("frames", values.as_slice().expect("standard layout"))?;
+    let mask = match mask {
+        Some(mask) if mask.dim() != (f, p) => {
+            return Err(Error::InvalidInput(format!(
+                "the presence mask is {:?}, the frames {:?}",
+                mask.dim(),
+                (f, p)
+            )))
+        }
+        Some(mask) => mask.to_owned(),
+        None => Array2::from_elem((f, p), true),
+    };
+    let need = needed_frames(&cfg);
+    if f < need {
+        return Err(Error::InvalidInput(format!(
+            "{} with this configuration needs at least {need} frames of input, got {f}",
+            cfg.task.name()
+        )));
+    }
+    let clip = motion::clip_from_frames(values.view(), mask.view());
+    let betas = motion::normalised_betas(nets, &clip);
+    let spec = &nets.spec;
+    let schedule = Schedule {
+        abar: spec.schedule.abar.clone(),
+        sqrt_abar: spec.schedule.sqrt_abar.clone(),
+        sqrt_one_minus_abar: spec.schedule.sqrt_one_minus_abar.clone(),
+    };
+    let s = cfg.samples;
+    let batch_betas = betas
+        .broadcast((s, p, betas.dim().1))
+        .expect("[P, 10]")
+        .to_owned();
+    let seed = cfg.seed;
+    let guidance_spec = cfg.guidance.clone();
+    let mut run = Run {
+        nets,
+        schedule: &schedule,
+        draws: draws.map_or_else(|| Draws::seeded(seed), Draws::injected),
+        guidance: Guidance {
+            nets,
+            spec: &guidance_spec,
+            schedule: &schedule,
+            betas: batch_betas,
+            total: 0,
+            counter: 0,
+        },
+        window: m.window,
+        persons: p,
+        latent: m.vq.d_latent,
+        cfg,
+    };
+    let per_sample = |a: Array3<f32>| {
+        let (t, _, d) = a.dim();
+        a.insert_axis(Axis(0))
+            .broadcast((s, t, p, d))
+            .expect("one clip")
+            .to_owned()
+    };
+    let tc = run.cfg.context_len / FRAMES_PER_TOKEN;
+    let task = run.cfg.task;
+    let tokens = match task {
+        Task::Joint | Task::AgenticTurnTaking | Task::AgenticSync => {
+            let context = motion::encode(nets, &clip, 0, tc * FRAMES_PER_TOKEN)?;
+            let present = clip
+                .mask
+                .slice(s![..tc * FRAMES_PER_TOKEN;FRAMES_PER_TOKEN, ..])
+                .to_owned();
+            let present = present
+                .insert_axis(Axis(0))
+                .broadcast((s, tc, p))
+                .expect("one clip")
+                .to_owned();
+            let context = per_sample(context);
+            match task {
+                Task::Joint => tasks::joint(&mut run, context.view(), present.view())?,
+                Task::AgenticTurnTaking => {
+                    tasks::two_worlds(&mut run, context.view(), present.view(), false)?
+                }
+                _ => tasks::two_worlds(&mut run, context.view(), present.view(), true)?,
+            }
+        }
+        Task::Inbetweening => {
+            let mut keys = Array3::zeros((m.window, p, m.token_dim));
+            let mut key_mask = vec![false; m.window];
+            for &k in &run.cfg.keyframes.clone() {
+                let token = motion::encode(nets, &clip, k, FRAMES_PER_TOKEN)?;
+                keys.slice_mut(s![k / FRAMES_PER_TOKEN, .., ..])
+                    .assign(&token.slice(s![0, .., ..]));
+                key_mask[k / FRAMES_PER_TOKEN] = true;
+            }
+            tasks::inbetweening(&mut run, per_sample(keys).view(), &key_mask)?
+        }
+        Task::PartnerPrediction
+        | Task::MotionControlLive
+        | Task::PartnerInpainting
+        | Task::Pp2joint => {
+            let span = f.min(run.cfg.seq_len) / FRAMES_PER_TOKEN * FRAMES_PER_TOKEN;
+            let gt = per_sample(motion::encode(nets, &clip, 0, span)?);
+            match task {
+                Task::PartnerPrediction => tasks::partner_prediction(&mut run, gt.view())?,
+                Task::Pp2joint => {
+                    let frames = run.cfg.seq_len;
+                    tasks::pp2joint(&mut run, gt.view(), frames)?
+                }
+                _ => tasks::live_like(&mut run, gt.view(), task)?,
+            }
+        }
+    };
+    let used = run.draws.count();
+    let decoded = motion::decode(nets, tokens.view(), betas.view())?;
+    let c = if task == Task::Inbetweening {
+        0
+    } else {
+        run.cfg.context_len
+    };
+    let anchor = if f > c {
+        Anchor::GroundTruth(&clip)
+    } else {
+        Anchor::Online(&clip)
+    };
+    let roots = motion::world_roots(&decoded, c, anchor);
+    let raw_betas = clip.betas.clone();
+    let frames_out = motion::frames_out(&decoded, &roots, raw_betas.view());
+    Ok(MagnetOutput {
+        tokens: tokens.as_standard_layout().into_owned(),
+        frames: frames_out,
+        draws: used,
+    })
+}
+
+/// The frames of input a configuration reads: the context for the AR tasks, one frame past the
+/// last key frame's token for in-betweening, one token of ground truth for the rolling tasks.
+fn needed_frames(cfg: &SamplingSpec) -> usize {
+    match cfg.task {
+        Task::Joint | Task::AgenticTurnTaking | Task::AgenticSync => {
+            cfg.context_len.max(FRAMES_PER_TOKEN)
+        }
+        Task::Inbetweening => cfg
+            .keyframes
+            .iter()
+            .map(|k| k + FRAMES_PER_TOKEN)
+            .max()
+            .unwrap_or(FRAMES_PER_TOKEN),
+        _ => cfg.context_len.max(FRAMES_PER_TOKEN),
+    }
+}

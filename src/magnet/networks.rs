@@ -1,0 +1,202 @@
+//! The loaded graphs of a `magnet` bundle and their typed calls, with the codebook (read from its
+//! file) and the manifest section they are run by.
+
+use ndarray::{Array3, Array4, ArrayView3, ArrayView4};
+use tract_onnx::prelude::{IntoTValue, TValue};
+
+use super::layout::{BETAS, DECODER_COND_DIM, ENCODER_COND_DIM, FRAMES_PER_TOKEN, POSE_DIM};
+use super::spec::MagnetSpec;
+use crate::shared::bundle::BundleFiles;
+use crate::shared::bundle_io::BundleIo;
+use crate::shared::checks::check_output;
+use crate::shared::error::{Error, Result};
+use crate::shared::graph::{load_graphs, read_f32, Graph};
+use crate::shared::limits::LIMITS;
+
+/// A `magnet` bundle's graphs, loaded and optimised, with its own manifest section, the common
+/// facts it needs and the codebook. Shared (`Arc`) by the [`crate::Model`] handles that loaded it.
+#[derive(Debug)]
+pub(crate) struct Networks {
+    pub io: BundleIo,
+    pub spec: MagnetSpec,
+    denoiser: Graph,
+    vq_encoder: Graph,
+    vq_decoder: Graph,
+    guidance_smoothing: Graph,
+    guidance_foot_skating: Graph,
+    /// `[code_nb, d_latent]`, row-major.
+    codebook: Vec<f32>,
+}
+
+/// Which x0 correction's gradient to take (§6.4).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Correction {
+    Smoothing,
+    FootSkating,
+}
+
+impl Networks {
+    /// Loads every graph `spec` names, and the codebook, from `files`. The guidance graphs are
+    /// checked at load and optimised on first use (configurations may turn guidance off).
+    pub(crate) fn load(files: &BundleFiles, io: BundleIo, spec: MagnetSpec) -> Result<Self> {
+        let g = &spec.graphs;
+        let wanted = [
+            ("denoiser", &g.denoiser),
+            ("vq_encoder", &g.vq_encoder),
+            ("vq_decoder", &g.vq_decoder),
+            ("guidance_smoothing", &g.guidance_smoothing),
+            ("guidance_foot_skating", &g.guidance_foot_skating),
+        ];
+        let mut graphs = load_graphs(
+            files,
+            &wanted,
+            &["guidance_smoothing", "guidance_foot_skating"],
+        )?
+        .into_iter();
+        let mut next = || graphs.next().expect("one graph per wanted entry");
+        let (denoiser, vq_encoder, vq_decoder) = (next(), next(), next());
+        let (guidance_smoothing, guidance_foot_skating) = (next(), next());
+        let codebook = read_codebook(files, &spec)?;
+        Ok(Self {
+            io,
+            spec,
+            denoiser,
+            vq_encoder,
+            vq_decoder,
+            guidance_smoothing,
+            guidance_foot_skating,
+            codebook,
+        })
+    }
+
+    /// x0 of a window `[B, Tm, P, D]` at per-token `levels` `[Tm, P]`, the same for every row.
+    pub(crate) fn denoise(&self, x: ArrayView4<f32>, levels: &[i64]) -> Result<Array4<f32>> {
+        let shape = x.shape().to_vec();
+        let per_row = shape[1] * shape[2];
+        let k: Vec<i64> = (0..shape[0]).flat_map(|_| levels.iter().copied()).collect();
+        debug_assert_eq!(levels.len(), per_row);
+        let k = ndarray::Array3::from_shape_vec((shape[0], shape[1], shape[2]), k)
+            .expect("levels match the window")
+            .into_tvalue();
+        let out = self
+            .denoiser
+            .run(vec![x.to_owned().into_dyn().into_tvalue(), k])?;
+        let values = read_f32("denoiser", "x0", &out[0], &shape)?;
+        check_output("denoiser", "x0", values)?;
+        Ok(
+            Array4::from_shape_vec((shape[0], shape[1], shape[2], shape[3]), values.to_vec())
+                .expect("shape checked"),
+        )
+    }
+
+    /// The VQ encoder (not snapped): pose `[N, T, 135]`, condition `[N, T, 19]` ->
+    /// `[N, T/4, d_latent]`.
+    pub(crate) fn encode(
+        &self,
+        pose: ArrayView3<f32>,
+        condition: ArrayView3<f32>,
+    ) -> Result<Array3<f32>> {
+        let (n, t) = (pose.shape()[0], pose.shape()[1]);
+        debug_assert_eq!(pose.shape()[2], POSE_DIM);
+        debug_assert_eq!(condition.shape()[2], ENCODER_COND_DIM);
+        let out = self.vq_encoder.run(vec![
+            pose.to_owned().into_dyn().into_tvalue(),
+            condition.to_owned().into_dyn().into_tvalue(),
+        ])?;
+        let shape = [n, t / FRAMES_PER_TOKEN, self.spec.model.vq.d_latent];
+        let values = read_f32("vq_encoder", "latents", &out[0], &shape)?;
+        check_output("vq_encoder", "latents", values)?;
+        Ok(Array3::from_shape_vec(shape, values.to_vec()).expect("shape checked"))
+    }
+
+    /// The VQ decoder: latents `[N, Z, d_latent]`, condition `[N, Z, 46]` -> `[N, 4Z, 135]`.
+    pub(crate) fn decode(
+        &self,
+        latents: ArrayView3<f32>,
+        condition: ArrayView3<f32>,
+    ) -> Result<Array3<f32>> {
+        let (n, z) = (latents.shape()[0], latents.shape()[1]);
+        debug_assert_eq!(condition.shape()[2], DECODER_COND_DIM);
+        let out = self.vq_decoder.run(vec![
+            latents.to_owned().into_dyn().into_tvalue(),
+            condition.to_owned().into_dyn().into_tvalue(),
+        ])?;
+        let shape = [n, z * FRAMES_PER_TOKEN, POSE_DIM];
+        let values = read_f32("vq_decoder", "pose", &out[0], &shape)?;
+        check_output("vq_decoder", "pose", values)?;
+        Ok(Array3::from_shape_vec(shape, values.to_vec()).expect("shape checked"))
+    }
+
+    /// A correction's gradient on the latents: x0 `[B, Tm, P, D]`, betas `[B, P, 10]` ->
+    /// `[B, Tm, P, d_latent]`.
+    pub(crate) fn correction_gradient(
+        &self,
+        which: Correction,
+        x0: ArrayView4<f32>,
+        betas: ArrayView3<f32>,
+    ) -> Result<Array4<f32>> {
+        let (graph, role) = match which {
+            Correction::Smoothing => (&self.guidance_smoothing, "guidance_smoothing"),
+            Correction::FootSkating => (&self.guidance_foot_skating, "guidance_foot_skating"),
+        };
+        debug_assert_eq!(betas.shape()[2], BETAS);
+        let s = x0.shape();
+        let shape = [s[0], s[1], s[2], self.spec.model.vq.d_latent];
+        let inputs: Vec<TValue> = vec![
+            x0.to_owned().into_dyn().into_tvalue(),
+            betas.to_owned().into_dyn().into_tvalue(),
+        ];
+        let out = graph.run(inputs)?;
+        let values = read_f32(role, "latent_gradient", &out[0], &shape)?;
+        check_output(role, "latent_gradient", values)?;
+        Ok(Array4::from_shape_vec(shape, values.to_vec()).expect("shape checked"))
+    }
+
+    /// The nearest codebook row of `z` by `‖z‖² − 2 z·c + ‖c‖²`, ties to the first (§1.4).
+    pub(crate) fn snap(&self, z: &[f32], out: &mut [f32]) {
+        let d = self.spec.model.vq.d_latent;
+        let zz: f32 = z.iter().map(|v| v * v).sum();
+        let mut best = (f32::INFINITY, 0);
+        for (i, code) in self.codebook.chunks_exact(d).enumerate() {
+            let (mut dot, mut cc) = (0f32, 0f32);
+            for (a, b) in z.iter().zip(code) {
+                dot += a * b;
+                cc += b * b;
+            }
+            let dist = zz - 2.0 * dot + cc;
+            if dist < best.0 {
+                best = (dist, i);
+            }
+        }
+        out.copy_from_slice(&self.codebook[best.1 * d..(best.1 + 1) * d]);
+    }
+}
+
+/// The codebook file: `code_nb x d_latent` little-endian float32, every value finite.
+fn read_codebook(files: &BundleFiles, spec: &MagnetSpec) -> Result<Vec<f32>> {
+    let c = &spec.codebook;
+    let want = c.shape.iter().product::<usize>() * 4;
+    let bytes = files.read(&c.file, LIMITS.max_bundle_bytes)?;
+    let bad = |message: String| Error::Graph {
+        file: files.path_of(&c.file),
+        message,
+    };
+    if bytes.len() != want {
+        return Err(bad(format!(
+            "the codebook holds {} bytes; float32 {:?} is {want}",
+            bytes.len(),
+            c.shape
+        )));
+    }
+    let values: Vec<f32> = bytes
+        .chunks_exact(4)
+        .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]))
+        .collect();
+    if let Some(i) = values.iter().position(|v| !v.is_finite()) {
+        return Err(bad(format!(
+            "codebook row {} holds a non-finite value",
+            i / c.shape[1]
+        )));
+    }
+    Ok(values)
+}

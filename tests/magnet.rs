@@ -1,0 +1,199 @@
+//! MAGNet through the Rust API against the PyTorch reference (`onnx/troupe_onnx/magnet`): every
+//! task of the committed tiny bundles, from the golden clip's frames to the sampled tokens and
+//! the frames they decode to, with the same seeded draws (troupe's generator in both). Tokens
+//! within 1e-5 of the reference's largest value, frames within 1e-4; the draw counts equal.
+//! Bad inputs and configurations are refused with a message, not a panic.
+
+mod common;
+
+use std::path::PathBuf;
+
+use ndarray::{Array3, Array4};
+use ndarray_npy::read_npy;
+use troupe::magnet::spec::SamplingSpec;
+use troupe::{MagnetOptions, Model};
+
+fn bundle(name: &str) -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("onnx/bundles")
+        .join(name)
+}
+
+fn relative_error(got: &[f32], want: &[f32]) -> f32 {
+    let scale = want.iter().fold(0f32, |m, v| m.max(v.abs())).max(1e-6);
+    common::max_abs_diff(got, want) / scale
+}
+
+fn check_bundle(name: &str) -> usize {
+    let dir = bundle(name);
+    let model = Model::load(&dir).expect("load");
+    let golden = dir.join("golden");
+    let frames: Array3<f32> = read_npy(golden.join("frames.npy")).expect("frames");
+    let cases: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(golden.join("cases.json")).unwrap()).unwrap();
+    let cases = cases.as_object().unwrap();
+    for (case, spec) in cases {
+        let sampling: SamplingSpec = serde_json::from_value(spec["sampling"].clone()).unwrap();
+        let out = model
+            .magnet_generate_with(&sampling, frames.view(), None, None)
+            .unwrap_or_else(|e| panic!("{name} {case}: {e}"));
+        let tokens: Array4<f32> = read_npy(golden.join(format!("{case}_tokens.npy"))).unwrap();
+        let want_frames: Array4<f32> = read_npy(golden.join(format!("{case}_frames.npy"))).unwrap();
+        assert_eq!(out.tokens.shape(), tokens.shape(), "{name} {case}: tokens");
+        assert_eq!(
+            out.frames.shape(),
+            want_frames.shape(),
+            "{name} {case}: frames"
+        );
+        assert_eq!(
+            out.draws as u64,
+            spec["draws"].as_u64().unwrap(),
+            "{name} {case}: draws"
+        );
+        let t = relative_error(out.tokens.as_slice().unwrap(), tokens.as_slice().unwrap());
+        let f = relative_error(
+            out.frames.as_slice().unwrap(),
+            want_frames.as_slice().unwrap(),
+        );
+        println!("{name} {case}: tokens {t:.2e}, frames {f:.2e} (relative max-abs)");
+        assert!(t <= 1e-5, "{name} {case}: tokens differ by {t:.2e}");
+        assert!(f <= 1e-4, "{name} {case}: frames differ by {f:.2e}");
+    }
+    cases.len()
+}
+
+#[test]
+fn every_task_matches_the_reference_on_the_two_person_bundle() {
+    assert_eq!(check_bundle("magnet-tiny"), 9);
+}
+
+#[test]
+fn joint_generation_matches_the_reference_for_three_people() {
+    assert_eq!(check_bundle("magnet-tiny-trio"), 2);
+}
+
+fn tiny() -> (Model, Array3<f32>) {
+    let dir = bundle("magnet-tiny");
+    let frames: Array3<f32> = read_npy(dir.join("golden/frames.npy")).unwrap();
+    (Model::load(&dir).unwrap(), frames)
+}
+
+fn quick() -> MagnetOptions {
+    MagnetOptions {
+        samples: Some(1),
+        steps: Some(2),
+        seq_len: Some(64),
+        without_x0_guidance: true,
+        ..Default::default()
+    }
+}
+
+#[test]
+fn released_configurations_run_by_name() {
+    let (model, frames) = tiny();
+    let spec = model.magnet_spec().expect("a magnet bundle");
+    let names: Vec<String> = spec.sampling.keys().cloned().collect();
+    assert!(
+        names.contains(&"dd100".to_string()) && names.len() == 8,
+        "{names:?}"
+    );
+    for name in &names {
+        let mut options = quick();
+        if name == "dd100_inbetweening" {
+            options.keyframes = Some(vec![0, 60]);
+        }
+        if name == "dd100_pp2joint" {
+            options.seq_len = Some(40);
+        }
+        let out = model
+            .magnet_generate(name, frames.view(), None, &options)
+            .unwrap_or_else(|e| panic!("{name}: {e}"));
+        assert!(out.frames.iter().all(|v| v.is_finite()), "{name}");
+        assert_eq!(out.frames.shape()[2], 2);
+        assert_eq!(out.frames.shape()[3], 145);
+    }
+}
+
+#[test]
+fn bad_inputs_and_configurations_are_refused() {
+    let (model, frames) = tiny();
+    let err = |r: troupe::Result<troupe::MagnetOutput>| r.expect_err("refused").to_string();
+    let e = err(model.magnet_generate("nope", frames.view(), None, &quick()));
+    assert!(
+        e.contains("no sampling configuration `nope`") && e.contains("dd100"),
+        "{e}"
+    );
+    let three = Array3::<f32>::zeros((64, 3, 145));
+    let e = err(model.magnet_generate("dd100", three.view(), None, &quick()));
+    assert!(e.contains("takes [frames, 2, 145]"), "{e}");
+    let mut nan = frames.clone();
+    nan[[3, 1, 20]] = f32::NAN;
+    let e = err(model.magnet_generate("dd100", nan.view(), None, &quick()));
+    assert!(e.contains("non-finite") || e.contains("NaN"), "{e}");
+    let short = frames.slice(ndarray::s![..16, .., ..]).to_owned();
+    let e = err(model.magnet_generate("dd100", short.view(), None, &quick()));
+    assert!(e.contains("needs at least 32 frames"), "{e}");
+    let mut bad_keys = quick();
+    bad_keys.keyframes = Some(vec![0, 64]);
+    let e = err(model.magnet_generate("dd100_inbetweening", frames.view(), None, &bad_keys));
+    assert!(e.contains("key frame 64"), "{e}");
+    let zero = MagnetOptions {
+        samples: Some(0),
+        ..quick()
+    };
+    let e = err(model.magnet_generate("dd100", frames.view(), None, &zero));
+    assert!(e.contains("samples must be at least 1"), "{e}");
+    let draws = MagnetOptions {
+        draws: Some(vec![vec![0.0; 3]]),
+        ..quick()
+    };
+    let e = err(model.magnet_generate("dd100", frames.view(), None, &draws));
+    assert!(e.contains("injected draw 0 holds 3 normals"), "{e}");
+    // A model of another family says what it is.
+    let armflow = Model::load(bundle("armflow-tiny")).unwrap();
+    let e = err(armflow.magnet_generate("dd100", frames.view(), None, &quick()));
+    assert!(e.contains("needs a `magnet` bundle"), "{e}");
+    // The trio model cannot run a two-person task it does not list, nor a two-person config.
+    let trio = Model::load(bundle("magnet-tiny-trio")).unwrap();
+    let e = err(trio.magnet_generate("dd100", frames.view(), None, &quick()));
+    assert!(e.contains("no sampling configuration `dd100`"), "{e}");
+}
+
+#[test]
+fn injected_draws_reproduce_the_seeded_run() {
+    let (model, frames) = tiny();
+    let seeded = model
+        .magnet_generate("dd100", frames.view(), None, &quick())
+        .unwrap();
+    let spec = model.magnet_spec().unwrap();
+    let d = spec.model.token_dim;
+    // Regenerate the seeded draws with troupe's generator, then inject them.
+    let mut sizes = Vec::new();
+    let t = seeded.tokens.shape()[1];
+    sizes.push(t * 2 * d); // initial noise [S=1, T, P, D]
+    for _ in 1..seeded.draws {
+        sizes.push(16 * 2 * d); // one DDIM draw per call [1, 16, 2, D]
+    }
+    let draws: Vec<Vec<f32>> = sizes
+        .iter()
+        .enumerate()
+        .map(|(i, &n)| {
+            let mut v = vec![0f32; n];
+            troupe::noise::fill_normals(1111, i as u64, troupe::magnet::STREAM_MAGNET, &mut v);
+            v
+        })
+        .collect();
+    let injected = model
+        .magnet_generate(
+            "dd100",
+            frames.view(),
+            None,
+            &MagnetOptions {
+                draws: Some(draws),
+                ..quick()
+            },
+        )
+        .unwrap();
+    assert_eq!(injected.tokens, seeded.tokens);
+    assert_eq!(injected.frames, seeded.frames);
+}
