@@ -149,6 +149,32 @@
 #define TROUPE_ACTOR_LATENT_MEAN 1
 
 /*
+ `troupe_magnet_options.flags`: use `seed` instead of the configuration's.
+ */
+#define TROUPE_MAGNET_SEED 1
+
+/*
+ `troupe_magnet_options.flags`: use `eta` instead of the configuration's.
+ */
+#define TROUPE_MAGNET_ETA 2
+
+/*
+ `troupe_magnet_options.flags`: turn the x0 corrections (smoothing, foot skating) off; about
+ four times cheaper, not the released behaviour.
+ */
+#define TROUPE_MAGNET_NO_X0_GUIDANCE 4
+
+/*
+ `troupe_magnet_options.flags`: use the first `keyframe_count` of `keyframes`.
+ */
+#define TROUPE_MAGNET_KEYFRAMES 8
+
+/*
+ The most key frames `troupe_magnet_options` can carry.
+ */
+#define TROUPE_MAGNET_MAX_KEYFRAMES 8
+
+/*
  Forward Euler.
  */
 #define TROUPE_SOLVER_EULER 1
@@ -162,6 +188,71 @@
  The most pyramid stages `troupe_group_options` can describe.
  */
 #define TROUPE_MAX_STAGES 8
+
+/*
+ troupe's Philox stream for MAGNet's draws.
+ */
+#define STREAM_MAGNET 8
+
+/*
+ Frames per token (the VQ-VAE's temporal factor).
+ */
+#define FRAMES_PER_TOKEN 4
+
+/*
+ SMPL-X body joints without the pelvis.
+ */
+#define BODY_JOINTS 21
+
+/*
+ SMPL-X shape coefficients MAGNet reads.
+ */
+#define BETAS 10
+
+/*
+ A rigid transform as `[6-D rotation (the first two columns of R), tx, ty, tz]`.
+ */
+#define TRANSFORM 9
+
+/*
+ The VQ-VAE's pose per frame: body 6-D rotations, then the root in the canonical frame.
+ */
+#define POSE_DIM ((BODY_JOINTS * 6) + TRANSFORM)
+
+/*
+ The VQ encoder's condition per frame: betas, the canonical frame's transition.
+ */
+#define ENCODER_COND_DIM (BETAS + TRANSFORM)
+
+/*
+ A token's transforms of one kind: one per frame.
+ */
+#define TOKEN_TRANSFORMS (FRAMES_PER_TOKEN * TRANSFORM)
+
+/*
+ The VQ decoder's condition per token: betas, the token's four transitions.
+ */
+#define DECODER_COND_DIM (BETAS + TOKEN_TRANSFORMS)
+
+/*
+ Length of the normalisation statistics (§1.3).
+ */
+#define STATS_DIM 361
+
+/*
+ Floats per person and frame: betas, the body joints' 6-D rotations, the root in the world.
+ */
+#define FRAME_DIM ((BETAS + (BODY_JOINTS * 6)) + TRANSFORM)
+
+/*
+ The level of a clean token.
+ */
+#define CLEAN -1
+
+/*
+ The most people a MAGNet checkpoint may be trained for (the released ones have 2 to 4).
+ */
+#define MAX_PERSONS 8
 
 /*
  A rotation as a unit quaternion `w + xi + yj + zk`.
@@ -465,6 +556,55 @@ typedef struct troupe_session_options {
 } troupe_session_options;
 
 /*
+ Changes to a released configuration for one `troupe_magnet_generate` call. Fill with
+ `troupe_magnet_options_init` (no changes), then set fields; zero counts keep the
+ configuration's value. Fields are only ever appended; `struct_size` tells the library which
+ version the caller has.
+ */
+typedef struct troupe_magnet_options {
+  /*
+   `sizeof(troupe_magnet_options)` as the caller compiled it (set by `_init`).
+   */
+  uint32_t struct_size;
+  /*
+   Samples generated at once (S); 0 keeps the configuration's.
+   */
+  uint32_t samples;
+  /*
+   DDIM steps; 0 keeps the configuration's.
+   */
+  uint32_t steps;
+  /*
+   Frames to generate (`sampling_seq_len`); 0 keeps the configuration's.
+   */
+  uint32_t seq_len;
+  /*
+   `TROUPE_MAGNET_*` flags.
+   */
+  uint32_t flags;
+  /*
+   Key frames used with `TROUPE_MAGNET_KEYFRAMES`.
+   */
+  uint32_t keyframe_count;
+  /*
+   Seed of troupe's generator, with `TROUPE_MAGNET_SEED`.
+   */
+  uint64_t seed;
+  /*
+   DDIM η, with `TROUPE_MAGNET_ETA`.
+   */
+  float eta;
+  /*
+   Must be 0.
+   */
+  uint32_t reserved;
+  /*
+   In-betweening's key frames (frames `k..k + 4` set token `k / 4`).
+   */
+  uint32_t keyframes[TROUPE_MAGNET_MAX_KEYFRAMES];
+} troupe_magnet_options;
+
+/*
  Options of `troupe_group_generate`. Fill with `troupe_group_options_init` (the bundle's
  defaults), then change fields. Fields are only ever appended; `struct_size` tells the library
  which version the caller has.
@@ -541,6 +681,11 @@ typedef struct troupe_group_noise {
 } troupe_group_noise;
 
 /*
+ A homogeneous transform, row-major.
+ */
+typedef float Mat4[4][4];
+
+/*
  Success.
  */
 #define TROUPE_OK 0
@@ -601,6 +746,11 @@ typedef struct troupe_group_noise {
  (`troupe_set_progress_callback`); nothing was written.
  */
 #define TROUPE_ERR_CANCELLED 11
+
+/*
+ The identity.
+ */
+#define IDENTITY { { 1.0, 0.0, 0.0, 0.0, }, { 0.0, 1.0, 0.0, 0.0, }, { 0.0, 0.0, 1.0, 0.0, }, { 0.0, 0.0, 0.0, 1.0, }, }
 
 
 
@@ -1570,6 +1720,102 @@ troupe_status troupe_session_set_prompt(struct troupe_session *session, const ch
  `session` must be a live handle; both noise pointers readable for `len` floats.
  */
 troupe_status troupe_session_queue_noise(struct troupe_session *session, const float *actor_noise, const float *reactor_noise, size_t len);
+
+/*
+ `sizeof(troupe_magnet_options)` in this library, for bindings to check their mirror.
+ */
+size_t troupe_magnet_options_size(void);
+
+/*
+ Fills `options` with no changes (every field 0) and sets `struct_size`. Pass
+ `sizeof(troupe_magnet_options)` as `options_size`: the library writes only that many bytes.
+
+ Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, or `TROUPE_ERR_INVALID_ARG` (`options_size`
+ smaller than the first version). Thread-safe.
+
+ # Safety
+ `options` must be writable for `options_size` bytes.
+ */
+troupe_status troupe_magnet_options_init(struct troupe_magnet_options *options, size_t options_size);
+
+/*
+ People a `magnet` model generates together (its checkpoint's P); 0 for other bundles or
+ NULL. Frames in and out are `[frames][people][145]`. Thread-safe.
+
+ # Safety
+ `model` must be NULL or a live handle.
+ */
+size_t troupe_model_magnet_people(const struct troupe_model *model);
+
+/*
+ How many released sampling configurations a `magnet` bundle lists (0 for other bundles or
+ NULL). Thread-safe.
+
+ # Safety
+ `model` must be NULL or a live handle.
+ */
+size_t troupe_model_magnet_config_count(const struct troupe_model *model);
+
+/*
+ The name of released configuration `index` (`"dd100"`, `"dd100_partner_prediction"`, ...),
+ or NULL for NULL or an index out of range. Owned by the model and valid until
+ `troupe_model_free`; never free it. Thread-safe.
+
+ # Safety
+ `model` must be NULL or a live handle.
+ */
+const char *troupe_model_magnet_config(const struct troupe_model *model, size_t index);
+
+/*
+ Writes the shape of the frames `troupe_magnet_generate` returns for `frame_count` frames of
+ input: `*samples`, `*frames`, `*people` (each float row is 145 wide). Any out-pointer may be
+ NULL. Makes the same checks of the configuration and the input's length as the generation.
+
+ Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (not a `magnet` bundle,
+ an unknown configuration, options the model cannot run, too few input frames). Thread-safe.
+
+ # Safety
+ `model` must be a live handle; `config` a NUL-terminated string; `options` NULL or readable
+ for its `struct_size`; each non-NULL out-pointer writable.
+ */
+troupe_status troupe_magnet_output_shape(const struct troupe_model *model, const char *config, const struct troupe_magnet_options *options, size_t frame_count, size_t *samples, size_t *frames, size_t *people);
+
+/*
+ Runs the sampling configuration `config` (a name from `troupe_model_magnet_config`, or a
+ whole configuration as a JSON object with the fields of the manifest's `sampling` entries) on
+ `frame_count` frames of troupe motion, row-major float32 `[frame_count][people][145]` (per
+ person and frame: betas, the 21 body joints' 6-D rotations, the root's pose in the world, y
+ up), and writes the frames it generates, `[samples][frames][people][145]`
+ (`troupe_magnet_output_shape`), into `out` (capacity `out_capacity` floats). `present`
+ (NULL: everyone) is `[frame_count][people]` bytes, non-zero where the person is present.
+ What the input is depends on the task: the context for joint generation, turn-taking and
+ sync; person 0's whole motion for partner prediction, the live partner, inpainting and
+ pp2joint; the key frames for in-betweening. `options` NULL runs the configuration as
+ released. Inputs are borrowed for the call; nothing is written unless it succeeds.
+
+ Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (not a `magnet` bundle,
+ an unknown configuration, bad options, non-finite input, too few frames: the message says
+ which), `TROUPE_ERR_SHAPE`, `TROUPE_ERR_BUFFER_TOO_SMALL` (the message gives the floats
+ needed), `TROUPE_ERR_CANCELLED` (the progress callback stopped it), `TROUPE_ERR_INFERENCE`,
+ `TROUPE_ERR_PANIC`. Thread-safe: any number of threads may generate on one model at once.
+ Reports progress (network calls done, of the run's iterations) to the calling thread's
+ progress callback.
+
+ ```c
+ size_t s, f, p;
+ troupe_magnet_output_shape(model, "dd100", NULL, n_frames, &s, &f, &p);
+ float *out = malloc(s * f * p * 145 * sizeof *out);
+ troupe_status st = troupe_magnet_generate(model, "dd100", NULL, frames, n_frames, NULL,
+                                           out, s * f * p * 145);
+ ```
+
+ # Safety
+ `model` must be a live handle; `config` a NUL-terminated string; `options` NULL or readable
+ for its `struct_size`; `frames` readable for `frame_count * people * 145` floats; `present`
+ NULL or readable for `frame_count * people` bytes; `out` writable for `out_capacity` floats
+ and not overlapping an input.
+ */
+troupe_status troupe_magnet_generate(const struct troupe_model *model, const char *config, const struct troupe_magnet_options *options, const float *frames, size_t frame_count, const uint8_t *present, float *out, size_t out_capacity);
 
 /*
  `sizeof(troupe_group_options)` in this library, for bindings to check their mirror.

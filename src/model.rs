@@ -232,7 +232,8 @@ impl Model {
 
     /// Runs the MAGNet sampling configuration `config` (one of the bundle's released ones, by
     /// the official YAML's name: `dd100`, `dd100_partner_prediction`, ..., see
-    /// [`MagnetSpec::sampling`]) on a clip of `frames` `[F, P, 145]` (per person and frame:
+    /// [`MagnetSpec::sampling`]; or a whole configuration as JSON, the fields of those entries)
+    /// on a clip of `frames` `[F, P, 145]` (per person and frame:
     /// betas, the 21 body joints' 6-D rotations, the root's pose in the world, y up;
     /// `onnx/README.md`, "Family `magnet`"), every person present unless `mask` `[F, P]` says
     /// otherwise. What the frames are depends on the task: the context (its first
@@ -250,6 +251,20 @@ impl Model {
         let nets = self.magnet("MAGNet generation")?;
         let cfg = magnet::configuration(nets, config, options)?;
         magnet::generate(nets, cfg, frames, mask, options.draws.clone())
+    }
+
+    /// The shape `[S, F, P, 145]` of the frames [`Model::magnet_generate`] returns for
+    /// `input_frames` frames of input, without running it (the same checks of the
+    /// configuration and the input's length).
+    pub fn magnet_output_shape(
+        &self,
+        config: &str,
+        input_frames: usize,
+        options: &MagnetOptions,
+    ) -> Result<[usize; 4]> {
+        let nets = self.magnet("MAGNet generation")?;
+        let cfg = magnet::configuration(nets, config, options)?;
+        magnet::output_shape(nets, &cfg, input_frames)
     }
 
     /// [`Model::magnet_generate`] with a configuration of the caller's (checked as the

@@ -208,9 +208,14 @@ fn cpp_wrapper_without_exceptions() {
     let [umf, armflow] = group_args();
     let demo = root().join("onnx/bundles/armflow-demo");
     let int8 = root().join("onnx/bundles/armflow-demo-int8");
+    let magnet = root().join("onnx/bundles/magnet-tiny");
     println!(
         "{}",
-        run(&[], &bin, &[&armflow, &umf, scratch(), &demo, &int8])
+        run(
+            &[],
+            &bin,
+            &[&armflow, &umf, scratch(), &demo, &int8, &magnet]
+        )
     );
 }
 
@@ -226,7 +231,12 @@ fn cpp_wrapper_with_its_exception_helpers() {
     let [umf, armflow] = group_args();
     let demo = root().join("onnx/bundles/armflow-demo");
     let int8 = root().join("onnx/bundles/armflow-demo-int8");
-    run(&[], &bin, &[&armflow, &umf, scratch(), &demo, &int8]);
+    let magnet = root().join("onnx/bundles/magnet-tiny");
+    run(
+        &[],
+        &bin,
+        &[&armflow, &umf, scratch(), &demo, &int8, &magnet],
+    );
 }
 
 /// Whether the long forms run (`TROUPE_SLOW_TESTS=1`): every C test under valgrind, not only
@@ -240,6 +250,7 @@ fn c_programs() -> Vec<(&'static str, Vec<PathBuf>, &'static [&'static str])> {
     vec![
         ("smoke", smoke_args().to_vec(), &[]),
         ("group", group_args().to_vec(), &[]),
+        ("magnet", magnet_args(), &[]),
         ("clip", clip_args().to_vec(), &[]),
         ("motion", motion_args().to_vec(), &[]),
         ("threads", threads_args().to_vec(), &["-pthread"]),
@@ -571,6 +582,40 @@ fn c_group_generation_as_c99_and_cpp17() {
         "group_cpp",
     );
     run(&[], &cpp, &[&umf, &armflow]);
+}
+
+/// The magnet test's arguments: the bundle, an armflow bundle, and the golden `joint` case's
+/// configuration as JSON (a path only in type: the program reads it as a string).
+fn magnet_args() -> Vec<PathBuf> {
+    let dir = root().join("onnx/bundles/magnet-tiny");
+    let cases: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("golden/cases.json")).unwrap())
+            .unwrap();
+    vec![
+        dir,
+        root().join("onnx/bundles/armflow-tiny"),
+        PathBuf::from(cases["joint"]["sampling"].to_string()),
+    ]
+}
+
+/// MAGNet generation through the header: the golden joint case (configuration as JSON) equals
+/// the reference, a released configuration runs with options, every bad input is refused with
+/// the output untouched; as C99 and as C++17.
+#[test]
+fn c_magnet_generation_as_c99_and_cpp17() {
+    let src = root().join("tests/c/magnet.c");
+    let args = magnet_args();
+    let args: Vec<&Path> = args.iter().map(PathBuf::as_path).collect();
+    let c = compile("cc", &["-std=c99"], &[&src], &shared_link(), "magnet_c");
+    println!("{}", run(&[], &c, &args));
+    let cpp = compile(
+        "c++",
+        &["-std=c++17", "-x", "c++"],
+        &[&src],
+        &shared_link(),
+        "magnet_cpp",
+    );
+    run(&[], &cpp, &args);
 }
 
 /// The C streaming demo compiles with the strict flags and runs on the tiny bundle.

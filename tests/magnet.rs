@@ -197,3 +197,26 @@ fn injected_draws_reproduce_the_seeded_run() {
     assert_eq!(injected.tokens, seeded.tokens);
     assert_eq!(injected.frames, seeded.frames);
 }
+
+#[test]
+fn output_shapes_are_known_before_generating() {
+    let (model, frames) = tiny();
+    for name in [
+        "dd100",
+        "dd100_partner_prediction",
+        "dd100_turn_taking",
+        "dd100_pp2joint",
+    ] {
+        let options = MagnetOptions {
+            seq_len: Some(if name == "dd100_pp2joint" { 40 } else { 64 }),
+            ..quick()
+        };
+        let shape = model
+            .magnet_output_shape(name, frames.shape()[0], &options)
+            .unwrap();
+        let out = model
+            .magnet_generate(name, frames.view(), None, &options)
+            .unwrap();
+        assert_eq!(out.frames.shape(), &shape[..], "{name}");
+    }
+}

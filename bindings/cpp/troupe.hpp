@@ -203,6 +203,39 @@ class Model {
         if (s) motion.swap(out);
         return s;
     }
+
+    // ---- multi-agent diffusion forcing (magnet bundles) ----
+    /// People the model generates together (0 for other bundles).
+    std::size_t magnet_people() const { return troupe_model_magnet_people(handle_); }
+    /// The released sampling configurations, by the official YAML's name ("dd100", ...).
+    std::vector<std::string> magnet_configs() const {
+        std::vector<std::string> out;
+        for (std::size_t i = 0, n = troupe_model_magnet_config_count(handle_); i < n; ++i)
+            out.emplace_back(troupe_model_magnet_config(handle_, i));
+        return out;
+    }
+    /// Runs a sampling configuration (a released name, or a whole configuration as JSON) on
+    /// `frame_count` frames `[frame_count][people][145]`; `out` becomes
+    /// `[samples][frames][people][145]` and `shape` {samples, frames, people} on success only.
+    /// NULL `options` runs the configuration as released; NULL `present` means everyone.
+    Status magnet_generate(const std::string &config, const float *frames, std::size_t frame_count,
+                           std::vector<float> &out, std::size_t shape[3],
+                           const troupe_magnet_options *options = nullptr,
+                           const std::uint8_t *present = nullptr) const {
+        std::size_t s = 0, f = 0, p = 0;
+        Status st = Status::from(troupe_magnet_output_shape(handle_, config.c_str(), options, frame_count, &s, &f, &p));
+        if (!st) return st;
+        std::vector<float> v(s * f * p * 145);
+        st = Status::from(troupe_magnet_generate(handle_, config.c_str(), options, frames, frame_count, present,
+                                                 v.data(), v.size()));
+        if (st) {
+            out.swap(v);
+            shape[0] = s;
+            shape[1] = f;
+            shape[2] = p;
+        }
+        return st;
+    }
     const troupe_model *get() const { return handle_; }
 
   private:

@@ -39,4 +39,5 @@ pub mod viewer;
 
 // One module per family, mirroring `src/<family>/`.
 pub mod armflow;
+pub mod magnet;
 pub mod umf;

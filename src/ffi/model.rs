@@ -20,6 +20,8 @@ pub struct troupe_model {
     /// The graphs whose weights are not float32, by role, with their storage (`"int8"`),
     /// NUL-terminated for C; they live as long as the handle.
     reduced_precision: Vec<(CString, CString)>,
+    /// A `magnet` bundle's released sampling configurations, by name, NUL-terminated for C.
+    pub(crate) magnet_configs: Vec<CString>,
 }
 
 /// The condition a generation call was given: NULL with length 0 is the null condition
@@ -75,10 +77,20 @@ fn publish(model: Model, out: *mut *mut troupe_model) {
             )
         })
         .collect();
+    let magnet_configs = model
+        .magnet_spec()
+        .map(|s| {
+            s.sampling
+                .keys()
+                .map(|name| CString::new(name.as_str()).unwrap_or_default())
+                .collect()
+        })
+        .unwrap_or_default();
     let handle = troupe_model {
         model,
         label_names,
         reduced_precision,
+        magnet_configs,
     };
     // SAFETY: `out` was checked non-NULL by the caller of `publish`.
     unsafe { *out = Box::into_raw(Box::new(handle)) };

@@ -49,20 +49,27 @@ pub struct MagnetOutput {
     pub draws: usize,
 }
 
-/// The configuration `name` with `options` applied, checked.
+/// The configuration `name` (a released one's name, or a whole configuration as JSON, the
+/// fields of the manifest's `sampling` entries) with `options` applied.
 pub(crate) fn configuration(
     nets: &Networks,
     name: &str,
     options: &MagnetOptions,
 ) -> Result<SamplingSpec> {
     let spec = &nets.spec;
-    let mut cfg = spec.sampling.get(name).cloned().ok_or_else(|| {
-        Error::InvalidOption(format!(
-            "bundle `{}` has no sampling configuration `{name}` (it has: {})",
-            nets.io.name,
-            spec.sampling.keys().cloned().collect::<Vec<_>>().join(", ")
-        ))
-    })?;
+    let mut cfg = if name.trim_start().starts_with('{') {
+        serde_json::from_str::<SamplingSpec>(name).map_err(|e| {
+            Error::InvalidOption(format!("the sampling configuration is not valid: {e}"))
+        })?
+    } else {
+        spec.sampling.get(name).cloned().ok_or_else(|| {
+            Error::InvalidOption(format!(
+                "bundle `{}` has no sampling configuration `{name}` (it has: {})",
+                nets.io.name,
+                spec.sampling.keys().cloned().collect::<Vec<_>>().join(", ")
+            ))
+        })?
+    };
     if let Some(s) = options.samples {
         cfg.samples = s;
     }
@@ -257,6 +264,49 @@ pub(crate) fn generate(
         frames: frames_out,
         draws: used,
     })
+}
+
+/// `[S, F, P, 145]` of the frames `cfg` returns for `input_frames` frames of input, after the
+/// checks `generate` makes of the configuration and the input's length.
+pub(crate) fn output_shape(
+    nets: &Networks,
+    cfg: &SamplingSpec,
+    input_frames: usize,
+) -> Result<[usize; 4]> {
+    check_configuration(nets, cfg)?;
+    let need = needed_frames(cfg);
+    if input_frames < need {
+        return Err(Error::InvalidInput(format!(
+            "{} with this configuration needs at least {need} frames of input, got {input_frames}",
+            cfg.task.name()
+        )));
+    }
+    let tokens = output_tokens(nets, cfg, input_frames);
+    Ok([
+        cfg.samples,
+        tokens * FRAMES_PER_TOKEN,
+        nets.spec.model.persons,
+        FRAME_DIM,
+    ])
+}
+
+/// The tokens a configuration generates from `input_frames` frames of input (§5.1): the AR
+/// tasks' whole buffer (context included), the rolling tasks' ground-truth span, pp2joint's
+/// span less its context plus the joint phase, in-betweening's window.
+fn output_tokens(nets: &Networks, cfg: &SamplingSpec, input_frames: usize) -> usize {
+    let m = &nets.spec.model;
+    let ar_total = |seq_len: usize| {
+        let stride = cfg.ar_seq_stride / FRAMES_PER_TOKEN;
+        let need = (seq_len / FRAMES_PER_TOKEN).max(m.window);
+        (need - m.window).div_ceil(stride.max(1)) * stride + m.window
+    };
+    let span = input_frames.min(cfg.seq_len) / FRAMES_PER_TOKEN;
+    match cfg.task {
+        Task::Joint | Task::AgenticTurnTaking | Task::AgenticSync => ar_total(cfg.seq_len),
+        Task::Inbetweening => m.window,
+        Task::Pp2joint => span - cfg.context_len / FRAMES_PER_TOKEN + ar_total(cfg.seq_len),
+        _ => span,
+    }
 }
 
 /// The frames of input a configuration reads: the context for the AR tasks, one frame past the

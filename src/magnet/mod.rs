@@ -30,6 +30,6 @@ mod tasks;
 pub mod transforms;
 
 pub use draws::{Draws, STREAM_MAGNET};
-pub(crate) use generate::{configuration, generate};
+pub(crate) use generate::{configuration, generate, output_shape};
 pub use generate::{MagnetOptions, MagnetOutput};
 pub(crate) use networks::Networks;

@@ -1,7 +1,9 @@
 // The C++ wrapper, compiled with -fno-exceptions: RAII, moves, status returns.
-// Usage: wrapper ARMFLOW_BUNDLE_DIR UMF_BUNDLE_DIR [SCRATCH_DIR [DEMO_BUNDLE [INT8_DEMO_BUNDLE]]]
+// Usage: wrapper ARMFLOW_BUNDLE_DIR UMF_BUNDLE_DIR [SCRATCH_DIR [DEMO_BUNDLE [INT8_DEMO_BUNDLE
+//        [MAGNET_BUNDLE]]]]
 #include "troupe.hpp"
 #include "../c/check.h"
+#include "../c/npy.h"
 
 #include <algorithm>
 #include <cmath>
@@ -146,6 +148,35 @@ int main(int argc, char **argv) {
     CHECK(umf.encode_prompt("two people shake hands", p2).ok() && p1 == p2);
     CHECK(umf.generate_group(p1.data(), p1.size(), 2, g2, &gopt).ok() && g1 != g2);
     CHECK(other.encode_prompt("hello", p2).code() == TROUPE_ERR_NULL_ARG && p1 == p2);
+
+    // MAGNet: released configurations, a changed one, determinism, a failure that leaves the
+    // output alone.
+    if (argc > 6) {
+        troupe::Model magnet;
+        CHECK(troupe::Model::load(argv[6], magnet).ok());
+        const std::vector<std::string> configs = magnet.magnet_configs();
+        CHECK(magnet.magnet_people() == 2 && configs.size() == 8);
+        CHECK(std::find(configs.begin(), configs.end(), "dd100") != configs.end());
+        CHECK(umf.magnet_people() == 0 && umf.magnet_configs().empty());
+        std::size_t n = 0;
+        float *clip = read_npy(argv[6], "frames", &n);
+        CHECK(clip != nullptr && n == 128 * 2 * 145);
+        troupe_magnet_options mopt;
+        CHECK(troupe_magnet_options_init(&mopt, sizeof mopt) == TROUPE_OK);
+        mopt.samples = 1;
+        mopt.steps = 2;
+        mopt.seq_len = 64;
+        mopt.flags = TROUPE_MAGNET_NO_X0_GUIDANCE;
+        std::vector<float> m1, m2;
+        std::size_t shape[3] = {0, 0, 0};
+        CHECK(magnet.magnet_generate("dd100", clip, 128, m1, shape, &mopt).ok());
+        CHECK(shape[0] == 1 && shape[1] == 64 && shape[2] == 2 && m1.size() == 64 * 2 * 145);
+        CHECK(magnet.magnet_generate("dd100", clip, 128, m2, shape, &mopt).ok() && m1 == m2);
+        troupe::Status missing = magnet.magnet_generate("nope", clip, 128, m2, shape, &mopt);
+        CHECK(missing.code() == TROUPE_ERR_INVALID_ARG && m1 == m2);
+        CHECK(missing.message().find("no sampling configuration") != std::string::npos);
+        std::free(clip);
+    }
 
     // ---- motion: skeleton, positions <-> features, joint sessions, files ----
     {

@@ -412,3 +412,63 @@ def test_a_compute_pool_changes_no_output(model):
     finally:
         troupe.set_compute_threads(1)
     assert troupe.compute_threads() == 1
+
+
+# --- MAGNet ---------------------------------------------------------------------------------------
+
+MAGNET = REPO / "onnx" / "bundles" / "magnet-tiny"
+
+
+@pytest.fixture(scope="module")
+def magnet():
+    with troupe.Model(MAGNET) as m:
+        yield m
+
+
+def test_magnet_options_mirror_the_library():
+    assert ctypes.sizeof(_native.MagnetOptions) == _native.load().troupe_magnet_options_size()
+
+
+def test_magnet_matches_the_reference_on_every_golden_task(magnet):
+    import json
+
+    assert magnet.magnet_people == 2 and magnet.frame_dim == 145
+    assert "dd100" in magnet.magnet_configs and len(magnet.magnet_configs) == 8
+    frames = np.load(MAGNET / "golden" / "frames.npy")
+    cases = json.loads((MAGNET / "golden" / "cases.json").read_text())
+    for case, spec in cases.items():
+        out = magnet.magnet_generate(spec["sampling"], frames)
+        want = np.load(MAGNET / "golden" / f"{case}_frames.npy")
+        assert out.shape == want.shape, case
+        assert np.abs(out - want).max() <= 1e-4 * np.abs(want).max(), case
+
+
+def test_magnet_released_configuration_with_options(magnet):
+    frames = np.load(MAGNET / "golden" / "frames.npy")
+    out = magnet.magnet_generate("dd100", frames, samples=1, steps=2, seq_len=64, seed=9, x0_guidance=False)
+    assert out.shape == (1, 64, 2, 145) and np.isfinite(out).all()
+    again = magnet.magnet_generate("dd100", frames, samples=1, steps=2, seq_len=64, seed=9, x0_guidance=False,
+                                   present=np.ones(frames.shape[:2], bool))
+    np.testing.assert_array_equal(out, again)
+    keys = magnet.magnet_generate("dd100_inbetweening", frames, steps=2, x0_guidance=False, keyframes=[0, 60])
+    assert keys.shape == (1, 64, 2, 145)
+
+
+def test_magnet_errors(magnet, model):
+    frames = np.load(MAGNET / "golden" / "frames.npy")
+    with pytest.raises(troupe.TroupeError, match="no sampling configuration `nope`") as e:
+        magnet.magnet_generate("nope", frames)
+    assert e.value.name == "TROUPE_ERR_INVALID_ARG"
+    with pytest.raises(troupe.TroupeError, match="needs at least 32 frames"):
+        magnet.magnet_generate("dd100", frames[:16], steps=2)
+    bad = frames.copy()
+    bad[5, 0, 3] = np.nan
+    with pytest.raises(troupe.TroupeError, match="TROUPE_ERR_INVALID_ARG"):
+        magnet.magnet_generate("dd100", bad, steps=2, samples=1)
+    with pytest.raises(ValueError, match=r"frames must be \[frames, 2, 145\]"):
+        magnet.magnet_generate("dd100", np.zeros((64, 3, 145), np.float32), steps=2)
+    with pytest.raises(ValueError, match="present must be"):
+        magnet.magnet_generate("dd100", frames, present=np.ones((3, 2), bool))
+    with pytest.raises(troupe.TroupeError, match="needs a `magnet` bundle"):
+        model.magnet_generate("dd100", frames)
+    assert model.magnet_configs == [] and model.magnet_people == 0

@@ -300,6 +300,75 @@ class Model:
             None if latents is None else _ptr(latents), 0 if latents is None else latents.size))
         return (motion, latents) if return_latents else motion
 
+    magnet_people = property(lambda self: _lib.troupe_model_magnet_people(self._h()),
+                             doc="people a `magnet` model generates together (0 for other bundles)")
+
+    @property
+    def magnet_configs(self) -> list:
+        """The released sampling configurations of a `magnet` bundle, by the official YAML's
+        name (`dd100`, `dd100_partner_prediction`, ...); empty for other bundles."""
+        h = self._h()
+        return [_lib.troupe_model_magnet_config(h, i).decode("utf-8")
+                for i in range(_lib.troupe_model_magnet_config_count(h))]
+
+    def _magnet_options(self, samples, steps, seq_len, seed, eta, x0_guidance, keyframes):
+        opt = _native.MagnetOptions()
+        _check(_lib.troupe_magnet_options_init(ctypes.byref(opt), ctypes.sizeof(opt)))
+        opt.samples, opt.steps, opt.seq_len = samples or 0, steps or 0, seq_len or 0
+        if seed is not None:
+            opt.flags |= _native.MAGNET_SEED
+            opt.seed = seed
+        if eta is not None:
+            opt.flags |= _native.MAGNET_ETA
+            opt.eta = eta
+        if not x0_guidance:
+            opt.flags |= _native.MAGNET_NO_X0_GUIDANCE
+        if keyframes is not None:
+            if len(keyframes) > _native.MAGNET_MAX_KEYFRAMES:
+                raise ValueError(f"at most {_native.MAGNET_MAX_KEYFRAMES} key frames")
+            opt.flags |= _native.MAGNET_KEYFRAMES
+            opt.keyframe_count = len(keyframes)
+            for i, k in enumerate(keyframes):
+                opt.keyframes[i] = k
+        return opt
+
+    def magnet_generate(self, config, frames, present=None, samples: int | None = None,
+                        steps: int | None = None, seq_len: int | None = None, seed: int | None = None,
+                        eta: float | None = None, x0_guidance: bool = True, keyframes=None) -> np.ndarray:
+        """Runs a MAGNet sampling configuration on `frames` [F, people, 145] (per person and
+        frame: betas, the 21 body joints' 6-D rotations, the root's pose in the world, y up) and
+        returns the frames it generates, float32 [samples, frames, people, 145], every root in
+        the input's world frame.
+
+        `config`: a name from `magnet_configs`, or a whole configuration (a dict with the fields
+        of the manifest's `sampling` entries). `present`: [F, people] booleans (None: everyone).
+        The other arguments change the configuration for this call (None keeps it);
+        `x0_guidance=False` turns the decoder-space corrections off (about four times cheaper,
+        not the released behaviour). Releases the GIL."""
+        import json
+
+        name = (json.dumps(config) if isinstance(config, dict) else str(config)).encode("utf-8")
+        data = _floats(frames, "frames")
+        h = self._h()
+        people = _lib.troupe_model_magnet_people(h)
+        if data.ndim != 3 or (people and data.shape[1:] != (people, 145)):
+            raise ValueError(f"frames must be [frames, {people or 'people'}, 145], got shape {data.shape}")
+        opt = self._magnet_options(samples, steps, seq_len, seed, eta, x0_guidance, keyframes)
+        s, f, p = ctypes.c_size_t(), ctypes.c_size_t(), ctypes.c_size_t()
+        _check(_lib.troupe_magnet_output_shape(h, name, ctypes.byref(opt), data.shape[0],
+                                               ctypes.byref(s), ctypes.byref(f), ctypes.byref(p)))
+        mask = None
+        if present is not None:
+            mask = np.ascontiguousarray(np.asarray(present, dtype=bool).astype(np.uint8))
+            if mask.shape != data.shape[:2]:
+                raise ValueError(f"present must be {data.shape[:2]}, got {mask.shape}")
+        out = np.empty((s.value, f.value, p.value, 145), np.float32)
+        _check(_lib.troupe_magnet_generate(
+            h, name, ctypes.byref(opt), _ptr(data), data.shape[0],
+            None if mask is None else mask.ctypes.data_as(ctypes.POINTER(ctypes.c_uint8)),
+            _ptr(out), out.size))
+        return out
+
     def session(self, seed: int = 0, steps: int | None = None, cfg: float | None = None,
                 capacity: int | None = None, actor_latent: int | None = None,
                 condition=None) -> "Session":

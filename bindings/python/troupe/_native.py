@@ -71,6 +71,27 @@ class GroupOptions(ctypes.Structure):
     ]
 
 
+MAGNET_MAX_KEYFRAMES = 8  # TROUPE_MAGNET_MAX_KEYFRAMES
+MAGNET_SEED, MAGNET_ETA, MAGNET_NO_X0_GUIDANCE, MAGNET_KEYFRAMES = 1, 2, 4, 8  # TROUPE_MAGNET_*
+
+
+class MagnetOptions(ctypes.Structure):
+    """Mirror of `troupe_magnet_options` (checked against troupe_magnet_options_size())."""
+
+    _fields_ = [
+        ("struct_size", ctypes.c_uint32),
+        ("samples", ctypes.c_uint32),
+        ("steps", ctypes.c_uint32),
+        ("seq_len", ctypes.c_uint32),
+        ("flags", ctypes.c_uint32),
+        ("keyframe_count", ctypes.c_uint32),
+        ("seed", ctypes.c_uint64),
+        ("eta", ctypes.c_float),
+        ("reserved", ctypes.c_uint32),
+        ("keyframes", ctypes.c_uint32 * MAGNET_MAX_KEYFRAMES),
+    ]
+
+
 class GroupNoise(ctypes.Structure):
     """Mirror of `troupe_group_noise`."""
 
@@ -199,6 +220,15 @@ PROTOTYPES = {
     "troupe_group_generate": (status, [
         model_p, ctypes.POINTER(GroupOptions), f32p, c_size, ctypes.c_uint32, ctypes.POINTER(GroupNoise),
         f32p, c_size, f32p, c_size]),
+    "troupe_magnet_options_size": (c_size, []),
+    "troupe_magnet_options_init": (status, [ctypes.POINTER(MagnetOptions), c_size]),
+    "troupe_model_magnet_people": (c_size, [model_p]),
+    "troupe_model_magnet_config_count": (c_size, [model_p]),
+    "troupe_model_magnet_config": (ctypes.c_char_p, [model_p, c_size]),
+    "troupe_magnet_output_shape": (status, [model_p, ctypes.c_char_p, ctypes.POINTER(MagnetOptions), c_size,
+                                            ctypes.POINTER(c_size), ctypes.POINTER(c_size), ctypes.POINTER(c_size)]),
+    "troupe_magnet_generate": (status, [model_p, ctypes.c_char_p, ctypes.POINTER(MagnetOptions), f32p, c_size,
+                                        ctypes.POINTER(ctypes.c_uint8), f32p, c_size]),
     "troupe_model_clip_tokens": (c_size, [model_p]),
     "troupe_model_text_token_dim": (c_size, [model_p]),
     "troupe_clip_generate": (status, [
