@@ -618,6 +618,37 @@ fn c_magnet_generation_as_c99_and_cpp17() {
     run(&[], &cpp, &args);
 }
 
+/// The C MAGNet example compiles with the strict flags and runs a released configuration on the
+/// tiny bundle's golden clip.
+#[test]
+fn c_magnet_example_runs() {
+    let bin = compile(
+        "cc",
+        &["-std=c99", "-O2"],
+        &[&root().join("examples/c/magnet.c")],
+        &shared_link(),
+        "magnet_example_c",
+    );
+    let dir = root().join("onnx/bundles/magnet-tiny");
+    let out = Command::new(&bin)
+        .arg(&dir)
+        .arg("dd100")
+        .arg(dir.join("golden/frames.npy"))
+        .args(["1", "2"])
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&out.stdout).into_owned();
+    assert!(
+        out.status.success(),
+        "{text}{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(
+        text.contains("1 samples x 208 frames x 2 people") && text.contains("non-finite values: 0"),
+        "{text}"
+    );
+}
+
 /// The C streaming demo compiles with the strict flags and runs on the tiny bundle.
 #[test]
 fn c_streaming_demo_runs() {

@@ -173,3 +173,36 @@ fn python_streaming_demo_runs() {
     assert_eq!(reactor.dim(), (48, 22, 3));
     assert!(npy.with_extension("html").is_file() && npy.with_extension("gif").is_file());
 }
+
+/// The Python MAGNet example runs a released configuration on the tiny bundle's golden clip and
+/// writes what it generates.
+#[test]
+fn python_magnet_example_runs() {
+    require_python_tools();
+    let lib = c_libraries().join("libtroupe.so");
+    let scratch = tempfile::tempdir().unwrap();
+    let npy = scratch.path().join("magnet.npy");
+    let text = python(
+        &[
+            "examples/python/magnet.py",
+            "--samples",
+            "1",
+            "--steps",
+            "2",
+            "--no-x0-guidance",
+            "--out",
+            npy.to_str().unwrap(),
+        ],
+        &[
+            ("TROUPE_LIBRARY_PATH", &lib),
+            ("PYTHONPATH", &root().join("bindings/python")),
+        ],
+        false,
+    );
+    assert!(
+        text.contains("(1, 208, 2, 145)") && text.contains("finite: True"),
+        "{text}"
+    );
+    let out: ndarray::Array4<f32> = ndarray_npy::read_npy(&npy).unwrap();
+    assert_eq!(out.dim(), (1, 208, 2, 145));
+}
