@@ -129,7 +129,7 @@ def main(argv=None):
     import troupe
     from troupe_onnx.magnet.checkpoint import load_release
     from troupe_onnx.magnet.configs import RELEASED
-    from troupe_onnx.magnet.decoder_gradients import foot_skating_loss, pose_gradient, smoothing_loss
+    from troupe_onnx.magnet.decoder_gradients import weighted_gradient
     from troupe_onnx.magnet.draws import TorchDraws
     from troupe_onnx.magnet.export import random_frames
     from troupe_onnx.magnet.motion import clip_from_frames, decode_tokens, encode_clip
@@ -162,9 +162,8 @@ def main(argv=None):
                 kk = torch.from_numpy(np.broadcast_to(k, x.shape[:-1]).astype(np.int64).copy())
                 return ref.denoiser(torch.from_numpy(np.ascontiguousarray(x)), kk).numpy()
 
-        grad = lambda loss: (lambda x0, b: pose_gradient(ref.vqvae.decoder, loss, x0, b, lat))  # noqa: E731
         run = T.Run(cfg, Schedule.cosine(), denoise, TorchDraws(cfg.seed), stats.transform_stats(), window, persons,
-                    lat, betas, grad(smoothing_loss), grad(foot_skating_loss))
+                    lat, betas, weighted_gradient(ref.vqvae.decoder, lat))
         context, mask = encode_clip(ref.vqvae, clip.slice(0, cfg.context_len), stats)
         out = T.joint(run, context, mask)
         decode_tokens(ref.vqvae, out, betas, stats, lat)

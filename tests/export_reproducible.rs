@@ -116,7 +116,7 @@ fn magnet_checkpoints_and_guidance_graphs() {
             &AVX2_KERNELS,
         );
         assert!(ok, "{text}");
-        assert!(text.contains("19 passed"), "{text}");
+        assert!(text.contains("21 passed"), "{text}");
     }
 }
 

@@ -1,7 +1,10 @@
 //! MAGNet through the Rust API against the PyTorch reference (`onnx/troupe_onnx/magnet`): every
 //! task of the committed tiny bundles, from the golden clip's frames to the sampled tokens and
 //! the frames they decode to, with the same seeded draws (troupe's generator in both). Tokens
-//! within 1e-5 of the reference's largest value, frames within 1e-4; the draw counts equal.
+//! within 1e-5 of the reference's largest value, frames within 1e-4 of theirs (absolute
+//! differences are printed: with random weights the decoder's 6-D rotations are far from
+//! orthonormal, and their Gram-Schmidt projection magnifies float rounding up to 2e-4 on a body
+//! rotation); the draw counts equal.
 //! Bad inputs and configurations are refused with a message, not a panic.
 
 mod common;
@@ -50,12 +53,20 @@ fn check_bundle(name: &str) -> usize {
             spec["draws"].as_u64().unwrap(),
             "{name} {case}: draws"
         );
-        let t = relative_error(out.tokens.as_slice().unwrap(), tokens.as_slice().unwrap());
-        let f = relative_error(
+        let (got_t, want_t) = (out.tokens.as_slice().unwrap(), tokens.as_slice().unwrap());
+        let (got_f, want_f) = (
             out.frames.as_slice().unwrap(),
             want_frames.as_slice().unwrap(),
         );
-        println!("{name} {case}: tokens {t:.2e}, frames {f:.2e} (relative max-abs)");
+        let (t, f) = (relative_error(got_t, want_t), relative_error(got_f, want_f));
+        let (ta, fa) = (
+            common::max_abs_diff(got_t, want_t),
+            common::max_abs_diff(got_f, want_f),
+        );
+        println!(
+            "{name} {case}: tokens {ta:.2e} max-abs ({t:.2e} relative), frames {fa:.2e} max-abs \
+             ({f:.2e} relative)"
+        );
         assert!(t <= 1e-5, "{name} {case}: tokens differ by {t:.2e}");
         assert!(f <= 1e-4, "{name} {case}: frames differ by {f:.2e}");
     }

@@ -6,7 +6,7 @@
 use ndarray::{s, Array3, Array4, ArrayView4};
 
 use super::draws::Draws;
-use super::networks::{Correction, Networks};
+use super::networks::Networks;
 use super::schedule::Schedule;
 use super::spec::{GuidanceSpec, X0GuidanceSpec};
 use crate::shared::error::Result;
@@ -54,28 +54,20 @@ impl Guidance<'_> {
         let smooth = active(&self.spec.smoothing, self.counter, self.total);
         let foot = active(&self.spec.foot_skating, self.counter, self.total);
         if smooth.is_some() || foot.is_some() {
-            let base = out.clone();
+            // Both corrections at the same x0, subtracted together: w_s grad L_s + w_f grad L_f
+            // through the decoder (on the latents; one graph call), then the smoothing's
+            // transform term.
+            let (ws, wf) = (smooth.unwrap_or(0.0), foot.unwrap_or(0.0));
             let latent = self.nets.spec.model.vq.d_latent;
-            if let Some(w) = smooth {
-                let g = self.nets.correction_gradient(
-                    Correction::Smoothing,
-                    base.view(),
-                    self.betas.view(),
-                )?;
-                let t = transform_smoothing_gradient(base.view(), latent);
-                out.slice_mut(s![.., .., .., ..latent])
-                    .zip_mut_with(&g, |o, g| *o -= w * *g);
+            let g = self
+                .nets
+                .correction_gradient(out.view(), self.betas.view(), [ws, wf])?;
+            let t = smooth.map(|_| transform_smoothing_gradient(out.view(), latent));
+            out.slice_mut(s![.., .., .., ..latent])
+                .zip_mut_with(&g, |o, g| *o -= *g);
+            if let Some(t) = t {
                 out.slice_mut(s![.., .., .., latent..])
-                    .zip_mut_with(&t, |o, g| *o -= w * *g);
-            }
-            if let Some(w) = foot {
-                let g = self.nets.correction_gradient(
-                    Correction::FootSkating,
-                    base.view(),
-                    self.betas.view(),
-                )?;
-                out.slice_mut(s![.., .., .., ..latent])
-                    .zip_mut_with(&g, |o, g| *o -= w * *g);
+                    .zip_mut_with(&t, |o, g| *o -= ws * *g);
             }
         }
         self.counter += 1;

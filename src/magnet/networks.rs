@@ -22,21 +22,13 @@ pub(crate) struct Networks {
     denoiser: Graph,
     vq_encoder: Graph,
     vq_decoder: Graph,
-    guidance_smoothing: Graph,
-    guidance_foot_skating: Graph,
+    guidance: Graph,
     /// `[code_nb, d_latent]`, row-major.
     codebook: Vec<f32>,
 }
 
-/// Which x0 correction's gradient to take (§6.4).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub(crate) enum Correction {
-    Smoothing,
-    FootSkating,
-}
-
 impl Networks {
-    /// Loads every graph `spec` names, and the codebook, from `files`. The guidance graphs are
+    /// Loads every graph `spec` names, and the codebook, from `files`. The guidance graph is
     /// checked at load and optimised on first use (configurations may turn guidance off).
     pub(crate) fn load(files: &BundleFiles, io: BundleIo, spec: MagnetSpec) -> Result<Self> {
         let g = &spec.graphs;
@@ -44,18 +36,11 @@ impl Networks {
             ("denoiser", &g.denoiser),
             ("vq_encoder", &g.vq_encoder),
             ("vq_decoder", &g.vq_decoder),
-            ("guidance_smoothing", &g.guidance_smoothing),
-            ("guidance_foot_skating", &g.guidance_foot_skating),
+            ("guidance", &g.guidance),
         ];
-        let mut graphs = load_graphs(
-            files,
-            &wanted,
-            &["guidance_smoothing", "guidance_foot_skating"],
-        )?
-        .into_iter();
+        let mut graphs = load_graphs(files, &wanted, &["guidance"])?.into_iter();
         let mut next = || graphs.next().expect("one graph per wanted entry");
-        let (denoiser, vq_encoder, vq_decoder) = (next(), next(), next());
-        let (guidance_smoothing, guidance_foot_skating) = (next(), next());
+        let (denoiser, vq_encoder, vq_decoder, guidance) = (next(), next(), next(), next());
         let codebook = read_codebook(files, &spec)?;
         Ok(Self {
             io,
@@ -63,8 +48,7 @@ impl Networks {
             denoiser,
             vq_encoder,
             vq_decoder,
-            guidance_smoothing,
-            guidance_foot_skating,
+            guidance,
             codebook,
         })
     }
@@ -127,28 +111,26 @@ impl Networks {
         Ok(Array3::from_shape_vec(shape, values.to_vec()).expect("shape checked"))
     }
 
-    /// A correction's gradient on the latents: x0 `[B, Tm, P, D]`, betas `[B, P, 10]` ->
+    /// The x0 corrections' gradient on the latents (§6.4): of `weights[0] * smoothing +
+    /// weights[1] * foot skating` at x0 `[B, Tm, P, D]` with betas `[B, P, 10]` ->
     /// `[B, Tm, P, d_latent]`.
     pub(crate) fn correction_gradient(
         &self,
-        which: Correction,
         x0: ArrayView4<f32>,
         betas: ArrayView3<f32>,
+        weights: [f32; 2],
     ) -> Result<Array4<f32>> {
-        let (graph, role) = match which {
-            Correction::Smoothing => (&self.guidance_smoothing, "guidance_smoothing"),
-            Correction::FootSkating => (&self.guidance_foot_skating, "guidance_foot_skating"),
-        };
         debug_assert_eq!(betas.shape()[2], BETAS);
         let s = x0.shape();
         let shape = [s[0], s[1], s[2], self.spec.model.vq.d_latent];
         let inputs: Vec<TValue> = vec![
             x0.to_owned().into_dyn().into_tvalue(),
             betas.to_owned().into_dyn().into_tvalue(),
+            ndarray::arr1(&weights).into_dyn().into_tvalue(),
         ];
-        let out = graph.run(inputs)?;
-        let values = read_f32(role, "latent_gradient", &out[0], &shape)?;
-        check_output(role, "latent_gradient", values)?;
+        let out = self.guidance.run(inputs)?;
+        let values = read_f32("guidance", "latent_gradient", &out[0], &shape)?;
+        check_output("guidance", "latent_gradient", values)?;
         Ok(Array4::from_shape_vec(shape, values.to_vec()).expect("shape checked"))
     }
 

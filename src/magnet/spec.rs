@@ -272,10 +272,9 @@ pub struct MagnetGraphs {
     pub vq_encoder: GraphSpec,
     /// The VQ decoder.
     pub vq_decoder: GraphSpec,
-    /// The smoothing loss's gradient through the decoder, on the latents.
-    pub guidance_smoothing: GraphSpec,
-    /// The foot-skating loss's gradient through the decoder, on the latents.
-    pub guidance_foot_skating: GraphSpec,
+    /// The x0 corrections' gradient through the decoder, on the latents: of
+    /// `weights[0] * smoothing + weights[1] * foot skating`, from one forward and one backward.
+    pub guidance: GraphSpec,
 }
 
 impl MagnetSpec {
@@ -508,13 +507,6 @@ impl MagnetSpec {
             shape: vec![sym("B"), n(w), n(p)],
         };
         let g = &self.graphs;
-        let gradient = |spec: &GraphSpec| {
-            contract(
-                spec,
-                vec![window("x0"), float("betas", vec![sym("B"), n(p), n(BETAS)])],
-                vec![float("latent_gradient", vec![sym("B"), n(w), n(p), n(lat)])],
-            )
-        };
         vec![
             (
                 "denoiser",
@@ -546,14 +538,17 @@ impl MagnetSpec {
                 ),
             ),
             (
-                "guidance_smoothing",
-                &g.guidance_smoothing,
-                gradient(&g.guidance_smoothing),
-            ),
-            (
-                "guidance_foot_skating",
-                &g.guidance_foot_skating,
-                gradient(&g.guidance_foot_skating),
+                "guidance",
+                &g.guidance,
+                contract(
+                    &g.guidance,
+                    vec![
+                        window("x0"),
+                        float("betas", vec![sym("B"), n(p), n(BETAS)]),
+                        float("weights", vec![n(2)]),
+                    ],
+                    vec![float("latent_gradient", vec![sym("B"), n(w), n(p), n(lat)])],
+                ),
             ),
         ]
     }

@@ -112,6 +112,7 @@ int main(int argc, char **argv) {
     free(frames);
     troupe_model_free(model);
     troupe_model_free(armflow);
-    printf("%d passed, %d failed\n", passed, failed);
+    printf("sanitizer: %s\n", TROUPE_TEST_SANITIZER);
+    printf("c magnet: %d passed, %d failed\n", passed, failed);
     return failed != 0;
 }

@@ -43,6 +43,17 @@ def foot_skating_loss(r: torch.Tensor) -> torch.Tensor:
     return ((feet[:, 1:] - feet[:, :-1]) ** 2).mean()
 
 
+def weighted_gradient(decoder, latent: int):
+    """The reference's decoder_grad for `guidance.Guidance`: autograd of
+    w_s * smoothing + w_f * foot skating, on the latents."""
+
+    def grad(x0, betas, ws, wf):
+        loss = lambda r: float(ws) * smoothing_loss(r) + float(wf) * foot_skating_loss(r)  # noqa: E731
+        return pose_gradient(decoder, loss, x0, betas, latent)
+
+    return grad
+
+
 def pose_gradient(decoder, loss, x0: np.ndarray, betas: np.ndarray, latent: int) -> np.ndarray:
     """d loss(R(x0)) / d x0 on the latent dims only (the rest zero), by autograd (§6.4)."""
     xt = torch.from_numpy(np.ascontiguousarray(x0, dtype=np.float32)).requires_grad_(True)
@@ -81,16 +92,16 @@ def _conv_backward(conv: nn.Conv1d, g):
 
 
 class DecoderVjp(nn.Module):
-    """x0 [B, T, P, D], betas [B, P, 10] -> d loss / d latents [B, T, P, latent] for the
-    smoothing (`"smoothing"`) or foot-skating (`"foot_skating"`) loss of §6.4."""
+    """x0 [B, T, P, D], betas [B, P, 10], weights [2] -> the gradient on the latents
+    [B, T, P, latent] of `weights[0] * smoothing + weights[1] * foot skating` (§6.4): both
+    corrections from one decoder forward and one backward, as they are taken at the same x0 and
+    subtracted together. A weight of 0 leaves its loss out."""
 
-    def __init__(self, decoder: Decoder, latent: int, loss: str):
+    def __init__(self, decoder: Decoder, latent: int):
         super().__init__()
-        if loss not in ("smoothing", "foot_skating"):
-            raise ValueError(f"loss {loss!r}: smoothing or foot_skating")
-        self.decoder, self.latent, self.loss = decoder, latent, loss
+        self.decoder, self.latent = decoder, latent
 
-    def forward(self, x0, betas):
+    def forward(self, x0, betas, weights):
         b, t, p, _ = x0.shape
         lat = self.latent
         tm1_t = x0[..., lat : lat + FRAMES_PER_TOKEN * TRANSFORM]
@@ -109,7 +120,7 @@ class DecoderVjp(nn.Module):
         a4 = m[4](h)
         out = m[6](F.relu(a4))  # [BP, 135, F]
         r = out[:, : BODY_JOINTS * 6]
-        g = self._loss_grad(r, b, p)
+        g = weights[0] * _smoothing_grad(r) + weights[1] * _foot_skating_grad(r)
         g = F.pad(g, (0, 0, 0, out.shape[1] - g.shape[1]))  # d/d(out): zero on the root dims
         g = _conv_backward(m[6], g) * (a4 > 0).to(g.dtype)
         g = _conv_backward(m[4], g)
@@ -138,23 +149,24 @@ class DecoderVjp(nn.Module):
         gu = _conv_backward(block.conv1, _ln_backward(block.norm2, gw, xhat2, inv2)) * _gelu_grad(u)
         return g + _ln_backward(block.norm1, gu, xhat1, inv1)
 
-    def _loss_grad(self, r, b, p):
-        """d loss / d R for R [B*P, 126, F] (frames last); the losses are means over the whole
-        batch, so the count comes from the tensors' shapes (the batch is dynamic)."""
-        if self.loss == "smoothing":
-            lap = r[..., :-2] - 2 * r[..., 1:-1] + r[..., 2:]
-            c = 2.0 / torch.ones_like(lap).sum()
-            g = F.pad(lap, (0, 2)) - 2 * F.pad(lap, (1, 1)) + F.pad(lap, (2, 0))
-            return c * g
-        feet = torch.cat([r[:, 6 * j : 6 * j + 6] for j in FOOT_JOINTS], dim=1)  # [BP, 24, F]
-        diff = feet[..., 1:] - feet[..., :-1]
-        c = 2.0 / torch.ones_like(diff).sum()
-        gf = c * (F.pad(diff, (1, 0)) - F.pad(diff, (0, 1)))
-        g = torch.zeros_like(r)
-        parts = []
-        at = 0
-        for j, joint in enumerate(sorted(FOOT_JOINTS)):
-            parts += [g[:, at : 6 * joint], gf[:, 6 * j : 6 * j + 6]]
-            at = 6 * joint + 6
-        parts.append(g[:, at:])
-        return torch.cat(parts, dim=1)
+
+def _smoothing_grad(r):
+    """d mean(Lap^2) / dR for R [B*P, 126, F] (frames last); the mean is over the whole batch,
+    so its count comes from the tensors' shapes (the batch is dynamic)."""
+    lap = r[..., :-2] - 2 * r[..., 1:-1] + r[..., 2:]
+    c = 2.0 / torch.ones_like(lap).sum()
+    return c * (F.pad(lap, (0, 2)) - 2 * F.pad(lap, (1, 1)) + F.pad(lap, (2, 0)))
+
+
+def _foot_skating_grad(r):
+    """d mean(diff^2) / dR of the foot joints' rotations, zero on every other joint."""
+    feet = torch.cat([r[:, 6 * j : 6 * j + 6] for j in FOOT_JOINTS], dim=1)  # [BP, 24, F]
+    diff = feet[..., 1:] - feet[..., :-1]
+    c = 2.0 / torch.ones_like(diff).sum()
+    gf = c * (F.pad(diff, (1, 0)) - F.pad(diff, (0, 1)))
+    parts, at = [], 0
+    for j, joint in enumerate(FOOT_JOINTS):  # ascending joints
+        parts += [torch.zeros_like(r[:, at : 6 * joint]), gf[:, 6 * j : 6 * j + 6]]
+        at = 6 * joint + 6
+    parts.append(torch.zeros_like(r[:, at:]))
+    return torch.cat(parts, dim=1)

@@ -15,7 +15,7 @@
 
 Graphs (`shared/spec/magnet.md` §2.4): `denoiser` (x, levels -> x0; batch dynamic, the window
 and P fixed), `vq_encoder` and `vq_decoder` (batch and length dynamic), and the two x0-guidance
-gradients through the decoder (`guidance_smoothing`, `guidance_foot_skating`, §6.5 option (a),
+gradients through the decoder in one graph (`guidance`: the weighted sum of both, §6.5 option (a),
 written out by hand in `decoder_gradients.py`). The codebook ships as `codebook.f32` (little-endian
 float32, `[code_nb, latent]`); the statistics, the schedule tables, the level table of every
 released config's step count and every released sampling configuration are in the manifest.
@@ -32,7 +32,7 @@ import torch
 
 from troupe_onnx.magnet.checkpoint import load_release, write_release
 from troupe_onnx.magnet.configs import released_for
-from troupe_onnx.magnet.decoder_gradients import DecoderVjp, foot_skating_loss, pose_gradient, smoothing_loss
+from troupe_onnx.magnet.decoder_gradients import DecoderVjp, weighted_gradient
 from troupe_onnx.magnet.draws import RecordingDraws, SeededDraws
 from troupe_onnx.magnet.guidance import GuidanceConfig, X0Guidance
 from troupe_onnx.magnet.motion import (
@@ -80,11 +80,6 @@ def graph_specs(cfg: MagnetConfig) -> dict:
     """Every graph's file, inputs and outputs. Symbolic dims: B batch, N person-sequences,
     T frames, Z tokens."""
     w, p, d, lat = cfg.window, cfg.persons, cfg.token_dim, cfg.vq.d_latent
-    grad = lambda name: {  # noqa: E731
-        "file": f"{name}.onnx",
-        "inputs": [t("x0", ["B", w, p, d]), t("betas", ["B", p, 10])],
-        "outputs": [t("latent_gradient", ["B", w, p, lat])],
-    }
     return {
         "denoiser": {
             "file": "denoiser.onnx",
@@ -101,8 +96,11 @@ def graph_specs(cfg: MagnetConfig) -> dict:
             "inputs": [t("latents", ["N", "Z", lat]), t("condition", ["N", "Z", DECODER_COND_DIM])],
             "outputs": [t("pose", ["N", "T", POSE_DIM])],
         },
-        "guidance_smoothing": grad("guidance_smoothing"),
-        "guidance_foot_skating": grad("guidance_foot_skating"),
+        "guidance": {
+            "file": "guidance.onnx",
+            "inputs": [t("x0", ["B", w, p, d]), t("betas", ["B", p, 10]), t("weights", [2])],
+            "outputs": [t("latent_gradient", ["B", w, p, lat])],
+        },
     }
 
 
@@ -130,8 +128,7 @@ def graph_modules(model: Magnet) -> dict:
         "denoiser": model.denoiser,
         "vq_encoder": _Encoder(model),
         "vq_decoder": _Decoder(model),
-        "guidance_smoothing": DecoderVjp(model.vqvae.decoder, lat, "smoothing"),
-        "guidance_foot_skating": DecoderVjp(model.vqvae.decoder, lat, "foot_skating"),
+        "guidance": DecoderVjp(model.vqvae.decoder, lat),
     }
 
 
@@ -144,7 +141,7 @@ def example_inputs(cfg: MagnetConfig, name: str, batch: int, gen: torch.Generato
         return (r(batch, 8 * FRAMES_PER_TOKEN, POSE_DIM), r(batch, 8 * FRAMES_PER_TOKEN, ENCODER_COND_DIM))
     if name == "vq_decoder":
         return (r(batch, 8, lat), r(batch, 8, DECODER_COND_DIM))
-    return (r(batch, w, p, d), r(batch, p, 10))
+    return (r(batch, w, p, d), r(batch, p, 10), torch.rand(2, generator=gen) * 3)
 
 
 def validate_graphs(model: Magnet, out_dir: Path, specs: dict) -> dict:
@@ -284,11 +281,8 @@ def run_task(model: Magnet, stats: Stats, sampling: Sampling, name: str, clip: C
             kk = torch.from_numpy(np.broadcast_to(k, x.shape[:-1]).astype(np.int64).copy())
             return model.denoiser(torch.from_numpy(np.ascontiguousarray(x)), kk).numpy()
 
-    def grad(loss):
-        return lambda x0, b: pose_gradient(model.vqvae.decoder, loss, x0, b, lat)
-
     run = Run(sampling, Schedule.cosine(cfg.max_t), denoise, draws, stats.transform_stats(), cfg.window,
-              cfg.persons, lat, betas, grad(smoothing_loss), grad(foot_skating_loss))
+              cfg.persons, lat, betas, weighted_gradient(model.vqvae.decoder, lat))
     if sampling.task in ("joint", "agentic_turn_taking", "agentic_sync"):
         context, mask = encode_clip(model.vqvae, clip.slice(0, sampling.context_len), stats)
         fn = {"joint": T.joint, "agentic_turn_taking": T.agentic_turn_taking, "agentic_sync": T.agentic_sync}[sampling.task]

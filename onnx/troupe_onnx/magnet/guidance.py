@@ -112,10 +112,11 @@ class Guidance:
     applies the x0 corrections while `counter / total` is in their range, counts calls."""
 
     def __init__(self, cfg: GuidanceConfig, sched: Schedule, denoise, draws, total: int,
-                 smooth_grad=None, foot_grad=None, latent: int = 512):
+                 decoder_grad=None, latent: int = 512):
         self.cfg, self.sched, self.denoise, self.draws = cfg, sched, denoise, draws
         self.total, self.counter = total, 0
-        self.smooth_grad, self.foot_grad, self.latent = smooth_grad, foot_grad, latent
+        # decoder_grad(x0, betas, w_smooth, w_foot): the latent gradient of the weighted losses
+        self.decoder_grad, self.latent = decoder_grad, latent
 
     def x0(self, x: np.ndarray, k: np.ndarray, ctx_len: int, betas: np.ndarray) -> np.ndarray:
         if ctx_len == 0:
@@ -128,11 +129,13 @@ class Guidance:
         use_smooth = smooth is not None and smooth.active(self.counter, self.total)
         use_foot = foot is not None and foot.active(self.counter, self.total)
         if use_smooth or use_foot:
+            # Both corrections at the same x0, subtracted together: w_s grad L_s + w_f grad L_f
+            # through the decoder (on the latents), then the smoothing's transform term.
+            ws = np.float32(smooth.weight if use_smooth else 0.0)
+            wf = np.float32(foot.weight if use_foot else 0.0)
             base = out
+            out = (out - self.decoder_grad(base, betas, ws, wf)).astype(np.float32)
             if use_smooth:
-                g = self.smooth_grad(base, betas) + transform_smoothing_gradient(base, self.latent)
-                out = (out - np.float32(smooth.weight) * g).astype(np.float32)
-            if use_foot:
-                out = (out - np.float32(foot.weight) * self.foot_grad(base, betas)).astype(np.float32)
+                out = (out - ws * transform_smoothing_gradient(base, self.latent)).astype(np.float32)
         self.counter += 1
         return out

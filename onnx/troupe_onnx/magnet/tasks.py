@@ -77,11 +77,11 @@ class Run:
     machinery every step shares (§5.0, "Common pieces")."""
 
     def __init__(self, sampling: Sampling, sched: Schedule, denoise, draws, stats: TransformStats,
-                 window: int, persons: int, latent: int, betas: np.ndarray, smooth_grad=None, foot_grad=None):
+                 window: int, persons: int, latent: int, betas: np.ndarray, decoder_grad=None):
         self.cfg, self.sched, self.draws, self.stats = sampling, sched, draws, stats
         self.tm, self.p, self.latent = window, persons, latent
         self.betas = np.broadcast_to(betas.astype(np.float32), (sampling.samples, persons, betas.shape[-1]))
-        self.denoise, self.smooth_grad, self.foot_grad = denoise, smooth_grad, foot_grad
+        self.denoise, self.decoder_grad = denoise, decoder_grad
         self.guidance = None
         for mode, _ in sampling.guidance.scales:
             check_mode(mode, persons)
@@ -89,7 +89,7 @@ class Run:
     def start(self, total: int) -> None:
         """A fresh guidance wrapper for a sampler of `total` iterations (its progress counter)."""
         self.guidance = Guidance(self.cfg.guidance, self.sched, self.denoise, self.draws, total,
-                                 self.smooth_grad, self.foot_grad, self.latent)
+                                 self.decoder_grad, self.latent)
 
     def matrix(self, group: int, context_tokens: int, do_prune: bool = True) -> np.ndarray:
         c = self.cfg
