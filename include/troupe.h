@@ -159,8 +159,8 @@
 #define TROUPE_MAGNET_ETA 2
 
 /*
- `troupe_magnet_options.flags`: turn the x0 corrections (smoothing, foot skating) off; about
- four times cheaper, not the released behaviour.
+ `troupe_magnet_options.flags`: turn the x0 corrections (smoothing, foot skating) off; three
+ to five times cheaper (`docs/MAGNET.md`), not the released behaviour.
  */
 #define TROUPE_MAGNET_NO_X0_GUIDANCE 4
 

@@ -231,3 +231,29 @@ fn output_shapes_are_known_before_generating() {
         assert_eq!(out.frames.shape(), &shape[..], "{name}");
     }
 }
+
+#[test]
+fn sizes_beyond_troupes_limits_are_refused_before_allocating() {
+    let (model, frames) = tiny();
+    let huge = MagnetOptions {
+        samples: Some(1 << 30),
+        ..quick()
+    };
+    let e = model
+        .magnet_generate("dd100", frames.view(), None, &huge)
+        .expect_err("refused")
+        .to_string();
+    assert!(e.contains("above troupe's limit"), "{e}");
+    let long = MagnetOptions {
+        seq_len: Some(1 << 24),
+        ..quick()
+    };
+    let e = model
+        .magnet_output_shape("dd100", 128, &long)
+        .expect_err("refused")
+        .to_string();
+    assert!(
+        e.contains("seq_len is 16777216, above troupe's limit"),
+        "{e}"
+    );
+}

@@ -13,6 +13,7 @@ use super::spec::{SamplingSpec, Task};
 use super::tasks::{self, Run};
 use crate::shared::checks::check_input;
 use crate::shared::error::{Error, Result};
+use crate::shared::limits::{at_most, LIMITS};
 
 /// Changes to a released configuration for one call; `None` keeps the configuration's value.
 #[derive(Debug, Clone, Default)]
@@ -27,8 +28,8 @@ pub struct MagnetOptions {
     pub seq_len: Option<usize>,
     /// The seed of troupe's generator (the configuration's own seed when `None`).
     pub seed: Option<u64>,
-    /// Turns the x0 corrections (smoothing, foot skating) off: about four times cheaper, not
-    /// the released behaviour (§6.5 option (c)).
+    /// Turns the x0 corrections (smoothing, foot skating) off: three to five times cheaper
+    /// (`docs/MAGNET.md`), not the released behaviour (§6.5 option (c)).
     pub without_x0_guidance: bool,
     /// In-betweening's key frames within the window: frames `k..k + 4` set token `k / 4`, as
     /// the reference does (multiples of 4 keep each key on its own frames, §11 A10).
@@ -100,6 +101,12 @@ pub(crate) fn check_configuration(nets: &Networks, cfg: &SamplingSpec) -> Result
     nets.spec
         .validate_sampling(cfg)
         .map_err(Error::InvalidOption)?;
+    at_most(
+        "seq_len",
+        cfg.seq_len as u64,
+        LIMITS.max_frames_per_call,
+        true,
+    )?;
     let window_frames = nets.spec.model.window * FRAMES_PER_TOKEN;
     if cfg.task == Task::Inbetweening {
         if cfg.seq_len != window_frames {
@@ -125,9 +132,9 @@ pub(crate) fn generate(
     mask: Option<ArrayView2<bool>>,
     draws: Option<Vec<Vec<f32>>>,
 ) -> Result<MagnetOutput> {
-    check_configuration(nets, &cfg)?;
     let m = &nets.spec.model;
     let (f, p, width) = frames.dim();
+    output_shape(nets, &cfg, f)?;
     if p != m.persons || width != FRAME_DIM {
         return Err(Error::InvalidInput(format!(
             "frames are [{f}, {p}, {width}]; bundle `{}` takes [frames, {}, {FRAME_DIM}] \
@@ -148,13 +155,6 @@ pub(crate) fn generate(
         Some(mask) => mask.to_owned(),
         None => Array2::from_elem((f, p), true),
     };
-    let need = needed_frames(&cfg);
-    if f < need {
-        return Err(Error::InvalidInput(format!(
-            "{} with this configuration needs at least {need} frames of input, got {f}",
-            cfg.task.name()
-        )));
-    }
     let clip = motion::clip_from_frames(values.view(), mask.view());
     let betas = motion::normalised_betas(nets, &clip);
     let spec = &nets.spec;
@@ -281,7 +281,23 @@ pub(crate) fn output_shape(
             cfg.task.name()
         )));
     }
+    at_most(
+        "input frames",
+        input_frames as u64,
+        LIMITS.max_frames_per_call,
+        false,
+    )?;
     let tokens = output_tokens(nets, cfg, input_frames);
+    // The token buffer, the largest allocation of a run, within the limit on any one tensor.
+    let m = &nets.spec.model;
+    let elements =
+        (cfg.samples as u128) * (tokens as u128) * (m.token_dim as u128) * (m.persons as u128);
+    at_most(
+        "samples x tokens x people x token width",
+        u64::try_from(elements).unwrap_or(u64::MAX),
+        LIMITS.max_tensor_elements,
+        true,
+    )?;
     Ok([
         cfg.samples,
         tokens * FRAMES_PER_TOKEN,
@@ -309,13 +325,11 @@ fn output_tokens(nets: &Networks, cfg: &SamplingSpec, input_frames: usize) -> us
     }
 }
 
-/// The frames of input a configuration reads: the context for the AR tasks, one frame past the
-/// last key frame's token for in-betweening, one token of ground truth for the rolling tasks.
+/// The fewest frames of input a configuration reads: the context for every task but
+/// in-betweening (the rolling tasks take the others' context from the same frames), the last
+/// key frame's 4 frames for in-betweening.
 fn needed_frames(cfg: &SamplingSpec) -> usize {
     match cfg.task {
-        Task::Joint | Task::AgenticTurnTaking | Task::AgenticSync => {
-            cfg.context_len.max(FRAMES_PER_TOKEN)
-        }
         Task::Inbetweening => cfg
             .keyframes
             .iter()

@@ -163,7 +163,15 @@ impl Run<'_> {
         let (pa_mean, pa_std) = field(stats::PARTNER);
         let s = x.dim().0;
         let slots = TOKEN_TRANSFORMS / TRANSFORM * p; // 4 per kind, own + partners
-                                                      // [S, Tm, P, slots, 9] of de-normalised, cleaned transforms
+                                                      // A token's first 4 transforms are its own transitions, the rest its partners'.
+        let stats_of = |slot: usize| {
+            if slot < FRAMES_PER_TOKEN {
+                (&tm_mean, &tm_std)
+            } else {
+                (&pa_mean, &pa_std)
+            }
+        };
+        // [S, Tm, P, slots, 9] of de-normalised, cleaned transforms
         let mut tr = vec![0f32; s * tm * p * slots * TRANSFORM];
         let at = |sample: usize, t: usize, person: usize, slot: usize| {
             (((sample * tm + t) * p + person) * slots + slot) * TRANSFORM
@@ -173,11 +181,7 @@ impl Run<'_> {
                 for person in 0..p {
                     let token = x.slice(s![sample, ts + t, person, lat..]);
                     for slot in 0..slots {
-                        let (mean, std) = if slot < 4 {
-                            (&tm_mean, &tm_std)
-                        } else {
-                            (&pa_mean, &pa_std)
-                        };
+                        let (mean, std) = stats_of(slot);
                         let o = at(sample, t, person, slot);
                         let v = &mut tr[o..o + TRANSFORM];
                         for i in 0..TRANSFORM {
@@ -229,11 +233,7 @@ impl Run<'_> {
                 for person in 0..p {
                     let mut token = x.slice_mut(s![sample, ts + t, person, lat..]);
                     for slot in 0..slots {
-                        let (mean, std) = if slot < 4 {
-                            (&tm_mean, &tm_std)
-                        } else {
-                            (&pa_mean, &pa_std)
-                        };
+                        let (mean, std) = stats_of(slot);
                         let o = at(sample, t, person, slot);
                         for i in 0..TRANSFORM {
                             token[slot * TRANSFORM + i] = (tr[o + i] - mean[i]) / std[i];

@@ -343,8 +343,8 @@ class Model:
         `config`: a name from `magnet_configs`, or a whole configuration (a dict with the fields
         of the manifest's `sampling` entries). `present`: [F, people] booleans (None: everyone).
         The other arguments change the configuration for this call (None keeps it);
-        `x0_guidance=False` turns the decoder-space corrections off (about four times cheaper,
-        not the released behaviour). Releases the GIL."""
+        `x0_guidance=False` turns the decoder-space corrections off (three to five times
+        cheaper, not the released behaviour). Releases the GIL."""
         import json
 
         name = (json.dumps(config) if isinstance(config, dict) else str(config)).encode("utf-8")

@@ -15,8 +15,8 @@ use crate::{MagnetOptions, Model};
 pub const TROUPE_MAGNET_SEED: u32 = 1;
 /// `troupe_magnet_options.flags`: use `eta` instead of the configuration's.
 pub const TROUPE_MAGNET_ETA: u32 = 2;
-/// `troupe_magnet_options.flags`: turn the x0 corrections (smoothing, foot skating) off; about
-/// four times cheaper, not the released behaviour.
+/// `troupe_magnet_options.flags`: turn the x0 corrections (smoothing, foot skating) off; three
+/// to five times cheaper (`docs/MAGNET.md`), not the released behaviour.
 pub const TROUPE_MAGNET_NO_X0_GUIDANCE: u32 = 4;
 /// `troupe_magnet_options.flags`: use the first `keyframe_count` of `keyframes`.
 pub const TROUPE_MAGNET_KEYFRAMES: u32 = 8;
