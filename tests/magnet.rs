@@ -257,3 +257,31 @@ fn sizes_beyond_troupes_limits_are_refused_before_allocating() {
         "{e}"
     );
 }
+
+#[test]
+fn a_generation_reports_progress_and_can_be_cancelled() {
+    let (model, frames) = tiny();
+    let seen = std::rc::Rc::new(std::cell::RefCell::new(Vec::new()));
+    let log = std::rc::Rc::clone(&seen);
+    let options = MagnetOptions {
+        steps: Some(4),
+        ..quick()
+    };
+    troupe::with_progress(
+        move |done, total| {
+            log.borrow_mut().push((done, total));
+            true
+        },
+        || model.magnet_generate("dd100", frames.view(), None, &options),
+    )
+    .unwrap();
+    let seen = seen.borrow();
+    assert_eq!(seen.len(), 4, "one report per network call: {seen:?}");
+    assert_eq!(*seen.last().unwrap(), (4, 4));
+    let e = troupe::with_progress(
+        |done, _| done < 2,
+        || model.magnet_generate("dd100", frames.view(), None, &options),
+    )
+    .expect_err("cancelled");
+    assert!(matches!(e, troupe::Error::Cancelled(_)), "{e}");
+}
