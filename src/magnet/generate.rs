@@ -6,9 +6,8 @@ use ndarray::{s, Array2, Array3, Array4, ArrayView2, ArrayView3, Axis};
 use super::draws::Draws;
 use super::guidance::Guidance;
 use super::layout::{FRAMES_PER_TOKEN, FRAME_DIM};
-use super::motion::{self, Anchor};
+use super::motion;
 use super::networks::Networks;
-use super::schedule::Schedule;
 use super::spec::{SamplingSpec, Task};
 use super::tasks::{self, Run};
 use crate::shared::checks::check_input;
@@ -157,12 +156,6 @@ pub(crate) fn generate(
     };
     let clip = motion::clip_from_frames(values.view(), mask.view());
     let betas = motion::normalised_betas(nets, &clip);
-    let spec = &nets.spec;
-    let schedule = Schedule {
-        abar: spec.schedule.abar.clone(),
-        sqrt_abar: spec.schedule.sqrt_abar.clone(),
-        sqrt_one_minus_abar: spec.schedule.sqrt_one_minus_abar.clone(),
-    };
     let s = cfg.samples;
     let batch_betas = betas
         .broadcast((s, p, betas.dim().1))
@@ -172,12 +165,12 @@ pub(crate) fn generate(
     let guidance_spec = cfg.guidance.clone();
     let mut run = Run {
         nets,
-        schedule: &schedule,
+        schedule: &nets.schedule,
         draws: draws.map_or_else(|| Draws::seeded(seed), Draws::injected),
         guidance: Guidance {
             nets,
             spec: &guidance_spec,
-            schedule: &schedule,
+            schedule: &nets.schedule,
             betas: batch_betas,
             total: 0,
             counter: 0,
@@ -251,12 +244,7 @@ pub(crate) fn generate(
     } else {
         run.cfg.context_len
     };
-    let anchor = if f > c {
-        Anchor::GroundTruth(&clip)
-    } else {
-        Anchor::Online(&clip)
-    };
-    let roots = motion::world_roots(&decoded, c, anchor);
+    let roots = motion::world_roots(&decoded, c, &clip);
     let raw_betas = clip.betas.clone();
     let frames_out = motion::frames_out(&decoded, &roots, raw_betas.view());
     Ok(MagnetOutput {

@@ -269,53 +269,39 @@ pub(crate) fn decode(
     })
 }
 
-/// Where each person's rebuilt root starts (§7.2, §11 A2).
-pub(crate) enum Anchor<'a> {
-    /// The reference's: the given clip's canonical frame at the first generated frame, and its
-    /// roots before it.
-    GroundTruth(&'a Clip),
-    /// The online default: the last known canonical frame chained with the predicted transition
-    /// into the first generated frame; the clip's roots before it.
-    Online(&'a Clip),
-}
-
 /// §7.2 (mode `temporal`): each person's root in the world `[S, F, P]` from the first generated
-/// frame `c` on, chaining the predicted transitions.
-pub(crate) fn world_roots(decoded: &Decoded, context_frames: usize, anchor: Anchor) -> Vec<Mat4> {
+/// frame `c` on, chaining the predicted transitions; the clip's roots before it. When the clip
+/// covers frame `c`, its canonical frame there is the anchor, as the reference's (§11 A2);
+/// otherwise the online default: the clip's last canonical frame chained with the predicted
+/// transition into frame `c`.
+pub(crate) fn world_roots(decoded: &Decoded, context_frames: usize, clip: &Clip) -> Vec<Mat4> {
     let (s, f, p, _) = decoded.canonical_root.dim();
     let c = context_frames.min(f - 1);
     let at = |sample: usize, frame: usize, person: usize| (sample * f + frame) * p + person;
     let mut roots = vec![IDENTITY; s * f * p];
-    let clip = match anchor {
-        Anchor::GroundTruth(clip) | Anchor::Online(clip) => clip,
-    };
     for sample in 0..s {
         for person in 0..p {
             for frame in 0..c.min(clip.frames) {
                 roots[at(sample, frame, person)] = clip.world_root[frame * p + person];
             }
-            let mut world = match anchor {
-                Anchor::GroundTruth(clip) => clip.world_canonical[c * p + person],
-                Anchor::Online(clip) => {
-                    let last = clip.world_canonical[(c.min(clip.frames) - 1) * p + person];
-                    let step = decoded.tm1_t.slice(s![sample, c, person, ..]).to_owned();
-                    compose(&last, &from_9d(step.as_slice().expect("contiguous")))
-                }
+            // The last axis of a standard-layout array is contiguous.
+            let nine = |a: &Array4<f32>, frame: usize| {
+                from_9d(
+                    a.slice(s![sample, frame, person, ..])
+                        .as_slice()
+                        .expect("contiguous"),
+                )
             };
-            let local = |frame: usize| {
-                let v = decoded
-                    .canonical_root
-                    .slice(s![sample, frame, person, ..])
-                    .to_owned();
-                from_9d(v.as_slice().expect("contiguous"))
+            let mut world = if clip.frames > c {
+                clip.world_canonical[c * p + person]
+            } else {
+                let last = clip.world_canonical[(clip.frames - 1) * p + person];
+                compose(&last, &nine(&decoded.tm1_t, c))
             };
+            let local = |frame: usize| nine(&decoded.canonical_root, frame);
             roots[at(sample, c, person)] = compose(&world, &local(c));
             for frame in c + 1..f {
-                let step = decoded
-                    .tm1_t
-                    .slice(s![sample, frame, person, ..])
-                    .to_owned();
-                world = compose(&world, &from_9d(step.as_slice().expect("contiguous")));
+                world = compose(&world, &nine(&decoded.tm1_t, frame));
                 roots[at(sample, frame, person)] = compose(&world, &local(frame));
             }
         }
@@ -337,9 +323,12 @@ pub(crate) fn frames_out(decoded: &Decoded, roots: &[Mat4], betas: ArrayView2<f3
                     .assign(&betas.slice(s![person, ..]));
                 let body = decoded.body.slice(s![sample, frame, person, ..]);
                 for j in 0..BODY_JOINTS {
-                    let d6: Vec<f32> = body.slice(s![j * 6..j * 6 + 6]).to_vec();
+                    let d6 = body.slice(s![j * 6..j * 6 + 6]);
                     let mut clean = [0f32; 6];
-                    rotation_to_6d(&rotation_from_6d(&d6), &mut clean);
+                    rotation_to_6d(
+                        &rotation_from_6d(d6.as_slice().expect("contiguous")),
+                        &mut clean,
+                    );
                     let at = FRAME_BODY.start + j * 6;
                     row.slice_mut(s![at..at + 6])
                         .assign(&ndarray::ArrayView1::from(&clean));

@@ -5,6 +5,7 @@ use ndarray::{Array3, Array4, ArrayView3, ArrayView4};
 use tract_onnx::prelude::{IntoTValue, TValue};
 
 use super::layout::{BETAS, DECODER_COND_DIM, ENCODER_COND_DIM, FRAMES_PER_TOKEN, POSE_DIM};
+use super::schedule::Schedule;
 use super::spec::MagnetSpec;
 use crate::shared::bundle::BundleFiles;
 use crate::shared::bundle_io::BundleIo;
@@ -19,12 +20,16 @@ use crate::shared::limits::LIMITS;
 pub(crate) struct Networks {
     pub io: BundleIo,
     pub spec: MagnetSpec,
+    /// The manifest's schedule tables, as the sampler reads them.
+    pub schedule: Schedule,
     denoiser: Graph,
     vq_encoder: Graph,
     vq_decoder: Graph,
     guidance: Graph,
     /// `[code_nb, d_latent]`, row-major.
     codebook: Vec<f32>,
+    /// `‖c‖²` of each codebook row, for [`Networks::snap`].
+    code_norms: Vec<f32>,
 }
 
 impl Networks {
@@ -42,7 +47,18 @@ impl Networks {
         let mut next = || graphs.next().expect("one graph per wanted entry");
         let (denoiser, vq_encoder, vq_decoder, guidance) = (next(), next(), next(), next());
         let codebook = read_codebook(files, &spec)?;
+        let code_norms = codebook
+            .chunks_exact(spec.model.vq.d_latent)
+            .map(|code| code.iter().fold(0f32, |acc, v| acc + v * v))
+            .collect();
+        let s = &spec.schedule;
+        let schedule = Schedule {
+            abar: s.abar.clone(),
+            sqrt_abar: s.sqrt_abar.clone(),
+            sqrt_one_minus_abar: s.sqrt_one_minus_abar.clone(),
+        };
         Ok(Self {
+            schedule,
             io,
             spec,
             denoiser,
@@ -50,6 +66,7 @@ impl Networks {
             vq_decoder,
             guidance,
             codebook,
+            code_norms,
         })
     }
 
@@ -62,13 +79,14 @@ impl Networks {
         let k = ndarray::Array3::from_shape_vec((shape[0], shape[1], shape[2]), k)
             .expect("levels match the window")
             .into_tvalue();
-        let out = self
-            .denoiser
-            .run(vec![x.to_owned().into_dyn().into_tvalue(), k])?;
-        let values = read_f32("denoiser", "x0", &out[0], &shape)?;
-        check_output("denoiser", "x0", values)?;
+        let values = run_checked(
+            &self.denoiser,
+            "x0",
+            vec![x.to_owned().into_dyn().into_tvalue(), k],
+            &shape,
+        )?;
         Ok(
-            Array4::from_shape_vec((shape[0], shape[1], shape[2], shape[3]), values.to_vec())
+            Array4::from_shape_vec((shape[0], shape[1], shape[2], shape[3]), values)
                 .expect("shape checked"),
         )
     }
@@ -83,14 +101,13 @@ impl Networks {
         let (n, t) = (pose.shape()[0], pose.shape()[1]);
         debug_assert_eq!(pose.shape()[2], POSE_DIM);
         debug_assert_eq!(condition.shape()[2], ENCODER_COND_DIM);
-        let out = self.vq_encoder.run(vec![
+        let shape = [n, t / FRAMES_PER_TOKEN, self.spec.model.vq.d_latent];
+        let inputs = vec![
             pose.to_owned().into_dyn().into_tvalue(),
             condition.to_owned().into_dyn().into_tvalue(),
-        ])?;
-        let shape = [n, t / FRAMES_PER_TOKEN, self.spec.model.vq.d_latent];
-        let values = read_f32("vq_encoder", "latents", &out[0], &shape)?;
-        check_output("vq_encoder", "latents", values)?;
-        Ok(Array3::from_shape_vec(shape, values.to_vec()).expect("shape checked"))
+        ];
+        let values = run_checked(&self.vq_encoder, "latents", inputs, &shape)?;
+        Ok(Array3::from_shape_vec(shape, values).expect("shape checked"))
     }
 
     /// The VQ decoder: latents `[N, Z, d_latent]`, condition `[N, Z, 46]` -> `[N, 4Z, 135]`.
@@ -101,14 +118,13 @@ impl Networks {
     ) -> Result<Array3<f32>> {
         let (n, z) = (latents.shape()[0], latents.shape()[1]);
         debug_assert_eq!(condition.shape()[2], DECODER_COND_DIM);
-        let out = self.vq_decoder.run(vec![
+        let shape = [n, z * FRAMES_PER_TOKEN, POSE_DIM];
+        let inputs = vec![
             latents.to_owned().into_dyn().into_tvalue(),
             condition.to_owned().into_dyn().into_tvalue(),
-        ])?;
-        let shape = [n, z * FRAMES_PER_TOKEN, POSE_DIM];
-        let values = read_f32("vq_decoder", "pose", &out[0], &shape)?;
-        check_output("vq_decoder", "pose", values)?;
-        Ok(Array3::from_shape_vec(shape, values.to_vec()).expect("shape checked"))
+        ];
+        let values = run_checked(&self.vq_decoder, "pose", inputs, &shape)?;
+        Ok(Array3::from_shape_vec(shape, values).expect("shape checked"))
     }
 
     /// The x0 corrections' gradient on the latents (§6.4): of `weights[0] * smoothing +
@@ -128,10 +144,8 @@ impl Networks {
             betas.to_owned().into_dyn().into_tvalue(),
             ndarray::arr1(&weights).into_dyn().into_tvalue(),
         ];
-        let out = self.guidance.run(inputs)?;
-        let values = read_f32("guidance", "latent_gradient", &out[0], &shape)?;
-        check_output("guidance", "latent_gradient", values)?;
-        Ok(Array4::from_shape_vec(shape, values.to_vec()).expect("shape checked"))
+        let values = run_checked(&self.guidance, "latent_gradient", inputs, &shape)?;
+        Ok(Array4::from_shape_vec(shape, values).expect("shape checked"))
     }
 
     /// The nearest codebook row of `z` by `‖z‖² − 2 z·c + ‖c‖²`, ties to the first (§1.4).
@@ -139,12 +153,13 @@ impl Networks {
         let d = self.spec.model.vq.d_latent;
         let zz: f32 = z.iter().map(|v| v * v).sum();
         let mut best = (f32::INFINITY, 0);
-        for (i, code) in self.codebook.chunks_exact(d).enumerate() {
-            let (mut dot, mut cc) = (0f32, 0f32);
-            for (a, b) in z.iter().zip(code) {
-                dot += a * b;
-                cc += b * b;
-            }
+        for (i, (code, cc)) in self
+            .codebook
+            .chunks_exact(d)
+            .zip(&self.code_norms)
+            .enumerate()
+        {
+            let dot = z.iter().zip(code).fold(0f32, |acc, (a, b)| acc + a * b);
             let dist = zz - 2.0 * dot + cc;
             if dist < best.0 {
                 best = (dist, i);
@@ -152,6 +167,20 @@ impl Networks {
         }
         out.copy_from_slice(&self.codebook[best.1 * d..(best.1 + 1) * d]);
     }
+}
+
+/// Runs `graph` and returns its first output, named `output` in messages, checked to have
+/// `shape` and finite values.
+fn run_checked(
+    graph: &Graph,
+    output: &str,
+    inputs: Vec<TValue>,
+    shape: &[usize],
+) -> Result<Vec<f32>> {
+    let out = graph.run(inputs)?;
+    let values = read_f32(graph.role(), output, &out[0], shape)?;
+    check_output(graph.role(), output, values)?;
+    Ok(values.to_vec())
 }
 
 /// The codebook file: `code_nb x d_latent` little-endian float32, every value finite.

@@ -350,14 +350,13 @@ pub(crate) fn joint(
     run.start((first.rows() - 1) + n_ar * (later.rows() - 1));
     for r in 0..first.rows() - 1 {
         run.grow(&mut ctx, 0, tc, first.row(r));
-        let protect = ctx.clone();
         run.step(
             &mut x,
             0,
             first.row(r),
             first.row(r + 1),
             tc * p,
-            protect.view(),
+            ctx.view(),
         )?;
     }
     run.smooth(&mut x, 0, 0);
@@ -367,14 +366,13 @@ pub(crate) fn joint(
         ts += run.ar_stride();
         for r in 0..later.rows() - 1 {
             run.grow(&mut ctx, ts, tca, later.row(r));
-            let protect = ctx.clone();
             run.step(
                 &mut x,
                 ts,
                 later.row(r),
                 later.row(r + 1),
                 tca * p,
-                protect.view(),
+                ctx.view(),
             )?;
         }
         run.smooth(&mut x, ts, a);
@@ -409,8 +407,7 @@ pub(crate) fn partner_prediction(run: &mut Run, gt: ArrayView4<f32>) -> Result<A
         for r in 0..m.rows() - 1 {
             run.grow(&mut ctx, ts, tc, m.row(r));
             where_mask(inject.view(), gt_b.view(), &mut x);
-            let protect = ctx.clone();
-            run.step(&mut x, ts, m.row(r), m.row(r + 1), tc * p, protect.view())?;
+            run.step(&mut x, ts, m.row(r), m.row(r + 1), tc * p, ctx.view())?;
             let next = m.row(r + 1);
             for tau in 0..tm {
                 let k_a = next[tau * p];
@@ -460,8 +457,7 @@ pub(crate) fn live_like(run: &mut Run, gt: ArrayView4<f32>, task: Task) -> Resul
         for r in 0..m.rows() - 1 {
             run.grow(&mut ctx, ts, tc, m.row(r));
             where_mask(inject.view(), gt_b.view(), &mut x);
-            let protect = ctx.clone();
-            run.step(&mut x, ts, m.row(r), m.row(r + 1), tc * p, protect.view())?;
+            run.step(&mut x, ts, m.row(r), m.row(r + 1), tc * p, ctx.view())?;
             where_mask(inject.view(), gt_b.view(), &mut x);
         }
         run.smooth(&mut x, ts, c);
@@ -552,8 +548,7 @@ pub(crate) fn two_worlds(
                     }
                 }
                 let mut scratch = xb.clone();
-                let protect = ctx_b.clone();
-                run.step(&mut scratch, ts, k, kn, tcc * p, protect.view())?; // the discarded third call
+                run.step(&mut scratch, ts, k, kn, tcc * p, ctx_b.view())?; // the discarded third call
                 continue;
             }
             run.step(&mut xa, ts, k, kn, tcc * p, m_new.view())?;
@@ -575,8 +570,7 @@ pub(crate) fn two_worlds(
                 kb[ptr] = CLEAN;
                 knb[ptr] = CLEAN;
             }
-            let protect = ctx_b.clone();
-            run.step(&mut xb, ts, &kb, &knb, tcc * p, protect.view())?;
+            run.step(&mut xb, ts, &kb, &knb, tcc * p, ctx_b.view())?;
             run.grow(&mut ctx_b, ts, tcc, k);
             let (tt, pp) = flat(s0 + ptr + 1);
             let v = xb.slice(s![.., tt, pp, ..]).to_owned();

@@ -104,30 +104,23 @@ def graph_specs(cfg: MagnetConfig) -> dict:
     }
 
 
-class _Encoder(torch.nn.Module):
-    def __init__(self, model: Magnet):
+class _VqCall(torch.nn.Module):
+    """One method of the pose VQ-VAE as a graph (`encode_continuous` or `decode`)."""
+
+    def __init__(self, model: Magnet, method: str):
         super().__init__()
-        self.vq = model.vqvae
+        self.vq, self.method = model.vqvae, method
 
-    def forward(self, pose, condition):
-        return self.vq.encode_continuous(pose, condition)
-
-
-class _Decoder(torch.nn.Module):
-    def __init__(self, model: Magnet):
-        super().__init__()
-        self.vq = model.vqvae
-
-    def forward(self, latents, condition):
-        return self.vq.decode(latents, condition)
+    def forward(self, tokens, condition):
+        return getattr(self.vq, self.method)(tokens, condition)
 
 
 def graph_modules(model: Magnet) -> dict:
     lat = model.cfg.vq.d_latent
     return {
         "denoiser": model.denoiser,
-        "vq_encoder": _Encoder(model),
-        "vq_decoder": _Decoder(model),
+        "vq_encoder": _VqCall(model, "encode_continuous"),
+        "vq_decoder": _VqCall(model, "decode"),
         "guidance": DecoderVjp(model.vqvae.decoder, lat),
     }
 
