@@ -133,12 +133,6 @@
 #define TROUPE_UNITS_AUTO 4294967295
 
 /*
- ABI version of this library. Bumped on every incompatible change of the C ABI; bindings
- check `troupe_abi_version() == TROUPE_ABI_VERSION` when they load the library.
- */
-#define TROUPE_ABI_VERSION 1
-
-/*
  Actor tokens are the VAE posterior sample `(mean + std * noise) * scale` (the official choice).
  */
 #define TROUPE_ACTOR_LATENT_SAMPLE 0
@@ -147,6 +141,12 @@
  Actor tokens are the posterior mean: no actor noise is drawn.
  */
 #define TROUPE_ACTOR_LATENT_MEAN 1
+
+/*
+ ABI version of this library. Bumped on every incompatible change of the C ABI; bindings
+ check `troupe_abi_version() == TROUPE_ABI_VERSION` when they load the library.
+ */
+#define TROUPE_ABI_VERSION 1
 
 /*
  `troupe_magnet_options.flags`: use `seed` instead of the configuration's.
@@ -243,6 +243,17 @@
  Floats per person and frame: betas, the body joints' 6-D rotations, the root in the world.
  */
 #define FRAME_DIM ((BETAS + (BODY_JOINTS * 6)) + TRANSFORM)
+
+/*
+ Tokens of the user's past frames the encoder sees before a window (its receptive field
+ reaches about 21 tokens back).
+ */
+#define ENCODER_CONTEXT_TOKENS 24
+
+/*
+ Tokens already sent that the decoder sees before the tokens it decodes (about 22 reach).
+ */
+#define DECODER_CONTEXT_TOKENS 24
 
 /*
  The level of a clean token.
@@ -498,6 +509,43 @@ typedef struct troupe_pose_buffers {
 typedef int32_t (*troupe_progress_fn)(void *user_data, uint64_t done, uint64_t total);
 
 /*
+ Options of a new session. Fill with `troupe_session_options_init`, then change fields.
+ Fields are only ever appended; `struct_size` tells the library which version the caller has.
+ */
+typedef struct troupe_session_options {
+  /*
+   `sizeof(troupe_session_options)` as the caller compiled it (set by `_init`).
+   */
+  uint32_t struct_size;
+  /*
+   Sampler steps, >= 1: MeanFlow steps per token (armflow), DDIM steps per chunk (magnet).
+   */
+  uint32_t steps;
+  /*
+   Seed of the portable noise generator: equal seeds give bit-identical motion everywhere.
+   */
+  uint64_t seed;
+  /*
+   Classifier-free guidance scale, finite; 1 disables guidance (a magnet session takes 1).
+   */
+  float cfg_scale;
+  /*
+   armflow: tokens kept in the context cache, `<sos>` included, >= 2; older ones slide out.
+   magnet: context tokens per window (1 to window - 1; the window advances by the rest).
+   */
+  uint32_t context_capacity;
+  /*
+   `TROUPE_ACTOR_LATENT_SAMPLE` or `TROUPE_ACTOR_LATENT_MEAN` (armflow; a magnet session
+   takes `_SAMPLE`, which it ignores).
+   */
+  int32_t actor_latent;
+  /*
+   Must be 0.
+   */
+  uint32_t reserved;
+} troupe_session_options;
+
+/*
  The random draws of one clip, given instead of seeded. Arrays are row-major float32, each
  borrowed for the call; lengths are in floats.
  */
@@ -519,41 +567,6 @@ typedef struct troupe_clip_noise {
    */
   size_t reactor_noise_len;
 } troupe_clip_noise;
-
-/*
- Options of a new session. Fill with `troupe_session_options_init`, then change fields.
- Fields are only ever appended; `struct_size` tells the library which version the caller has.
- */
-typedef struct troupe_session_options {
-  /*
-   `sizeof(troupe_session_options)` as the caller compiled it (set by `_init`).
-   */
-  uint32_t struct_size;
-  /*
-   MeanFlow steps per token, >= 1.
-   */
-  uint32_t steps;
-  /*
-   Seed of the portable noise generator: equal seeds give bit-identical motion everywhere.
-   */
-  uint64_t seed;
-  /*
-   Classifier-free guidance scale, finite; 1 disables guidance.
-   */
-  float cfg_scale;
-  /*
-   Tokens kept in the context cache, `<sos>` included, >= 2; older ones slide out.
-   */
-  uint32_t context_capacity;
-  /*
-   `TROUPE_ACTOR_LATENT_SAMPLE` or `TROUPE_ACTOR_LATENT_MEAN`.
-   */
-  int32_t actor_latent;
-  /*
-   Must be 0.
-   */
-  uint32_t reserved;
-} troupe_session_options;
 
 /*
  Changes to a released configuration for one `troupe_magnet_generate` call. Fill with
@@ -1263,6 +1276,282 @@ troupe_status troupe_motion_write_json(const char *path, const float *positions,
 void troupe_set_progress_callback(troupe_progress_fn callback, void *user_data);
 
 /*
+ `sizeof(troupe_session_options)` in this library, for bindings to check their mirror.
+ */
+size_t troupe_session_options_size(void);
+
+/*
+ Fills `options` with the defaults of `model`'s bundle (sampler steps, CFG scale, context
+ capacity, actor latent) and seed 0, and sets `struct_size`. Pass
+ `sizeof(troupe_session_options)` as `options_size`: the library writes only that many bytes
+ (zeroing fields it does not know), so callers built against an older or newer header are safe.
+
+ Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, or `TROUPE_ERR_INVALID_ARG` when `options_size`
+ is smaller than the first version of the struct. Thread-safe.
+
+ ```c
+ troupe_session_options opt;
+ troupe_session_options_init(model, &opt, sizeof opt);
+ ```
+
+ # Safety
+ `model` must be a live handle; `options` must be writable for `options_size` bytes.
+ */
+troupe_status troupe_session_options_init(const struct troupe_model *model, struct troupe_session_options *options, size_t options_size);
+
+/*
+ Starts a stream on `model` with `options` (NULL: the bundle's defaults). On an `armflow`
+ model the session answers an actor with the reactor, starting with the null condition (set
+ one with `troupe_session_set_condition`). On a two-person `magnet` model it answers a user
+ with the live partner (its `motion_control_live` configuration); give the partner's opening
+ frames with `troupe_session_set_partner_opening` before the first step.
+
+ On success `*out` receives a new handle owned by the caller (free with
+ `troupe_session_free`); it keeps `model` alive. On failure `*out` is set to NULL.
+
+ Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (bad option values or
+ `struct_size`), `TROUPE_ERR_INFERENCE`, `TROUPE_ERR_PANIC`. Thread-safe with respect to
+ `model`: sessions may be created from many threads at once.
+
+ ```c
+ troupe_session_options opt;
+ troupe_session_options_init(model, &opt, sizeof opt);
+ opt.seed = 42;
+ troupe_session *session = NULL;
+ troupe_status st = troupe_session_new(model, &opt, &session);
+ ```
+
+ # Safety
+ `model` must be a live handle; `options` NULL or readable for its `struct_size`; `out`
+ writable.
+ */
+troupe_status troupe_session_new(const struct troupe_model *model, const struct troupe_session_options *options, struct troupe_session **out);
+
+/*
+ Frees a session. NULL is a no-op. The handle must not be used afterwards. A session that
+ another thread is using at that moment is not freed (that would free memory in use): the
+ call logs an error and leaks it.
+
+ # Safety
+ `session` must be NULL or a handle from `troupe_session_new` not freed before.
+ */
+void troupe_session_free(struct troupe_session *session);
+
+/*
+ Feeds `n_actor_frames` actor frames (`actor`: row-major float32
+ `[n_actor_frames][frame_dim]`, borrowed for the call; may be NULL when `n_actor_frames` is 0)
+ and writes the reactor frames that became ready into `out` (capacity `out_capacity_frames`
+ frames of `frame_dim` floats), their count into `*n_written`. Any number of frames may be
+ fed per call; reactor frames come in multiples of `troupe_model_frames_per_token`.
+ `troupe_model_max_output_frames(model, n)` frames always suffice, and
+ `troupe_session_output_frames` gives the exact count. No allocation is handed to the caller.
+
+ On any error nothing is written and the session is exactly as before the call, except after
+ `TROUPE_ERR_PANIC`, which poisons it.
+
+ Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (a NaN or infinite
+ value; the message gives its index), `TROUPE_ERR_BUFFER_TOO_SMALL` (the message says how many
+ frames are needed), `TROUPE_ERR_INFERENCE`, `TROUPE_ERR_POISONED`, `TROUPE_ERR_PANIC`. One
+ thread at a time per session.
+
+ ```c
+ float reactor[4 * 262];
+ size_t n = 0;
+ troupe_status st = troupe_session_step(session, frame, 1, reactor, 4, &n);
+ ```
+
+ # Safety
+ `session` must be a live handle; `actor` readable for `n_actor_frames * frame_dim` floats;
+ `out` writable for `out_capacity_frames * frame_dim` floats and not overlapping `actor`;
+ `n_written` writable.
+ */
+troupe_status troupe_session_step(struct troupe_session *session, const float *actor, size_t n_actor_frames, float *out, size_t out_capacity_frames, size_t *n_written);
+
+/*
+ Advances `n_sessions` sessions of one model in one call, reading the model's weights once
+ per token for all of them rather than once per session: the way to run a crowd. For each
+ `i < n_sessions`, `actor[i]` holds `n_actor_frames[i]` frames for `sessions[i]` (row-major
+ float32, borrowed; may be NULL when the count is 0), and the reactor frames that became ready
+ go to `out[i]` (capacity `out_capacity_frames[i]` frames; may be NULL when none are ready),
+ their count to `n_written[i]`. Each session's result equals what `troupe_session_step` gives
+ it alone, up to float rounding (1e-5). Sessions may differ in every option and in how many
+ frames they are given (0 included), but must share one model and appear once each.
+
+ On any error nothing is written and every session is exactly as before the call, except after
+ `TROUPE_ERR_PANIC`, which poisons every session of the call. Messages name the session index.
+
+ Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (a session listed twice,
+ sessions of different models, a NaN or infinite value), `TROUPE_ERR_BUFFER_TOO_SMALL`,
+ `TROUPE_ERR_INFERENCE`, `TROUPE_ERR_POISONED`, `TROUPE_ERR_PANIC`. The sessions must not be
+ used by another thread during the call; the arrays are borrowed for the call.
+
+ ```c
+ troupe_session *crowd[64]; const float *in[64]; size_t n_in[64];
+ float *out[64]; size_t cap[64], n_out[64];
+ troupe_status st = troupe_sessions_step(crowd, 64, in, n_in, out, cap, n_out);
+ ```
+
+ # Safety
+ Each array must be readable (`n_written` writable) for `n_sessions` entries (any may be NULL
+ when `n_sessions` is 0); `sessions[i]` live handles; `actor[i]` readable for
+ `n_actor_frames[i] * frame_dim` floats; `out[i]` writable for `out_capacity_frames[i] *
+ frame_dim` floats, overlapping no other buffer of the call.
+ */
+troupe_status troupe_sessions_step(struct troupe_session *const *sessions, size_t n_sessions, const float *const *actor, const size_t *n_actor_frames, float *const *out, const size_t *out_capacity_frames, size_t *n_written);
+
+/*
+ Writes to `*n_frames` exactly how many reactor frames a `troupe_session_step` with
+ `n_actor_frames` frames would return now.
+
+ Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_POISONED`, `TROUPE_ERR_PANIC`. One
+ thread at a time per session.
+
+ # Safety
+ `session` must be a live handle; `n_frames` writable.
+ */
+troupe_status troupe_session_output_frames(struct troupe_session *session, size_t n_actor_frames, size_t *n_frames);
+
+/*
+ Makes the session equal to a fresh one with its current settings (seed, steps, CFG,
+ condition, capacity); queued noise is dropped. Clears the poison left by a panic.
+
+ Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_PANIC`. One thread at a time per
+ session.
+
+ # Safety
+ `session` must be NULL or a live handle.
+ */
+troupe_status troupe_session_reset(struct troupe_session *session);
+
+/*
+ Sets the noise seed for tokens generated from now on.
+
+ Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_POISONED`, `TROUPE_ERR_PANIC`. One
+ thread at a time per session.
+
+ # Safety
+ `session` must be NULL or a live handle.
+ */
+troupe_status troupe_session_set_seed(struct troupe_session *session, uint64_t seed);
+
+/*
+ Sets the sampler's steps (>= 1): MeanFlow steps per token (armflow), DDIM steps per chunk
+ (a magnet live partner), for what is generated from now on.
+
+ Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (0 steps),
+ `TROUPE_ERR_POISONED`, `TROUPE_ERR_PANIC`. One thread at a time per session.
+
+ # Safety
+ `session` must be NULL or a live handle.
+ */
+troupe_status troupe_session_set_steps(struct troupe_session *session, uint32_t steps);
+
+/*
+ Sets the classifier-free guidance scale (finite; 1 disables it) for tokens generated from
+ now on. The null branch zeroes the actor token and the context.
+
+ Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (NaN or infinite),
+ `TROUPE_ERR_POISONED`, `TROUPE_ERR_PANIC`. One thread at a time per session.
+
+ # Safety
+ `session` must be NULL or a live handle.
+ */
+troupe_status troupe_session_set_cfg_scale(struct troupe_session *session, float scale);
+
+/*
+ Sets the conditioning vector (`len` must equal `troupe_model_condition_dim`; borrowed for the
+ call) for tokens generated from now on. `condition` NULL with `len` 0 selects the null
+ condition (zeros).
+
+ Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_SHAPE` (wrong `len`),
+ `TROUPE_ERR_INVALID_ARG` (NaN or infinite value), `TROUPE_ERR_INFERENCE`,
+ `TROUPE_ERR_POISONED`, `TROUPE_ERR_PANIC`. One thread at a time per session.
+
+ # Safety
+ `session` must be a live handle; `condition` readable for `len` floats.
+ */
+troupe_status troupe_session_set_condition(struct troupe_session *session, const float *condition, size_t len);
+
+/*
+ Conditions the tokens generated from now on on a text prompt (a NUL-terminated UTF-8
+ string, borrowed for the call): the condition `troupe_text_prompt_encode` gives, for bundles
+ with `troupe_model_takes_prompts`. The model caches the last 64 prompts it encoded.
+
+ Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (a bundle that takes no
+ prompts, text that is not UTF-8 or longer than 64 KiB), `TROUPE_ERR_INFERENCE`,
+ `TROUPE_ERR_POISONED`, `TROUPE_ERR_BUSY`, `TROUPE_ERR_PANIC`. One thread at a time per
+ session.
+
+ # Safety
+ `session` must be a live handle; `prompt` NUL-terminated and readable for the call.
+ */
+troupe_status troupe_session_set_prompt(struct troupe_session *session, const char *prompt);
+
+/*
+ Sets the partner's opening frames of a MAGNet live partner session: `n_frames` frames
+ (the configuration's context, `4 * context_capacity`) of `troupe_model_frame_dim` floats,
+ row-major, borrowed for the call; kept across resets. A stream needs them before the user's
+ first frame. Only before the first step or after `troupe_session_reset`.
+
+ Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (an ARMFlow session, the
+ wrong number of frames, a NaN or infinite value, a stream already started),
+ `TROUPE_ERR_POISONED`, `TROUPE_ERR_PANIC`. One thread at a time per session.
+
+ ```c
+ troupe_session_set_partner_opening(session, partner_frames, 32);
+ ```
+
+ # Safety
+ `session` must be a live handle; `frames` readable for `n_frames * 145` floats.
+ */
+troupe_status troupe_session_set_partner_opening(struct troupe_session *session, const float *frames, size_t n_frames);
+
+/*
+ Makes a MAGNet live partner session send each chunk's frames as soon as they are generated
+ (`early` nonzero: `4 * (window - context)` frames less latency; the next chunk's smoothing no
+ longer reaches them) or once final (0, the default). Only before the first step or after
+ `troupe_session_reset`.
+
+ Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (an ARMFlow session, a
+ stream already started), `TROUPE_ERR_POISONED`, `TROUPE_ERR_PANIC`. One thread at a time per
+ session.
+
+ # Safety
+ `session` must be NULL or a live handle.
+ */
+troupe_status troupe_session_set_early_emission(struct troupe_session *session, int32_t early);
+
+/*
+ Makes a MAGNet live partner session run the sampling configuration `config` (a
+ NUL-terminated name from `troupe_model_magnet_config`, or a whole configuration as JSON;
+ borrowed for the call), for instance one with the x0 guidance off. Only before the first
+ step or after `troupe_session_reset`; set opening frames after it when its context differs.
+
+ Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (an ARMFlow session, an
+ unknown name, bad JSON, a configuration that is not `motion_control_live`, a stream already
+ started), `TROUPE_ERR_POISONED`, `TROUPE_ERR_PANIC`. One thread at a time per session.
+
+ # Safety
+ `session` must be a live handle; `config` a NUL-terminated string.
+ */
+troupe_status troupe_session_set_live_config(struct troupe_session *session, const char *config);
+
+/*
+ Queues the noise of the next token not yet generated, to reproduce a run exactly:
+ `actor_noise` (the posterior sample's standard normals) and `reactor_noise` (the starting
+ noise), `len` floats each (`troupe_model_latent_dim`), borrowed for the call. Queued noise is
+ used in order before the seeded generator; `troupe_session_reset` drops it.
+
+ Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_SHAPE`, `TROUPE_ERR_INVALID_ARG`
+ (non-finite value), `TROUPE_ERR_POISONED`, `TROUPE_ERR_PANIC`. One thread at a time per
+ session.
+
+ # Safety
+ `session` must be a live handle; both noise pointers readable for `len` floats.
+ */
+troupe_status troupe_session_queue_noise(struct troupe_session *session, const float *actor_noise, const float *reactor_noise, size_t len);
+
+/*
  1 if the bundle turns text prompts into conditions (`troupe_text_prompt_encode`): it carries
  CLIP's text tower, its tokenizer and a text branch; 0 otherwise or for NULL. Thread-safe.
 
@@ -1497,229 +1786,6 @@ troupe_status troupe_session_joints_placement(struct troupe_session *session, st
  the one frame velocities and contacts wait for; 0 for NULL or a `umf` model. Thread-safe.
  */
 size_t troupe_model_joints_latency_frames(const struct troupe_model *model);
-
-/*
- `sizeof(troupe_session_options)` in this library, for bindings to check their mirror.
- */
-size_t troupe_session_options_size(void);
-
-/*
- Fills `options` with the defaults of `model`'s bundle (sampler steps, CFG scale, context
- capacity, actor latent) and seed 0, and sets `struct_size`. Pass
- `sizeof(troupe_session_options)` as `options_size`: the library writes only that many bytes
- (zeroing fields it does not know), so callers built against an older or newer header are safe.
-
- Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, or `TROUPE_ERR_INVALID_ARG` when `options_size`
- is smaller than the first version of the struct. Thread-safe.
-
- ```c
- troupe_session_options opt;
- troupe_session_options_init(model, &opt, sizeof opt);
- ```
-
- # Safety
- `model` must be a live handle; `options` must be writable for `options_size` bytes.
- */
-troupe_status troupe_session_options_init(const struct troupe_model *model, struct troupe_session_options *options, size_t options_size);
-
-/*
- Starts a stream on `model` with `options` (NULL: the bundle's defaults). The session starts
- with the null condition; set one with `troupe_session_set_condition`.
-
- On success `*out` receives a new handle owned by the caller (free with
- `troupe_session_free`); it keeps `model` alive. On failure `*out` is set to NULL.
-
- Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (bad option values or
- `struct_size`), `TROUPE_ERR_INFERENCE`, `TROUPE_ERR_PANIC`. Thread-safe with respect to
- `model`: sessions may be created from many threads at once.
-
- ```c
- troupe_session_options opt;
- troupe_session_options_init(model, &opt, sizeof opt);
- opt.seed = 42;
- troupe_session *session = NULL;
- troupe_status st = troupe_session_new(model, &opt, &session);
- ```
-
- # Safety
- `model` must be a live handle; `options` NULL or readable for its `struct_size`; `out`
- writable.
- */
-troupe_status troupe_session_new(const struct troupe_model *model, const struct troupe_session_options *options, struct troupe_session **out);
-
-/*
- Frees a session. NULL is a no-op. The handle must not be used afterwards. A session that
- another thread is using at that moment is not freed (that would free memory in use): the
- call logs an error and leaks it.
-
- # Safety
- `session` must be NULL or a handle from `troupe_session_new` not freed before.
- */
-void troupe_session_free(struct troupe_session *session);
-
-/*
- Feeds `n_actor_frames` actor frames (`actor`: row-major float32
- `[n_actor_frames][frame_dim]`, borrowed for the call; may be NULL when `n_actor_frames` is 0)
- and writes the reactor frames that became ready into `out` (capacity `out_capacity_frames`
- frames of `frame_dim` floats), their count into `*n_written`. Any number of frames may be
- fed per call; reactor frames come in multiples of `troupe_model_frames_per_token`.
- `troupe_model_max_output_frames(model, n)` frames always suffice, and
- `troupe_session_output_frames` gives the exact count. No allocation is handed to the caller.
-
- On any error nothing is written and the session is exactly as before the call, except after
- `TROUPE_ERR_PANIC`, which poisons it.
-
- Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (a NaN or infinite
- value; the message gives its index), `TROUPE_ERR_BUFFER_TOO_SMALL` (the message says how many
- frames are needed), `TROUPE_ERR_INFERENCE`, `TROUPE_ERR_POISONED`, `TROUPE_ERR_PANIC`. One
- thread at a time per session.
-
- ```c
- float reactor[4 * 262];
- size_t n = 0;
- troupe_status st = troupe_session_step(session, frame, 1, reactor, 4, &n);
- ```
-
- # Safety
- `session` must be a live handle; `actor` readable for `n_actor_frames * frame_dim` floats;
- `out` writable for `out_capacity_frames * frame_dim` floats and not overlapping `actor`;
- `n_written` writable.
- */
-troupe_status troupe_session_step(struct troupe_session *session, const float *actor, size_t n_actor_frames, float *out, size_t out_capacity_frames, size_t *n_written);
-
-/*
- Advances `n_sessions` sessions of one model in one call, reading the model's weights once
- per token for all of them rather than once per session: the way to run a crowd. For each
- `i < n_sessions`, `actor[i]` holds `n_actor_frames[i]` frames for `sessions[i]` (row-major
- float32, borrowed; may be NULL when the count is 0), and the reactor frames that became ready
- go to `out[i]` (capacity `out_capacity_frames[i]` frames; may be NULL when none are ready),
- their count to `n_written[i]`. Each session's result equals what `troupe_session_step` gives
- it alone, up to float rounding (1e-5). Sessions may differ in every option and in how many
- frames they are given (0 included), but must share one model and appear once each.
-
- On any error nothing is written and every session is exactly as before the call, except after
- `TROUPE_ERR_PANIC`, which poisons every session of the call. Messages name the session index.
-
- Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (a session listed twice,
- sessions of different models, a NaN or infinite value), `TROUPE_ERR_BUFFER_TOO_SMALL`,
- `TROUPE_ERR_INFERENCE`, `TROUPE_ERR_POISONED`, `TROUPE_ERR_PANIC`. The sessions must not be
- used by another thread during the call; the arrays are borrowed for the call.
-
- ```c
- troupe_session *crowd[64]; const float *in[64]; size_t n_in[64];
- float *out[64]; size_t cap[64], n_out[64];
- troupe_status st = troupe_sessions_step(crowd, 64, in, n_in, out, cap, n_out);
- ```
-
- # Safety
- Each array must be readable (`n_written` writable) for `n_sessions` entries (any may be NULL
- when `n_sessions` is 0); `sessions[i]` live handles; `actor[i]` readable for
- `n_actor_frames[i] * frame_dim` floats; `out[i]` writable for `out_capacity_frames[i] *
- frame_dim` floats, overlapping no other buffer of the call.
- */
-troupe_status troupe_sessions_step(struct troupe_session *const *sessions, size_t n_sessions, const float *const *actor, const size_t *n_actor_frames, float *const *out, const size_t *out_capacity_frames, size_t *n_written);
-
-/*
- Writes to `*n_frames` exactly how many reactor frames a `troupe_session_step` with
- `n_actor_frames` frames would return now.
-
- Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_POISONED`, `TROUPE_ERR_PANIC`. One
- thread at a time per session.
-
- # Safety
- `session` must be a live handle; `n_frames` writable.
- */
-troupe_status troupe_session_output_frames(struct troupe_session *session, size_t n_actor_frames, size_t *n_frames);
-
-/*
- Makes the session equal to a fresh one with its current settings (seed, steps, CFG,
- condition, capacity); queued noise is dropped. Clears the poison left by a panic.
-
- Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_PANIC`. One thread at a time per
- session.
-
- # Safety
- `session` must be NULL or a live handle.
- */
-troupe_status troupe_session_reset(struct troupe_session *session);
-
-/*
- Sets the noise seed for tokens generated from now on.
-
- Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_POISONED`, `TROUPE_ERR_PANIC`. One
- thread at a time per session.
-
- # Safety
- `session` must be NULL or a live handle.
- */
-troupe_status troupe_session_set_seed(struct troupe_session *session, uint64_t seed);
-
-/*
- Sets the MeanFlow steps per token (>= 1) for tokens generated from now on.
-
- Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (0 steps),
- `TROUPE_ERR_POISONED`, `TROUPE_ERR_PANIC`. One thread at a time per session.
-
- # Safety
- `session` must be NULL or a live handle.
- */
-troupe_status troupe_session_set_steps(struct troupe_session *session, uint32_t steps);
-
-/*
- Sets the classifier-free guidance scale (finite; 1 disables it) for tokens generated from
- now on. The null branch zeroes the actor token and the context.
-
- Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (NaN or infinite),
- `TROUPE_ERR_POISONED`, `TROUPE_ERR_PANIC`. One thread at a time per session.
-
- # Safety
- `session` must be NULL or a live handle.
- */
-troupe_status troupe_session_set_cfg_scale(struct troupe_session *session, float scale);
-
-/*
- Sets the conditioning vector (`len` must equal `troupe_model_condition_dim`; borrowed for the
- call) for tokens generated from now on. `condition` NULL with `len` 0 selects the null
- condition (zeros).
-
- Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_SHAPE` (wrong `len`),
- `TROUPE_ERR_INVALID_ARG` (NaN or infinite value), `TROUPE_ERR_INFERENCE`,
- `TROUPE_ERR_POISONED`, `TROUPE_ERR_PANIC`. One thread at a time per session.
-
- # Safety
- `session` must be a live handle; `condition` readable for `len` floats.
- */
-troupe_status troupe_session_set_condition(struct troupe_session *session, const float *condition, size_t len);
-
-/*
- Conditions the tokens generated from now on on a text prompt (a NUL-terminated UTF-8
- string, borrowed for the call): the condition `troupe_text_prompt_encode` gives, for bundles
- with `troupe_model_takes_prompts`. The model caches the last 64 prompts it encoded.
-
- Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (a bundle that takes no
- prompts, text that is not UTF-8 or longer than 64 KiB), `TROUPE_ERR_INFERENCE`,
- `TROUPE_ERR_POISONED`, `TROUPE_ERR_BUSY`, `TROUPE_ERR_PANIC`. One thread at a time per
- session.
-
- # Safety
- `session` must be a live handle; `prompt` NUL-terminated and readable for the call.
- */
-troupe_status troupe_session_set_prompt(struct troupe_session *session, const char *prompt);
-
-/*
- Queues the noise of the next token not yet generated, to reproduce a run exactly:
- `actor_noise` (the posterior sample's standard normals) and `reactor_noise` (the starting
- noise), `len` floats each (`troupe_model_latent_dim`), borrowed for the call. Queued noise is
- used in order before the seeded generator; `troupe_session_reset` drops it.
-
- Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_SHAPE`, `TROUPE_ERR_INVALID_ARG`
- (non-finite value), `TROUPE_ERR_POISONED`, `TROUPE_ERR_PANIC`. One thread at a time per
- session.
-
- # Safety
- `session` must be a live handle; both noise pointers readable for `len` floats.
- */
-troupe_status troupe_session_queue_noise(struct troupe_session *session, const float *actor_noise, const float *reactor_noise, size_t len);
 
 /*
  `sizeof(troupe_magnet_options)` in this library, for bindings to check their mirror.

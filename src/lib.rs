@@ -41,6 +41,7 @@ pub mod magnet;
 pub mod manifest;
 mod model;
 pub mod motion;
+mod session;
 pub(crate) mod shared;
 pub mod umf;
 pub mod viewer;
@@ -49,12 +50,12 @@ pub mod viewer;
 // folders (`troupe::noise::fill_normals`, ...).
 pub use armflow::clip;
 pub use armflow::{
-    meanflow_grid, step_sessions, step_sessions_joints, Clip, ClipNoise, ClipOptions, Session,
-    SessionOptions, StepOutput, TokenNoise, TokenTrace,
+    meanflow_grid, Clip, ClipNoise, ClipOptions, StepOutput, TokenNoise, TokenTrace,
 };
 pub use magnet::{MagnetOptions, MagnetOutput};
 pub use manifest::{ActorLatent, ConditionLabel, Manifest, Weights};
 pub use model::Model;
+pub use session::{step_sessions, step_sessions_joints, Session, SessionOptions};
 pub use shared::error::{Error, Result};
 pub use shared::limits::{Limits, LIMITS};
 pub use shared::noise;

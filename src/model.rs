@@ -9,11 +9,13 @@ use std::sync::Arc;
 
 use ndarray::ArrayView2;
 
-use crate::armflow::{self, Clip, ClipOptions, Session, SessionOptions};
+use crate::armflow::{self, Clip, ClipOptions};
+use crate::magnet::live::LiveSession;
 use crate::magnet::{self, MagnetOptions, MagnetOutput};
 use crate::manifest::{
     ArmFlowSpec, ClipSpec, ConditionLabel, Family, MagnetSpec, Manifest, UmfSpec,
 };
+use crate::session::{Session, SessionOptions};
 use crate::shared::bundle::BundleFiles;
 use crate::shared::error::{Error, Result};
 use crate::shared::text::branch::TextBranch;
@@ -111,10 +113,14 @@ impl Model {
         self.inner.manifest.motion.fps
     }
 
-    /// Motion frames per latent token (4 for ARMFlow); 0 for a `umf` model, whose tokens are
-    /// global queries rather than spans of frames.
+    /// Motion frames per latent token (4 for ARMFlow and MAGNet); 0 for a `umf` model, whose
+    /// tokens are global queries rather than spans of frames.
     pub fn frames_per_token(&self) -> usize {
-        self.armflow_spec().map_or(0, |a| a.latent.frames_per_token)
+        match &self.inner.manifest.family {
+            Family::Armflow(a) => a.latent.frames_per_token,
+            Family::Umf(_) => 0,
+            Family::Magnet(_) => crate::magnet::layout::FRAMES_PER_TOKEN,
+        }
     }
 
     /// Floats per latent token of one person.
@@ -169,12 +175,18 @@ impl Model {
     /// Algorithmic latency in frames: how many actor frames after frame `t` arrive before the
     /// reactor's frame `t` is returned, at worst. For a streaming VAE this is
     /// `frames_per_token - 1`: the first frame of a token waits for the token's last frame.
-    /// 0 for a `umf` model, which does not stream.
+    /// For a `magnet` model, the live partner's with the default (final) emission: a window of
+    /// user frames, `4 Tm - 1` (a session's own [`Session::latency_frames`] follows its
+    /// options). 0 for a `umf` model, which does not stream.
     ///
     /// Actor *joint positions* add [`crate::motion::STREAM_LATENCY_FRAMES`] (one frame, for the
     /// velocities): see [`Model::joints_latency_frames`].
     pub fn latency_frames(&self) -> usize {
-        self.armflow_spec().map_or(0, ArmFlowSpec::latency_frames)
+        match &self.inner.manifest.family {
+            Family::Armflow(a) => a.latency_frames(),
+            Family::Umf(_) => 0,
+            Family::Magnet(m) => m.model.window * crate::magnet::layout::FRAMES_PER_TOKEN - 1,
+        }
     }
 
     /// Latency in frames when the actor streams joint positions ([`Session::step_joints`]):
@@ -186,13 +198,18 @@ impl Model {
         })
     }
 
-    /// The most reactor frames one `step` with `n_actor_frames` new frames can return, whatever
-    /// the session's state: `ceil(n / frames_per_token) * frames_per_token`. 0 for a `umf`
-    /// model.
+    /// The most frames one `step` with `n_actor_frames` new frames can return, whatever the
+    /// session's state: `ceil(n / frames_per_token) * frames_per_token` for ARMFlow; for a
+    /// MAGNet live partner `n` plus the frames a stream may hold back, under one window
+    /// (`4 Tm`). 0 for a `umf` model.
     pub fn max_output_frames(&self, n_actor_frames: usize) -> usize {
-        match self.frames_per_token() {
-            0 => 0,
-            fpt => n_actor_frames.div_ceil(fpt).saturating_mul(fpt),
+        match &self.inner.manifest.family {
+            Family::Magnet(m) => n_actor_frames
+                .saturating_add(m.model.window * crate::magnet::layout::FRAMES_PER_TOKEN),
+            _ => match self.frames_per_token() {
+                0 => 0,
+                fpt => n_actor_frames.div_ceil(fpt).saturating_mul(fpt),
+            },
         }
     }
 
@@ -228,6 +245,12 @@ impl Model {
             Family::Magnet(spec) => Some(spec),
             Family::Armflow(_) | Family::Umf(_) => None,
         }
+    }
+
+    /// The sampling configuration a default live partner session of this `magnet` model runs.
+    pub fn magnet_live_configuration(&self) -> Result<crate::magnet::spec::SamplingSpec> {
+        let nets = self.magnet("a live partner session")?;
+        Ok(crate::session::partner_settings(nets, &SessionOptions::default())?.sampling)
     }
 
     /// Runs the MAGNet sampling configuration `config` (one of the bundle's released ones, by
@@ -343,11 +366,28 @@ impl Model {
 
     // ---- armflow ------------------------------------------------------------------------------
 
-    /// Starts a stream. Options left unset take the bundle's defaults. Fails unless the bundle
-    /// is an `armflow` model.
+    /// Starts a stream. Options left unset take the bundle's defaults. An `armflow` model
+    /// streams the reactor to an actor; a `magnet` model the live partner to a user (its
+    /// `motion_control_live` configuration). Fails for other families.
     pub fn session(&self, options: SessionOptions) -> Result<Session> {
-        let nets = self.armflow("a streaming session")?;
-        Session::new(Arc::clone(nets), options)
+        match &self.inner.networks {
+            Networks::ArmFlow(nets) => Ok(Session::reaction(armflow::Session::new(
+                Arc::clone(nets),
+                options.for_reaction()?,
+            )?)),
+            Networks::Magnet(nets) => {
+                let settings = crate::session::partner_settings(nets, &options)?;
+                Ok(Session::partner(LiveSession::new(
+                    Arc::clone(nets),
+                    settings,
+                )?))
+            }
+            Networks::Umf(_) => Err(Error::InvalidInput(format!(
+                "bundle `{}` is a `umf` model; a streaming session needs an `armflow` or \
+                 `magnet` bundle",
+                self.inner.manifest.name
+            ))),
+        }
     }
 
     /// The context `c` the encoder gives after `[<sos>, pairs...]`, computed from scratch in one

@@ -584,8 +584,8 @@ fn c_group_generation_as_c99_and_cpp17() {
     run(&[], &cpp, &[&umf, &armflow]);
 }
 
-/// The magnet test's arguments: the bundle, an armflow bundle, and the golden `joint` case's
-/// configuration as JSON (a path only in type: the program reads it as a string).
+/// The magnet test's arguments: the bundle, an armflow bundle, and the golden `joint` and
+/// `live_stream` cases' configurations as JSON (paths only in type: the program reads strings).
 fn magnet_args() -> Vec<PathBuf> {
     let dir = root().join("onnx/bundles/magnet-tiny");
     let cases: serde_json::Value =
@@ -595,12 +595,14 @@ fn magnet_args() -> Vec<PathBuf> {
         dir,
         root().join("onnx/bundles/armflow-tiny"),
         PathBuf::from(cases["joint"]["sampling"].to_string()),
+        PathBuf::from(cases["live_stream"]["sampling"].to_string()),
     ]
 }
 
 /// MAGNet generation through the header: the golden joint case (configuration as JSON) equals
 /// the reference, a released configuration runs with options, every bad input is refused with
-/// the output untouched; as C99 and as C++17.
+/// the output untouched; the live partner streams through `troupe_session_*` as the reference
+/// stream does; as C99 and as C++17.
 #[test]
 fn c_magnet_generation_as_c99_and_cpp17() {
     let src = root().join("tests/c/magnet.c");

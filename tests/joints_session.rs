@@ -31,7 +31,10 @@ fn joints_in_poses_out_equal_the_feature_path() {
     let clip = cmu().slice(s![..200, .., ..]).to_owned();
     let mut joints = model.session(common::default_options()).unwrap();
     joints.set_joints_format(format()).unwrap();
-    assert_eq!(joints.joints_latency_frames(), model.latency_frames() + 1);
+    assert_eq!(
+        joints.joints_latency_frames().unwrap(),
+        model.latency_frames() + 1
+    );
     assert_eq!(model.joints_latency_frames(), model.latency_frames() + 1);
     // The same motion through an explicit feature stream and the feature session.
     let mut features = model.session(common::default_options()).unwrap();

@@ -191,10 +191,13 @@ fn seeded_clip_draws_are_the_session_draws_of_those_tokens() {
         .unwrap();
     let lat = m.latent_dim();
     for j in [0usize, 1, 74] {
-        let s = session.seeded_noise(j as u64);
+        let s = session.seeded_noise(j as u64).unwrap();
         assert_eq!(&noise.actor_posterior[j * lat..(j + 1) * lat], &s.actor[..]);
     }
-    assert_eq!(noise.reactor_noise, session.seeded_noise(74).reactor);
+    assert_eq!(
+        noise.reactor_noise,
+        session.seeded_noise(74).unwrap().reactor
+    );
     let seeded = ClipOptions {
         seed: 11,
         ..Default::default()

@@ -90,7 +90,7 @@ fn reset_equals_a_fresh_session() {
     let fresh = run_chunked(&mut session(options.clone()), &actor, 7);
     let mut s = session(options.clone());
     run_chunked(&mut s, &actor.slice(s![..90, ..]).to_owned(), 5);
-    s.queue_noise(s.seeded_noise(99)).unwrap(); // queued noise is dropped by reset too
+    s.queue_noise(s.seeded_noise(99).unwrap()).unwrap(); // queued noise is dropped by reset too
     s.reset();
     assert_eq!(
         (s.frames_received(), s.tokens_generated(), s.context_len()),
@@ -158,7 +158,7 @@ fn injected_noise_reproduces_a_seeded_run() {
     });
     let donor = session(default_options());
     for j in 0..48 {
-        s.queue_noise(donor.seeded_noise(j)).unwrap();
+        s.queue_noise(donor.seeded_noise(j).unwrap()).unwrap();
     }
     assert!(run_chunked(&mut s, &actor, 4) == seeded);
 }

@@ -292,6 +292,19 @@ class Session {
     Status queue_noise(const float *actor_noise, const float *reactor_noise, std::size_t len) {
         return Status::from(troupe_session_queue_noise(handle_, actor_noise, reactor_noise, len));
     }
+    // ---- a MAGNet live partner (before the first step or after a reset) ----
+    /// The partner's opening frames, `n_frames` x 145 floats, row-major.
+    Status set_partner_opening(const float *frames, std::size_t n_frames) {
+        return Status::from(troupe_session_set_partner_opening(handle_, frames, n_frames));
+    }
+    /// Send each chunk's frames as soon as they are generated (lower latency).
+    Status set_early_emission(bool early) {
+        return Status::from(troupe_session_set_early_emission(handle_, early ? 1 : 0));
+    }
+    /// The sampling configuration: a released name or JSON.
+    Status set_live_config(const std::string &config) {
+        return Status::from(troupe_session_set_live_config(handle_, config.c_str()));
+    }
     /// Exactly how many frames a step with `n_actor_frames` frames would return now.
     Status output_frames(std::size_t n_actor_frames, std::size_t &n_frames) {
         return Status::from(troupe_session_output_frames(handle_, n_actor_frames, &n_frames));

@@ -33,6 +33,7 @@ pub mod log;
 pub mod model;
 pub mod motion;
 pub mod progress;
+pub mod session;
 pub mod text;
 pub mod version;
 pub mod viewer;

@@ -26,6 +26,9 @@ pub enum Draws {
         /// Draws used so far.
         count: usize,
     },
+    /// Independent runs stacked along the sample axis (a crowd of live sessions): every draw is
+    /// `[S, ...]`, and run `i`'s share (its samples) comes from its own draws.
+    PerRun(Vec<Draws>),
 }
 
 impl Draws {
@@ -44,6 +47,7 @@ impl Draws {
         match self {
             Draws::Seeded { count, .. } => *count as usize,
             Draws::Injected { count, .. } => *count,
+            Draws::PerRun(runs) => runs.iter().map(Draws::count).max().unwrap_or(0),
         }
     }
 
@@ -77,6 +81,19 @@ impl Draws {
                 }
                 *count += 1;
                 Ok(draw.clone())
+            }
+            Draws::PerRun(runs) => {
+                let share = n / runs.len().max(1);
+                debug_assert_eq!(
+                    share * runs.len(),
+                    n,
+                    "draws are [S, ...], one run per sample"
+                );
+                let mut out = Vec::with_capacity(n);
+                for run in runs {
+                    out.extend(run.normal(share)?);
+                }
+                Ok(out)
             }
         }
     }

@@ -95,6 +95,26 @@ pub(crate) fn configuration(
     Ok(cfg)
 }
 
+/// The bundle's first `motion_control_live` configuration (by name), what a live partner
+/// session runs unless told otherwise.
+pub(crate) fn default_live_config(nets: &Networks) -> Result<String> {
+    let mut names: Vec<&String> = nets
+        .spec
+        .sampling
+        .iter()
+        .filter(|(_, c)| c.task == Task::MotionControlLive)
+        .map(|(name, _)| name)
+        .collect();
+    names.sort();
+    names.first().map(|n| n.to_string()).ok_or_else(|| {
+        Error::InvalidOption(format!(
+            "bundle `{}` has no motion_control_live configuration: give one as JSON \
+             (SessionOptions::live_config)",
+            nets.io.name
+        ))
+    })
+}
+
 /// Checks a configuration against the model: the manifest's rules, and in-betweening's window.
 pub(crate) fn check_configuration(nets: &Networks, cfg: &SamplingSpec) -> Result<()> {
     nets.spec
@@ -174,6 +194,7 @@ pub(crate) fn generate(
             betas: batch_betas,
             total: 0,
             counter: 0,
+            runs: 1,
         },
         window: m.window,
         persons: p,

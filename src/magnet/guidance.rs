@@ -21,6 +21,9 @@ pub(crate) struct Guidance<'a> {
     pub betas: Array3<f32>,
     pub total: usize,
     pub counter: usize,
+    /// Independent runs stacked along S (1, or a crowd of live sessions): the corrections are
+    /// batch means, taken per run.
+    pub runs: usize,
 }
 
 fn active(x: &Option<X0GuidanceSpec>, counter: usize, total: usize) -> Option<f32> {
@@ -57,7 +60,8 @@ impl Guidance<'_> {
             // Both corrections at the same x0, subtracted together: w_s grad L_s + w_f grad L_f
             // through the decoder (on the latents; one graph call), then the smoothing's
             // transform term.
-            let (ws, wf) = (smooth.unwrap_or(0.0), foot.unwrap_or(0.0));
+            let runs = self.runs.max(1) as f32;
+            let (ws, wf) = (smooth.unwrap_or(0.0) * runs, foot.unwrap_or(0.0) * runs);
             let latent = self.nets.spec.model.vq.d_latent;
             let g = self
                 .nets

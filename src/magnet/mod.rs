@@ -12,6 +12,7 @@
 //! - `tasks`: every sampling entry point;
 //! - `transforms`, `motion`: rigid transforms, frames <-> tokens, roots in the world;
 //! - [`draws`]: troupe's generator or the caller's draws;
+//! - `live`: the live partner as a stream (a [`crate::Session`] over a `magnet` model);
 //! - `generate`: [`crate::Model::magnet_generate`].
 //!
 //! Like every family, this folder imports only from `crate::shared` and itself. The Python
@@ -21,6 +22,7 @@ pub mod draws;
 mod generate;
 mod guidance;
 pub mod layout;
+pub(crate) mod live;
 mod matrices;
 mod motion;
 pub(crate) mod networks;
@@ -30,6 +32,7 @@ mod tasks;
 pub mod transforms;
 
 pub use draws::{Draws, STREAM_MAGNET};
-pub(crate) use generate::{configuration, generate, output_shape};
+pub(crate) use generate::{configuration, default_live_config, generate, output_shape};
 pub use generate::{MagnetOptions, MagnetOutput};
+pub use live::{LiveSettings, DECODER_CONTEXT_TOKENS, ENCODER_CONTEXT_TOKENS};
 pub(crate) use networks::Networks;

@@ -123,6 +123,13 @@ pub(crate) fn normalised_betas(nets: &Networks, clip: &Clip) -> Array2<f32> {
     b
 }
 
+/// Raw betas (10 floats) normalised.
+pub(crate) fn normalise_betas(nets: &Networks, raw: &[f32]) -> Vec<f32> {
+    let mut b = raw.to_vec();
+    normalise(nets, stats::BETAS, &mut b);
+    b
+}
+
 /// Tokens `[F/4, P, D]` of frames `first..first + n` of the clip (§5.0 step 3, §1.5): latents
 /// are snapped codebook rows (zero where the person is absent), transforms normalised.
 pub(crate) fn encode(nets: &Networks, clip: &Clip, first: usize, n: usize) -> Result<Array3<f32>> {

@@ -47,7 +47,7 @@ impl Run<'_> {
     }
 
     /// A fresh progress counter for a sampler of `total` iterations.
-    fn start(&mut self, total: usize) {
+    pub(crate) fn start(&mut self, total: usize) {
         self.guidance.total = total;
         self.guidance.counter = 0;
     }
@@ -444,26 +444,52 @@ pub(crate) fn live_like(run: &mut Run, gt: ArrayView4<f32>, task: Task) -> Resul
     let inject = ctx.clone();
     let mut x = normals(run, (s, t, p, gt.dim().3))?;
     where_mask(inject.view(), gt_b.view(), &mut x);
-    let mut m = run.matrix(group_size(task, &run.cfg, p), tc, true);
-    for tau in 0..tm {
-        m.set_column(tau * p, CLEAN); // person 0 is given
-    }
+    let m = live_matrix(run, task);
     run.start(n_chunks * (m.rows() - 1));
     for c in 0..n_chunks {
         let ts = c * stride;
         if c > 0 {
             ctx.slice_mut(s![.., ts..ts + tc, 1..]).fill(true);
         }
-        for r in 0..m.rows() - 1 {
-            run.grow(&mut ctx, ts, tc, m.row(r));
-            where_mask(inject.view(), gt_b.view(), &mut x);
-            run.step(&mut x, ts, m.row(r), m.row(r + 1), tc * p, ctx.view())?;
-            where_mask(inject.view(), gt_b.view(), &mut x);
-        }
-        run.smooth(&mut x, ts, c);
-        run.postprocess(&mut x, ts, tc);
+        rolling_chunk(run, &mut x, ts, &m, gt_b.view(), inject.view(), &mut ctx, c)?;
     }
     Ok(x.slice(s![.., ..t_gt, .., ..]).to_owned())
+}
+
+/// The rolling tasks' level matrix: `g = P` (or the configured schedule), person 0 clean.
+pub(crate) fn live_matrix(run: &Run, task: Task) -> Levels {
+    let p = run.persons;
+    let mut m = run.matrix(group_size(task, &run.cfg, p), run.context_tokens(), true);
+    for tau in 0..run.window {
+        m.set_column(tau * p, CLEAN); // person 0 is given
+    }
+    m
+}
+
+/// One chunk of window(ts) (§5.4): the calls of `m` with the context mask growing and the given
+/// tokens (`inject`, values in `gt`) re-injected around each call, then the smoothing and the
+/// transform post-processing. Shared by the offline rolling tasks and the live stream.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn rolling_chunk(
+    run: &mut Run,
+    x: &mut Array4<f32>,
+    ts: usize,
+    m: &Levels,
+    gt: ArrayView4<f32>,
+    inject: ArrayView3<bool>,
+    ctx: &mut Array3<bool>,
+    chunk: usize,
+) -> Result<()> {
+    let (tc, p) = (run.context_tokens(), run.persons);
+    for r in 0..m.rows() - 1 {
+        run.grow(ctx, ts, tc, m.row(r));
+        where_mask(inject, gt, x);
+        run.step(x, ts, m.row(r), m.row(r + 1), tc * p, ctx.view())?;
+        where_mask(inject, gt, x);
+    }
+    run.smooth(x, ts, chunk);
+    run.postprocess(x, ts, tc);
+    Ok(())
 }
 
 /// §5.6: one window; the key tokens (`key_mask` `[Tm]`) clean, the rest generated. `keys`

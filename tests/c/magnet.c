@@ -1,7 +1,7 @@
 /* ABI test of MAGNet generation through include/troupe.h only. Compiled as C99 and C++17 with
  * -Wall -Wextra -Werror -pedantic (tests/c_abi.rs).
- * Usage: magnet MAGNET_BUNDLE_DIR ARMFLOW_BUNDLE_DIR JOINT_SAMPLING_JSON
- * (the golden `joint` case's configuration, from golden/cases.json) */
+ * Usage: magnet MAGNET_BUNDLE_DIR ARMFLOW_BUNDLE_DIR JOINT_SAMPLING_JSON LIVE_SAMPLING_JSON
+ * (the golden `joint` and `live_stream` cases' configurations, from golden/cases.json) */
 #include "troupe.h"
 #include "check.h"
 #include "npy.h"
@@ -19,6 +19,78 @@ static float max_value(const float *a, size_t n) {
     return m;
 }
 
+/* The live partner through troupe_session_*: the golden stream (person 0 the user, person 1's
+ * first 32 frames the partner's opening) equals the reference; bad input changes nothing. */
+static void live_partner(troupe_model *model, troupe_model *armflow, const float *clip,
+                         const char *dir, const char *live_json) {
+    troupe_session *session = NULL, *reactor = NULL;
+    troupe_session_options sopt;
+    float user[128 * 145], opening[32 * 145], *golden, *out;
+    size_t n_golden = 0, written = 0, total = 0, ready, t, a;
+
+    for (t = 0; t < 128; t++) memcpy(user + t * 145, clip + (t * 2) * 145, 145 * sizeof(float));
+    for (t = 0; t < 32; t++) memcpy(opening + t * 145, clip + (t * 2 + 1) * 145, 145 * sizeof(float));
+    golden = read_npy(dir, "live_stream_frames", &n_golden);
+    CHECK(golden != NULL && n_golden == 96 * 145);
+    if (!golden) return;
+    out = (float *)malloc(n_golden * sizeof *out);
+
+    /* defaults: the released live configuration's 50 steps and 8 context tokens */
+    EXPECT(troupe_session_options_init(model, &sopt, sizeof sopt), TROUPE_OK);
+    CHECK(sopt.steps == 50 && sopt.context_capacity == 8 && sopt.cfg_scale == 1.0f);
+    sopt.seed = 5;
+    EXPECT(troupe_session_new(model, &sopt, &session), TROUPE_OK);
+    CHECK(troupe_model_latency_frames(model) == 63);
+    /* no opening frames yet: the first user frame is refused */
+    EXPECT(troupe_session_step(session, user, 1, out, 96, &written), TROUPE_ERR_INVALID_ARG);
+    CHECK(strstr(troupe_last_error_message(), "opening frames") != NULL);
+    EXPECT(troupe_session_set_live_config(session, "nope"), TROUPE_ERR_INVALID_ARG);
+    EXPECT(troupe_session_set_live_config(session, "dd100"), TROUPE_ERR_INVALID_ARG);
+    EXPECT(troupe_session_set_live_config(session, live_json), TROUPE_OK);
+    EXPECT(troupe_session_set_partner_opening(session, opening, 31), TROUPE_ERR_INVALID_ARG);
+    EXPECT(troupe_session_set_partner_opening(session, NULL, 32), TROUPE_ERR_NULL_ARG);
+    EXPECT(troupe_session_set_partner_opening(session, opening, 32), TROUPE_OK);
+    EXPECT(troupe_session_set_early_emission(session, 0), TROUPE_OK);
+
+    /* the stream, 20 frames at a time, each output sized by troupe_session_output_frames */
+    for (a = 0; a < 128; a += 20) {
+        size_t n = a + 20 <= 128 ? 20 : 128 - a;
+        EXPECT(troupe_session_output_frames(session, n, &ready), TROUPE_OK);
+        CHECK(ready <= troupe_model_max_output_frames(model, n));
+        if (ready > 0) {
+            /* one frame too little: refused, the session unchanged */
+            EXPECT(troupe_session_step(session, user + a * 145, n, out + total * 145, ready - 1, &written),
+                   TROUPE_ERR_BUFFER_TOO_SMALL);
+        }
+        EXPECT(troupe_session_step(session, user + a * 145, n, out + total * 145, ready, &written), TROUPE_OK);
+        CHECK(written == ready);
+        total += written;
+    }
+    CHECK(total == 96);
+    printf("live partner through the C ABI: frames %.2e relative max-abs\n",
+           (double)(max_abs(out, golden, n_golden) / max_value(golden, n_golden)));
+    CHECK(max_abs(out, golden, n_golden) <= 1e-4f * max_value(golden, n_golden));
+    /* settings of a running stream, and what only armflow sessions have */
+    EXPECT(troupe_session_set_early_emission(session, 1), TROUPE_ERR_INVALID_ARG);
+    EXPECT(troupe_session_set_partner_opening(session, opening, 32), TROUPE_ERR_INVALID_ARG);
+    EXPECT(troupe_session_set_prompt(session, "wave"), TROUPE_ERR_INVALID_ARG);
+    EXPECT(troupe_session_set_cfg_scale(session, 2.0f), TROUPE_ERR_INVALID_ARG);
+    /* after a reset the same stream comes out again (the opening is kept) */
+    EXPECT(troupe_session_reset(session), TROUPE_OK);
+    EXPECT(troupe_session_step(session, user, 128, out, 96, &written), TROUPE_OK);
+    CHECK(written == 96 && max_abs(out, golden, n_golden) <= 1e-4f * max_value(golden, n_golden));
+
+    /* an armflow session has no partner */
+    EXPECT(troupe_session_new(armflow, NULL, &reactor), TROUPE_OK);
+    EXPECT(troupe_session_set_partner_opening(reactor, opening, 32), TROUPE_ERR_INVALID_ARG);
+    EXPECT(troupe_session_set_early_emission(reactor, 1), TROUPE_ERR_INVALID_ARG);
+
+    troupe_session_free(reactor);
+    troupe_session_free(session);
+    free(out);
+    free(golden);
+}
+
 int main(int argc, char **argv) {
     troupe_model *model = NULL, *armflow = NULL;
     troupe_magnet_options opt;
@@ -27,8 +99,8 @@ int main(int argc, char **argv) {
     int found_dd100 = 0;
     unsigned char present[128 * 2];
 
-    if (argc < 4) {
-        fprintf(stderr, "usage: %s MAGNET_BUNDLE_DIR ARMFLOW_BUNDLE_DIR JOINT_SAMPLING_JSON\n", argv[0]);
+    if (argc < 5) {
+        fprintf(stderr, "usage: %s MAGNET_BUNDLE_DIR ARMFLOW_BUNDLE_DIR JOINT_SAMPLING_JSON LIVE_SAMPLING_JSON\n", argv[0]);
         return 2;
     }
     EXPECT(troupe_model_load_file(argv[1], &model), TROUPE_OK);
@@ -105,6 +177,8 @@ int main(int argc, char **argv) {
     opt.keyframe_count = 9;
     EXPECT(troupe_magnet_generate(model, "dd100_inbetweening", &opt, frames, 128, NULL, out, n), TROUPE_ERR_INVALID_ARG);
     CHECK(out[0] == 12345.0f);
+
+    live_partner(model, armflow, frames, argv[1], argv[4]);
 
     free(nan_frames);
     free(out);

@@ -175,6 +175,30 @@ int main(int argc, char **argv) {
         troupe::Status missing = magnet.magnet_generate("nope", clip, 128, m2, shape, &mopt);
         CHECK(missing.code() == TROUPE_ERR_INVALID_ARG && m1 == m2);
         CHECK(missing.message().find("no sampling configuration") != std::string::npos);
+
+        // The live partner through a session: person 0 the user, person 1's first 32 frames the
+        // opening; two steps, exact output counts, the same stream again after a reset.
+        troupe::Session live;
+        CHECK(troupe::Session::create(magnet, nullptr, live).ok());
+        std::vector<float> user(128 * 145), opening(32 * 145);
+        for (std::size_t t = 0; t < 128; t++)
+            std::copy(clip + t * 2 * 145, clip + t * 2 * 145 + 145, user.begin() + t * 145);
+        for (std::size_t t = 0; t < 32; t++)
+            std::copy(clip + (t * 2 + 1) * 145, clip + (t * 2 + 1) * 145 + 145, opening.begin() + t * 145);
+        std::size_t ready = 0, written = 0;
+        troupe::Status early = live.step(user.data(), 1, nullptr, 0, written);
+        CHECK(early.code() == TROUPE_ERR_INVALID_ARG);
+        CHECK(live.set_live_config("{\"task\": 1}").code() == TROUPE_ERR_INVALID_ARG);
+        CHECK(live.set_steps(2).ok() && live.set_partner_opening(opening.data(), 32).ok());
+        CHECK(live.set_early_emission(true).ok());
+        CHECK(live.output_frames(64, ready).ok() && ready == 64);
+        std::vector<float> partner(128 * 145), again(128 * 145);
+        CHECK(live.step(user.data(), 64, partner.data(), 128, written).ok() && written == 64);
+        CHECK(live.step(user.data() + 64 * 145, 64, partner.data() + 64 * 145, 64, written).ok() && written == 64);
+        CHECK(live.set_early_emission(false).code() == TROUPE_ERR_INVALID_ARG);
+        CHECK(live.reset().ok());
+        CHECK(live.step(user.data(), 128, again.data(), 128, written).ok() && written == 128);
+        CHECK(partner == again);
         std::free(clip);
     }
 

@@ -437,6 +437,8 @@ def test_magnet_matches_the_reference_on_every_golden_task(magnet):
     frames = np.load(MAGNET / "golden" / "frames.npy")
     cases = json.loads((MAGNET / "golden" / "cases.json").read_text())
     for case, spec in cases.items():
+        if case.startswith("live_stream"):
+            continue  # streams: test_magnet_live_partner_streams_as_the_reference
         out = magnet.magnet_generate(spec["sampling"], frames)
         want = np.load(MAGNET / "golden" / f"{case}_frames.npy")
         assert out.shape == want.shape, case
@@ -452,6 +454,37 @@ def test_magnet_released_configuration_with_options(magnet):
     np.testing.assert_array_equal(out, again)
     keys = magnet.magnet_generate("dd100_inbetweening", frames, steps=2, x0_guidance=False, keyframes=[0, 60])
     assert keys.shape == (1, 64, 2, 145)
+
+
+def test_magnet_live_partner_streams_as_the_reference(magnet, model):
+    import json
+
+    frames = np.load(MAGNET / "golden" / "frames.npy")
+    cases = json.loads((MAGNET / "golden" / "cases.json").read_text())
+    for case in ("live_stream", "live_stream_early"):
+        spec = cases[case]
+        s = magnet.session(seed=5, live_config=json.dumps(spec["sampling"]),
+                           partner_opening=frames[:32, 1], early=spec["early"])
+        out = [s.step(frames[a : a + 20, 0]) for a in range(0, 128, 20)]
+        got = np.concatenate(out)
+        want = np.load(MAGNET / "golden" / f"{case}_frames.npy")
+        assert got.shape == want.shape, case
+        assert np.abs(got - want).max() <= 1e-4 * np.abs(want).max(), case
+        # a crowd stepped together: the same frames
+        a, b = (magnet.session(seed=5, live_config=json.dumps(spec["sampling"]),
+                               partner_opening=frames[:32, 1], early=spec["early"]) for _ in range(2))
+        together = troupe.step_sessions([a, b], [frames[:, 0], frames[:, 0]])
+        for t in together:
+            assert np.abs(t - want).max() <= 1e-4 * np.abs(want).max(), case
+    bare = magnet.session(seed=5)
+    with pytest.raises(troupe.TroupeError, match="opening frames"):
+        bare.step(frames[:1, 0])
+    with pytest.raises(troupe.TroupeError, match="opening frames hold"):
+        bare.set_partner_opening(frames[:31, 1])
+    with pytest.raises(troupe.TroupeError, match="armflow"):
+        bare.set_prompt("wave")
+    with pytest.raises(troupe.TroupeError, match="magnet live partner"):
+        model.session().set_early_emission(True)
 
 
 def test_magnet_errors(magnet, model):

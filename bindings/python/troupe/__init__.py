@@ -371,9 +371,15 @@ class Model:
 
     def session(self, seed: int = 0, steps: int | None = None, cfg: float | None = None,
                 capacity: int | None = None, actor_latent: int | None = None,
-                condition=None) -> "Session":
-        """Starts a stream; unset options take the bundle's defaults."""
-        return Session(self, seed, steps, cfg, capacity, actor_latent, condition)
+                condition=None, partner_opening=None, live_config: str | None = None,
+                early: bool = False) -> "Session":
+        """Starts a stream; unset options take the bundle's defaults. On an armflow model the
+        session answers an actor with the reactor; on a two-person magnet model it answers a
+        user with the live partner: give the partner's opening frames (float32
+        [context frames, 145]), optionally a sampling configuration (a released name or JSON)
+        and early emission (lower latency, see docs/MAGNET.md)."""
+        return Session(self, seed, steps, cfg, capacity, actor_latent, condition,
+                       partner_opening=partner_opening, live_config=live_config, early=early)
 
     def close(self) -> None:
         """Releases this reference (sessions keep the model alive)."""
@@ -435,10 +441,12 @@ def step_sessions(sessions, actors) -> list[np.ndarray]:
 
 
 class Session:
-    """One actor/reactor stream. Use it from one thread at a time."""
+    """One stream: an armflow reactor answering an actor, or a magnet live partner answering a
+    user. Use it from one thread at a time."""
 
     def __init__(self, model: Model, seed=0, steps=None, cfg=None, capacity=None, actor_latent=None,
-                 condition=None, prompt: str | None = None):
+                 condition=None, prompt: str | None = None, partner_opening=None,
+                 live_config: str | None = None, early: bool = False):
         if condition is not None and prompt is not None:
             raise ValueError("give a condition or a prompt, not both")
         opt = _native.SessionOptions()
@@ -460,11 +468,19 @@ class Session:
         self.condition_dim = model.condition_dim
         self.latent_dim = model.latent_dim
         self._frames_per_token = model.frames_per_token
+        # Frames a stream may hold back and send with a later step (a magnet window; 0 for armflow).
+        self._held_back = _lib.troupe_model_max_output_frames(model._h(), 0)
         self._model = model
         if condition is not None:
             self.set_condition(condition)
         if prompt is not None:
             self.set_prompt(prompt)
+        if live_config is not None:
+            self.set_live_config(live_config)
+        if partner_opening is not None:
+            self.set_partner_opening(partner_opening)
+        if early:
+            self.set_early_emission(True)
 
     def _call(self, fn, *args):
         if not self._handle:
@@ -485,7 +501,8 @@ class Session:
     def _out_for(self, actor: np.ndarray) -> np.ndarray:
         """A buffer that always holds what a step with these frames returns."""
         fpt = self._frames_per_token
-        return np.empty((-(-actor.shape[0] // fpt) * fpt, self.frame_dim), np.float32)
+        rows = -(-actor.shape[0] // fpt) * fpt + self._held_back
+        return np.empty((rows, self.frame_dim), np.float32)
 
     def step(self, actor: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
         """Feeds actor frames (float32 [n, frame_dim], n >= 0) and returns the reactor frames that
@@ -568,6 +585,24 @@ class Session:
         if not isinstance(prompt, str) or "\0" in prompt:
             raise ValueError("prompt must be a str without NUL characters")
         self._call(_lib.troupe_session_set_prompt, prompt.encode("utf-8"))
+
+    def set_partner_opening(self, frames) -> None:
+        """A magnet live partner's opening frames (float32 [context frames, 145]); before the
+        first step or after a reset."""
+        f = _floats(frames, "frames")
+        if f.ndim != 2 or f.shape[1] != self.frame_dim:
+            raise ValueError(f"opening frames must be [frames, {self.frame_dim}], got {list(f.shape)}")
+        self._call(_lib.troupe_session_set_partner_opening, _ptr(f), f.shape[0])
+
+    def set_early_emission(self, early: bool) -> None:
+        """Send a magnet live partner's frames as each chunk generates them (lower latency);
+        before the first step or after a reset."""
+        self._call(_lib.troupe_session_set_early_emission, 1 if early else 0)
+
+    def set_live_config(self, config: str) -> None:
+        """The sampling configuration a magnet live partner runs (a released name or JSON);
+        before the first step or after a reset."""
+        self._call(_lib.troupe_session_set_live_config, config.encode("utf-8"))
 
     def set_noise(self, actor_noise, reactor_noise) -> None:
         """Queues one token's noise (latent_dim floats each), used before the seeded generator."""

@@ -35,6 +35,7 @@ from troupe_onnx.magnet.configs import released_for
 from troupe_onnx.magnet.decoder_gradients import DecoderVjp, weighted_gradient
 from troupe_onnx.magnet.draws import RecordingDraws, SeededDraws
 from troupe_onnx.magnet.guidance import GuidanceConfig, X0Guidance
+from troupe_onnx.magnet.live import LiveSettings, LiveStream, make_live_run
 from troupe_onnx.magnet.motion import (
     FRAME_DIM, FRAME_LAYOUT, Clip, Stats, clip_from_frames, decode_tokens, encode_clip, frames_from_decoded, world_roots,
 )
@@ -296,6 +297,31 @@ def run_task(model: Magnet, stats: Stats, sampling: Sampling, name: str, clip: C
             "partner_inpainting": T.partner_inpainting}[sampling.task](run, gt)
 
 
+def run_live(model: Magnet, stats: Stats, sampling: Sampling, frames: np.ndarray, early: bool, draws):
+    """The live partner stream (`live.py`) over `frames` [F, 2, 145]: the user is person 0, the
+    partner's opening frames are person 1's first `context_len`. The user's frames arrive 20 at a
+    time (the output does not depend on how they are cut). Returns (partner frames, tokens)."""
+    cfg = model.cfg
+    lat = cfg.vq.d_latent
+
+    def denoise(x, k):
+        with torch.no_grad():
+            kk = torch.from_numpy(np.broadcast_to(k, x.shape[:-1]).astype(np.int64).copy())
+            return model.denoiser(torch.from_numpy(np.ascontiguousarray(x)), kk).numpy()
+
+    parts = (Schedule.cosine(cfg.max_t), denoise, stats.transform_stats(), cfg.window, cfg.persons, lat,
+             weighted_gradient(model.vqvae.decoder, lat))
+    stream = LiveStream(
+        LiveSettings(sampling, early=early), stats,
+        encode=lambda clip: encode_clip(model.vqvae, clip, stats)[0],
+        decode=lambda x, betas: decode_tokens(model.vqvae, x, betas, stats, lat),
+        make_run=lambda s, d, b: make_live_run(parts, s, d, b),
+        draws=draws, partner=frames[: sampling.context_len, 1],
+    )
+    out = [stream.push(frames[a : a + 20, 0], cfg.window, cfg.persons, lat) for a in range(0, len(frames), 20)]
+    return np.concatenate(out), np.array(stream.tokens_out, np.float32)
+
+
 def write_golden(exported, out_dir: Path):
     """One clip of troupe frames (`frames.npy` [F, P, 145], every person present) and its tokens;
     per task, the sampled tokens and the frames they decode to (each person's root anchored as
@@ -328,6 +354,16 @@ def write_golden(exported, out_dir: Path):
         index[name] = {"sampling": sampling.to_json(), "draws": draws.count, "tokens_shape": list(out.shape),
                        "anchor_frame": c}
         print(f"  golden {name}: {out.shape}, {draws.count} draws, |tokens| {np.abs(out).mean():.3f}")
+    if cfg.persons == 2:
+        for name, early in (("live_stream", False), ("live_stream_early", True)):
+            sampling = golden_sampling("motion_control_live")
+            draws = RecordingDraws(SeededDraws(sampling.seed))
+            out_frames, out_tokens = run_live(model, stats, sampling, frames, early, draws)
+            np.save(g / f"{name}_tokens.npy", np.ascontiguousarray(out_tokens, dtype=np.float32))
+            np.save(g / f"{name}_frames.npy", np.ascontiguousarray(out_frames, dtype=np.float32))
+            index[name] = {"sampling": sampling.to_json(), "draws": draws.count, "early": early,
+                           "tokens_shape": list(out_tokens.shape), "frames_shape": list(out_frames.shape)}
+            print(f"  golden {name}: {out_frames.shape} frames, {draws.count} draws")
     (g / "cases.json").write_text(json.dumps(index, indent=2) + "\n")
 
 

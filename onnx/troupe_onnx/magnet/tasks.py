@@ -294,21 +294,35 @@ def _live_like(run: Run, gt: np.ndarray, task: str) -> np.ndarray:
     inject[:, :tc, 1:] = True
     x = run.draws.normal((s, t, p, gt.shape[-1]))
     x = np.where(inject[..., None], gt_b, x).astype(np.float32)
-    m = run.matrix(group_size(task, cfg, p), tc)
-    m[:, 0::p] = CLEAN  # person 0 is given
+    m = live_matrix(run, task)
     run.start(n_chunks * (m.shape[0] - 1))
     for c in range(n_chunks):
         ts = c * stride
         if c > 0:
             ctx[:, ts : ts + tc, 1:] = True
-        for r in range(m.shape[0] - 1):
-            run.grow(ctx, ts, tc, m[r])
-            x[:] = np.where(inject[..., None], gt_b, x)
-            run.step(x, ts, m[r], m[r + 1], tc * p, ctx)
-            x[:] = np.where(inject[..., None], gt_b, x)
-        run.smooth(x, ts, c)
-        run.postprocess(x, ts, tc, cfg.root_mode)
+        rolling_chunk(run, x, ts, m, gt_b, inject, ctx, c)
     return x[:, :t_gt]
+
+
+def live_matrix(run: Run, task: str) -> np.ndarray:
+    """The rolling tasks' level matrix: g = P (or the configured schedule), person 0 clean."""
+    m = run.matrix(group_size(task, run.cfg, run.p), run.cfg.context_tokens)
+    m[:, 0 :: run.p] = CLEAN  # person 0 is given
+    return m
+
+
+def rolling_chunk(run: Run, x: np.ndarray, ts: int, m: np.ndarray, gt: np.ndarray, inject: np.ndarray,
+                  ctx: np.ndarray, chunk: int) -> None:
+    """One chunk of window(ts) (§5.4): the calls of `m` with the context mask growing and the
+    given tokens re-injected around each call, then smoothing and transform post-processing."""
+    tc = run.cfg.context_tokens
+    for r in range(m.shape[0] - 1):
+        run.grow(ctx, ts, tc, m[r])
+        x[:] = np.where(inject[..., None], gt, x)
+        run.step(x, ts, m[r], m[r + 1], tc * run.p, ctx)
+        x[:] = np.where(inject[..., None], gt, x)
+    run.smooth(x, ts, chunk)
+    run.postprocess(x, ts, tc, run.cfg.root_mode)
 
 
 def motion_control_live(run: Run, gt: np.ndarray) -> np.ndarray:

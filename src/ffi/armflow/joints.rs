@@ -3,13 +3,13 @@
 
 use ndarray::ArrayView3;
 
-use super::session::{troupe_session, with_session};
 use crate::ffi::boundary::{
     self, checked_mul, non_null, troupe_status, FfiError, TROUPE_ERR_BUFFER_TOO_SMALL,
     TROUPE_ERR_INVALID_ARG,
 };
 use crate::ffi::model::{property, troupe_model};
 use crate::ffi::motion::{read_format, troupe_joints_format, troupe_placement, PoseParts};
+use crate::ffi::session::{troupe_session, with_session};
 use crate::motion::T2M22_JOINTS;
 use crate::Model;
 

@@ -1,9 +1,9 @@
-//! The C entry points of the `armflow` family: streaming sessions (one or many per call) and
-//! the official clip loop with its text branch.
+//! The C entry points of the `armflow` family: joint positions in and out of a session, and
+//! the official clip loop with its text branch. Sessions themselves are family-neutral
+//! (`ffi/session.rs`).
 
 pub mod clip;
 pub mod joints;
-pub mod session;
 
 #[cfg(test)]
 mod rollback_tests;

@@ -5,7 +5,7 @@
 
 use std::path::Path;
 
-use crate::armflow::step_sessions_bounded;
+use crate::session::step_sessions_bounded;
 use crate::{Model, SessionOptions};
 
 fn tiny() -> Model {

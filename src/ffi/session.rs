@@ -1,4 +1,5 @@
-//! `troupe_session`: one actor/reactor stream.
+//! `troupe_session`: one stream, whatever the family: an ARMFlow reactor to an actor, or a MAGNet
+//! live partner to a user (`src/session.rs`).
 
 use std::ffi::c_char;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -23,15 +24,17 @@ pub const TROUPE_ACTOR_LATENT_MEAN: i32 = 1;
 pub struct troupe_session_options {
     /// `sizeof(troupe_session_options)` as the caller compiled it (set by `_init`).
     pub struct_size: u32,
-    /// MeanFlow steps per token, >= 1.
+    /// Sampler steps, >= 1: MeanFlow steps per token (armflow), DDIM steps per chunk (magnet).
     pub steps: u32,
     /// Seed of the portable noise generator: equal seeds give bit-identical motion everywhere.
     pub seed: u64,
-    /// Classifier-free guidance scale, finite; 1 disables guidance.
+    /// Classifier-free guidance scale, finite; 1 disables guidance (a magnet session takes 1).
     pub cfg_scale: f32,
-    /// Tokens kept in the context cache, `<sos>` included, >= 2; older ones slide out.
+    /// armflow: tokens kept in the context cache, `<sos>` included, >= 2; older ones slide out.
+    /// magnet: context tokens per window (1 to window - 1; the window advances by the rest).
     pub context_capacity: u32,
-    /// `TROUPE_ACTOR_LATENT_SAMPLE` or `TROUPE_ACTOR_LATENT_MEAN`.
+    /// `TROUPE_ACTOR_LATENT_SAMPLE` or `TROUPE_ACTOR_LATENT_MEAN` (armflow; a magnet session
+    /// takes `_SAMPLE`, which it ignores).
     pub actor_latent: i32,
     /// Must be 0.
     pub reserved: u32,
@@ -85,20 +88,34 @@ pub unsafe extern "C" fn troupe_session_options_init(
             let model = &boundary::required(model, "model")?.model;
             non_null(options, "options")?;
             check_struct_size(options_size, OPTIONS_V1_SIZE, "troupe_session_options")?;
-            let m = model
-                .armflow_spec()
-                .ok_or_else(|| model.wrong_family("armflow", "troupe_session_options"))?;
-            let defaults = troupe_session_options {
-                struct_size: options_size as u32,
-                steps: m.sampler.steps,
-                seed: 0,
-                cfg_scale: m.sampler.cfg_scale,
-                context_capacity: m.context.capacity_tokens.min(u32::MAX as usize) as u32,
-                actor_latent: match m.sampler.actor_latent {
-                    ActorLatent::Sample => TROUPE_ACTOR_LATENT_SAMPLE,
-                    ActorLatent::Mean => TROUPE_ACTOR_LATENT_MEAN,
+            let defaults = match model.armflow_spec() {
+                Some(m) => troupe_session_options {
+                    struct_size: options_size as u32,
+                    steps: m.sampler.steps,
+                    seed: 0,
+                    cfg_scale: m.sampler.cfg_scale,
+                    context_capacity: m.context.capacity_tokens.min(u32::MAX as usize) as u32,
+                    actor_latent: match m.sampler.actor_latent {
+                        ActorLatent::Sample => TROUPE_ACTOR_LATENT_SAMPLE,
+                        ActorLatent::Mean => TROUPE_ACTOR_LATENT_MEAN,
+                    },
+                    reserved: 0,
                 },
-                reserved: 0,
+                None => {
+                    // A magnet live partner: its default configuration's steps and context.
+                    let live = model
+                        .magnet_live_configuration()
+                        .map_err(|_| model.wrong_family("armflow", "troupe_session_options"))?;
+                    troupe_session_options {
+                        struct_size: options_size as u32,
+                        steps: live.steps.min(u32::MAX as usize) as u32,
+                        seed: 0,
+                        cfg_scale: 1.0,
+                        context_capacity: (live.context_len / 4).min(u32::MAX as usize) as u32,
+                        actor_latent: TROUPE_ACTOR_LATENT_SAMPLE,
+                        reserved: 0,
+                    }
+                }
             };
             // SAFETY: writable for `options_size` bytes per the contract; the struct has no
             // padding (asserted above).
@@ -148,12 +165,15 @@ unsafe fn read_options(options: *const troupe_session_options) -> FfiResult<Sess
         prompt: None,
         context_capacity: Some(o.context_capacity as usize),
         actor_latent: Some(actor_latent),
-        vae_windows: false,
+        ..SessionOptions::default()
     })
 }
 
-/// Starts a stream on `model` with `options` (NULL: the bundle's defaults). The session starts
-/// with the null condition; set one with `troupe_session_set_condition`.
+/// Starts a stream on `model` with `options` (NULL: the bundle's defaults). On an `armflow`
+/// model the session answers an actor with the reactor, starting with the null condition (set
+/// one with `troupe_session_set_condition`). On a two-person `magnet` model it answers a user
+/// with the live partner (its `motion_control_live` configuration); give the partner's opening
+/// frames with `troupe_session_set_partner_opening` before the first step.
 ///
 /// On success `*out` receives a new handle owned by the caller (free with
 /// `troupe_session_free`); it keeps `model` alive. On failure `*out` is set to NULL.
@@ -442,7 +462,7 @@ pub unsafe extern "C" fn troupe_sessions_step(
                 non_null(out[i], &format!("out[{i}]"))?;
             }
         }
-        let outputs = crate::armflow::step_sessions_bounded(&mut live, &chunks, capacity)?;
+        let outputs = crate::session::step_sessions_bounded(&mut live, &chunks, capacity)?;
         for (i, output) in outputs.iter().enumerate() {
             let frames = output.frames.as_slice().expect("standard layout");
             if !frames.is_empty() {
@@ -521,7 +541,8 @@ pub unsafe extern "C" fn troupe_session_set_seed(
     }
 }
 
-/// Sets the MeanFlow steps per token (>= 1) for tokens generated from now on.
+/// Sets the sampler's steps (>= 1): MeanFlow steps per token (armflow), DDIM steps per chunk
+/// (a magnet live partner), for what is generated from now on.
 ///
 /// Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (0 steps),
 /// `TROUPE_ERR_POISONED`, `TROUPE_ERR_PANIC`. One thread at a time per session.
@@ -618,6 +639,86 @@ pub unsafe extern "C" fn troupe_session_set_prompt(
         with_session(session, "troupe_session_set_prompt", |s| {
             let prompt = boundary::required_str(prompt, "prompt")?;
             Ok(s.set_prompt(prompt)?)
+        })
+    }
+}
+
+/// Sets the partner's opening frames of a MAGNet live partner session: `n_frames` frames
+/// (the configuration's context, `4 * context_capacity`) of `troupe_model_frame_dim` floats,
+/// row-major, borrowed for the call; kept across resets. A stream needs them before the user's
+/// first frame. Only before the first step or after `troupe_session_reset`.
+///
+/// Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (an ARMFlow session, the
+/// wrong number of frames, a NaN or infinite value, a stream already started),
+/// `TROUPE_ERR_POISONED`, `TROUPE_ERR_PANIC`. One thread at a time per session.
+///
+/// ```c
+/// troupe_session_set_partner_opening(session, partner_frames, 32);
+/// ```
+///
+/// # Safety
+/// `session` must be a live handle; `frames` readable for `n_frames * 145` floats.
+#[no_mangle]
+pub unsafe extern "C" fn troupe_session_set_partner_opening(
+    session: *mut troupe_session,
+    frames: *const f32,
+    n_frames: usize,
+) -> troupe_status {
+    // SAFETY: forwarded contract.
+    unsafe {
+        with_session(session, "troupe_session_set_partner_opening", |s| {
+            let n = checked_mul(n_frames, s.frame_dim(), "n_frames * frame_dim")?;
+            let frames = boundary::slice(frames, n, "frames")?;
+            Ok(s.set_partner_opening(frames)?)
+        })
+    }
+}
+
+/// Makes a MAGNet live partner session send each chunk's frames as soon as they are generated
+/// (`early` nonzero: `4 * (window - context)` frames less latency; the next chunk's smoothing no
+/// longer reaches them) or once final (0, the default). Only before the first step or after
+/// `troupe_session_reset`.
+///
+/// Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (an ARMFlow session, a
+/// stream already started), `TROUPE_ERR_POISONED`, `TROUPE_ERR_PANIC`. One thread at a time per
+/// session.
+///
+/// # Safety
+/// `session` must be NULL or a live handle.
+#[no_mangle]
+pub unsafe extern "C" fn troupe_session_set_early_emission(
+    session: *mut troupe_session,
+    early: i32,
+) -> troupe_status {
+    // SAFETY: forwarded contract.
+    unsafe {
+        with_session(session, "troupe_session_set_early_emission", |s| {
+            Ok(s.set_early_emission(early != 0)?)
+        })
+    }
+}
+
+/// Makes a MAGNet live partner session run the sampling configuration `config` (a
+/// NUL-terminated name from `troupe_model_magnet_config`, or a whole configuration as JSON;
+/// borrowed for the call), for instance one with the x0 guidance off. Only before the first
+/// step or after `troupe_session_reset`; set opening frames after it when its context differs.
+///
+/// Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (an ARMFlow session, an
+/// unknown name, bad JSON, a configuration that is not `motion_control_live`, a stream already
+/// started), `TROUPE_ERR_POISONED`, `TROUPE_ERR_PANIC`. One thread at a time per session.
+///
+/// # Safety
+/// `session` must be a live handle; `config` a NUL-terminated string.
+#[no_mangle]
+pub unsafe extern "C" fn troupe_session_set_live_config(
+    session: *mut troupe_session,
+    config: *const c_char,
+) -> troupe_status {
+    // SAFETY: forwarded contract.
+    unsafe {
+        with_session(session, "troupe_session_set_live_config", |s| {
+            let config = boundary::required_str(config, "config")?;
+            Ok(s.set_live_config(config)?)
         })
     }
 }
