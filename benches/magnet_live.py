@@ -12,8 +12,10 @@ settings' on the same input (same user, same opening, same seed).
 
 Settings: `released` is `dd100_motion_control` as released (50 DDIM steps, 8 context tokens of
 the 16-token window, the x0 guidance on, each token sent once final). The others change one
-thing each: the x0 guidance off, fewer steps, early emission (each chunk's tokens sent as
-generated), 12 context tokens (a 4-token stride: shorter chunks, more of them).
+thing each (the x0 guidance off, fewer steps, early emission: each chunk's tokens sent as
+generated, 12 context tokens: a 4-token stride, shorter chunks and more of them) or several;
+`released, another seed` is the released settings drawing again, the scale a deviation is read
+against.
 
 Latency, in frames at 30 fps, for the partner's frame t: the user's frames up to the end of the
 chunk that sends it must have arrived (the algorithmic part: from `4 Tc` to `latency_frames`),
@@ -101,7 +103,7 @@ def main() -> None:
     ap.add_argument("--bundle", default=str(ROOT / "onnx/bundles/magnet-dd100"))
     ap.add_argument("--frames", required=True, help="float32 [F, 2, 145]: person 0 the user, person 1's start the opening")
     ap.add_argument("--seed", type=int, default=1111)
-    ap.add_argument("--only", help="comma-separated settings to run (default: all)")
+    ap.add_argument("--only", help="semicolon-separated settings to run (default: all)")
     ap.add_argument("--json")
     args = ap.parse_args()
     import troupe
@@ -120,13 +122,19 @@ def main() -> None:
         "early emission": (released, True),
         "12 context tokens": (dict(released, context_len=48), False),
         "10 steps, guidance off, early": (dict(off, steps=10), True),
+        "early emission, 12 context tokens": (dict(released, context_len=48), True),
+        # Calibration: the released settings with another seed, a different sample of the same
+        # distribution. A setting that moves the output about this much changes it as much as
+        # drawing again does.
+        "released, another seed": (released, False),
     }
     if args.only:
-        settings = {k: v for k, v in settings.items() if k in args.only.split(",")}
+        settings = {k: v for k, v in settings.items() if k in args.only.split(";")}
     results = []
     reference = None
     for name, (config, early) in settings.items():
-        r = run(model, name, user, partner, args.seed, config, early)
+        seed = args.seed + 1 if name == "released, another seed" else args.seed
+        r = run(model, name, user, partner, seed, config, early)
         if name == "released":
             reference = r["_partner"]
         if reference is not None:

@@ -14,14 +14,22 @@
 //!   --no-x0-guidance      the decoder-space corrections off (not the released behaviour)
 //!   --keyframes A,B       in-betweening's key frames
 //!   --out FILE.npy        where to write the frames (default: magnet.npy)
+//!   --html FILE.html      also the first sample as an HTML player (people posed on the t2m-22
+//!                         skeleton: troupe's neutral bone lengths, not the SMPL-X betas)
+//!   --live                stream the clip instead: person 0 is the user, person 1's first
+//!                         frames the partner's opening, through a live partner session
+//!                         (`--steps`, `--seed` and `--no-x0-guidance` apply; `--early` sends
+//!                         each chunk as it is generated)
 //! ```
 
 use std::path::Path;
 use std::time::Instant;
 
-use ndarray::Array3;
+use ndarray::{s, Array2, Array3, Axis};
 use ndarray_npy::{read_npy, write_npy};
-use troupe::{MagnetOptions, Model};
+use troupe::motion::{smplx145_positions, Skeleton};
+use troupe::viewer::Scene;
+use troupe::{MagnetOptions, Model, SessionOptions};
 
 struct Args {
     bundle: String,
@@ -30,6 +38,9 @@ struct Args {
     options: MagnetOptions,
     list: bool,
     out: String,
+    html: Option<String>,
+    live: bool,
+    early: bool,
 }
 
 fn parse_args() -> Result<Args, String> {
@@ -40,6 +51,9 @@ fn parse_args() -> Result<Args, String> {
         options: MagnetOptions::default(),
         list: false,
         out: "magnet.npy".into(),
+        html: None,
+        live: false,
+        early: false,
     };
     let mut it = std::env::args().skip(1);
     while let Some(flag) = it.next() {
@@ -65,6 +79,9 @@ fn parse_args() -> Result<Args, String> {
             }
             "--list" => a.list = true,
             "--out" => a.out = value()?,
+            "--html" => a.html = Some(value()?),
+            "--live" => a.live = true,
+            "--early" => a.early = true,
             "-h" | "--help" => {
                 println!("see the top of examples/magnet.rs for the options");
                 std::process::exit(0);
@@ -140,6 +157,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         None if golden.exists() => read_npy(&golden)?,
         None => walking(256, people),
     };
+    if args.live {
+        return live(&model, &args, frames);
+    }
     let shape = model.magnet_output_shape(&args.config, frames.shape()[0], &args.options)?;
     println!(
         "running `{}` on {} input frames: {} samples x {} frames x {} people",
@@ -163,5 +183,88 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     if !finite {
         return Err("the output holds non-finite values".into());
     }
+    if let Some(html) = &args.html {
+        let first = out.frames.index_axis(Axis(0), 0);
+        let people: Vec<(String, Array2<f32>)> = (0..shape[2])
+            .map(|p| (format!("person {p}"), first.slice(s![.., p, ..]).to_owned()))
+            .collect();
+        write_player(html, &args.config, &people)?;
+    }
+    Ok(())
+}
+
+/// The live partner: the clip's person 0 streams in as the user, frame by frame, as an engine
+/// would feed it; the partner's frames come out chunk by chunk.
+fn live(model: &Model, args: &Args, frames: Array3<f32>) -> Result<(), Box<dyn std::error::Error>> {
+    let mut options = SessionOptions {
+        seed: args.options.seed.unwrap_or(1111),
+        steps: args.options.steps.map(|s| s as u32),
+        early_emission: args.early,
+        ..Default::default()
+    };
+    if args.options.without_x0_guidance {
+        let mut cfg = model.magnet_live_configuration()?;
+        cfg.guidance.smoothing = None;
+        cfg.guidance.foot_skating = None;
+        options.live_config = Some(serde_json::to_string(&cfg)?);
+    }
+    let context = model.magnet_live_configuration()?.context_len;
+    options.partner_opening = Some(frames.slice(s![..context, 1, ..]).iter().copied().collect());
+    let mut session = model.session(options)?;
+    println!(
+        "live partner: {} user frames in, algorithmic latency {} frames",
+        frames.shape()[0],
+        session.latency_frames()
+    );
+    let mut partner = Vec::new();
+    for t in 0..frames.shape()[0] {
+        let started = Instant::now();
+        let out = session.step(frames.slice(s![t..t + 1, 0, ..]))?;
+        if out.nrows() > 0 {
+            println!(
+                "  user frame {t}: {} partner frames in {:.0} ms",
+                out.nrows(),
+                started.elapsed().as_secs_f64() * 1e3
+            );
+            partner.extend(out.iter().copied());
+        }
+    }
+    let partner = Array2::from_shape_vec((partner.len() / 145, 145), partner)?;
+    write_npy(&args.out, &partner)?;
+    println!("wrote {} {:?}", args.out, partner.shape());
+    if let Some(html) = &args.html {
+        let n = partner.nrows();
+        let user = frames.slice(s![..n, 0, ..]).to_owned();
+        write_player(
+            html,
+            "live partner",
+            &[("user".into(), user), ("partner".into(), partner)],
+        )?;
+    }
+    Ok(())
+}
+
+/// Poses each person's frames `[F, 145]` on the t2m-22 skeleton and writes the HTML player.
+fn write_player(
+    path: &str,
+    title: &str,
+    people: &[(String, Array2<f32>)],
+) -> Result<(), Box<dyn std::error::Error>> {
+    let skeleton = Skeleton::t2m22();
+    let mut scene = Scene::new(30.0, format!("MAGNet: {title}"))?;
+    for (name, frames) in people {
+        let flat = frames.as_standard_layout();
+        let joints = smplx145_positions(flat.as_slice().expect("standard layout"), &skeleton)?;
+        let values: Vec<f32> = joints
+            .iter()
+            .flatten()
+            .flatten()
+            .map(|v| *v as f32)
+            .collect();
+        let positions = Array3::from_shape_vec((joints.len(), 22, 3), values)?;
+        scene.add_person(name.as_str(), positions.view())?;
+    }
+    scene.write_html(path)?;
+    println!("wrote {path} (open it in a browser)");
     Ok(())
 }

@@ -239,10 +239,7 @@
  */
 #define STATS_DIM 361
 
-/*
- Floats per person and frame: betas, the body joints' 6-D rotations, the root in the world.
- */
-#define FRAME_DIM ((BETAS + (BODY_JOINTS * 6)) + TRANSFORM)
+
 
 /*
  Tokens of the user's past frames the encoder sees before a window (its receptive field
@@ -264,6 +261,11 @@
  The most people a MAGNet checkpoint may be trained for (the released ones have 2 to 4).
  */
 #define MAX_PERSONS 8
+
+/*
+ Floats per person and frame.
+ */
+#define SMPLX145_DIM 145
 
 /*
  A rotation as a unit quaternion `w + xi + yj + zk`.
@@ -760,6 +762,14 @@ typedef float Mat4[4][4];
  */
 #define TROUPE_ERR_CANCELLED 11
 
+
+
+
+
+
+
+
+
 /*
  The identity.
  */
@@ -1032,6 +1042,24 @@ const char *troupe_motion_joint_name(size_t joint);
  Non-NULL arrays must be writable for their lengths.
  */
 troupe_status troupe_motion_skeleton(int32_t *parents, size_t parents_len, float *rest_offsets, size_t rest_offsets_len);
+
+/*
+ Poses MAGNet frames on the t2m-22 skeleton: `frames` holds `n_frames` frames of one person in
+ the `magnet-smplx145` layout (145 floats each, row-major: betas, the 21 body joints' 6-D
+ rotations, the pelvis's pose in the world), and `positions` receives `[n_frames][22][3]`
+ joint positions (metres, Y up, the frames' world; `positions_len` = `n_frames * 66`). The
+ bone lengths are troupe's neutral body's, not the person's betas. For pictures
+ (`troupe_viewer_write`), BVH files and JSON poses of a MAGNet output.
+
+ Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_SHAPE` (`positions_len`),
+ `TROUPE_ERR_INVALID_ARG` (a NaN or infinite value, a degenerate rotation). On error nothing is
+ written. Thread-safe.
+
+ # Safety
+ `frames` readable for `n_frames * 145` floats; `positions` writable for `positions_len`
+ floats and not overlapping `frames`.
+ */
+troupe_status troupe_motion_smplx145_positions(const float *frames, size_t n_frames, float *positions, size_t positions_len);
 
 /*
  Writes to `*n_frames_out` how many feature frames `troupe_motion_encode` gives for a clip of

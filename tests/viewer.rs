@@ -686,3 +686,86 @@ fn the_c_entry_point_writes_both_pictures_or_nothing() {
     left.sort();
     assert_eq!(left, ["c.gif", "c.html"]);
 }
+
+// ---------------------------------------------------------------------------------------------
+// MAGNet's SMPL-X frames, posed on the t2m-22 skeleton.
+
+/// The live partner's golden stream and its user, posed and played: each person's colour lies
+/// on its projected bones at the first and the last frame, and the partner moved.
+#[test]
+fn magnet_frames_posed_on_the_skeleton_show_where_their_joints_project() {
+    use ndarray::Array2;
+    use ndarray_npy::read_npy;
+    use troupe::motion::smplx145_positions;
+
+    let golden = Path::new(env!("CARGO_MANIFEST_DIR")).join("onnx/bundles/magnet-tiny/golden");
+    let clip: Array3<f32> = read_npy(golden.join("frames.npy")).unwrap();
+    let partner: Array2<f32> = read_npy(golden.join("live_stream_frames.npy")).unwrap();
+    let n = partner.nrows();
+    let user = clip
+        .slice(ndarray::s![..n, 0, ..])
+        .as_standard_layout()
+        .into_owned();
+    let skeleton = Skeleton::t2m22();
+    let pose = |frames: &[f32]| {
+        let joints = smplx145_positions(frames, &skeleton).unwrap();
+        let flat: Vec<f32> = joints
+            .iter()
+            .flatten()
+            .flatten()
+            .map(|v| *v as f32)
+            .collect();
+        Array3::from_shape_vec((joints.len(), 22, 3), flat).unwrap()
+    };
+    let mut scene = Scene::new(30.0, "MAGNet live partner").unwrap();
+    scene
+        .add_person("user", pose(user.as_slice().unwrap()).view())
+        .unwrap();
+    scene
+        .add_person("partner", pose(partner.as_slice().unwrap()).view())
+        .unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let html = dir.path().join("magnet.html");
+    scene.write_html(&html).unwrap();
+    let cam = scene.camera();
+    let last = n - 1;
+    let mut centroids = Vec::new();
+    for t in [0, last] {
+        let image = screenshot(
+            &html,
+            &format!("frame={t}&paused=1"),
+            &dir.path().join(format!("{t}.png")),
+        );
+        if let Some(keep) = std::env::var_os("TROUPE_VIEWER_KEEP") {
+            let _ = std::fs::copy(
+                dir.path().join(format!("{t}.png")),
+                Path::new(&keep).join(format!("magnet-{t}.png")),
+            );
+        }
+        for (person, colour) in [BLUE, ORANGE].into_iter().enumerate() {
+            let joints = projected(&scene, person, t, &cam, &image);
+            let seen = see(&image, colour, &joints, 4);
+            let total = seen.left + seen.right;
+            assert!(
+                seen.joints_found >= 18,
+                "frame {t}, person {person}: {} of 22 joints have its colour",
+                seen.joints_found
+            );
+            assert!(total > 80, "frame {t}, person {person}: {total} pixels");
+            // The legend's dot of the person's colour (about 60 pixels) counts as stray.
+            assert!(
+                (seen.stray as f64) < 0.1 * total as f64 + 80.0,
+                "frame {t}, person {person}: {} of {total} pixels away from its bones",
+                seen.stray
+            );
+            centroids.push(seen.centroid);
+        }
+    }
+    let moved = ((centroids[3][0] - centroids[1][0]).powi(2)
+        + (centroids[3][1] - centroids[1][1]).powi(2))
+    .sqrt();
+    assert!(
+        moved > 3.0,
+        "the partner's pixels barely moved ({moved:.1} px)"
+    );
+}

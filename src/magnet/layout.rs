@@ -1,6 +1,8 @@
 //! The token and feature layout MAGNet's code hard-codes (`shared/spec/magnet.md` §1), and
 //! troupe's frame layout for it: what a caller gives and gets per person and frame.
 
+use crate::motion::smplx145;
+
 /// Frames per token (the VQ-VAE's temporal factor).
 pub const FRAMES_PER_TOKEN: usize = 4;
 /// SMPL-X body joints without the pelvis.
@@ -22,16 +24,17 @@ pub const STATS_DIM: usize = 361;
 /// The foot-skating loss's joints: left/right ankle, left/right foot (§6.4).
 pub const FOOT_JOINTS: [usize; 4] = [6, 7, 9, 10];
 
-/// troupe's frame layout for MAGNet (`motion.layout`).
-pub const FRAME_LAYOUT: &str = "magnet-smplx145";
+/// troupe's frame layout for MAGNet (`motion.layout`; `crate::motion::smplx145` poses it).
+pub const FRAME_LAYOUT: &str = smplx145::SMPLX145;
 /// Floats per person and frame: betas, the body joints' 6-D rotations, the root in the world.
-pub const FRAME_DIM: usize = BETAS + BODY_JOINTS * 6 + TRANSFORM;
+pub const FRAME_DIM: usize = smplx145::SMPLX145_DIM;
 /// Where each field sits in a frame.
-pub const FRAME_BETAS: std::ops::Range<usize> = 0..BETAS;
+pub const FRAME_BETAS: std::ops::Range<usize> = smplx145::SMPLX145_BETAS;
 /// The body joints' 6-D rotations.
-pub const FRAME_BODY: std::ops::Range<usize> = BETAS..BETAS + BODY_JOINTS * 6;
+pub const FRAME_BODY: std::ops::Range<usize> = smplx145::SMPLX145_BODY;
 /// The root's pose in the world (9-D), y up.
-pub const FRAME_ROOT: std::ops::Range<usize> = BETAS + BODY_JOINTS * 6..FRAME_DIM;
+pub const FRAME_ROOT: std::ops::Range<usize> = smplx145::SMPLX145_ROOT;
+const _: () = assert!(FRAME_DIM == BETAS + BODY_JOINTS * 6 + TRANSFORM);
 
 /// The statistics' fields (§1.3, `dataset_config.py:StdMeanIdx`).
 pub(crate) mod stats {

@@ -12,6 +12,7 @@
 //! - [`resample`]: frame-rate conversion at the boundary;
 //! - [`bvh`]: BVH files in and out, and [`joint_map`]: which rig joint is which t2m-22 joint;
 //! - [`export`]: poses as JSON for robots and tools;
+//! - [`smplx145`]: MAGNet's SMPL-X frames, posed on the t2m-22 skeleton;
 //! - [`quat`]: the 3-D algebra beneath.
 
 pub mod bvh;
@@ -23,6 +24,7 @@ pub mod placement;
 pub mod quat;
 pub mod resample;
 pub mod skeleton;
+pub mod smplx145;
 pub mod stream;
 pub mod world;
 
@@ -33,6 +35,7 @@ pub use features::{
 pub use joint_map::JointMap;
 pub use placement::Placement;
 pub use skeleton::{Skeleton, T2M22, T2M22_JOINTS};
+pub use smplx145::{smplx145_positions, SMPLX145, SMPLX145_DIM};
 pub use stream::{FeatureStream, STREAM_LATENCY_FRAMES};
 pub use world::{Handedness, JointsFormat, Units, UpAxis};
 

@@ -487,6 +487,26 @@ def test_magnet_live_partner_streams_as_the_reference(magnet, model):
         model.session().set_early_emission(True)
 
 
+def test_magnet_frames_pose_on_the_skeleton(magnet):
+    from troupe import motion
+
+    frames = np.load(MAGNET / "golden" / "frames.npy")
+    joints = motion.smplx145_positions(frames[:, 0])
+    assert joints.shape == (128, 22, 3) and np.isfinite(joints).all()
+    # The pelvis sits at the root's translation; bones keep the skeleton's lengths.
+    np.testing.assert_allclose(joints[:, 0], frames[:, 0, 142:145], atol=1e-6)
+    sk = motion.skeleton()
+    for j in range(1, 22):
+        bone = np.linalg.norm(joints[:, j] - joints[:, sk.parents[j]], axis=-1)
+        np.testing.assert_allclose(bone, np.linalg.norm(sk.rest_offsets[j]), rtol=1e-4)
+    bad = frames[:4, 0].copy()
+    bad[1, 20] = np.nan
+    with pytest.raises(troupe.TroupeError, match="not finite"):
+        motion.smplx145_positions(bad)
+    with pytest.raises(ValueError, match=r"\[frames, 145\]"):
+        motion.smplx145_positions(np.zeros((3, 144), np.float32))
+
+
 def test_magnet_errors(magnet, model):
     frames = np.load(MAGNET / "golden" / "frames.npy")
     with pytest.raises(troupe.TroupeError, match="no sampling configuration `nope`") as e:

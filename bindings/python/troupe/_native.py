@@ -245,6 +245,7 @@ PROTOTYPES = {
     "troupe_motion_joint_count": (c_size, []),
     "troupe_motion_joint_name": (ctypes.c_char_p, [c_size]),
     "troupe_motion_skeleton": (status, [ctypes.POINTER(ctypes.c_int32), c_size, f32p, c_size]),
+    "troupe_motion_smplx145_positions": (status, [f32p, c_size, f32p, c_size]),
     "troupe_motion_encoded_frames": (status, [model_p, fmt_p, c_size, ctypes.POINTER(c_size)]),
     "troupe_motion_encode": (status, [model_p, fmt_p, f32p, c_size, placement_p, f32p, c_size,
                                       ctypes.POINTER(c_size), placement_p]),

@@ -25,7 +25,7 @@ from . import _native
 from . import _check, _floats, _lib, _ptr
 
 __all__ = ["JointsFormat", "Placement", "Poses", "Skeleton", "FeatureStream", "skeleton", "encode", "decode",
-           "read_bvh", "write_bvh", "write_json", "save_npz", "JOINTS"]
+           "read_bvh", "write_bvh", "write_json", "save_npz", "smplx145_positions", "JOINTS"]
 
 JOINTS = 22
 _UNITS = {"m": 0, "cm": 1, "mm": 2, "in": 3}
@@ -104,6 +104,19 @@ def skeleton() -> Skeleton:
     _check(_lib.troupe_motion_skeleton(parents.ctypes.data_as(ctypes.POINTER(ctypes.c_int32)), n, _ptr(offsets),
                                        offsets.size))
     return Skeleton([_lib.troupe_motion_joint_name(j).decode() for j in range(n)], parents, offsets)
+
+
+def smplx145_positions(frames) -> np.ndarray:
+    """MAGNet's frames of one person (float32 [frames, 145], the `magnet-smplx145` layout) posed
+    on the t2m-22 skeleton: joint positions [frames, 22, 3] in metres, Y up, the frames' world.
+    Bone lengths are troupe's neutral body's, not the person's betas. For pictures
+    (`troupe.viewer`), BVH files and JSON poses of a MAGNet output."""
+    f = _floats(frames, "frames")
+    if f.ndim != 2 or f.shape[1] != 145:
+        raise ValueError(f"frames must be [frames, 145], got {list(f.shape)}")
+    out = np.empty((f.shape[0], JOINTS, 3), np.float32)
+    _check(_lib.troupe_motion_smplx145_positions(_ptr(f), f.shape[0], _ptr(out), out.size))
+    return out
 
 
 def _positions(x, what: str) -> np.ndarray:

@@ -429,6 +429,54 @@ pub unsafe extern "C" fn troupe_motion_skeleton(
     )
 }
 
+/// Poses MAGNet frames on the t2m-22 skeleton: `frames` holds `n_frames` frames of one person in
+/// the `magnet-smplx145` layout (145 floats each, row-major: betas, the 21 body joints' 6-D
+/// rotations, the pelvis's pose in the world), and `positions` receives `[n_frames][22][3]`
+/// joint positions (metres, Y up, the frames' world; `positions_len` = `n_frames * 66`). The
+/// bone lengths are troupe's neutral body's, not the person's betas. For pictures
+/// (`troupe_viewer_write`), BVH files and JSON poses of a MAGNet output.
+///
+/// Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_SHAPE` (`positions_len`),
+/// `TROUPE_ERR_INVALID_ARG` (a NaN or infinite value, a degenerate rotation). On error nothing is
+/// written. Thread-safe.
+///
+/// # Safety
+/// `frames` readable for `n_frames * 145` floats; `positions` writable for `positions_len`
+/// floats and not overlapping `frames`.
+#[no_mangle]
+pub unsafe extern "C" fn troupe_motion_smplx145_positions(
+    frames: *const f32,
+    n_frames: usize,
+    positions: *mut f32,
+    positions_len: usize,
+) -> troupe_status {
+    boundary::call(
+        "troupe_motion_smplx145_positions",
+        || {},
+        || {
+            let n = boundary::checked_mul(n_frames, crate::motion::SMPLX145_DIM, "n_frames")?;
+            let want = boundary::checked_mul(n_frames, 3 * T2M22_JOINTS, "n_frames")?;
+            if positions_len != want {
+                return Err(FfiError::new(
+                    TROUPE_ERR_SHAPE,
+                    format!("positions_len is {positions_len}, {n_frames} frames need {want}"),
+                ));
+            }
+            // SAFETY: readable for `n` floats per the contract.
+            let frames = unsafe { boundary::slice(frames, n, "frames") }?;
+            let posed = crate::motion::smplx145_positions(frames, &Skeleton::t2m22())?;
+            if want > 0 {
+                non_null(positions, "positions")?;
+            }
+            for (i, v) in posed.iter().flatten().flatten().enumerate() {
+                // SAFETY: writable for `want` floats (checked length, caller's contract).
+                unsafe { *positions.add(i) = *v as f32 };
+            }
+            Ok(())
+        },
+    )
+}
+
 /// Writes to `*n_frames_out` how many feature frames `troupe_motion_encode` gives for a clip of
 /// `n_frames` position frames measured as `format` says: the clip resampled to the bundle's
 /// rate, less one (velocities look one frame ahead).
