@@ -24,9 +24,8 @@ use super::networks::Networks;
 use super::spec::{SamplingSpec, Task};
 use super::tasks::{live_matrix, rolling_chunk, Run};
 use super::transforms::{canonical_frame, compose, from_9d, inverse, to_9d, Mat4};
-use crate::shared::checks::check_input;
+use crate::shared::checks::{check_frames, check_input};
 use crate::shared::error::{Error, Result};
-use crate::shared::limits::{at_most, LIMITS};
 
 /// Tokens of the user's past frames the encoder sees before a window (its receptive field
 /// reaches about 21 tokens back).
@@ -510,23 +509,6 @@ pub(crate) fn check_persons(nets: &Networks) -> Result<()> {
     Ok(())
 }
 
-/// Checks one stream's chunk of user frames.
-pub(crate) fn check_user_frames(frames: &[f32]) -> Result<()> {
-    if !frames.len().is_multiple_of(FRAME_DIM) {
-        return Err(Error::InvalidInput(format!(
-            "{} floats is not a whole number of {FRAME_DIM}-float frames",
-            frames.len()
-        )));
-    }
-    at_most(
-        "user frames in one call",
-        (frames.len() / FRAME_DIM) as u64,
-        LIMITS.max_frames_per_call,
-        false,
-    )?;
-    check_input("user frames", frames)
-}
-
 /// Advances streams of one model: `frames[i]` (the user's, row-major) goes to `sessions[i]`,
 /// and entry `i` of the result holds the partner frames that became ready for it. Streams that
 /// need a chunk in the same round run it together when their configurations agree. Fails,
@@ -543,7 +525,7 @@ pub(crate) fn advance(
         (e, _) => e,
     };
     for (i, (session, chunk)) in sessions.iter().zip(frames).enumerate() {
-        check_user_frames(chunk).map_err(|e| whose(i, e))?;
+        check_frames("user frames", chunk, FRAME_DIM).map_err(|e| whose(i, e))?;
         if session.settings.opening.is_none() && !chunk.is_empty() {
             return Err(whose(
                 i,

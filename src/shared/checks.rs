@@ -30,6 +30,25 @@ pub(crate) fn check_input(what: &str, values: &[f32]) -> Result<()> {
     }
 }
 
+/// Checks one call's frames from a caller (`what`: "actor frames", "user frames"): a whole
+/// number of `dim`-float frames, at most [`LIMITS`]`.max_frames_per_call` of them, every value
+/// as [`check_input`] wants it.
+pub(crate) fn check_frames(what: &str, frames: &[f32], dim: usize) -> Result<()> {
+    if !frames.len().is_multiple_of(dim) {
+        return Err(Error::InvalidInput(format!(
+            "{} floats is not a whole number of {dim}-float frames",
+            frames.len()
+        )));
+    }
+    crate::shared::limits::at_most(
+        &format!("{what} in one call"),
+        (frames.len() / dim) as u64,
+        LIMITS.max_frames_per_call,
+        false,
+    )?;
+    check_input(what, frames)
+}
+
 /// Checks values a network computed: a non-finite one (extreme inputs or settings overflowed the
 /// arithmetic) fails the call with an [`Error::Inference`] naming `graph` and `what`.
 pub(crate) fn check_output(graph: &'static str, what: &str, values: &[f32]) -> Result<()> {

@@ -28,7 +28,7 @@ use crate::armflow::meanflow::meanflow_grid;
 use crate::armflow::networks::{Conditioning, Networks, VaeState};
 use crate::armflow::spec::{ActorLatent, ArmFlowSpec};
 use crate::motion::FeatureStream;
-use crate::shared::checks::check_input;
+use crate::shared::checks::{check_frames, check_input};
 use crate::shared::error::{Error, Result};
 use crate::shared::limits::{at_most, check_cfg, check_steps, LIMITS};
 use crate::shared::noise::{fill_normals, STREAM_ACTOR_POSTERIOR, STREAM_REACTOR_NOISE};
@@ -555,19 +555,7 @@ fn advance_sessions(
 }
 
 fn check_actor_chunk(actor: &[f32], dim: usize) -> Result<()> {
-    if !actor.len().is_multiple_of(dim) {
-        return Err(Error::InvalidInput(format!(
-            "{} floats is not a whole number of {dim}-float frames",
-            actor.len()
-        )));
-    }
-    at_most(
-        "actor frames in one call",
-        (actor.len() / dim) as u64,
-        LIMITS.max_frames_per_call,
-        false,
-    )?;
-    check_input("actor frames", actor)
+    check_frames("actor frames", actor, dim)
 }
 
 fn check_output_room(output: &StepOutput, max_frames: usize, session: Option<usize>) -> Result<()> {
