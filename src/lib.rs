@@ -35,6 +35,7 @@
 
 #![warn(missing_docs)]
 
+pub mod arflow;
 pub mod armflow;
 pub mod ffi;
 pub mod magnet;
@@ -48,6 +49,7 @@ pub mod viewer;
 
 // `clip`, `noise`, `solver` and `pyramid` keep the public paths they had before the family
 // folders (`troupe::noise::fill_normals`, ...).
+pub use arflow::ArflowOptions;
 pub use armflow::clip;
 pub use armflow::{
     meanflow_grid, Clip, ClipNoise, ClipOptions, StepOutput, TokenNoise, TokenTrace,

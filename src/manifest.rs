@@ -20,6 +20,7 @@ use crate::shared::graph_spec::check_contract;
 use crate::shared::limits::LIMITS;
 use crate::shared::text::encoder::text_encoder_contract;
 
+pub use crate::arflow::spec::ArflowSpec;
 pub use crate::armflow::spec::{
     ActorLatent, ArmFlowGraphs, ArmFlowSpec, ClipSpec, ContextSpec, DecoderWindow, EncoderWindow,
     LatentSpec, SamplerSpec, VaeSpec,
@@ -72,10 +73,13 @@ pub enum Family {
     Umf(Box<UmfSpec>),
     /// MAGNet: multi-agent diffusion forcing ([`crate::Model::magnet_generate`]).
     Magnet(Box<MagnetSpec>),
+    /// ARFlow: action-to-reaction flow with penetration guidance
+    /// ([`crate::Model::arflow_generate`]).
+    Arflow(Box<ArflowSpec>),
 }
 
 /// The family names this runtime reads, as they appear in `troupe.json`.
-pub const FAMILIES: [&str; 3] = ["armflow", "umf", "magnet"];
+pub const FAMILIES: [&str; 4] = ["armflow", "umf", "magnet", "arflow"];
 
 impl Manifest {
     /// Reads and validates `troupe.json` from a bundle.
@@ -110,6 +114,7 @@ impl Manifest {
             Family::Armflow(_) => "armflow",
             Family::Umf(_) => "umf",
             Family::Magnet(_) => "magnet",
+            Family::Arflow(_) => "arflow",
         }
     }
 
@@ -124,6 +129,7 @@ impl Manifest {
             Family::Armflow(spec) => spec.validate(m.frame_dim)?,
             Family::Umf(spec) => spec.validate(&self.condition)?,
             Family::Magnet(spec) => spec.validate(m, &self.condition)?,
+            Family::Arflow(spec) => spec.validate(m, &self.condition)?,
         }
         let (encoder, branch) = self.text_graphs();
         ensure(encoder.is_some() == self.tokenizer.is_some(), || {
@@ -152,7 +158,7 @@ impl Manifest {
                 s.graphs.text_encoder.as_ref(),
                 s.graphs.text_branch.as_ref(),
             ),
-            Family::Magnet(_) => (None, None),
+            Family::Magnet(_) | Family::Arflow(_) => (None, None),
         }
     }
 
@@ -160,7 +166,7 @@ impl Manifest {
     /// input (`text.prior_dim`) for UMF.
     fn text_token_dim(&self) -> usize {
         match &self.family {
-            Family::Armflow(_) | Family::Magnet(_) => self.condition.dim,
+            Family::Armflow(_) | Family::Magnet(_) | Family::Arflow(_) => self.condition.dim,
             Family::Umf(s) => s.text.prior_dim,
         }
     }
@@ -182,6 +188,7 @@ impl Manifest {
             Family::Armflow(spec) => spec.graph_contract(motion, condition),
             Family::Umf(spec) => spec.graph_contract(motion, condition),
             Family::Magnet(spec) => spec.graph_contract(),
+            Family::Arflow(spec) => spec.graph_contract(),
         };
         if let (Some(encoder), Some(tokenizer)) = (self.text_graphs().0, &self.tokenizer) {
             let expected = text_encoder_contract(encoder, tokenizer.context, self.text_token_dim());

@@ -9,6 +9,7 @@ use std::sync::Arc;
 
 use ndarray::ArrayView2;
 
+use crate::arflow::{self, ArflowOptions};
 use crate::armflow::{self, Clip, ClipOptions};
 use crate::magnet::live::LiveSession;
 use crate::magnet::{self, MagnetOptions, MagnetOutput};
@@ -45,6 +46,7 @@ enum Networks {
     ArmFlow(Arc<armflow::Networks>),
     Umf(Arc<umf::Networks>),
     Magnet(Arc<magnet::Networks>),
+    Arflow(Arc<arflow::Networks>),
 }
 
 impl Model {
@@ -76,6 +78,11 @@ impl Model {
                 Networks::Umf(Arc::new(umf::Networks::load(&files, io, (**spec).clone())?))
             }
             Family::Magnet(spec) => Networks::Magnet(Arc::new(magnet::Networks::load(
+                &files,
+                io,
+                (**spec).clone(),
+            )?)),
+            Family::Arflow(spec) => Networks::Arflow(Arc::new(arflow::Networks::load(
                 &files,
                 io,
                 (**spec).clone(),
@@ -114,11 +121,12 @@ impl Model {
     }
 
     /// Motion frames per latent token (4 for ARMFlow and MAGNet); 0 for a `umf` model, whose
-    /// tokens are global queries rather than spans of frames.
+    /// tokens are global queries rather than spans of frames, and an `arflow` model, which has
+    /// no latent tokens.
     pub fn frames_per_token(&self) -> usize {
         match &self.inner.manifest.family {
             Family::Armflow(a) => a.latent.frames_per_token,
-            Family::Umf(_) => 0,
+            Family::Umf(_) | Family::Arflow(_) => 0,
             Family::Magnet(_) => crate::magnet::layout::FRAMES_PER_TOKEN,
         }
     }
@@ -129,6 +137,7 @@ impl Model {
             Family::Armflow(a) => a.latent.dim,
             Family::Umf(u) => u.latent.dim,
             Family::Magnet(m) => m.model.token_dim,
+            Family::Arflow(a) => a.model.dim,
         }
     }
 
@@ -184,7 +193,7 @@ impl Model {
     pub fn latency_frames(&self) -> usize {
         match &self.inner.manifest.family {
             Family::Armflow(a) => a.latency_frames(),
-            Family::Umf(_) => 0,
+            Family::Umf(_) | Family::Arflow(_) => 0,
             Family::Magnet(m) => m.model.window * crate::magnet::layout::FRAMES_PER_TOKEN - 1,
         }
     }
@@ -227,7 +236,7 @@ impl Model {
     pub fn armflow_spec(&self) -> Option<&ArmFlowSpec> {
         match &self.inner.manifest.family {
             Family::Armflow(spec) => Some(spec),
-            Family::Umf(_) | Family::Magnet(_) => None,
+            Family::Umf(_) | Family::Magnet(_) | Family::Arflow(_) => None,
         }
     }
 
@@ -235,7 +244,7 @@ impl Model {
     pub fn umf_spec(&self) -> Option<&UmfSpec> {
         match &self.inner.manifest.family {
             Family::Umf(spec) => Some(spec),
-            Family::Armflow(_) | Family::Magnet(_) => None,
+            Family::Armflow(_) | Family::Magnet(_) | Family::Arflow(_) => None,
         }
     }
 
@@ -243,8 +252,34 @@ impl Model {
     pub fn magnet_spec(&self) -> Option<&MagnetSpec> {
         match &self.inner.manifest.family {
             Family::Magnet(spec) => Some(spec),
-            Family::Armflow(_) | Family::Umf(_) => None,
+            Family::Armflow(_) | Family::Umf(_) | Family::Arflow(_) => None,
         }
+    }
+
+    /// The `arflow` manifest fields, if this is an ARFlow model.
+    pub fn arflow_spec(&self) -> Option<&crate::manifest::ArflowSpec> {
+        match &self.inner.manifest.family {
+            Family::Arflow(spec) => Some(spec),
+            _ => None,
+        }
+    }
+
+    /// ARFlow's offline generation: the reactor's `interhuman262` features `[T, 262]` for the
+    /// actor's `actor` `[T, 262]` (1 to `model.max_frames` frames, one world frame for both),
+    /// with the bundle's sampler settings changed by `options` (guidance strength λ, weight w,
+    /// η, d_safe, ...; `docs/ARFLOW.md`). With the online variant's causal network, frame `n` of
+    /// the result depends only on the actor's frames up to `n`.
+    pub fn arflow_generate(
+        &self,
+        actor: ndarray::ArrayView2<f32>,
+        options: &ArflowOptions,
+    ) -> Result<ndarray::Array2<f32>> {
+        let nets = match &self.inner.networks {
+            Networks::Arflow(nets) => nets,
+            _ => return Err(self.wrong_family("arflow", "ARFlow generation")),
+        };
+        let sampling = options.apply(&nets.spec.sampler)?;
+        arflow::sampler::generate(nets, actor, &sampling, options.seed)
     }
 
     /// The sampling configuration a default live partner session of this `magnet` model runs.
@@ -344,7 +379,7 @@ impl Model {
         let found = match &self.inner.networks {
             Networks::ArmFlow(n) => n.prompt_encoder(),
             Networks::Umf(n) => n.prompt_encoder(),
-            Networks::Magnet(_) => None,
+            Networks::Magnet(_) | Networks::Arflow(_) => None,
         };
         found.ok_or_else(|| no_prompts(&self.manifest().name))
     }
@@ -354,7 +389,7 @@ impl Model {
         let found = match &self.inner.networks {
             Networks::ArmFlow(n) => n.text_branch(),
             Networks::Umf(n) => n.text_branch(),
-            Networks::Magnet(_) => None,
+            Networks::Magnet(_) | Networks::Arflow(_) => None,
         };
         found.ok_or_else(|| {
             Error::InvalidInput(format!(
@@ -382,10 +417,11 @@ impl Model {
                     settings,
                 )?))
             }
-            Networks::Umf(_) => Err(Error::InvalidInput(format!(
-                "bundle `{}` is a `umf` model; a streaming session needs an `armflow` or \
+            Networks::Umf(_) | Networks::Arflow(_) => Err(Error::InvalidInput(format!(
+                "bundle `{}` is a `{}` model; a streaming session needs an `armflow` or \
                  `magnet` bundle",
-                self.inner.manifest.name
+                self.inner.manifest.name,
+                self.inner.manifest.family_name()
             ))),
         }
     }
@@ -525,8 +561,8 @@ impl Model {
 
     /// The error for using this bundle where another family is needed: `what` needs `needed`.
     pub(crate) fn wrong_family(&self, needed: &str, what: &str) -> Error {
-        // As read aloud: "an armflow", "a umf".
-        let article = if needed == "armflow" { "an" } else { "a" };
+        // As read aloud: "an armflow", "an arflow", "a umf".
+        let article = if needed.starts_with('a') { "an" } else { "a" };
         Error::InvalidInput(format!(
             "bundle `{}` is a `{}` model; {what} needs {article} `{needed}` bundle",
             self.inner.manifest.name,

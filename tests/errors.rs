@@ -167,8 +167,8 @@ fn corrupt_manifest_is_rejected() {
     assert!(load_error(dir.path()).contains("format_version 2 is not supported"));
 
     let dir = bundle_copy();
-    edit_manifest(dir.path(), |v| v["family"] = "arflow".into());
-    assert!(load_error(dir.path()).contains("family `arflow` is not supported"));
+    edit_manifest(dir.path(), |v| v["family"] = "interdance".into());
+    assert!(load_error(dir.path()).contains("family `interdance` is not supported"));
 
     let dir = bundle_copy();
     edit_manifest(dir.path(), |v| {

@@ -2,7 +2,8 @@
 //! `onnx/cli.py armflow export --preset tiny` (and `tiny-interhuman`, `tiny-interx`, the
 //! official-layout parity bundles), `onnx/cli.py umf export --preset tiny | tiny-temporal` and
 //! `onnx/cli.py demo export` of the committed demo checkpoint, `onnx/cli.py magnet export
-//! --preset tiny | tiny-trio`, goldens included; and (slow, on request) the demo's training
+//! --preset tiny | tiny-trio`, `onnx/cli.py arflow export --preset tiny | tiny-online`, goldens
+//! included; and (slow, on request) the demo's training
 //! reproduces its committed quality.
 //!
 //! Needs Python with torch and onnx (MAGNet's also safetensors and pyyaml). CI does not install torch (about 4 GB); where it is missing
@@ -101,6 +102,17 @@ fn committed_magnet_bundles_are_reproducible_from_the_exporter() {
     if magnet_exporter_available("committed_magnet_bundles_are_reproducible_from_the_exporter") {
         check("magnet", "tiny", "onnx/bundles/magnet-tiny");
         check("magnet", "tiny-trio", "onnx/bundles/magnet-tiny-trio");
+    }
+}
+
+#[test]
+fn committed_arflow_bundles_are_reproducible_from_the_exporter() {
+    if python_has(
+        "torch, onnx, onnxruntime",
+        "committed_arflow_bundles_are_reproducible_from_the_exporter",
+    ) {
+        check("arflow", "tiny", "onnx/bundles/arflow-tiny");
+        check("arflow", "tiny-online", "onnx/bundles/arflow-tiny-online");
     }
 }
 

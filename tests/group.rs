@@ -329,8 +329,11 @@ fn mismatched_stage_tables_are_rejected_at_load() {
     assert!(msg.contains("gamma"), "{msg}");
     let msg = load_edited(|v| v["graphs"]["reaction"]["inputs"][0]["shape"][2] = 7.into());
     assert!(msg.contains("graphs.reaction.inputs"), "{msg}");
-    let msg = load_edited(|v| v["family"] = "arflow".into());
-    assert!(msg.contains("family `arflow` is not supported"), "{msg}");
+    let msg = load_edited(|v| v["family"] = "interdance".into());
+    assert!(
+        msg.contains("family `interdance` is not supported"),
+        "{msg}"
+    );
 }
 
 #[test]

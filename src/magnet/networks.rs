@@ -9,9 +9,8 @@ use super::schedule::Schedule;
 use super::spec::MagnetSpec;
 use crate::shared::bundle::BundleFiles;
 use crate::shared::bundle_io::BundleIo;
-use crate::shared::checks::check_output;
 use crate::shared::error::{Error, Result};
-use crate::shared::graph::{load_graphs, read_f32, Graph};
+use crate::shared::graph::{load_graphs, Graph};
 use crate::shared::limits::LIMITS;
 
 /// A `magnet` bundle's graphs, loaded and optimised, with its own manifest section, the common
@@ -79,8 +78,7 @@ impl Networks {
         let k = ndarray::Array3::from_shape_vec((shape[0], shape[1], shape[2]), k)
             .expect("levels match the window")
             .into_tvalue();
-        let values = run_checked(
-            &self.denoiser,
+        let values = self.denoiser.run_checked(
             "x0",
             vec![x.to_owned().into_dyn().into_tvalue(), k],
             &shape,
@@ -106,7 +104,7 @@ impl Networks {
             pose.to_owned().into_dyn().into_tvalue(),
             condition.to_owned().into_dyn().into_tvalue(),
         ];
-        let values = run_checked(&self.vq_encoder, "latents", inputs, &shape)?;
+        let values = self.vq_encoder.run_checked("latents", inputs, &shape)?;
         Ok(Array3::from_shape_vec(shape, values).expect("shape checked"))
     }
 
@@ -123,7 +121,7 @@ impl Networks {
             latents.to_owned().into_dyn().into_tvalue(),
             condition.to_owned().into_dyn().into_tvalue(),
         ];
-        let values = run_checked(&self.vq_decoder, "pose", inputs, &shape)?;
+        let values = self.vq_decoder.run_checked("pose", inputs, &shape)?;
         Ok(Array3::from_shape_vec(shape, values).expect("shape checked"))
     }
 
@@ -144,7 +142,9 @@ impl Networks {
             betas.to_owned().into_dyn().into_tvalue(),
             ndarray::arr1(&weights).into_dyn().into_tvalue(),
         ];
-        let values = run_checked(&self.guidance, "latent_gradient", inputs, &shape)?;
+        let values = self
+            .guidance
+            .run_checked("latent_gradient", inputs, &shape)?;
         Ok(Array4::from_shape_vec(shape, values).expect("shape checked"))
     }
 
@@ -167,20 +167,6 @@ impl Networks {
         }
         out.copy_from_slice(&self.codebook[best.1 * d..(best.1 + 1) * d]);
     }
-}
-
-/// Runs `graph` and returns its first output, named `output` in messages, checked to have
-/// `shape` and finite values.
-fn run_checked(
-    graph: &Graph,
-    output: &str,
-    inputs: Vec<TValue>,
-    shape: &[usize],
-) -> Result<Vec<f32>> {
-    let out = graph.run(inputs)?;
-    let values = read_f32(graph.role(), output, &out[0], shape)?;
-    check_output(graph.role(), output, values)?;
-    Ok(values.to_vec())
 }
 
 /// The codebook file: `code_nb x d_latent` little-endian float32, every value finite.

@@ -4,6 +4,8 @@
 //! A layer beside `crate::shared`: it knows no model family, and every family may use it.
 //!
 //! - [`skeleton`]: the t2m-22 skeleton as data (names, parents, rest offsets of a neutral body);
+//! - [`body`]: the body as capsules over the joints, signed distances and their gradients;
+//! - [`penetration`]: bodies passing through each other: a loss, its gradient, metrics;
 //! - [`world`]: how a caller measures positions (units, up axis, handedness, frame rate);
 //! - [`placement`]: InterGen's canonical frame of a clip, kept to put output back;
 //! - [`ik`]: joint rotations from positions and back;
@@ -15,11 +17,13 @@
 //! - [`smplx145`]: MAGNet's SMPL-X frames, posed on the t2m-22 skeleton;
 //! - [`quat`]: the 3-D algebra beneath.
 
+pub mod body;
 pub mod bvh;
 pub mod export;
 pub mod features;
 pub mod ik;
 pub mod joint_map;
+pub mod penetration;
 pub mod placement;
 pub mod quat;
 pub mod resample;
@@ -28,11 +32,15 @@ pub mod smplx145;
 pub mod stream;
 pub mod world;
 
+pub use body::{BodyModel, Capsule, SignedDistance};
 pub use features::{
     check_layout, decode_frame, encode_clip, joints_layout, EncodedClip, Pose, FEATURE_DIM,
     INTERHUMAN262,
 };
 pub use joint_map::JointMap;
+pub use penetration::{
+    penetration_metrics, Hinge, Penetration, PenetrationLoss, PenetrationMetrics,
+};
 pub use placement::Placement;
 pub use skeleton::{Skeleton, T2M22, T2M22_JOINTS};
 pub use smplx145::{smplx145_positions, SMPLX145, SMPLX145_DIM};

@@ -410,6 +410,22 @@ pub(crate) fn split_rows(role: &'static str, batch: TValue, rows: usize) -> Resu
         .collect())
 }
 
+impl Graph {
+    /// Runs the graph and returns its first output, named `output` in messages, checked to have
+    /// `shape` and finite values.
+    pub(crate) fn run_checked(
+        &self,
+        output: &str,
+        inputs: Vec<TValue>,
+        shape: &[usize],
+    ) -> Result<Vec<f32>> {
+        let out = self.run(inputs)?;
+        let values = read_f32(self.role(), output, &out[0], shape)?;
+        crate::shared::checks::check_output(self.role(), output, values)?;
+        Ok(values.to_vec())
+    }
+}
+
 /// Reads a float tensor's contents, checking its shape.
 pub(crate) fn read_f32<'a>(
     role: &'static str,

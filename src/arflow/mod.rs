@@ -1,0 +1,20 @@
+//! The `arflow` family: action-to-reaction flow matching with physical guidance (ARFlow;
+//! `shared/spec/models.md` §3). The flow starts at the actor's motion (`x_0 = a`), the network
+//! predicts the reactor's (`x̂_1`), and each Euler step is corrected by the penetration loss's
+//! gradient (`crate::motion::penetration`), a reprojection toward the actor and optional
+//! randomness.
+//!
+//! - [`spec`]: the family's manifest section and the interface it requires of its graph;
+//! - `networks`: the loaded graph;
+//! - [`sampler`]: the guided sampler, [`crate::Model::arflow_generate`].
+//!
+//! Like every family, this folder imports only from `crate::shared`, `crate::motion` and itself.
+//! The Python reference it is tested against is `onnx/troupe_onnx/arflow/`.
+
+pub(crate) mod networks;
+pub mod sampler;
+pub mod spec;
+
+pub(crate) use networks::Networks;
+pub use sampler::ArflowOptions;
+pub use spec::STREAM_ARFLOW;
