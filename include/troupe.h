@@ -63,6 +63,16 @@
 #define TROUPE_VERSION_NUMBER 256
 
 /*
+ Floats per frame.
+ */
+#define FRAME_DIM 262
+
+/*
+ troupe's Philox stream for ARFlow's draws.
+ */
+#define STREAM_ARFLOW 9
+
+/*
  Log level: something failed.
  */
 #define TROUPE_LOG_ERROR 1
@@ -147,6 +157,22 @@
  check `troupe_abi_version() == TROUPE_ABI_VERSION` when they load the library.
  */
 #define TROUPE_ABI_VERSION 1
+
+/*
+ `troupe_arflow_options.flags`: a squared hinge in the penetration loss (else linear).
+ */
+#define TROUPE_ARFLOW_SQUARED_HINGE 1
+
+/*
+ `troupe_arflow_options.flags`: back-project with the network's x̂_1, not the guided one.
+ */
+#define TROUPE_ARFLOW_UNGUIDED_BACKPROJECTION 2
+
+/*
+ `troupe_arflow_options.flags`: mix the stochastic direction as `√(1 − η²) v + η ε` (else
+ `(1 − η) v + η ε`).
+ */
+#define TROUPE_ARFLOW_VARIANCE_PRESERVING 4
 
 /*
  `troupe_magnet_options.flags`: use `seed` instead of the configuration's.
@@ -238,8 +264,6 @@
  Length of the normalisation statistics (§1.3).
  */
 #define STATS_DIM 361
-
-
 
 /*
  Tokens of the user's past frames the encoder sees before a window (its receptive field
@@ -546,6 +570,50 @@ typedef struct troupe_session_options {
    */
   uint32_t reserved;
 } troupe_session_options;
+
+/*
+ ARFlow's sampler settings for one `troupe_arflow_generate` call. Fill with
+ `troupe_arflow_options_init` (the bundle's defaults), then change fields. Fields are only
+ ever appended; `struct_size` tells the library which version the caller has.
+ */
+typedef struct troupe_arflow_options {
+  /*
+   `sizeof(troupe_arflow_options)` as the caller compiled it (set by `_init`).
+   */
+  uint32_t struct_size;
+  /*
+   Euler steps M, >= 1.
+   */
+  uint32_t steps;
+  /*
+   The guidance strength λ, >= 0 (0: no guidance).
+   */
+  float guidance;
+  /*
+   The reweighting toward the actor w, in [0, 1] (1: none).
+   */
+  float weight;
+  /*
+   The stochastic share η, in [0, 1) (0: deterministic).
+   */
+  float eta;
+  /*
+   The penetration loss's safe distance, metres, in [0, 1].
+   */
+  float d_safe;
+  /*
+   The start noise σ (0: the flow starts at the actor exactly).
+   */
+  float sigma;
+  /*
+   `TROUPE_ARFLOW_*` flags.
+   */
+  uint32_t flags;
+  /*
+   Seed of troupe's generator (used when η > 0 or σ > 0).
+   */
+  uint64_t seed;
+} troupe_arflow_options;
 
 /*
  The random draws of one clip, given instead of seeded. Arrays are row-major float32, each
@@ -1060,6 +1128,23 @@ troupe_status troupe_motion_skeleton(int32_t *parents, size_t parents_len, float
  floats and not overlapping `frames`.
  */
 troupe_status troupe_motion_smplx145_positions(const float *frames, size_t n_frames, float *positions, size_t positions_len);
+
+/*
+ How much two people's bodies pass through each other (`docs/ARFLOW.md`): `first` and
+ `second` hold `n_frames` frames of t2m-22 joint positions each (row-major float32
+ `[n_frames][22][3]`, metres, Y up, one world), each person's joints are tested against the
+ other's body (one capsule per bone), and the results go to the non-NULL out-pointers:
+ `*frames_intersecting` (frames where a joint lies inside the other body), `*frequency` (their
+ share, 0 for no frames), `*depth_sum` (the depths of every such joint, summed over joints and
+ frames, metres: the intersection volume's proxy) and `*max_depth` (metres).
+
+ Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (a NaN or infinite
+ value). On error nothing is written. Thread-safe.
+
+ # Safety
+ `first` and `second` readable for `n_frames * 66` floats; each non-NULL out-pointer writable.
+ */
+troupe_status troupe_penetration_metrics(const float *first, const float *second, size_t n_frames, size_t *frames_intersecting, double *frequency, double *depth_sum, double *max_depth);
 
 /*
  Writes to `*n_frames_out` how many feature frames `troupe_motion_encode` gives for a clip of
@@ -1710,6 +1795,52 @@ troupe_status troupe_last_error_copy(char *buf, size_t capacity, size_t *needed)
  NUL-terminated; non-NULL `html_path`, `gif_path` and `title` NUL-terminated.
  */
 troupe_status troupe_viewer_write(const char *html_path, const char *gif_path, const float *positions, size_t n_people, size_t n_frames, const struct troupe_joints_format *format, const char *const *names, const char *title);
+
+/*
+ `sizeof(troupe_arflow_options)` in this library, for bindings to check their mirror.
+ */
+size_t troupe_arflow_options_size(void);
+
+/*
+ Fills `options` with `model`'s sampler defaults (`docs/ARFLOW.md`: 5 steps, λ 2, w 0.7,
+ η 0, d_safe 0.02 m, linear hinge, guided back-projection, σ 0) and seed 0, and sets
+ `struct_size`. Pass `sizeof(troupe_arflow_options)` as `options_size`.
+
+ Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (not an `arflow`
+ bundle, or `options_size` smaller than the first version). Thread-safe.
+
+ # Safety
+ `model` must be a live handle; `options` writable for `options_size` bytes.
+ */
+troupe_status troupe_arflow_options_init(const struct troupe_model *model, struct troupe_arflow_options *options, size_t options_size);
+
+/*
+ ARFlow's generation: the reactor's frames for the actor's. `actor` holds `n_frames`
+ `interhuman262` frames (row-major float32 `[n_frames][262]`, one world frame for both people,
+ borrowed for the call); the reactor's `n_frames` frames go into `out` (capacity
+ `out_capacity_frames` frames). `options` NULL runs the bundle's defaults with seed 0. With an
+ online bundle (a causal network) frame `n` of the result depends only on the actor's frames up
+ to `n`. Nothing is written unless it succeeds.
+
+ Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (not an `arflow` bundle,
+ settings out of range, a NaN or infinite value, 0 frames or more than the bundle's
+ `model.max_frames`), `TROUPE_ERR_BUFFER_TOO_SMALL`, `TROUPE_ERR_CANCELLED`,
+ `TROUPE_ERR_INFERENCE`, `TROUPE_ERR_PANIC`. Thread-safe: any number of threads may generate on
+ one model at once. Reports progress (steps done) to the calling thread's progress callback.
+
+ ```c
+ troupe_arflow_options opt;
+ troupe_arflow_options_init(model, &opt, sizeof opt);
+ opt.guidance = 0.0f;
+ troupe_status st = troupe_arflow_generate(model, &opt, actor, n, reactor, n);
+ ```
+
+ # Safety
+ `model` must be a live handle; `options` NULL or readable for its `struct_size`; `actor`
+ readable for `n_frames * 262` floats; `out` writable for `out_capacity_frames * 262` floats
+ and not overlapping `actor`.
+ */
+troupe_status troupe_arflow_generate(const struct troupe_model *model, const struct troupe_arflow_options *options, const float *actor, size_t n_frames, float *out, size_t out_capacity_frames);
 
 /*
  Tokens of the official clip of an `armflow` bundle exported from the official layout (75

@@ -209,12 +209,13 @@ fn cpp_wrapper_without_exceptions() {
     let demo = root().join("onnx/bundles/armflow-demo");
     let int8 = root().join("onnx/bundles/armflow-demo-int8");
     let magnet = root().join("onnx/bundles/magnet-tiny");
+    let arflow = root().join("onnx/bundles/arflow-tiny");
     println!(
         "{}",
         run(
             &[],
             &bin,
-            &[&armflow, &umf, scratch(), &demo, &int8, &magnet]
+            &[&armflow, &umf, scratch(), &demo, &int8, &magnet, &arflow]
         )
     );
 }
@@ -232,10 +233,11 @@ fn cpp_wrapper_with_its_exception_helpers() {
     let demo = root().join("onnx/bundles/armflow-demo");
     let int8 = root().join("onnx/bundles/armflow-demo-int8");
     let magnet = root().join("onnx/bundles/magnet-tiny");
+    let arflow = root().join("onnx/bundles/arflow-tiny");
     run(
         &[],
         &bin,
-        &[&armflow, &umf, scratch(), &demo, &int8, &magnet],
+        &[&armflow, &umf, scratch(), &demo, &int8, &magnet, &arflow],
     );
 }
 
@@ -251,6 +253,14 @@ fn c_programs() -> Vec<(&'static str, Vec<PathBuf>, &'static [&'static str])> {
         ("smoke", smoke_args().to_vec(), &[]),
         ("group", group_args().to_vec(), &[]),
         ("magnet", magnet_args(), &[]),
+        (
+            "arflow",
+            vec![
+                root().join("onnx/bundles/arflow-tiny"),
+                root().join("onnx/bundles/armflow-tiny"),
+            ],
+            &[],
+        ),
         ("clip", clip_args().to_vec(), &[]),
         ("motion", motion_args().to_vec(), &[]),
         ("threads", threads_args().to_vec(), &["-pthread"]),
@@ -616,6 +626,29 @@ fn c_magnet_generation_as_c99_and_cpp17() {
         &[&src],
         &shared_link(),
         "magnet_cpp",
+    );
+    run(&[], &cpp, &args);
+}
+
+/// ARFlow generation and the penetration metrics through the header: the golden Euler and
+/// guided cases equal the reference, every bad input is refused with the output untouched; as
+/// C99 and as C++17.
+#[test]
+fn c_arflow_generation_as_c99_and_cpp17() {
+    let src = root().join("tests/c/arflow.c");
+    let args = [
+        root().join("onnx/bundles/arflow-tiny"),
+        root().join("onnx/bundles/armflow-tiny"),
+    ];
+    let args: Vec<&Path> = args.iter().map(PathBuf::as_path).collect();
+    let c = compile("cc", &["-std=c99"], &[&src], &shared_link(), "arflow_c");
+    println!("{}", run(&[], &c, &args));
+    let cpp = compile(
+        "c++",
+        &["-std=c++17", "-x", "c++"],
+        &[&src],
+        &shared_link(),
+        "arflow_cpp",
     );
     run(&[], &cpp, &args);
 }

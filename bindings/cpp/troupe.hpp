@@ -236,6 +236,16 @@ class Model {
         }
         return st;
     }
+    /// ARFlow: the reactor's `frame_count` x 262 frames for the actor's; `options` null runs the
+    /// bundle's defaults. `out` is replaced only on success.
+    Status arflow_generate(const float *actor, std::size_t frame_count, std::vector<float> &out,
+                           const troupe_arflow_options *options = nullptr) const {
+        std::vector<float> v(frame_count * 262);
+        Status st = Status::from(
+            troupe_arflow_generate(handle_, options, actor, frame_count, v.data(), frame_count));
+        if (st) out.swap(v);
+        return st;
+    }
     const troupe_model *get() const { return handle_; }
 
   private:
@@ -243,7 +253,8 @@ class Model {
     troupe_model *handle_ = nullptr;
 };
 
-/// One actor/reactor stream. Move-only; use from one thread at a time.
+/// One stream (an ARMFlow reactor, or a MAGNet live partner). Move-only; use from one thread at
+/// a time.
 class Session {
   public:
     Session() = default;

@@ -39,6 +39,7 @@ pub mod version;
 pub mod viewer;
 
 // One module per family, mirroring `src/<family>/`.
+pub mod arflow;
 pub mod armflow;
 pub mod magnet;
 pub mod umf;

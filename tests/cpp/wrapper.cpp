@@ -202,6 +202,26 @@ int main(int argc, char **argv) {
         std::free(clip);
     }
 
+    // ARFlow: the defaults, a changed setting, a failure that leaves the output alone.
+    if (argc > 7) {
+        troupe::Model arflow;
+        CHECK(troupe::Model::load(argv[7], arflow).ok());
+        std::size_t n = 0;
+        float *actor = read_npy(argv[7], "actor", &n);
+        CHECK(actor != nullptr && n == 40 * 262);
+        std::vector<float> guided, plain, kept;
+        CHECK(arflow.arflow_generate(actor, 40, guided).ok() && guided.size() == n);
+        troupe_arflow_options aopt;
+        CHECK(troupe_arflow_options_init(arflow.get(), &aopt, sizeof aopt) == TROUPE_OK);
+        aopt.guidance = 0.0f;
+        CHECK(arflow.arflow_generate(actor, 40, plain, &aopt).ok() && plain != guided);
+        kept = plain;
+        aopt.weight = 2.0f;
+        troupe::Status refused = arflow.arflow_generate(actor, 40, plain, &aopt);
+        CHECK(refused.code() == TROUPE_ERR_INVALID_ARG && plain == kept);
+        std::free(actor);
+    }
+
     // ---- motion: skeleton, positions <-> features, joint sessions, files ----
     {
         troupe::Model model;

@@ -525,3 +525,44 @@ def test_magnet_errors(magnet, model):
     with pytest.raises(troupe.TroupeError, match="needs a `magnet` bundle"):
         model.magnet_generate("dd100", frames)
     assert model.magnet_configs == [] and model.magnet_people == 0
+
+
+ARFLOW = REPO / "onnx" / "bundles" / "arflow-tiny"
+
+
+def test_arflow_matches_the_reference_and_refuses_bad_input(model):
+    import json
+
+    assert ctypes.sizeof(_native.ArflowOptions) == _native.load().troupe_arflow_options_size()
+    cases = json.loads((ARFLOW / "golden" / "cases.json").read_text())
+    actor = np.load(ARFLOW / "golden" / "actor.npy")
+    with troupe.Model(ARFLOW) as arflow:
+        for case in ("euler", "guided", "stochastic"):
+            c = cases[case]
+            out = arflow.arflow_generate(actor, seed=c["seed"], steps=c["steps"], guidance=c["guidance"],
+                                         weight=c["weight"], eta=c["eta"], d_safe=c["d_safe"], sigma=c["sigma"],
+                                         squared=c["squared"], guided_backprojection=c["guided_backprojection"],
+                                         mixing=c["mixing"])
+            want = np.load(ARFLOW / "golden" / f"{case}_reactor.npy")
+            bound = 1e-4 if c["guidance"] > 0 else 1e-5
+            assert np.abs(out - want).max() <= bound * np.abs(want).max(), case
+        with pytest.raises(troupe.TroupeError, match="guidance strength"):
+            arflow.arflow_generate(actor, guidance=-1.0)
+        with pytest.raises(ValueError, match=r"\[frames, 262\]"):
+            arflow.arflow_generate(actor[:, :100])
+    with pytest.raises(troupe.TroupeError, match="needs an `arflow` bundle"):
+        model.arflow_generate(actor)
+
+
+def test_penetration_metrics():
+    from troupe import motion
+
+    actor = np.load(ARFLOW / "golden" / "actor.npy")[:, :66].reshape(-1, 22, 3)
+    near = motion.penetration_metrics(actor, actor + np.array([0.1, 0, 0], np.float32))
+    assert near["frames_intersecting"] == 40 and near["frequency"] == 1.0 and near["depth_sum"] > 0
+    far = motion.penetration_metrics(actor, actor + np.array([3.0, 0, 0], np.float32))
+    assert far["frames_intersecting"] == 0 and far["depth_sum"] == 0.0
+    bad = actor.copy()
+    bad[2, 3, 1] = np.nan
+    with pytest.raises(troupe.TroupeError, match="non-finite"):
+        motion.penetration_metrics(actor, bad)

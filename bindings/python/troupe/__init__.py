@@ -369,6 +369,38 @@ class Model:
             _ptr(out), out.size))
         return out
 
+    def arflow_generate(self, actor, seed: int = 0, steps: int | None = None, guidance: float | None = None,
+                        weight: float | None = None, eta: float | None = None, d_safe: float | None = None,
+                        sigma: float | None = None, squared: bool | None = None,
+                        guided_backprojection: bool | None = None, mixing: str | None = None) -> np.ndarray:
+        """ARFlow: the reactor's interhuman262 frames [T, 262] for the actor's (one world frame
+        for both). Unset settings take the bundle's defaults (5 steps, guidance λ 2, weight w 0.7,
+        η 0, d_safe 0.02 m, linear hinge, guided back-projection, `mixing` "linear"; see
+        docs/ARFLOW.md). Releases the GIL."""
+        a = _floats(actor, "actor")
+        if a.ndim != 2 or a.shape[1] != 262:
+            raise ValueError(f"actor must be [frames, 262], got {list(a.shape)}")
+        h = self._h()
+        opt = _native.ArflowOptions()
+        _check(_lib.troupe_arflow_options_init(h, ctypes.byref(opt), ctypes.sizeof(opt)))
+        opt.seed = seed
+        for name, value in (("steps", steps), ("guidance", guidance), ("weight", weight), ("eta", eta),
+                            ("d_safe", d_safe), ("sigma", sigma)):
+            if value is not None:
+                setattr(opt, name, value)
+        for flag, on in ((_native.ARFLOW_SQUARED_HINGE, squared),
+                         (_native.ARFLOW_UNGUIDED_BACKPROJECTION, None if guided_backprojection is None
+                          else not guided_backprojection),
+                         (_native.ARFLOW_VARIANCE_PRESERVING, None if mixing is None
+                          else mixing == "variance_preserving")):
+            if on is not None:
+                opt.flags = (opt.flags | flag) if on else (opt.flags & ~flag)
+        if mixing not in (None, "linear", "variance_preserving"):
+            raise ValueError(f"mixing is linear or variance_preserving, not {mixing!r}")
+        out = np.empty_like(a)
+        _check(_lib.troupe_arflow_generate(h, ctypes.byref(opt), _ptr(a), a.shape[0], _ptr(out), out.shape[0]))
+        return out
+
     def session(self, seed: int = 0, steps: int | None = None, cfg: float | None = None,
                 capacity: int | None = None, actor_latent: int | None = None,
                 condition=None, partner_opening=None, live_config: str | None = None,

@@ -75,6 +75,25 @@ MAGNET_MAX_KEYFRAMES = 8  # TROUPE_MAGNET_MAX_KEYFRAMES
 MAGNET_SEED, MAGNET_ETA, MAGNET_NO_X0_GUIDANCE, MAGNET_KEYFRAMES = 1, 2, 4, 8  # TROUPE_MAGNET_*
 
 
+class ArflowOptions(ctypes.Structure):
+    """Mirror of `troupe_arflow_options` (checked against troupe_arflow_options_size())."""
+
+    _fields_ = [
+        ("struct_size", ctypes.c_uint32),
+        ("steps", ctypes.c_uint32),
+        ("guidance", ctypes.c_float),
+        ("weight", ctypes.c_float),
+        ("eta", ctypes.c_float),
+        ("d_safe", ctypes.c_float),
+        ("sigma", ctypes.c_float),
+        ("flags", ctypes.c_uint32),
+        ("seed", ctypes.c_uint64),
+    ]
+
+
+ARFLOW_SQUARED_HINGE, ARFLOW_UNGUIDED_BACKPROJECTION, ARFLOW_VARIANCE_PRESERVING = 1, 2, 4
+
+
 class MagnetOptions(ctypes.Structure):
     """Mirror of `troupe_magnet_options` (checked against troupe_magnet_options_size())."""
 
@@ -222,6 +241,12 @@ PROTOTYPES = {
         f32p, c_size, f32p, c_size]),
     "troupe_magnet_options_size": (c_size, []),
     "troupe_magnet_options_init": (status, [ctypes.POINTER(MagnetOptions), c_size]),
+    "troupe_arflow_options_size": (c_size, []),
+    "troupe_arflow_options_init": (status, [model_p, ctypes.POINTER(ArflowOptions), c_size]),
+    "troupe_arflow_generate": (status, [model_p, ctypes.POINTER(ArflowOptions), f32p, c_size, f32p, c_size]),
+    "troupe_penetration_metrics": (status, [f32p, f32p, c_size, ctypes.POINTER(c_size),
+                                            ctypes.POINTER(ctypes.c_double), ctypes.POINTER(ctypes.c_double),
+                                            ctypes.POINTER(ctypes.c_double)]),
     "troupe_model_magnet_people": (c_size, [model_p]),
     "troupe_model_magnet_config_count": (c_size, [model_p]),
     "troupe_model_magnet_config": (ctypes.c_char_p, [model_p, c_size]),

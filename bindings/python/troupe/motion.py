@@ -25,7 +25,7 @@ from . import _native
 from . import _check, _floats, _lib, _ptr
 
 __all__ = ["JointsFormat", "Placement", "Poses", "Skeleton", "FeatureStream", "skeleton", "encode", "decode",
-           "read_bvh", "write_bvh", "write_json", "save_npz", "smplx145_positions", "JOINTS"]
+           "read_bvh", "write_bvh", "write_json", "save_npz", "smplx145_positions", "penetration_metrics", "JOINTS"]
 
 JOINTS = 22
 _UNITS = {"m": 0, "cm": 1, "mm": 2, "in": 3}
@@ -117,6 +117,22 @@ def smplx145_positions(frames) -> np.ndarray:
     out = np.empty((f.shape[0], JOINTS, 3), np.float32)
     _check(_lib.troupe_motion_smplx145_positions(_ptr(f), f.shape[0], _ptr(out), out.size))
     return out
+
+
+def penetration_metrics(first, second) -> dict:
+    """How much two people's bodies pass through each other (docs/ARFLOW.md): t2m-22 joints
+    [frames, 22, 3] each (metres, Y up, one world), each person's joints against the other's
+    capsule body. Returns frames_intersecting, frequency, depth_sum (metres, the intersection
+    volume's proxy) and max_depth."""
+    a, b = _positions(first, "first"), _positions(second, "second")
+    if a.shape != b.shape:
+        raise ValueError(f"the two people have {a.shape[0]} and {b.shape[0]} frames")
+    n = ctypes.c_size_t()
+    freq, depth, deepest = ctypes.c_double(), ctypes.c_double(), ctypes.c_double()
+    _check(_lib.troupe_penetration_metrics(_ptr(a), _ptr(b), a.shape[0], ctypes.byref(n), ctypes.byref(freq),
+                                           ctypes.byref(depth), ctypes.byref(deepest)))
+    return {"frames": a.shape[0], "frames_intersecting": n.value, "frequency": freq.value,
+            "depth_sum": depth.value, "max_depth": deepest.value}
 
 
 def _positions(x, what: str) -> np.ndarray:

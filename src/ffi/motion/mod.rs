@@ -477,6 +477,75 @@ pub unsafe extern "C" fn troupe_motion_smplx145_positions(
     )
 }
 
+/// How much two people's bodies pass through each other (`docs/ARFLOW.md`): `first` and
+/// `second` hold `n_frames` frames of t2m-22 joint positions each (row-major float32
+/// `[n_frames][22][3]`, metres, Y up, one world), each person's joints are tested against the
+/// other's body (one capsule per bone), and the results go to the non-NULL out-pointers:
+/// `*frames_intersecting` (frames where a joint lies inside the other body), `*frequency` (their
+/// share, 0 for no frames), `*depth_sum` (the depths of every such joint, summed over joints and
+/// frames, metres: the intersection volume's proxy) and `*max_depth` (metres).
+///
+/// Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (a NaN or infinite
+/// value). On error nothing is written. Thread-safe.
+///
+/// # Safety
+/// `first` and `second` readable for `n_frames * 66` floats; each non-NULL out-pointer writable.
+#[no_mangle]
+pub unsafe extern "C" fn troupe_penetration_metrics(
+    first: *const f32,
+    second: *const f32,
+    n_frames: usize,
+    frames_intersecting: *mut usize,
+    frequency: *mut f64,
+    depth_sum: *mut f64,
+    max_depth: *mut f64,
+) -> troupe_status {
+    boundary::call(
+        "troupe_penetration_metrics",
+        || {},
+        || {
+            let n = checked_mul(n_frames, 3 * T2M22_JOINTS, "n_frames * 66")?;
+            // SAFETY: readable for `n` floats each, per the contract.
+            let (a, b) = unsafe {
+                (
+                    boundary::slice(first, n, "first")?,
+                    boundary::slice(second, n, "second")?,
+                )
+            };
+            let joints = |v: &[f32]| -> Vec<Vec<[f64; 3]>> {
+                v.chunks_exact(3 * T2M22_JOINTS)
+                    .map(|f| {
+                        f.chunks_exact(3)
+                            .map(|p| [p[0] as f64, p[1] as f64, p[2] as f64])
+                            .collect()
+                    })
+                    .collect()
+            };
+            let m = crate::motion::penetration_metrics(
+                &crate::motion::BodyModel::t2m22(),
+                &joints(a),
+                &joints(b),
+            )?;
+            // SAFETY: each non-NULL out-pointer is writable per the contract.
+            unsafe {
+                if !frames_intersecting.is_null() {
+                    *frames_intersecting = m.frames_intersecting;
+                }
+                for (out, v) in [
+                    (frequency, m.frequency),
+                    (depth_sum, m.depth_sum),
+                    (max_depth, m.max_depth),
+                ] {
+                    if !out.is_null() {
+                        *out = v;
+                    }
+                }
+            }
+            Ok(())
+        },
+    )
+}
+
 /// Writes to `*n_frames_out` how many feature frames `troupe_motion_encode` gives for a clip of
 /// `n_frames` position frames measured as `format` says: the clip resampled to the bundle's
 /// rate, less one (velocities look one frame ahead).

@@ -1,0 +1,217 @@
+//! The C entry points of the `arflow` family: offline generation with penetration guidance.
+
+use crate::arflow::spec::Mixing;
+use crate::ffi::boundary::{
+    self, check_struct_size, checked_mul, non_null, read_versioned, room, troupe_status,
+    write_versioned, FfiError, FfiResult, TROUPE_ERR_INVALID_ARG,
+};
+use crate::ffi::model::troupe_model;
+use crate::{ArflowOptions, Model};
+
+/// `troupe_arflow_options.flags`: a squared hinge in the penetration loss (else linear).
+pub const TROUPE_ARFLOW_SQUARED_HINGE: u32 = 1;
+/// `troupe_arflow_options.flags`: back-project with the network's x̂_1, not the guided one.
+pub const TROUPE_ARFLOW_UNGUIDED_BACKPROJECTION: u32 = 2;
+/// `troupe_arflow_options.flags`: mix the stochastic direction as `√(1 − η²) v + η ε` (else
+/// `(1 − η) v + η ε`).
+pub const TROUPE_ARFLOW_VARIANCE_PRESERVING: u32 = 4;
+
+const KNOWN_FLAGS: u32 = TROUPE_ARFLOW_SQUARED_HINGE
+    | TROUPE_ARFLOW_UNGUIDED_BACKPROJECTION
+    | TROUPE_ARFLOW_VARIANCE_PRESERVING;
+
+/// ARFlow's sampler settings for one `troupe_arflow_generate` call. Fill with
+/// `troupe_arflow_options_init` (the bundle's defaults), then change fields. Fields are only
+/// ever appended; `struct_size` tells the library which version the caller has.
+#[repr(C)]
+#[derive(Debug, Clone, Copy)]
+pub struct troupe_arflow_options {
+    /// `sizeof(troupe_arflow_options)` as the caller compiled it (set by `_init`).
+    pub struct_size: u32,
+    /// Euler steps M, >= 1.
+    pub steps: u32,
+    /// The guidance strength λ, >= 0 (0: no guidance).
+    pub guidance: f32,
+    /// The reweighting toward the actor w, in [0, 1] (1: none).
+    pub weight: f32,
+    /// The stochastic share η, in [0, 1) (0: deterministic).
+    pub eta: f32,
+    /// The penetration loss's safe distance, metres, in [0, 1].
+    pub d_safe: f32,
+    /// The start noise σ (0: the flow starts at the actor exactly).
+    pub sigma: f32,
+    /// `TROUPE_ARFLOW_*` flags.
+    pub flags: u32,
+    /// Seed of troupe's generator (used when η > 0 or σ > 0).
+    pub seed: u64,
+}
+
+const OPTIONS_V1_SIZE: usize = 40;
+const _: () = assert!(std::mem::size_of::<troupe_arflow_options>() == OPTIONS_V1_SIZE);
+
+/// `sizeof(troupe_arflow_options)` in this library, for bindings to check their mirror.
+#[no_mangle]
+pub extern "C" fn troupe_arflow_options_size() -> usize {
+    std::mem::size_of::<troupe_arflow_options>()
+}
+
+fn arflow_model(model: Option<&troupe_model>) -> FfiResult<&Model> {
+    let model = &boundary::required(model, "model")?.model;
+    model
+        .arflow_spec()
+        .ok_or_else(|| model.wrong_family("arflow", "ARFlow generation"))?;
+    Ok(model)
+}
+
+/// Fills `options` with `model`'s sampler defaults (`docs/ARFLOW.md`: 5 steps, λ 2, w 0.7,
+/// η 0, d_safe 0.02 m, linear hinge, guided back-projection, σ 0) and seed 0, and sets
+/// `struct_size`. Pass `sizeof(troupe_arflow_options)` as `options_size`.
+///
+/// Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (not an `arflow`
+/// bundle, or `options_size` smaller than the first version). Thread-safe.
+///
+/// # Safety
+/// `model` must be a live handle; `options` writable for `options_size` bytes.
+#[no_mangle]
+pub unsafe extern "C" fn troupe_arflow_options_init(
+    model: Option<&troupe_model>,
+    options: *mut troupe_arflow_options,
+    options_size: usize,
+) -> troupe_status {
+    boundary::call(
+        "troupe_arflow_options_init",
+        || {},
+        || {
+            let model = arflow_model(model)?;
+            non_null(options, "options")?;
+            check_struct_size(options_size, OPTIONS_V1_SIZE, "troupe_arflow_options")?;
+            let s = &model.arflow_spec().expect("checked").sampler;
+            let flag = |on: bool, f: u32| if on { f } else { 0 };
+            let defaults = troupe_arflow_options {
+                struct_size: options_size as u32,
+                steps: s.steps as u32,
+                guidance: s.guidance,
+                weight: s.weight,
+                eta: s.eta,
+                d_safe: s.d_safe,
+                sigma: s.sigma,
+                flags: flag(s.squared, TROUPE_ARFLOW_SQUARED_HINGE)
+                    | flag(
+                        !s.guided_backprojection,
+                        TROUPE_ARFLOW_UNGUIDED_BACKPROJECTION,
+                    )
+                    | flag(
+                        s.mixing == Mixing::VariancePreserving,
+                        TROUPE_ARFLOW_VARIANCE_PRESERVING,
+                    ),
+                seed: 0,
+            };
+            // SAFETY: writable for `options_size` bytes; no padding (asserted).
+            unsafe { write_versioned(options, options_size, &defaults) };
+            Ok(())
+        },
+    )
+}
+
+/// Reads the caller's options.
+///
+/// # Safety
+/// `options` must be readable for its `struct_size` bytes.
+unsafe fn read_options(options: *const troupe_arflow_options) -> FfiResult<ArflowOptions> {
+    // SAFETY: per the contract.
+    let o = unsafe {
+        read_versioned(
+            options,
+            OPTIONS_V1_SIZE,
+            "troupe_arflow_options",
+            "troupe_arflow_options_init",
+        )
+    }?;
+    if o.flags & !KNOWN_FLAGS != 0 {
+        return Err(FfiError::new(
+            TROUPE_ERR_INVALID_ARG,
+            format!(
+                "troupe_arflow_options: unknown flags {:#x}",
+                o.flags & !KNOWN_FLAGS
+            ),
+        ));
+    }
+    Ok(ArflowOptions {
+        steps: Some(o.steps as usize),
+        guidance: Some(o.guidance),
+        weight: Some(o.weight),
+        eta: Some(o.eta),
+        d_safe: Some(o.d_safe),
+        squared: Some(o.flags & TROUPE_ARFLOW_SQUARED_HINGE != 0),
+        guided_backprojection: Some(o.flags & TROUPE_ARFLOW_UNGUIDED_BACKPROJECTION == 0),
+        mixing: Some(if o.flags & TROUPE_ARFLOW_VARIANCE_PRESERVING != 0 {
+            Mixing::VariancePreserving
+        } else {
+            Mixing::Linear
+        }),
+        sigma: Some(o.sigma),
+        seed: o.seed,
+    })
+}
+
+/// ARFlow's generation: the reactor's frames for the actor's. `actor` holds `n_frames`
+/// `interhuman262` frames (row-major float32 `[n_frames][262]`, one world frame for both people,
+/// borrowed for the call); the reactor's `n_frames` frames go into `out` (capacity
+/// `out_capacity_frames` frames). `options` NULL runs the bundle's defaults with seed 0. With an
+/// online bundle (a causal network) frame `n` of the result depends only on the actor's frames up
+/// to `n`. Nothing is written unless it succeeds.
+///
+/// Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (not an `arflow` bundle,
+/// settings out of range, a NaN or infinite value, 0 frames or more than the bundle's
+/// `model.max_frames`), `TROUPE_ERR_BUFFER_TOO_SMALL`, `TROUPE_ERR_CANCELLED`,
+/// `TROUPE_ERR_INFERENCE`, `TROUPE_ERR_PANIC`. Thread-safe: any number of threads may generate on
+/// one model at once. Reports progress (steps done) to the calling thread's progress callback.
+///
+/// ```c
+/// troupe_arflow_options opt;
+/// troupe_arflow_options_init(model, &opt, sizeof opt);
+/// opt.guidance = 0.0f;
+/// troupe_status st = troupe_arflow_generate(model, &opt, actor, n, reactor, n);
+/// ```
+///
+/// # Safety
+/// `model` must be a live handle; `options` NULL or readable for its `struct_size`; `actor`
+/// readable for `n_frames * 262` floats; `out` writable for `out_capacity_frames * 262` floats
+/// and not overlapping `actor`.
+#[no_mangle]
+pub unsafe extern "C" fn troupe_arflow_generate(
+    model: Option<&troupe_model>,
+    options: *const troupe_arflow_options,
+    actor: *const f32,
+    n_frames: usize,
+    out: *mut f32,
+    out_capacity_frames: usize,
+) -> troupe_status {
+    boundary::call(
+        "troupe_arflow_generate",
+        || {},
+        || {
+            let model = arflow_model(model)?;
+            let opts = if options.is_null() {
+                ArflowOptions::default()
+            } else {
+                // SAFETY: per the contract.
+                unsafe { read_options(options) }?
+            };
+            let dim = model.frame_dim();
+            let len = checked_mul(n_frames, dim, "n_frames * 262")?;
+            non_null(actor, "actor")?;
+            non_null(out, "out")?;
+            room(n_frames, out_capacity_frames, "out (frames)")?;
+            // SAFETY: readable for `n_frames * 262` floats per the contract.
+            let input = unsafe { std::slice::from_raw_parts(actor, len) };
+            let input =
+                ndarray::ArrayView2::from_shape((n_frames, dim), input).expect("sized above");
+            let reactor = model.arflow_generate(input, &opts)?;
+            let values = reactor.as_slice().expect("standard layout");
+            // SAFETY: `out` is writable for at least `n_frames * 262` floats (checked room).
+            unsafe { std::ptr::copy_nonoverlapping(values.as_ptr(), out, values.len()) };
+            Ok(())
+        },
+    )
+}

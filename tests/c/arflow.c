@@ -1,0 +1,123 @@
+/* ABI test of ARFlow generation and the penetration metrics through include/troupe.h only.
+ * Compiled as C99 and C++17 with -Wall -Wextra -Werror -pedantic (tests/c_abi.rs).
+ * Usage: arflow ARFLOW_BUNDLE_DIR ARMFLOW_BUNDLE_DIR */
+#include "troupe.h"
+#include "check.h"
+#include "npy.h"
+
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+static float max_value(const float *a, size_t n) {
+    float m = 0.0f;
+    size_t i;
+    for (i = 0; i < n; i++)
+        if (fabsf(a[i]) > m) m = fabsf(a[i]);
+    return m;
+}
+
+int main(int argc, char **argv) {
+    troupe_model *model = NULL, *armflow = NULL;
+    troupe_arflow_options opt;
+    size_t n_actor = 0, n_golden = 0, frames, i, t, inside = 99;
+    float *actor, *euler, *guided, *out, *bad, *joints_a, *joints_b;
+    double frequency = -1.0, depth = -1.0, deepest = -1.0;
+
+    if (argc < 3) {
+        fprintf(stderr, "usage: %s ARFLOW_BUNDLE_DIR ARMFLOW_BUNDLE_DIR\n", argv[0]);
+        return 2;
+    }
+    EXPECT(troupe_model_load_file(argv[1], &model), TROUPE_OK);
+    EXPECT(troupe_model_load_file(argv[2], &armflow), TROUPE_OK);
+    actor = read_npy(argv[1], "actor", &n_actor);
+    euler = read_npy(argv[1], "euler_reactor", &n_golden);
+    guided = read_npy(argv[1], "guided_reactor", &n_golden);
+    if (!model || !armflow || !actor || !euler || !guided) return 1;
+    frames = n_actor / 262;
+    CHECK(frames == 40 && n_golden == n_actor);
+    out = (float *)malloc(n_actor * sizeof *out);
+
+    /* options: the bundle's defaults */
+    CHECK(troupe_arflow_options_size() == sizeof(troupe_arflow_options));
+    EXPECT(troupe_arflow_options_init(model, &opt, sizeof opt), TROUPE_OK);
+    CHECK(opt.steps == 5 && opt.guidance == 2.0f && fabsf(opt.weight - 0.7f) < 1e-6f && opt.eta == 0.0f);
+    CHECK(opt.flags == 0 && opt.seed == 0);
+    EXPECT(troupe_arflow_options_init(armflow, &opt, sizeof opt), TROUPE_ERR_INVALID_ARG);
+    EXPECT(troupe_arflow_options_init(model, &opt, 8), TROUPE_ERR_INVALID_ARG);
+
+    /* the golden cases: plain Euler, and the guided defaults with seed 3 */
+    EXPECT(troupe_arflow_options_init(model, &opt, sizeof opt), TROUPE_OK);
+    opt.guidance = 0.0f;
+    opt.weight = 1.0f;
+    opt.seed = 3;
+    EXPECT(troupe_arflow_generate(model, &opt, actor, frames, out, frames), TROUPE_OK);
+    printf("arflow euler through the C ABI: %.2e relative\n",
+           (double)(max_abs(out, euler, n_actor) / max_value(euler, n_actor)));
+    CHECK(max_abs(out, euler, n_actor) <= 1e-5f * max_value(euler, n_actor));
+    EXPECT(troupe_arflow_options_init(model, &opt, sizeof opt), TROUPE_OK);
+    opt.seed = 3;
+    EXPECT(troupe_arflow_generate(model, &opt, actor, frames, out, frames), TROUPE_OK);
+    printf("arflow guided through the C ABI: %.2e relative\n",
+           (double)(max_abs(out, guided, n_actor) / max_value(guided, n_actor)));
+    CHECK(max_abs(out, guided, n_actor) <= 1e-4f * max_value(guided, n_actor));
+
+    /* bad input: a clear status, the output untouched */
+    out[0] = 12345.0f;
+    EXPECT(troupe_arflow_generate(NULL, &opt, actor, frames, out, frames), TROUPE_ERR_NULL_ARG);
+    EXPECT(troupe_arflow_generate(model, &opt, NULL, frames, out, frames), TROUPE_ERR_NULL_ARG);
+    EXPECT(troupe_arflow_generate(model, &opt, actor, frames, out, frames - 1), TROUPE_ERR_BUFFER_TOO_SMALL);
+    EXPECT(troupe_arflow_generate(model, &opt, actor, 0, out, frames), TROUPE_ERR_INVALID_ARG);
+    EXPECT(troupe_arflow_generate(armflow, &opt, actor, frames, out, frames), TROUPE_ERR_INVALID_ARG);
+    CHECK(strstr(troupe_last_error_message(), "needs an `arflow` bundle") != NULL);
+    bad = (float *)malloc(n_actor * sizeof *bad);
+    memcpy(bad, actor, n_actor * sizeof *bad);
+    bad[500] = NAN;
+    EXPECT(troupe_arflow_generate(model, &opt, bad, frames, out, frames), TROUPE_ERR_INVALID_ARG);
+    opt.guidance = -1.0f;
+    EXPECT(troupe_arflow_generate(model, &opt, actor, frames, out, frames), TROUPE_ERR_INVALID_ARG);
+    CHECK(strstr(troupe_last_error_message(), "guidance strength") != NULL);
+    opt.guidance = 2.0f;
+    opt.d_safe = 5.0f;
+    EXPECT(troupe_arflow_generate(model, &opt, actor, frames, out, frames), TROUPE_ERR_INVALID_ARG);
+    opt.d_safe = 0.02f;
+    opt.flags = 1u << 12;
+    EXPECT(troupe_arflow_generate(model, &opt, actor, frames, out, frames), TROUPE_ERR_INVALID_ARG);
+    CHECK(out[0] == 12345.0f);
+
+    /* penetration metrics: the actor's joints against themselves moved 0.1 m, then 3 m */
+    joints_a = (float *)malloc(frames * 66 * sizeof *joints_a);
+    joints_b = (float *)malloc(frames * 66 * sizeof *joints_b);
+    for (t = 0; t < frames; t++)
+        for (i = 0; i < 66; i++) {
+            joints_a[t * 66 + i] = actor[t * 262 + i];
+            joints_b[t * 66 + i] = actor[t * 262 + i] + (i % 3 == 0 ? 0.1f : 0.0f);
+        }
+    EXPECT(troupe_penetration_metrics(joints_a, joints_b, frames, &inside, &frequency, &depth, &deepest),
+           TROUPE_OK);
+    CHECK(inside == frames && frequency == 1.0 && depth > 0.0 && deepest > 0.0);
+    for (t = 0; t < frames * 22; t++) joints_b[t * 3] += 2.9f;
+    EXPECT(troupe_penetration_metrics(joints_a, joints_b, frames, &inside, &frequency, &depth, NULL),
+           TROUPE_OK);
+    CHECK(inside == 0 && frequency == 0.0 && depth == 0.0);
+    EXPECT(troupe_penetration_metrics(NULL, joints_b, frames, &inside, NULL, NULL, NULL), TROUPE_ERR_NULL_ARG);
+    joints_b[7] = NAN;
+    inside = 77;
+    EXPECT(troupe_penetration_metrics(joints_a, joints_b, frames, &inside, NULL, NULL, NULL),
+           TROUPE_ERR_INVALID_ARG);
+    CHECK(inside == 77);
+
+    free(joints_a);
+    free(joints_b);
+    free(bad);
+    free(out);
+    free(actor);
+    free(euler);
+    free(guided);
+    troupe_model_free(model);
+    troupe_model_free(armflow);
+    printf("sanitizer: %s\n", TROUPE_TEST_SANITIZER);
+    printf("c arflow: %d passed, %d failed\n", passed, failed);
+    return failed != 0;
+}
