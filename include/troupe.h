@@ -1650,6 +1650,21 @@ troupe_status troupe_session_set_early_emission(struct troupe_session *session, 
 troupe_status troupe_session_set_live_config(struct troupe_session *session, const char *config);
 
 /*
+ Turns an ARMFlow session's penetration guard on (`enabled` nonzero) or off, for the frames
+ sent from now on: each sent reactor frame is shifted in the floor plane out of the actor's
+ body (joints nearer than `d_safe` metres, in [0, 0.5]), never faster than `max_speed` metres
+ per second (in (0, 10]); `docs/ARFLOW.md` states the rule and what it measured. The defaults
+ are 0.05 m and 2 m/s. `d_safe` and `max_speed` are ignored when turning it off.
+
+ Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (a value out of range, a
+ MAGNet session), `TROUPE_ERR_POISONED`, `TROUPE_ERR_PANIC`. One thread at a time per session.
+
+ # Safety
+ `session` must be NULL or a live handle.
+ */
+troupe_status troupe_session_set_penetration_guard(struct troupe_session *session, int32_t enabled, float d_safe, float max_speed);
+
+/*
  Queues the noise of the next token not yet generated, to reproduce a run exactly:
  `actor_noise` (the posterior sample's standard normals) and `reactor_noise` (the starting
  noise), `len` floats each (`troupe_model_latent_dim`), borrowed for the call. Queued noise is

@@ -52,7 +52,8 @@ pub mod viewer;
 pub use arflow::ArflowOptions;
 pub use armflow::clip;
 pub use armflow::{
-    meanflow_grid, Clip, ClipNoise, ClipOptions, StepOutput, TokenNoise, TokenTrace,
+    meanflow_grid, Clip, ClipNoise, ClipOptions, PenetrationGuard, StepOutput, TokenNoise,
+    TokenTrace,
 };
 pub use magnet::{MagnetOptions, MagnetOutput};
 pub use manifest::{ActorLatent, ConditionLabel, Manifest, Weights};

@@ -12,7 +12,7 @@
 use ndarray::{Array2, ArrayView2, ArrayView3};
 
 use crate::armflow::spec::ActorLatent;
-use crate::armflow::{self, StepOutput, TokenNoise, TokenTrace};
+use crate::armflow::{self, PenetrationGuard, StepOutput, TokenNoise, TokenTrace};
 use crate::magnet::live::{self, LiveSession};
 use crate::magnet::LiveSettings;
 use crate::motion::{JointsFormat, Placement, Pose};
@@ -40,6 +40,9 @@ pub struct SessionOptions {
     pub actor_latent: Option<ActorLatent>,
     /// Run the VAE over windows even when the bundle has per-token step graphs (armflow).
     pub vae_windows: bool,
+    /// Pull the reactor's frames out of the actor's body as they are sent (armflow; off when
+    /// `None`; `armflow/session/guard.rs` states the rule).
+    pub penetration_guard: Option<PenetrationGuard>,
     /// The partner's opening frames, `[context frames, 145]` row-major (magnet; also
     /// [`Session::set_partner_opening`]). A stream needs them before the user's first frame.
     pub partner_opening: Option<Vec<f32>>,
@@ -83,6 +86,7 @@ impl SessionOptions {
             context_capacity: self.context_capacity,
             actor_latent: self.actor_latent,
             vae_windows: self.vae_windows,
+            penetration_guard: self.penetration_guard,
         })
     }
 
@@ -99,9 +103,14 @@ impl SessionOptions {
         if self.cfg_scale.is_some_and(|s| s != 1.0) {
             return refuse("a CFG scale other than 1");
         }
-        if self.actor_latent == Some(ActorLatent::Mean) || self.vae_windows {
+        if self.actor_latent == Some(ActorLatent::Mean)
+            || self.vae_windows
+            || self.penetration_guard.is_some()
+        {
             return Err(Error::InvalidOption(
-                "actor_latent = mean and vae_windows are for armflow sessions".into(),
+                "actor_latent = mean, vae_windows and the penetration guard are for armflow \
+                 sessions"
+                    .into(),
             ));
         }
         Ok(())
@@ -279,6 +288,13 @@ impl Session {
     /// prompts).
     pub fn set_prompt(&mut self, prompt: &str) -> Result<()> {
         self.reaction_mut("a prompt")?.set_prompt(prompt)
+    }
+
+    /// Turns the penetration guard on (with its settings) or off (`None`) for the frames sent
+    /// from now on (armflow).
+    pub fn set_penetration_guard(&mut self, guard: Option<PenetrationGuard>) -> Result<()> {
+        self.reaction_mut("the penetration guard")?
+            .set_penetration_guard(guard)
     }
 
     /// Queues the noise of the next token not yet generated (armflow).

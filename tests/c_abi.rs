@@ -258,6 +258,7 @@ fn c_programs() -> Vec<(&'static str, Vec<PathBuf>, &'static [&'static str])> {
             vec![
                 root().join("onnx/bundles/arflow-tiny"),
                 root().join("onnx/bundles/armflow-tiny"),
+                root().join("onnx/bundles/magnet-tiny"),
             ],
             &[],
         ),
@@ -639,6 +640,7 @@ fn c_arflow_generation_as_c99_and_cpp17() {
     let args = [
         root().join("onnx/bundles/arflow-tiny"),
         root().join("onnx/bundles/armflow-tiny"),
+        root().join("onnx/bundles/magnet-tiny"),
     ];
     let args: Vec<&Path> = args.iter().map(PathBuf::as_path).collect();
     let c = compile("cc", &["-std=c99"], &[&src], &shared_link(), "arflow_c");

@@ -24,6 +24,6 @@ pub use meanflow::meanflow_grid;
 pub(crate) use networks::Networks;
 pub(crate) use session::step_sessions_bounded;
 pub use session::{
-    step_sessions, step_sessions_joints, Session, SessionOptions, StepOutput, TokenNoise,
-    TokenTrace,
+    step_sessions, step_sessions_joints, PenetrationGuard, Session, SessionOptions, StepOutput,
+    TokenNoise, TokenTrace,
 };

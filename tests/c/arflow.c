@@ -1,6 +1,6 @@
 /* ABI test of ARFlow generation and the penetration metrics through include/troupe.h only.
  * Compiled as C99 and C++17 with -Wall -Wextra -Werror -pedantic (tests/c_abi.rs).
- * Usage: arflow ARFLOW_BUNDLE_DIR ARMFLOW_BUNDLE_DIR */
+ * Usage: arflow ARFLOW_BUNDLE_DIR ARMFLOW_BUNDLE_DIR [MAGNET_BUNDLE_DIR] */
 #include "troupe.h"
 #include "check.h"
 #include "npy.h"
@@ -107,6 +107,26 @@ int main(int argc, char **argv) {
     EXPECT(troupe_penetration_metrics(joints_a, joints_b, frames, &inside, NULL, NULL, NULL),
            TROUPE_ERR_INVALID_ARG);
     CHECK(inside == 77);
+
+    /* the penetration guard of an ARMFlow session */
+    {
+        troupe_session *session = NULL, *partner = NULL;
+        troupe_model *magnet = NULL;
+        EXPECT(troupe_session_new(armflow, NULL, &session), TROUPE_OK);
+        EXPECT(troupe_session_set_penetration_guard(session, 1, 0.05f, 2.0f), TROUPE_OK);
+        EXPECT(troupe_session_set_penetration_guard(session, 1, -1.0f, 2.0f), TROUPE_ERR_INVALID_ARG);
+        EXPECT(troupe_session_set_penetration_guard(session, 1, 0.05f, 0.0f), TROUPE_ERR_INVALID_ARG);
+        EXPECT(troupe_session_set_penetration_guard(session, 0, NAN, NAN), TROUPE_OK);
+        EXPECT(troupe_session_set_penetration_guard(NULL, 1, 0.05f, 2.0f), TROUPE_ERR_NULL_ARG);
+        if (argc > 3) {
+            EXPECT(troupe_model_load_file(argv[3], &magnet), TROUPE_OK);
+            EXPECT(troupe_session_new(magnet, NULL, &partner), TROUPE_OK);
+            EXPECT(troupe_session_set_penetration_guard(partner, 1, 0.05f, 2.0f), TROUPE_ERR_INVALID_ARG);
+            troupe_session_free(partner);
+            troupe_model_free(magnet);
+        }
+        troupe_session_free(session);
+    }
 
     free(joints_a);
     free(joints_b);

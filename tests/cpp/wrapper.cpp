@@ -216,6 +216,13 @@ int main(int argc, char **argv) {
         aopt.guidance = 0.0f;
         CHECK(arflow.arflow_generate(actor, 40, plain, &aopt).ok() && plain != guided);
         kept = plain;
+        troupe::Model reactor_model;
+        CHECK(troupe::Model::load(argv[1], reactor_model).ok());
+        troupe::Session reactor;
+        CHECK(troupe::Session::create(reactor_model, nullptr, reactor).ok());
+        CHECK(reactor.set_penetration_guard(true).ok());
+        CHECK(reactor.set_penetration_guard(true, -1.0f).code() == TROUPE_ERR_INVALID_ARG);
+        CHECK(reactor.set_penetration_guard(false).ok());
         aopt.weight = 2.0f;
         troupe::Status refused = arflow.arflow_generate(actor, 40, plain, &aopt);
         CHECK(refused.code() == TROUPE_ERR_INVALID_ARG && plain == kept);

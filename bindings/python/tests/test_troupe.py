@@ -566,3 +566,21 @@ def test_penetration_metrics():
     bad[2, 3, 1] = np.nan
     with pytest.raises(troupe.TroupeError, match="non-finite"):
         motion.penetration_metrics(actor, bad)
+
+
+def test_the_penetration_guard_on_the_demo():
+    from troupe import motion
+
+    actor = np.load(REPO / "tests" / "data" / "mocap" / "cmu-playground.features.npy").astype(np.float32)
+    with troupe.Model(REPO / "onnx" / "bundles" / "armflow-demo") as demo:
+        free = demo.session(seed=7, condition="keep-away").step(actor)
+        s = demo.session(seed=7, condition="keep-away")
+        s.set_penetration_guard(True)
+        guarded = s.step(actor)
+        n = len(free)
+        a = actor[:n, :66].reshape(n, 22, 3)
+        before = motion.penetration_metrics(a, free[:, :66].reshape(n, 22, 3))
+        after = motion.penetration_metrics(a, guarded[:, :66].reshape(n, 22, 3))
+        assert after["depth_sum"] < 0.5 * before["depth_sum"]
+        with pytest.raises(troupe.TroupeError, match="d_safe"):
+            s.set_penetration_guard(True, d_safe=-1.0)

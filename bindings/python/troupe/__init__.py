@@ -631,6 +631,12 @@ class Session:
         before the first step or after a reset."""
         self._call(_lib.troupe_session_set_early_emission, 1 if early else 0)
 
+    def set_penetration_guard(self, enabled: bool = True, d_safe: float = 0.05, max_speed: float = 2.0) -> None:
+        """An ARMFlow stream's penetration guard: each reactor frame sent is shifted in the floor
+        plane out of the actor's body (joints nearer than `d_safe` metres), never faster than
+        `max_speed` m/s (docs/ARFLOW.md). Off again with `enabled=False`."""
+        self._call(_lib.troupe_session_set_penetration_guard, 1 if enabled else 0, d_safe, max_speed)
+
     def set_live_config(self, config: str) -> None:
         """The sampling configuration a magnet live partner runs (a released name or JSON);
         before the first step or after a reset."""

@@ -34,8 +34,11 @@ use crate::shared::limits::{at_most, check_cfg, check_steps, LIMITS};
 use crate::shared::noise::{fill_normals, STREAM_ACTOR_POSTERIOR, STREAM_REACTOR_NOISE};
 use crate::shared::text::prompt::no_prompts;
 
+mod guard;
 mod joints;
 mod lanes;
+use guard::GuardState;
+pub use guard::PenetrationGuard;
 pub use joints::step_sessions_joints;
 use lanes::Lane;
 
@@ -61,6 +64,9 @@ pub struct SessionOptions {
     /// Run the VAE over windows even when the bundle has per-token step graphs. Slower; the two
     /// agree to float rounding. For comparisons and for debugging a bundle.
     pub vae_windows: bool,
+    /// Pull the reactor's frames out of the actor's body as they are sent (`guard.rs`); off
+    /// when `None`.
+    pub penetration_guard: Option<PenetrationGuard>,
 }
 
 /// The noise of one token, for reproducing a run exactly.
@@ -103,6 +109,7 @@ struct Settings {
     condition: Option<Vec<f32>>,
     capacity: usize,
     actor_latent: ActorLatent,
+    guard: Option<PenetrationGuard>,
 }
 
 /// Everything a stream accumulates; `reset()` returns it to `StreamState::new`.
@@ -127,6 +134,8 @@ struct StreamState {
     injected: VecDeque<TokenNoise>,
     /// The VAE steps' convolution state; `None` when the VAE runs over windows.
     vae: Option<VaeState>,
+    /// The penetration guard's offset and the actor's joints for frames not yet sent.
+    guard: GuardState,
 }
 
 /// One actor/reactor stream over a shared [`crate::Model`] (made by
@@ -158,6 +167,7 @@ impl Session {
                 .context_capacity
                 .unwrap_or(m.context.capacity_tokens),
             actor_latent: options.actor_latent.unwrap_or(m.sampler.actor_latent),
+            guard: options.penetration_guard,
             condition: match (options.condition, &options.prompt) {
                 (Some(_), Some(_)) => {
                     return Err(Error::InvalidOption(
@@ -170,6 +180,9 @@ impl Session {
         };
         check_steps("sampler steps", settings.steps)?;
         check_cfg(settings.cfg_scale)?;
+        if let Some(guard) = &settings.guard {
+            guard.check()?;
+        }
         if settings.capacity < 2 {
             return Err(Error::InvalidOption(format!(
                 "context capacity {} is below 2 (<sos> and the newest token)",
@@ -281,6 +294,18 @@ impl Session {
     /// frames after frame `t` arrive before the reactor frame `t` is out.
     pub fn latency_frames(&self) -> usize {
         self.spec().latency_frames()
+    }
+
+    /// Turns the penetration guard on (with its settings) or off (`None`) for the frames sent
+    /// from now on. Turning it on starts with no offset: frames already decoded but not yet sent
+    /// go out unguarded.
+    pub fn set_penetration_guard(&mut self, guard: Option<PenetrationGuard>) -> Result<()> {
+        if let Some(g) = &guard {
+            g.check()?;
+        }
+        self.settings.guard = guard;
+        self.state.guard = GuardState::starting_at(self.state.frames_received);
+        Ok(())
     }
 
     /// Sets the noise seed; applies to tokens generated from now on.
@@ -400,6 +425,7 @@ impl Session {
         std::mem::size_of::<Self>()
             + st.cache.bytes()
             + st.vae.as_ref().map_or(0, VaeState::bytes)
+            + st.guard.bytes()
             + floats * std::mem::size_of::<f32>()
     }
 
@@ -423,6 +449,7 @@ impl StreamState {
             reactor_base: 0,
             frames_emitted: 0,
             injected: VecDeque::new(),
+            guard: GuardState::default(),
         }
     }
 
@@ -528,15 +555,16 @@ fn advance_sessions(
         }
         return Err(e);
     }
-    let finished: Vec<_> = lanes.into_iter().map(|l| l.finish(dim)).collect();
-    let room = finished
-        .iter()
+    let mut finished: Vec<_> = lanes.into_iter().map(|l| l.finish(dim)).collect();
+    let checked = finished
+        .iter_mut()
         .enumerate()
-        .try_for_each(|(i, (_, output))| {
+        .try_for_each(|(i, (state, output))| {
             let max = max_frames.get(i).copied().unwrap_or(usize::MAX);
-            check_output_room(output, max, indexed.then_some(i))
+            check_output_room(output, max, indexed.then_some(i))?;
+            guard(&sessions[i], nets, state, output, actor[i])
         });
-    if let Err(e) = room {
+    if let Err(e) = checked {
         for (session, (mut state, _)) in sessions.iter_mut().zip(finished) {
             state.cache.rollback();
             session.state.cache = state.cache;
@@ -552,6 +580,24 @@ fn advance_sessions(
             output
         })
         .collect())
+}
+
+/// Runs the session's penetration guard, if it has one, on the frames a step sends (on the
+/// step's working state: `session` still holds the state before the step).
+fn guard(
+    session: &Session,
+    nets: &Networks,
+    state: &mut StreamState,
+    output: &mut StepOutput,
+    actor: &[f32],
+) -> Result<()> {
+    let Some(settings) = &session.settings.guard else {
+        return Ok(());
+    };
+    state.guard.push_actor(actor, nets.frame_dim());
+    let first = session.state.frames_emitted;
+    let fps = nets.io.motion.fps as f64;
+    state.guard.apply(settings, &mut output.frames, first, fps)
 }
 
 fn check_actor_chunk(actor: &[f32], dim: usize) -> Result<()> {

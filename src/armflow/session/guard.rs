@@ -1,0 +1,203 @@
+//! The penetration guard of an ARMFlow stream: after each token's reactor frames are decoded,
+//! they are pulled out of the actor's body (`crate::motion::penetration`), in feature space,
+//! by a rule that keeps the frames consistent and cannot make the motion jump.
+//!
+//! The rule, per reactor frame `t` (features in the stream's one world, y up):
+//! 1. The reactor keeps an offset `o` in the floor plane (x, z), carried from frame to frame.
+//! 2. If the reactor's joints at `o` moved toward 0 by one step are clear of the actor's body
+//!    (no joint nearer than `d_safe`), that is the target: the reactor returns to its own motion.
+//!    Otherwise the target is found from `o` by steps of a quarter step against the penetration
+//!    loss's gradient summed over the joints, projected on the floor, until the joints are clear
+//!    (at most 16 steps).
+//! 3. The offset moves toward the target by at most one step, `max_speed / fps`: the guard
+//!    never moves the reactor faster than that, so it cannot make the motion jump.
+//! 4. Every joint position moves by the offset (a rigid shift: rotations and the body's shape are
+//!    unchanged), and every joint velocity (`p[t+1] − p[t]`) by the offset's own change from the
+//!    previous frame; contacts are left as decoded.
+//!
+//! The network's own history (its latent tokens) is not changed: the guard shapes what is sent.
+
+use std::collections::VecDeque;
+
+use ndarray::Array2;
+
+use crate::motion::body::BodyModel;
+use crate::motion::features::{POSITIONS, VELOCITIES};
+use crate::motion::penetration::{Hinge, PenetrationLoss};
+use crate::motion::quat::Vec3;
+use crate::shared::error::{Error, Result};
+
+const JOINTS: usize = 22;
+const SEARCH_STEPS: usize = 16;
+
+/// The guard's settings (off unless a session sets one).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PenetrationGuard {
+    /// Joints nearer the actor's body than this, metres, are pushed out (in [0, 0.5]).
+    pub d_safe: f64,
+    /// The fastest the guard moves the reactor, metres per second (in (0, 10]).
+    pub max_speed: f64,
+}
+
+impl Default for PenetrationGuard {
+    fn default() -> Self {
+        // Measured on the demo model (docs/ARFLOW.md): a 5 cm margin and 2 m/s remove most of
+        // the depth without a push faster than a brisk walk.
+        PenetrationGuard {
+            d_safe: 0.05,
+            max_speed: 2.0,
+        }
+    }
+}
+
+impl PenetrationGuard {
+    /// Checks the settings' ranges.
+    pub fn check(&self) -> Result<()> {
+        if !(self.d_safe.is_finite() && (0.0..=0.5).contains(&self.d_safe)) {
+            return Err(Error::InvalidOption(format!(
+                "penetration guard: d_safe {} m is not in [0, 0.5] m",
+                self.d_safe
+            )));
+        }
+        if !(self.max_speed.is_finite() && self.max_speed > 0.0 && self.max_speed <= 10.0) {
+            return Err(Error::InvalidOption(format!(
+                "penetration guard: max_speed {} m/s is not in (0, 10] m/s",
+                self.max_speed
+            )));
+        }
+        Ok(())
+    }
+}
+
+/// What the guard carries between steps: its offset and the actor's joints for the frames not
+/// yet sent.
+#[derive(Debug, Clone, Default)]
+pub(super) struct GuardState {
+    offset: [f64; 2],
+    /// The actor's joint positions (66 floats) from frame `base` on.
+    actor: VecDeque<Vec<f32>>,
+    base: u64,
+}
+
+fn joints(positions: &[f32]) -> Vec<Vec3> {
+    positions
+        .chunks_exact(3)
+        .map(|p| [p[0] as f64, p[1] as f64, p[2] as f64])
+        .collect()
+}
+
+fn shifted(pose: &[Vec3], o: [f64; 2]) -> Vec<Vec3> {
+    pose.iter()
+        .map(|p| [p[0] + o[0], p[1], p[2] + o[1]])
+        .collect()
+}
+
+/// `to` moved toward `from` so that it is at most `limit` away from it.
+fn clamp_move(from: [f64; 2], to: [f64; 2], limit: f64) -> [f64; 2] {
+    let d = [to[0] - from[0], to[1] - from[1]];
+    let n = (d[0] * d[0] + d[1] * d[1]).sqrt();
+    if n <= limit {
+        to
+    } else {
+        [from[0] + d[0] * limit / n, from[1] + d[1] * limit / n]
+    }
+}
+
+impl GuardState {
+    /// No offset, the actor's joints kept from frame `frame` on.
+    pub(super) fn starting_at(frame: u64) -> Self {
+        GuardState {
+            base: frame,
+            ..Default::default()
+        }
+    }
+
+    /// Keeps the joint positions of the actor's new frames (`frame_dim` floats each).
+    pub(super) fn push_actor(&mut self, frames: &[f32], frame_dim: usize) {
+        for f in frames.chunks_exact(frame_dim) {
+            self.actor
+                .push_back(f[POSITIONS..POSITIONS + 3 * JOINTS].to_vec());
+        }
+    }
+
+    /// Guards `frames` (the reactor's, `[n, frame_dim]`, the first of them frame `first`), then
+    /// forgets the actor's frames before the next one to send.
+    pub(super) fn apply(
+        &mut self,
+        guard: &PenetrationGuard,
+        frames: &mut Array2<f32>,
+        first: u64,
+        fps: f64,
+    ) -> Result<()> {
+        let body = BodyModel::t2m22();
+        let loss = PenetrationLoss {
+            d_safe: guard.d_safe,
+            hinge: Hinge::Linear,
+        };
+        let step = guard.max_speed / fps;
+        for (i, mut frame) in frames.outer_iter_mut().enumerate() {
+            let index = first + i as u64;
+            let Some(actor) = index
+                .checked_sub(self.base)
+                .and_then(|k| self.actor.get(k as usize))
+            else {
+                continue; // no actor frame for it (cannot happen in a stream): sent as decoded
+            };
+            let actor = [joints(actor)];
+            let pose = joints(
+                frame
+                    .as_slice()
+                    .expect("rows of a standard-layout array")
+                    .get(POSITIONS..POSITIONS + 3 * JOINTS)
+                    .expect("interhuman262 frames"),
+            );
+            let clear = |o: [f64; 2]| -> Result<bool> {
+                Ok(loss.evaluate(&body, &actor, &[shifted(&pose, o)])?.loss == 0.0)
+            };
+            let previous = self.offset;
+            let released = clamp_move(previous, [0.0, 0.0], step);
+            let target = if clear(released)? {
+                released
+            } else {
+                let mut o = previous;
+                for _ in 0..SEARCH_STEPS {
+                    let pen = loss.evaluate(&body, &actor, &[shifted(&pose, o)])?;
+                    if pen.loss == 0.0 {
+                        break;
+                    }
+                    let g = pen.gradient[0]
+                        .iter()
+                        .fold([0.0, 0.0], |s, g| [s[0] + g[0], s[1] + g[2]]);
+                    let n = (g[0] * g[0] + g[1] * g[1]).sqrt();
+                    if n == 0.0 {
+                        break;
+                    }
+                    o = [o[0] - 0.25 * step * g[0] / n, o[1] - 0.25 * step * g[1] / n];
+                }
+                o
+            };
+            let o = clamp_move(previous, target, step);
+            let row = frame
+                .as_slice_mut()
+                .expect("rows of a standard-layout array");
+            for j in 0..JOINTS {
+                row[POSITIONS + 3 * j] += o[0] as f32;
+                row[POSITIONS + 3 * j + 2] += o[1] as f32;
+                row[VELOCITIES + 3 * j] += (o[0] - previous[0]) as f32;
+                row[VELOCITIES + 3 * j + 2] += (o[1] - previous[1]) as f32;
+            }
+            self.offset = o;
+        }
+        let next = first + frames.nrows() as u64;
+        while self.base < next && !self.actor.is_empty() {
+            self.actor.pop_front();
+            self.base += 1;
+        }
+        Ok(())
+    }
+
+    /// Bytes held.
+    pub(super) fn bytes(&self) -> usize {
+        self.actor.iter().map(Vec::capacity).sum::<usize>() * std::mem::size_of::<f32>()
+    }
+}

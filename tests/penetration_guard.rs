@@ -1,0 +1,194 @@
+//! The penetration guard of ARMFlow streams on the trained demo model and real motion capture
+//! (`tests/data/mocap/cmu-playground.features.npy`): with the guard the reactor passes through
+//! the actor less often and less deep, never moves faster than the guard's speed limit, keeps
+//! its body's shape; off, nothing changes; a crowd with the guard equals each stream alone.
+
+use std::path::PathBuf;
+
+use ndarray::{s, Array2};
+use ndarray_npy::read_npy;
+use troupe::motion::{penetration_metrics, BodyModel, PenetrationMetrics};
+use troupe::{step_sessions, Error, Model, PenetrationGuard, Session, SessionOptions};
+
+fn repo(path: &str) -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join(path)
+}
+
+fn demo() -> Model {
+    Model::load(repo("onnx/bundles/armflow-demo")).unwrap()
+}
+
+fn actor() -> Array2<f32> {
+    read_npy(repo("tests/data/mocap/cmu-playground.features.npy")).unwrap()
+}
+
+fn session(model: &Model, rule: &str, guard: Option<PenetrationGuard>) -> Session {
+    model
+        .session(SessionOptions {
+            seed: 7,
+            condition: Some(model.condition_for(rule).unwrap()),
+            penetration_guard: guard,
+            ..Default::default()
+        })
+        .unwrap()
+}
+
+fn stream(session: &mut Session, actor: &Array2<f32>) -> Array2<f32> {
+    let mut out = Vec::new();
+    for chunk in actor.axis_chunks_iter(ndarray::Axis(0), 10) {
+        out.extend(session.step(chunk).unwrap().iter().copied());
+    }
+    Array2::from_shape_vec((out.len() / 262, 262), out).unwrap()
+}
+
+fn joints(frames: &Array2<f32>) -> Vec<Vec<[f64; 3]>> {
+    frames
+        .outer_iter()
+        .map(|f| {
+            (0..22)
+                .map(|j| [0, 1, 2].map(|k| f[3 * j + k] as f64))
+                .collect()
+        })
+        .collect()
+}
+
+fn metrics(actor: &Array2<f32>, reactor: &Array2<f32>) -> PenetrationMetrics {
+    let a = actor.slice(s![..reactor.nrows(), ..]).to_owned();
+    penetration_metrics(&BodyModel::t2m22(), &joints(&a), &joints(reactor)).unwrap()
+}
+
+#[test]
+fn the_guard_pulls_the_reactor_out_without_jumps() {
+    let model = demo();
+    let actor = actor();
+    let guard = PenetrationGuard::default();
+    let step = guard.max_speed / 30.0;
+    for rule in ["mirror", "keep-away"] {
+        let free = stream(&mut session(&model, rule, None), &actor);
+        let guarded = stream(&mut session(&model, rule, Some(guard)), &actor);
+        let (before, after) = (metrics(&actor, &free), metrics(&actor, &guarded));
+        println!(
+            "{rule}: intersecting frames {} -> {}, depth sum {:.3} -> {:.3} m",
+            before.frames_intersecting,
+            after.frames_intersecting,
+            before.depth_sum,
+            after.depth_sum
+        );
+        assert!(
+            before.frames_intersecting > 0,
+            "{rule}: the demo should collide here"
+        );
+        assert!(
+            after.frames_intersecting < before.frames_intersecting,
+            "{rule}"
+        );
+        assert!(after.depth_sum < 0.5 * before.depth_sum, "{rule}");
+        // A rigid shift in the floor plane, at most `step` per frame: heights, rotations and
+        // contacts as decoded; every joint shifted by the same offset.
+        let mut previous = [0f64; 2];
+        for (t, (g, f)) in guarded.outer_iter().zip(free.outer_iter()).enumerate() {
+            let o = [(g[0] - f[0]) as f64, (g[2] - f[2]) as f64];
+            for j in 0..22 {
+                assert!(
+                    ((g[3 * j] - f[3 * j]) as f64 - o[0]).abs() < 1e-5,
+                    "{rule} {t}"
+                );
+                assert!(
+                    (g[3 * j + 1] - f[3 * j + 1]).abs() < 1e-6,
+                    "{rule} {t}: height"
+                );
+                assert!(((g[3 * j + 2] - f[3 * j + 2]) as f64 - o[1]).abs() < 1e-5);
+                let dv = (g[66 + 3 * j] - f[66 + 3 * j]) as f64;
+                assert!(
+                    (dv - (o[0] - previous[0])).abs() < 1e-5,
+                    "{rule} {t}: velocity"
+                );
+            }
+            assert_eq!(g.slice(s![132..]), f.slice(s![132..]), "{rule} {t}");
+            let moved = ((o[0] - previous[0]).powi(2) + (o[1] - previous[1]).powi(2)).sqrt();
+            assert!(
+                moved <= step + 1e-5,
+                "{rule} {t}: the offset moved {moved} m"
+            );
+            previous = o;
+        }
+    }
+}
+
+#[test]
+fn off_by_default_and_a_crowd_equals_each_alone() {
+    let model = demo();
+    let actor = actor();
+    let plain = stream(&mut session(&model, "mirror", None), &actor);
+    let mut switched = session(&model, "mirror", Some(PenetrationGuard::default()));
+    switched.set_penetration_guard(None).unwrap();
+    assert_eq!(stream(&mut switched, &actor), plain);
+    // A crowd: two guarded streams and one free, stepped together.
+    let guard = Some(PenetrationGuard::default());
+    let alone: Vec<Array2<f32>> = [("mirror", guard), ("keep-away", guard), ("mirror", None)]
+        .iter()
+        .map(|&(rule, g)| stream(&mut session(&model, rule, g), &actor))
+        .collect();
+    let mut crowd = vec![
+        session(&model, "mirror", guard),
+        session(&model, "keep-away", guard),
+        session(&model, "mirror", None),
+    ];
+    let mut together: Vec<Vec<f32>> = vec![Vec::new(); 3];
+    for chunk in actor.axis_chunks_iter(ndarray::Axis(0), 10) {
+        let chunk = chunk.as_standard_layout().into_owned();
+        let frames = [chunk.as_slice().unwrap(); 3];
+        let mut refs: Vec<&mut Session> = crowd.iter_mut().collect();
+        for (i, out) in step_sessions(&mut refs, &frames)
+            .unwrap()
+            .into_iter()
+            .enumerate()
+        {
+            together[i].extend(out.frames.iter().copied());
+        }
+    }
+    for (i, (got, want)) in together.iter().zip(&alone).enumerate() {
+        let worst = got
+            .iter()
+            .zip(want.iter())
+            .fold(0f32, |m, (a, b)| m.max((a - b).abs()));
+        let scale = want.iter().fold(0f32, |m, v| m.max(v.abs()));
+        // Batched products round differently (<= 1e-5 without the guard, tests/batch.rs); the
+        // guard's clear-or-not decisions can carry that a little further.
+        println!(
+            "crowd session {i}: {:.2e} relative to stepping it alone",
+            worst / scale
+        );
+        assert!(worst <= 1e-4 * scale, "session {i}: {worst}");
+    }
+}
+
+#[test]
+fn bad_settings_are_refused() {
+    let model = demo();
+    let mut s = session(&model, "mirror", None);
+    for bad in [
+        PenetrationGuard {
+            d_safe: -0.1,
+            ..Default::default()
+        },
+        PenetrationGuard {
+            max_speed: 0.0,
+            ..Default::default()
+        },
+        PenetrationGuard {
+            max_speed: f64::NAN,
+            ..Default::default()
+        },
+    ] {
+        assert!(matches!(
+            s.set_penetration_guard(Some(bad)),
+            Err(Error::InvalidOption(_))
+        ));
+        let options = SessionOptions {
+            penetration_guard: Some(bad),
+            ..Default::default()
+        };
+        assert!(model.session(options).is_err());
+    }
+}
