@@ -562,7 +562,7 @@ fn advance_sessions(
         .try_for_each(|(i, (state, output))| {
             let max = max_frames.get(i).copied().unwrap_or(usize::MAX);
             check_output_room(output, max, indexed.then_some(i))?;
-            guard(&sessions[i], nets, state, output, actor[i])
+            guard(sessions[i], nets, state, output, actor[i])
         });
     if let Err(e) = checked {
         for (session, (mut state, _)) in sessions.iter_mut().zip(finished) {
