@@ -63,8 +63,9 @@ pub struct Session {
 
 #[derive(Debug)]
 enum Stream {
-    Reaction(armflow::Session),
-    Partner(LiveSession),
+    // Boxed: the two differ in size by a few hundred bytes, and sessions move.
+    Reaction(Box<armflow::Session>),
+    Partner(Box<LiveSession>),
 }
 
 impl SessionOptions {
@@ -120,13 +121,13 @@ impl SessionOptions {
 impl Session {
     pub(crate) fn reaction(session: armflow::Session) -> Self {
         Self {
-            stream: Stream::Reaction(session),
+            stream: Stream::Reaction(Box::new(session)),
         }
     }
 
     pub(crate) fn partner(session: LiveSession) -> Self {
         Self {
-            stream: Stream::Partner(session),
+            stream: Stream::Partner(Box::new(session)),
         }
     }
 
@@ -490,8 +491,8 @@ pub(crate) fn step_sessions_bounded(
     let mut partners = Vec::new();
     for s in sessions.iter_mut() {
         match &mut s.stream {
-            Stream::Reaction(r) => reactions.push(r),
-            Stream::Partner(p) => partners.push(p),
+            Stream::Reaction(r) => reactions.push(&mut **r),
+            Stream::Partner(p) => partners.push(&mut **p),
         }
     }
     if !reactions.is_empty() {
@@ -523,7 +524,7 @@ pub fn step_sessions_joints(
     let mut reactions = Vec::with_capacity(sessions.len());
     for s in sessions.iter_mut() {
         match &mut s.stream {
-            Stream::Reaction(r) => reactions.push(r),
+            Stream::Reaction(r) => reactions.push(&mut **r),
             Stream::Partner(_) => return Err(armflow_only("joint positions")),
         }
     }

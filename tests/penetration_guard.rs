@@ -129,7 +129,7 @@ fn off_by_default_and_a_crowd_equals_each_alone() {
         .iter()
         .map(|&(rule, g)| stream(&mut session(&model, rule, g), &actor))
         .collect();
-    let mut crowd = vec![
+    let mut crowd = [
         session(&model, "mirror", guard),
         session(&model, "keep-away", guard),
         session(&model, "mirror", None),
