@@ -1665,6 +1665,19 @@ troupe_status troupe_session_set_live_config(struct troupe_session *session, con
 troupe_status troupe_session_set_penetration_guard(struct troupe_session *session, int32_t enabled, float d_safe, float max_speed);
 
 /*
+ Sets an ARFlow stream's sampler settings (`options`, filled by `troupe_arflow_options_init`;
+ its seed too); a new step count only before the first frame or after `troupe_session_reset`.
+
+ Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (not an ARFlow stream,
+ settings out of range, unknown flags), `TROUPE_ERR_POISONED`, `TROUPE_ERR_PANIC`. One thread
+ at a time per session.
+
+ # Safety
+ `session` must be a live handle; `options` readable for its `struct_size`.
+ */
+troupe_status troupe_session_set_arflow_options(struct troupe_session *session, const struct troupe_arflow_options *options);
+
+/*
  Queues the noise of the next token not yet generated, to reproduce a run exactly:
  `actor_noise` (the posterior sample's standard normals) and `reactor_noise` (the starting
  noise), `len` floats each (`troupe_model_latent_dim`), borrowed for the call. Queued noise is

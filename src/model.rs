@@ -9,6 +9,7 @@ use std::sync::Arc;
 
 use ndarray::ArrayView2;
 
+use crate::arflow::stream::ArflowStream;
 use crate::arflow::{self, ArflowOptions};
 use crate::armflow::{self, Clip, ClipOptions};
 use crate::magnet::live::LiveSession;
@@ -210,11 +211,12 @@ impl Model {
     /// The most frames one `step` with `n_actor_frames` new frames can return, whatever the
     /// session's state: `ceil(n / frames_per_token) * frames_per_token` for ARMFlow; for a
     /// MAGNet live partner `n` plus the frames a stream may hold back, under one window
-    /// (`4 Tm`). 0 for a `umf` model.
+    /// (`4 Tm`); `n` for an ARFlow stream (a frame out for each frame in). 0 for a `umf` model.
     pub fn max_output_frames(&self, n_actor_frames: usize) -> usize {
         match &self.inner.manifest.family {
             Family::Magnet(m) => n_actor_frames
                 .saturating_add(m.model.window * crate::magnet::layout::FRAMES_PER_TOKEN),
+            Family::Arflow(_) => n_actor_frames,
             _ => match self.frames_per_token() {
                 0 => 0,
                 fpt => n_actor_frames.div_ceil(fpt).saturating_mul(fpt),
@@ -417,11 +419,18 @@ impl Model {
                     settings,
                 )?))
             }
-            Networks::Umf(_) | Networks::Arflow(_) => Err(Error::InvalidInput(format!(
-                "bundle `{}` is a `{}` model; a streaming session needs an `armflow` or \
-                 `magnet` bundle",
-                self.inner.manifest.name,
-                self.inner.manifest.family_name()
+            Networks::Arflow(nets) => {
+                let sampling = options.for_flow(&nets.spec.sampler)?;
+                Ok(Session::flow(ArflowStream::new(
+                    Arc::clone(nets),
+                    sampling,
+                    options.seed,
+                )?))
+            }
+            Networks::Umf(_) => Err(Error::InvalidInput(format!(
+                "bundle `{}` is a `umf` model; a streaming session needs an `armflow`, `magnet` \
+                 or online `arflow` bundle",
+                self.inner.manifest.name
             ))),
         }
     }

@@ -2,6 +2,8 @@
 //!
 //! - over an `armflow` model: the actor's frames in, the reactor's out, one token at a time
 //!   (`armflow/session`);
+//! - over an online `arflow` model: the actor's frames in, the reactor's out, frame by frame
+//!   (`arflow/stream.rs`);
 //! - over a `magnet` model: the user's frames in, the live partner's out, one chunk of the
 //!   official rolling window at a time (`magnet/live.rs`).
 //!
@@ -11,6 +13,9 @@
 
 use ndarray::{Array2, ArrayView2, ArrayView3};
 
+use crate::arflow::spec::ArflowSampling;
+use crate::arflow::stream::{self, ArflowStream};
+use crate::arflow::ArflowOptions;
 use crate::armflow::spec::ActorLatent;
 use crate::armflow::{self, PenetrationGuard, StepOutput, TokenNoise, TokenTrace};
 use crate::magnet::live::{self, LiveSession};
@@ -52,6 +57,9 @@ pub struct SessionOptions {
     /// Emit each chunk's partner frames as soon as they are generated (magnet): `4 (Tm - Tc)`
     /// frames less latency, but the next chunk's smoothing no longer reaches them.
     pub early_emission: bool,
+    /// ARFlow's sampler settings for an online `arflow` bundle's stream (`None`: the bundle's;
+    /// the seed is `seed`'s).
+    pub arflow: Option<ArflowOptions>,
 }
 
 /// One stream over a shared [`crate::Model`] (made by [`crate::Model::session`]). `Send`, not
@@ -63,9 +71,10 @@ pub struct Session {
 
 #[derive(Debug)]
 enum Stream {
-    // Boxed: the two differ in size by a few hundred bytes, and sessions move.
+    // Boxed: the variants differ in size by a few hundred bytes, and sessions move.
     Reaction(Box<armflow::Session>),
     Partner(Box<LiveSession>),
+    Flow(Box<ArflowStream>),
 }
 
 impl SessionOptions {
@@ -76,6 +85,11 @@ impl SessionOptions {
                 "partner_opening, live_config and early_emission are for magnet live partner \
                  sessions; this is an armflow model"
                     .into(),
+            ));
+        }
+        if self.arflow.is_some() {
+            return Err(Error::InvalidOption(
+                "arflow settings are for arflow streams; this is an armflow model".into(),
             ));
         }
         Ok(armflow::SessionOptions {
@@ -107,10 +121,11 @@ impl SessionOptions {
         if self.actor_latent == Some(ActorLatent::Mean)
             || self.vae_windows
             || self.penetration_guard.is_some()
+            || self.arflow.is_some()
         {
             return Err(Error::InvalidOption(
-                "actor_latent = mean, vae_windows and the penetration guard are for armflow \
-                 sessions"
+                "actor_latent = mean, vae_windows, the penetration guard and arflow settings are \
+                 not for magnet live partner sessions"
                     .into(),
             ));
         }
@@ -118,7 +133,45 @@ impl SessionOptions {
     }
 }
 
+impl SessionOptions {
+    /// What an ARFlow stream reads: its sampler settings (the bundle's with `arflow`'s changes,
+    /// `steps` applied); fails on a field the stream cannot honour.
+    pub(crate) fn for_flow(&self, base: &ArflowSampling) -> Result<ArflowSampling> {
+        let refuse = |what: &str| {
+            Err(Error::InvalidOption(format!(
+                "{what}: an ARFlow stream has no conditioning, CFG scale or those settings"
+            )))
+        };
+        if self.condition.is_some() || self.prompt.is_some() {
+            return refuse("a condition or prompt");
+        }
+        if self.cfg_scale.is_some_and(|s| s != 1.0) {
+            return refuse("a CFG scale other than 1");
+        }
+        if self.actor_latent == Some(ActorLatent::Mean)
+            || self.vae_windows
+            || self.penetration_guard.is_some()
+            || self.partner_opening.is_some()
+            || self.live_config.is_some()
+            || self.early_emission
+        {
+            return refuse("armflow or magnet settings");
+        }
+        let mut changes = self.arflow.clone().unwrap_or_default();
+        if let Some(steps) = self.steps {
+            changes.steps = Some(steps as usize);
+        }
+        changes.apply(base)
+    }
+}
+
 impl Session {
+    pub(crate) fn flow(stream: ArflowStream) -> Self {
+        Self {
+            stream: Stream::Flow(Box::new(stream)),
+        }
+    }
+
     pub(crate) fn reaction(session: armflow::Session) -> Self {
         Self {
             stream: Stream::Reaction(Box::new(session)),
@@ -136,6 +189,7 @@ impl Session {
         match self.stream {
             Stream::Reaction(_) => "armflow",
             Stream::Partner(_) => "magnet",
+            Stream::Flow(_) => "arflow",
         }
     }
 
@@ -143,14 +197,14 @@ impl Session {
     fn reaction_mut(&mut self, what: &str) -> Result<&mut armflow::Session> {
         match &mut self.stream {
             Stream::Reaction(s) => Ok(s),
-            Stream::Partner(_) => Err(armflow_only(what)),
+            Stream::Partner(_) | Stream::Flow(_) => Err(armflow_only(what)),
         }
     }
 
     fn partner_mut(&mut self, what: &str) -> Result<&mut LiveSession> {
         match &mut self.stream {
             Stream::Partner(s) => Ok(s),
-            Stream::Reaction(_) => Err(Error::InvalidInput(format!(
+            Stream::Reaction(_) | Stream::Flow(_) => Err(Error::InvalidInput(format!(
                 "{what} is for magnet live partner sessions; this session runs an armflow model"
             ))),
         }
@@ -161,6 +215,7 @@ impl Session {
         match &self.stream {
             Stream::Reaction(s) => s.frame_dim(),
             Stream::Partner(_) => crate::magnet::layout::FRAME_DIM,
+            Stream::Flow(_) => crate::arflow::spec::FRAME_DIM,
         }
     }
 
@@ -169,6 +224,7 @@ impl Session {
         match &self.stream {
             Stream::Reaction(s) => s.latent_dim(),
             Stream::Partner(s) => s.token_dim(),
+            Stream::Flow(_) => crate::arflow::spec::FRAME_DIM,
         }
     }
 
@@ -176,7 +232,7 @@ impl Session {
     pub fn condition_dim(&self) -> usize {
         match &self.stream {
             Stream::Reaction(s) => s.condition_dim(),
-            Stream::Partner(_) => 0,
+            Stream::Partner(_) | Stream::Flow(_) => 0,
         }
     }
 
@@ -196,12 +252,13 @@ impl Session {
     pub fn step_detailed(&mut self, frames: ArrayView2<f32>) -> Result<StepOutput> {
         match &mut self.stream {
             Stream::Reaction(s) => s.step_detailed(frames),
-            Stream::Partner(_) => {
+            Stream::Partner(_) | Stream::Flow(_) => {
                 let dim = self.frame_dim();
                 if frames.ncols() != dim {
                     return Err(Error::InvalidInput(format!(
-                        "user frames have {} features, a magnet stream takes {dim}",
-                        frames.ncols()
+                        "frames have {} features, this {} stream takes {dim}",
+                        frames.ncols(),
+                        self.family()
                     )));
                 }
                 let owned = frames.as_standard_layout();
@@ -224,6 +281,10 @@ impl Session {
                 let mut out = live::advance(&mut [s], &[frames], &[max_frames], false)?;
                 Ok(partner_output(out.pop().expect("one stream, one output")))
             }
+            Stream::Flow(s) => {
+                let mut out = stream::advance(&mut [s], &[frames], &[max_frames], false)?;
+                Ok(flow_output(out.pop().expect("one stream, one output")))
+            }
         }
     }
 
@@ -233,6 +294,7 @@ impl Session {
         match &mut self.stream {
             Stream::Reaction(s) => s.reset(),
             Stream::Partner(s) => s.reset(),
+            Stream::Flow(s) => s.reset(),
         }
     }
 
@@ -242,6 +304,7 @@ impl Session {
         match &self.stream {
             Stream::Reaction(s) => s.latency_frames(),
             Stream::Partner(s) => s.latency_frames(),
+            Stream::Flow(_) => 0,
         }
     }
 
@@ -250,6 +313,7 @@ impl Session {
         match &mut self.stream {
             Stream::Reaction(s) => s.set_seed(seed),
             Stream::Partner(s) => s.set_seed(seed),
+            Stream::Flow(s) => s.set_seed(seed),
         }
     }
 
@@ -263,6 +327,11 @@ impl Session {
                 settings.sampling.steps = steps as usize;
                 s.configure(settings)
             }
+            Stream::Flow(s) => {
+                let mut sampling = s.sampling().clone();
+                sampling.steps = steps as usize;
+                s.set_sampling(sampling)
+            }
         }
     }
 
@@ -271,8 +340,8 @@ impl Session {
     pub fn set_cfg_scale(&mut self, scale: f32) -> Result<()> {
         match &mut self.stream {
             Stream::Reaction(s) => s.set_cfg_scale(scale),
-            Stream::Partner(_) if scale == 1.0 => Ok(()),
-            Stream::Partner(_) => Err(armflow_only("a CFG scale other than 1")),
+            Stream::Partner(_) | Stream::Flow(_) if scale == 1.0 => Ok(()),
+            Stream::Partner(_) | Stream::Flow(_) => Err(armflow_only("a CFG scale other than 1")),
         }
     }
 
@@ -280,8 +349,8 @@ impl Session {
     pub fn set_condition(&mut self, condition: Option<&[f32]>) -> Result<()> {
         match (&mut self.stream, condition) {
             (Stream::Reaction(s), c) => s.set_condition(c),
-            (Stream::Partner(_), None) => Ok(()),
-            (Stream::Partner(_), Some(_)) => Err(armflow_only("a condition")),
+            (Stream::Partner(_) | Stream::Flow(_), None) => Ok(()),
+            (Stream::Partner(_) | Stream::Flow(_), Some(_)) => Err(armflow_only("a condition")),
         }
     }
 
@@ -307,7 +376,23 @@ impl Session {
     pub fn seeded_noise(&self, index: u64) -> Result<TokenNoise> {
         match &self.stream {
             Stream::Reaction(s) => Ok(s.seeded_noise(index)),
-            Stream::Partner(_) => Err(armflow_only("per-token noise")),
+            Stream::Partner(_) | Stream::Flow(_) => Err(armflow_only("per-token noise")),
+        }
+    }
+
+    /// Sets an ARFlow stream's sampler settings: the bundle's with `options`' changes (its seed
+    /// too). A new step count only before the first frame or after a reset.
+    pub fn set_arflow_options(&mut self, options: &ArflowOptions) -> Result<()> {
+        match &mut self.stream {
+            Stream::Flow(s) => {
+                let sampling = options.apply(s.bundle_sampling())?;
+                s.set_sampling(sampling)?;
+                s.set_seed(options.seed);
+                Ok(())
+            }
+            _ => Err(Error::InvalidInput(
+                "ARFlow's settings are for arflow streams".into(),
+            )),
         }
     }
 
@@ -358,6 +443,7 @@ impl Session {
         match &self.stream {
             Stream::Reaction(s) => s.frames_ready_after(n),
             Stream::Partner(s) => s.frames_ready_after(n),
+            Stream::Flow(s) => s.frames_ready_after(n),
         }
     }
 
@@ -366,6 +452,7 @@ impl Session {
         match &self.stream {
             Stream::Reaction(s) => s.frames_received(),
             Stream::Partner(s) => s.frames_received(),
+            Stream::Flow(s) => s.frames(),
         }
     }
 
@@ -374,6 +461,7 @@ impl Session {
         match &self.stream {
             Stream::Reaction(s) => s.frames_emitted(),
             Stream::Partner(s) => s.frames_emitted(),
+            Stream::Flow(s) => s.frames(),
         }
     }
 
@@ -382,6 +470,7 @@ impl Session {
         match &self.stream {
             Stream::Reaction(s) => s.tokens_generated(),
             Stream::Partner(s) => s.tokens_generated(),
+            Stream::Flow(_) => 0,
         }
     }
 
@@ -391,6 +480,7 @@ impl Session {
         match &self.stream {
             Stream::Reaction(s) => s.memory_bytes(),
             Stream::Partner(s) => s.memory_bytes(),
+            Stream::Flow(s) => s.memory_bytes(),
         }
     }
 
@@ -400,6 +490,7 @@ impl Session {
         match &self.stream {
             Stream::Reaction(s) => s.context_len(),
             Stream::Partner(s) => s.context_len(),
+            Stream::Flow(s) => s.frames() as usize,
         }
     }
 
@@ -413,7 +504,7 @@ impl Session {
     pub fn joints_placement(&self) -> Option<&Placement> {
         match &self.stream {
             Stream::Reaction(s) => s.joints_placement(),
-            Stream::Partner(_) => None,
+            Stream::Partner(_) | Stream::Flow(_) => None,
         }
     }
 
@@ -421,7 +512,7 @@ impl Session {
     pub fn joints_latency_frames(&self) -> Result<usize> {
         match &self.stream {
             Stream::Reaction(s) => Ok(s.joints_latency_frames()),
-            Stream::Partner(_) => Err(armflow_only("joint positions")),
+            Stream::Partner(_) | Stream::Flow(_) => Err(armflow_only("joint positions")),
         }
     }
 
@@ -435,7 +526,7 @@ impl Session {
     pub fn joints_ready_after(&self, n: usize) -> Result<usize> {
         match &self.stream {
             Stream::Reaction(s) => s.joints_ready_after(n),
-            Stream::Partner(_) => Err(armflow_only("joint positions")),
+            Stream::Partner(_) | Stream::Flow(_) => Err(armflow_only("joint positions")),
         }
     }
 }
@@ -444,6 +535,14 @@ fn armflow_only(what: &str) -> Error {
     Error::InvalidInput(format!(
         "{what}: armflow sessions only; this session runs a magnet live partner"
     ))
+}
+
+/// An ARFlow step's output: the reactor's frames (no tokens).
+fn flow_output(frames: Array2<f32>) -> StepOutput {
+    StepOutput {
+        frames,
+        tokens: Vec::new(),
+    }
 }
 
 /// A magnet step's output: the partner's tokens as traces (`actor_latent` the user's token at
@@ -489,21 +588,34 @@ pub(crate) fn step_sessions_bounded(
     }
     let mut reactions = Vec::new();
     let mut partners = Vec::new();
+    let mut flows = Vec::new();
     for s in sessions.iter_mut() {
         match &mut s.stream {
             Stream::Reaction(r) => reactions.push(&mut **r),
             Stream::Partner(p) => partners.push(&mut **p),
+            Stream::Flow(f) => flows.push(&mut **f),
         }
     }
     if !reactions.is_empty() {
         return armflow::step_sessions_bounded(&mut reactions, frames, max_frames);
     }
-    if frames.len() != partners.len() {
+    let count = partners.len() + flows.len();
+    if frames.len() != count {
         return Err(Error::InvalidInput(format!(
-            "{} sessions but {} chunks of user frames",
-            partners.len(),
+            "{count} sessions but {} chunks of frames",
             frames.len()
         )));
+    }
+    if !flows.is_empty() {
+        if let Some(i) = (1..flows.len()).find(|&i| !flows[i].same_model(flows[0])) {
+            return Err(Error::InvalidInput(format!(
+                "session {i} runs another model: sessions stepped together must share one"
+            )));
+        }
+        return Ok(stream::advance(&mut flows, frames, max_frames, true)?
+            .into_iter()
+            .map(flow_output)
+            .collect());
     }
     if let Some(i) = (1..partners.len()).find(|&i| !partners[i].same_model(partners[0])) {
         return Err(Error::InvalidInput(format!(
@@ -525,7 +637,7 @@ pub fn step_sessions_joints(
     for s in sessions.iter_mut() {
         match &mut s.stream {
             Stream::Reaction(r) => reactions.push(&mut **r),
-            Stream::Partner(_) => return Err(armflow_only("joint positions")),
+            Stream::Partner(_) | Stream::Flow(_) => return Err(armflow_only("joint positions")),
         }
     }
     armflow::step_sessions_joints(&mut reactions, actor)

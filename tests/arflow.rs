@@ -5,7 +5,8 @@
 //! direction is ill-conditioned near a capsule's axis and five network calls amplify float
 //! rounding, so that two references (torch, and onnxruntime on the same graph) already differ by
 //! up to 5.2e-5 there (`docs/ARFLOW.md`). The penetration loss's analytic gradient against the reference's
-//! autograd, the online variant's causality, and bad input.
+//! autograd, the online variant's causality and its stream (frame by frame through a
+//! `Session`, alone and in a crowd), and bad input.
 
 mod common;
 
@@ -260,5 +261,148 @@ fn bad_input_is_refused() {
         armflow.arflow_generate(actor.view(), &o),
         "needs an `arflow` bundle",
     );
-    refused(model.session(SessionOptions::default()), "`arflow` model");
+    refused(model.session(SessionOptions::default()), "does not stream");
+}
+
+// ---- the online variant as a stream -------------------------------------------------------
+
+fn stream_frames(session: &mut troupe::Session, actor: &Array2<f32>, chunk: usize) -> Array2<f32> {
+    let mut out = Vec::new();
+    for rows in actor.axis_chunks_iter(ndarray::Axis(0), chunk) {
+        let n = rows.nrows();
+        assert_eq!(session.frames_ready_after(n), n);
+        let got = session.step(rows).unwrap();
+        assert_eq!(got.nrows(), n, "a frame out for each frame in");
+        out.extend(got.iter().copied());
+    }
+    Array2::from_shape_vec((out.len() / 262, 262), out).unwrap()
+}
+
+#[test]
+fn the_online_stream_equals_the_whole_clip_frame_by_frame() {
+    let name = "arflow-tiny-online";
+    let model = Model::load(bundle(name)).unwrap();
+    let golden = bundle(name).join("golden");
+    let actor: Array2<f32> = read_npy(golden.join("actor.npy")).unwrap();
+    for case in ["euler", "guided"] {
+        let spec = &cases(name)[case];
+        let options = options(spec);
+        let mut session = model
+            .session(SessionOptions {
+                seed: options.seed,
+                arflow: Some(options.clone()),
+                ..Default::default()
+            })
+            .unwrap();
+        assert_eq!((session.family(), session.latency_frames()), ("arflow", 0));
+        let want: Array2<f32> = read_npy(golden.join(format!("{case}_reactor.npy"))).unwrap();
+        for chunk in [1, 7, 40] {
+            session.reset();
+            let got = stream_frames(&mut session, &actor, chunk);
+            let err = relative_error(got.as_slice().unwrap(), want.as_slice().unwrap());
+            println!(
+                "{name} stream {case}, {chunk} frames a call: {err:.2e} relative to the reference"
+            );
+            let bound = if case == "guided" { 1e-4 } else { 1e-5 };
+            assert!(err <= bound, "{case} {chunk}: {err:.2e}");
+        }
+    }
+}
+
+#[test]
+fn a_crowd_of_arflow_streams_equals_each_alone() {
+    let name = "arflow-tiny-online";
+    let model = Model::load(bundle(name)).unwrap();
+    let actor: Array2<f32> = read_npy(bundle(name).join("golden/actor.npy")).unwrap();
+    let make = |seed: u64, eta: f32| {
+        model
+            .session(SessionOptions {
+                seed,
+                arflow: Some(ArflowOptions {
+                    eta: Some(eta),
+                    ..Default::default()
+                }),
+                ..Default::default()
+            })
+            .unwrap()
+    };
+    let settings = [(1u64, 0.0f32), (2, 0.05), (3, 0.0)];
+    let offsets = [0usize, 5, 12];
+    let mut alone = Vec::new();
+    for (&(seed, eta), &skip) in settings.iter().zip(&offsets) {
+        let mut s = make(seed, eta);
+        stream_frames(&mut s, &actor.slice(s![..skip, ..]).to_owned(), 4);
+        alone.push(stream_frames(
+            &mut s,
+            &actor.slice(s![skip.., ..]).to_owned(),
+            40,
+        ));
+    }
+    let mut crowd: Vec<troupe::Session> = settings
+        .iter()
+        .map(|&(seed, eta)| make(seed, eta))
+        .collect();
+    for (s, &skip) in crowd.iter_mut().zip(&offsets) {
+        stream_frames(s, &actor.slice(s![..skip, ..]).to_owned(), 4);
+    }
+    let chunks: Vec<Vec<f32>> = offsets
+        .iter()
+        .map(|&skip| actor.slice(s![skip.., ..]).iter().copied().collect())
+        .collect();
+    let views: Vec<&[f32]> = chunks.iter().map(Vec::as_slice).collect();
+    let mut refs: Vec<&mut troupe::Session> = crowd.iter_mut().collect();
+    let together = troupe::step_sessions(&mut refs, &views).unwrap();
+    for (i, (out, want)) in together.iter().zip(&alone).enumerate() {
+        let err = relative_error(out.frames.as_slice().unwrap(), want.as_slice().unwrap());
+        println!("arflow crowd session {i}: {err:.2e} relative to stepping it alone");
+        assert!(err <= 1e-4, "session {i}: {err:.2e}");
+    }
+}
+
+#[test]
+fn arflow_streams_refuse_what_they_cannot_do() {
+    let offline = Model::load(bundle("arflow-tiny")).unwrap();
+    refused(
+        offline.session(SessionOptions::default()),
+        "does not stream",
+    );
+    let model = Model::load(bundle("arflow-tiny-online")).unwrap();
+    let actor: Array2<f32> =
+        read_npy(bundle("arflow-tiny-online").join("golden/actor.npy")).unwrap();
+    refused(
+        model.session(SessionOptions {
+            cfg_scale: Some(2.0),
+            ..Default::default()
+        }),
+        "CFG",
+    );
+    refused(
+        model.session(SessionOptions {
+            arflow: Some(ArflowOptions {
+                weight: Some(3.0),
+                ..Default::default()
+            }),
+            ..Default::default()
+        }),
+        "weight",
+    );
+    let mut s = model.session(SessionOptions::default()).unwrap();
+    s.step(actor.slice(s![..3, ..])).unwrap();
+    let mut bad = actor.slice(s![3..5, ..]).to_owned();
+    bad[[1, 9]] = f32::NAN;
+    refused(s.step(bad.view()), "non-finite");
+    refused(s.set_steps(3), "step count");
+    refused(
+        s.set_penetration_guard(Some(troupe::PenetrationGuard::default())),
+        "armflow",
+    );
+    assert_eq!(s.frames_received(), 3, "refused calls change nothing");
+    // The position encoding's end (256 frames for the tiny bundle).
+    let long = Array2::<f32>::from_shape_fn((254, 262), |(n, i)| actor[[n % 40, i]]);
+    refused(s.step(long.view()), "reset it");
+    assert_eq!(s.frames_received(), 3);
+    s.step(long.slice(s![..253, ..])).unwrap();
+    assert_eq!(s.frames_received(), 256);
+    s.reset();
+    assert_eq!(s.frames_received(), 0);
 }

@@ -259,6 +259,7 @@ fn c_programs() -> Vec<(&'static str, Vec<PathBuf>, &'static [&'static str])> {
                 root().join("onnx/bundles/arflow-tiny"),
                 root().join("onnx/bundles/armflow-tiny"),
                 root().join("onnx/bundles/magnet-tiny"),
+                root().join("onnx/bundles/arflow-tiny-online"),
             ],
             &[],
         ),
@@ -641,6 +642,7 @@ fn c_arflow_generation_as_c99_and_cpp17() {
         root().join("onnx/bundles/arflow-tiny"),
         root().join("onnx/bundles/armflow-tiny"),
         root().join("onnx/bundles/magnet-tiny"),
+        root().join("onnx/bundles/arflow-tiny-online"),
     ];
     let args: Vec<&Path> = args.iter().map(PathBuf::as_path).collect();
     let c = compile("cc", &["-std=c99"], &[&src], &shared_link(), "arflow_c");

@@ -6,7 +6,8 @@
 //!
 //! - [`spec`]: the family's manifest section and the interface it requires of its graph;
 //! - `networks`: the loaded graph;
-//! - [`sampler`]: the guided sampler, [`crate::Model::arflow_generate`].
+//! - [`sampler`]: the guided sampler, [`crate::Model::arflow_generate`];
+//! - `stream`: the online variant frame by frame, a [`crate::Session`].
 //!
 //! Like every family, this folder imports only from `crate::shared`, `crate::motion` and itself.
 //! The Python reference it is tested against is `onnx/troupe_onnx/arflow/`.
@@ -14,6 +15,7 @@
 pub(crate) mod networks;
 pub mod sampler;
 pub mod spec;
+pub(crate) mod stream;
 
 pub(crate) use networks::Networks;
 pub use sampler::ArflowOptions;

@@ -133,6 +133,74 @@ pub fn guidance_gradient(
     Ok(grad)
 }
 
+/// `(t_m, t_{m+1})` of step `step` of `steps`.
+pub(crate) fn times(step: usize, steps: usize) -> (f32, f32) {
+    (step as f32 / steps as f32, (step + 1) as f32 / steps as f32)
+}
+
+/// The penetration loss the settings ask for.
+pub(crate) fn loss_of(s: &ArflowSampling) -> PenetrationLoss {
+    PenetrationLoss {
+        d_safe: s.d_safe as f64,
+        hinge: if s.squared {
+            Hinge::Squared
+        } else {
+            Hinge::Linear
+        },
+    }
+}
+
+/// One step of the sampler on rows of frames (the module's formulas): `x` (normalised, `[T, D]`)
+/// becomes `x_{m+1}` given the network's `x1`, the normalised actor `a`, its raw features `raw`
+/// (for the guidance), `eps` (η's draw, `T·D` normals) and `(t_m, t_{m+1})`. Rows are
+/// independent, so a stream runs it one frame at a time.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn euler_step(
+    x: &mut Array2<f32>,
+    x1: &Array2<f32>,
+    a: ArrayView2<f32>,
+    raw: ArrayView2<f32>,
+    (mean, std): (&[f32], &[f32]),
+    s: &ArflowSampling,
+    loss: &PenetrationLoss,
+    (t, t_next): (f32, f32),
+    eps: Option<&[f32]>,
+) -> Result<()> {
+    let x1g = if s.guidance > 0.0 {
+        let g = guidance_gradient(x1.view(), raw, mean, std, loss)?;
+        let lambda = s.guidance as f64;
+        ndarray::Zip::from(x1)
+            .and(&g)
+            .map_collect(|&v, &g| (v as f64 - lambda * g) as f32)
+    } else {
+        x1.clone()
+    };
+    let back = if s.guided_backprojection { &x1g } else { x1 };
+    let (w, keep) = (
+        s.weight,
+        match s.mixing {
+            Mixing::Linear => 1.0 - s.eta,
+            Mixing::VariancePreserving => (1.0 - s.eta * s.eta).sqrt(),
+        },
+    );
+    for (i, ((xv, &bv), (&gv, &av))) in x
+        .iter_mut()
+        .zip(back.iter())
+        .zip(x1g.iter().zip(a.iter()))
+        .enumerate()
+    {
+        let x0 = (*xv - t * bv) / (1.0 - t);
+        let x0w = w * x0 + (1.0 - w) * av;
+        let v = gv - x0w;
+        let d = match eps {
+            Some(e) => keep * v + s.eta * e[i],
+            None => v,
+        };
+        *xv = gv - (1.0 - t_next) * d;
+    }
+    Ok(())
+}
+
 /// The network as the sampler calls it: x̂_1 `[T, D]` of normalised `x` `[T, D]` at time `t`.
 pub(crate) type Denoise<'a> = dyn FnMut(ArrayView2<f32>, f32) -> Result<Array2<f32>> + 'a;
 
@@ -188,14 +256,7 @@ pub(crate) fn sample(
             *v = (*v - mean[i]) / std[i];
         }
     }
-    let loss = PenetrationLoss {
-        d_safe: s.d_safe as f64,
-        hinge: if s.squared {
-            Hinge::Squared
-        } else {
-            Hinge::Linear
-        },
-    };
+    let loss = loss_of(s);
     let mut draw = 0u64;
     let mut normals = |n: usize| {
         let mut out = vec![0f32; n];
@@ -210,42 +271,20 @@ pub(crate) fn sample(
     }
     let steps = s.steps;
     for step in 0..steps {
-        let t = step as f32 / steps as f32;
-        let t_next = (step + 1) as f32 / steps as f32;
+        let (t, t_next) = times(step, steps);
         let x1 = denoise(x.view(), t)?;
-        let x1g = if s.guidance > 0.0 {
-            let g = guidance_gradient(x1.view(), raw, mean, std, &loss)?;
-            let lambda = s.guidance as f64;
-            ndarray::Zip::from(&x1)
-                .and(&g)
-                .map_collect(|&v, &g| (v as f64 - lambda * g) as f32)
-        } else {
-            x1.clone()
-        };
-        let back = if s.guided_backprojection { &x1g } else { &x1 };
         let eps = (s.eta > 0.0).then(|| normals(x.len()));
-        let (w, keep) = (
-            s.weight,
-            match s.mixing {
-                Mixing::Linear => 1.0 - s.eta,
-                Mixing::VariancePreserving => (1.0 - s.eta * s.eta).sqrt(),
-            },
-        );
-        for (i, ((xv, &bv), (&gv, &av))) in x
-            .iter_mut()
-            .zip(back.iter())
-            .zip(x1g.iter().zip(a.iter()))
-            .enumerate()
-        {
-            let x0 = (*xv - t * bv) / (1.0 - t);
-            let x0w = w * x0 + (1.0 - w) * av;
-            let v = gv - x0w;
-            let d = match &eps {
-                Some(e) => keep * v + s.eta * e[i],
-                None => v,
-            };
-            *xv = gv - (1.0 - t_next) * d;
-        }
+        euler_step(
+            &mut x,
+            &x1,
+            a.view(),
+            raw,
+            (mean, std),
+            s,
+            &loss,
+            (t, t_next),
+            eps.as_deref(),
+        )?;
         progress::report("generating", step as u64 + 1, steps as u64)?;
     }
     for mut row in x.outer_iter_mut() {

@@ -6,7 +6,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::shared::bundle_io::{ConditionSpec, MotionSpec};
 use crate::shared::checks::ensure;
-use crate::shared::graph_spec::{contract, float, sym, Dim, GraphSpec};
+use crate::shared::graph_spec::{contract, float, sym, DType, Dim, GraphSpec, TensorSpec};
 
 /// The feature layout ARFlow bundles speak (the guidance reads joint positions from it).
 pub const LAYOUT: &str = "interhuman262";
@@ -107,6 +107,11 @@ fn stream_default() -> u32 {
 pub struct ArflowGraphs {
     /// `(x [B, T, D], t [B]) -> x1 [B, T, D]`: the network's x̂_1.
     pub denoiser: GraphSpec,
+    /// The online variant one frame at a time, for streams: `(x [B, 1, D], t [B], position
+    /// [B], cache_k, cache_v [B, L, H, C, W/H], cache_mask [B, C]) -> (x1 [B, 1, D], k, v
+    /// [B, L, H, 1, W/H])`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub denoiser_step: Option<GraphSpec>,
 }
 
 impl ArflowSampling {
@@ -179,7 +184,8 @@ impl ArflowSpec {
         let d = Dim::Fixed(self.model.dim);
         let frames = |name: &str| float(name, vec![sym("B"), sym("T"), d.clone()]);
         let g = &self.graphs;
-        vec![(
+        let m = &self.model;
+        let mut contracts = vec![(
             "denoiser",
             &g.denoiser,
             contract(
@@ -187,6 +193,38 @@ impl ArflowSpec {
                 vec![frames("x"), float("t", vec![sym("B")])],
                 vec![frames("x1")],
             ),
-        )]
+        )];
+        if let Some(step) = &g.denoiser_step {
+            let (l, h, dh) = (m.layers, m.heads, m.width / m.heads.max(1));
+            let kv = |name: &str, c: Dim| {
+                float(
+                    name,
+                    vec![sym("B"), Dim::Fixed(l), Dim::Fixed(h), c, Dim::Fixed(dh)],
+                )
+            };
+            let one = |name: &str| float(name, vec![sym("B"), Dim::Fixed(1), d.clone()]);
+            let position = TensorSpec {
+                name: "position".into(),
+                dtype: DType::Int64,
+                shape: vec![sym("B")],
+            };
+            contracts.push((
+                "denoiser_step",
+                step,
+                contract(
+                    step,
+                    vec![
+                        one("x"),
+                        float("t", vec![sym("B")]),
+                        position,
+                        kv("cache_k", sym("C")),
+                        kv("cache_v", sym("C")),
+                        float("cache_mask", vec![sym("B"), sym("C")]),
+                    ],
+                    vec![one("x1"), kv("k", Dim::Fixed(1)), kv("v", Dim::Fixed(1))],
+                ),
+            ));
+        }
+        contracts
     }
 }

@@ -101,6 +101,19 @@ pub unsafe extern "C" fn troupe_session_options_init(
                     },
                     reserved: 0,
                 },
+                None if model.arflow_spec().is_some() => {
+                    // An ARFlow stream: its sampler's steps; no context, CFG or actor latent.
+                    let a = model.arflow_spec().expect("checked");
+                    troupe_session_options {
+                        struct_size: options_size as u32,
+                        steps: a.sampler.steps.min(u32::MAX as usize) as u32,
+                        seed: 0,
+                        cfg_scale: 1.0,
+                        context_capacity: a.model.max_frames.min(u32::MAX as usize) as u32,
+                        actor_latent: TROUPE_ACTOR_LATENT_SAMPLE,
+                        reserved: 0,
+                    }
+                }
                 None => {
                     // A magnet live partner: its default configuration's steps and context.
                     let live = model
@@ -749,6 +762,31 @@ pub unsafe extern "C" fn troupe_session_set_penetration_guard(
                 max_speed: max_speed as f64,
             });
             Ok(s.set_penetration_guard(guard)?)
+        })
+    }
+}
+
+/// Sets an ARFlow stream's sampler settings (`options`, filled by `troupe_arflow_options_init`;
+/// its seed too); a new step count only before the first frame or after `troupe_session_reset`.
+///
+/// Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (not an ARFlow stream,
+/// settings out of range, unknown flags), `TROUPE_ERR_POISONED`, `TROUPE_ERR_PANIC`. One thread
+/// at a time per session.
+///
+/// # Safety
+/// `session` must be a live handle; `options` readable for its `struct_size`.
+#[no_mangle]
+pub unsafe extern "C" fn troupe_session_set_arflow_options(
+    session: *mut troupe_session,
+    options: *const crate::ffi::arflow::troupe_arflow_options,
+) -> troupe_status {
+    // SAFETY: forwarded contract.
+    unsafe {
+        with_session(session, "troupe_session_set_arflow_options", |s| {
+            non_null(options, "options")?;
+            // SAFETY: readable for its `struct_size` per the contract.
+            let options = crate::ffi::arflow::read_options(options)?;
+            Ok(s.set_arflow_options(&options)?)
         })
     }
 }

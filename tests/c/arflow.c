@@ -1,6 +1,6 @@
 /* ABI test of ARFlow generation and the penetration metrics through include/troupe.h only.
  * Compiled as C99 and C++17 with -Wall -Wextra -Werror -pedantic (tests/c_abi.rs).
- * Usage: arflow ARFLOW_BUNDLE_DIR ARMFLOW_BUNDLE_DIR [MAGNET_BUNDLE_DIR] */
+ * Usage: arflow ARFLOW_BUNDLE_DIR ARMFLOW_BUNDLE_DIR [MAGNET_BUNDLE_DIR [ARFLOW_ONLINE_BUNDLE_DIR]] */
 #include "troupe.h"
 #include "check.h"
 #include "npy.h"
@@ -126,6 +126,39 @@ int main(int argc, char **argv) {
             troupe_model_free(magnet);
         }
         troupe_session_free(session);
+    }
+
+    /* the online variant streams through troupe_session_*: frame by frame as the whole clip */
+    if (argc > 4) {
+        troupe_model *online = NULL;
+        troupe_session *flow = NULL;
+        troupe_session_options sopt;
+        float *want;
+        size_t n_want = 0, written = 0;
+        EXPECT(troupe_model_load_file(argv[4], &online), TROUPE_OK);
+        want = read_npy(argv[4], "guided_reactor", &n_want);
+        CHECK(want != NULL && n_want == n_actor);
+        EXPECT(troupe_session_options_init(online, &sopt, sizeof sopt), TROUPE_OK);
+        CHECK(sopt.steps == 5 && sopt.cfg_scale == 1.0f);
+        EXPECT(troupe_session_new(online, &sopt, &flow), TROUPE_OK);
+        EXPECT(troupe_arflow_options_init(online, &opt, sizeof opt), TROUPE_OK);
+        opt.seed = 3;
+        EXPECT(troupe_session_set_arflow_options(flow, &opt), TROUPE_OK);
+        for (t = 0; t < frames; t++) {
+            EXPECT(troupe_session_step(flow, actor + t * 262, 1, out + t * 262, 1, &written), TROUPE_OK);
+            CHECK(written == 1);
+        }
+        printf("arflow stream through the C ABI: %.2e relative\n",
+               (double)(max_abs(out, want, n_actor) / max_value(want, n_actor)));
+        CHECK(max_abs(out, want, n_actor) <= 1e-4f * max_value(want, n_actor));
+        opt.weight = 7.0f;
+        EXPECT(troupe_session_set_arflow_options(flow, &opt), TROUPE_ERR_INVALID_ARG);
+        EXPECT(troupe_session_set_arflow_options(flow, NULL), TROUPE_ERR_NULL_ARG);
+        troupe_session_free(flow);
+        EXPECT(troupe_session_new(model, NULL, &flow), TROUPE_ERR_INVALID_ARG);
+        CHECK(strstr(troupe_last_error_message(), "does not stream") != NULL);
+        free(want);
+        troupe_model_free(online);
     }
 
     free(joints_a);

@@ -584,3 +584,16 @@ def test_the_penetration_guard_on_the_demo():
         assert after["depth_sum"] < 0.5 * before["depth_sum"]
         with pytest.raises(troupe.TroupeError, match="d_safe"):
             s.set_penetration_guard(True, d_safe=-1.0)
+
+
+def test_the_online_arflow_variant_streams_frame_by_frame():
+    online = REPO / "onnx" / "bundles" / "arflow-tiny-online"
+    actor = np.load(online / "golden" / "actor.npy")
+    want = np.load(online / "golden" / "guided_reactor.npy")
+    with troupe.Model(online) as model:
+        s = model.session()
+        s.set_arflow_options(seed=3)
+        got = np.concatenate([s.step(actor[t : t + 1]) for t in range(len(actor))])
+        assert np.abs(got - want).max() <= 1e-4 * np.abs(want).max()
+        with pytest.raises(TypeError, match="unknown ARFlow settings"):
+            s.set_arflow_options(lambda_=2)

@@ -381,22 +381,8 @@ class Model:
         if a.ndim != 2 or a.shape[1] != 262:
             raise ValueError(f"actor must be [frames, 262], got {list(a.shape)}")
         h = self._h()
-        opt = _native.ArflowOptions()
-        _check(_lib.troupe_arflow_options_init(h, ctypes.byref(opt), ctypes.sizeof(opt)))
-        opt.seed = seed
-        for name, value in (("steps", steps), ("guidance", guidance), ("weight", weight), ("eta", eta),
-                            ("d_safe", d_safe), ("sigma", sigma)):
-            if value is not None:
-                setattr(opt, name, value)
-        for flag, on in ((_native.ARFLOW_SQUARED_HINGE, squared),
-                         (_native.ARFLOW_UNGUIDED_BACKPROJECTION, None if guided_backprojection is None
-                          else not guided_backprojection),
-                         (_native.ARFLOW_VARIANCE_PRESERVING, None if mixing is None
-                          else mixing == "variance_preserving")):
-            if on is not None:
-                opt.flags = (opt.flags | flag) if on else (opt.flags & ~flag)
-        if mixing not in (None, "linear", "variance_preserving"):
-            raise ValueError(f"mixing is linear or variance_preserving, not {mixing!r}")
+        opt = _arflow_options(h, seed, steps, guidance, weight, eta, d_safe, sigma, squared,
+                              guided_backprojection, mixing)
         out = np.empty_like(a)
         _check(_lib.troupe_arflow_generate(h, ctypes.byref(opt), _ptr(a), a.shape[0], _ptr(out), out.shape[0]))
         return out
@@ -426,6 +412,27 @@ class Model:
 
     def __exit__(self, *exc):
         self.close()
+
+
+def _arflow_options(h, seed, steps, guidance, weight, eta, d_safe, sigma, squared, guided_backprojection,
+                    mixing) -> "_native.ArflowOptions":
+    """The bundle's ARFlow settings with the given changes (None keeps a setting)."""
+    if mixing not in (None, "linear", "variance_preserving"):
+        raise ValueError(f"mixing is linear or variance_preserving, not {mixing!r}")
+    opt = _native.ArflowOptions()
+    _check(_lib.troupe_arflow_options_init(h, ctypes.byref(opt), ctypes.sizeof(opt)))
+    opt.seed = seed
+    for name, value in (("steps", steps), ("guidance", guidance), ("weight", weight), ("eta", eta),
+                        ("d_safe", d_safe), ("sigma", sigma)):
+        if value is not None:
+            setattr(opt, name, value)
+    for flag, on in ((_native.ARFLOW_SQUARED_HINGE, squared),
+                     (_native.ARFLOW_UNGUIDED_BACKPROJECTION,
+                      None if guided_backprojection is None else not guided_backprojection),
+                     (_native.ARFLOW_VARIANCE_PRESERVING, None if mixing is None else mixing == "variance_preserving")):
+        if on is not None:
+            opt.flags = (opt.flags | flag) if on else (opt.flags & ~flag)
+    return opt
 
 
 def _solver(method) -> int:
@@ -532,7 +539,7 @@ class Session:
 
     def _out_for(self, actor: np.ndarray) -> np.ndarray:
         """A buffer that always holds what a step with these frames returns."""
-        fpt = self._frames_per_token
+        fpt = max(self._frames_per_token, 1)  # ARFlow streams frames, not tokens
         rows = -(-actor.shape[0] // fpt) * fpt + self._held_back
         return np.empty((rows, self.frame_dim), np.float32)
 
@@ -630,6 +637,15 @@ class Session:
         """Send a magnet live partner's frames as each chunk generates them (lower latency);
         before the first step or after a reset."""
         self._call(_lib.troupe_session_set_early_emission, 1 if early else 0)
+
+    def set_arflow_options(self, seed: int = 0, **settings) -> None:
+        """An ARFlow stream's sampler settings: the bundle's with `settings` changed (the
+        arguments of `Model.arflow_generate`) and `seed`."""
+        opt = _arflow_options(self._model._h(), seed, *(settings.pop(k, None) for k in (
+            "steps", "guidance", "weight", "eta", "d_safe", "sigma", "squared", "guided_backprojection", "mixing")))
+        if settings:
+            raise TypeError(f"unknown ARFlow settings: {sorted(settings)}")
+        self._call(_lib.troupe_session_set_arflow_options, ctypes.byref(opt))
 
     def set_penetration_guard(self, enabled: bool = True, d_safe: float = 0.05, max_speed: float = 2.0) -> None:
         """An ARMFlow stream's penetration guard: each reactor frame sent is shifted in the floor

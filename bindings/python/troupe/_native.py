@@ -266,6 +266,7 @@ PROTOTYPES = {
     "troupe_session_set_partner_opening": (status, [session_p, f32p, ctypes.c_size_t]),
     "troupe_session_set_early_emission": (status, [session_p, ctypes.c_int32]),
     "troupe_session_set_penetration_guard": (status, [session_p, ctypes.c_int32, ctypes.c_float, ctypes.c_float]),
+    "troupe_session_set_arflow_options": (status, [session_p, ctypes.POINTER(ArflowOptions)]),
     "troupe_session_set_live_config": (status, [session_p, ctypes.c_char_p]),
     "troupe_joints_format_init": (status, [fmt_p, c_size]),
     "troupe_motion_joint_count": (c_size, []),

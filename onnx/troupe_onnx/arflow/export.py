@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from troupe_onnx.arflow.networks import Arflow, ArflowConfig, init_random
+from troupe_onnx.arflow.networks import Arflow, ArflowConfig, FrameStep, init_random
 from troupe_onnx.arflow.sampler import POSITIONS, STREAM_ARFLOW, Sampling, guidance_gradient, sample
 from troupe_onnx.motion.skeleton import t2m22
 from troupe_onnx.shared.export import FORMAT_VERSION, OPSET, export_graph, exporter_cli
@@ -45,13 +45,33 @@ def t(name: str, shape: list, dtype: str = "float32") -> dict:
 
 
 def graph_specs(cfg: ArflowConfig) -> dict:
-    return {
+    specs = {
         "denoiser": {
             "file": "denoiser.onnx",
             "inputs": [t("x", ["B", "T", cfg.dim]), t("t", ["B"])],
             "outputs": [t("x1", ["B", "T", cfg.dim])],
         }
     }
+    if cfg.causal:  # the online variant streams one frame at a time
+        cache = ["B", cfg.layers, cfg.heads, "C", cfg.width // cfg.heads]
+        one = ["B", cfg.layers, cfg.heads, 1, cfg.width // cfg.heads]
+        specs["denoiser_step"] = {
+            "file": "denoiser_step.onnx",
+            "inputs": [t("x", ["B", 1, cfg.dim]), t("t", ["B"]), t("position", ["B"], "int64"),
+                       t("cache_k", cache), t("cache_v", cache), t("cache_mask", ["B", "C"])],
+            "outputs": [t("x1", ["B", 1, cfg.dim]), t("k", one), t("v", one)],
+        }
+    return specs
+
+
+def step_example(cfg: ArflowConfig, batch: int, cached: int, gen: torch.Generator) -> tuple:
+    dh = cfg.width // cfg.heads
+    cache = lambda: torch.randn(batch, cfg.layers, cfg.heads, cached, dh, generator=gen)  # noqa: E731
+    mask = torch.ones(batch, cached)
+    if batch > 1 and cached > 1:
+        mask[0, : cached // 2] = 0.0
+    return (torch.randn(batch, 1, cfg.dim, generator=gen), torch.rand(batch, generator=gen),
+            torch.randint(0, cfg.max_frames, (batch,), generator=gen), cache(), cache(), mask)
 
 
 def synthetic_clip(frames: int, seed: int) -> np.ndarray:
@@ -99,6 +119,46 @@ def validate(model: Arflow, out_dir: Path) -> float:
     return err
 
 
+def validate_step(model: Arflow, out_dir: Path) -> float:
+    """The step graph in onnxruntime, frame by frame with its caches (two streams of different
+    lengths in one batch, the shorter padded), against torch's whole causal forward; raises
+    above MAX_ABS_ERROR."""
+    import onnxruntime as ort
+
+    cfg = model.cfg
+    sess = ort.InferenceSession(str(out_dir / "denoiser_step.onnx"), providers=["CPUExecutionProvider"])
+    gen = torch.Generator().manual_seed(321)
+    frames = (9, 6)
+    xs = [torch.randn(1, n, cfg.dim, generator=gen) for n in frames]
+    tt = torch.rand(2, generator=gen)
+    with torch.no_grad():
+        want = [model(x, tt[i : i + 1]).numpy()[0] for i, x in enumerate(xs)]
+    dh = cfg.width // cfg.heads
+    caches = [[np.zeros((cfg.layers, cfg.heads, 0, dh), np.float32)] * 2 for _ in frames]
+    err = 0.0
+    for n in range(max(frames)):
+        rows = [i for i, f in enumerate(frames) if n < f]
+        c = max(1, max(caches[i][0].shape[2] for i in rows))
+        batch = {"x": [], "t": [], "position": [], "cache_k": [], "cache_v": [], "cache_mask": []}
+        for i in rows:
+            have = caches[i][0].shape[2]
+            pad = lambda a: np.concatenate([np.zeros((cfg.layers, cfg.heads, c - have, dh), np.float32), a], 2)  # noqa: E731
+            batch["x"].append(xs[i][0, n : n + 1].numpy())
+            batch["t"].append(tt[i].numpy())
+            batch["position"].append(np.int64(n))
+            batch["cache_k"].append(pad(caches[i][0]))
+            batch["cache_v"].append(pad(caches[i][1]))
+            batch["cache_mask"].append(np.concatenate([np.zeros(c - have), np.ones(have)]).astype(np.float32))
+        feed = {k: np.stack(v) for k, v in batch.items()}
+        x1, k, v = sess.run(None, feed)
+        for row, i in enumerate(rows):
+            err = max(err, float(np.abs(x1[row, 0] - want[i][n]).max() / np.abs(want[i]).max()))
+            caches[i] = [np.concatenate([caches[i][0], k[row]], 2), np.concatenate([caches[i][1], v[row]], 2)]
+    if err > MAX_ABS_ERROR:
+        raise RuntimeError(f"denoiser_step: differs from the whole causal forward by {err:.2e}")
+    return err
+
+
 def export_bundle(preset: str, out_dir: Path, seed: int = 0):
     model = build_model(preset, seed)
     cfg = model.cfg
@@ -108,6 +168,11 @@ def export_bundle(preset: str, out_dir: Path, seed: int = 0):
     example = (torch.randn(2, 9, cfg.dim, generator=gen), torch.rand(2, generator=gen))
     export_graph(model, example, specs["denoiser"], out_dir)
     err = validate(model, out_dir)
+    errors = {"denoiser": float(f"{err:.3g}")}
+    if cfg.causal:
+        step = FrameStep(model).eval()
+        export_graph(step, step_example(cfg, 2, 3, gen), specs["denoiser_step"], out_dir)
+        errors["denoiser_step"] = float(f"{validate_step(model, out_dir):.3g}")
     mean, std = normaliser()
     defaults = Sampling().to_json()
     del defaults["seed"]
@@ -117,7 +182,7 @@ def export_bundle(preset: str, out_dir: Path, seed: int = 0):
         "family": "arflow",
         "name": f"arflow-{preset}",
         "producer": {"tool": TOOL, "preset": preset, "opset": OPSET, "seed": seed,
-                     "onnxruntime_max_error": {"denoiser": float(f"{err:.3g}")}},
+                     "onnxruntime_max_error": errors},
         "motion": {"layout": "interhuman262", "frame_dim": FRAME_DIM, "fps": 30, "skeleton": "t2m22"},
         "condition": {"dim": 0},
         "model": cfg.to_json(),

@@ -109,6 +109,42 @@ class Arflow(nn.Module):
         return self.output_process(h)
 
 
+class FrameStep(nn.Module):
+    """The causal network one frame at a time (the online variant's stream): the new frame's
+    x_t [B, 1, D] at time t [B] and position [B], with the keys and values every layer's
+    self-attention computed for the earlier frames at the same t, `cache_k`/`cache_v`
+    [B, L, H, C, W/H] (rows of fewer frames padded, `cache_mask` [B, C] 1 where a frame is real)
+    -> x̂_1 of the new frame [B, 1, D] and its keys and values [B, L, H, 1, W/H]. Equals frame n
+    of `Arflow.forward` over frames 0..n (the mask makes later frames invisible there)."""
+
+    def __init__(self, model: Arflow):
+        super().__init__()
+        self.model = model
+
+    def forward(self, x, t, position, cache_k, cache_v, cache_mask):
+        m = self.model
+        b, _, _ = x.shape
+        h = m.input_process(x) + m.position[position][:, None]
+        memory = m.memory(t)
+        bias = torch.cat([(1.0 - cache_mask) * NEG, torch.zeros(b, 1)], dim=1)[:, None, None, :]
+        keys, values = [], []
+        for index, layer in enumerate(m.layers):
+            sa = layer.self_attn
+            heads, w = sa.heads, h.shape[-1]
+            split = lambda y: y.reshape(b, 1, heads, w // heads).transpose(1, 2)  # noqa: E731
+            q, k_new, v_new = split(sa.q(h)), split(sa.k(h)), split(sa.v(h))
+            k = torch.cat([cache_k[:, index], k_new], dim=2)
+            v = torch.cat([cache_v[:, index], v_new], dim=2)
+            logits = q @ k.transpose(-1, -2) / math.sqrt(w // heads) + bias
+            y = (torch.softmax(logits, dim=-1) @ v).transpose(1, 2).reshape(b, 1, w)
+            h = layer.norm1(h + sa.out(y))
+            h = layer.norm2(h + layer.cross_attn(h, memory))
+            h = layer.norm3(h + layer.ff(h))
+            keys.append(k_new)
+            values.append(v_new)
+        return m.output_process(h), torch.stack(keys, dim=1), torch.stack(values, dim=1)
+
+
 def init_random(model: Arflow, seed: int) -> None:
     """Seeded weights at a scale where the output depends on every input."""
     gen = torch.Generator().manual_seed(seed)

@@ -117,7 +117,9 @@ pub unsafe extern "C" fn troupe_arflow_options_init(
 ///
 /// # Safety
 /// `options` must be readable for its `struct_size` bytes.
-unsafe fn read_options(options: *const troupe_arflow_options) -> FfiResult<ArflowOptions> {
+pub(crate) unsafe fn read_options(
+    options: *const troupe_arflow_options,
+) -> FfiResult<ArflowOptions> {
     // SAFETY: per the contract.
     let o = unsafe {
         read_versioned(

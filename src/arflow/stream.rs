@@ -1,0 +1,340 @@
+//! ARFlow's online variant as a stream (a [`crate::Session`] over an online `arflow` bundle):
+//! the actor's frames in, the reactor's out, each frame as soon as it arrives.
+//!
+//! With the causal network, frame `n` of every step's x̂_1 depends only on frames ≤ `n` of that
+//! step's `x`, and the guidance and the update act frame by frame. So a stream runs the whole
+//! sampler for each new frame: for step `m`, the bundle's one-frame graph sees the frame's
+//! `x_m` with the keys and values its self-attention computed for the earlier frames at step
+//! `m` (one cache per step), and the sampler's update (`sampler::euler_step`) moves it on. The
+//! reactor's frame `n` is out with the actor's frame `n`: no algorithmic latency.
+//!
+//! With η = 0 and σ = 0 a stream gives what [`crate::Model::arflow_generate`] gives for the whole
+//! clip (tested). The draws differ: a stream draws per frame (frame `n`'s start noise is token
+//! `n (M + 1)`, its step `m`'s ε token `n (M + 1) + m + 1`), the whole-clip sampler per step.
+//! The position encoding covers `model.max_frames` frames: a stream ends there (reset it).
+//!
+//! Crowds of streams run each step of each round's frame as one batch, shorter caches padded.
+
+use std::sync::Arc;
+
+use ndarray::Array2;
+
+use super::networks::Networks;
+use super::sampler::{euler_step, loss_of, times};
+use super::spec::{ArflowSampling, FRAME_DIM};
+use crate::shared::checks::check_frames;
+use crate::shared::error::{Error, Result};
+use crate::shared::noise::fill_normals;
+
+/// One actor/reactor stream over an online `arflow` model.
+#[derive(Debug)]
+pub(crate) struct ArflowStream {
+    nets: Arc<Networks>,
+    sampling: ArflowSampling,
+    seed: u64,
+    /// Frames received (and sent).
+    frames: u64,
+    /// Per step: the earlier frames' keys and values, frame-major `[n, L, H, W/H]`.
+    keys: Vec<Vec<f32>>,
+    values: Vec<Vec<f32>>,
+}
+
+impl ArflowStream {
+    /// A fresh stream; fails unless the bundle streams (the online variant with its one-frame
+    /// graph) and the settings are in range.
+    pub(crate) fn new(nets: Arc<Networks>, sampling: ArflowSampling, seed: u64) -> Result<Self> {
+        if !nets.streams() {
+            return Err(Error::InvalidInput(format!(
+                "bundle `{}` is not ARFlow's online variant with a denoiser_step graph: it \
+                 generates whole clips (Model::arflow_generate), it does not stream",
+                nets.io.name
+            )));
+        }
+        sampling.validate().map_err(Error::InvalidOption)?;
+        let steps = sampling.steps;
+        Ok(Self {
+            nets,
+            sampling,
+            seed,
+            frames: 0,
+            keys: vec![Vec::new(); steps],
+            values: vec![Vec::new(); steps],
+        })
+    }
+
+    /// Floats of one frame's keys (or values) over the layers.
+    fn kv_floats(&self) -> usize {
+        let m = &self.nets.spec.model;
+        m.layers * m.width
+    }
+
+    /// The bundle's settings.
+    pub(crate) fn bundle_sampling(&self) -> &ArflowSampling {
+        &self.nets.spec.sampler
+    }
+
+    /// The settings in force.
+    pub(crate) fn sampling(&self) -> &ArflowSampling {
+        &self.sampling
+    }
+
+    /// Replaces the settings; the step count only before the first frame or after a reset.
+    pub(crate) fn set_sampling(&mut self, sampling: ArflowSampling) -> Result<()> {
+        sampling.validate().map_err(Error::InvalidOption)?;
+        if sampling.steps != self.sampling.steps {
+            if self.frames > 0 {
+                return Err(Error::InvalidInput(
+                    "an ARFlow stream's step count changes before its first frame or after a \
+                     reset (each step keeps its own cache)"
+                        .into(),
+                ));
+            }
+            self.keys = vec![Vec::new(); sampling.steps];
+            self.values = vec![Vec::new(); sampling.steps];
+        }
+        self.sampling = sampling;
+        Ok(())
+    }
+
+    pub(crate) fn set_seed(&mut self, seed: u64) {
+        self.seed = seed;
+    }
+
+    pub(crate) fn reset(&mut self) {
+        self.frames = 0;
+        for cache in self.keys.iter_mut().chain(self.values.iter_mut()) {
+            cache.clear();
+        }
+    }
+
+    pub(crate) fn frames(&self) -> u64 {
+        self.frames
+    }
+
+    pub(crate) fn same_model(&self, other: &ArflowStream) -> bool {
+        Arc::ptr_eq(&self.nets, &other.nets)
+    }
+
+    /// Frames a step with `n` more actor frames returns: all of them, up to the stream's end.
+    pub(crate) fn frames_ready_after(&self, n: usize) -> usize {
+        n
+    }
+
+    /// Bytes held: the caches (the model's weights, shared, not counted).
+    pub(crate) fn memory_bytes(&self) -> usize {
+        let floats: usize = self
+            .keys
+            .iter()
+            .chain(&self.values)
+            .map(Vec::capacity)
+            .sum();
+        std::mem::size_of::<Self>() + floats * std::mem::size_of::<f32>()
+    }
+
+    /// Checks one call's actor frames against the stream's end.
+    fn check(&self, actor: &[f32]) -> Result<()> {
+        check_frames("actor frames", actor, FRAME_DIM)?;
+        let end = self.nets.spec.model.max_frames as u64;
+        let n = (actor.len() / FRAME_DIM) as u64;
+        if self.frames + n > end {
+            return Err(Error::InvalidInput(format!(
+                "bundle `{}` streams {end} frames (its position encoding's length); this stream \
+                 has {} and was given {n} more: reset it",
+                self.nets.io.name, self.frames
+            )));
+        }
+        Ok(())
+    }
+}
+
+/// Advances streams of one model: `actor[i]` goes to `streams[i]`; entry `i` of the result is
+/// its reactor frames `[n_i, 262]`. Round `r` runs every stream's `r`-th new frame, each step one
+/// batch. On error every stream is as it was (caches cut back to their length before the call).
+pub(crate) fn advance(
+    streams: &mut [&mut ArflowStream],
+    actor: &[&[f32]],
+    max_frames: &[usize],
+    indexed: bool,
+) -> Result<Vec<Array2<f32>>> {
+    let whose = |i: usize, e: Error| match (e, indexed) {
+        (Error::InvalidInput(m), true) => Error::InvalidInput(format!("session {i}: {m}")),
+        (e, _) => e,
+    };
+    for (i, (s, chunk)) in streams.iter().zip(actor).enumerate() {
+        s.check(chunk).map_err(|e| whose(i, e))?;
+        let n = chunk.len() / FRAME_DIM;
+        let max = max_frames.get(i).copied().unwrap_or(usize::MAX);
+        if n > max {
+            return Err(whose(
+                i,
+                Error::InvalidInput(format!(
+                    "this call returns {n} frames, the output holds {max}"
+                )),
+            ));
+        }
+    }
+    let before: Vec<(u64, usize)> = streams
+        .iter()
+        .map(|s| (s.frames, s.keys.first().map_or(0, Vec::len)))
+        .collect();
+    let result = run(streams, actor);
+    if result.is_err() {
+        for (s, &(frames, kept)) in streams.iter_mut().zip(&before) {
+            s.frames = frames;
+            for cache in s.keys.iter_mut().chain(s.values.iter_mut()) {
+                cache.truncate(kept);
+            }
+        }
+    }
+    result
+}
+
+fn run(streams: &mut [&mut ArflowStream], actor: &[&[f32]]) -> Result<Vec<Array2<f32>>> {
+    let mut out: Vec<Vec<f32>> = vec![Vec::new(); streams.len()];
+    let rounds = actor.iter().map(|a| a.len() / FRAME_DIM).max().unwrap_or(0);
+    for round in 0..rounds {
+        let rows: Vec<usize> = (0..streams.len())
+            .filter(|&i| round * FRAME_DIM < actor[i].len())
+            .collect();
+        // Streams whose settings agree run their steps as one batch.
+        let mut groups: Vec<Vec<usize>> = Vec::new();
+        for &i in &rows {
+            match groups
+                .iter_mut()
+                .find(|g| streams[g[0]].sampling == streams[i].sampling)
+            {
+                Some(g) => g.push(i),
+                None => groups.push(vec![i]),
+            }
+        }
+        for group in groups {
+            let frames: Vec<&[f32]> = group
+                .iter()
+                .map(|&i| &actor[i][round * FRAME_DIM..(round + 1) * FRAME_DIM])
+                .collect();
+            let reactor = frame(streams, &group, &frames)?;
+            for (row, &i) in group.iter().enumerate() {
+                out[i].extend(reactor.row(row).iter());
+            }
+        }
+    }
+    Ok(out
+        .into_iter()
+        .map(|v| Array2::from_shape_vec((v.len() / FRAME_DIM, FRAME_DIM), v).expect("frames"))
+        .collect())
+}
+
+/// The reactor's next frame for each stream of `group` (same settings), given the actor's.
+fn frame(
+    streams: &mut [&mut ArflowStream],
+    group: &[usize],
+    actor: &[&[f32]],
+) -> Result<Array2<f32>> {
+    let lead = &streams[group[0]];
+    let nets = Arc::clone(&lead.nets);
+    let s = lead.sampling.clone();
+    let norm = &nets.spec.normalizer;
+    let (mean, std) = (&norm.mean[..], &norm.std[..]);
+    let b = group.len();
+    let raw = Array2::from_shape_fn((b, FRAME_DIM), |(r, i)| actor[r][i]);
+    let a = Array2::from_shape_fn((b, FRAME_DIM), |(r, i)| (raw[[r, i]] - mean[i]) / std[i]);
+    let steps = s.steps;
+    let tokens = steps as u64 + 1;
+    let draw = |stream: &ArflowStream, k: u64| {
+        let mut e = vec![0f32; FRAME_DIM];
+        fill_normals(stream.seed, stream.frames * tokens + k, s.stream, &mut e);
+        e
+    };
+    let mut x = a.clone();
+    if s.sigma > 0.0 {
+        for (row, &i) in group.iter().enumerate() {
+            let e = draw(streams[i], 0);
+            for (v, e) in x.row_mut(row).iter_mut().zip(e) {
+                *v += s.sigma * e;
+            }
+        }
+    }
+    let loss = loss_of(&s);
+    let kv = lead.kv_floats();
+    let m = &nets.spec.model;
+    let dh = m.width / m.heads;
+    for step in 0..steps {
+        let (t, t_next) = times(step, steps);
+        let cached = group
+            .iter()
+            .map(|&i| streams[i].frames as usize)
+            .max()
+            .unwrap_or(0)
+            .max(1);
+        let (cache, mask) = pack(streams, group, step, cached, (m.layers, m.heads, dh));
+        let position: Vec<i64> = group.iter().map(|&i| streams[i].frames as i64).collect();
+        let out = nets.denoise_step(x.view(), &vec![t; b], &position, cache, mask, cached)?;
+        let eps: Option<Vec<f32>> = (s.eta > 0.0).then(|| {
+            group
+                .iter()
+                .flat_map(|&i| draw(streams[i], step as u64 + 1))
+                .collect()
+        });
+        euler_step(
+            &mut x,
+            &out.x1,
+            a.view(),
+            raw.view(),
+            (mean, std),
+            &s,
+            &loss,
+            (t, t_next),
+            eps.as_deref(),
+        )?;
+        for (row, &i) in group.iter().enumerate() {
+            streams[i].keys[step].extend_from_slice(&out.k[row * kv..(row + 1) * kv]);
+            streams[i].values[step].extend_from_slice(&out.v[row * kv..(row + 1) * kv]);
+        }
+    }
+    for &i in group {
+        streams[i].frames += 1;
+    }
+    for mut row in x.outer_iter_mut() {
+        for (i, v) in row.iter_mut().enumerate() {
+            *v = *v * std[i] + mean[i];
+        }
+    }
+    Ok(x)
+}
+
+/// Step `step`'s caches of `group` as the graph takes them: `[B, L, H, cached, W/H]` with each
+/// row's frames at the end (padded in front), and the mask `[B, cached]`. The graph's keys come
+/// out `[B, L, H, 1, W/H]`, one frame's `L · W` floats per row in that order, which is how each
+/// stream keeps them, frame after frame.
+fn pack(
+    streams: &[&mut ArflowStream],
+    group: &[usize],
+    step: usize,
+    cached: usize,
+    (layers, heads, dh): (usize, usize, usize),
+) -> ((Vec<f32>, Vec<f32>), Vec<f32>) {
+    let b = group.len();
+    let per_row = layers * heads * cached * dh;
+    let mut k = vec![0f32; b * per_row];
+    let mut v = vec![0f32; b * per_row];
+    let mut mask = vec![0f32; b * cached];
+    let frame_floats = layers * heads * dh;
+    for (row, &i) in group.iter().enumerate() {
+        let s = &streams[i];
+        let have = s.frames as usize;
+        let pad = cached - have;
+        for n in 0..have {
+            mask[row * cached + pad + n] = 1.0;
+            let src = n * frame_floats;
+            for l in 0..layers {
+                for h in 0..heads {
+                    let from = src + (l * heads + h) * dh;
+                    let to = row * per_row + ((l * heads + h) * cached + pad + n) * dh;
+                    k[to..to + dh].copy_from_slice(&s.keys[step][from..from + dh]);
+                    v[to..to + dh].copy_from_slice(&s.values[step][from..from + dh]);
+                }
+            }
+        }
+    }
+    ((k, v), mask)
+}
