@@ -7,7 +7,7 @@
 //! - over a `magnet` model: the user's frames in, the live partner's out, one chunk of the
 //!   official rolling window at a time (`magnet/live.rs`).
 //!
-//! Both share the shape callers program against: `step` / `step_flat` / `reset` / the setters,
+//! All share the shape callers program against: `step` / `step_flat` / `reset` / the setters,
 //! [`step_sessions`] for crowds (one batched pass per round), and the C ABI's `troupe_session_*`.
 //! A step either completes or leaves the session as it was.
 
@@ -105,11 +105,12 @@ impl SessionOptions {
         })
     }
 
-    /// What a magnet stream reads: fails on an armflow-only field the stream cannot honour.
-    pub(crate) fn check_for_partner(&self) -> Result<()> {
+    /// Refuses what neither MAGNet's nor ARFlow's streams take: a condition, a prompt, a CFG
+    /// scale other than 1, the actor's posterior mean, VAE windows, the penetration guard.
+    fn refuse_armflow_settings(&self, stream: &str) -> Result<()> {
         let refuse = |what: &str| {
             Err(Error::InvalidOption(format!(
-                "{what}: a magnet live partner session has no conditioning or guidance scale"
+                "{what}: {stream} has no conditioning, guidance scale or ARMFlow settings"
             )))
         };
         if self.condition.is_some() || self.prompt.is_some() {
@@ -121,41 +122,33 @@ impl SessionOptions {
         if self.actor_latent == Some(ActorLatent::Mean)
             || self.vae_windows
             || self.penetration_guard.is_some()
-            || self.arflow.is_some()
         {
+            return refuse("actor_latent = mean, vae_windows or the penetration guard");
+        }
+        Ok(())
+    }
+
+    /// What a magnet stream reads: fails on a field the stream cannot honour.
+    pub(crate) fn check_for_partner(&self) -> Result<()> {
+        self.refuse_armflow_settings("a magnet live partner session")?;
+        if self.arflow.is_some() {
             return Err(Error::InvalidOption(
-                "actor_latent = mean, vae_windows, the penetration guard and arflow settings are \
-                 not for magnet live partner sessions"
-                    .into(),
+                "arflow settings are for arflow streams, not magnet live partner sessions".into(),
             ));
         }
         Ok(())
     }
-}
 
-impl SessionOptions {
     /// What an ARFlow stream reads: its sampler settings (the bundle's with `arflow`'s changes,
     /// `steps` applied); fails on a field the stream cannot honour.
     pub(crate) fn for_flow(&self, base: &ArflowSampling) -> Result<ArflowSampling> {
-        let refuse = |what: &str| {
-            Err(Error::InvalidOption(format!(
-                "{what}: an ARFlow stream has no conditioning, CFG scale or those settings"
-            )))
-        };
-        if self.condition.is_some() || self.prompt.is_some() {
-            return refuse("a condition or prompt");
-        }
-        if self.cfg_scale.is_some_and(|s| s != 1.0) {
-            return refuse("a CFG scale other than 1");
-        }
-        if self.actor_latent == Some(ActorLatent::Mean)
-            || self.vae_windows
-            || self.penetration_guard.is_some()
-            || self.partner_opening.is_some()
-            || self.live_config.is_some()
-            || self.early_emission
-        {
-            return refuse("armflow or magnet settings");
+        self.refuse_armflow_settings("an ARFlow stream")?;
+        if self.partner_opening.is_some() || self.live_config.is_some() || self.early_emission {
+            return Err(Error::InvalidOption(
+                "partner_opening, live_config and early_emission are for magnet live partner \
+                 sessions, not ARFlow streams"
+                    .into(),
+            ));
         }
         let mut changes = self.arflow.clone().unwrap_or_default();
         if let Some(steps) = self.steps {

@@ -253,16 +253,7 @@ fn c_programs() -> Vec<(&'static str, Vec<PathBuf>, &'static [&'static str])> {
         ("smoke", smoke_args().to_vec(), &[]),
         ("group", group_args().to_vec(), &[]),
         ("magnet", magnet_args(), &[]),
-        (
-            "arflow",
-            vec![
-                root().join("onnx/bundles/arflow-tiny"),
-                root().join("onnx/bundles/armflow-tiny"),
-                root().join("onnx/bundles/magnet-tiny"),
-                root().join("onnx/bundles/arflow-tiny-online"),
-            ],
-            &[],
-        ),
+        ("arflow", arflow_args(), &[]),
         ("clip", clip_args().to_vec(), &[]),
         ("motion", motion_args().to_vec(), &[]),
         ("threads", threads_args().to_vec(), &["-pthread"]),
@@ -617,44 +608,54 @@ fn magnet_args() -> Vec<PathBuf> {
 /// stream does; as C99 and as C++17.
 #[test]
 fn c_magnet_generation_as_c99_and_cpp17() {
-    let src = root().join("tests/c/magnet.c");
-    let args = magnet_args();
-    let args: Vec<&Path> = args.iter().map(PathBuf::as_path).collect();
-    let c = compile("cc", &["-std=c99"], &[&src], &shared_link(), "magnet_c");
-    println!("{}", run(&[], &c, &args));
-    let cpp = compile(
-        "c++",
-        &["-std=c++17", "-x", "c++"],
-        &[&src],
-        &shared_link(),
-        "magnet_cpp",
-    );
-    run(&[], &cpp, &args);
+    println!("{}", c_and_cpp("magnet", &magnet_args()));
 }
 
-/// ARFlow generation and the penetration metrics through the header: the golden Euler and
-/// guided cases equal the reference, every bad input is refused with the output untouched; as
-/// C99 and as C++17.
-#[test]
-fn c_arflow_generation_as_c99_and_cpp17() {
-    let src = root().join("tests/c/arflow.c");
-    let args = [
-        root().join("onnx/bundles/arflow-tiny"),
-        root().join("onnx/bundles/armflow-tiny"),
-        root().join("onnx/bundles/magnet-tiny"),
-        root().join("onnx/bundles/arflow-tiny-online"),
-    ];
+/// Compiles `tests/c/<name>.c` as C99 and as C++17 against the cdylib and runs both with `args`;
+/// the C run's output.
+fn c_and_cpp(name: &str, args: &[PathBuf]) -> String {
+    let src = root().join(format!("tests/c/{name}.c"));
     let args: Vec<&Path> = args.iter().map(PathBuf::as_path).collect();
-    let c = compile("cc", &["-std=c99"], &[&src], &shared_link(), "arflow_c");
-    println!("{}", run(&[], &c, &args));
+    let c = compile(
+        "cc",
+        &["-std=c99"],
+        &[&src],
+        &shared_link(),
+        &format!("{name}_c"),
+    );
+    let out = run(&[], &c, &args);
     let cpp = compile(
         "c++",
         &["-std=c++17", "-x", "c++"],
         &[&src],
         &shared_link(),
-        "arflow_cpp",
+        &format!("{name}_cpp"),
     );
     run(&[], &cpp, &args);
+    out
+}
+
+/// ARFlow generation, its stream and the penetration metrics through the header: the golden
+/// Euler and guided cases equal the reference, the online variant streams through
+/// `troupe_session_*` as the whole clip, the ARMFlow guard's settings, every bad input refused
+/// with the output untouched; as C99 and as C++17.
+#[test]
+fn c_arflow_generation_as_c99_and_cpp17() {
+    println!("{}", c_and_cpp("arflow", &arflow_args()));
+}
+
+/// The ARFlow test's arguments: the offline bundle, an armflow and a magnet bundle (sessions
+/// refused), the online bundle (the stream).
+fn arflow_args() -> Vec<PathBuf> {
+    [
+        "arflow-tiny",
+        "armflow-tiny",
+        "magnet-tiny",
+        "arflow-tiny-online",
+    ]
+    .iter()
+    .map(|b| root().join("onnx/bundles").join(b))
+    .collect()
 }
 
 /// The C MAGNet example compiles with the strict flags and runs a released configuration on the

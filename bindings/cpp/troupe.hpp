@@ -303,6 +303,10 @@ class Session {
     Status queue_noise(const float *actor_noise, const float *reactor_noise, std::size_t len) {
         return Status::from(troupe_session_queue_noise(handle_, actor_noise, reactor_noise, len));
     }
+    /// An ARFlow stream's sampler settings (from `troupe_arflow_options_init`).
+    Status set_arflow_options(const troupe_arflow_options &options) {
+        return Status::from(troupe_session_set_arflow_options(handle_, &options));
+    }
     /// An ARMFlow session's penetration guard (`enabled` false: off); see docs/ARFLOW.md.
     Status set_penetration_guard(bool enabled, float d_safe = 0.05f, float max_speed = 2.0f) {
         return Status::from(troupe_session_set_penetration_guard(handle_, enabled ? 1 : 0, d_safe, max_speed));
