@@ -177,7 +177,7 @@ impl Session {
         }
     }
 
-    /// The family this session streams: `"armflow"` or `"magnet"`.
+    /// The family this session streams: `"armflow"`, `"magnet"` or `"arflow"`.
     pub fn family(&self) -> &'static str {
         match self.stream {
             Stream::Reaction(_) => "armflow",
@@ -195,10 +195,11 @@ impl Session {
     }
 
     fn partner_mut(&mut self, what: &str) -> Result<&mut LiveSession> {
+        let family = self.family();
         match &mut self.stream {
             Stream::Partner(s) => Ok(s),
             Stream::Reaction(_) | Stream::Flow(_) => Err(Error::InvalidInput(format!(
-                "{what} is for magnet live partner sessions; this session runs an armflow model"
+                "{what} is for magnet live partner sessions; this session runs an {family} model"
             ))),
         }
     }
@@ -212,7 +213,8 @@ impl Session {
         }
     }
 
-    /// Floats per latent token (armflow: each [`TokenNoise`] vector; magnet: a motion token).
+    /// Floats per latent token (armflow: each [`TokenNoise`] vector; magnet: a motion token;
+    /// arflow, which has no latent: a frame).
     pub fn latent_dim(&self) -> usize {
         match &self.stream {
             Stream::Reaction(s) => s.latent_dim(),
@@ -229,7 +231,7 @@ impl Session {
         }
     }
 
-    /// Whether this session runs the bundle's per-token VAE steps (armflow; false for magnet).
+    /// Whether this session runs the bundle's per-token VAE steps (armflow; false otherwise).
     pub fn uses_vae_steps(&self) -> bool {
         matches!(&self.stream, Stream::Reaction(s) if s.uses_vae_steps())
     }
