@@ -116,6 +116,10 @@ impl BodyModel {
 
     /// The signed distance from `point` to the body posed at `pose` (one position per joint):
     /// the smallest over the capsules of the distance to the capsule's axis less its radius.
+    ///
+    /// # Panics
+    /// When `pose` has fewer than [`BodyModel::joints`] positions
+    /// ([`crate::motion::penetration`] checks its inputs first).
     pub fn signed_distance(&self, pose: &[Vec3], point: Vec3) -> SignedDistance {
         let mut best = SignedDistance {
             distance: f64::INFINITY,

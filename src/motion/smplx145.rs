@@ -72,7 +72,15 @@ pub fn smplx145_positions(frames: &[f32], skeleton: &Skeleton) -> Result<Vec<Vec
         world[0] = rotation(&root[..6]).ok_or_else(|| degenerate("the root".into()))?;
         pos[0] = [root[6] as f64, root[7] as f64, root[8] as f64];
         for j in 1..T2M22_JOINTS {
-            let p = parents[j].expect("t2m-22: only the pelvis has no parent");
+            let p = match parents[j] {
+                Some(p) if p < j => p,
+                _ => {
+                    return Err(Error::InvalidInput(format!(
+                        "skeleton `{}`: joint {j} needs a parent listed before it (SMPL order)",
+                        skeleton.name()
+                    )))
+                }
+            };
             let body = &frame[SMPLX145_BODY][(j - 1) * 6..j * 6];
             let local = rotation(body)
                 .ok_or_else(|| degenerate(format!("joint {}", skeleton.names()[j])))?;
