@@ -145,6 +145,142 @@ pub fn session_step(data: &[u8]) {
     }
 }
 
+/// A committed bundle other than the ARMFlow one, loaded once per name.
+fn other_model(name: &'static str) -> &'static Model {
+    static MODELS: OnceLock<std::sync::Mutex<Vec<(&'static str, &'static Model)>>> =
+        OnceLock::new();
+    let mut models = MODELS.get_or_init(Default::default).lock().unwrap();
+    if let Some((_, m)) = models.iter().find(|(n, _)| *n == name) {
+        return m;
+    }
+    let dir = bundle_dir().parent().unwrap().join(name);
+    let model: &'static Model = Box::leak(Box::new(Model::load(dir).expect("committed bundle")));
+    models.push((name, model));
+    model
+}
+
+/// MAGNet's live partner and ARFlow's online stream with arbitrary settings, opening frames,
+/// chunking and values: every step either fails (the stream usable) or gives finite frames.
+pub fn other_streams(data: &[u8]) {
+    let mut bytes = Bytes(data);
+    let magnet = bytes.u8() % 2 == 0;
+    let (model, mut options) = if magnet {
+        // The golden live configuration at 1 to 4 steps, guidance off or on.
+        let steps = 1 + bytes.u8() % 4;
+        let guidance = if bytes.u8() % 2 == 0 {
+            "null"
+        } else {
+            r#"{"weight": 2.0, "start": 0.0, "end": 1.0}"#
+        };
+        let config = format!(
+            r#"{{"task": "motion_control_live", "steps": {steps}, "eta": 0.0,
+            "schedule": "causal_uncertainty", "subseq_len": 4, "ar_seq_stride": 8,
+            "offset_proportion": 0.0, "seq_len": 96, "context_len": 32, "samples": 1,
+            "root_mode": "temporal", "temporal_smoothing": 0.3, "smoothing_start": 0,
+            "update_history_transforms": true, "seed": 5, "guidance": {{"scales": [["clean", 1.0]],
+            "subset_ratio": 0.5, "partial_level": 0.5, "smoothing": {guidance},
+            "foot_skating": null}}}}"#
+        );
+        let opening: Vec<f32> = (0..32 * 145)
+            .map(|i| match i % 145 {
+                10..=135 if (i % 145 - 10) % 6 == 0 || (i % 145 - 10) % 6 == 4 => 1.0,
+                136 | 140 => 1.0,
+                143 => 0.9,
+                _ => 0.0,
+            })
+            .collect();
+        let options = SessionOptions {
+            seed: u64::from(bytes.u32()),
+            live_config: Some(config),
+            partner_opening: (bytes.u8() % 8 != 0).then_some(opening),
+            early_emission: bytes.u8() % 2 == 0,
+            ..SessionOptions::default()
+        };
+        (other_model("magnet-tiny"), options)
+    } else {
+        let options = SessionOptions {
+            seed: u64::from(bytes.u32()),
+            arflow: Some(troupe::ArflowOptions {
+                steps: Some(usize::from(bytes.u8() % 4)),
+                guidance: Some(f32::from(bytes.u8()) / 32.0),
+                weight: Some(f32::from(bytes.u8()) / 200.0),
+                eta: Some(f32::from(bytes.u8()) / 300.0),
+                d_safe: Some(f32::from(bytes.u8()) / 100.0),
+                squared: Some(bytes.u8() % 2 == 0),
+                sigma: Some(f32::from(bytes.u8() % 4) / 100.0),
+                ..Default::default()
+            }),
+            ..SessionOptions::default()
+        };
+        (other_model("arflow-tiny-online"), options)
+    };
+    options.steps = None;
+    let Ok(mut session) = model.session(options) else {
+        return;
+    };
+    let d = model.frame_dim();
+    while !bytes.is_empty() {
+        let frames = usize::from(bytes.u8() % 40);
+        let mode = bytes.u8();
+        let chunk: Vec<f32> = (0..frames * d)
+            .map(|i| match mode % 4 {
+                0 => ((i as f32) * 0.37).sin(),
+                1 => f32::from(bytes.u8()) / 32.0 - 4.0,
+                2 => bytes.f32(),
+                _ => 0.0,
+            })
+            .collect();
+        if let Ok(out) = session.step_flat(&chunk) {
+            assert!(
+                out.frames.iter().all(|v| v.is_finite()),
+                "a step returned a non-finite frame"
+            );
+        }
+        if mode == 255 {
+            session.reset();
+        }
+    }
+}
+
+/// The penetration metrics and loss on arbitrary joints: errors for non-finite input, finite
+/// results otherwise, never a panic.
+pub fn penetration(data: &[u8]) {
+    use troupe::motion::{penetration_metrics, BodyModel, Hinge, PenetrationLoss};
+    let mut bytes = Bytes(data);
+    let frames = usize::from(bytes.u8() % 6);
+    let mut person = || -> Vec<Vec<[f64; 3]>> {
+        (0..frames)
+            .map(|_| {
+                (0..22)
+                    .map(|_| {
+                        [0; 3].map(|_| match bytes.u8() % 3 {
+                            0 => f64::from(bytes.f32()),
+                            _ => f64::from(bytes.u8()) / 100.0 - 1.0,
+                        })
+                    })
+                    .collect()
+            })
+            .collect()
+    };
+    let (a, b) = (person(), person());
+    let body = BodyModel::t2m22();
+    if let Ok(m) = penetration_metrics(&body, &a, &b) {
+        assert!(m.frequency.is_finite() && m.depth_sum.is_finite() && m.max_depth.is_finite());
+    }
+    let loss = PenetrationLoss {
+        d_safe: f64::from(bytes.f32()),
+        hinge: if bytes.u8() % 2 == 0 {
+            Hinge::Linear
+        } else {
+            Hinge::Squared
+        },
+    };
+    if let Ok(p) = loss.evaluate(&body, &a, &b) {
+        assert!(p.loss.is_finite());
+        assert!(p.gradient.iter().flatten().flatten().all(|v| v.is_finite()));
+    }
+}
+
 /// Arbitrary sequences of C API calls on one model: sessions created, stepped, reconfigured,
 /// reset and freed in any order, with arbitrary sizes and NULLs. Only statuses may come back.
 pub fn c_api_sequence(data: &[u8]) {
@@ -271,10 +407,12 @@ pub fn c_api_sequence(data: &[u8]) {
 pub type Target = fn(&[u8]);
 
 /// Every target by name, for the replay and mutation test.
-pub const TARGETS: [(&str, Target); 5] = [
+pub const TARGETS: [(&str, Target); 7] = [
     ("tar_archive", tar_archive),
     ("manifest", manifest),
     ("onnx_graph", onnx_graph),
     ("session_step", session_step),
     ("c_api_sequence", c_api_sequence),
+    ("other_streams", other_streams),
+    ("penetration", penetration),
 ];
