@@ -102,28 +102,12 @@ impl Bytes<'_> {
     }
 }
 
-/// A session stepped with arbitrary options, chunking and values: every step either fails
-/// (leaving the session usable) or gives finite frames.
-pub fn session_step(data: &[u8]) {
-    let model = model();
-    let d = model.frame_dim();
-    let mut bytes = Bytes(data);
-    let options = SessionOptions {
-        seed: u64::from(bytes.u32()),
-        steps: Some(u32::from(bytes.u8() % 4)),
-        cfg_scale: Some(match bytes.u8() % 4 {
-            0 => 1.0,
-            1 => bytes.f32(),
-            _ => f32::from(bytes.u8()) / 16.0,
-        }),
-        context_capacity: Some(usize::from(bytes.u8() % 12)),
-        ..SessionOptions::default()
-    };
-    let Ok(mut session) = model.session(options) else {
-        return;
-    };
+/// Steps `session` with what is left of `bytes`: chunks of fewer than `most` frames of
+/// arbitrary values, an occasional reset; every step either fails or gives finite frames.
+fn step_arbitrarily(session: &mut troupe::Session, bytes: &mut Bytes, most: u8) {
+    let d = session.frame_dim();
     while !bytes.is_empty() {
-        let frames = usize::from(bytes.u8() % 9);
+        let frames = usize::from(bytes.u8() % most);
         let mode = bytes.u8();
         let chunk: Vec<f32> = (0..frames * d)
             .map(|i| match mode % 4 {
@@ -143,6 +127,28 @@ pub fn session_step(data: &[u8]) {
             session.reset();
         }
     }
+}
+
+/// A session stepped with arbitrary options, chunking and values: every step either fails
+/// (leaving the session usable) or gives finite frames.
+pub fn session_step(data: &[u8]) {
+    let model = model();
+    let mut bytes = Bytes(data);
+    let options = SessionOptions {
+        seed: u64::from(bytes.u32()),
+        steps: Some(u32::from(bytes.u8() % 4)),
+        cfg_scale: Some(match bytes.u8() % 4 {
+            0 => 1.0,
+            1 => bytes.f32(),
+            _ => f32::from(bytes.u8()) / 16.0,
+        }),
+        context_capacity: Some(usize::from(bytes.u8() % 12)),
+        ..SessionOptions::default()
+    };
+    let Ok(mut session) = model.session(options) else {
+        return;
+    };
+    step_arbitrarily(&mut session, &mut bytes, 9);
 }
 
 /// A committed bundle other than the ARMFlow one, loaded once per name.
@@ -218,28 +224,7 @@ pub fn other_streams(data: &[u8]) {
     let Ok(mut session) = model.session(options) else {
         return;
     };
-    let d = model.frame_dim();
-    while !bytes.is_empty() {
-        let frames = usize::from(bytes.u8() % 40);
-        let mode = bytes.u8();
-        let chunk: Vec<f32> = (0..frames * d)
-            .map(|i| match mode % 4 {
-                0 => ((i as f32) * 0.37).sin(),
-                1 => f32::from(bytes.u8()) / 32.0 - 4.0,
-                2 => bytes.f32(),
-                _ => 0.0,
-            })
-            .collect();
-        if let Ok(out) = session.step_flat(&chunk) {
-            assert!(
-                out.frames.iter().all(|v| v.is_finite()),
-                "a step returned a non-finite frame"
-            );
-        }
-        if mode == 255 {
-            session.reset();
-        }
-    }
+    step_arbitrarily(&mut session, &mut bytes, 40);
 }
 
 /// The penetration metrics and loss on arbitrary joints: errors for non-finite input, finite

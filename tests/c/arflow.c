@@ -10,14 +10,6 @@
 #include <stdlib.h>
 #include <string.h>
 
-static float max_value(const float *a, size_t n) {
-    float m = 0.0f;
-    size_t i;
-    for (i = 0; i < n; i++)
-        if (fabsf(a[i]) > m) m = fabsf(a[i]);
-    return m;
-}
-
 int main(int argc, char **argv) {
     troupe_model *model = NULL, *armflow = NULL;
     troupe_arflow_options opt;

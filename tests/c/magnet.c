@@ -11,14 +11,6 @@
 #include <stdlib.h>
 #include <string.h>
 
-static float max_value(const float *a, size_t n) {
-    float m = 0.0f;
-    size_t i;
-    for (i = 0; i < n; i++)
-        if (fabsf(a[i]) > m) m = fabsf(a[i]);
-    return m;
-}
-
 /* The live partner through troupe_session_*: the golden stream (person 0 the user, person 1's
  * first 32 frames the partner's opening) equals the reference; bad input changes nothing. */
 static void live_partner(troupe_model *model, troupe_model *armflow, const float *clip,

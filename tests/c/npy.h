@@ -48,4 +48,13 @@ static inline float max_abs(const float *a, const float *b, size_t n) {
     return m;
 }
 
+/* The largest |a[i]|: the scale relative errors are measured against. */
+static inline float max_value(const float *a, size_t n) {
+    float m = 0.0f;
+    size_t i;
+    for (i = 0; i < n; i++)
+        if (fabsf(a[i]) > m) m = fabsf(a[i]);
+    return m;
+}
+
 #endif
