@@ -19,7 +19,7 @@ is measured from whole generations of the joint task over one window at two step
 difference divided by the difference in iterations, which cancels the fixed costs of encoding
 and decoding), at the released sample counts. Every task's iterations per generated frame are
 exact: its reference sampler is run at its released length with a stub network that counts
-calls (`shared/spec/magnet.md` §9; `onnx/tests/test_magnet.py` checks the same counts). The
+calls (`docs/spec/magnet.md` §9; `onnx/tests/test_magnet.py` checks the same counts). The
 per-frame cost of a task is its iterations per frame times the cost per iteration at its sample
 count; one end-to-end troupe run of DD100's joint task (one sample, guidance off) checks the
 prediction against a measurement.

@@ -1,7 +1,9 @@
 #!/usr/bin/env bash
 # The project's test command: on a machine with only the Rust toolchain, a C compiler and a bare
 # python3, it installs what the suite needs (a project-local virtual environment for the Python
-# tests, Debian's chromium for the picture tests) and runs every check CI runs.
+# tests, Debian's chromium for the picture tests, valgrind for the C memory check) and runs every
+# check CI runs. It ends with the count of checks the tests skipped, and why (torch-dependent
+# ones are optional; see tests/common/mod.rs, `skip`).
 #
 #   scripts/test.sh              format, lint, every test, the demo and benchmark smoke runs
 #   TROUPE_SLOW_TESTS=1 ...      also the long forms (training reproduction, soak, long fuzz)
@@ -19,6 +21,18 @@ fi
 venv=target/venv
 requirements=tests/requirements.txt
 
+# Debian packages, as root or through `sudo -n`; `apt-get update` once, before the first install.
+apt_updated=
+apt_install() {
+    local apt_get=(env DEBIAN_FRONTEND=noninteractive apt-get)
+    [ "$(id -u)" -eq 0 ] || apt_get=(sudo -n "${apt_get[@]}")
+    if [ -z "$apt_updated" ]; then
+        "${apt_get[@]}" update -qq || true
+        apt_updated=1
+    fi
+    "${apt_get[@]}" install -y -qq --no-install-recommends "$@" || true
+}
+
 # 1. Python: a virtual environment under target/ (never the system's site-packages), refreshed
 #    when tests/requirements.txt changes.
 if [ ! -x "$venv/bin/python3" ]; then
@@ -26,9 +40,7 @@ if [ ! -x "$venv/bin/python3" ]; then
     if ! python3 -m venv "$venv" 2>/dev/null; then
         # Debian's python3 keeps venv in a separate package.
         rm -rf "$venv"
-        apt_get=(env DEBIAN_FRONTEND=noninteractive apt-get)
-        [ "$(id -u)" -eq 0 ] || apt_get=(sudo -n "${apt_get[@]}")
-        "${apt_get[@]}" install -y -qq --no-install-recommends python3-venv
+        apt_install python3-venv
         python3 -m venv "$venv"
     fi
 fi
@@ -45,10 +57,7 @@ export PATH
 # 2. Chromium: the viewer and demo tests screenshot the HTML player.
 if [ -z "${TROUPE_CHROMIUM:-}" ] && ! command -v chromium >/dev/null 2>&1; then
     echo "== chromium: installing Debian's package"
-    apt_get=(env DEBIAN_FRONTEND=noninteractive apt-get)
-    [ "$(id -u)" -eq 0 ] || apt_get=(sudo -n "${apt_get[@]}")
-    "${apt_get[@]}" update -qq || true
-    "${apt_get[@]}" install -y -qq --no-install-recommends chromium || true
+    apt_install chromium
     if ! command -v chromium >/dev/null 2>&1; then
         echo "chromium is missing and could not be installed; the picture tests need it" \
             "(apt-get install chromium, or set TROUPE_CHROMIUM to a Chromium binary)" >&2
@@ -56,8 +65,39 @@ if [ -z "${TROUPE_CHROMIUM:-}" ] && ! command -v chromium >/dev/null 2>&1; then
     fi
 fi
 
+# 3. valgrind: the C smoke test runs under it (tests/c_abi.rs). Under CI that test fails without
+#    it; elsewhere it is a counted skip.
+if ! command -v valgrind >/dev/null 2>&1; then
+    echo "== valgrind: installing Debian's package"
+    apt_install valgrind
+    if ! command -v valgrind >/dev/null 2>&1; then
+        echo "valgrind is missing and could not be installed (apt-get install valgrind):" \
+            "c_tests_under_valgrind fails under CI and is skipped elsewhere" >&2
+    fi
+fi
+
+# Tests that cannot run their check append `<test binary>::<test><TAB><reason>` here
+# (tests/common/mod.rs, `skip`); emptied before the tests, summed up when the script ends,
+# whether it passes or fails.
+skips="${CARGO_TARGET_DIR:-target}/test-skips.txt"
+skip_summary() {
+    local n=0
+    [ -f "$skips" ] && n=$(wc -l <"$skips")
+    echo "== skipped checks: $n"
+    if [ "$n" -gt 0 ]; then
+        sort "$skips" | sed 's/\t/: /; s/^/   /'
+    fi
+}
+start_tests() {
+    mkdir -p "$(dirname "$skips")"
+    : >"$skips"
+    trap skip_summary EXIT
+}
+
 if [ "$#" -gt 0 ]; then
-    exec cargo test "$@"
+    start_tests
+    cargo test "$@"
+    exit
 fi
 
 if command -v rustup >/dev/null 2>&1; then
@@ -71,6 +111,7 @@ echo "== lint"
 cargo clippy --all-targets -- -D warnings
 
 echo "== tests"
+start_tests
 cargo test
 
 echo "== streaming demo smoke run"

@@ -37,6 +37,10 @@
 
 pub mod arflow;
 pub mod armflow;
+// The C API (`include/troupe.h`). Its items are public only so that the fuzz targets and tests
+// can call the C entry points in-process; Rust programs use the API above, which has the
+// stability promise (`docs/ABI.md` is the C API's).
+#[doc(hidden)]
 pub mod ffi;
 pub mod magnet;
 pub mod manifest;

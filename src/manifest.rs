@@ -5,8 +5,9 @@
 //! loads, against the ONNX graphs it names.
 //!
 //! This module sits above the families, beside [`crate::Model`]: it reads the common header and
-//! hands each family its own section (`crate::armflow::spec`, `crate::umf::spec`). The types a
-//! manifest is made of are re-exported here under the paths they have always had.
+//! hands each family its own section (`crate::armflow::spec`, `crate::umf::spec`,
+//! `crate::magnet::spec`, `crate::arflow::spec`). The types a manifest is made of are
+//! re-exported here under the paths they have always had.
 
 use std::path::Path;
 

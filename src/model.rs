@@ -427,9 +427,9 @@ impl Model {
                     options.seed,
                 )?))
             }
-            Networks::Umf(_) => Err(Error::InvalidInput(format!(
-                "bundle `{}` is a `umf` model; a streaming session needs an `armflow`, `magnet` \
-                 or online `arflow` bundle",
+            Networks::Umf(_) => Err(Error::Unsupported(format!(
+                "bundle `{}` is a `umf` model; a streaming session needs an `armflow`, a `magnet` \
+                 or an online `arflow` bundle",
                 self.inner.manifest.name
             ))),
         }
@@ -570,12 +570,14 @@ impl Model {
 
     /// The error for using this bundle where another family is needed: `what` needs `needed`.
     pub(crate) fn wrong_family(&self, needed: &str, what: &str) -> Error {
-        // As read aloud: "an armflow", "an arflow", "a umf".
-        let article = if needed.starts_with('a') { "an" } else { "a" };
-        Error::InvalidInput(format!(
-            "bundle `{}` is a `{}` model; {what} needs {article} `{needed}` bundle",
+        // As read aloud: "an armflow", "an arflow", "a umf", "a magnet".
+        let article = |family: &str| if family.starts_with('a') { "an" } else { "a" };
+        let family = self.inner.manifest.family_name();
+        Error::Unsupported(format!(
+            "bundle `{}` is {} `{family}` model; {what} needs {} `{needed}` bundle",
             self.inner.manifest.name,
-            self.inner.manifest.family_name()
+            article(family),
+            article(needed),
         ))
     }
 }

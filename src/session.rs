@@ -81,16 +81,14 @@ impl SessionOptions {
     /// The armflow session's options; fails on a magnet-only field.
     pub(crate) fn for_reaction(self) -> Result<armflow::SessionOptions> {
         if self.partner_opening.is_some() || self.live_config.is_some() || self.early_emission {
-            return Err(Error::InvalidOption(
-                "partner_opening, live_config and early_emission are for magnet live partner \
-                 sessions; this is an armflow model"
-                    .into(),
+            return Err(unsupported(
+                "armflow",
+                "magnet",
+                "partner_opening, live_config and early_emission",
             ));
         }
         if self.arflow.is_some() {
-            return Err(Error::InvalidOption(
-                "arflow settings are for arflow streams; this is an armflow model".into(),
-            ));
+            return Err(unsupported("armflow", "arflow", "ARFlow's settings"));
         }
         Ok(armflow::SessionOptions {
             seed: self.seed,
@@ -109,7 +107,7 @@ impl SessionOptions {
     /// scale other than 1, the actor's posterior mean, VAE windows, the penetration guard.
     fn refuse_armflow_settings(&self, stream: &str) -> Result<()> {
         let refuse = |what: &str| {
-            Err(Error::InvalidOption(format!(
+            Err(Error::Unsupported(format!(
                 "{what}: {stream} has no conditioning, guidance scale or ARMFlow settings"
             )))
         };
@@ -132,9 +130,7 @@ impl SessionOptions {
     pub(crate) fn check_for_partner(&self) -> Result<()> {
         self.refuse_armflow_settings("a magnet live partner session")?;
         if self.arflow.is_some() {
-            return Err(Error::InvalidOption(
-                "arflow settings are for arflow streams, not magnet live partner sessions".into(),
-            ));
+            return Err(unsupported("magnet", "arflow", "ARFlow's settings"));
         }
         Ok(())
     }
@@ -144,10 +140,10 @@ impl SessionOptions {
     pub(crate) fn for_flow(&self, base: &ArflowSampling) -> Result<ArflowSampling> {
         self.refuse_armflow_settings("an ARFlow stream")?;
         if self.partner_opening.is_some() || self.live_config.is_some() || self.early_emission {
-            return Err(Error::InvalidOption(
-                "partner_opening, live_config and early_emission are for magnet live partner \
-                 sessions, not ARFlow streams"
-                    .into(),
+            return Err(unsupported(
+                "arflow",
+                "magnet",
+                "partner_opening, live_config and early_emission",
             ));
         }
         let mut changes = self.arflow.clone().unwrap_or_default();
@@ -188,9 +184,10 @@ impl Session {
 
     /// The armflow stream, for what only it has.
     fn reaction_mut(&mut self, what: &str) -> Result<&mut armflow::Session> {
+        let family = self.family();
         match &mut self.stream {
             Stream::Reaction(s) => Ok(s),
-            Stream::Partner(_) | Stream::Flow(_) => Err(armflow_only(what)),
+            Stream::Partner(_) | Stream::Flow(_) => Err(unsupported(family, "armflow", what)),
         }
     }
 
@@ -198,9 +195,7 @@ impl Session {
         let family = self.family();
         match &mut self.stream {
             Stream::Partner(s) => Ok(s),
-            Stream::Reaction(_) | Stream::Flow(_) => Err(Error::InvalidInput(format!(
-                "{what} is for magnet live partner sessions; this session runs an {family} model"
-            ))),
+            Stream::Reaction(_) | Stream::Flow(_) => Err(unsupported(family, "magnet", what)),
         }
     }
 
@@ -336,7 +331,11 @@ impl Session {
         match &mut self.stream {
             Stream::Reaction(s) => s.set_cfg_scale(scale),
             Stream::Partner(_) | Stream::Flow(_) if scale == 1.0 => Ok(()),
-            Stream::Partner(_) | Stream::Flow(_) => Err(armflow_only("a CFG scale other than 1")),
+            Stream::Partner(_) | Stream::Flow(_) => Err(unsupported(
+                self.family(),
+                "armflow",
+                "a CFG scale other than 1",
+            )),
         }
     }
 
@@ -345,7 +344,9 @@ impl Session {
         match (&mut self.stream, condition) {
             (Stream::Reaction(s), c) => s.set_condition(c),
             (Stream::Partner(_) | Stream::Flow(_), None) => Ok(()),
-            (Stream::Partner(_) | Stream::Flow(_), Some(_)) => Err(armflow_only("a condition")),
+            (Stream::Partner(_) | Stream::Flow(_), Some(_)) => {
+                Err(unsupported(self.family(), "armflow", "a condition"))
+            }
         }
     }
 
@@ -371,7 +372,18 @@ impl Session {
     pub fn seeded_noise(&self, index: u64) -> Result<TokenNoise> {
         match &self.stream {
             Stream::Reaction(s) => Ok(s.seeded_noise(index)),
-            Stream::Partner(_) | Stream::Flow(_) => Err(armflow_only("per-token noise")),
+            Stream::Partner(_) | Stream::Flow(_) => {
+                Err(unsupported(self.family(), "armflow", "per-token noise"))
+            }
+        }
+    }
+
+    /// An ARFlow stream's bundle sampler settings (what its options change); `None` for other
+    /// families.
+    pub(crate) fn arflow_bundle_sampling(&self) -> Option<&ArflowSampling> {
+        match &self.stream {
+            Stream::Flow(s) => Some(s.bundle_sampling()),
+            _ => None,
         }
     }
 
@@ -385,9 +397,7 @@ impl Session {
                 s.set_seed(options.seed);
                 Ok(())
             }
-            _ => Err(Error::InvalidInput(
-                "ARFlow's settings are for arflow streams".into(),
-            )),
+            _ => Err(unsupported(self.family(), "arflow", "ARFlow's settings")),
         }
     }
 
@@ -507,7 +517,9 @@ impl Session {
     pub fn joints_latency_frames(&self) -> Result<usize> {
         match &self.stream {
             Stream::Reaction(s) => Ok(s.joints_latency_frames()),
-            Stream::Partner(_) | Stream::Flow(_) => Err(armflow_only("joint positions")),
+            Stream::Partner(_) | Stream::Flow(_) => {
+                Err(unsupported(self.family(), "armflow", "joint positions"))
+            }
         }
     }
 
@@ -521,14 +533,18 @@ impl Session {
     pub fn joints_ready_after(&self, n: usize) -> Result<usize> {
         match &self.stream {
             Stream::Reaction(s) => s.joints_ready_after(n),
-            Stream::Partner(_) | Stream::Flow(_) => Err(armflow_only("joint positions")),
+            Stream::Partner(_) | Stream::Flow(_) => {
+                Err(unsupported(self.family(), "armflow", "joint positions"))
+            }
         }
     }
 }
 
-fn armflow_only(what: &str) -> Error {
-    Error::InvalidInput(format!(
-        "{what}: armflow sessions only; this session runs a magnet live partner"
+/// The error for a setting only `needed` streams take, asked of a `family` stream.
+fn unsupported(family: &str, needed: &str, what: &str) -> Error {
+    let article = if family.starts_with('a') { "an" } else { "a" };
+    Error::Unsupported(format!(
+        "{what}: only {needed} streams take this; this session runs {article} `{family}` model"
     ))
 }
 
@@ -630,9 +646,12 @@ pub fn step_sessions_joints(
 ) -> Result<Vec<Vec<Pose>>> {
     let mut reactions = Vec::with_capacity(sessions.len());
     for s in sessions.iter_mut() {
+        let family = s.family();
         match &mut s.stream {
             Stream::Reaction(r) => reactions.push(&mut **r),
-            Stream::Partner(_) | Stream::Flow(_) => return Err(armflow_only("joint positions")),
+            Stream::Partner(_) | Stream::Flow(_) => {
+                return Err(unsupported(family, "armflow", "joint positions"))
+            }
         }
     }
     armflow::step_sessions_joints(&mut reactions, actor)

@@ -10,9 +10,10 @@
 //! - no import cycle between modules (files, with a folder's submodules counted as the folder:
 //!   `armflow/session/lanes.rs` is part of `armflow::session`).
 //!
-//! Imports are read from `use` trees and from `crate::`/`super::` paths in code; comments and
-//! `#[cfg(test)]` modules are left out. The Python tooling under `onnx/troupe_onnx/` has the
-//! same rule, checked by `onnx/tests/test_layout.py`, which the last test here runs.
+//! Imports are read from `use` trees and from `crate::`/`super::` paths in code, in the whole of
+//! every file; comments and the items marked `#[cfg(test)]` (a test module, function or `use`,
+//! to its end) are left out. The Python tooling under `onnx/troupe_onnx/` has the same rule,
+//! checked by `onnx/tests/test_layout.py`, which the last test here runs.
 
 mod common;
 
@@ -68,14 +69,110 @@ fn module_of(relative: &Path) -> Vec<String> {
     parts
 }
 
-/// The code of a file without comments and without its `#[cfg(test)]` module.
+/// The code of a file without comments and without its `#[cfg(test)]` items.
 fn code_of(text: &str) -> String {
-    let text = text.split("#[cfg(test)]").next().unwrap_or("");
-    text.lines()
+    without_test_items(text)
+        .lines()
         .filter(|line| !line.trim_start().starts_with("//"))
         .map(|line| line.split(" // ").next().unwrap_or(""))
         .collect::<Vec<_>>()
         .join("\n")
+}
+
+/// `text` without each item marked `#[cfg(test)]`: the attribute and what follows it up to the
+/// `;` that ends it or the `}` that closes its body. Everything after the item is kept: a test
+/// module in the middle of a file (or a test-only `use` at its top) must not hide the rest.
+fn without_test_items(text: &str) -> String {
+    const ATTR: &str = "#[cfg(test)]";
+    let mut out = String::with_capacity(text.len());
+    // Inside a test item: how deep in brackets of any kind.
+    let mut skipping: Option<usize> = None;
+    let mut at = 0;
+    while at < text.len() {
+        let rest = &text[at..];
+        if skipping.is_none() && rest.starts_with(ATTR) {
+            skipping = Some(0);
+            at += ATTR.len();
+            continue;
+        }
+        // Literals and comments are passed over whole, so a brace inside one is not counted.
+        let len = literal_or_comment_len(rest)
+            .unwrap_or_else(|| rest.chars().next().map_or(1, char::len_utf8));
+        match (skipping, &rest[..len]) {
+            (None, kept) => out.push_str(kept),
+            (Some(depth), "{" | "(" | "[") => skipping = Some(depth + 1),
+            (Some(depth), ")" | "]") => skipping = Some(depth.saturating_sub(1)),
+            (Some(depth), "}") => skipping = (depth > 1).then(|| depth - 1),
+            (Some(0), ";") => skipping = None,
+            _ => {}
+        }
+        at += len;
+    }
+    out
+}
+
+/// The length of the comment, string or character literal that `code` starts with, if any.
+fn literal_or_comment_len(code: &str) -> Option<usize> {
+    let bytes = code.as_bytes();
+    if code.starts_with("//") {
+        return Some(code.find('\n').unwrap_or(code.len()));
+    }
+    if code.starts_with("/*") {
+        // Block comments nest.
+        let (mut depth, mut i) = (0usize, 0);
+        while i < bytes.len() {
+            if bytes[i..].starts_with(b"/*") {
+                depth += 1;
+                i += 2;
+            } else if bytes[i..].starts_with(b"*/") {
+                depth -= 1;
+                i += 2;
+                if depth == 0 {
+                    return Some(i);
+                }
+            } else {
+                i += 1;
+            }
+        }
+        return Some(bytes.len());
+    }
+    if bytes[0] == b'"' {
+        let mut i = 1;
+        while i < bytes.len() {
+            match bytes[i] {
+                b'\\' => i += 2,
+                b'"' => return Some(i + 1),
+                _ => i += 1,
+            }
+        }
+        return Some(bytes.len());
+    }
+    if bytes[0] == b'r' {
+        // A raw string: r"..." or r#"..."#, as many hashes to close as to open.
+        let hashes = bytes[1..].iter().take_while(|&&b| b == b'#').count();
+        if bytes.get(1 + hashes) == Some(&b'"') {
+            let close = format!("\"{}", "#".repeat(hashes));
+            let body = 2 + hashes;
+            return Some(
+                code[body..]
+                    .find(&close)
+                    .map_or(code.len(), |e| body + e + close.len()),
+            );
+        }
+        return None;
+    }
+    if bytes[0] == b'\'' {
+        // '\n', '\'', '\u{..}' or one character; otherwise a lifetime, which is not a literal.
+        if bytes.get(1) == Some(&b'\\') {
+            let close = code.get(3..).and_then(|tail| tail.find('\''));
+            return Some(close.map_or(code.len(), |e| 3 + e + 1));
+        }
+        let c = code[1..].chars().next()?;
+        if code[1 + c.len_utf8()..].starts_with('\'') {
+            return Some(1 + c.len_utf8() + 1);
+        }
+    }
+    None
 }
 
 /// Expands a `use` tree (`a::{b, c::{d, self}}`) into its paths.
@@ -286,6 +383,19 @@ fn the_parser_reads_use_trees_and_paths() {
         "{named:?}"
     );
     assert!(named.contains(&p(&["super", "l"])), "{named:?}");
+
+    // A test item is left out to its end, braces in its literals and comments not counted,
+    // and the code after it is read.
+    let code = code_of(
+        "use crate::a;\n#[cfg(test)]\nuse crate::b;\n#[cfg(test)]\nmod tests {\n    \
+         use crate::c;\n    const X: [u8; 2] = [b'}', b'{'];\n    fn f<'a>(s: &'a str) -> &'a str \
+         { \"}\" }\n    /* } */ const Y: &str = r#\"}\"#;\n}\nuse crate::d;\n",
+    );
+    let named = paths_named(&code);
+    assert!(named.contains(&p(&["crate", "a"])), "{code}");
+    assert!(named.contains(&p(&["crate", "d"])), "{code}");
+    assert!(!named.contains(&p(&["crate", "b"])), "{code}");
+    assert!(!named.contains(&p(&["crate", "c"])), "{code}");
 }
 
 #[test]

@@ -188,7 +188,7 @@ fn the_online_variant_is_causal_and_the_offline_one_is_not() {
 
 fn refused<T: std::fmt::Debug>(r: troupe::Result<T>, needle: &str) {
     match r {
-        Err(Error::InvalidInput(m)) | Err(Error::InvalidOption(m)) => {
+        Err(Error::InvalidInput(m) | Error::InvalidOption(m) | Error::Unsupported(m)) => {
             assert!(m.contains(needle), "`{m}` should mention `{needle}`")
         }
         other => panic!("expected an error about {needle}, got {other:?}"),

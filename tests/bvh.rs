@@ -10,7 +10,7 @@ use std::path::{Path, PathBuf};
 use ndarray::Axis;
 use troupe::motion::bvh::{parse_bvh, read_bvh, write_bvh, BvhPerson, BvhWriteOptions};
 use troupe::motion::ik::{forward_kinematics, inverse_kinematics};
-use troupe::motion::quat::{norm, sub, Vec3};
+use troupe::motion::vec3::{norm, sub, Vec3};
 use troupe::motion::{JointMap, Placement, Skeleton, Units};
 
 const CHAIN: &str = "HIERARCHY

@@ -6,8 +6,9 @@
 //! included; and (slow, on request) the demo's training
 //! reproduces its committed quality.
 //!
-//! Needs Python with torch and onnx (MAGNet's also safetensors and pyyaml). CI does not install torch (about 4 GB); where it is missing
-//! this test prints why it did not run and passes.
+//! Needs Python with torch and onnx (MAGNet's also safetensors and pyyaml). CI does not install
+//! torch (about 4 GB): where it is missing each test records a skip with its reason
+//! (`common::skip`), which the summary of `scripts/test.sh` counts, and returns.
 //!
 //! torch's CPU kernels are pinned to AVX2, the instruction set the goldens were exported with: on
 //! an AVX-512 machine the default kernels round differently and the goldens drift by up to 5e-6
@@ -17,7 +18,7 @@ mod common;
 
 use std::process::Command;
 
-use common::{c_libraries, python_command, run_python};
+use common::{c_libraries, python_command, run_python, skip};
 
 /// Selects torch's AVX2 kernels on any x86 machine (ignored elsewhere).
 const AVX2_KERNELS: [(&str, &str); 3] = [
@@ -26,19 +27,19 @@ const AVX2_KERNELS: [(&str, &str); 3] = [
     ("ONEDNN_MAX_CPU_ISA", "AVX2"),
 ];
 
-/// Whether python can import torch and onnx; prints why a test is skipped when not.
+/// Whether python can import torch and onnx; records `test` as skipped when not.
 fn torch_available(test: &str) -> bool {
     python_has("torch, onnx", test)
 }
 
-/// Whether python can import `modules` (comma-separated); prints why a test is skipped when not.
+/// Whether python can import `modules` (comma-separated); records `test` as skipped when not.
 fn python_has(modules: &str, test: &str) -> bool {
     let probe = Command::new(python_command())
         .args(["-c", &format!("import {modules}")])
         .output();
     let ok = matches!(probe, Ok(out) if out.status.success());
     if !ok {
-        println!("SKIPPED {test}: python with {modules} is not installed");
+        skip(test, &format!("python with {modules} is not installed"));
     }
     ok
 }
@@ -198,7 +199,10 @@ fn committed_int8_demo_is_reproducible_from_the_float32_demo() {
 fn demo_training_reproduces_the_committed_metrics() {
     let test = "demo_training_reproduces_the_committed_metrics";
     if std::env::var_os("TROUPE_SLOW_TESTS").is_none() {
-        println!("SKIPPED {test}: retraining takes about 25 minutes; set TROUPE_SLOW_TESTS=1");
+        skip(
+            test,
+            "long form only (retraining takes about 25 minutes): set TROUPE_SLOW_TESTS=1",
+        );
         return;
     }
     if !torch_available(test) {

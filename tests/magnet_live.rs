@@ -217,7 +217,7 @@ fn reset_returns_to_the_start_and_the_seed_matters() {
 
 fn assert_invalid<T: std::fmt::Debug>(r: troupe::Result<T>, needle: &str) {
     match r {
-        Err(Error::InvalidInput(m)) | Err(Error::InvalidOption(m)) => {
+        Err(Error::InvalidInput(m) | Error::InvalidOption(m) | Error::Unsupported(m)) => {
             assert!(m.contains(needle), "`{m}` should mention `{needle}`")
         }
         other => panic!("expected an error about {needle}, got {other:?}"),

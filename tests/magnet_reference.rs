@@ -2,7 +2,7 @@
 //! will be held to, checked on its own without torch (`onnx/tests/test_magnet.py`): the
 //! schedule's test vector, the level tables, the released matrices' shapes, every released
 //! configuration's network calls per run, and each task's invariants, against the numbers of
-//! `shared/spec/magnet.md`.
+//! `docs/spec/magnet.md`.
 
 mod common;
 

@@ -9,7 +9,7 @@ use std::path::PathBuf;
 use ndarray::{Array2, Array3, Axis};
 use ndarray_npy::read_npy;
 use troupe::motion::ik::{forward_kinematics, inverse_kinematics};
-use troupe::motion::quat::{norm, sub, Vec3};
+use troupe::motion::vec3::{norm, sub, Vec3};
 use troupe::motion::{
     decode_frame, encode_clip, Handedness, JointsFormat, Skeleton, Units, UpAxis, FEATURE_DIM,
 };

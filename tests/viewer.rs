@@ -600,10 +600,10 @@ fn positions_in_the_callers_world_are_converted() {
 
 #[test]
 fn the_c_entry_point_writes_both_pictures_or_nothing() {
-    use troupe::ffi::boundary::{
+    use troupe::ffi::motion::{troupe_joints_format, troupe_joints_format_init};
+    use troupe::ffi::status::{
         TROUPE_ERR_INVALID_ARG, TROUPE_ERR_IO, TROUPE_ERR_NULL_ARG, TROUPE_OK,
     };
-    use troupe::ffi::motion::{troupe_joints_format, troupe_joints_format_init};
     use troupe::ffi::viewer::troupe_viewer_write;
 
     let dir = tempfile::tempdir().unwrap();
@@ -665,7 +665,7 @@ fn the_c_entry_point_writes_both_pictures_or_nothing() {
         TROUPE_ERR_INVALID_ARG
     );
     // SAFETY: NULL or a NUL-terminated string valid until the next call on this thread.
-    let message = unsafe { CStr::from_ptr(troupe::ffi::version::troupe_last_error_message()) }
+    let message = unsafe { CStr::from_ptr(troupe::ffi::status::troupe_last_error_message()) }
         .to_string_lossy()
         .into_owned();
     assert!(message.contains("reactor: frame 0, joint 1"), "{message}");

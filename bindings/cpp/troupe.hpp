@@ -185,11 +185,11 @@ class Model {
 
     // ---- text-to-group (umf bundles) ----
     std::size_t clip_frames() const { return troupe_model_clip_frames(handle_); }
-    std::size_t group_tokens() const { return troupe_model_group_tokens(handle_); }
-    std::size_t group_stages() const { return troupe_model_group_stages(handle_); }
+    std::size_t group_tokens() const { return troupe_umf_tokens(handle_); }
+    std::size_t group_stages() const { return troupe_umf_stages(handle_); }
     /// The bundle's default group options (solvers, CFG), seed 0.
     Status default_group_options(troupe_group_options &out) const {
-        return Status::from(troupe_group_options_init(handle_, &out, sizeof out));
+        return Status::from(troupe_umf_options_init(handle_, &out, sizeof out));
     }
     /// Generates `people` persons; `motion` becomes [people][clip_frames][frame_dim]. A NULL
     /// `condition` is the null condition; NULL `options` the bundle's defaults; NULL `noise`
@@ -198,7 +198,7 @@ class Model {
                           std::vector<float> &motion, const troupe_group_options *options = nullptr,
                           const troupe_group_noise *noise = nullptr) const {
         std::vector<float> out(static_cast<std::size_t>(people) * clip_frames() * frame_dim());
-        Status s = Status::from(troupe_group_generate(handle_, options, condition, condition_len, people, noise,
+        Status s = Status::from(troupe_umf_generate(handle_, options, condition, condition_len, people, noise,
                                                       out.data(), out.size(), nullptr, 0));
         if (s) motion.swap(out);
         return s;
@@ -206,12 +206,12 @@ class Model {
 
     // ---- multi-agent diffusion forcing (magnet bundles) ----
     /// People the model generates together (0 for other bundles).
-    std::size_t magnet_people() const { return troupe_model_magnet_people(handle_); }
+    std::size_t magnet_people() const { return troupe_magnet_people(handle_); }
     /// The released sampling configurations, by the official YAML's name ("dd100", ...).
     std::vector<std::string> magnet_configs() const {
         std::vector<std::string> out;
-        for (std::size_t i = 0, n = troupe_model_magnet_config_count(handle_); i < n; ++i)
-            out.emplace_back(troupe_model_magnet_config(handle_, i));
+        for (std::size_t i = 0, n = troupe_magnet_config_count(handle_); i < n; ++i)
+            out.emplace_back(troupe_magnet_config(handle_, i));
         return out;
     }
     /// Runs a sampling configuration (a released name, or a whole configuration as JSON) on
@@ -305,24 +305,24 @@ class Session {
     }
     /// An ARFlow stream's sampler settings (from `troupe_arflow_options_init`).
     Status set_arflow_options(const troupe_arflow_options &options) {
-        return Status::from(troupe_session_set_arflow_options(handle_, &options));
+        return Status::from(troupe_arflow_session_set_options(handle_, &options));
     }
     /// An ARMFlow session's penetration guard (`enabled` false: off); see docs/ARFLOW.md.
     Status set_penetration_guard(bool enabled, float d_safe = 0.05f, float max_speed = 2.0f) {
-        return Status::from(troupe_session_set_penetration_guard(handle_, enabled ? 1 : 0, d_safe, max_speed));
+        return Status::from(troupe_armflow_session_set_penetration_guard(handle_, enabled ? 1 : 0, d_safe, max_speed));
     }
     // ---- a MAGNet live partner (before the first step or after a reset) ----
     /// The partner's opening frames, `n_frames` x 145 floats, row-major.
     Status set_partner_opening(const float *frames, std::size_t n_frames) {
-        return Status::from(troupe_session_set_partner_opening(handle_, frames, n_frames));
+        return Status::from(troupe_magnet_session_set_partner_opening(handle_, frames, n_frames));
     }
     /// Send each chunk's frames as soon as they are generated (lower latency).
     Status set_early_emission(bool early) {
-        return Status::from(troupe_session_set_early_emission(handle_, early ? 1 : 0));
+        return Status::from(troupe_magnet_session_set_early_emission(handle_, early ? 1 : 0));
     }
     /// The sampling configuration: a released name or JSON.
     Status set_live_config(const std::string &config) {
-        return Status::from(troupe_session_set_live_config(handle_, config.c_str()));
+        return Status::from(troupe_magnet_session_set_live_config(handle_, config.c_str()));
     }
     /// Exactly how many frames a step with `n_actor_frames` frames would return now.
     Status output_frames(std::size_t n_actor_frames, std::size_t &n_frames) {

@@ -57,7 +57,7 @@ int main(int argc, char **argv) {
         fprintf(stderr, "load: %s\n", troupe_last_error_message());
         return 1;
     }
-    people = troupe_model_magnet_people(model);
+    people = troupe_magnet_people(model);
     frames = people ? read_rows(argv[3], people * 145, &clip) : 0;
     if (!frames) {
         fprintf(stderr, "%s: not a float32 [frames, %lu, 145] .npy (or not a magnet bundle)\n", argv[3],

@@ -269,8 +269,8 @@ pub fn penetration(data: &[u8]) {
 /// Arbitrary sequences of C API calls on one model: sessions created, stepped, reconfigured,
 /// reset and freed in any order, with arbitrary sizes and NULLs. Only statuses may come back.
 pub fn c_api_sequence(data: &[u8]) {
-    use troupe::ffi::boundary::TROUPE_OK;
     use troupe::ffi::session::*;
+    use troupe::ffi::status::TROUPE_OK;
     static HANDLE: OnceLock<usize> = OnceLock::new();
     let model = *HANDLE.get_or_init(|| {
         let path = std::ffi::CString::new(bundle_dir().to_str().unwrap()).unwrap();

@@ -1,5 +1,5 @@
 """MAGNet's sampling reference without torch (`troupe_onnx.magnet`: schedule, matrices, DDIM,
-guidance, tasks, transforms), checked against the numbers `shared/spec/magnet.md` states: the
+guidance, tasks, transforms), checked against the numbers `docs/spec/magnet.md` states: the
 schedule's test vector (§3.1), the level tables (§3.2), the released matrices' shapes (§4.5),
 every task's network calls per run (§9) with a deterministic stub network, and the invariants
 each task promises (given people stay given, clean tokens stay clean).

@@ -1,5 +1,5 @@
 //! The `arflow` family: action-to-reaction flow matching with physical guidance (ARFlow;
-//! `shared/spec/models.md` §3). The flow starts at the actor's motion (`x_0 = a`), the network
+//! `docs/spec/arflow.md`). The flow starts at the actor's motion (`x_0 = a`), the network
 //! predicts the reactor's (`x̂_1`), and each Euler step is corrected by the penetration loss's
 //! gradient (`crate::motion::penetration`), a reprojection toward the actor and optional
 //! randomness.

@@ -1,4 +1,4 @@
-//! ARFlow's sampler (`shared/spec/models.md` §3.2-§3.4), reconstructed from the paper: x̂_1-
+//! ARFlow's sampler (`docs/spec/arflow.md` §2-§4), reconstructed from the paper: x̂_1-
 //! prediction Euler from the actor, physical guidance on x̂_1, back-projection, reweighting
 //! toward the actor, re-interpolation, optionally stochastic. Mirrors
 //! `onnx/troupe_onnx/arflow/sampler.py` operation for operation.
@@ -26,7 +26,7 @@ use super::spec::STREAM_ARFLOW;
 use super::spec::{ArflowSampling, Mixing, FRAME_DIM, POSITIONS};
 use crate::motion::body::BodyModel;
 use crate::motion::penetration::{Hinge, PenetrationLoss};
-use crate::motion::quat::Vec3;
+use crate::motion::vec3::Vec3;
 use crate::shared::checks::check_frames;
 use crate::shared::error::{Error, Result};
 use crate::shared::noise::fill_normals;

@@ -1,6 +1,6 @@
 //! The `arflow` family's manifest fields: the network's sizes, the feature normaliser, the
 //! sampler's defaults and the one graph (`onnx/README.md`, "Family `arflow`";
-//! `shared/spec/models.md` §3).
+//! `docs/spec/arflow.md`).
 
 use serde::{Deserialize, Serialize};
 
@@ -58,8 +58,8 @@ pub struct NormalizerSpec {
     pub std: Vec<f32>,
 }
 
-/// How the stochastic direction mixes with the projection direction (§3.4; the paper does not
-/// say which).
+/// How the stochastic direction mixes with the projection direction (`docs/spec/arflow.md` §4;
+/// the paper does not say which).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Mixing {
@@ -69,7 +69,7 @@ pub enum Mixing {
     VariancePreserving,
 }
 
-/// The sampler's settings (`shared/spec/models.md` §3.2-§3.5; every open point an option).
+/// The sampler's settings (`docs/spec/arflow.md` §2-§5; every open point an option).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct ArflowSampling {
     /// Euler steps M (>= 1).

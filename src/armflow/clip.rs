@@ -1,5 +1,5 @@
 //! ARMFlow's official clip loop, [`crate::Model::generate_clip`]: given the same weights and noise,
-//! the same motion as the released sampler (`shared/spec/models.md` §1.7).
+//! the same motion as the released sampler (`docs/spec/armflow.md` §7).
 //!
 //! Unlike a [`crate::Session`], which streams, the official sampler works on a whole clip:
 //! 1. the actor clip is zero-padded to the clip length (300 frames InterHuman, 150 InterX) and

@@ -5,7 +5,7 @@
 /// with, and the CPU kernel's scalar path): `step = (0 - 1) / steps`, then `1 + step * k` for
 /// the first half of the points and `0 - step * (steps - k)` for the rest, each operation
 /// rounded to f32 (no fused multiply-add). This is one ulp away from `(steps - k) / steps` for
-/// 3, 6, 7, ... steps. t = 1 is noise and t = 0 is data (models.md 1.6).
+/// 3, 6, 7, ... steps. t = 1 is noise and t = 0 is data (`docs/spec/armflow.md` §6).
 ///
 /// PyTorch's CPU kernel vectorises runs of 8 or 16 points and then rounds those differently
 /// (9 steps with AVX2); the official models run on CUDA, whose kernel is the formula above.

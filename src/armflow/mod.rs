@@ -1,5 +1,5 @@
-//! The `armflow` family: online reaction (models.md §1). An actor's frames stream in and a
-//! [`Session`] answers with the reactor's, one latent token per step: VAE encoder → causal
+//! The `armflow` family: online reaction (`docs/spec/armflow.md`). An actor's frames stream in
+//! and a [`Session`] answers with the reactor's, one latent token per step: VAE encoder → causal
 //! context encoder with a key/value cache → MeanFlow velocity → VAE decoder. The official clip
 //! loop runs the same networks over a whole clip.
 //!
@@ -10,7 +10,7 @@
 //! - `session`: streams, one or many at once (`session/lanes.rs`, the batched token loop);
 //! - [`clip`]: the official clip loop, [`crate::Model::generate_clip`].
 //!
-//! Like every family, this folder imports only from `crate::shared` and itself.
+//! Like every family, this folder imports only from `crate::shared`, `crate::motion` and itself.
 
 pub mod clip;
 mod kv_cache;

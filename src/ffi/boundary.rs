@@ -1,8 +1,8 @@
-//! The boundary every C entry point goes through: status codes, the thread-local last error,
-//! panic capture, and checked views of caller memory.
+//! The boundary every C entry point goes through: errors mapped to status codes, the
+//! thread-local last error, panic capture, and checked views of caller memory.
 
-use std::cell::{RefCell, UnsafeCell};
-use std::ffi::{c_char, CStr, CString};
+use std::cell::UnsafeCell;
+use std::ffi::{c_char, CStr};
 use std::ops::{Deref, DerefMut};
 use std::sync::atomic::{AtomicBool, Ordering};
 
@@ -10,37 +10,16 @@ use crate::shared::logging::{log, Level};
 use crate::shared::panics;
 use crate::Error;
 
-/// Status returned by every fallible function: `TROUPE_OK` or one of the `TROUPE_ERR_*` codes.
-pub type troupe_status = i32;
-
-/// Success.
-pub const TROUPE_OK: troupe_status = 0;
-/// A required pointer argument was NULL.
-pub const TROUPE_ERR_NULL_ARG: troupe_status = 1;
-/// An argument is out of range, malformed, or non-finite.
-pub const TROUPE_ERR_INVALID_ARG: troupe_status = 2;
-/// A buffer's size does not match what the model needs (e.g. noise length).
-pub const TROUPE_ERR_SHAPE: troupe_status = 3;
-/// The output buffer cannot hold the frames this call would return.
-pub const TROUPE_ERR_BUFFER_TOO_SMALL: troupe_status = 4;
-/// A file could not be read.
-pub const TROUPE_ERR_IO: troupe_status = 5;
-/// The bundle is corrupt, unsupported, or inconsistent with its graphs.
-pub const TROUPE_ERR_MODEL: troupe_status = 6;
-/// A network failed while running.
-pub const TROUPE_ERR_INFERENCE: troupe_status = 7;
-/// The session panicked earlier; only `troupe_session_reset` and `troupe_session_free` work.
-pub const TROUPE_ERR_POISONED: troupe_status = 8;
-/// An internal panic was caught; a session involved is poisoned.
-pub const TROUPE_ERR_PANIC: troupe_status = 9;
-/// The handle is in use by another thread: a session or joint stream is used from one thread
-/// at a time. Nothing was done; the call may be retried once the other thread is done.
-pub const TROUPE_ERR_BUSY: troupe_status = 10;
-/// The call was stopped by the calling thread's progress callback
-/// (`troupe_set_progress_callback`); nothing was written.
-pub const TROUPE_ERR_CANCELLED: troupe_status = 11;
+use super::status::set_last_error;
+pub(crate) use super::status::{
+    troupe_status, TROUPE_ERR_BUFFER_TOO_SMALL, TROUPE_ERR_BUSY, TROUPE_ERR_CANCELLED,
+    TROUPE_ERR_INFERENCE, TROUPE_ERR_INVALID_ARG, TROUPE_ERR_IO, TROUPE_ERR_MODEL,
+    TROUPE_ERR_NULL_ARG, TROUPE_ERR_PANIC, TROUPE_ERR_POISONED, TROUPE_ERR_SHAPE,
+    TROUPE_ERR_UNSUPPORTED, TROUPE_OK,
+};
 
 /// An error on its way to C: a status and the message for `troupe_last_error_message`.
+#[derive(Debug)]
 pub(crate) struct FfiError {
     pub status: troupe_status,
     pub message: String,
@@ -63,40 +42,13 @@ impl From<Error> for FfiError {
             Error::InvalidInput(_) | Error::InvalidOption(_) => TROUPE_ERR_INVALID_ARG,
             Error::Inference { .. } => TROUPE_ERR_INFERENCE,
             Error::Cancelled(_) => TROUPE_ERR_CANCELLED,
+            Error::Unsupported(_) => TROUPE_ERR_UNSUPPORTED,
         };
         Self::new(status, e.to_string())
     }
 }
 
 pub(crate) type FfiResult<T = ()> = Result<T, FfiError>;
-
-thread_local! {
-    static LAST_ERROR: RefCell<Option<CString>> = const { RefCell::new(None) };
-}
-
-fn set_last_error(message: Option<String>) {
-    let message = message.map(|m| CString::new(m.replace('\0', " ")).unwrap_or_default());
-    LAST_ERROR.with(|slot| *slot.borrow_mut() = message);
-}
-
-/// Pointer to this thread's last error message (NULL after a success).
-pub(crate) fn last_error_ptr() -> *const c_char {
-    LAST_ERROR.with(|slot| {
-        slot.borrow()
-            .as_ref()
-            .map_or(std::ptr::null(), |m| m.as_ptr())
-    })
-}
-
-/// This thread's last error message as bytes, without the NUL.
-pub(crate) fn last_error_bytes() -> Vec<u8> {
-    LAST_ERROR.with(|slot| {
-        slot.borrow()
-            .as_ref()
-            .map(|m| m.as_bytes().to_vec())
-            .unwrap_or_default()
-    })
-}
 
 /// Runs `body` for the C function `name`: maps its error to a status, records the message,
 /// and turns a panic into `TROUPE_ERR_PANIC` (calling `on_panic` first, to poison a session).
@@ -221,43 +173,61 @@ pub(crate) unsafe fn write_versioned<T: Copy>(dst: *mut T, size: usize, value: &
     }
 }
 
-/// Reads a caller's versioned struct whose first field is `uint32_t struct_size`. Rejects a
-/// struct smaller than `min_size` (the first published version) and a newer caller's struct
-/// whose fields past ours are not all zero.
+/// Reads a caller's versioned struct whose first field is `uint32_t struct_size`:
+/// - older than ours (`min_size <= struct_size < sizeof T`: compiled against an older header):
+///   its bytes over `defaults`, so the fields it does not know keep the value `_init` gives them;
+/// - ours: as it is;
+/// - newer (larger): accepted when every byte past ours is zero (fields this library does not
+///   know, left at their "off" value), refused otherwise.
+///
+/// Smaller than `min_size` (the first published version) is refused. Each published version
+/// ends on a field boundary, so an older size never splits a field.
 ///
 /// # Safety
 /// `src` must be readable for its `struct_size` bytes.
 pub(crate) unsafe fn read_versioned<T: Copy>(
     src: *const T,
     min_size: usize,
+    defaults: T,
     what: &str,
     init: &str,
 ) -> FfiResult<T> {
     let ours = std::mem::size_of::<T>();
     // SAFETY: the first field, a u32, is readable in any version of the struct.
     let size = unsafe { src.cast::<u32>().read_unaligned() } as usize;
-    // Today `ours == min_size` for every struct; once fields are appended, a smaller caller must
-    // get defaults for them instead of the read below.
-    if size < min_size.max(ours) {
+    if size < min_size {
         return Err(FfiError::new(
             TROUPE_ERR_INVALID_ARG,
             format!(
-                "{what}.struct_size is {size}, this library needs at least {ours}; call {init}"
+                "{what}.struct_size is {size}, smaller than any version of the struct (the first \
+                 has {min_size} bytes); call {init}"
             ),
         ));
     }
-    // SAFETY: the caller's struct holds `size` readable bytes.
-    let tail = unsafe { std::slice::from_raw_parts(src.cast::<u8>().add(ours), size - ours) };
-    if tail.iter().any(|&b| b != 0) {
-        return Err(FfiError::new(
-            TROUPE_ERR_INVALID_ARG,
-            format!(
-                "{what} carries fields this library does not know (non-zero bytes past its struct)"
-            ),
-        ));
+    if size > ours {
+        // SAFETY: the caller's struct holds `size` readable bytes.
+        let tail = unsafe { std::slice::from_raw_parts(src.cast::<u8>().add(ours), size - ours) };
+        if tail.iter().any(|&b| b != 0) {
+            return Err(FfiError::new(
+                TROUPE_ERR_INVALID_ARG,
+                format!(
+                    "{what} carries fields this library does not know (non-zero bytes past its \
+                     {ours}); update the library or leave them zero"
+                ),
+            ));
+        }
     }
-    // SAFETY: at least `ours` readable bytes.
-    Ok(unsafe { src.read_unaligned() })
+    let mut value = defaults;
+    // SAFETY: `min(size, ours)` bytes are readable at `src` and writable in `value`, a `T`
+    // without padding whose fields take any bit pattern (plain integers and floats).
+    unsafe {
+        std::ptr::copy_nonoverlapping(
+            src.cast::<u8>(),
+            (&mut value as *mut T).cast::<u8>(),
+            size.min(ours),
+        );
+    }
+    Ok(value)
 }
 
 /// Checks the `options_size` given to an `_init` function.
@@ -379,4 +349,70 @@ pub(crate) fn room(need: usize, capacity: usize, what: &str) -> FfiResult {
         ));
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Version 2 of a struct whose version 1 ended after `steps`.
+    #[repr(C)]
+    #[derive(Debug, Clone, Copy, PartialEq)]
+    struct Options {
+        struct_size: u32,
+        steps: u32,
+        added_in_v2: u64,
+    }
+    const V1: usize = 8;
+    const DEFAULTS: Options = Options {
+        struct_size: 16,
+        steps: 10,
+        added_in_v2: 77,
+    };
+
+    fn read(bytes: &[u8]) -> FfiResult<Options> {
+        // SAFETY: `bytes` holds the struct_size the first four bytes give (checked by callers).
+        unsafe { read_versioned(bytes.as_ptr().cast::<Options>(), V1, DEFAULTS, "o", "init") }
+    }
+
+    fn caller(size: u32, steps: u32, rest: &[u8]) -> Vec<u8> {
+        let mut v = size.to_ne_bytes().to_vec();
+        v.extend(steps.to_ne_bytes());
+        v.extend(rest);
+        v
+    }
+
+    #[test]
+    fn an_older_caller_gets_the_defaults_of_the_fields_it_does_not_know() {
+        let o = read(&caller(8, 3, &[])).unwrap();
+        assert_eq!((o.steps, o.added_in_v2), (3, 77));
+    }
+
+    #[test]
+    fn a_current_caller_is_read_as_it_is() {
+        let o = read(&caller(16, 3, &5u64.to_ne_bytes())).unwrap();
+        assert_eq!((o.steps, o.added_in_v2), (3, 5));
+    }
+
+    #[test]
+    fn a_newer_caller_is_accepted_only_with_zero_unknown_fields() {
+        let mut newer = caller(24, 3, &5u64.to_ne_bytes());
+        newer.extend([0u8; 8]);
+        assert_eq!(read(&newer).unwrap().added_in_v2, 5);
+        newer[20] = 1;
+        let e = read(&newer).unwrap_err();
+        assert_eq!(e.status, TROUPE_ERR_INVALID_ARG);
+        assert!(e.message.contains("does not know"), "{}", e.message);
+    }
+
+    #[test]
+    fn a_struct_smaller_than_its_first_version_is_refused() {
+        let e = read(&caller(4, 3, &[])).unwrap_err();
+        assert_eq!(e.status, TROUPE_ERR_INVALID_ARG);
+        assert!(
+            e.message.contains("smaller than any version"),
+            "{}",
+            e.message
+        );
+    }
 }

@@ -22,19 +22,22 @@
 //! - No panic crosses the boundary: a panic returns `TROUPE_ERR_PANIC` (its reason in the last
 //!   error, nothing printed) and poisons the session involved until `troupe_session_reset`.
 //!
-//! Deviation from `shared/spec/c-api.md`: `troupe_session_options_init` takes the model, so the
-//! defaults it writes are the bundle's own (sampler steps, CFG, capacity) rather than sentinels.
+//! `troupe_session_options_init` takes the model, so the defaults it writes are the bundle's
+//! own (sampler steps, CFG, capacity) rather than sentinels meaning "the bundle's".
 #![allow(non_camel_case_types)]
 
 // The boundary every entry point goes through, and what every bundle answers.
 pub mod boundary;
+pub mod deprecated;
 pub mod limits;
 pub mod log;
 pub mod model;
 pub mod motion;
 pub mod progress;
 pub mod session;
+pub mod status;
 pub mod text;
+pub mod threads;
 pub mod version;
 pub mod viewer;
 

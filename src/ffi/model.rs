@@ -96,48 +96,6 @@ fn publish(model: Model, out: *mut *mut troupe_model) {
     unsafe { *out = Box::into_raw(Box::new(handle)) };
 }
 
-/// Sets how many threads a model load may use: 0 (the default) one per core, 1 only the calling
-/// thread. Loading optimises the bundle's graphs in parallel on scoped threads that are all
-/// joined before the load returns; no other call starts a thread. Applies to loads that start
-/// afterwards, process-wide. Thread-safe.
-#[no_mangle]
-pub extern "C" fn troupe_set_load_threads(threads: usize) {
-    boundary::get((), || crate::set_load_threads(threads));
-}
-
-/// How many threads a model load uses now (the `troupe_set_load_threads` setting, or the number
-/// of cores). Thread-safe.
-#[no_mangle]
-pub extern "C" fn troupe_load_threads() -> usize {
-    boundary::get(1, crate::load_threads)
-}
-
-/// Sets how many threads the matrix products of every model may split over: 1 (the default)
-/// runs all work on the calling thread; `n >= 2` starts a pool of `n` threads, owned by the
-/// library and named `troupe-compute`, shared by every model and session of the process, and
-/// kept until the setting changes (the old pool's threads then exit); 0 means one per core.
-/// Sessions stepped from several host threads share the pool. Applies to calls that start
-/// afterwards. Returns `TROUPE_OK`, or `TROUPE_ERR_INVALID_ARG` when `threads` is above 1024 or
-/// the pool cannot be started (the setting is then unchanged). Thread-safe.
-#[no_mangle]
-pub extern "C" fn troupe_set_compute_threads(threads: usize) -> troupe_status {
-    boundary::call(
-        "troupe_set_compute_threads",
-        || {},
-        || {
-            crate::set_compute_threads(threads)?;
-            Ok(())
-        },
-    )
-}
-
-/// How many threads the matrix products use now (`troupe_set_compute_threads`; 1 by default).
-/// Thread-safe.
-#[no_mangle]
-pub extern "C" fn troupe_compute_threads() -> usize {
-    boundary::get(1, crate::compute_threads)
-}
-
 /// Loads a bundle from `path` (UTF-8): a bundle directory, or an uncompressed tar archive of
 /// one. Loading parses, validates and optimises every graph; it takes a fraction of a second.
 ///
@@ -260,7 +218,7 @@ pub unsafe extern "C" fn troupe_model_latency_frames(model: Option<&troupe_model
     property(model, Model::latency_frames)
 }
 
-/// Floats in the conditioning vector (`troupe_session_set_condition`, `troupe_group_generate`);
+/// Floats in the conditioning vector (`troupe_session_set_condition`, `troupe_umf_generate`);
 /// 0 for NULL. Thread-safe.
 ///
 /// # Safety
@@ -298,7 +256,7 @@ pub unsafe extern "C" fn troupe_model_condition_label(
 
 /// Writes the conditioning vector of the label `label` (UTF-8, borrowed for the call) into
 /// `condition[0 .. troupe_model_condition_dim)`, ready for `troupe_session_set_condition`,
-/// `troupe_clip_generate` or `troupe_group_generate`.
+/// `troupe_armflow_clip_generate` or `troupe_umf_generate`.
 ///
 /// Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (no such label: the
 /// message lists the bundle's labels; or `label` not UTF-8), `TROUPE_ERR_BUFFER_TOO_SMALL`
@@ -407,4 +365,15 @@ pub unsafe extern "C" fn troupe_model_max_output_frames(
     n_actor_frames: usize,
 ) -> usize {
     property(model, |m| m.max_output_frames(n_actor_frames))
+}
+
+/// Frames of motion per clip (0 for other bundles or NULL): per person of
+/// `troupe_umf_generate` (`[people][clip_frames][frame_dim]`) for a `umf` bundle, of
+/// `troupe_armflow_clip_generate` for an `armflow` bundle with an official clip. Thread-safe.
+///
+/// # Safety
+/// `model` must be NULL or a live handle.
+#[no_mangle]
+pub unsafe extern "C" fn troupe_model_clip_frames(model: Option<&troupe_model>) -> usize {
+    property(model, Model::clip_frames)
 }

@@ -15,7 +15,7 @@ pub type troupe_progress_fn =
 
 /// Sets the calling thread's progress callback (NULL removes it): from now on, long calls made
 /// on this thread (`troupe_model_load_file`, `troupe_model_load_memory`,
-/// `troupe_group_generate`, `troupe_clip_generate`) report to it between units of work (graphs
+/// `troupe_umf_generate`, `troupe_armflow_clip_generate`) report to it between units of work (graphs
 /// loaded, people generated, clip tokens) and stop with `TROUPE_ERR_CANCELLED` when it returns
 /// non-zero. To cancel from another thread, have the callback read a flag that thread sets.
 /// `user_data` is passed back untouched and must stay valid while the callback is set.

@@ -10,7 +10,7 @@ use crate::ffi::boundary::{
     TROUPE_ERR_POISONED, TROUPE_ERR_SHAPE,
 };
 use crate::ffi::model::troupe_model;
-use crate::{ActorLatent, Session, SessionOptions, TokenNoise};
+use crate::{ActorLatent, Model, Session, SessionOptions, TokenNoise};
 
 /// Actor tokens are the VAE posterior sample `(mean + std * noise) * scale` (the official choice).
 pub const TROUPE_ACTOR_LATENT_SAMPLE: i32 = 0;
@@ -88,48 +88,7 @@ pub unsafe extern "C" fn troupe_session_options_init(
             let model = &boundary::required(model, "model")?.model;
             non_null(options, "options")?;
             check_struct_size(options_size, OPTIONS_V1_SIZE, "troupe_session_options")?;
-            let defaults = match model.armflow_spec() {
-                Some(m) => troupe_session_options {
-                    struct_size: options_size as u32,
-                    steps: m.sampler.steps,
-                    seed: 0,
-                    cfg_scale: m.sampler.cfg_scale,
-                    context_capacity: m.context.capacity_tokens.min(u32::MAX as usize) as u32,
-                    actor_latent: match m.sampler.actor_latent {
-                        ActorLatent::Sample => TROUPE_ACTOR_LATENT_SAMPLE,
-                        ActorLatent::Mean => TROUPE_ACTOR_LATENT_MEAN,
-                    },
-                    reserved: 0,
-                },
-                None if model.arflow_spec().is_some() => {
-                    // An ARFlow stream: its sampler's steps; no context, CFG or actor latent.
-                    let a = model.arflow_spec().expect("checked");
-                    troupe_session_options {
-                        struct_size: options_size as u32,
-                        steps: a.sampler.steps.min(u32::MAX as usize) as u32,
-                        seed: 0,
-                        cfg_scale: 1.0,
-                        context_capacity: a.model.max_frames.min(u32::MAX as usize) as u32,
-                        actor_latent: TROUPE_ACTOR_LATENT_SAMPLE,
-                        reserved: 0,
-                    }
-                }
-                None => {
-                    // A magnet live partner: its default configuration's steps and context.
-                    let live = model
-                        .magnet_live_configuration()
-                        .map_err(|_| model.wrong_family("armflow", "troupe_session_options"))?;
-                    troupe_session_options {
-                        struct_size: options_size as u32,
-                        steps: live.steps.min(u32::MAX as usize) as u32,
-                        seed: 0,
-                        cfg_scale: 1.0,
-                        context_capacity: (live.context_len / 4).min(u32::MAX as usize) as u32,
-                        actor_latent: TROUPE_ACTOR_LATENT_SAMPLE,
-                        reserved: 0,
-                    }
-                }
-            };
+            let defaults = option_defaults(model, options_size)?;
             // SAFETY: writable for `options_size` bytes per the contract; the struct has no
             // padding (asserted above).
             unsafe { write_versioned(options, options_size, &defaults) };
@@ -138,16 +97,69 @@ pub unsafe extern "C" fn troupe_session_options_init(
     )
 }
 
-/// Reads the caller's options, tolerating a newer caller whose extra fields are all zero.
+/// The options `troupe_session_options_init` writes for `model`: the bundle's defaults.
+fn option_defaults(model: &Model, size: usize) -> FfiResult<troupe_session_options> {
+    let defaults = match model.armflow_spec() {
+        Some(m) => troupe_session_options {
+            struct_size: size as u32,
+            steps: m.sampler.steps,
+            seed: 0,
+            cfg_scale: m.sampler.cfg_scale,
+            context_capacity: m.context.capacity_tokens.min(u32::MAX as usize) as u32,
+            actor_latent: match m.sampler.actor_latent {
+                ActorLatent::Sample => TROUPE_ACTOR_LATENT_SAMPLE,
+                ActorLatent::Mean => TROUPE_ACTOR_LATENT_MEAN,
+            },
+            reserved: 0,
+        },
+        None if model.arflow_spec().is_some() => {
+            // An ARFlow stream: its sampler's steps; no context, CFG or actor latent.
+            let a = model.arflow_spec().expect("checked");
+            troupe_session_options {
+                struct_size: size as u32,
+                steps: a.sampler.steps.min(u32::MAX as usize) as u32,
+                seed: 0,
+                cfg_scale: 1.0,
+                context_capacity: a.model.max_frames.min(u32::MAX as usize) as u32,
+                actor_latent: TROUPE_ACTOR_LATENT_SAMPLE,
+                reserved: 0,
+            }
+        }
+        None => {
+            // A magnet live partner: its default configuration's steps and context.
+            let live = model
+                .magnet_live_configuration()
+                .map_err(|_| model.wrong_family("armflow", "troupe_session_options"))?;
+            troupe_session_options {
+                struct_size: size as u32,
+                steps: live.steps.min(u32::MAX as usize) as u32,
+                seed: 0,
+                cfg_scale: 1.0,
+                context_capacity: (live.context_len / 4).min(u32::MAX as usize) as u32,
+                actor_latent: TROUPE_ACTOR_LATENT_SAMPLE,
+                reserved: 0,
+            }
+        }
+    };
+    Ok(defaults)
+}
+
+/// Reads the caller's options (an older caller's missing fields: the bundle's defaults; a newer
+/// caller's extra fields must be zero).
 ///
 /// # Safety
 /// `options` must be readable for `struct_size` bytes.
-unsafe fn read_options(options: *const troupe_session_options) -> FfiResult<SessionOptions> {
+unsafe fn read_options(
+    model: &Model,
+    options: *const troupe_session_options,
+) -> FfiResult<SessionOptions> {
+    let defaults = option_defaults(model, OPTIONS_V1_SIZE)?;
     // SAFETY: readable for its `struct_size` per the contract.
     let o = unsafe {
         read_versioned(
             options,
             OPTIONS_V1_SIZE,
+            defaults,
             "options",
             "troupe_session_options_init",
         )
@@ -186,7 +198,7 @@ unsafe fn read_options(options: *const troupe_session_options) -> FfiResult<Sess
 /// model the session answers an actor with the reactor, starting with the null condition (set
 /// one with `troupe_session_set_condition`). On a two-person `magnet` model it answers a user
 /// with the live partner (its `motion_control_live` configuration); give the partner's opening
-/// frames with `troupe_session_set_partner_opening` before the first step.
+/// frames with `troupe_magnet_session_set_partner_opening` before the first step.
 ///
 /// On success `*out` receives a new handle owned by the caller (free with
 /// `troupe_session_free`); it keeps `model` alive. On failure `*out` is set to NULL.
@@ -224,7 +236,7 @@ pub unsafe extern "C" fn troupe_session_new(
                 SessionOptions::default()
             } else {
                 // SAFETY: readable per the contract.
-                unsafe { read_options(options) }?
+                unsafe { read_options(model, options) }?
             };
             let handle = troupe_session {
                 session: Exclusive::new(model.session(options)?),
@@ -652,141 +664,6 @@ pub unsafe extern "C" fn troupe_session_set_prompt(
         with_session(session, "troupe_session_set_prompt", |s| {
             let prompt = boundary::required_str(prompt, "prompt")?;
             Ok(s.set_prompt(prompt)?)
-        })
-    }
-}
-
-/// Sets the partner's opening frames of a MAGNet live partner session: `n_frames` frames
-/// (the configuration's context, `4 * context_capacity`) of `troupe_model_frame_dim` floats,
-/// row-major, borrowed for the call; kept across resets. A stream needs them before the user's
-/// first frame. Only before the first step or after `troupe_session_reset`.
-///
-/// Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (an ARMFlow session, the
-/// wrong number of frames, a NaN or infinite value, a stream already started),
-/// `TROUPE_ERR_POISONED`, `TROUPE_ERR_PANIC`. One thread at a time per session.
-///
-/// ```c
-/// troupe_session_set_partner_opening(session, partner_frames, 32);
-/// ```
-///
-/// # Safety
-/// `session` must be a live handle; `frames` readable for `n_frames * 145` floats.
-#[no_mangle]
-pub unsafe extern "C" fn troupe_session_set_partner_opening(
-    session: *mut troupe_session,
-    frames: *const f32,
-    n_frames: usize,
-) -> troupe_status {
-    // SAFETY: forwarded contract.
-    unsafe {
-        with_session(session, "troupe_session_set_partner_opening", |s| {
-            let n = checked_mul(n_frames, s.frame_dim(), "n_frames * frame_dim")?;
-            let frames = boundary::slice(frames, n, "frames")?;
-            Ok(s.set_partner_opening(frames)?)
-        })
-    }
-}
-
-/// Makes a MAGNet live partner session send each chunk's frames as soon as they are generated
-/// (`early` nonzero: `4 * (window - context)` frames less latency; the next chunk's smoothing no
-/// longer reaches them) or once final (0, the default). Only before the first step or after
-/// `troupe_session_reset`.
-///
-/// Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (an ARMFlow session, a
-/// stream already started), `TROUPE_ERR_POISONED`, `TROUPE_ERR_PANIC`. One thread at a time per
-/// session.
-///
-/// # Safety
-/// `session` must be NULL or a live handle.
-#[no_mangle]
-pub unsafe extern "C" fn troupe_session_set_early_emission(
-    session: *mut troupe_session,
-    early: i32,
-) -> troupe_status {
-    // SAFETY: forwarded contract.
-    unsafe {
-        with_session(session, "troupe_session_set_early_emission", |s| {
-            Ok(s.set_early_emission(early != 0)?)
-        })
-    }
-}
-
-/// Makes a MAGNet live partner session run the sampling configuration `config` (a
-/// NUL-terminated name from `troupe_model_magnet_config`, or a whole configuration as JSON;
-/// borrowed for the call), for instance one with the x0 guidance off. Only before the first
-/// step or after `troupe_session_reset`; set opening frames after it when its context differs.
-///
-/// Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (an ARMFlow session, an
-/// unknown name, bad JSON, a configuration that is not `motion_control_live`, a stream already
-/// started), `TROUPE_ERR_POISONED`, `TROUPE_ERR_PANIC`. One thread at a time per session.
-///
-/// # Safety
-/// `session` must be a live handle; `config` a NUL-terminated string.
-#[no_mangle]
-pub unsafe extern "C" fn troupe_session_set_live_config(
-    session: *mut troupe_session,
-    config: *const c_char,
-) -> troupe_status {
-    // SAFETY: forwarded contract.
-    unsafe {
-        with_session(session, "troupe_session_set_live_config", |s| {
-            let config = boundary::required_str(config, "config")?;
-            Ok(s.set_live_config(config)?)
-        })
-    }
-}
-
-/// Turns an ARMFlow session's penetration guard on (`enabled` nonzero) or off, for the frames
-/// sent from now on: each sent reactor frame is shifted in the floor plane out of the actor's
-/// body (joints nearer than `d_safe` metres, in [0, 0.5]), never faster than `max_speed` metres
-/// per second (in (0, 10]); `docs/ARFLOW.md` states the rule and what it measured. The defaults
-/// are 0.05 m and 2 m/s. `d_safe` and `max_speed` are ignored when turning it off.
-///
-/// Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (a value out of range, a
-/// MAGNet session), `TROUPE_ERR_POISONED`, `TROUPE_ERR_PANIC`. One thread at a time per session.
-///
-/// # Safety
-/// `session` must be NULL or a live handle.
-#[no_mangle]
-pub unsafe extern "C" fn troupe_session_set_penetration_guard(
-    session: *mut troupe_session,
-    enabled: i32,
-    d_safe: f32,
-    max_speed: f32,
-) -> troupe_status {
-    // SAFETY: forwarded contract.
-    unsafe {
-        with_session(session, "troupe_session_set_penetration_guard", |s| {
-            let guard = (enabled != 0).then_some(crate::PenetrationGuard {
-                d_safe: d_safe as f64,
-                max_speed: max_speed as f64,
-            });
-            Ok(s.set_penetration_guard(guard)?)
-        })
-    }
-}
-
-/// Sets an ARFlow stream's sampler settings (`options`, filled by `troupe_arflow_options_init`;
-/// its seed too); a new step count only before the first frame or after `troupe_session_reset`.
-///
-/// Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (not an ARFlow stream,
-/// settings out of range, unknown flags), `TROUPE_ERR_POISONED`, `TROUPE_ERR_PANIC`. One thread
-/// at a time per session.
-///
-/// # Safety
-/// `session` must be a live handle; `options` readable for its `struct_size`.
-#[no_mangle]
-pub unsafe extern "C" fn troupe_session_set_arflow_options(
-    session: *mut troupe_session,
-    options: *const crate::ffi::arflow::troupe_arflow_options,
-) -> troupe_status {
-    // SAFETY: forwarded contract.
-    unsafe {
-        with_session(session, "troupe_session_set_arflow_options", |s| {
-            non_null(options, "options")?;
-            // SAFETY: readable for its `struct_size` per the contract.
-            let options = crate::ffi::arflow::read_options(options)?;
-            Ok(s.set_arflow_options(&options)?)
         })
     }
 }

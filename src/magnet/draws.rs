@@ -1,5 +1,5 @@
 //! Where MAGNet's samplers get their standard normals, in the order of
-//! `shared/spec/magnet.md` §3.5: troupe's portable generator (draw `i` of a run is the Philox
+//! `docs/spec/magnet.md` §3.5: troupe's portable generator (draw `i` of a run is the Philox
 //! normals of token `i` on stream [`STREAM_MAGNET`], so every language and platform draws the
 //! same), or the caller's own draws, injected in order (for parity with another generator).
 

@@ -1,4 +1,4 @@
-//! Guidance (`shared/spec/magnet.md` §6): the mask modes and their weighted sum of x0
+//! Guidance (`docs/spec/magnet.md` §6): the mask modes and their weighted sum of x0
 //! predictions, and the x0-space smoothing and foot-skating corrections (the decoder part from
 //! the bundle's gradient graphs, the transform part analytic). Mirrors
 //! `onnx/troupe_onnx/magnet/guidance.py`.

@@ -1,4 +1,4 @@
-//! The token and feature layout MAGNet's code hard-codes (`shared/spec/magnet.md` §1), and
+//! The token and feature layout MAGNet's code hard-codes (`docs/spec/magnet.md` §1), and
 //! troupe's frame layout for it: what a caller gives and gets per person and frame.
 
 use crate::motion::smplx145;

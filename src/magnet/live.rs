@@ -1,4 +1,4 @@
-//! The live partner: `motion_control_live` (`shared/spec/magnet.md` §5.4) as a stream. The
+//! The live partner: `motion_control_live` (`docs/spec/magnet.md` §5.4) as a stream. The
 //! user's frames come in as they happen; the partner's frames go out chunk by chunk, each chunk
 //! one rolling window of the official loop. Mirrors `onnx/troupe_onnx/magnet/live.py`, whose
 //! module comment lists where a stream must differ from the offline loop (the user's tokens from
@@ -531,7 +531,7 @@ pub(crate) fn advance(
                 i,
                 Error::InvalidInput(
                     "a live partner stream needs the partner's opening frames before the user's \
-                     (SessionOptions::partner_opening, troupe_session_set_partner_opening)"
+                     (SessionOptions::partner_opening, troupe_magnet_session_set_partner_opening)"
                         .into(),
                 ),
             ));

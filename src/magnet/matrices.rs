@@ -1,4 +1,4 @@
-//! Scheduling matrices (`shared/spec/magnet.md` §4): one row of noise levels per iteration, one
+//! Scheduling matrices (`docs/spec/magnet.md` §4): one row of noise levels per iteration, one
 //! column per flattened window token `f = t * P + p`; iteration `r` goes from row `r` to row
 //! `r + 1`. Mirrors `onnx/troupe_onnx/magnet/matrices.py`.
 

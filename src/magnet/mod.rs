@@ -1,4 +1,4 @@
-//! The `magnet` family: multi-agent diffusion forcing (MAGNet; `shared/spec/magnet.md`). One
+//! The `magnet` family: multi-agent diffusion forcing (MAGNet; `docs/spec/magnet.md`). One
 //! denoiser over windows of tokens (4 frames of one person each), DDIM with a noise level per
 //! token, scheduled by matrices: joint generation of a group, partner prediction and inpainting,
 //! in-betweening, turn-taking, synchronous agents and a live partner, all from one network.
@@ -15,8 +15,8 @@
 //! - `live`: the live partner as a stream (a [`crate::Session`] over a `magnet` model);
 //! - `generate`: [`crate::Model::magnet_generate`].
 //!
-//! Like every family, this folder imports only from `crate::shared` and itself. The Python
-//! reference it is tested against is `onnx/troupe_onnx/magnet/`.
+//! Like every family, this folder imports only from `crate::shared`, `crate::motion` and itself.
+//! The Python reference it is tested against is `onnx/troupe_onnx/magnet/`.
 
 pub mod draws;
 mod generate;

@@ -1,4 +1,4 @@
-//! troupe's frames <-> MAGNet's motion tokens (`shared/spec/magnet.md` §1.2-§1.5, §7): the
+//! troupe's frames <-> MAGNet's motion tokens (`docs/spec/magnet.md` §1.2-§1.5, §7): the
 //! features derived from each person's root as the official preprocessing derives them, the
 //! encoding of a clip, the decoding of tokens and each person's root rebuilt in the world.
 //! Mirrors `onnx/troupe_onnx/magnet/motion.py`.
@@ -10,10 +10,8 @@ use super::layout::{
     FRAME_DIM, FRAME_ROOT, POSE_DIM, TOKEN_TRANSFORMS, TRANSFORM,
 };
 use super::networks::Networks;
-use super::transforms::{
-    canonical_frame, compose, from_9d, inverse, rotation_from_6d, rotation_to_6d, to_9d, Mat4,
-    IDENTITY,
-};
+use super::transforms::{canonical_frame, compose, from_9d, inverse, to_9d, Mat4, IDENTITY};
+use crate::motion::rotation::{matrix_from_6d, matrix_to_6d, SixD};
 use crate::shared::error::Result;
 
 /// Every per-frame feature MAGNet reads, derived from troupe frames `[F, P, 145]`.
@@ -331,10 +329,10 @@ pub(crate) fn frames_out(decoded: &Decoded, roots: &[Mat4], betas: ArrayView2<f3
                 let body = decoded.body.slice(s![sample, frame, person, ..]);
                 for j in 0..BODY_JOINTS {
                     let d6 = body.slice(s![j * 6..j * 6 + 6]);
-                    let mut clean = [0f32; 6];
-                    rotation_to_6d(
-                        &rotation_from_6d(d6.as_slice().expect("contiguous")),
-                        &mut clean,
+                    let layout = SixD::ConcatenatedColumns;
+                    let clean = matrix_to_6d(
+                        &matrix_from_6d(d6.as_slice().expect("contiguous"), layout),
+                        layout,
                     );
                     let at = FRAME_BODY.start + j * 6;
                     row.slice_mut(s![at..at + 6])

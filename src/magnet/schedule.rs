@@ -1,5 +1,5 @@
 //! The noise schedule, the step -> level table, q_sample and the DDIM step
-//! (`shared/spec/magnet.md` §3), in float32 exactly as the reference computes them
+//! (`docs/spec/magnet.md` §3), in float32 exactly as the reference computes them
 //! (`onnx/troupe_onnx/magnet/schedule.py`).
 
 /// The level of a clean token.

@@ -1,6 +1,6 @@
 //! The `magnet` family's manifest fields: the checkpoint's architecture, the codebook, the
 //! normalisation statistics, the noise schedule, the released sampling configurations and the
-//! five graphs (`onnx/README.md`, "Family `magnet`"; `shared/spec/magnet.md`).
+//! four graphs (`onnx/README.md`, "Family `magnet`"; `docs/spec/magnet.md`).
 
 use std::collections::BTreeMap;
 

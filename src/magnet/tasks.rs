@@ -1,4 +1,4 @@
-//! MAGNet's sampling entry points (`shared/spec/magnet.md` §5) over motion tokens, operation for
+//! MAGNet's sampling entry points (`docs/spec/magnet.md` §5) over motion tokens, operation for
 //! operation as the reference (`onnx/troupe_onnx/magnet/tasks.py`), the official index
 //! conventions included (§11 A3, A4).
 //!
@@ -15,9 +15,8 @@ use super::matrices::{level_matrix, Levels};
 use super::networks::Networks;
 use super::schedule::{Schedule, CLEAN};
 use super::spec::{RootMode, SamplingSpec, ScheduleKind, Task};
-use super::transforms::{
-    compose, from_9d, inverse, rotation_from_6d, rotation_to_6d, to_9d, Mat4, IDENTITY,
-};
+use super::transforms::{compose, from_9d, inverse, to_9d, Mat4, IDENTITY};
+use crate::motion::rotation::{matrix_from_6d, matrix_to_6d, SixD};
 use crate::shared::error::Result;
 use crate::shared::progress;
 
@@ -188,8 +187,9 @@ impl Run<'_> {
                             v[i] = token[slot * TRANSFORM + i] * std[i] + mean[i];
                         }
                         v[7] = 0.0;
-                        let r = rotation_from_6d(&v[..6]);
-                        rotation_to_6d(&r, &mut v[..6]);
+                        let layout = SixD::ConcatenatedColumns;
+                        let clean = matrix_to_6d(&matrix_from_6d(&v[..6], layout), layout);
+                        v[..6].copy_from_slice(&clean);
                     }
                 }
             }

@@ -7,8 +7,8 @@
 //! (`r = circumference / 2π` for limbs, rounded to 5 mm); hands and the head's top are not
 //! covered (the skeleton ends at the wrists and the head joint).
 
-use crate::motion::quat::{add, dot, norm, scale, sub, Vec3};
 use crate::motion::skeleton::{Skeleton, T2M22_JOINTS};
+use crate::motion::vec3::{add, dot, norm, scale, sub, Vec3};
 use crate::shared::error::{Error, Result};
 
 /// Each t2m-22 bone's capsule radius in metres, by the bone's (child) joint.

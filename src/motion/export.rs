@@ -16,8 +16,9 @@ use serde::Serialize;
 use crate::motion::features::{contacts, read_frame};
 use crate::motion::ik::inverse_kinematics;
 use crate::motion::placement::Placement;
-use crate::motion::quat::Vec3;
+use crate::motion::rotation::SixD;
 use crate::motion::skeleton::{Skeleton, T2M22_JOINTS};
+use crate::motion::vec3::Vec3;
 use crate::motion::world::{Handedness, JointsFormat, Units, UpAxis};
 use crate::motion::Pose;
 use crate::shared::error::{Error, Result};
@@ -59,7 +60,7 @@ pub fn poses_from_positions(
                 placement.local_rotation_to_world(rotations[j])
             };
             out.rotations[j] = q.to_wxyz().map(|v| v as f32);
-            out.rotations_6d[j] = q.to_6d().map(|v| v as f32);
+            out.rotations_6d[j] = q.to_6d(SixD::InterleavedColumns).map(|v| v as f32);
         }
         if let Some(next) = canonical.get(t + 1) {
             out.contacts = contacts(pose, next);
@@ -164,7 +165,7 @@ pub fn write_poses_json(
 mod tests {
     use super::*;
     use crate::motion::ik::forward_kinematics;
-    use crate::motion::quat::Quat;
+    use crate::motion::rotation::Quat;
     use ndarray::Array3;
 
     #[test]

@@ -7,7 +7,7 @@
 //! |---|---|
 //! | `[0:66]` | 22 joint positions, metres |
 //! | `[66:132]` | 22 joint velocities, `p[t+1] − p[t]` (metres per frame) |
-//! | `[132:258]` | 6-D local rotations of joints 1–21 ([`Quat::to_6d`]) |
+//! | `[132:258]` | 6-D local rotations of joints 1–21 ([`SixD::InterleavedColumns`]) |
 //! | `[258:262]` | contacts of left ankle, left foot, right ankle, right foot |
 //!
 //! InterGen reads the rotations from SMPL fits; troupe recovers them from positions by
@@ -21,9 +21,10 @@ use ndarray::{Array2, ArrayView1, ArrayView3};
 
 use crate::motion::ik::inverse_kinematics;
 use crate::motion::placement::Placement;
-use crate::motion::quat::{norm, sub, Quat, Vec3};
 use crate::motion::resample::Resampler;
+use crate::motion::rotation::{Quat, SixD};
 use crate::motion::skeleton::{Skeleton, FOOT_JOINTS, T2M22, T2M22_JOINTS};
+use crate::motion::vec3::{norm, sub, Vec3};
 use crate::motion::world::JointsFormat;
 use crate::shared::bundle_io::MotionSpec;
 use crate::shared::error::{Error, Result};
@@ -89,7 +90,7 @@ pub(crate) fn feature_frame(skeleton: &Skeleton, now: &[Vec3], next: &[Vec3], ou
     }
     let rotations = inverse_kinematics(skeleton, now);
     for (j, q) in rotations.iter().enumerate().skip(1) {
-        let six = q.to_6d();
+        let six = q.to_6d(SixD::InterleavedColumns);
         for (d, v) in six.iter().enumerate() {
             out[ROTATIONS + 6 * (j - 1) + d] = *v as f32;
         }
@@ -226,7 +227,7 @@ pub struct Pose {
     /// Rotations as unit quaternions `[w, x, y, z]`: joint 0's is the root's world orientation,
     /// every other joint's is local (relative to its parent), as SMPL, BVH and engines use.
     pub rotations: [[f32; 4]; T2M22_JOINTS],
-    /// The same rotations as 6-D vectors ([`Quat::to_6d`]).
+    /// The same rotations as 6-D vectors ([`SixD::InterleavedColumns`]).
     pub rotations_6d: [[f32; 6]; T2M22_JOINTS],
     /// Contact of left ankle, left foot, right ankle, right foot, as the features hold them (a
     /// generated value near 1 means contact).
@@ -283,10 +284,12 @@ pub fn decode_frame(frame: ArrayView1<f32>, placement: &Placement) -> Result<Pos
         } else {
             let six: [f64; 6] =
                 std::array::from_fn(|d| f64::from(frame[ROTATIONS + 6 * (j - 1) + d]));
-            placement.local_rotation_to_world(Quat::from_6d(six).unwrap_or(Quat::IDENTITY))
+            placement.local_rotation_to_world(
+                Quat::from_6d(six, SixD::InterleavedColumns).unwrap_or(Quat::IDENTITY),
+            )
         };
         pose.rotations[j] = q.to_wxyz().map(|v| v as f32);
-        pose.rotations_6d[j] = q.to_6d().map(|v| v as f32);
+        pose.rotations_6d[j] = q.to_6d(SixD::InterleavedColumns).map(|v| v as f32);
     }
     Ok(pose)
 }

@@ -20,8 +20,9 @@
 //! bones, and for a branch when its children move rigidly together (true of rigs whose hips and
 //! spine hang off one bone, as in LAFAN1 and Mixamo BVH files).
 
-use crate::motion::quat::{add, sub, Quat, Vec3};
+use crate::motion::rotation::Quat;
 use crate::motion::skeleton::Skeleton;
+use crate::motion::vec3::{add, sub, Vec3};
 
 /// Local rotations of every joint of one pose. Positions are canonical (y up, metres), indexed
 /// like the skeleton's joints.
@@ -75,7 +76,7 @@ pub fn forward_kinematics(skeleton: &Skeleton, root: Vec3, local: &[Quat]) -> Ve
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::motion::quat::{norm, normalize};
+    use crate::motion::vec3::{norm, normalize};
 
     /// A pose from the neutral body with every joint turned a little, and the body moved.
     fn posed(skeleton: &Skeleton, t: f64) -> (Vec<Quat>, Vec<Vec3>) {

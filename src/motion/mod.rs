@@ -15,7 +15,8 @@
 //! - [`bvh`]: BVH files in and out, and [`joint_map`]: which rig joint is which t2m-22 joint;
 //! - [`export`]: poses as JSON for robots and tools;
 //! - [`smplx145`]: MAGNet's SMPL-X frames, posed on the t2m-22 skeleton;
-//! - [`quat`]: the 3-D algebra beneath.
+//! - [`rotation`]: quaternions, matrices and both 6-D layouts, in f64 and (for MAGNet) f32;
+//! - [`vec3`]: the vector algebra beneath.
 
 pub mod body;
 pub mod bvh;
@@ -25,11 +26,12 @@ pub mod ik;
 pub mod joint_map;
 pub mod penetration;
 pub mod placement;
-pub mod quat;
 pub mod resample;
+pub mod rotation;
 pub mod skeleton;
 pub mod smplx145;
 pub mod stream;
+pub mod vec3;
 pub mod world;
 
 pub use body::{BodyModel, Capsule, SignedDistance};

@@ -1,6 +1,7 @@
 //! Bodies passing through each other, measured and penalised on joints: the penetration loss of
-//! ARFlow's physical guidance (`shared/spec/models.md` §3.3) with its analytic gradient, and
-//! metrics for any two-person motion. Every family uses this one module.
+//! ARFlow's physical guidance (`docs/spec/arflow.md` §3) with its analytic gradient, and
+//! metrics for any two-person motion. ARFlow's sampler, the ARMFlow stream's penetration guard
+//! and the metrics all use this one module.
 //!
 //! Loss, for a reactor's joints `p[n][j]` against the actor's body `φ_n` (the signed distance of
 //! [`BodyModel`] posed at the actor's frame `n`, negative inside):
@@ -13,7 +14,7 @@
 //! Beyond the safe distance the gradient is zero; the actor is held fixed.
 
 use crate::motion::body::BodyModel;
-use crate::motion::quat::{scale, Vec3};
+use crate::motion::vec3::{scale, Vec3};
 use crate::shared::error::{Error, Result};
 
 /// The hinge's power (the paper does not say which; linear is the proposed default).
@@ -182,8 +183,8 @@ pub fn penetration_metrics(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::motion::quat::add;
     use crate::motion::skeleton::Skeleton;
+    use crate::motion::vec3::add;
 
     fn shifted(pose: &[Vec3], by: Vec3) -> Vec<Vec3> {
         pose.iter().map(|&p| add(p, by)).collect()

@@ -8,8 +8,9 @@
 //! people of an interaction share the first person's placement, as InterGen's `rigid_transform`
 //! puts person 2 into person 1's frame.
 
-use crate::motion::quat::{cross, normalize, sub, Quat, Vec3};
+use crate::motion::rotation::Quat;
 use crate::motion::skeleton::FACE_JOINTS;
+use crate::motion::vec3::{cross, normalize, sub, Vec3};
 use crate::motion::world::JointsFormat;
 use crate::shared::error::{Error, Result};
 

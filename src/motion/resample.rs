@@ -1,7 +1,7 @@
 //! Linear resampling of joint positions to the bundle's frame rate, one frame at a time, so the
 //! batch and streaming paths give the same frames.
 
-use crate::motion::quat::Vec3;
+use crate::motion::vec3::Vec3;
 
 /// Turns frames at `fps_in` into frames at `fps_out` by linear interpolation: output frame `k`
 /// is the caller's motion at time `k / fps_out`, emitted as soon as the input frame at or after

@@ -13,7 +13,8 @@ use std::sync::OnceLock;
 
 use serde::Deserialize;
 
-use crate::motion::quat::{normalize, sub, Quat, Vec3};
+use crate::motion::rotation::Quat;
+use crate::motion::vec3::{normalize, sub, Vec3};
 use crate::shared::error::{Error, Result};
 
 /// The built-in t2m-22 skeleton document.
@@ -257,7 +258,7 @@ impl Skeleton {
         let mut out: Vec<Vec3> = Vec::with_capacity(self.len());
         for (j, off) in self.offsets.iter().enumerate() {
             out.push(match self.parents[j] {
-                Some(p) => crate::motion::quat::add(out[p], *off),
+                Some(p) => crate::motion::vec3::add(out[p], *off),
                 None => *off,
             });
         }
@@ -300,22 +301,22 @@ impl Skeleton {
                     for pose in clip {
                         if let Some(world) = self.branch_world_rotation(parent, pose) {
                             let local = world.conj().rotate(sub(pose[j], pose[parent]));
-                            sum = crate::motion::quat::add(sum, local);
+                            sum = crate::motion::vec3::add(sum, local);
                             n += 1.0;
                         }
                     }
                     if n > 0.0 {
-                        fitted.offsets[j] = crate::motion::quat::scale(sum, 1.0 / n);
+                        fitted.offsets[j] = crate::motion::vec3::scale(sum, 1.0 / n);
                     }
                 }
                 None => {
                     let lengths: Vec<f64> = clip
                         .iter()
-                        .map(|pose| crate::motion::quat::norm(sub(pose[j], pose[parent])))
+                        .map(|pose| crate::motion::vec3::norm(sub(pose[j], pose[parent])))
                         .collect();
                     if let (Some(dir), false) = (normalize(self.offsets[j]), lengths.is_empty()) {
                         let mean = lengths.iter().sum::<f64>() / lengths.len() as f64;
-                        fitted.offsets[j] = crate::motion::quat::scale(dir, mean);
+                        fitted.offsets[j] = crate::motion::vec3::scale(dir, mean);
                     }
                 }
             }
@@ -327,10 +328,7 @@ impl Skeleton {
 /// The rotation whose x axis is `across` and whose y axis is `up` made perpendicular to it.
 /// `None` when either is degenerate or they are parallel.
 pub(crate) fn branch_rotation(across: Vec3, up: Vec3) -> Option<Quat> {
-    use crate::motion::quat::{dot, scale};
-    let x = normalize(across)?;
-    let y = normalize(sub(up, scale(x, dot(x, up))))?;
-    Some(Quat::from_frame(x, y))
+    Quat::from_columns(across, up)
 }
 
 #[cfg(test)]

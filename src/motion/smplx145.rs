@@ -2,7 +2,7 @@
 //! on the t2m-22 skeleton, for pictures, BVH files and JSON poses.
 //!
 //! Per person and frame, 145 floats, y up, metres: SMPL-X betas (10), the 21 body joints' local
-//! rotations (6-D: the first two columns of R, 126), the pelvis's pose in the world (9-D: 6-D
+//! rotations (6-D, [`SixD::ConcatenatedColumns`], 126), the pelvis's pose in the world (9-D: 6-D
 //! rotation, then translation). SMPL-X's first 22 joints are the t2m-22 joints in the same order,
 //! with the same rest pose (a T-pose facing +Z, +X the body's left) and the same local-rotation
 //! convention, so forward kinematics over the t2m-22 skeleton poses them. The bone lengths are the
@@ -11,8 +11,9 @@
 
 use std::ops::Range;
 
-use crate::motion::quat::{add, dot, normalize, scale, sub, Quat, Vec3};
+use crate::motion::rotation::{Quat, SixD};
 use crate::motion::skeleton::{Skeleton, T2M22_JOINTS};
+use crate::motion::vec3::{add, Vec3};
 use crate::shared::error::{Error, Result};
 
 /// The layout's name (`motion.layout` in a magnet bundle's manifest).
@@ -26,14 +27,13 @@ pub const SMPLX145_BODY: Range<usize> = 10..136;
 /// The pelvis's pose in the world, 9-D.
 pub const SMPLX145_ROOT: Range<usize> = 136..145;
 
-/// A 6-D rotation (the first two columns of R, concatenated) as a quaternion; `None` when the
-/// columns are (nearly) parallel or zero.
+/// A 6-D rotation of a frame as a quaternion; `None` when its columns are (nearly) parallel or
+/// zero.
 fn rotation(d: &[f32]) -> Option<Quat> {
-    let a = [d[0] as f64, d[1] as f64, d[2] as f64];
-    let b = [d[3] as f64, d[4] as f64, d[5] as f64];
-    let x = normalize(a)?;
-    let y = normalize(sub(b, scale(x, dot(x, b))))?;
-    Some(Quat::from_frame(x, y))
+    Quat::from_6d(
+        std::array::from_fn(|i| f64::from(d[i])),
+        SixD::ConcatenatedColumns,
+    )
 }
 
 /// The joint positions `[frames][22]` (metres, y up, in the frames' world) of row-major
@@ -95,6 +95,7 @@ pub fn smplx145_positions(frames: &[f32], skeleton: &Skeleton) -> Result<Vec<Vec
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::motion::vec3::sub;
 
     fn frame(root: Quat, at: Vec3) -> Vec<f32> {
         let mut f = vec![0f32; SMPLX145_DIM];
@@ -102,8 +103,7 @@ mod tests {
         for j in 0..21 {
             f[10 + j * 6..16 + j * 6].copy_from_slice(&identity6);
         }
-        let m = root.to_matrix();
-        let cols = [m[0][0], m[1][0], m[2][0], m[0][1], m[1][1], m[2][1]];
+        let cols = root.to_6d(SixD::ConcatenatedColumns);
         for (i, v) in cols.iter().enumerate() {
             f[136 + i] = *v as f32;
         }
@@ -138,8 +138,7 @@ mod tests {
         let mut f = frame(turn, [0.0, 1.0, 0.0]);
         // Bend the left knee (joint 4) 90 degrees about x: the ankle swings back.
         let bend = Quat::from_axis_angle([1.0, 0.0, 0.0], std::f64::consts::FRAC_PI_2);
-        let m = bend.to_matrix();
-        let six = [m[0][0], m[1][0], m[2][0], m[0][1], m[1][1], m[2][1]];
+        let six = bend.to_6d(SixD::ConcatenatedColumns);
         for (i, v) in six.iter().enumerate() {
             f[10 + 3 * 6 + i] = *v as f32;
         }

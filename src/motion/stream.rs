@@ -4,9 +4,9 @@ use ndarray::ArrayView2;
 
 use crate::motion::features::{feature_frame, read_frame, FEATURE_DIM};
 use crate::motion::placement::Placement;
-use crate::motion::quat::Vec3;
 use crate::motion::resample::Resampler;
 use crate::motion::skeleton::Skeleton;
+use crate::motion::vec3::Vec3;
 use crate::motion::world::JointsFormat;
 use crate::shared::error::Result;
 

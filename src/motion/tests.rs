@@ -3,7 +3,8 @@
 use ndarray::{Array3, Axis};
 
 use super::ik::forward_kinematics;
-use super::quat::{normalize, Quat};
+use super::rotation::Quat;
+use super::vec3::normalize;
 use super::*;
 
 /// Two seconds of the neutral body walking-ish along a curve, in a z-up centimetre world.

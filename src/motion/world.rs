@@ -2,7 +2,8 @@
 //! axis, handedness, frame rate), and the conversion to and from troupe's canonical axes
 //! (metres, +Y up, right-handed, +X the body's left when it faces +Z).
 
-use crate::motion::quat::{Quat, Vec3};
+use crate::motion::rotation::Quat;
+use crate::motion::vec3::Vec3;
 use crate::shared::error::{Error, Result};
 
 /// Length unit of caller positions.

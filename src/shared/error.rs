@@ -40,6 +40,11 @@ pub enum Error {
     /// A session option is out of range.
     #[error("invalid option: {0}")]
     InvalidOption(String),
+    /// The bundle's family does not offer what was asked (a UMF bundle asked to stream, an
+    /// ARFlow stream asked for an ARMFlow-only setting): the message names the family and what
+    /// does offer it.
+    #[error("unsupported: {0}")]
+    Unsupported(String),
     /// A long call was stopped by the calling thread's progress callback (see
     /// [`crate::with_progress`]); nothing was written and no state changed.
     #[error("cancelled: {0}")]

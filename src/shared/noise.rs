@@ -9,8 +9,11 @@
 //! * **Normals**: Box-Muller on word pairs, in f64: `u1 = (w0 + 0.5) / 2^32`,
 //!   `u2 = (w1 + 0.5) / 2^32`, `rad = sqrt(-2 ln u1)`, giving `rad * cos(2 pi u2)` then
 //!   `rad * sin(2 pi u2)`, each rounded to f32. Block `b` gives elements `4b .. 4b + 3`.
-//! * **Streams**: [`STREAM_ACTOR_POSTERIOR`] (the VAE posterior sample of the actor token) and
-//!   [`STREAM_REACTOR_NOISE`] (the reactor token's starting noise).
+//! * **Streams**: every use of noise has a stream of its own. ARMFlow's two are here:
+//!   [`STREAM_ACTOR_POSTERIOR`] (the VAE posterior sample of the actor token) and
+//!   [`STREAM_REACTOR_NOISE`] (the reactor token's starting noise). The other families number
+//!   theirs beside their samplers: UMF 2 to 4 (`umf/group.rs`), MAGNet 8 (`magnet/draws.rs`),
+//!   ARFlow 9 (`arflow/spec.rs`).
 //!
 //! Because the generator is counter-based, the noise of token `j` does not depend on what was
 //! drawn before it: changing the sampler steps or CFG never shifts later tokens' noise, and

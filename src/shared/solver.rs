@@ -1,5 +1,5 @@
 //! Fixed-grid ODE solvers for flow sampling: forward Euler and the 3/8-rule RK4 that
-//! torchdiffeq's `rk4` method uses (models.md 2.5).
+//! torchdiffeq's `rk4` method uses (`docs/spec/umf.md` §5).
 //!
 //! Both step over the grid `tau_j = j / steps` (each rounded once to f32), so the grid points are
 //! the solution points. Arithmetic is f32, in the order torchdiffeq writes it, so that a

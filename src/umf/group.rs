@@ -1,5 +1,6 @@
-//! Text-to-group generation (UMF, models.md 2): the first person by Pyramid Flow, every further
-//! person by Semi-Noise Flow from a context of everyone generated before, then one decode.
+//! Text-to-group generation (UMF, `docs/spec/umf.md`): the first person by Pyramid Flow, every
+//! further person by Semi-Noise Flow from a context of everyone generated before, then one
+//! decode.
 //!
 //! ```text
 //! z   <- prior noise [tokens_0, dim]

@@ -1,4 +1,4 @@
-//! The `umf` family: text to a group of any size (models.md §2). The first person comes from
+//! The `umf` family: text to a group of any size (`docs/spec/umf.md`). The first person comes from
 //! Pyramid Flow (coarse-to-fine stages with a jump-renoise between them), every further person
 //! from Semi-Noise Flow over a context of everyone before, then one decode.
 //!
@@ -7,7 +7,7 @@
 //! - [`pyramid`]: the resolution ladder and its block-correlated jump noise;
 //! - `group`: the sampler, [`crate::Model::generate_group`].
 //!
-//! Like every family, this folder imports only from `crate::shared` and itself.
+//! Like every family, this folder imports only from `crate::shared`, `crate::motion` and itself.
 
 mod group;
 pub(crate) mod networks;

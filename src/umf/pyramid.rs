@@ -1,4 +1,4 @@
-//! Pyramid Flow's resolution ladder over latent tokens (models.md 2.3-2.4): the Down/Up
+//! Pyramid Flow's resolution ladder over latent tokens (`docs/spec/umf.md` §3-§4): the Down/Up
 //! operators, the jump ("renoise") between stages, and its block-correlated noise.
 //!
 //! Latents are row-major `[tokens, dim]`. Two layouts of the token axis are supported:

@@ -1,5 +1,5 @@
 //! The `umf` family's manifest fields: the pyramid's stages and jumps, the solvers, and the four
-//! graphs of text-to-group generation (models.md 2).
+//! graphs of text-to-group generation (`docs/spec/umf.md`).
 
 use serde::{Deserialize, Serialize};
 

@@ -36,7 +36,7 @@ int main(int argc, char **argv) {
     EXPECT(troupe_arflow_options_init(model, &opt, sizeof opt), TROUPE_OK);
     CHECK(opt.steps == 5 && opt.guidance == 2.0f && fabsf(opt.weight - 0.7f) < 1e-6f && opt.eta == 0.0f);
     CHECK(opt.flags == 0 && opt.seed == 0);
-    EXPECT(troupe_arflow_options_init(armflow, &opt, sizeof opt), TROUPE_ERR_INVALID_ARG);
+    EXPECT(troupe_arflow_options_init(armflow, &opt, sizeof opt), TROUPE_ERR_UNSUPPORTED);
     EXPECT(troupe_arflow_options_init(model, &opt, 8), TROUPE_ERR_INVALID_ARG);
 
     /* the golden cases: plain Euler, and the guided defaults with seed 3 */
@@ -61,7 +61,7 @@ int main(int argc, char **argv) {
     EXPECT(troupe_arflow_generate(model, &opt, NULL, frames, out, frames), TROUPE_ERR_NULL_ARG);
     EXPECT(troupe_arflow_generate(model, &opt, actor, frames, out, frames - 1), TROUPE_ERR_BUFFER_TOO_SMALL);
     EXPECT(troupe_arflow_generate(model, &opt, actor, 0, out, frames), TROUPE_ERR_INVALID_ARG);
-    EXPECT(troupe_arflow_generate(armflow, &opt, actor, frames, out, frames), TROUPE_ERR_INVALID_ARG);
+    EXPECT(troupe_arflow_generate(armflow, &opt, actor, frames, out, frames), TROUPE_ERR_UNSUPPORTED);
     CHECK(strstr(troupe_last_error_message(), "needs an `arflow` bundle") != NULL);
     bad = (float *)malloc(n_actor * sizeof *bad);
     memcpy(bad, actor, n_actor * sizeof *bad);
@@ -86,17 +86,17 @@ int main(int argc, char **argv) {
             joints_a[t * 66 + i] = actor[t * 262 + i];
             joints_b[t * 66 + i] = actor[t * 262 + i] + (i % 3 == 0 ? 0.1f : 0.0f);
         }
-    EXPECT(troupe_penetration_metrics(joints_a, joints_b, frames, &inside, &frequency, &depth, &deepest),
+    EXPECT(troupe_motion_penetration_metrics(joints_a, joints_b, frames, &inside, &frequency, &depth, &deepest),
            TROUPE_OK);
     CHECK(inside == frames && frequency == 1.0 && depth > 0.0 && deepest > 0.0);
     for (t = 0; t < frames * 22; t++) joints_b[t * 3] += 2.9f;
-    EXPECT(troupe_penetration_metrics(joints_a, joints_b, frames, &inside, &frequency, &depth, NULL),
+    EXPECT(troupe_motion_penetration_metrics(joints_a, joints_b, frames, &inside, &frequency, &depth, NULL),
            TROUPE_OK);
     CHECK(inside == 0 && frequency == 0.0 && depth == 0.0);
-    EXPECT(troupe_penetration_metrics(NULL, joints_b, frames, &inside, NULL, NULL, NULL), TROUPE_ERR_NULL_ARG);
+    EXPECT(troupe_motion_penetration_metrics(NULL, joints_b, frames, &inside, NULL, NULL, NULL), TROUPE_ERR_NULL_ARG);
     joints_b[7] = NAN;
     inside = 77;
-    EXPECT(troupe_penetration_metrics(joints_a, joints_b, frames, &inside, NULL, NULL, NULL),
+    EXPECT(troupe_motion_penetration_metrics(joints_a, joints_b, frames, &inside, NULL, NULL, NULL),
            TROUPE_ERR_INVALID_ARG);
     CHECK(inside == 77);
 
@@ -105,15 +105,15 @@ int main(int argc, char **argv) {
         troupe_session *session = NULL, *partner = NULL;
         troupe_model *magnet = NULL;
         EXPECT(troupe_session_new(armflow, NULL, &session), TROUPE_OK);
-        EXPECT(troupe_session_set_penetration_guard(session, 1, 0.05f, 2.0f), TROUPE_OK);
-        EXPECT(troupe_session_set_penetration_guard(session, 1, -1.0f, 2.0f), TROUPE_ERR_INVALID_ARG);
-        EXPECT(troupe_session_set_penetration_guard(session, 1, 0.05f, 0.0f), TROUPE_ERR_INVALID_ARG);
-        EXPECT(troupe_session_set_penetration_guard(session, 0, NAN, NAN), TROUPE_OK);
-        EXPECT(troupe_session_set_penetration_guard(NULL, 1, 0.05f, 2.0f), TROUPE_ERR_NULL_ARG);
+        EXPECT(troupe_armflow_session_set_penetration_guard(session, 1, 0.05f, 2.0f), TROUPE_OK);
+        EXPECT(troupe_armflow_session_set_penetration_guard(session, 1, -1.0f, 2.0f), TROUPE_ERR_INVALID_ARG);
+        EXPECT(troupe_armflow_session_set_penetration_guard(session, 1, 0.05f, 0.0f), TROUPE_ERR_INVALID_ARG);
+        EXPECT(troupe_armflow_session_set_penetration_guard(session, 0, NAN, NAN), TROUPE_OK);
+        EXPECT(troupe_armflow_session_set_penetration_guard(NULL, 1, 0.05f, 2.0f), TROUPE_ERR_NULL_ARG);
         if (argc > 3) {
             EXPECT(troupe_model_load_file(argv[3], &magnet), TROUPE_OK);
             EXPECT(troupe_session_new(magnet, NULL, &partner), TROUPE_OK);
-            EXPECT(troupe_session_set_penetration_guard(partner, 1, 0.05f, 2.0f), TROUPE_ERR_INVALID_ARG);
+            EXPECT(troupe_armflow_session_set_penetration_guard(partner, 1, 0.05f, 2.0f), TROUPE_ERR_UNSUPPORTED);
             troupe_session_free(partner);
             troupe_model_free(magnet);
         }
@@ -135,7 +135,7 @@ int main(int argc, char **argv) {
         EXPECT(troupe_session_new(online, &sopt, &flow), TROUPE_OK);
         EXPECT(troupe_arflow_options_init(online, &opt, sizeof opt), TROUPE_OK);
         opt.seed = 3;
-        EXPECT(troupe_session_set_arflow_options(flow, &opt), TROUPE_OK);
+        EXPECT(troupe_arflow_session_set_options(flow, &opt), TROUPE_OK);
         for (t = 0; t < frames; t++) {
             EXPECT(troupe_session_step(flow, actor + t * 262, 1, out + t * 262, 1, &written), TROUPE_OK);
             CHECK(written == 1);
@@ -144,8 +144,8 @@ int main(int argc, char **argv) {
                (double)(max_abs(out, want, n_actor) / max_value(want, n_actor)));
         CHECK(max_abs(out, want, n_actor) <= 1e-4f * max_value(want, n_actor));
         opt.weight = 7.0f;
-        EXPECT(troupe_session_set_arflow_options(flow, &opt), TROUPE_ERR_INVALID_ARG);
-        EXPECT(troupe_session_set_arflow_options(flow, NULL), TROUPE_ERR_NULL_ARG);
+        EXPECT(troupe_arflow_session_set_options(flow, &opt), TROUPE_ERR_INVALID_ARG);
+        EXPECT(troupe_arflow_session_set_options(flow, NULL), TROUPE_ERR_NULL_ARG);
         troupe_session_free(flow);
         EXPECT(troupe_session_new(model, NULL, &flow), TROUPE_ERR_INVALID_ARG);
         CHECK(strstr(troupe_last_error_message(), "does not stream") != NULL);

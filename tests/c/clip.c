@@ -24,13 +24,13 @@ int main(int argc, char **argv) {
     if (!model || !streaming) return 1;
 
     frames = troupe_model_clip_frames(model);
-    tokens = troupe_model_clip_tokens(model);
+    tokens = troupe_armflow_clip_tokens(model);
     dim = troupe_model_frame_dim(model);
     lat = troupe_model_latent_dim(model);
     cdim = troupe_model_condition_dim(model);
     CHECK(frames == 300 && tokens == 75 && dim == 262 && lat == 16 && cdim == 32);
-    CHECK(troupe_model_clip_tokens(streaming) == 0 && troupe_model_clip_frames(streaming) == 0);
-    CHECK(troupe_model_clip_tokens(NULL) == 0);
+    CHECK(troupe_armflow_clip_tokens(streaming) == 0 && troupe_model_clip_frames(streaming) == 0);
+    CHECK(troupe_armflow_clip_tokens(NULL) == 0);
     CHECK(troupe_model_text_token_dim(model) == cdim && troupe_model_text_token_dim(streaming) == 0);
 
     /* the text branch: CLIP token features -> condition, as the reference */
@@ -102,7 +102,7 @@ int main(int argc, char **argv) {
     noise.actor_posterior_len = n_lat;
     noise.reactor_noise = eps;
     noise.reactor_noise_len = lat;
-    EXPECT(troupe_clip_generate(model, actor, 200, condition, cdim, 0, 0, &noise, out, n_frames, latents, n_lat),
+    EXPECT(troupe_armflow_clip_generate(model, actor, 200, condition, cdim, 0, 0, &noise, out, n_frames, latents, n_lat),
            TROUPE_OK);
     golden = read_npy(dir, "clip_frames", &n);
     CHECK(golden != NULL && n == n_frames);
@@ -116,36 +116,36 @@ int main(int argc, char **argv) {
     if (golden) CHECK(max_abs(latents, golden, n_lat) <= 1e-5f);
 
     /* seeded: deterministic, and NULL condition is the null condition */
-    EXPECT(troupe_clip_generate(model, actor, 200, NULL, 0, 3, 0, NULL, again, n_frames, NULL, 0), TROUPE_OK);
-    EXPECT(troupe_clip_generate(model, actor, 200, NULL, 0, 3, 0, NULL, out, n_frames, NULL, 0), TROUPE_OK);
+    EXPECT(troupe_armflow_clip_generate(model, actor, 200, NULL, 0, 3, 0, NULL, again, n_frames, NULL, 0), TROUPE_OK);
+    EXPECT(troupe_armflow_clip_generate(model, actor, 200, NULL, 0, 3, 0, NULL, out, n_frames, NULL, 0), TROUPE_OK);
     CHECK(memcmp(out, again, n_frames * sizeof(float)) == 0);
 
     /* bad inputs: a clear status and nothing written */
-    EXPECT(troupe_clip_generate(model, actor, 301, NULL, 0, 3, 0, NULL, again, n_frames, NULL, 0),
+    EXPECT(troupe_armflow_clip_generate(model, actor, 301, NULL, 0, 3, 0, NULL, again, n_frames, NULL, 0),
            TROUPE_ERR_INVALID_ARG);
-    EXPECT(troupe_clip_generate(model, actor, 0, NULL, 0, 3, 0, NULL, again, n_frames, NULL, 0),
+    EXPECT(troupe_armflow_clip_generate(model, actor, 0, NULL, 0, 3, 0, NULL, again, n_frames, NULL, 0),
            TROUPE_ERR_INVALID_ARG);
-    EXPECT(troupe_clip_generate(model, NULL, 200, NULL, 0, 3, 0, NULL, again, n_frames, NULL, 0), TROUPE_ERR_NULL_ARG);
-    EXPECT(troupe_clip_generate(model, actor, 200, condition, cdim - 1, 3, 0, NULL, again, n_frames, NULL, 0),
+    EXPECT(troupe_armflow_clip_generate(model, NULL, 200, NULL, 0, 3, 0, NULL, again, n_frames, NULL, 0), TROUPE_ERR_NULL_ARG);
+    EXPECT(troupe_armflow_clip_generate(model, actor, 200, condition, cdim - 1, 3, 0, NULL, again, n_frames, NULL, 0),
            TROUPE_ERR_SHAPE);
-    EXPECT(troupe_clip_generate(model, actor, 200, NULL, 0, 3, 0, NULL, again, n_frames - 1, NULL, 0),
+    EXPECT(troupe_armflow_clip_generate(model, actor, 200, NULL, 0, 3, 0, NULL, again, n_frames - 1, NULL, 0),
            TROUPE_ERR_BUFFER_TOO_SMALL);
-    EXPECT(troupe_clip_generate(model, actor, 200, NULL, 0, 3, 0, NULL, again, n_frames, latents, 5),
+    EXPECT(troupe_armflow_clip_generate(model, actor, 200, NULL, 0, 3, 0, NULL, again, n_frames, latents, 5),
            TROUPE_ERR_BUFFER_TOO_SMALL);
-    EXPECT(troupe_clip_generate(model, actor, 200, NULL, 0, 3, 0, NULL, NULL, 0, NULL, 0), TROUPE_ERR_NULL_ARG);
-    EXPECT(troupe_clip_generate(NULL, actor, 200, NULL, 0, 3, 0, NULL, again, n_frames, NULL, 0), TROUPE_ERR_NULL_ARG);
-    EXPECT(troupe_clip_generate(streaming, actor, 200, NULL, 0, 3, 0, NULL, again, n_frames, NULL, 0),
+    EXPECT(troupe_armflow_clip_generate(model, actor, 200, NULL, 0, 3, 0, NULL, NULL, 0, NULL, 0), TROUPE_ERR_NULL_ARG);
+    EXPECT(troupe_armflow_clip_generate(NULL, actor, 200, NULL, 0, 3, 0, NULL, again, n_frames, NULL, 0), TROUPE_ERR_NULL_ARG);
+    EXPECT(troupe_armflow_clip_generate(streaming, actor, 200, NULL, 0, 3, 0, NULL, again, n_frames, NULL, 0),
            TROUPE_ERR_INVALID_ARG);
     CHECK(strstr(troupe_last_error_message(), "no `clip` section") != NULL);
     noise.reactor_noise_len = lat - 1;
-    EXPECT(troupe_clip_generate(model, actor, 200, NULL, 0, 3, 0, &noise, again, n_frames, NULL, 0),
+    EXPECT(troupe_armflow_clip_generate(model, actor, 200, NULL, 0, 3, 0, &noise, again, n_frames, NULL, 0),
            TROUPE_ERR_INVALID_ARG);
     CHECK(strstr(troupe_last_error_message(), "reactor_noise") != NULL);
     noise.reactor_noise_len = lat;
     if (actor) {
         float saved = actor[7];
         actor[7] = NAN;
-        EXPECT(troupe_clip_generate(model, actor, 200, NULL, 0, 3, 0, NULL, again, n_frames, NULL, 0),
+        EXPECT(troupe_armflow_clip_generate(model, actor, 200, NULL, 0, 3, 0, NULL, again, n_frames, NULL, 0),
                TROUPE_ERR_INVALID_ARG);
         actor[7] = saved;
     }

@@ -37,26 +37,26 @@ int main(int argc, char **argv) {
     /* queries */
     frames = troupe_model_clip_frames(model);
     dim = troupe_model_frame_dim(model);
-    tokens = troupe_model_group_tokens(model);
+    tokens = troupe_umf_tokens(model);
     lat = troupe_model_latent_dim(model);
     cdim = troupe_model_condition_dim(model);
     CHECK(frames == 40 && dim == 262 && tokens == 16 && lat == 8 && cdim == 32);
-    CHECK(troupe_model_group_stages(model) == 2 && troupe_model_frames_per_token(model) == 0);
+    CHECK(troupe_umf_stages(model) == 2 && troupe_model_frames_per_token(model) == 0);
     CHECK(troupe_model_max_output_frames(model, 10) == 0 && troupe_model_latency_frames(model) == 0);
-    CHECK(troupe_model_clip_frames(armflow) == 0 && troupe_model_group_stages(armflow) == 0);
-    CHECK(troupe_model_clip_frames(NULL) == 0 && troupe_model_group_tokens(NULL) == 0);
+    CHECK(troupe_model_clip_frames(armflow) == 0 && troupe_umf_stages(armflow) == 0);
+    CHECK(troupe_model_clip_frames(NULL) == 0 && troupe_umf_tokens(NULL) == 0);
 
     /* options: the bundle's defaults */
-    CHECK(troupe_group_options_size() == sizeof(troupe_group_options));
-    EXPECT(troupe_group_options_init(model, &opt, sizeof opt), TROUPE_OK);
+    CHECK(troupe_umf_options_size() == sizeof(troupe_group_options));
+    EXPECT(troupe_umf_options_init(model, &opt, sizeof opt), TROUPE_OK);
     CHECK(opt.struct_size == sizeof opt && opt.stage_count == 2 && opt.cfg_scale == 3.0f);
     CHECK(opt.stage_solver[0] == TROUPE_SOLVER_RK4 && opt.stage_steps[1] == 4);
     CHECK(opt.reaction_solver == TROUPE_SOLVER_RK4 && opt.reaction_steps == 4);
-    EXPECT(troupe_group_options_init(model, &opt, 8), TROUPE_ERR_INVALID_ARG);
-    EXPECT(troupe_group_options_init(armflow, &opt, sizeof opt), TROUPE_ERR_INVALID_ARG);
+    EXPECT(troupe_umf_options_init(model, &opt, 8), TROUPE_ERR_INVALID_ARG);
+    EXPECT(troupe_umf_options_init(armflow, &opt, sizeof opt), TROUPE_ERR_UNSUPPORTED);
     CHECK(strstr(troupe_last_error_message(), "needs a `umf` bundle") != NULL);
-    EXPECT(troupe_group_options_init(NULL, &opt, sizeof opt), TROUPE_ERR_NULL_ARG);
-    EXPECT(troupe_group_options_init(model, &opt, sizeof opt), TROUPE_OK);
+    EXPECT(troupe_umf_options_init(NULL, &opt, sizeof opt), TROUPE_ERR_NULL_ARG);
+    EXPECT(troupe_umf_options_init(model, &opt, sizeof opt), TROUPE_OK);
     opt.seed = 7;
 
     /* seeded generation equals the Python reference's seeded case */
@@ -67,7 +67,7 @@ int main(int argc, char **argv) {
     latents = (float *)calloc(n_latents, sizeof(float));
     cond = read_npy(dir, "seeded_2p_condition", &n);
     CHECK(cond != NULL && n == cdim);
-    EXPECT(troupe_group_generate(model, &opt, cond, cdim, 2, NULL, motion, n_motion, latents, n_latents),
+    EXPECT(troupe_umf_generate(model, &opt, cond, cdim, 2, NULL, motion, n_motion, latents, n_latents),
            TROUPE_OK);
     golden = read_npy(dir, "seeded_2p_motion", &n);
     CHECK(golden != NULL && n == n_motion);
@@ -77,7 +77,7 @@ int main(int argc, char **argv) {
     }
 
     /* the same draws given as troupe_group_noise give the same motion */
-    EXPECT(troupe_group_noise_lengths(model, 2, &prior_len, &jumps_len, &reactions_len), TROUPE_OK);
+    EXPECT(troupe_umf_noise_lengths(model, 2, &prior_len, &jumps_len, &reactions_len), TROUPE_OK);
     CHECK(prior_len == 4 * lat && jumps_len == 16 * lat && reactions_len == tokens * lat);
     prior = read_npy(dir, "seeded_2p_prior_noise", &n);
     CHECK(prior != NULL && n == prior_len);
@@ -92,11 +92,11 @@ int main(int argc, char **argv) {
     noise.reactions = reactions;
     noise.reactions_len = reactions_len;
     opt.seed = 12345; /* ignored: every draw is given */
-    EXPECT(troupe_group_generate(model, &opt, cond, cdim, 2, &noise, again, n_motion, NULL, 0), TROUPE_OK);
+    EXPECT(troupe_umf_generate(model, &opt, cond, cdim, 2, &noise, again, n_motion, NULL, 0), TROUPE_OK);
     CHECK(max_abs(motion, again, n_motion) <= 1e-5f);
 
     /* NULL options and NULL condition: defaults, null condition */
-    EXPECT(troupe_group_generate(model, NULL, NULL, 0, 1, NULL, again, n_motion, NULL, 0), TROUPE_OK);
+    EXPECT(troupe_umf_generate(model, NULL, NULL, 0, 1, NULL, again, n_motion, NULL, 0), TROUPE_OK);
 
     /* the official text branches: CLIP token features -> [P-Flow text ; S-Flow text], then a
        3-person group on that condition with the reference's draws equals the reference */
@@ -122,7 +122,7 @@ int main(int argc, char **argv) {
     noise.reactions_len = 2 * reactions_len;
     three = (float *)calloc(3 * frames * dim, sizeof(float));
     three_latents = (float *)calloc(3 * tokens * lat, sizeof(float));
-    EXPECT(troupe_group_generate(model, &opt, text_cond, cdim, 3, &noise, three, 3 * frames * dim, three_latents,
+    EXPECT(troupe_umf_generate(model, &opt, text_cond, cdim, 3, &noise, three, 3 * frames * dim, three_latents,
                                  3 * tokens * lat),
            TROUPE_OK);
     want = read_npy(dir, "text_3p_latents", &n);
@@ -144,42 +144,42 @@ int main(int argc, char **argv) {
 
     /* bad inputs: a clear status, and nothing written */
     memcpy(again, motion, n_motion * sizeof(float));
-    EXPECT(troupe_group_generate(model, &opt, cond, cdim, 0, NULL, again, n_motion, NULL, 0), TROUPE_ERR_INVALID_ARG);
+    EXPECT(troupe_umf_generate(model, &opt, cond, cdim, 0, NULL, again, n_motion, NULL, 0), TROUPE_ERR_INVALID_ARG);
     CHECK(strstr(troupe_last_error_message(), "people is 0") != NULL);
-    EXPECT(troupe_group_generate(model, &opt, cond, cdim - 1, 2, NULL, again, n_motion, NULL, 0), TROUPE_ERR_SHAPE);
-    EXPECT(troupe_group_generate(model, &opt, NULL, cdim, 2, NULL, again, n_motion, NULL, 0), TROUPE_ERR_NULL_ARG);
-    EXPECT(troupe_group_generate(model, &opt, cond, cdim, 2, NULL, again, n_motion - 1, NULL, 0),
+    EXPECT(troupe_umf_generate(model, &opt, cond, cdim - 1, 2, NULL, again, n_motion, NULL, 0), TROUPE_ERR_SHAPE);
+    EXPECT(troupe_umf_generate(model, &opt, NULL, cdim, 2, NULL, again, n_motion, NULL, 0), TROUPE_ERR_NULL_ARG);
+    EXPECT(troupe_umf_generate(model, &opt, cond, cdim, 2, NULL, again, n_motion - 1, NULL, 0),
            TROUPE_ERR_BUFFER_TOO_SMALL);
-    EXPECT(troupe_group_generate(model, &opt, cond, cdim, 2, NULL, again, n_motion, latents, 3),
+    EXPECT(troupe_umf_generate(model, &opt, cond, cdim, 2, NULL, again, n_motion, latents, 3),
            TROUPE_ERR_BUFFER_TOO_SMALL);
-    EXPECT(troupe_group_generate(model, &opt, cond, cdim, 2, NULL, NULL, 0, NULL, 0), TROUPE_ERR_NULL_ARG);
-    EXPECT(troupe_group_generate(NULL, &opt, cond, cdim, 2, NULL, again, n_motion, NULL, 0), TROUPE_ERR_NULL_ARG);
-    EXPECT(troupe_group_generate(armflow, &opt, cond, cdim, 2, NULL, again, n_motion, NULL, 0),
-           TROUPE_ERR_INVALID_ARG);
+    EXPECT(troupe_umf_generate(model, &opt, cond, cdim, 2, NULL, NULL, 0, NULL, 0), TROUPE_ERR_NULL_ARG);
+    EXPECT(troupe_umf_generate(NULL, &opt, cond, cdim, 2, NULL, again, n_motion, NULL, 0), TROUPE_ERR_NULL_ARG);
+    EXPECT(troupe_umf_generate(armflow, &opt, cond, cdim, 2, NULL, again, n_motion, NULL, 0),
+           TROUPE_ERR_UNSUPPORTED);
     bad = opt;
     bad.stage_count = 1;
-    EXPECT(troupe_group_generate(model, &bad, cond, cdim, 2, NULL, again, n_motion, NULL, 0), TROUPE_ERR_INVALID_ARG);
+    EXPECT(troupe_umf_generate(model, &bad, cond, cdim, 2, NULL, again, n_motion, NULL, 0), TROUPE_ERR_INVALID_ARG);
     CHECK(strstr(troupe_last_error_message(), "1 prior solvers given for a pyramid of 2 stages") != NULL);
     bad = opt;
     bad.stage_solver[1] = 9;
-    EXPECT(troupe_group_generate(model, &bad, cond, cdim, 2, NULL, again, n_motion, NULL, 0), TROUPE_ERR_INVALID_ARG);
+    EXPECT(troupe_umf_generate(model, &bad, cond, cdim, 2, NULL, again, n_motion, NULL, 0), TROUPE_ERR_INVALID_ARG);
     bad = opt;
     bad.reaction_steps = 0;
-    EXPECT(troupe_group_generate(model, &bad, cond, cdim, 2, NULL, again, n_motion, NULL, 0), TROUPE_ERR_INVALID_ARG);
+    EXPECT(troupe_umf_generate(model, &bad, cond, cdim, 2, NULL, again, n_motion, NULL, 0), TROUPE_ERR_INVALID_ARG);
     bad = opt;
     bad.cfg_scale = NAN;
-    EXPECT(troupe_group_generate(model, &bad, cond, cdim, 2, NULL, again, n_motion, NULL, 0), TROUPE_ERR_INVALID_ARG);
+    EXPECT(troupe_umf_generate(model, &bad, cond, cdim, 2, NULL, again, n_motion, NULL, 0), TROUPE_ERR_INVALID_ARG);
     bad = opt;
     bad.struct_size = 4;
-    EXPECT(troupe_group_generate(model, &bad, cond, cdim, 2, NULL, again, n_motion, NULL, 0), TROUPE_ERR_INVALID_ARG);
+    EXPECT(troupe_umf_generate(model, &bad, cond, cdim, 2, NULL, again, n_motion, NULL, 0), TROUPE_ERR_INVALID_ARG);
     noise.jumps_len = jumps_len - 1;
-    EXPECT(troupe_group_generate(model, &opt, cond, cdim, 2, &noise, again, n_motion, NULL, 0), TROUPE_ERR_SHAPE);
+    EXPECT(troupe_umf_generate(model, &opt, cond, cdim, 2, &noise, again, n_motion, NULL, 0), TROUPE_ERR_SHAPE);
     noise.jumps_len = jumps_len;
-    EXPECT(troupe_group_generate(model, &opt, cond, cdim, 3, &noise, again, n_motion * 2, NULL, 0), TROUPE_ERR_SHAPE);
+    EXPECT(troupe_umf_generate(model, &opt, cond, cdim, 3, &noise, again, n_motion * 2, NULL, 0), TROUPE_ERR_SHAPE);
     if (cond) {
         float saved = cond[5];
         cond[5] = NAN;
-        EXPECT(troupe_group_generate(model, &opt, cond, cdim, 2, NULL, again, n_motion, NULL, 0),
+        EXPECT(troupe_umf_generate(model, &opt, cond, cdim, 2, NULL, again, n_motion, NULL, 0),
                TROUPE_ERR_INVALID_ARG);
         CHECK(strstr(troupe_last_error_message(), "index 5") != NULL);
         cond[5] = saved;
@@ -187,12 +187,12 @@ int main(int argc, char **argv) {
     CHECK(memcmp(again, motion, n_motion * sizeof(float)) == 0);
 
     /* the families do not mix */
-    EXPECT(troupe_session_options_init(model, &session_opt, sizeof session_opt), TROUPE_ERR_INVALID_ARG);
-    EXPECT(troupe_session_new(model, NULL, &session), TROUPE_ERR_INVALID_ARG);
+    EXPECT(troupe_session_options_init(model, &session_opt, sizeof session_opt), TROUPE_ERR_UNSUPPORTED);
+    EXPECT(troupe_session_new(model, NULL, &session), TROUPE_ERR_UNSUPPORTED);
     CHECK(session == NULL);
 
     /* a success clears the last error */
-    EXPECT(troupe_group_generate(model, &opt, cond, cdim, 1, NULL, again, n_motion, NULL, 0), TROUPE_OK);
+    EXPECT(troupe_umf_generate(model, &opt, cond, cdim, 1, NULL, again, n_motion, NULL, 0), TROUPE_OK);
     CHECK(troupe_last_error_message() == NULL);
     for (i = 0; i < frames * dim; i++)
         if (again[i] != again[i]) break;

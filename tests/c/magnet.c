@@ -36,13 +36,13 @@ static void live_partner(troupe_model *model, troupe_model *armflow, const float
     /* no opening frames yet: the first user frame is refused */
     EXPECT(troupe_session_step(session, user, 1, out, 96, &written), TROUPE_ERR_INVALID_ARG);
     CHECK(strstr(troupe_last_error_message(), "opening frames") != NULL);
-    EXPECT(troupe_session_set_live_config(session, "nope"), TROUPE_ERR_INVALID_ARG);
-    EXPECT(troupe_session_set_live_config(session, "dd100"), TROUPE_ERR_INVALID_ARG);
-    EXPECT(troupe_session_set_live_config(session, live_json), TROUPE_OK);
-    EXPECT(troupe_session_set_partner_opening(session, opening, 31), TROUPE_ERR_INVALID_ARG);
-    EXPECT(troupe_session_set_partner_opening(session, NULL, 32), TROUPE_ERR_NULL_ARG);
-    EXPECT(troupe_session_set_partner_opening(session, opening, 32), TROUPE_OK);
-    EXPECT(troupe_session_set_early_emission(session, 0), TROUPE_OK);
+    EXPECT(troupe_magnet_session_set_live_config(session, "nope"), TROUPE_ERR_INVALID_ARG);
+    EXPECT(troupe_magnet_session_set_live_config(session, "dd100"), TROUPE_ERR_INVALID_ARG);
+    EXPECT(troupe_magnet_session_set_live_config(session, live_json), TROUPE_OK);
+    EXPECT(troupe_magnet_session_set_partner_opening(session, opening, 31), TROUPE_ERR_INVALID_ARG);
+    EXPECT(troupe_magnet_session_set_partner_opening(session, NULL, 32), TROUPE_ERR_NULL_ARG);
+    EXPECT(troupe_magnet_session_set_partner_opening(session, opening, 32), TROUPE_OK);
+    EXPECT(troupe_magnet_session_set_early_emission(session, 0), TROUPE_OK);
 
     /* the stream, 20 frames at a time, each output sized by troupe_session_output_frames */
     for (a = 0; a < 128; a += 20) {
@@ -63,10 +63,10 @@ static void live_partner(troupe_model *model, troupe_model *armflow, const float
            (double)(max_abs(out, golden, n_golden) / max_value(golden, n_golden)));
     CHECK(max_abs(out, golden, n_golden) <= 1e-4f * max_value(golden, n_golden));
     /* settings of a running stream, and what only armflow sessions have */
-    EXPECT(troupe_session_set_early_emission(session, 1), TROUPE_ERR_INVALID_ARG);
-    EXPECT(troupe_session_set_partner_opening(session, opening, 32), TROUPE_ERR_INVALID_ARG);
-    EXPECT(troupe_session_set_prompt(session, "wave"), TROUPE_ERR_INVALID_ARG);
-    EXPECT(troupe_session_set_cfg_scale(session, 2.0f), TROUPE_ERR_INVALID_ARG);
+    EXPECT(troupe_magnet_session_set_early_emission(session, 1), TROUPE_ERR_INVALID_ARG);
+    EXPECT(troupe_magnet_session_set_partner_opening(session, opening, 32), TROUPE_ERR_INVALID_ARG);
+    EXPECT(troupe_session_set_prompt(session, "wave"), TROUPE_ERR_UNSUPPORTED);
+    EXPECT(troupe_session_set_cfg_scale(session, 2.0f), TROUPE_ERR_UNSUPPORTED);
     /* after a reset the same stream comes out again (the opening is kept) */
     EXPECT(troupe_session_reset(session), TROUPE_OK);
     EXPECT(troupe_session_step(session, user, 128, out, 96, &written), TROUPE_OK);
@@ -74,8 +74,8 @@ static void live_partner(troupe_model *model, troupe_model *armflow, const float
 
     /* an armflow session has no partner */
     EXPECT(troupe_session_new(armflow, NULL, &reactor), TROUPE_OK);
-    EXPECT(troupe_session_set_partner_opening(reactor, opening, 32), TROUPE_ERR_INVALID_ARG);
-    EXPECT(troupe_session_set_early_emission(reactor, 1), TROUPE_ERR_INVALID_ARG);
+    EXPECT(troupe_magnet_session_set_partner_opening(reactor, opening, 32), TROUPE_ERR_UNSUPPORTED);
+    EXPECT(troupe_magnet_session_set_early_emission(reactor, 1), TROUPE_ERR_UNSUPPORTED);
 
     troupe_session_free(reactor);
     troupe_session_free(session);
@@ -103,14 +103,14 @@ int main(int argc, char **argv) {
     CHECK(n_frames == 128 * 2 * 145);
 
     /* queries */
-    CHECK(troupe_model_magnet_people(model) == 2 && troupe_model_magnet_people(armflow) == 0);
-    CHECK(troupe_model_magnet_people(NULL) == 0 && troupe_model_frame_dim(model) == 145);
-    count = troupe_model_magnet_config_count(model);
-    CHECK(count == 8 && troupe_model_magnet_config_count(armflow) == 0);
+    CHECK(troupe_magnet_people(model) == 2 && troupe_magnet_people(armflow) == 0);
+    CHECK(troupe_magnet_people(NULL) == 0 && troupe_model_frame_dim(model) == 145);
+    count = troupe_magnet_config_count(model);
+    CHECK(count == 8 && troupe_magnet_config_count(armflow) == 0);
     for (i = 0; i < count; i++)
-        if (strcmp(troupe_model_magnet_config(model, i), "dd100") == 0) found_dd100 = 1;
+        if (strcmp(troupe_magnet_config(model, i), "dd100") == 0) found_dd100 = 1;
     CHECK(found_dd100);
-    CHECK(troupe_model_magnet_config(model, count) == NULL && troupe_model_magnet_config(NULL, 0) == NULL);
+    CHECK(troupe_magnet_config(model, count) == NULL && troupe_magnet_config(NULL, 0) == NULL);
 
     /* options */
     CHECK(troupe_magnet_options_size() == sizeof(troupe_magnet_options));
@@ -156,7 +156,7 @@ int main(int argc, char **argv) {
     EXPECT(troupe_magnet_generate(model, "dd100", &opt, frames, 16, NULL, out, n), TROUPE_ERR_INVALID_ARG);
     CHECK(strstr(troupe_last_error_message(), "needs at least 32 frames") != NULL);
     EXPECT(troupe_magnet_generate(model, "dd100", &opt, NULL, 128, NULL, out, n), TROUPE_ERR_NULL_ARG);
-    EXPECT(troupe_magnet_generate(armflow, "dd100", &opt, frames, 128, NULL, out, n), TROUPE_ERR_INVALID_ARG);
+    EXPECT(troupe_magnet_generate(armflow, "dd100", &opt, frames, 128, NULL, out, n), TROUPE_ERR_UNSUPPORTED);
     CHECK(strstr(troupe_last_error_message(), "needs a `magnet` bundle") != NULL);
     nan_frames = (float *)malloc(n_frames * sizeof *nan_frames);
     memcpy(nan_frames, frames, n_frames * sizeof *nan_frames);

@@ -84,6 +84,7 @@ int main(int argc, char **argv) {
     CHECK(troupe_version_number() == TROUPE_VERSION_NUMBER);
     CHECK(strcmp(troupe_version_string(), TROUPE_VERSION_STRING) == 0);
     CHECK(strcmp(troupe_status_name(TROUPE_ERR_BUFFER_TOO_SMALL), "TROUPE_ERR_BUFFER_TOO_SMALL") == 0);
+    CHECK(strcmp(troupe_status_name(TROUPE_ERR_UNSUPPORTED), "TROUPE_ERR_UNSUPPORTED") == 0);
     CHECK(strcmp(troupe_status_name(12345), "TROUPE_ERR_UNKNOWN") == 0);
 
     /* logging: errors reach the callback at debug level */

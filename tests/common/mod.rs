@@ -128,11 +128,57 @@ pub fn c_libraries() -> &'static Path {
             .status()
             .expect("run cargo build");
         assert!(status.success(), "building the C libraries failed");
-        std::env::var_os("CARGO_TARGET_DIR")
-            .map(PathBuf::from)
-            .unwrap_or_else(|| root.join("target"))
-            .join("debug")
+        let dir = target_dir().join("debug");
+        // Programs linked with -ltroupe ask for the SONAME, libtroupe.so.1, at run time; an
+        // install names it so (docs/ABI.md), and so does the build folder here.
+        let soname = dir.join("libtroupe.so.1");
+        if std::fs::read_link(&soname).is_err() {
+            let _ = std::fs::remove_file(&soname);
+            #[cfg(unix)]
+            std::os::unix::fs::symlink("libtroupe.so", &soname).expect("link libtroupe.so.1");
+        }
+        dir
     })
+}
+
+/// The target directory: `CARGO_TARGET_DIR`, else the repository's `target/`.
+pub fn target_dir() -> PathBuf {
+    std::env::var_os("CARGO_TARGET_DIR")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| Path::new(env!("CARGO_MANIFEST_DIR")).join("target"))
+}
+
+/// Where skipped checks are recorded: `target/test-skips.txt`, one line per skip,
+/// `<test binary>::<test><TAB><reason>`. `scripts/test.sh` empties it before `cargo test` and
+/// prints it after, so a check that did not run is counted in the suite's summary.
+pub fn skip_record() -> PathBuf {
+    target_dir().join("test-skips.txt")
+}
+
+/// Says that `test` could not run its check and why: prints `SKIPPED <test>: <reason>` and
+/// appends a line to [`skip_record`]. The caller then returns; a test must never pass silently
+/// without its check. Opened with O_APPEND and written in one `write`, so the lines of tests
+/// running in parallel (threads or binaries) do not interleave.
+pub fn skip(test: &str, reason: &str) {
+    use std::io::Write;
+    println!("SKIPPED {test}: {reason}");
+    // One line per skip, whatever the reason's text holds.
+    let reason = reason.replace(['\n', '\t'], " ");
+    let line = format!("{}::{test}\t{reason}\n", env!("CARGO_CRATE_NAME"));
+    let path = skip_record();
+    let written = std::fs::create_dir_all(target_dir()).and_then(|()| {
+        std::fs::OpenOptions::new()
+            .create(true)
+            .append(true)
+            .open(&path)?
+            .write_all(line.as_bytes())
+    });
+    if let Err(e) = written {
+        panic!(
+            "{test} is skipped ({reason}) and the skip could not be recorded in {}: {e}",
+            path.display()
+        );
+    }
 }
 
 /// The Python interpreter the tests run: `TROUPE_PYTHON`, else the project's environment that

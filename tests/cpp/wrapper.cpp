@@ -223,7 +223,7 @@ int main(int argc, char **argv) {
         CHECK(reactor.set_penetration_guard(true).ok());
         CHECK(reactor.set_penetration_guard(true, -1.0f).code() == TROUPE_ERR_INVALID_ARG);
         CHECK(reactor.set_penetration_guard(false).ok());
-        CHECK(reactor.set_arflow_options(aopt).code() == TROUPE_ERR_INVALID_ARG);
+        CHECK(reactor.set_arflow_options(aopt).code() == TROUPE_ERR_UNSUPPORTED);
         aopt.weight = 2.0f;
         troupe::Status refused = arflow.arflow_generate(actor, 40, plain, &aopt);
         CHECK(refused.code() == TROUPE_ERR_INVALID_ARG && plain == kept);

@@ -182,14 +182,14 @@ class Model:
         """The most reactor frames one step with `n_actor_frames` frames can return."""
         return _lib.troupe_model_max_output_frames(self._h(), n_actor_frames)
 
-    group_stages = property(lambda self: _lib.troupe_model_group_stages(self._h()),
+    group_stages = property(lambda self: _lib.troupe_umf_stages(self._h()),
                             doc="pyramid stages of a umf bundle (0 otherwise)")
-    group_tokens = property(lambda self: _lib.troupe_model_group_tokens(self._h()),
+    group_tokens = property(lambda self: _lib.troupe_umf_tokens(self._h()),
                             doc="latent tokens per person of a umf bundle (0 otherwise)")
     clip_frames = property(lambda self: _lib.troupe_model_clip_frames(self._h()),
                            doc="frames per clip: per person of a umf bundle, of an official "
                                "ARMFlow clip (0 otherwise)")
-    clip_tokens = property(lambda self: _lib.troupe_model_clip_tokens(self._h()),
+    clip_tokens = property(lambda self: _lib.troupe_armflow_clip_tokens(self._h()),
                            doc="tokens of an official ARMFlow clip (0 otherwise)")
 
     def generate_clip(self, actor, condition=None, seed: int = 0, steps: int = 0, noise=None,
@@ -215,7 +215,7 @@ class Model:
             noise_struct = _native.ClipNoise(*[v for x in arrays for v in (_ptr(x), x.size)])
         motion = np.empty((self.clip_frames, self.frame_dim), np.float32)
         latents = np.empty((self.clip_tokens, self.latent_dim), np.float32) if return_latents else None
-        _check(_lib.troupe_clip_generate(
+        _check(_lib.troupe_armflow_clip_generate(
             h, _ptr(a), a.shape[0],
             None if cond is None else _ptr(cond), 0 if cond is None else cond.size,
             seed, steps, None if noise_struct is None else ctypes.byref(noise_struct),
@@ -269,10 +269,10 @@ class Model:
         `condition`: condition_dim floats ([prior text ; reaction text]) or None for the null
         condition; or `prompt`, a text (see encode_prompt). `prior`: one (method, steps) per pyramid stage, method "euler" or "rk4";
         `reaction`: one (method, steps). `noise`: (prior, jumps, reactions) arrays replacing the
-        seeded draws (lengths as troupe_group_noise_lengths gives). Releases the GIL."""
+        seeded draws (lengths as troupe_umf_noise_lengths gives). Releases the GIL."""
         h = self._h()
         opt = _native.GroupOptions()
-        _check(_lib.troupe_group_options_init(h, ctypes.byref(opt), ctypes.sizeof(opt)))
+        _check(_lib.troupe_umf_options_init(h, ctypes.byref(opt), ctypes.sizeof(opt)))
         opt.seed = seed
         if cfg is not None:
             opt.cfg_scale = cfg
@@ -292,7 +292,7 @@ class Model:
             noise_struct = _native.GroupNoise(*[v for a in arrays for v in (_ptr(a), a.size)])
         motion = np.empty((people, self.clip_frames, self.frame_dim), np.float32)
         latents = np.empty((people, self.group_tokens, self.latent_dim), np.float32) if return_latents else None
-        _check(_lib.troupe_group_generate(
+        _check(_lib.troupe_umf_generate(
             h, ctypes.byref(opt),
             None if cond is None else _ptr(cond), 0 if cond is None else cond.size,
             people, None if noise_struct is None else ctypes.byref(noise_struct),
@@ -300,7 +300,7 @@ class Model:
             None if latents is None else _ptr(latents), 0 if latents is None else latents.size))
         return (motion, latents) if return_latents else motion
 
-    magnet_people = property(lambda self: _lib.troupe_model_magnet_people(self._h()),
+    magnet_people = property(lambda self: _lib.troupe_magnet_people(self._h()),
                              doc="people a `magnet` model generates together (0 for other bundles)")
 
     @property
@@ -308,8 +308,8 @@ class Model:
         """The released sampling configurations of a `magnet` bundle, by the official YAML's
         name (`dd100`, `dd100_partner_prediction`, ...); empty for other bundles."""
         h = self._h()
-        return [_lib.troupe_model_magnet_config(h, i).decode("utf-8")
-                for i in range(_lib.troupe_model_magnet_config_count(h))]
+        return [_lib.troupe_magnet_config(h, i).decode("utf-8")
+                for i in range(_lib.troupe_magnet_config_count(h))]
 
     def _magnet_options(self, samples, steps, seq_len, seed, eta, x0_guidance, keyframes):
         opt = _native.MagnetOptions()
@@ -350,7 +350,7 @@ class Model:
         name = (json.dumps(config) if isinstance(config, dict) else str(config)).encode("utf-8")
         data = _floats(frames, "frames")
         h = self._h()
-        people = _lib.troupe_model_magnet_people(h)
+        people = _lib.troupe_magnet_people(h)
         if data.ndim != 3 or (people and data.shape[1:] != (people, 145)):
             raise ValueError(f"frames must be [frames, {people or 'people'}, 145], got shape {data.shape}")
         opt = self._magnet_options(samples, steps, seq_len, seed, eta, x0_guidance, keyframes)
@@ -631,12 +631,12 @@ class Session:
         f = _floats(frames, "frames")
         if f.ndim != 2 or f.shape[1] != self.frame_dim:
             raise ValueError(f"opening frames must be [frames, {self.frame_dim}], got {list(f.shape)}")
-        self._call(_lib.troupe_session_set_partner_opening, _ptr(f), f.shape[0])
+        self._call(_lib.troupe_magnet_session_set_partner_opening, _ptr(f), f.shape[0])
 
     def set_early_emission(self, early: bool) -> None:
         """Send a magnet live partner's frames as each chunk generates them (lower latency);
         before the first step or after a reset."""
-        self._call(_lib.troupe_session_set_early_emission, 1 if early else 0)
+        self._call(_lib.troupe_magnet_session_set_early_emission, 1 if early else 0)
 
     def set_arflow_options(self, seed: int = 0, **settings) -> None:
         """An ARFlow stream's sampler settings: the bundle's with `settings` changed (the
@@ -645,18 +645,18 @@ class Session:
             "steps", "guidance", "weight", "eta", "d_safe", "sigma", "squared", "guided_backprojection", "mixing")))
         if settings:
             raise TypeError(f"unknown ARFlow settings: {sorted(settings)}")
-        self._call(_lib.troupe_session_set_arflow_options, ctypes.byref(opt))
+        self._call(_lib.troupe_arflow_session_set_options, ctypes.byref(opt))
 
     def set_penetration_guard(self, enabled: bool = True, d_safe: float = 0.05, max_speed: float = 2.0) -> None:
         """An ARMFlow stream's penetration guard: each reactor frame sent is shifted in the floor
         plane out of the actor's body (joints nearer than `d_safe` metres), never faster than
         `max_speed` m/s (docs/ARFLOW.md). Off again with `enabled=False`."""
-        self._call(_lib.troupe_session_set_penetration_guard, 1 if enabled else 0, d_safe, max_speed)
+        self._call(_lib.troupe_armflow_session_set_penetration_guard, 1 if enabled else 0, d_safe, max_speed)
 
     def set_live_config(self, config: str) -> None:
         """The sampling configuration a magnet live partner runs (a released name or JSON);
         before the first step or after a reset."""
-        self._call(_lib.troupe_session_set_live_config, config.encode("utf-8"))
+        self._call(_lib.troupe_magnet_session_set_live_config, config.encode("utf-8"))
 
     def set_noise(self, actor_noise, reactor_noise) -> None:
         """Queues one token's noise (latent_dim floats each), used before the seeded generator."""

@@ -56,7 +56,7 @@ MAX_STAGES = 8  # TROUPE_MAX_STAGES
 
 
 class GroupOptions(ctypes.Structure):
-    """Mirror of `troupe_group_options` (checked against troupe_group_options_size())."""
+    """Mirror of `troupe_group_options` (checked against troupe_umf_options_size())."""
 
     _fields_ = [
         ("struct_size", ctypes.c_uint32),
@@ -229,14 +229,14 @@ PROTOTYPES = {
     "troupe_session_set_cfg_scale": (status, [session_p, ctypes.c_float]),
     "troupe_session_set_condition": (status, [session_p, f32p, c_size]),
     "troupe_session_queue_noise": (status, [session_p, f32p, f32p, c_size]),
-    "troupe_group_options_size": (c_size, []),
-    "troupe_group_options_init": (status, [model_p, ctypes.POINTER(GroupOptions), c_size]),
-    "troupe_model_group_stages": (c_size, [model_p]),
-    "troupe_model_group_tokens": (c_size, [model_p]),
+    "troupe_umf_options_size": (c_size, []),
+    "troupe_umf_options_init": (status, [model_p, ctypes.POINTER(GroupOptions), c_size]),
+    "troupe_umf_stages": (c_size, [model_p]),
+    "troupe_umf_tokens": (c_size, [model_p]),
     "troupe_model_clip_frames": (c_size, [model_p]),
-    "troupe_group_noise_lengths": (
+    "troupe_umf_noise_lengths": (
         status, [model_p, ctypes.c_uint32, ctypes.POINTER(c_size), ctypes.POINTER(c_size), ctypes.POINTER(c_size)]),
-    "troupe_group_generate": (status, [
+    "troupe_umf_generate": (status, [
         model_p, ctypes.POINTER(GroupOptions), f32p, c_size, ctypes.c_uint32, ctypes.POINTER(GroupNoise),
         f32p, c_size, f32p, c_size]),
     "troupe_magnet_options_size": (c_size, []),
@@ -244,30 +244,30 @@ PROTOTYPES = {
     "troupe_arflow_options_size": (c_size, []),
     "troupe_arflow_options_init": (status, [model_p, ctypes.POINTER(ArflowOptions), c_size]),
     "troupe_arflow_generate": (status, [model_p, ctypes.POINTER(ArflowOptions), f32p, c_size, f32p, c_size]),
-    "troupe_penetration_metrics": (status, [f32p, f32p, c_size, ctypes.POINTER(c_size),
+    "troupe_motion_penetration_metrics": (status, [f32p, f32p, c_size, ctypes.POINTER(c_size),
                                             ctypes.POINTER(ctypes.c_double), ctypes.POINTER(ctypes.c_double),
                                             ctypes.POINTER(ctypes.c_double)]),
-    "troupe_model_magnet_people": (c_size, [model_p]),
-    "troupe_model_magnet_config_count": (c_size, [model_p]),
-    "troupe_model_magnet_config": (ctypes.c_char_p, [model_p, c_size]),
+    "troupe_magnet_people": (c_size, [model_p]),
+    "troupe_magnet_config_count": (c_size, [model_p]),
+    "troupe_magnet_config": (ctypes.c_char_p, [model_p, c_size]),
     "troupe_magnet_output_shape": (status, [model_p, ctypes.c_char_p, ctypes.POINTER(MagnetOptions), c_size,
                                             ctypes.POINTER(c_size), ctypes.POINTER(c_size), ctypes.POINTER(c_size)]),
     "troupe_magnet_generate": (status, [model_p, ctypes.c_char_p, ctypes.POINTER(MagnetOptions), f32p, c_size,
                                         ctypes.POINTER(ctypes.c_uint8), f32p, c_size]),
-    "troupe_model_clip_tokens": (c_size, [model_p]),
+    "troupe_armflow_clip_tokens": (c_size, [model_p]),
     "troupe_model_text_token_dim": (c_size, [model_p]),
-    "troupe_clip_generate": (status, [
+    "troupe_armflow_clip_generate": (status, [
         model_p, f32p, c_size, f32p, c_size, ctypes.c_uint64, ctypes.c_uint32, ctypes.POINTER(ClipNoise),
         f32p, c_size, f32p, c_size]),
     "troupe_text_encode": (status, [model_p, f32p, c_size, c_size, f32p, c_size]),
     "troupe_model_takes_prompts": (c_size, [model_p]),
     "troupe_text_prompt_encode": (status, [model_p, ctypes.c_char_p, f32p, c_size]),
     "troupe_session_set_prompt": (status, [session_p, ctypes.c_char_p]),
-    "troupe_session_set_partner_opening": (status, [session_p, f32p, ctypes.c_size_t]),
-    "troupe_session_set_early_emission": (status, [session_p, ctypes.c_int32]),
-    "troupe_session_set_penetration_guard": (status, [session_p, ctypes.c_int32, ctypes.c_float, ctypes.c_float]),
-    "troupe_session_set_arflow_options": (status, [session_p, ctypes.POINTER(ArflowOptions)]),
-    "troupe_session_set_live_config": (status, [session_p, ctypes.c_char_p]),
+    "troupe_magnet_session_set_partner_opening": (status, [session_p, f32p, ctypes.c_size_t]),
+    "troupe_magnet_session_set_early_emission": (status, [session_p, ctypes.c_int32]),
+    "troupe_armflow_session_set_penetration_guard": (status, [session_p, ctypes.c_int32, ctypes.c_float, ctypes.c_float]),
+    "troupe_arflow_session_set_options": (status, [session_p, ctypes.POINTER(ArflowOptions)]),
+    "troupe_magnet_session_set_live_config": (status, [session_p, ctypes.c_char_p]),
     "troupe_joints_format_init": (status, [fmt_p, c_size]),
     "troupe_motion_joint_count": (c_size, []),
     "troupe_motion_joint_name": (ctypes.c_char_p, [c_size]),

@@ -129,7 +129,7 @@ def penetration_metrics(first, second) -> dict:
         raise ValueError(f"the two people have {a.shape[0]} and {b.shape[0]} frames")
     n = ctypes.c_size_t()
     freq, depth, deepest = ctypes.c_double(), ctypes.c_double(), ctypes.c_double()
-    _check(_lib.troupe_penetration_metrics(_ptr(a), _ptr(b), a.shape[0], ctypes.byref(n), ctypes.byref(freq),
+    _check(_lib.troupe_motion_penetration_metrics(_ptr(a), _ptr(b), a.shape[0], ctypes.byref(n), ctypes.byref(freq),
                                            ctypes.byref(depth), ctypes.byref(deepest)))
     return {"frames": a.shape[0], "frames_intersecting": n.value, "frequency": freq.value,
             "depth_sum": depth.value, "max_depth": deepest.value}

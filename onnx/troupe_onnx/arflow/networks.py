@@ -1,4 +1,4 @@
-"""ARFlow's network (`shared/spec/models.md` §3.5): x̂_1 = G(x_t, t, c), a transformer decoder over
+"""ARFlow's network (`docs/spec/arflow.md` §5): x̂_1 = G(x_t, t, c), a transformer decoder over
 frames whose memory is one token, the embedding of the time (and of the condition when there is
 one), as ReGenNet's `cmdm` (`arch == 'online'`) has it. No official code exists: the layer shapes
 follow MDM's, the usual base of both.

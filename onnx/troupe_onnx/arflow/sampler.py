@@ -1,4 +1,4 @@
-"""ARFlow's sampler (`shared/spec/models.md` §3.2-§3.4), reconstructed from the paper (no code
+"""ARFlow's sampler (`docs/spec/arflow.md` §2-§4), reconstructed from the paper (no code
 exists): x̂_1-prediction Euler from the actor, with physical guidance on x̂_1, back-projection,
 reweighting toward the actor and re-interpolation, optionally stochastic. Mirrored by
 `src/arflow/sampler.rs`, which is tested against this.

@@ -66,8 +66,8 @@ PRESETS = {
         latent_dim=16, cond_dim=32, layers=3, heads=2, mlp_blocks=2, context_capacity=64,
         vae=VaeConfig(encoder_width=32, decoder_width=16, depth=2, kernel=7, norm_groups=4, causal=True),
     ),
-    # models.md 1.2: 7x512 DiT, 5x512 MLP, 256-d latents, 262-d frames, 768-d text condition. The
-    # streaming VAE uses kernel 3 / dilations 9,3,1 so that its window stays short. The context
+    # `docs/spec/armflow.md` §2: 7x512 DiT, 5x512 MLP, 256-d latents, 262-d frames, 768-d text
+    # condition. The streaming VAE uses kernel 3 / dilations 9,3,1 so that its window stays short. The context
     # keeps 128 tokens (17 s): the official model trains on clips of at most 75 tokens, and the
     # bound keeps a session under 8 MB and its step cost flat however long it streams.
     "paper": ArmflowConfig(

@@ -1,7 +1,7 @@
 """PyTorch reference of ARMFlow's networks and of troupe's streaming sampling loop.
 
 This module is the ground truth the Rust runtime is tested against. The networks follow
-`shared/spec/models.md` section 1 (read from the official code) at any width and depth; the
+`docs/spec/armflow.md` (read from the official code) at any width and depth; the
 streaming loop mirrors `src/armflow/session/` operation for operation, so that given the same noise the
 two agree to float32 rounding.
 
@@ -27,7 +27,7 @@ from troupe_onnx.shared.transformer import EncoderStack, pick_token
 
 @dataclass
 class VaeConfig:
-    """CNN-VAE hyper-parameters (models.md 1.3)."""
+    """CNN-VAE hyper-parameters (`docs/spec/armflow.md` §3)."""
 
     encoder_width: int  # 512 in the paper (`is_double`)
     decoder_width: int  # 256 in the paper
@@ -75,7 +75,7 @@ class ArmflowConfig:
 
 
 # --------------------------------------------------------------------------------------------
-# CNN-VAE (models.md 1.3), official (non-causal) and streaming (causal) variants
+# CNN-VAE (`docs/spec/armflow.md` §3), official (non-causal) and streaming (causal) variants
 # --------------------------------------------------------------------------------------------
 
 
@@ -297,7 +297,7 @@ def decoder_context_tokens(dec: VaeDecoder, fpt: int) -> int:
 
 
 # --------------------------------------------------------------------------------------------
-# Context encoder: SkipAdaLN transformer with <sos> (models.md 1.4)
+# Context encoder: SkipAdaLN transformer with <sos> (`docs/spec/armflow.md` §4)
 # --------------------------------------------------------------------------------------------
 
 
@@ -434,7 +434,7 @@ class SkipAdaLNTransformer(nn.Module):
 
 
 # --------------------------------------------------------------------------------------------
-# Velocity MLP (models.md 1.5)
+# Velocity MLP (`docs/spec/armflow.md` §5)
 # --------------------------------------------------------------------------------------------
 
 
@@ -684,7 +684,7 @@ def stream_reference(
 
 
 # --------------------------------------------------------------------------------------------
-# The official clip loop (models.md 1.7), on the same modules
+# The official clip loop (`docs/spec/armflow.md` §7), on the same modules
 # --------------------------------------------------------------------------------------------
 
 

@@ -4,7 +4,7 @@
     python3 onnx/cli.py demo train --out DIR --stage vae|flow         # one stage (flow needs DIR/vae.pt)
     python3 onnx/cli.py demo export --checkpoint onnx/checkpoints/armflow-demo.pt --out onnx/bundles/armflow-demo --golden
 
-The recipe is `shared/spec/training.md` section 8, scaled to this model (DATA.md, docs/DEMO.md):
+The recipe is `docs/spec/armflow-training.md` §6, scaled to this model (DATA.md, docs/DEMO.md):
 
 - **Stage 1, VAE** (the reference's causal VAE): the official loss, WL1(all features) +
   WL1(joint positions) + 0.001 KL (per-element mean); single-person windows of 64 frames of

@@ -1,4 +1,4 @@
-"""MAGNet's released checkpoints, read strictly (`shared/spec/magnet.md` §8), and written in the
+"""MAGNet's released checkpoints, read strictly (`docs/spec/magnet.md` §8), and written in the
 same layout from random weights (the tiny bundle's "official" checkpoint).
 
 Layout, relative to a root directory (the official repository's working directory):

@@ -1,4 +1,4 @@
-"""The released sampling configurations (`shared/spec/magnet.md` §5.12), by the official YAML's
+"""The released sampling configurations (`docs/spec/magnet.md` §5.12), by the official YAML's
 name. Their numbers go into every bundle's manifest (`sampling`), so the runtime runs them as
 released; the model-side numbers come from the checkpoint."""
 

@@ -1,5 +1,5 @@
 """The x0-guidance gradients through the VQ decoder: by autograd (the ground truth), and written
-out by hand so that they export as plain ONNX (`shared/spec/magnet.md` §6.4, §6.5 option (a)): the decoder's forward keeps what its
+out by hand so that they export as plain ONNX (`docs/spec/magnet.md` §6.4, §6.5 option (a)): the decoder's forward keeps what its
 backward needs, then the loss's gradient runs back through transposed convolutions, the
 LayerNorm and GELU derivatives, ReLU masks and the upsampling's pair sums. Only the gradient
 with respect to the latents leaves the graph; the transform dims' analytic term is the runtime's

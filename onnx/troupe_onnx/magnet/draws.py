@@ -1,4 +1,4 @@
-"""Where MAGNet's samplers get their standard normals, in the order of `shared/spec/magnet.md`
+"""Where MAGNet's samplers get their standard normals, in the order of `docs/spec/magnet.md`
 §3.5. `SeededDraws` is troupe's portable generator (draw i of a run is Philox normals for token
 i of stream `STREAM_MAGNET`, so the Rust runtime regenerates them bit for bit); `TorchDraws`
 is `torch.randn` (the official code's generator, for benchmarks); `RecordingDraws` keeps what

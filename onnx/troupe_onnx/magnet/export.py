@@ -13,7 +13,7 @@
     # random weights in the released layout (what the loader reads), under a root directory:
     python3 onnx/cli.py magnet export --preset tiny --write-checkpoint /tmp/magnet-release
 
-Graphs (`shared/spec/magnet.md` §2.4): `denoiser` (x, levels -> x0; batch dynamic, the window
+Graphs (`docs/spec/magnet.md` §2.4): `denoiser` (x, levels -> x0; batch dynamic, the window
 and P fixed), `vq_encoder` and `vq_decoder` (batch and length dynamic), and the two x0-guidance
 gradients through the decoder in one graph (`guidance`: the weighted sum of both, §6.5 option (a),
 written out by hand in `decoder_gradients.py`). The codebook ships as `codebook.f32` (little-endian

@@ -1,4 +1,4 @@
-"""MAGNet's guidance (`shared/spec/magnet.md` §6): the mask modes and their weighted sum of x0
+"""MAGNet's guidance (`docs/spec/magnet.md` §6): the mask modes and their weighted sum of x0
 predictions, and the x0-space smoothing and foot-skating corrections through the VQ decoder.
 
 The decoder gradients are callables (`decoder_gradients.py`: autograd, the ground truth, and the

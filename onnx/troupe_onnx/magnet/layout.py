@@ -1,4 +1,4 @@
-"""The token and feature layout MAGNet's code hard-codes (`shared/spec/magnet.md` §1), shared by
+"""The token and feature layout MAGNet's code hard-codes (`docs/spec/magnet.md` §1), shared by
 the networks, the samplers and the motion conversions (no torch needed)."""
 
 FRAMES_PER_TOKEN = 4  # the VQ-VAE's temporal factor (two stride-2 convolutions)

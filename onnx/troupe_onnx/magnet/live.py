@@ -1,4 +1,4 @@
-"""troupe's live partner: `motion_control_live` (`shared/spec/magnet.md` §5.4) as a stream. The
+"""troupe's live partner: `motion_control_live` (`docs/spec/magnet.md` §5.4) as a stream. The
 user's frames come in as they happen; the partner's frames go out chunk by chunk. Mirrored by
 `src/magnet/live.rs`, which is tested against this.
 

@@ -1,4 +1,4 @@
-"""MAGNet's scheduling matrices (`shared/spec/magnet.md` §4): one row of noise levels per
+"""MAGNet's scheduling matrices (`docs/spec/magnet.md` §4): one row of noise levels per
 iteration, one column per flattened window token `f = t * P + p`; iteration r goes from row r to
 row r + 1. Mirrored by `src/magnet/matrices.rs`.
 """

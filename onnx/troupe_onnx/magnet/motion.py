@@ -1,4 +1,4 @@
-"""Frames <-> MAGNet's motion tokens (`shared/spec/magnet.md` §1.3-§1.5, §5.0 step 3, §7): the
+"""Frames <-> MAGNet's motion tokens (`docs/spec/magnet.md` §1.3-§1.5, §5.0 step 3, §7): the
 normalisation statistics, the token layout, deriving MAGNet's features from troupe's frames,
 encoding a clip, decoding tokens and rebuilding each person's root in one world frame. Mirrored
 by `src/magnet/motion.rs`. torch only where the VQ-VAE runs.

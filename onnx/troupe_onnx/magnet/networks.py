@@ -1,5 +1,5 @@
 """MAGNet's two networks in PyTorch, at any size, under the official module and parameter names
-(`shared/spec/magnet.md` §1.4, §2, §8.2): the DFoT denoiser and the pose VQ-VAE.
+(`docs/spec/magnet.md` §1.4, §2, §8.2): the DFoT denoiser and the pose VQ-VAE.
 
 The denoiser is the forward *as trained* (no attention mask, §2.3): the latest official code
 builds a causal mask of the batch's size, a regression that crashes or masks what training

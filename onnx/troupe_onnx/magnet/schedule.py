@@ -1,5 +1,5 @@
 """MAGNet's noise schedule, step-index -> level table, q_sample and DDIM step
-(`shared/spec/magnet.md` §3), in numpy float32 exactly as the reference computes them; the Rust
+(`docs/spec/magnet.md` §3), in numpy float32 exactly as the reference computes them; the Rust
 runtime (`src/magnet/schedule.rs`, `src/magnet/ddim.rs`) is tested against these numbers.
 """
 

@@ -1,4 +1,4 @@
-"""MAGNet's sampling entry points (`shared/spec/magnet.md` §5) over motion tokens, operation for
+"""MAGNet's sampling entry points (`docs/spec/magnet.md` §5) over motion tokens, operation for
 operation, with the official index conventions (the turn-taking offset included, §11 A3).
 
 Every task takes tokens `[T, P, D]` of one clip (the encoder's output, §5.0 step 3; the same

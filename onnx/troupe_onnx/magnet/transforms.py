@@ -1,6 +1,7 @@
-"""Rigid transforms as MAGNet stores them (`shared/spec/magnet.md` §0, §5.0, §7.2), in numpy
+"""Rigid transforms as MAGNet stores them (`docs/spec/magnet.md` §0, §5.0, §7.2), in numpy
 float32: "9-D" = [6-D rotation (the first two columns of R), tx, ty, tz]; "7-D" = wxyz_xyz;
-`compose(a, b)` applies b first. Mirrored by `src/magnet/transforms.rs`.
+`compose(a, b)` applies b first. Mirrored by `src/magnet/transforms.rs`, its rotations by
+`src/motion/rotation.rs`.
 """
 
 from __future__ import annotations

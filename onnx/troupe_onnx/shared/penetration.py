@@ -1,5 +1,5 @@
 """Bodies passing through each other, on joints: the capsule body of the t2m-22 skeleton, the
-signed distance to it, ARFlow's penetration loss (`shared/spec/models.md` §3.3) and the metrics,
+signed distance to it, ARFlow's penetration loss (`docs/spec/arflow.md` §3) and the metrics,
 in torch so that autograd gives the reference gradient. Mirrored by `src/motion/body.rs` and
 `src/motion/penetration.rs` (analytic gradients there), which are tested against this.
 """

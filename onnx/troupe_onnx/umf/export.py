@@ -66,7 +66,7 @@ PRESETS = {
         prior_solvers=[Solver("euler", 3), Solver("rk4", 2), Solver("rk4", 2)],
         reaction_solver=Solver("euler", 4), cfg_scale=2.0,
     ),
-    # models.md 2: the configuration as released (UmfConfig's defaults): 16 x 64 latents.
+    # `docs/spec/umf.md`: the configuration as released (UmfConfig's defaults): 16 x 64 latents.
     "interhuman": UmfConfig(),
 }
 PRESETS["paper"] = PRESETS["interhuman"]  # the name the benchmarks use

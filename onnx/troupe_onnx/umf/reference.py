@@ -1,7 +1,7 @@
 """PyTorch reference of UMF's networks and of troupe's group sampler (text to a group of people).
 
 This module is the ground truth the Rust runtime (`src/umf/group.rs`, `src/umf/pyramid.rs`,
-`src/shared/solver.rs`) is tested against. The networks follow `shared/spec/models.md` section 2 (read
+`src/shared/solver.rs`) is tested against. The networks follow `docs/spec/umf.md` (read
 from the official code, `Githubhgh/UMF_CVPR`) at any width and depth; the sampler runs the
 official numerics operation for operation in float32, so that given the same noise troupe and
 this reference agree to float32 rounding:
@@ -63,13 +63,13 @@ class Solver:
 
 @dataclass
 class UmfConfig:
-    """Hyper-parameters; the defaults are the official sizes (models.md 2.1, 2.5, 2.6)."""
+    """Hyper-parameters; the defaults are the official sizes (`docs/spec/umf.md` §1, §5, §6)."""
 
     frame_dim: int = 262
     fps: int = 30
     tokens: int = 16  # latent tokens per person at full resolution
     latent_dim: int = 64  # floats per latent token
-    # Denoisers (P-Flow and S-Flow share the design; models.md 2.5)
+    # Denoisers (P-Flow and S-Flow share the design; `docs/spec/umf.md` §5)
     width: int = 512
     heads: int = 4
     ffn: int = 1024
@@ -186,7 +186,7 @@ def stage_tables(cfg: UmfConfig) -> list[Stage]:
 
 
 def _check_official_tables():
-    """models.md 2.3: the code's K = 2, gamma = -0.2 tables."""
+    """`docs/spec/umf.md` §3: the code's K = 2, gamma = -0.2 tables."""
     s0, s1 = stage_tables(UmfConfig())
     assert (s0.start_t, s0.end_t, s0.timesteps[0]) == (0.0, 0.5, 0.0)
     assert abs(s0.timesteps[1] - 412.587) < 1e-9
@@ -279,7 +279,7 @@ def seeded_noise(cfg: UmfConfig, seed: int, people: int):
 
 
 # --------------------------------------------------------------------------------------------
-# Networks under the official module and parameter names (models.md 2.1, 2.5, 2.6)
+# Networks under the official module and parameter names (`docs/spec/umf.md` §1, §5, §6)
 # --------------------------------------------------------------------------------------------
 
 class LearnedPositions(nn.Module):

@@ -24,7 +24,7 @@ use ndarray::Array2;
 use crate::motion::body::BodyModel;
 use crate::motion::features::{POSITIONS, VELOCITIES};
 use crate::motion::penetration::{Hinge, PenetrationLoss};
-use crate::motion::quat::Vec3;
+use crate::motion::vec3::Vec3;
 use crate::shared::error::{Error, Result};
 
 const JOINTS: usize = 22;

@@ -1,11 +1,12 @@
 //! The C entry points of the `arflow` family: offline generation with penetration guidance.
 
-use crate::arflow::spec::Mixing;
+use crate::arflow::spec::{ArflowSampling, Mixing};
 use crate::ffi::boundary::{
     self, check_struct_size, checked_mul, non_null, read_versioned, room, troupe_status,
-    write_versioned, FfiError, FfiResult, TROUPE_ERR_INVALID_ARG,
+    write_versioned, FfiError, FfiResult, TROUPE_ERR_INVALID_ARG, TROUPE_ERR_UNSUPPORTED,
 };
 use crate::ffi::model::troupe_model;
+use crate::ffi::session::{troupe_session, with_session};
 use crate::{ArflowOptions, Model};
 
 /// `troupe_arflow_options.flags`: a squared hinge in the penetration loss (else linear).
@@ -63,6 +64,30 @@ fn arflow_model(model: Option<&troupe_model>) -> FfiResult<&Model> {
     Ok(model)
 }
 
+/// The options `troupe_arflow_options_init` writes: the bundle's sampler settings, seed 0.
+fn option_defaults(s: &ArflowSampling, size: usize) -> troupe_arflow_options {
+    let flag = |on: bool, f: u32| if on { f } else { 0 };
+    troupe_arflow_options {
+        struct_size: size as u32,
+        steps: s.steps as u32,
+        guidance: s.guidance,
+        weight: s.weight,
+        eta: s.eta,
+        d_safe: s.d_safe,
+        sigma: s.sigma,
+        flags: flag(s.squared, TROUPE_ARFLOW_SQUARED_HINGE)
+            | flag(
+                !s.guided_backprojection,
+                TROUPE_ARFLOW_UNGUIDED_BACKPROJECTION,
+            )
+            | flag(
+                s.mixing == Mixing::VariancePreserving,
+                TROUPE_ARFLOW_VARIANCE_PRESERVING,
+            ),
+        seed: 0,
+    }
+}
+
 /// Fills `options` with `model`'s sampler defaults (`docs/ARFLOW.md`: 5 steps, λ 2, w 0.7,
 /// η 0, d_safe 0.02 m, linear hinge, guided back-projection, σ 0) and seed 0, and sets
 /// `struct_size`. Pass `sizeof(troupe_arflow_options)` as `options_size`.
@@ -85,27 +110,8 @@ pub unsafe extern "C" fn troupe_arflow_options_init(
             let model = arflow_model(model)?;
             non_null(options, "options")?;
             check_struct_size(options_size, OPTIONS_V1_SIZE, "troupe_arflow_options")?;
-            let s = &model.arflow_spec().expect("checked").sampler;
-            let flag = |on: bool, f: u32| if on { f } else { 0 };
-            let defaults = troupe_arflow_options {
-                struct_size: options_size as u32,
-                steps: s.steps as u32,
-                guidance: s.guidance,
-                weight: s.weight,
-                eta: s.eta,
-                d_safe: s.d_safe,
-                sigma: s.sigma,
-                flags: flag(s.squared, TROUPE_ARFLOW_SQUARED_HINGE)
-                    | flag(
-                        !s.guided_backprojection,
-                        TROUPE_ARFLOW_UNGUIDED_BACKPROJECTION,
-                    )
-                    | flag(
-                        s.mixing == Mixing::VariancePreserving,
-                        TROUPE_ARFLOW_VARIANCE_PRESERVING,
-                    ),
-                seed: 0,
-            };
+            let sampler = &model.arflow_spec().expect("checked").sampler;
+            let defaults = option_defaults(sampler, options_size);
             // SAFETY: writable for `options_size` bytes; no padding (asserted).
             unsafe { write_versioned(options, options_size, &defaults) };
             Ok(())
@@ -117,7 +123,8 @@ pub unsafe extern "C" fn troupe_arflow_options_init(
 ///
 /// # Safety
 /// `options` must be readable for its `struct_size` bytes.
-pub(crate) unsafe fn read_options(
+unsafe fn read_options(
+    bundle: &ArflowSampling,
     options: *const troupe_arflow_options,
 ) -> FfiResult<ArflowOptions> {
     // SAFETY: per the contract.
@@ -125,6 +132,7 @@ pub(crate) unsafe fn read_options(
         read_versioned(
             options,
             OPTIONS_V1_SIZE,
+            option_defaults(bundle, OPTIONS_V1_SIZE),
             "troupe_arflow_options",
             "troupe_arflow_options_init",
         )
@@ -197,8 +205,9 @@ pub unsafe extern "C" fn troupe_arflow_generate(
             let opts = if options.is_null() {
                 ArflowOptions::default()
             } else {
+                let sampler = &model.arflow_spec().expect("checked").sampler;
                 // SAFETY: per the contract.
-                unsafe { read_options(options) }?
+                unsafe { read_options(sampler, options) }?
             };
             let dim = model.frame_dim();
             let len = checked_mul(n_frames, dim, "n_frames * 262")?;
@@ -216,4 +225,38 @@ pub unsafe extern "C" fn troupe_arflow_generate(
             Ok(())
         },
     )
+}
+
+/// Sets an ARFlow stream's sampler settings (`options`, filled by `troupe_arflow_options_init`;
+/// its seed too); a new step count only before the first frame or after `troupe_session_reset`.
+///
+/// Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (not an ARFlow stream,
+/// settings out of range, unknown flags), `TROUPE_ERR_POISONED`, `TROUPE_ERR_PANIC`. One thread
+/// at a time per session.
+///
+/// # Safety
+/// `session` must be a live handle; `options` readable for its `struct_size`.
+#[no_mangle]
+pub unsafe extern "C" fn troupe_arflow_session_set_options(
+    session: *mut troupe_session,
+    options: *const troupe_arflow_options,
+) -> troupe_status {
+    // SAFETY: forwarded contract.
+    unsafe {
+        with_session(session, "troupe_arflow_session_set_options", |s| {
+            non_null(options, "options")?;
+            let bundle = s.arflow_bundle_sampling().cloned().ok_or_else(|| {
+                FfiError::new(
+                    TROUPE_ERR_UNSUPPORTED,
+                    format!(
+                        "ARFlow's settings are for arflow streams; this session runs a `{}` model",
+                        s.family()
+                    ),
+                )
+            })?;
+            // SAFETY: readable for its `struct_size` per the contract.
+            let options = read_options(&bundle, options)?;
+            Ok(s.set_arflow_options(&options)?)
+        })
+    }
 }

@@ -1,4 +1,4 @@
-//! `troupe_clip_generate`: the official ARMFlow clip loop (see `crate::armflow::clip`).
+//! `troupe_armflow_clip_generate`: the official ARMFlow clip loop (see `crate::armflow::clip`).
 
 use ndarray::ArrayView2;
 
@@ -27,7 +27,7 @@ pub struct troupe_clip_noise {
 /// # Safety
 /// `model` must be NULL or a live handle.
 #[no_mangle]
-pub unsafe extern "C" fn troupe_model_clip_tokens(model: Option<&troupe_model>) -> usize {
+pub unsafe extern "C" fn troupe_armflow_clip_tokens(model: Option<&troupe_model>) -> usize {
     property(model, |m| m.clip_spec().map_or(0, |c| c.tokens))
 }
 
@@ -56,7 +56,7 @@ pub unsafe extern "C" fn troupe_model_clip_tokens(model: Option<&troupe_model>) 
 /// not NULL) for `latents_capacity`, neither overlapping an input.
 #[no_mangle]
 #[allow(clippy::too_many_arguments)]
-pub unsafe extern "C" fn troupe_clip_generate(
+pub unsafe extern "C" fn troupe_armflow_clip_generate(
     model: Option<&troupe_model>,
     actor: *const f32,
     n_actor_frames: usize,
@@ -71,7 +71,7 @@ pub unsafe extern "C" fn troupe_clip_generate(
     latents_capacity: usize,
 ) -> troupe_status {
     boundary::call(
-        "troupe_clip_generate",
+        "troupe_armflow_clip_generate",
         || {},
         || {
             let model = &boundary::required(model, "model")?.model;
@@ -112,7 +112,7 @@ pub unsafe extern "C" fn troupe_clip_generate(
 }
 
 fn read_noise(n: &troupe_clip_noise) -> FfiResult<ClipNoise> {
-    // SAFETY: the arrays are readable for their lengths per troupe_clip_generate's contract.
+    // SAFETY: the arrays are readable for their lengths per troupe_armflow_clip_generate's contract.
     let (a, r) = unsafe {
         (
             boundary::slice(

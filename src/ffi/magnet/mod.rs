@@ -1,6 +1,8 @@
 //! The C entry points of the `magnet` family: its released sampling configurations and
 //! `troupe_magnet_generate`.
 
+pub mod session;
+
 use std::ffi::{c_char, CStr};
 
 use crate::ffi::boundary::{
@@ -64,6 +66,22 @@ pub extern "C" fn troupe_magnet_options_size() -> usize {
     std::mem::size_of::<troupe_magnet_options>()
 }
 
+/// The options `troupe_magnet_options_init` writes: every field 0, "change nothing".
+fn no_changes(size: usize) -> troupe_magnet_options {
+    troupe_magnet_options {
+        struct_size: size as u32,
+        samples: 0,
+        steps: 0,
+        seq_len: 0,
+        flags: 0,
+        keyframe_count: 0,
+        seed: 0,
+        eta: 0.0,
+        reserved: 0,
+        keyframes: [0; TROUPE_MAGNET_MAX_KEYFRAMES],
+    }
+}
+
 /// Fills `options` with no changes (every field 0) and sets `struct_size`. Pass
 /// `sizeof(troupe_magnet_options)` as `options_size`: the library writes only that many bytes.
 ///
@@ -83,18 +101,7 @@ pub unsafe extern "C" fn troupe_magnet_options_init(
         || {
             non_null(options, "options")?;
             check_struct_size(options_size, OPTIONS_V1_SIZE, "troupe_magnet_options")?;
-            let empty = troupe_magnet_options {
-                struct_size: options_size as u32,
-                samples: 0,
-                steps: 0,
-                seq_len: 0,
-                flags: 0,
-                keyframe_count: 0,
-                seed: 0,
-                eta: 0.0,
-                reserved: 0,
-                keyframes: [0; TROUPE_MAGNET_MAX_KEYFRAMES],
-            };
+            let empty = no_changes(options_size);
             // SAFETY: writable for `options_size` bytes per the contract; no padding (asserted).
             unsafe { write_versioned(options, options_size, &empty) };
             Ok(())
@@ -108,7 +115,7 @@ pub unsafe extern "C" fn troupe_magnet_options_init(
 /// # Safety
 /// `model` must be NULL or a live handle.
 #[no_mangle]
-pub unsafe extern "C" fn troupe_model_magnet_people(model: Option<&troupe_model>) -> usize {
+pub unsafe extern "C" fn troupe_magnet_people(model: Option<&troupe_model>) -> usize {
     property(model, |m| m.magnet_spec().map_or(0, |s| s.model.persons))
 }
 
@@ -118,7 +125,7 @@ pub unsafe extern "C" fn troupe_model_magnet_people(model: Option<&troupe_model>
 /// # Safety
 /// `model` must be NULL or a live handle.
 #[no_mangle]
-pub unsafe extern "C" fn troupe_model_magnet_config_count(model: Option<&troupe_model>) -> usize {
+pub unsafe extern "C" fn troupe_magnet_config_count(model: Option<&troupe_model>) -> usize {
     model.map_or(0, |m| m.magnet_configs.len())
 }
 
@@ -129,7 +136,7 @@ pub unsafe extern "C" fn troupe_model_magnet_config_count(model: Option<&troupe_
 /// # Safety
 /// `model` must be NULL or a live handle.
 #[no_mangle]
-pub unsafe extern "C" fn troupe_model_magnet_config(
+pub unsafe extern "C" fn troupe_magnet_config(
     model: Option<&troupe_model>,
     index: usize,
 ) -> *const c_char {
@@ -159,6 +166,7 @@ unsafe fn read_options(options: *const troupe_magnet_options) -> FfiResult<Magne
         read_versioned(
             options,
             OPTIONS_V1_SIZE,
+            no_changes(OPTIONS_V1_SIZE),
             "troupe_magnet_options",
             "troupe_magnet_options_init",
         )
@@ -237,7 +245,7 @@ pub unsafe extern "C" fn troupe_magnet_output_shape(
     )
 }
 
-/// Runs the sampling configuration `config` (a name from `troupe_model_magnet_config`, or a
+/// Runs the sampling configuration `config` (a name from `troupe_magnet_config`, or a
 /// whole configuration as a JSON object with the fields of the manifest's `sampling` entries) on
 /// `frame_count` frames of troupe motion, row-major float32 `[frame_count][people][145]` (per
 /// person and frame: betas, the 21 body joints' 6-D rotations, the root's pose in the world, y

@@ -19,7 +19,7 @@ use crate::ffi::boundary::{
 };
 use crate::ffi::model::troupe_model;
 use crate::motion::features::encoded_frames;
-use crate::motion::quat::Quat;
+use crate::motion::rotation::Quat;
 use crate::motion::{
     decode_frame, encode_clip, joints_layout, FeatureStream, Handedness, JointsFormat, Placement,
     Pose, Skeleton, Units, UpAxis, T2M22_JOINTS,
@@ -303,6 +303,7 @@ pub(crate) unsafe fn read_format(format: *const troupe_joints_format) -> FfiResu
         read_versioned(
             format,
             FORMAT_V1_SIZE,
+            troupe_joints_format::from_rust(&JointsFormat::default(), FORMAT_V1_SIZE),
             "format",
             "troupe_joints_format_init",
         )
@@ -491,7 +492,7 @@ pub unsafe extern "C" fn troupe_motion_smplx145_positions(
 /// # Safety
 /// `first` and `second` readable for `n_frames * 66` floats; each non-NULL out-pointer writable.
 #[no_mangle]
-pub unsafe extern "C" fn troupe_penetration_metrics(
+pub unsafe extern "C" fn troupe_motion_penetration_metrics(
     first: *const f32,
     second: *const f32,
     n_frames: usize,
@@ -501,7 +502,7 @@ pub unsafe extern "C" fn troupe_penetration_metrics(
     max_depth: *mut f64,
 ) -> troupe_status {
     boundary::call(
-        "troupe_penetration_metrics",
+        "troupe_motion_penetration_metrics",
         || {},
         || {
             let n = checked_mul(n_frames, 3 * T2M22_JOINTS, "n_frames * 66")?;

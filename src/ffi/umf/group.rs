@@ -1,4 +1,4 @@
-//! `troupe_group_generate`: text-to-group generation with a `umf` bundle.
+//! `troupe_umf_generate`: text-to-group generation with a `umf` bundle.
 
 use crate::ffi::boundary::{
     self, check_struct_size, checked_mul, non_null, read_versioned, troupe_status, write_versioned,
@@ -15,7 +15,7 @@ pub const TROUPE_SOLVER_RK4: u32 = 2;
 /// The most pyramid stages `troupe_group_options` can describe.
 pub const TROUPE_MAX_STAGES: usize = 8;
 
-/// Options of `troupe_group_generate`. Fill with `troupe_group_options_init` (the bundle's
+/// Options of `troupe_umf_generate`. Fill with `troupe_umf_options_init` (the bundle's
 /// defaults), then change fields. Fields are only ever appended; `struct_size` tells the library
 /// which version the caller has.
 #[repr(C)]
@@ -23,7 +23,7 @@ pub const TROUPE_MAX_STAGES: usize = 8;
 pub struct troupe_group_options {
     /// `sizeof(troupe_group_options)` as the caller compiled it (set by `_init`).
     pub struct_size: u32,
-    /// Pyramid stages of the bundle; must equal `troupe_model_group_stages`.
+    /// Pyramid stages of the bundle; must equal `troupe_umf_stages`.
     pub stage_count: u32,
     /// Seed of the portable noise generator, for draws not given as `troupe_group_noise`.
     pub seed: u64,
@@ -63,7 +63,7 @@ pub struct troupe_group_noise {
 
 /// `sizeof(troupe_group_options)` in this library, for bindings to check their mirror.
 #[no_mangle]
-pub extern "C" fn troupe_group_options_size() -> usize {
+pub extern "C" fn troupe_umf_options_size() -> usize {
     std::mem::size_of::<troupe_group_options>()
 }
 
@@ -101,6 +101,36 @@ fn umf_model(model: Option<&troupe_model>) -> FfiResult<(&Model, &UmfSpec)> {
     Ok((model, spec))
 }
 
+/// The options `troupe_umf_options_init` writes: the bundle's solvers and CFG scale, seed 0.
+fn option_defaults(spec: &UmfSpec, size: usize) -> FfiResult<troupe_group_options> {
+    let stages = &spec.sampler.prior;
+    if stages.len() > TROUPE_MAX_STAGES {
+        return Err(FfiError::new(
+            TROUPE_ERR_INVALID_ARG,
+            format!(
+                "the bundle has {} stages; the C API describes at most {TROUPE_MAX_STAGES}",
+                stages.len()
+            ),
+        ));
+    }
+    let mut defaults = troupe_group_options {
+        struct_size: size as u32,
+        stage_count: stages.len() as u32,
+        seed: 0,
+        cfg_scale: spec.sampler.cfg_scale,
+        reaction_solver: solver_code(spec.sampler.reaction.method),
+        reaction_steps: spec.sampler.reaction.steps,
+        reserved: 0,
+        stage_solver: [0; TROUPE_MAX_STAGES],
+        stage_steps: [0; TROUPE_MAX_STAGES],
+    };
+    for (k, solver) in stages.iter().enumerate() {
+        defaults.stage_solver[k] = solver_code(solver.method);
+        defaults.stage_steps[k] = solver.steps;
+    }
+    Ok(defaults)
+}
+
 /// Fills `options` with the defaults of `model`'s bundle (solvers per stage and for further
 /// persons, CFG scale) and seed 0, and sets `struct_size`. Pass `sizeof(troupe_group_options)`
 /// as `options_size`: the library writes only that many bytes.
@@ -111,50 +141,26 @@ fn umf_model(model: Option<&troupe_model>) -> FfiResult<(&Model, &UmfSpec)> {
 ///
 /// ```c
 /// troupe_group_options opt;
-/// troupe_group_options_init(model, &opt, sizeof opt);
+/// troupe_umf_options_init(model, &opt, sizeof opt);
 /// opt.stage_solver[0] = TROUPE_SOLVER_EULER; opt.stage_steps[0] = 45;
 /// ```
 ///
 /// # Safety
 /// `model` must be a live handle; `options` must be writable for `options_size` bytes.
 #[no_mangle]
-pub unsafe extern "C" fn troupe_group_options_init(
+pub unsafe extern "C" fn troupe_umf_options_init(
     model: Option<&troupe_model>,
     options: *mut troupe_group_options,
     options_size: usize,
 ) -> troupe_status {
     boundary::call(
-        "troupe_group_options_init",
+        "troupe_umf_options_init",
         || {},
         || {
             non_null(options, "options")?;
             check_struct_size(options_size, OPTIONS_V1_SIZE, "troupe_group_options")?;
             let (_, spec) = umf_model(model)?;
-            let stages = &spec.sampler.prior;
-            if stages.len() > TROUPE_MAX_STAGES {
-                return Err(FfiError::new(
-                    TROUPE_ERR_INVALID_ARG,
-                    format!(
-                        "the bundle has {} stages; the C API describes at most {TROUPE_MAX_STAGES}",
-                        stages.len()
-                    ),
-                ));
-            }
-            let mut defaults = troupe_group_options {
-                struct_size: options_size as u32,
-                stage_count: stages.len() as u32,
-                seed: 0,
-                cfg_scale: spec.sampler.cfg_scale,
-                reaction_solver: solver_code(spec.sampler.reaction.method),
-                reaction_steps: spec.sampler.reaction.steps,
-                reserved: 0,
-                stage_solver: [0; TROUPE_MAX_STAGES],
-                stage_steps: [0; TROUPE_MAX_STAGES],
-            };
-            for (k, solver) in stages.iter().enumerate() {
-                defaults.stage_solver[k] = solver_code(solver.method);
-                defaults.stage_steps[k] = solver.steps;
-            }
+            let defaults = option_defaults(spec, options_size)?;
             // SAFETY: writable for `options_size` bytes per the contract; no padding (asserted).
             unsafe { write_versioned(options, options_size, &defaults) };
             Ok(())
@@ -167,7 +173,7 @@ pub unsafe extern "C" fn troupe_group_options_init(
 /// # Safety
 /// `model` must be NULL or a live handle.
 #[no_mangle]
-pub unsafe extern "C" fn troupe_model_group_stages(model: Option<&troupe_model>) -> usize {
+pub unsafe extern "C" fn troupe_umf_stages(model: Option<&troupe_model>) -> usize {
     property(model, |m| {
         m.umf_spec().map_or(0, |u| u.pyramid.stages.len())
     })
@@ -179,19 +185,8 @@ pub unsafe extern "C" fn troupe_model_group_stages(model: Option<&troupe_model>)
 /// # Safety
 /// `model` must be NULL or a live handle.
 #[no_mangle]
-pub unsafe extern "C" fn troupe_model_group_tokens(model: Option<&troupe_model>) -> usize {
+pub unsafe extern "C" fn troupe_umf_tokens(model: Option<&troupe_model>) -> usize {
     property(model, |m| m.umf_spec().map_or(0, |u| u.latent.tokens))
-}
-
-/// Frames of motion per clip (0 for other bundles or NULL): per person of
-/// `troupe_group_generate` (`[people][clip_frames][frame_dim]`) for a `umf` bundle, of
-/// `troupe_clip_generate` for an `armflow` bundle with an official clip. Thread-safe.
-///
-/// # Safety
-/// `model` must be NULL or a live handle.
-#[no_mangle]
-pub unsafe extern "C" fn troupe_model_clip_frames(model: Option<&troupe_model>) -> usize {
-    property(model, Model::clip_frames)
 }
 
 /// Writes the lengths, in floats, of the three arrays of a `troupe_group_noise` for `people`
@@ -203,7 +198,7 @@ pub unsafe extern "C" fn troupe_model_clip_frames(model: Option<&troupe_model>) 
 /// # Safety
 /// `model` must be a live handle; each non-NULL out-pointer writable.
 #[no_mangle]
-pub unsafe extern "C" fn troupe_group_noise_lengths(
+pub unsafe extern "C" fn troupe_umf_noise_lengths(
     model: Option<&troupe_model>,
     people: u32,
     prior_len: *mut usize,
@@ -211,7 +206,7 @@ pub unsafe extern "C" fn troupe_group_noise_lengths(
     reactions_len: *mut usize,
 ) -> troupe_status {
     boundary::call(
-        "troupe_group_noise_lengths",
+        "troupe_umf_noise_lengths",
         || {},
         || {
             let shape = umf_model(model)?.0.group_noise_shape(people as usize)?;
@@ -239,7 +234,7 @@ pub unsafe extern "C" fn troupe_group_noise_lengths(
 /// reaction text feature; NULL (with `condition_len` 0) is the bundle's null condition.
 /// `options` NULL means the bundle's defaults with seed 0. `noise` NULL draws every random value
 /// from `options->seed`; otherwise it supplies them all (lengths from
-/// `troupe_group_noise_lengths`). Inputs are borrowed for the call. Nothing is written unless
+/// `troupe_umf_noise_lengths`). Inputs are borrowed for the call. Nothing is written unless
 /// the call succeeds.
 ///
 /// Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (not a `umf` bundle,
@@ -251,7 +246,7 @@ pub unsafe extern "C" fn troupe_group_noise_lengths(
 /// ```c
 /// size_t n = 2 * troupe_model_clip_frames(model) * troupe_model_frame_dim(model);
 /// float *motion = malloc(n * sizeof *motion);
-/// troupe_status st = troupe_group_generate(model, NULL, text, text_len, 2, NULL,
+/// troupe_status st = troupe_umf_generate(model, NULL, text, text_len, 2, NULL,
 ///                                          motion, n, NULL, 0);
 /// ```
 ///
@@ -262,7 +257,7 @@ pub unsafe extern "C" fn troupe_group_noise_lengths(
 /// `latents` (if not NULL) for `latents_capacity`, neither overlapping an input.
 #[no_mangle]
 #[allow(clippy::too_many_arguments)]
-pub unsafe extern "C" fn troupe_group_generate(
+pub unsafe extern "C" fn troupe_umf_generate(
     model: Option<&troupe_model>,
     options: *const troupe_group_options,
     condition: *const f32,
@@ -275,7 +270,7 @@ pub unsafe extern "C" fn troupe_group_generate(
     latents_capacity: usize,
 ) -> troupe_status {
     boundary::call(
-        "troupe_group_generate",
+        "troupe_umf_generate",
         || {},
         || {
             let (model, spec) = umf_model(model)?;
@@ -284,7 +279,7 @@ pub unsafe extern "C" fn troupe_group_generate(
                 GroupOptions::default()
             } else {
                 // SAFETY: readable per the contract.
-                unsafe { read_group_options(options) }?
+                unsafe { read_group_options(spec, options) }?
             };
             // SAFETY: readable for `condition_len` floats per the contract.
             let condition = unsafe { optional_condition(model, condition, condition_len) }?;
@@ -328,14 +323,19 @@ pub unsafe extern "C" fn troupe_group_generate(
 
 /// # Safety
 /// `options` must be readable for its `struct_size` bytes.
-unsafe fn read_group_options(options: *const troupe_group_options) -> FfiResult<GroupOptions> {
+unsafe fn read_group_options(
+    spec: &UmfSpec,
+    options: *const troupe_group_options,
+) -> FfiResult<GroupOptions> {
+    let defaults = option_defaults(spec, OPTIONS_V1_SIZE)?;
     // SAFETY: forwarded contract.
     let o = unsafe {
         read_versioned(
             options,
             OPTIONS_V1_SIZE,
+            defaults,
             "options",
-            "troupe_group_options_init",
+            "troupe_umf_options_init",
         )
     }?;
     if o.reserved != 0 {

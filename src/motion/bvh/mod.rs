@@ -21,7 +21,8 @@ pub use write::{write_bvh, write_bvh_file, BvhPerson, BvhWriteOptions};
 use ndarray::{s, Array3};
 
 use crate::motion::joint_map::JointMap;
-use crate::motion::quat::{add, Quat, Vec3};
+use crate::motion::rotation::Quat;
+use crate::motion::vec3::{add, Vec3};
 use crate::motion::world::{JointsFormat, Units};
 use crate::shared::error::{Error, Result};
 

@@ -4,8 +4,9 @@
 use std::fmt::Write as _;
 
 use crate::motion::ik::inverse_kinematics;
-use crate::motion::quat::{norm, normalize, scale, Quat, Vec3};
+use crate::motion::rotation::Quat;
 use crate::motion::skeleton::Skeleton;
+use crate::motion::vec3::{norm, normalize, scale, Vec3};
 use crate::motion::world::{Units, FPS_RANGE};
 use crate::shared::error::{Error, Result};
 
