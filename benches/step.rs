@@ -9,14 +9,15 @@
 //! - `load`: `Model::load` plus a first session.
 //! - `step/history_H`: one full token (4 new actor frames in, 4 reactor frames out) with `H`
 //!   tokens in the context cache (capacity `H + 1`, so the cache stays at H as the stream runs).
-//! - `sessions_step/N`: one round of `step_sessions` over N sessions at history 10, one token
+//! - `sessions_step/N`: one round of `step_reactors` over N sessions at history 10, one token
 //!   each; compare with N times `step/history_10`.
 
 use std::hint::black_box;
 use std::path::PathBuf;
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
-use troupe::{step_sessions, Model, Session, SessionOptions};
+use troupe::armflow::step_reactors;
+use troupe::{Model, Reactor, ReactorOptions};
 
 #[path = "../examples/common/mod.rs"]
 mod common;
@@ -29,9 +30,11 @@ fn bundle() -> PathBuf {
 }
 
 /// A session warmed to `history` tokens with capacity `history + 1`.
-fn warm_session(model: &Model, history: usize, seed: u64) -> Session {
+fn warm_session(model: &Model, history: usize, seed: u64) -> Reactor {
     let mut session = model
-        .session(SessionOptions {
+        .armflow()
+        .unwrap()
+        .reactor(ReactorOptions {
             seed,
             context_capacity: Some(history + 1),
             ..Default::default()
@@ -52,7 +55,12 @@ fn benches(c: &mut Criterion) {
     c.bench_function("load", |b| {
         b.iter(|| {
             let m = Model::load(&path).expect("load");
-            black_box(m.session(SessionOptions::default()).expect("session"))
+            black_box(
+                m.armflow()
+                    .unwrap()
+                    .reactor(ReactorOptions::default())
+                    .expect("session"),
+            )
         })
     });
 
@@ -68,13 +76,13 @@ fn benches(c: &mut Criterion) {
 
     let mut group = c.benchmark_group("sessions_step");
     for n in [1, 8, 32] {
-        let mut sessions: Vec<Session> = (0..n).map(|i| warm_session(&model, 10, i)).collect();
+        let mut sessions: Vec<Reactor> = (0..n).map(|i| warm_session(&model, 10, i)).collect();
         let chunks = vec![token; n as usize];
         group.throughput(Throughput::Elements(n));
         group.bench_function(BenchmarkId::from_parameter(n), |b| {
             b.iter(|| {
-                let mut refs: Vec<&mut Session> = sessions.iter_mut().collect();
-                black_box(step_sessions(&mut refs, &chunks).expect("batched step"))
+                let mut refs: Vec<&mut Reactor> = sessions.iter_mut().collect();
+                black_box(step_reactors(&mut refs, &chunks).expect("batched step"))
             })
         });
     }

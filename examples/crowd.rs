@@ -1,6 +1,6 @@
 //! A crowd: many reactor streams of one model, each fed a 30 fps actor, and whether the machine
-//! keeps them all in real time. Runs the sessions batched (`step_sessions`: one network call per
-//! graph for all of them) or one by one (`Session::step` each), on one or more threads.
+//! keeps them all in real time. Runs the sessions batched (`step_reactors`: one network call per
+//! graph for all of them) or one by one (`Reactor::step` each), on one or more threads.
 //!
 //!     cargo run --release --example crowd -- --bundle onnx/bundles/paper --sessions 8,32,64 --history 100
 //!
@@ -9,13 +9,14 @@
 //! worth of new actor frames (4 frames, 133 ms of motion at 30 fps) and collects its reactor
 //! frames. The crowd is in real time when a round's p99 fits in that 133 ms. With `--threads T`
 //! the crowd is split into T equal parts stepped on T threads. Also reported: the memory a
-//! session holds (`Session::memory_bytes`, the largest in the crowd) and the RSS growth from
+//! session holds (`Reactor::memory_bytes`, the largest in the crowd) and the RSS growth from
 //! creating and warming the crowd divided by N (Linux; it includes allocator slack and what the
 //! warm-up's batched calls left behind, so it is an upper bound).
 
 use std::time::Instant;
 
-use troupe::{step_sessions, Model, Session, SessionOptions};
+use troupe::armflow::step_reactors;
+use troupe::{Model, Reactor, ReactorOptions};
 
 mod common;
 use common::{percentile, synthetic_actor};
@@ -103,15 +104,15 @@ fn rss_bytes() -> u64 {
 }
 
 /// One round: every session gets `chunk`; the crowd is split over `threads` threads.
-fn round(sessions: &mut [Session], chunk: &[f32], mode: Mode, threads: usize) {
+fn round(sessions: &mut [Reactor], chunk: &[f32], mode: Mode, threads: usize) {
     let part = sessions.len().div_ceil(threads);
     std::thread::scope(|scope| {
         for group in sessions.chunks_mut(part) {
             scope.spawn(move || match mode {
                 Mode::Batched => {
-                    let mut refs: Vec<&mut Session> = group.iter_mut().collect();
+                    let mut refs: Vec<&mut Reactor> = group.iter_mut().collect();
                     let chunks = vec![chunk; refs.len()];
-                    step_sessions(&mut refs, &chunks).expect("batched step");
+                    step_reactors(&mut refs, &chunks).expect("batched step");
                 }
                 Mode::Alone => {
                     for s in group {
@@ -142,9 +143,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut best = vec![0usize; args.modes.len()];
     for &n in &args.sessions {
         let before = rss_bytes();
-        let mut sessions: Vec<Session> = (0..n)
+        let mut sessions: Vec<Reactor> = (0..n)
             .map(|i| {
-                model.session(SessionOptions {
+                model.armflow()?.reactor(ReactorOptions {
                     seed: i as u64,
                     ..Default::default()
                 })
@@ -153,13 +154,13 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let warm = &clip[..args.history * fpt * dim];
         for group in sessions.chunks_mut(64) {
             let chunks = vec![warm; group.len()];
-            let mut refs: Vec<&mut Session> = group.iter_mut().collect();
-            step_sessions(&mut refs, &chunks)?;
+            let mut refs: Vec<&mut Reactor> = group.iter_mut().collect();
+            step_reactors(&mut refs, &chunks)?;
         }
         let per_session_mb = (rss_bytes().saturating_sub(before)) as f64 / n as f64 / 1e6;
         let held_mb = sessions
             .iter()
-            .map(Session::memory_bytes)
+            .map(Reactor::memory_bytes)
             .max()
             .unwrap_or(0) as f64
             / 1e6;

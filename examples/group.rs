@@ -93,9 +93,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         None => None,
     };
     let condition = condition.as_ref().map(|c| c.to_vec());
-    let spec = model
-        .umf_spec()
-        .ok_or("this demo needs a `umf` bundle (see onnx/README.md)")?;
+    // An `armflow` or `magnet` bundle is refused here, naming the family it is.
+    let umf = model.umf()?;
+    let spec = umf.spec();
     let prior = args
         .options
         .prior
@@ -114,11 +114,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     );
 
     // One untimed generation (first-call allocations), then the timed runs.
-    let mut group = model.generate_group(condition.as_deref(), args.people, &args.options)?;
+    let mut group = umf.generate_group(condition.as_deref(), args.people, &args.options)?;
     let mut times = Vec::with_capacity(args.runs);
     for _ in 0..args.runs {
         let t = Instant::now();
-        group = model.generate_group(condition.as_deref(), args.people, &args.options)?;
+        group = umf.generate_group(condition.as_deref(), args.people, &args.options)?;
         times.push(t.elapsed().as_secs_f64() * 1e3);
     }
     times.sort_by(f64::total_cmp);

@@ -29,7 +29,7 @@ use ndarray::{s, Array2, Array3, Axis};
 use ndarray_npy::{read_npy, write_npy};
 use troupe::motion::{smplx145_positions, Skeleton};
 use troupe::viewer::Scene;
-use troupe::{MagnetOptions, Model, SessionOptions};
+use troupe::{MagnetOptions, Model, PartnerOptions};
 
 struct Args {
     bundle: String,
@@ -130,9 +130,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let started = Instant::now();
     let model = Model::load(&args.bundle)?;
     let load_ms = started.elapsed().as_secs_f64() * 1e3;
-    let spec = model
-        .magnet_spec()
-        .ok_or("this demo needs a `magnet` bundle (see onnx/README.md)")?;
+    // Another family's bundle is refused here, naming the family it is.
+    let magnet = model.magnet()?;
+    let spec = magnet.spec();
     let people = spec.model.persons;
     println!(
         "bundle `{}` loaded in {load_ms:.0} ms: {people} people, configurations {}",
@@ -160,7 +160,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     if args.live {
         return live(&model, &args, frames);
     }
-    let shape = model.magnet_output_shape(&args.config, frames.shape()[0], &args.options)?;
+    let shape = magnet.output_shape(&args.config, frames.shape()[0], &args.options)?;
     println!(
         "running `{}` on {} input frames: {} samples x {} frames x {} people",
         args.config,
@@ -170,7 +170,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         shape[2]
     );
     let t = Instant::now();
-    let out = model.magnet_generate(&args.config, frames.view(), None, &args.options)?;
+    let out = magnet.generate(&args.config, frames.view(), None, &args.options)?;
     let seconds = t.elapsed().as_secs_f64();
     let finite = out.frames.iter().all(|v| v.is_finite());
     println!(
@@ -196,20 +196,21 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
 /// The live partner: the clip's person 0 streams in as the user, frame by frame, as an engine
 /// would feed it; the partner's frames come out chunk by chunk.
 fn live(model: &Model, args: &Args, frames: Array3<f32>) -> Result<(), Box<dyn std::error::Error>> {
-    let mut options = SessionOptions {
+    let magnet = model.magnet()?;
+    let mut options = PartnerOptions {
         seed: args.options.seed.unwrap_or(1111),
         steps: args.options.steps.map(|s| s as u32),
         early_emission: args.early,
         ..Default::default()
     };
     if args.options.without_x0_guidance {
-        let mut cfg = model.magnet_live_configuration()?;
+        let mut cfg = magnet.live_configuration()?;
         cfg.guidance.smoothing = None;
         cfg.guidance.foot_skating = None;
         options.live_config = Some(serde_json::to_string(&cfg)?);
     }
-    let context = model.magnet_live_configuration()?.context_len;
-    options.partner_opening = Some(frames.slice(s![..context, 1, ..]).iter().copied().collect());
+    let context = magnet.live_configuration()?.context_len;
+    options.opening = Some(frames.slice(s![..context, 1, ..]).iter().copied().collect());
     let mut session = model.session(options)?;
     println!(
         "live partner: {} user frames in, algorithmic latency {} frames",

@@ -12,7 +12,7 @@
 use std::error::Error;
 
 use ndarray::Array2;
-use troupe::{Model, SessionOptions, TokenTrace};
+use troupe::{Model, ReactorOptions, TokenTrace};
 
 mod common;
 
@@ -46,7 +46,7 @@ fn main() -> Result<(), Box<dyn Error>> {
         _ => common::synthetic_actor(frames, full.frame_dim()),
     };
     let run = |model: &Model| -> Result<(Vec<f32>, Vec<TokenTrace>), troupe::Error> {
-        let mut s = model.session(SessionOptions {
+        let mut s = model.armflow()?.reactor(ReactorOptions {
             seed,
             ..Default::default()
         })?;

@@ -41,7 +41,7 @@ use troupe::motion::{
     decode_frame, JointMap, JointsFormat, Placement, Pose, Units, UpAxis, T2M22_JOINTS,
 };
 use troupe::viewer::{GifOptions, Scene};
-use troupe::{Model, SessionOptions};
+use troupe::{Model, ReactorOptions};
 
 mod common;
 use common::{percentile, synthetic_actor};
@@ -64,7 +64,7 @@ struct Args {
     tick: usize,
     out: PathBuf,
     pictures: bool,
-    options: SessionOptions,
+    options: ReactorOptions,
     warmup_tokens: u64,
 }
 
@@ -85,7 +85,7 @@ fn parse_args() -> Result<Args, String> {
         tick: 1,
         out: "reactor.npy".into(),
         pictures: true,
-        options: SessionOptions::default(),
+        options: ReactorOptions::default(),
         warmup_tokens: 0,
     };
     let mut it = std::env::args().skip(1);
@@ -240,7 +240,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     if let Some(rule) = &rule {
         args.options.condition = Some(model.condition_for(rule)?);
     }
-    let mut session = model.session(args.options.clone())?;
+    let mut session = model.armflow()?.reactor(args.options.clone())?;
     let load_ms = t0.elapsed().as_secs_f64() * 1e3;
     println!(
         "bundle {} ({}): {} features at {} fps, {} frames per token, latency {} frames ({} from joint positions); loaded in {load_ms:.0} ms",

@@ -2143,9 +2143,9 @@ troupe_status troupe_arflow_generate(const struct troupe_model *model, const str
  * Sets an ARFlow stream's sampler settings (`options`, filled by `troupe_arflow_options_init`;
  * its seed too); a new step count only before the first frame or after `troupe_session_reset`.
  *
- * Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (not an ARFlow stream,
- * settings out of range, unknown flags), `TROUPE_ERR_POISONED`, `TROUPE_ERR_PANIC`. One thread
- * at a time per session.
+ * Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (settings out of range,
+ * unknown flags), `TROUPE_ERR_UNSUPPORTED` (not an ARFlow stream), `TROUPE_ERR_POISONED`,
+ * `TROUPE_ERR_PANIC`. One thread at a time per session.
  *
  * # Safety
  * `session` must be a live handle; `options` readable for its `struct_size`.

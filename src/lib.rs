@@ -46,32 +46,32 @@ pub mod magnet;
 pub mod manifest;
 mod model;
 pub mod motion;
-mod session;
 pub(crate) mod shared;
 pub mod umf;
 pub mod viewer;
 
 // `clip`, `noise`, `solver` and `pyramid` keep the public paths they had before the family
 // folders (`troupe::noise::fill_normals`, ...).
-pub use arflow::ArflowOptions;
+pub use arflow::{Arflow, ArflowOptions};
 pub use armflow::clip;
 pub use armflow::{
-    meanflow_grid, Clip, ClipNoise, ClipOptions, PenetrationGuard, StepOutput, TokenNoise,
-    TokenTrace,
+    meanflow_grid, Armflow, Clip, ClipNoise, ClipOptions, PenetrationGuard, Reactor,
+    ReactorOptions, TokenNoise,
 };
-pub use magnet::{MagnetOptions, MagnetOutput};
+pub use magnet::{LivePartner, Magnet, MagnetOptions, MagnetOutput, PartnerOptions};
 pub use manifest::{ActorLatent, ConditionLabel, Manifest, Weights};
 pub use model::Model;
-pub use session::{step_sessions, step_sessions_joints, Session, SessionOptions};
 pub use shared::error::{Error, Result};
+pub use shared::family::{SessionOptions, StreamOptions};
 pub use shared::limits::{Limits, LIMITS};
 pub use shared::noise;
 pub use shared::progress::with_progress;
 pub use shared::solver::{self, Method, Solver};
+pub use shared::stream::{step_sessions, Session, StepOutput, TokenTrace};
 pub use shared::text::tokenizer::ClipTokenizer;
 pub use shared::threads::{compute_threads, load_threads, set_compute_threads, set_load_threads};
 pub use umf::pyramid;
 pub use umf::{
-    Group, GroupNoise, GroupNoiseShape, GroupOptions, MAX_PEOPLE, STREAM_JUMP_NOISE,
+    Group, GroupNoise, GroupNoiseShape, GroupOptions, Umf, MAX_PEOPLE, STREAM_JUMP_NOISE,
     STREAM_PRIOR_NOISE, STREAM_REACTION_NOISE,
 };

@@ -70,12 +70,12 @@ pub struct Manifest {
 pub enum Family {
     /// ARMFlow: online reaction, streamed token by token ([`crate::Session`]).
     Armflow(Box<ArmFlowSpec>),
-    /// UMF: text-to-group generation ([`crate::Model::generate_group`]).
+    /// UMF: text-to-group generation ([`crate::Umf::generate_group`]).
     Umf(Box<UmfSpec>),
-    /// MAGNet: multi-agent diffusion forcing ([`crate::Model::magnet_generate`]).
+    /// MAGNet: multi-agent diffusion forcing ([`crate::Magnet::generate`]).
     Magnet(Box<MagnetSpec>),
     /// ARFlow: action-to-reaction flow with penetration guidance
-    /// ([`crate::Model::arflow_generate`]).
+    /// ([`crate::Arflow::generate`]).
     Arflow(Box<ArflowSpec>),
 }
 

@@ -62,7 +62,11 @@ fn every_case_matches_the_reference_offline_and_online() {
         let actor: Array2<f32> = read_npy(golden.join("actor.npy")).unwrap();
         for case in ["euler", "guided", "stochastic"] {
             let spec = &cases(name)[case];
-            let got = model.arflow_generate(actor.view(), &options(spec)).unwrap();
+            let got = model
+                .arflow()
+                .unwrap()
+                .generate(actor.view(), &options(spec))
+                .unwrap();
             let want: Array2<f32> = read_npy(golden.join(format!("{case}_reactor.npy"))).unwrap();
             assert_eq!(got.dim(), want.dim());
             let (got, want) = (got.as_slice().unwrap(), want.as_slice().unwrap());
@@ -133,7 +137,7 @@ fn the_penetration_gradient_equals_the_references_autograd() {
     }
     // The same in the sampler's normalised feature space.
     let model = Model::load(bundle("arflow-tiny")).unwrap();
-    let norm = &model.arflow_spec().unwrap().normalizer;
+    let norm = &model.arflow().unwrap().spec().normalizer;
     let x1: Array2<f32> = read_npy(golden.join("guidance_x1.npy")).unwrap();
     let want: Array2<f64> = read_npy(golden.join("guidance_gradient.npy")).unwrap();
     let loss = PenetrationLoss {
@@ -162,9 +166,15 @@ fn the_online_variant_is_causal_and_the_offline_one_is_not() {
     for (name, causal) in [("arflow-tiny-online", true), ("arflow-tiny", false)] {
         let model = Model::load(bundle(name)).unwrap();
         for (what, options, bound) in [("euler", &euler, 1e-5), ("guided", &guided, 1e-4)] {
-            let full = model.arflow_generate(actor.view(), options).unwrap();
+            let full = model
+                .arflow()
+                .unwrap()
+                .generate(actor.view(), options)
+                .unwrap();
             let head = model
-                .arflow_generate(actor.slice(s![..25, ..]), options)
+                .arflow()
+                .unwrap()
+                .generate(actor.slice(s![..25, ..]), options)
                 .unwrap();
             let err = relative_error(
                 head.as_standard_layout().as_slice().unwrap(),
@@ -200,16 +210,31 @@ fn bad_input_is_refused() {
     let model = Model::load(bundle("arflow-tiny")).unwrap();
     let actor: Array2<f32> = read_npy(bundle("arflow-tiny").join("golden/actor.npy")).unwrap();
     let o = ArflowOptions::default();
-    refused(model.arflow_generate(actor.slice(s![.., ..261]), &o), "262");
     refused(
-        model.arflow_generate(actor.slice(s![..0, ..]), &o),
+        model
+            .arflow()
+            .unwrap()
+            .generate(actor.slice(s![.., ..261]), &o),
+        "262",
+    );
+    refused(
+        model
+            .arflow()
+            .unwrap()
+            .generate(actor.slice(s![..0, ..]), &o),
         "0 actor frames",
     );
     let long = Array2::<f32>::zeros((257, 262));
-    refused(model.arflow_generate(long.view(), &o), "1 to 256");
+    refused(
+        model.arflow().unwrap().generate(long.view(), &o),
+        "1 to 256",
+    );
     let mut nan = actor.clone();
     nan[[3, 7]] = f32::NAN;
-    refused(model.arflow_generate(nan.view(), &o), "non-finite");
+    refused(
+        model.arflow().unwrap().generate(nan.view(), &o),
+        "non-finite",
+    );
     for (bad, needle) in [
         (
             ArflowOptions {
@@ -254,13 +279,10 @@ fn bad_input_is_refused() {
             "σ",
         ),
     ] {
-        refused(model.arflow_generate(actor.view(), &bad), needle);
+        refused(model.arflow().unwrap().generate(actor.view(), &bad), needle);
     }
     let armflow = Model::load(bundle("armflow-tiny")).unwrap();
-    refused(
-        armflow.arflow_generate(actor.view(), &o),
-        "needs an `arflow` bundle",
-    );
+    refused(armflow.arflow(), "needs an `arflow` bundle");
     refused(model.session(SessionOptions::default()), "does not stream");
 }
 
@@ -287,13 +309,7 @@ fn the_online_stream_equals_the_whole_clip_frame_by_frame() {
     for case in ["euler", "guided"] {
         let spec = &cases(name)[case];
         let options = options(spec);
-        let mut session = model
-            .session(SessionOptions {
-                seed: options.seed,
-                arflow: Some(options.clone()),
-                ..Default::default()
-            })
-            .unwrap();
+        let mut session = model.session(options.clone()).unwrap();
         assert_eq!((session.family(), session.latency_frames()), ("arflow", 0));
         let want: Array2<f32> = read_npy(golden.join(format!("{case}_reactor.npy"))).unwrap();
         for chunk in [1, 7, 40] {
@@ -316,12 +332,9 @@ fn a_crowd_of_arflow_streams_equals_each_alone() {
     let actor: Array2<f32> = read_npy(bundle(name).join("golden/actor.npy")).unwrap();
     let make = |seed: u64, eta: f32| {
         model
-            .session(SessionOptions {
+            .session(ArflowOptions {
                 seed,
-                arflow: Some(ArflowOptions {
-                    eta: Some(eta),
-                    ..Default::default()
-                }),
+                eta: Some(eta),
                 ..Default::default()
             })
             .unwrap()
@@ -370,18 +383,12 @@ fn arflow_streams_refuse_what_they_cannot_do() {
     let actor: Array2<f32> =
         read_npy(bundle("arflow-tiny-online").join("golden/actor.npy")).unwrap();
     refused(
-        model.session(SessionOptions {
-            cfg_scale: Some(2.0),
-            ..Default::default()
-        }),
-        "CFG",
+        model.session(troupe::ReactorOptions::default()),
+        "needs an `armflow` bundle",
     );
     refused(
-        model.session(SessionOptions {
-            arflow: Some(ArflowOptions {
-                weight: Some(3.0),
-                ..Default::default()
-            }),
+        model.session(ArflowOptions {
+            weight: Some(3.0),
             ..Default::default()
         }),
         "weight",
@@ -392,10 +399,7 @@ fn arflow_streams_refuse_what_they_cannot_do() {
     bad[[1, 9]] = f32::NAN;
     refused(s.step(bad.view()), "non-finite");
     refused(s.set_steps(3), "step count");
-    refused(
-        s.set_penetration_guard(Some(troupe::PenetrationGuard::default())),
-        "armflow",
-    );
+    refused(s.family_mut::<troupe::Reactor>(), "`arflow` model");
     assert_eq!(s.frames_received(), 3, "refused calls change nothing");
     // The position encoding's end (256 frames for the tiny bundle).
     let long = Array2::<f32>::from_shape_fn((254, 262), |(n, i)| actor[[n % 40, i]]);

@@ -1,40 +1,41 @@
-//! Many sessions stepped in one call (`step_sessions`) give what each session gives alone, and
+//! Many sessions stepped in one call (`step_reactors`) give what each session gives alone, and
 //! a bad batch changes no session.
 
 mod common;
 
 use common::*;
 use ndarray::s;
-use troupe::{step_sessions, ActorLatent, Model, Session, SessionOptions, StepOutput};
+use troupe::armflow::step_reactors;
+use troupe::{ActorLatent, Model, Reactor, ReactorOptions, StepOutput};
 
 /// Sessions that differ in every setting a batch must keep apart: seed, steps, CFG (so some
 /// rows come in pairs), condition, a small capacity (evicting while others do not, so histories
 /// of unequal length share a batch), the posterior mean, and the VAE windows path.
-fn varied_sessions() -> Vec<Session> {
+fn varied_sessions() -> Vec<Reactor> {
     let condition: Vec<f32> = (0..model().condition_dim())
         .map(|i| (i as f32 * 0.37).sin())
         .collect();
     let options = [
         default_options(),
-        SessionOptions {
+        ReactorOptions {
             seed: 5,
             steps: Some(2),
             cfg_scale: Some(2.5),
             ..Default::default()
         },
-        SessionOptions {
+        ReactorOptions {
             seed: 6,
             condition: Some(condition),
             context_capacity: Some(5),
             ..Default::default()
         },
-        SessionOptions {
+        ReactorOptions {
             seed: 7,
             steps: Some(3),
             actor_latent: Some(ActorLatent::Mean),
             ..Default::default()
         },
-        SessionOptions {
+        ReactorOptions {
             seed: 8,
             vae_windows: true,
             cfg_scale: Some(1.5),
@@ -43,7 +44,7 @@ fn varied_sessions() -> Vec<Session> {
     ];
     options
         .into_iter()
-        .map(|o| model().session(o).unwrap())
+        .map(|o| model().armflow().unwrap().reactor(o).unwrap())
         .collect()
 }
 
@@ -87,8 +88,8 @@ fn batched_step_equals_stepping_each_session_alone() {
             .map(|&(a, b)| actor.slice(s![a..b, ..]).iter().copied().collect())
             .collect();
         let views: Vec<&[f32]> = chunks.iter().map(Vec::as_slice).collect();
-        let mut refs: Vec<&mut Session> = together.iter_mut().collect();
-        let batched = step_sessions(&mut refs, &views).unwrap();
+        let mut refs: Vec<&mut Reactor> = together.iter_mut().collect();
+        let batched = step_reactors(&mut refs, &views).unwrap();
         for (i, out) in batched.iter().enumerate() {
             let single = alone[i].step_flat(views[i]).unwrap();
             assert_eq!(
@@ -124,30 +125,34 @@ fn a_bad_batch_changes_no_session() {
     let mut twins = varied_sessions();
     let warm: Vec<f32> = actor.slice(s![..10, ..]).iter().copied().collect();
     {
-        let mut refs: Vec<&mut Session> = sessions.iter_mut().collect();
-        step_sessions(&mut refs, &[warm.as_slice(); 5]).unwrap();
-        let mut refs: Vec<&mut Session> = twins.iter_mut().collect();
-        step_sessions(&mut refs, &[warm.as_slice(); 5]).unwrap();
+        let mut refs: Vec<&mut Reactor> = sessions.iter_mut().collect();
+        step_reactors(&mut refs, &[warm.as_slice(); 5]).unwrap();
+        let mut refs: Vec<&mut Reactor> = twins.iter_mut().collect();
+        step_reactors(&mut refs, &[warm.as_slice(); 5]).unwrap();
     }
     let good: Vec<f32> = actor.slice(s![10..14, ..]).iter().copied().collect();
     let mut nan = good.clone();
     nan[7] = f32::NAN;
     let short = &good[..good.len() - 1];
     let other_model = Model::load(bundle_dir()).unwrap();
-    let mut stranger = other_model.session(default_options()).unwrap();
+    let mut stranger = other_model
+        .armflow()
+        .unwrap()
+        .reactor(default_options())
+        .unwrap();
 
-    let mut refs: Vec<&mut Session> = sessions.iter_mut().collect();
+    let mut refs: Vec<&mut Reactor> = sessions.iter_mut().collect();
     let bad_chunks: [(Vec<&[f32]>, &str); 3] = [
         (vec![&good, &good, &nan, &good, &good], "session 2: "),
         (vec![&good, &good, &good, short, &good], "session 3: "),
         (vec![&good; 4], "5 sessions but 4 chunks"),
     ];
     for (chunks, expected) in bad_chunks {
-        let err = step_sessions(&mut refs, &chunks).unwrap_err().to_string();
+        let err = step_reactors(&mut refs, &chunks).unwrap_err().to_string();
         assert!(err.contains(expected), "{err}");
     }
     refs.push(&mut stranger);
-    let err = step_sessions(&mut refs, &[good.as_slice(); 6])
+    let err = step_reactors(&mut refs, &[good.as_slice(); 6])
         .unwrap_err()
         .to_string();
     assert!(err.contains("session 5 runs another model"), "{err}");
@@ -160,5 +165,5 @@ fn a_bad_batch_changes_no_session() {
         let (x, y) = (a.step_flat(&rest).unwrap(), b.step_flat(&rest).unwrap());
         assert_eq!(x.frames, y.frames);
     }
-    assert!(step_sessions(&mut [], &[]).unwrap().is_empty());
+    assert!(step_reactors(&mut [], &[]).unwrap().is_empty());
 }

@@ -7,7 +7,8 @@
 mod common;
 
 use common::*;
-use troupe::{step_sessions, Model, Session, SessionOptions};
+use troupe::armflow::step_reactors;
+use troupe::{Model, Reactor, ReactorOptions};
 
 /// The tiny bundle with the context step it had before the runtime owned the cache
 /// (`present_*` outputs, `[B, heads, P+S, head_dim]`; same weights), and its manifest as then.
@@ -36,8 +37,8 @@ fn whole_cache_bundle() -> tempfile::TempDir {
     dir
 }
 
-fn options(seed: u64, capacity: Option<usize>) -> SessionOptions {
-    SessionOptions {
+fn options(seed: u64, capacity: Option<usize>) -> ReactorOptions {
+    ReactorOptions {
         seed,
         context_capacity: capacity,
         ..Default::default()
@@ -45,7 +46,7 @@ fn options(seed: u64, capacity: Option<usize>) -> SessionOptions {
 }
 
 /// Frames and contexts of a stream over the golden actor clip, in chunks of 7 frames.
-fn stream(session: &mut Session) -> (Vec<f32>, Vec<f32>) {
+fn stream(session: &mut Reactor) -> (Vec<f32>, Vec<f32>) {
     let (frames, tokens) = run_chunked(session, &actor(), 7);
     (frames, tokens.into_iter().flat_map(|t| t.context).collect())
 }
@@ -58,8 +59,20 @@ fn bundles_whose_step_returns_the_whole_cache_stream_as_before() {
     // Unbounded, and small enough that the ring wraps many times over the clip's 48 tokens.
     for capacity in [None, Some(5), Some(2)] {
         let (a, b) = (
-            stream(&mut old.session(options(3, capacity)).unwrap()),
-            stream(&mut new.session(options(3, capacity)).unwrap()),
+            stream(
+                &mut old
+                    .armflow()
+                    .unwrap()
+                    .reactor(options(3, capacity))
+                    .unwrap(),
+            ),
+            stream(
+                &mut new
+                    .armflow()
+                    .unwrap()
+                    .reactor(options(3, capacity))
+                    .unwrap(),
+            ),
         );
         let (frames, contexts) = (max_abs_diff(&a.0, &b.0), max_abs_diff(&a.1, &b.1));
         println!("capacity {capacity:?}: frames {frames:.2e}, contexts {contexts:.2e}");
@@ -68,23 +81,28 @@ fn bundles_whose_step_returns_the_whole_cache_stream_as_before() {
     // Batched: caches of different sizes padded into one call, new entries taken from the end
     // of each padded row.
     let capacities = [Some(3), None, Some(7)];
-    let mut old_sessions: Vec<Session> = capacities
+    let mut old_sessions: Vec<Reactor> = capacities
         .iter()
-        .map(|&c| old.session(options(9, c)).unwrap())
+        .map(|&c| old.armflow().unwrap().reactor(options(9, c)).unwrap())
         .collect();
     let actor = actor();
     let flat = actor.as_slice().unwrap();
     let chunk = 12 * new.frame_dim();
     let mut batched = vec![Vec::new(); capacities.len()];
     for part in flat.chunks(chunk) {
-        let mut refs: Vec<&mut Session> = old_sessions.iter_mut().collect();
-        let outs = step_sessions(&mut refs, &vec![part; capacities.len()]).unwrap();
+        let mut refs: Vec<&mut Reactor> = old_sessions.iter_mut().collect();
+        let outs = step_reactors(&mut refs, &vec![part; capacities.len()]).unwrap();
         for (all, out) in batched.iter_mut().zip(outs) {
             all.extend(out.frames.iter().copied());
         }
     }
     for (i, &c) in capacities.iter().enumerate() {
-        let alone = run_chunked(&mut new.session(options(9, c)).unwrap(), &actor, 12).0;
+        let alone = run_chunked(
+            &mut new.armflow().unwrap().reactor(options(9, c)).unwrap(),
+            &actor,
+            12,
+        )
+        .0;
         let diff = max_abs_diff(&batched[i], &alone);
         assert!(diff <= 1e-5, "session {i}: {diff}");
     }
@@ -92,7 +110,11 @@ fn bundles_whose_step_returns_the_whole_cache_stream_as_before() {
 
 #[test]
 fn a_full_cache_keeps_its_capacity_in_constant_memory() {
-    let mut s = model().session(options(1, Some(6))).unwrap();
+    let mut s = model()
+        .armflow()
+        .unwrap()
+        .reactor(options(1, Some(6)))
+        .unwrap();
     let actor = actor();
     run_chunked(&mut s, &actor, 4);
     let (len, bytes) = (s.context_len(), s.memory_bytes());
@@ -115,7 +137,11 @@ fn a_full_cache_keeps_its_capacity_in_constant_memory() {
 fn a_cache_grown_past_its_first_slots_equals_a_full_recompute() {
     // 160 tokens with every one kept: the cache allocates 16 slots and doubles up to 256.
     let m = model();
-    let mut s = m.session(options(2, Some(1000))).unwrap();
+    let mut s = m
+        .armflow()
+        .unwrap()
+        .reactor(options(2, Some(1000)))
+        .unwrap();
     let actor = actor();
     let mut tokens = Vec::new();
     let mut small = 0;
@@ -134,7 +160,11 @@ fn a_cache_grown_past_its_first_slots_equals_a_full_recompute() {
         .iter()
         .flat_map(|t| t.actor_latent.iter().chain(&t.reactor_latent).copied())
         .collect();
-    let full = m.recompute_context(None, &pairs).unwrap();
+    let full = m
+        .armflow()
+        .unwrap()
+        .recompute_context(None, &pairs)
+        .unwrap();
     let diff = max_abs_diff(&full, &tokens[last].context);
     println!("token {last}: cached vs recomputed context {diff:.2e}");
     assert!(diff <= 1e-5, "{diff}");

@@ -21,7 +21,7 @@ use ndarray::{s, Array3, ArrayView3};
 use ndarray_npy::read_npy;
 use troupe::motion::{JointsFormat, Units, UpAxis};
 use troupe::viewer::Scene;
-use troupe::{Model, SessionOptions};
+use troupe::{Model, ReactorOptions};
 
 const RULES: [&str; 3] = ["mirror", "follow", "keep-away"];
 /// The rules the committed model has learnt (`docs/DEMO.md`).
@@ -63,12 +63,12 @@ fn reactor(rule: &str) -> Array3<f32> {
             .iter()
             .map(|rule| {
                 let model = demo();
-                let options = SessionOptions {
+                let options = ReactorOptions {
                     seed: 7,
                     condition: Some(model.condition_for(rule).unwrap()),
                     ..Default::default()
                 };
-                let mut session = model.session(options).unwrap();
+                let mut session = model.armflow().unwrap().reactor(options).unwrap();
                 session.set_joints_format(clip_format()).unwrap();
                 let actor = clip();
                 let mut poses = Vec::new();

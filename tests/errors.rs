@@ -7,20 +7,28 @@ use std::path::Path;
 
 use common::*;
 use ndarray::{s, Array2};
-use troupe::{Error, Model, Session, SessionOptions, TokenNoise};
+use troupe::{Error, Model, Reactor, ReactorOptions, TokenNoise};
 
 /// A session that has consumed 10 frames (2 tokens), and a twin to compare against.
-fn twins() -> (Session, Session) {
+fn twins() -> (Reactor, Reactor) {
     let actor = actor();
-    let mut a = model().session(default_options()).unwrap();
-    let mut b = model().session(default_options()).unwrap();
+    let mut a = model()
+        .armflow()
+        .unwrap()
+        .reactor(default_options())
+        .unwrap();
+    let mut b = model()
+        .armflow()
+        .unwrap()
+        .reactor(default_options())
+        .unwrap();
     a.step(actor.slice(s![..10, ..])).unwrap();
     b.step(actor.slice(s![..10, ..])).unwrap();
     (a, b)
 }
 
 /// The session behaves exactly like its untouched twin from here on.
-fn assert_unchanged(touched: &mut Session, twin: &mut Session) {
+fn assert_unchanged(touched: &mut Reactor, twin: &mut Reactor) {
     assert_eq!(touched.frames_received(), twin.frames_received());
     assert_eq!(touched.tokens_generated(), twin.tokens_generated());
     let rest = actor().slice(s![10.., ..]).to_owned();
@@ -64,36 +72,36 @@ fn non_finite_frames_are_rejected() {
 #[test]
 fn bad_options_are_rejected() {
     let m = model();
-    let opt = |o: SessionOptions| m.session(o).unwrap_err();
+    let opt = |o: ReactorOptions| m.armflow().unwrap().reactor(o).unwrap_err();
     assert!(matches!(
-        opt(SessionOptions {
+        opt(ReactorOptions {
             steps: Some(0),
             ..Default::default()
         }),
         Error::InvalidOption(_)
     ));
     assert!(matches!(
-        opt(SessionOptions {
+        opt(ReactorOptions {
             cfg_scale: Some(f32::NAN),
             ..Default::default()
         }),
         Error::InvalidOption(_)
     ));
     assert!(matches!(
-        opt(SessionOptions {
+        opt(ReactorOptions {
             context_capacity: Some(1),
             ..Default::default()
         }),
         Error::InvalidOption(_)
     ));
-    let e = opt(SessionOptions {
+    let e = opt(ReactorOptions {
         condition: Some(vec![0.0; 5]),
         ..Default::default()
     });
     assert!(message(e).contains("condition has 5 floats, the bundle expects 32"));
     let mut nan = vec![0.0; 32];
     nan[3] = f32::NAN;
-    let e = opt(SessionOptions {
+    let e = opt(ReactorOptions {
         condition: Some(nan),
         ..Default::default()
     });
@@ -127,9 +135,17 @@ fn bad_setters_leave_the_session_unchanged() {
 
 #[test]
 fn bad_history_for_recompute_is_rejected() {
-    let e = model().recompute_context(None, &[0.0; 33]).unwrap_err();
+    let e = model()
+        .armflow()
+        .unwrap()
+        .recompute_context(None, &[0.0; 33])
+        .unwrap_err();
     assert!(message(e).contains("not a multiple of the token width 32"));
-    let e = model().recompute_context(Some(&[0.0; 3]), &[]).unwrap_err();
+    let e = model()
+        .armflow()
+        .unwrap()
+        .recompute_context(Some(&[0.0; 3]), &[])
+        .unwrap_err();
     assert!(matches!(e, Error::InvalidInput(_)));
 }
 

@@ -12,7 +12,7 @@ use std::path::{Path, PathBuf};
 use common::*;
 use ndarray::{Array1, Array2};
 use ndarray_npy::read_npy;
-use troupe::{Model, Session, SessionOptions, TokenNoise, TokenTrace};
+use troupe::{Model, Reactor, ReactorOptions, TokenNoise, TokenTrace};
 
 const LATENT_TOL: f32 = 1e-5;
 const FRAME_TOL: f32 = 1e-4;
@@ -50,7 +50,7 @@ impl Bundle {
             .unwrap_or_else(|e| panic!("{}: golden {name}: {e}", self.dir.display()))
     }
 
-    fn queue_noise(&self, session: &mut Session, case: &str) {
+    fn queue_noise(&self, session: &mut Reactor, case: &str) {
         let (xi, eps) = (
             self.golden2(&format!("{case}_xi")),
             self.golden2(&format!("{case}_eps")),
@@ -70,8 +70,8 @@ fn bundles() -> [Bundle; 2] {
     [Bundle::load("armflow-tiny"), Bundle::load("armflow-demo")]
 }
 
-fn run_case(bundle: &Bundle, case: &str, options: SessionOptions, chunk: usize) -> Parity {
-    let mut session = bundle.model.session(options).unwrap();
+fn run_case(bundle: &Bundle, case: &str, options: ReactorOptions, chunk: usize) -> Parity {
+    let mut session = bundle.model.armflow().unwrap().reactor(options).unwrap();
     bundle.queue_noise(&mut session, case);
     let (frames, tokens) = run_chunked(&mut session, &bundle.golden2("actor"), chunk);
     let gather = |f: fn(&TokenTrace) -> &Vec<f32>| -> Vec<f32> {
@@ -133,7 +133,7 @@ fn assert_parity(bundle: &Bundle, case: &str, p: Parity) {
 #[test]
 fn default_case_matches_pytorch() {
     for bundle in bundles() {
-        let options = SessionOptions {
+        let options = ReactorOptions {
             condition: Some(bundle.golden1("default_condition").to_vec()),
             ..Default::default()
         };
@@ -146,7 +146,7 @@ fn default_case_matches_pytorch() {
 #[test]
 fn cfg_multistep_sliding_window_matches_pytorch() {
     for bundle in bundles() {
-        let options = SessionOptions {
+        let options = ReactorOptions {
             steps: Some(2),
             cfg_scale: Some(2.5),
             context_capacity: Some(16),
@@ -162,7 +162,9 @@ fn cfg_multistep_sliding_window_matches_pytorch() {
 fn seeded_noise_matches_python_bit_for_bit() {
     let model = model();
     let session = model
-        .session(SessionOptions {
+        .armflow()
+        .unwrap()
+        .reactor(ReactorOptions {
             seed: 7,
             ..Default::default()
         })
@@ -174,7 +176,7 @@ fn seeded_noise_matches_python_bit_for_bit() {
             let mut got = vec![0f32; want.ncols()];
             troupe::noise::fill_normals(7, *token, stream, &mut got);
             assert_eq!(got, want.row(row).to_vec(), "stream {stream} token {token}");
-            let noise = session.seeded_noise(*token).unwrap();
+            let noise = session.seeded_noise(*token);
             let expect = if stream == 0 {
                 &noise.actor
             } else {

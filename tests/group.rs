@@ -76,7 +76,7 @@ fn case_options(
         condition.is_some(),
         spec["has_condition"].as_bool().unwrap()
     );
-    let stages = model.umf_spec().unwrap().pyramid.stages.len();
+    let stages = model.umf().unwrap().spec().pyramid.stages.len();
     let noise = GroupNoise {
         prior: flat(&npy(model, &format!("{case}_prior_noise")).unwrap()),
         jumps: (1..stages)
@@ -122,7 +122,11 @@ fn check_golden(model: &Model) -> usize {
     for (case, spec) in cases(model) {
         let (people, condition, mut options, noise) = case_options(model, &case, &spec);
         if !spec["seed"].is_null() {
-            let drawn = model.group_noise(options.seed, people).unwrap();
+            let drawn = model
+                .umf()
+                .unwrap()
+                .group_noise(options.seed, people)
+                .unwrap();
             assert_eq!(drawn.prior, noise.prior, "{case}: seeded prior noise");
             assert_eq!(
                 drawn.reactions, noise.reactions,
@@ -135,6 +139,8 @@ fn check_golden(model: &Model) -> usize {
             options.noise = Some(noise);
         }
         let group = model
+            .umf()
+            .unwrap()
             .generate_group(condition.as_deref(), people, &options)
             .unwrap();
         let latents = max_abs(
@@ -178,7 +184,7 @@ fn golden_parity_grid_pyramid_1_to_4_people() {
 #[test]
 fn golden_parity_temporal_pyramid_with_three_stages() {
     let model = temporal();
-    assert_eq!(model.umf_spec().unwrap().pyramid.stages.len(), 3);
+    assert_eq!(model.umf().unwrap().spec().pyramid.stages.len(), 3);
     assert!(check_golden(model) >= 2);
 }
 
@@ -215,14 +221,30 @@ fn seeds_are_deterministic_and_people_build_on_each_other() {
         seed,
         ..Default::default()
     };
-    let a = model.generate_group(None, 3, &opts(5)).unwrap();
-    let b = model.generate_group(None, 3, &opts(5)).unwrap();
+    let a = model
+        .umf()
+        .unwrap()
+        .generate_group(None, 3, &opts(5))
+        .unwrap();
+    let b = model
+        .umf()
+        .unwrap()
+        .generate_group(None, 3, &opts(5))
+        .unwrap();
     assert_eq!(a.motion, b.motion);
-    let c = model.generate_group(None, 3, &opts(6)).unwrap();
+    let c = model
+        .umf()
+        .unwrap()
+        .generate_group(None, 3, &opts(6))
+        .unwrap();
     assert_ne!(a.latents, c.latents);
     // The first two people of a three-person group are the two-person group with that seed:
     // each person depends only on the ones before it.
-    let two = model.generate_group(None, 2, &opts(5)).unwrap();
+    let two = model
+        .umf()
+        .unwrap()
+        .generate_group(None, 2, &opts(5))
+        .unwrap();
     let first_two = a.latents.slice(ndarray::s![..2, .., ..]);
     assert_eq!(first_two, two.latents);
     assert_eq!(
@@ -243,19 +265,19 @@ fn invalid(result: troupe::Result<troupe::Group>) -> String {
 fn bad_inputs_are_rejected_with_a_clear_error() {
     let model = tiny();
     let ok = GroupOptions::default();
-    let msg = invalid(model.generate_group(None, 0, &ok));
+    let msg = invalid(model.umf().unwrap().generate_group(None, 0, &ok));
     assert!(msg.contains("people is 0"), "{msg}");
-    let msg = invalid(model.generate_group(Some(&[0.0; 5]), 1, &ok));
+    let msg = invalid(model.umf().unwrap().generate_group(Some(&[0.0; 5]), 1, &ok));
     assert!(msg.contains("condition has 5 floats"), "{msg}");
     let mut nan = vec![0.0; model.condition_dim()];
     nan[3] = f32::NAN;
-    let msg = invalid(model.generate_group(Some(&nan), 1, &ok));
+    let msg = invalid(model.umf().unwrap().generate_group(Some(&nan), 1, &ok));
     assert!(msg.contains("index 3"), "{msg}");
     let one_stage = GroupOptions {
         prior: Some(vec![Solver::euler(10)]),
         ..Default::default()
     };
-    let msg = invalid(model.generate_group(None, 1, &one_stage));
+    let msg = invalid(model.umf().unwrap().generate_group(None, 1, &one_stage));
     assert!(
         msg.contains("1 prior solvers given for a pyramid of 2 stages"),
         "{msg}"
@@ -264,26 +286,28 @@ fn bad_inputs_are_rejected_with_a_clear_error() {
         reaction: Some(Solver::rk4(0)),
         ..Default::default()
     };
-    assert!(invalid(model.generate_group(None, 2, &zero_steps)).contains("0 steps"));
+    assert!(invalid(model.umf().unwrap().generate_group(None, 2, &zero_steps)).contains("0 steps"));
     let cfg = GroupOptions {
         cfg_scale: Some(f32::INFINITY),
         ..Default::default()
     };
-    assert!(invalid(model.generate_group(None, 1, &cfg)).contains("CFG"));
-    let mut noise = model.group_noise(1, 2).unwrap();
+    assert!(invalid(model.umf().unwrap().generate_group(None, 1, &cfg)).contains("CFG"));
+    let mut noise = model.umf().unwrap().group_noise(1, 2).unwrap();
     noise.reactions.pop();
     let short = GroupOptions {
         noise: Some(noise),
         ..Default::default()
     };
-    let msg = invalid(model.generate_group(None, 2, &short));
+    let msg = invalid(model.umf().unwrap().generate_group(None, 2, &short));
     assert!(msg.contains("0 reactions"), "{msg}");
     // Families do not mix: what the bundle's family does not offer is unsupported.
     let armflow = Model::load(bundle("armflow-tiny")).unwrap();
-    let e = armflow.generate_group(None, 1, &ok).unwrap_err();
+    let e = armflow.umf().unwrap_err();
     assert!(matches!(e, Error::Unsupported(_)), "{e}");
     assert!(e.to_string().contains("an `armflow` model"), "{e}");
-    let e = model.session(Default::default()).unwrap_err();
+    let e = model
+        .session(troupe::SessionOptions::default())
+        .unwrap_err();
     assert!(matches!(e, Error::Unsupported(_)), "{e}");
     assert!(e.to_string().contains("a `umf` model"), "{e}");
 }
@@ -344,8 +368,8 @@ fn shape_of_group_queries() {
     assert_eq!(model.manifest().family_name(), "umf");
     assert_eq!((model.frames_per_token(), model.latency_frames()), (0, 0));
     assert_eq!(model.max_output_frames(10), 0);
-    let noise = model.group_noise(0, 4).unwrap();
-    let spec = model.umf_spec().unwrap();
+    let noise = model.umf().unwrap().group_noise(0, 4).unwrap();
+    let spec = model.umf().unwrap().spec();
     let dim = spec.latent.dim;
     assert_eq!(noise.prior.len(), spec.pyramid.stages[0].tokens * dim);
     assert_eq!(noise.reactions.len(), 3);

@@ -1,12 +1,13 @@
-//! Sessions that speak joint positions: `Session::step_joints` and `step_sessions_joints` on
+//! Sessions that speak joint positions: `Reactor::step_joints` and `step_reactors_joints` on
 //! real motion capture (the committed CMU excerpt, 120 fps, Z up), against the feature path.
 
 mod common;
 
 use ndarray::{s, Array2, Array3, Axis};
 use ndarray_npy::read_npy;
+use troupe::armflow::step_reactors_joints;
 use troupe::motion::{decode_frame, FeatureStream, JointsFormat, Units, UpAxis};
-use troupe::{step_sessions_joints, Model};
+use troupe::{Model, Reactor};
 
 fn cmu() -> Array3<f32> {
     read_npy(
@@ -29,15 +30,20 @@ fn format() -> JointsFormat {
 fn joints_in_poses_out_equal_the_feature_path() {
     let model = common::model();
     let clip = cmu().slice(s![..200, .., ..]).to_owned();
-    let mut joints = model.session(common::default_options()).unwrap();
+    let mut joints = model
+        .armflow()
+        .unwrap()
+        .reactor(common::default_options())
+        .unwrap();
     joints.set_joints_format(format()).unwrap();
-    assert_eq!(
-        joints.joints_latency_frames().unwrap(),
-        model.latency_frames() + 1
-    );
+    assert_eq!(joints.joints_latency_frames(), model.latency_frames() + 1);
     assert_eq!(model.joints_latency_frames(), model.latency_frames() + 1);
     // The same motion through an explicit feature stream and the feature session.
-    let mut features = model.session(common::default_options()).unwrap();
+    let mut features = model
+        .armflow()
+        .unwrap()
+        .reactor(common::default_options())
+        .unwrap();
     let mut stream = FeatureStream::new(format(), model.fps() as f32, None).unwrap();
     let (mut poses, mut expected) = (Vec::new(), Vec::new());
     for chunk in clip.axis_chunks_iter(Axis(0), 7) {
@@ -73,8 +79,16 @@ fn joints_in_poses_out_equal_the_feature_path() {
 fn a_refused_chunk_leaves_the_session_and_its_joint_stream_unchanged() {
     let model = common::model();
     let clip = cmu().slice(s![..80, .., ..]).to_owned();
-    let mut a = model.session(common::default_options()).unwrap();
-    let mut b = model.session(common::default_options()).unwrap();
+    let mut a = model
+        .armflow()
+        .unwrap()
+        .reactor(common::default_options())
+        .unwrap();
+    let mut b = model
+        .armflow()
+        .unwrap()
+        .reactor(common::default_options())
+        .unwrap();
     for session in [&mut a, &mut b] {
         session.set_joints_format(format()).unwrap();
         session.step_joints(clip.slice(s![..40, .., ..])).unwrap();
@@ -100,11 +114,13 @@ fn many_sessions_at_once_equal_each_alone() {
         clip.slice(s![..64, .., ..]),
         clip.slice(s![300..340, .., ..]),
     ];
-    let make = || -> Vec<troupe::Session> {
+    let make = || -> Vec<Reactor> {
         (0..2)
             .map(|i| {
                 let mut s = model
-                    .session(troupe::SessionOptions {
+                    .armflow()
+                    .unwrap()
+                    .reactor(troupe::ReactorOptions {
                         seed: 5 + i,
                         ..Default::default()
                     })
@@ -116,7 +132,7 @@ fn many_sessions_at_once_equal_each_alone() {
     };
     let (mut together, mut alone) = (make(), make());
     let mut refs: Vec<_> = together.iter_mut().collect();
-    let batched = step_sessions_joints(&mut refs, &chunks).unwrap();
+    let batched = step_reactors_joints(&mut refs, &chunks).unwrap();
     for (i, s) in alone.iter_mut().enumerate() {
         assert_eq!(batched[i], s.step_joints(chunks[i]).unwrap(), "session {i}");
     }
@@ -128,7 +144,11 @@ fn bundles_without_joint_features_refuse_joints() {
         std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("onnx/bundles/armflow-tiny-interx"),
     )
     .unwrap();
-    let mut session = interx.session(common::default_options()).unwrap();
+    let mut session = interx
+        .armflow()
+        .unwrap()
+        .reactor(common::default_options())
+        .unwrap();
     let err = session.set_joints_format(format()).unwrap_err().to_string();
     assert!(err.contains("interhuman262"), "{err}");
     let err = session

@@ -43,7 +43,9 @@ fn check_bundle(name: &str) -> usize {
     for (case, spec) in &cases {
         let sampling: SamplingSpec = serde_json::from_value(spec["sampling"].clone()).unwrap();
         let out = model
-            .magnet_generate_with(&sampling, frames.view(), None, None)
+            .magnet()
+            .unwrap()
+            .generate_with(&sampling, frames.view(), None, None)
             .unwrap_or_else(|e| panic!("{name} {case}: {e}"));
         let tokens: Array4<f32> = read_npy(golden.join(format!("{case}_tokens.npy"))).unwrap();
         let want_frames: Array4<f32> = read_npy(golden.join(format!("{case}_frames.npy"))).unwrap();
@@ -107,7 +109,7 @@ fn quick() -> MagnetOptions {
 #[test]
 fn released_configurations_run_by_name() {
     let (model, frames) = tiny();
-    let spec = model.magnet_spec().expect("a magnet bundle");
+    let spec = model.magnet().expect("a magnet bundle").spec();
     let names: Vec<String> = spec.sampling.keys().cloned().collect();
     assert!(
         names.contains(&"dd100".to_string()) && names.len() == 8,
@@ -122,7 +124,9 @@ fn released_configurations_run_by_name() {
             options.seq_len = Some(40);
         }
         let out = model
-            .magnet_generate(name, frames.view(), None, &options)
+            .magnet()
+            .unwrap()
+            .generate(name, frames.view(), None, &options)
             .unwrap_or_else(|e| panic!("{name}: {e}"));
         assert!(out.frames.iter().all(|v| v.is_finite()), "{name}");
         assert_eq!(out.frames.shape()[2], 2);
@@ -134,44 +138,70 @@ fn released_configurations_run_by_name() {
 fn bad_inputs_and_configurations_are_refused() {
     let (model, frames) = tiny();
     let err = |r: troupe::Result<troupe::MagnetOutput>| r.expect_err("refused").to_string();
-    let e = err(model.magnet_generate("nope", frames.view(), None, &quick()));
+    let e = err(model
+        .magnet()
+        .unwrap()
+        .generate("nope", frames.view(), None, &quick()));
     assert!(
         e.contains("no sampling configuration `nope`") && e.contains("dd100"),
         "{e}"
     );
     let three = Array3::<f32>::zeros((64, 3, 145));
-    let e = err(model.magnet_generate("dd100", three.view(), None, &quick()));
+    let e = err(model
+        .magnet()
+        .unwrap()
+        .generate("dd100", three.view(), None, &quick()));
     assert!(e.contains("takes [frames, 2, 145]"), "{e}");
     let mut nan = frames.clone();
     nan[[3, 1, 20]] = f32::NAN;
-    let e = err(model.magnet_generate("dd100", nan.view(), None, &quick()));
+    let e = err(model
+        .magnet()
+        .unwrap()
+        .generate("dd100", nan.view(), None, &quick()));
     assert!(e.contains("non-finite") || e.contains("NaN"), "{e}");
     let short = frames.slice(ndarray::s![..16, .., ..]).to_owned();
-    let e = err(model.magnet_generate("dd100", short.view(), None, &quick()));
+    let e = err(model
+        .magnet()
+        .unwrap()
+        .generate("dd100", short.view(), None, &quick()));
     assert!(e.contains("needs at least 32 frames"), "{e}");
     let mut bad_keys = quick();
     bad_keys.keyframes = Some(vec![0, 64]);
-    let e = err(model.magnet_generate("dd100_inbetweening", frames.view(), None, &bad_keys));
+    let e =
+        err(model
+            .magnet()
+            .unwrap()
+            .generate("dd100_inbetweening", frames.view(), None, &bad_keys));
     assert!(e.contains("key frame 64"), "{e}");
     let zero = MagnetOptions {
         samples: Some(0),
         ..quick()
     };
-    let e = err(model.magnet_generate("dd100", frames.view(), None, &zero));
+    let e = err(model
+        .magnet()
+        .unwrap()
+        .generate("dd100", frames.view(), None, &zero));
     assert!(e.contains("samples must be at least 1"), "{e}");
     let draws = MagnetOptions {
         draws: Some(vec![vec![0.0; 3]]),
         ..quick()
     };
-    let e = err(model.magnet_generate("dd100", frames.view(), None, &draws));
+    let e = err(model
+        .magnet()
+        .unwrap()
+        .generate("dd100", frames.view(), None, &draws));
     assert!(e.contains("injected draw 0 holds 3 normals"), "{e}");
     // A model of another family says what it is.
     let armflow = Model::load(bundle("armflow-tiny")).unwrap();
-    let e = err(armflow.magnet_generate("dd100", frames.view(), None, &quick()));
-    assert!(e.contains("needs a `magnet` bundle"), "{e}");
+    let e = armflow.magnet().expect_err("refused");
+    assert!(matches!(e, troupe::Error::Unsupported(_)), "{e}");
+    assert!(e.to_string().contains("needs a `magnet` bundle"), "{e}");
     // The trio model cannot run a two-person task it does not list, nor a two-person config.
     let trio = Model::load(bundle("magnet-tiny-trio")).unwrap();
-    let e = err(trio.magnet_generate("dd100", frames.view(), None, &quick()));
+    let e = err(trio
+        .magnet()
+        .unwrap()
+        .generate("dd100", frames.view(), None, &quick()));
     assert!(e.contains("no sampling configuration `dd100`"), "{e}");
 }
 
@@ -179,9 +209,11 @@ fn bad_inputs_and_configurations_are_refused() {
 fn injected_draws_reproduce_the_seeded_run() {
     let (model, frames) = tiny();
     let seeded = model
-        .magnet_generate("dd100", frames.view(), None, &quick())
+        .magnet()
+        .unwrap()
+        .generate("dd100", frames.view(), None, &quick())
         .unwrap();
-    let spec = model.magnet_spec().unwrap();
+    let spec = model.magnet().unwrap().spec();
     let d = spec.model.token_dim;
     // Regenerate the seeded draws with troupe's generator, then inject them.
     let mut sizes = Vec::new();
@@ -200,7 +232,9 @@ fn injected_draws_reproduce_the_seeded_run() {
         })
         .collect();
     let injected = model
-        .magnet_generate(
+        .magnet()
+        .unwrap()
+        .generate(
             "dd100",
             frames.view(),
             None,
@@ -228,10 +262,14 @@ fn output_shapes_are_known_before_generating() {
             ..quick()
         };
         let shape = model
-            .magnet_output_shape(name, frames.shape()[0], &options)
+            .magnet()
+            .unwrap()
+            .output_shape(name, frames.shape()[0], &options)
             .unwrap();
         let out = model
-            .magnet_generate(name, frames.view(), None, &options)
+            .magnet()
+            .unwrap()
+            .generate(name, frames.view(), None, &options)
             .unwrap();
         assert_eq!(out.frames.shape(), &shape[..], "{name}");
     }
@@ -245,7 +283,9 @@ fn sizes_beyond_troupes_limits_are_refused_before_allocating() {
         ..quick()
     };
     let e = model
-        .magnet_generate("dd100", frames.view(), None, &huge)
+        .magnet()
+        .unwrap()
+        .generate("dd100", frames.view(), None, &huge)
         .expect_err("refused")
         .to_string();
     assert!(e.contains("above troupe's limit"), "{e}");
@@ -254,7 +294,9 @@ fn sizes_beyond_troupes_limits_are_refused_before_allocating() {
         ..quick()
     };
     let e = model
-        .magnet_output_shape("dd100", 128, &long)
+        .magnet()
+        .unwrap()
+        .output_shape("dd100", 128, &long)
         .expect_err("refused")
         .to_string();
     assert!(
@@ -277,7 +319,12 @@ fn a_generation_reports_progress_and_can_be_cancelled() {
             log.borrow_mut().push((done, total));
             true
         },
-        || model.magnet_generate("dd100", frames.view(), None, &options),
+        || {
+            model
+                .magnet()
+                .unwrap()
+                .generate("dd100", frames.view(), None, &options)
+        },
     )
     .unwrap();
     let seen = seen.borrow();
@@ -285,7 +332,12 @@ fn a_generation_reports_progress_and_can_be_cancelled() {
     assert_eq!(*seen.last().unwrap(), (4, 4));
     let e = troupe::with_progress(
         |done, _| done < 2,
-        || model.magnet_generate("dd100", frames.view(), None, &options),
+        || {
+            model
+                .magnet()
+                .unwrap()
+                .generate("dd100", frames.view(), None, &options)
+        },
     )
     .expect_err("cancelled");
     assert!(matches!(e, troupe::Error::Cancelled(_)), "{e}");

@@ -11,7 +11,7 @@ use std::path::PathBuf;
 
 use ndarray::{s, Array2, Array3};
 use ndarray_npy::read_npy;
-use troupe::{step_sessions, Error, Model, Session, SessionOptions};
+use troupe::{step_sessions, Error, LivePartner, Model, PartnerOptions, Session, SessionOptions};
 
 const FRAME: usize = 145;
 
@@ -48,15 +48,15 @@ impl Golden {
             .collect()
     }
 
-    fn options(&self, case: &str) -> SessionOptions {
+    fn options(&self, case: &str) -> PartnerOptions {
         let spec = &self.cases[case];
         let sampling = &spec["sampling"];
         let context = sampling["context_len"].as_u64().unwrap() as usize;
-        SessionOptions {
+        PartnerOptions {
             seed: sampling["seed"].as_u64().unwrap(),
             live_config: Some(sampling.to_string()),
             early_emission: spec["early"].as_bool().unwrap(),
-            partner_opening: Some(
+            opening: Some(
                 self.frames
                     .slice(s![..context, 1, ..])
                     .as_standard_layout()
@@ -240,12 +240,12 @@ fn bad_input_is_refused_and_changes_nothing() {
     assert_eq!(bare.frames_received(), 0);
     // Opening frames of the wrong length, or not finite.
     assert_invalid(
-        bare.set_partner_opening(&user[..FRAME]),
+        partner(&mut bare).set_opening(&user[..FRAME]),
         "opening frames hold",
     );
     let mut nan = user[..32 * FRAME].to_vec();
     nan[7] = f32::NAN;
-    assert!(bare.set_partner_opening(&nan).is_err());
+    assert!(partner(&mut bare).set_opening(&nan).is_err());
     // A running stream: bad frames leave it where it was.
     let mut s = g.session("live_stream");
     s.step_flat(&user[..60 * FRAME]).unwrap();
@@ -254,55 +254,44 @@ fn bad_input_is_refused_and_changes_nothing() {
     assert!(s.step_flat(&bad).is_err());
     assert_invalid(s.step_flat(&user[..FRAME + 1]), "whole number");
     assert_invalid(
-        s.set_partner_opening(&user[..32 * FRAME]),
+        partner(&mut s).set_opening(&user[..32 * FRAME]),
         "before the first step",
     );
-    assert_invalid(s.set_early_emission(true), "before the first step");
+    assert_invalid(
+        partner(&mut s).set_early_emission(true),
+        "before the first step",
+    );
     assert_eq!(s.frames_received(), 60);
     let rest = stream(&mut s, &user[60 * FRAME..], 128);
     let mut fresh = g.session("live_stream");
     let all = stream(&mut fresh, &user, 128);
     assert_eq!(rest, all, "a refused step changed the stream");
-    // What only armflow sessions have.
-    assert_invalid(s.set_prompt("hello"), "armflow");
-    assert!(s.seeded_noise(0).is_err());
-    assert!(s.set_cfg_scale(2.0).is_err());
-    s.set_cfg_scale(1.0).unwrap();
-    assert!(s.joints_ready_after(4).is_err());
+    // What only ARMFlow's reactors have (conditions, prompts, CFG, noise, joints).
+    assert_invalid(s.family_mut::<troupe::Reactor>(), "`magnet` model");
+    assert_invalid(
+        g.model.session(troupe::ReactorOptions::default()),
+        "needs an `armflow` bundle",
+    );
     // Options the stream cannot honour, and configurations it cannot run.
-    let refuse = |options: SessionOptions, needle: &str| {
+    let refuse = |options: PartnerOptions, needle: &str| {
         assert_invalid(g.model.session(options), needle);
     };
     refuse(
-        SessionOptions {
-            cfg_scale: Some(3.0),
-            ..Default::default()
-        },
-        "CFG",
-    );
-    refuse(
-        SessionOptions {
-            condition: Some(vec![1.0]),
-            ..Default::default()
-        },
-        "condition",
-    );
-    refuse(
-        SessionOptions {
+        PartnerOptions {
             context_capacity: Some(16),
             ..Default::default()
         },
         "not fewer than the window",
     );
     refuse(
-        SessionOptions {
+        PartnerOptions {
             live_config: Some("dd100".into()),
             ..Default::default()
         },
         "motion_control_live",
     );
     refuse(
-        SessionOptions {
+        PartnerOptions {
             live_config: Some("no such".into()),
             ..Default::default()
         },
@@ -324,7 +313,7 @@ fn lower_latency_settings_run_and_stay_close_to_the_released_ones() {
         options.steps = Some(steps);
         options.early_emission = early;
         options.context_capacity = Some(context);
-        options.partner_opening = Some(
+        options.opening = Some(
             g.frames
                 .slice(s![..context * 4, 1, ..])
                 .as_standard_layout()
@@ -343,4 +332,9 @@ fn lower_latency_settings_run_and_stay_close_to_the_released_ones() {
             "steps {steps} early {early} Tc {context}"
         );
     }
+}
+
+/// The live partner behind a session, for its own settings.
+fn partner(session: &mut Session) -> &mut LivePartner {
+    session.family_mut::<LivePartner>().unwrap()
 }

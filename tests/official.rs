@@ -15,7 +15,7 @@ use std::sync::OnceLock;
 use common::max_abs_diff;
 use ndarray::{Array1, Array2};
 use ndarray_npy::read_npy;
-use troupe::{ClipNoise, ClipOptions, Error, Model, SessionOptions, TokenNoise};
+use troupe::{ClipNoise, ClipOptions, Error, Model, ReactorOptions, TokenNoise};
 
 const LATENT_TOL: f32 = 1e-5;
 const FRAME_TOL: f32 = 1e-4;
@@ -60,6 +60,8 @@ fn check_clip(config: &str, case: &str, condition: Option<&[f32]>) {
         ..Default::default()
     };
     let clip = m
+        .armflow()
+        .unwrap()
         .generate_clip(
             g2(config, &format!("{case}_actor")).view(),
             condition,
@@ -122,6 +124,8 @@ fn interx_clip_matches_the_official_loop() {
 fn interx_pads_the_decoded_clip_by_repeating_the_last_frame() {
     let m = model("interx");
     let clip = m
+        .armflow()
+        .unwrap()
         .generate_clip(
             g2("interx", "clip_actor").view(),
             None,
@@ -143,7 +147,9 @@ fn stream_mode_with_lookahead_windows_matches_the_reference() {
         let m = model(config);
         let condition = g1(config, "text_condition").to_vec();
         let mut session = m
-            .session(SessionOptions {
+            .armflow()
+            .unwrap()
+            .reactor(ReactorOptions {
                 condition: Some(condition),
                 ..Default::default()
             })
@@ -182,22 +188,21 @@ fn stream_mode_with_lookahead_windows_matches_the_reference() {
 #[test]
 fn seeded_clip_draws_are_the_session_draws_of_those_tokens() {
     let m = model("interhuman");
-    let noise = m.clip_noise(11).unwrap();
+    let noise = m.armflow().unwrap().clip_noise(11).unwrap();
     let session = m
-        .session(SessionOptions {
+        .armflow()
+        .unwrap()
+        .reactor(ReactorOptions {
             seed: 11,
             ..Default::default()
         })
         .unwrap();
     let lat = m.latent_dim();
     for j in [0usize, 1, 74] {
-        let s = session.seeded_noise(j as u64).unwrap();
+        let s = session.seeded_noise(j as u64);
         assert_eq!(&noise.actor_posterior[j * lat..(j + 1) * lat], &s.actor[..]);
     }
-    assert_eq!(
-        noise.reactor_noise,
-        session.seeded_noise(74).unwrap().reactor
-    );
+    assert_eq!(noise.reactor_noise, session.seeded_noise(74).reactor);
     let seeded = ClipOptions {
         seed: 11,
         ..Default::default()
@@ -207,8 +212,16 @@ fn seeded_clip_draws_are_the_session_draws_of_those_tokens() {
         ..Default::default()
     };
     let actor = g2("interhuman", "clip_actor");
-    let a = m.generate_clip(actor.view(), None, &seeded).unwrap();
-    let b = m.generate_clip(actor.view(), None, &injected).unwrap();
+    let a = m
+        .armflow()
+        .unwrap()
+        .generate_clip(actor.view(), None, &seeded)
+        .unwrap();
+    let b = m
+        .armflow()
+        .unwrap()
+        .generate_clip(actor.view(), None, &injected)
+        .unwrap();
     assert_eq!(a.frames, b.frames);
 }
 
@@ -225,14 +238,28 @@ fn bad_clip_inputs_are_rejected_with_a_message() {
     let d = m.frame_dim();
     let opts = ClipOptions::default();
     let too_long = Array2::<f32>::zeros((301, d));
-    assert!(err(m.generate_clip(too_long.view(), None, &opts)).contains("1..=300 frames"));
+    assert!(err(m
+        .armflow()
+        .unwrap()
+        .generate_clip(too_long.view(), None, &opts))
+    .contains("1..=300 frames"));
     let empty = Array2::<f32>::zeros((0, d));
-    assert!(err(m.generate_clip(empty.view(), None, &opts)).contains("0x262"));
+    assert!(err(m
+        .armflow()
+        .unwrap()
+        .generate_clip(empty.view(), None, &opts))
+    .contains("0x262"));
     let narrow = Array2::<f32>::zeros((10, d - 1));
-    assert!(err(m.generate_clip(narrow.view(), None, &opts)).contains("of 262 floats"));
+    assert!(err(m
+        .armflow()
+        .unwrap()
+        .generate_clip(narrow.view(), None, &opts))
+    .contains("of 262 floats"));
     let mut nan = Array2::<f32>::zeros((10, d));
     nan[[3, 4]] = f32::NAN;
-    assert!(err(m.generate_clip(nan.view(), None, &opts)).contains("actor clip"));
+    assert!(
+        err(m.armflow().unwrap().generate_clip(nan.view(), None, &opts)).contains("actor clip")
+    );
     let ok = Array2::<f32>::zeros((10, d));
     let short = ClipOptions {
         noise: Some(ClipNoise {
@@ -241,13 +268,24 @@ fn bad_clip_inputs_are_rejected_with_a_message() {
         }),
         ..Default::default()
     };
-    assert!(err(m.generate_clip(ok.view(), None, &short)).contains("actor_posterior"));
-    assert!(err(m.generate_clip(ok.view(), Some(&[1.0; 3]), &opts)).contains("condition"));
+    assert!(
+        err(m.armflow().unwrap().generate_clip(ok.view(), None, &short))
+            .contains("actor_posterior")
+    );
+    assert!(err(m
+        .armflow()
+        .unwrap()
+        .generate_clip(ok.view(), Some(&[1.0; 3]), &opts))
+    .contains("condition"));
     let zero_steps = ClipOptions {
         steps: Some(0),
         ..Default::default()
     };
-    match m.generate_clip(ok.view(), None, &zero_steps) {
+    match m
+        .armflow()
+        .unwrap()
+        .generate_clip(ok.view(), None, &zero_steps)
+    {
         Err(Error::InvalidOption(msg)) => assert!(msg.contains("steps"), "{msg}"),
         other => panic!("expected InvalidOption, got {other:?}"),
     }
@@ -256,6 +294,10 @@ fn bad_clip_inputs_are_rejected_with_a_message() {
 
     // A streaming-only bundle has no clip; a group bundle is another family.
     let tiny = common::model();
-    assert!(err(tiny.generate_clip(ok.view(), None, &opts)).contains("no `clip` section"));
+    assert!(err(tiny
+        .armflow()
+        .unwrap()
+        .generate_clip(ok.view(), None, &opts))
+    .contains("no `clip` section"));
     assert!(err(tiny.encode_text(tokens.view(), 0)).contains("no text_branch"));
 }

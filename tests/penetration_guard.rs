@@ -7,8 +7,9 @@ use std::path::PathBuf;
 
 use ndarray::{s, Array2};
 use ndarray_npy::read_npy;
+use troupe::armflow::step_reactors;
 use troupe::motion::{penetration_metrics, BodyModel, PenetrationMetrics};
-use troupe::{step_sessions, Error, Model, PenetrationGuard, Session, SessionOptions};
+use troupe::{Error, Model, PenetrationGuard, Reactor, ReactorOptions};
 
 fn repo(path: &str) -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join(path)
@@ -22,9 +23,11 @@ fn actor() -> Array2<f32> {
     read_npy(repo("tests/data/mocap/cmu-playground.features.npy")).unwrap()
 }
 
-fn session(model: &Model, rule: &str, guard: Option<PenetrationGuard>) -> Session {
+fn session(model: &Model, rule: &str, guard: Option<PenetrationGuard>) -> Reactor {
     model
-        .session(SessionOptions {
+        .armflow()
+        .unwrap()
+        .reactor(ReactorOptions {
             seed: 7,
             condition: Some(model.condition_for(rule).unwrap()),
             penetration_guard: guard,
@@ -33,7 +36,7 @@ fn session(model: &Model, rule: &str, guard: Option<PenetrationGuard>) -> Sessio
         .unwrap()
 }
 
-fn stream(session: &mut Session, actor: &Array2<f32>) -> Array2<f32> {
+fn stream(session: &mut Reactor, actor: &Array2<f32>) -> Array2<f32> {
     let mut out = Vec::new();
     for chunk in actor.axis_chunks_iter(ndarray::Axis(0), 10) {
         out.extend(session.step(chunk).unwrap().iter().copied());
@@ -138,8 +141,8 @@ fn off_by_default_and_a_crowd_equals_each_alone() {
     for chunk in actor.axis_chunks_iter(ndarray::Axis(0), 10) {
         let chunk = chunk.as_standard_layout().into_owned();
         let frames = [chunk.as_slice().unwrap(); 3];
-        let mut refs: Vec<&mut Session> = crowd.iter_mut().collect();
-        for (i, out) in step_sessions(&mut refs, &frames)
+        let mut refs: Vec<&mut Reactor> = crowd.iter_mut().collect();
+        for (i, out) in step_reactors(&mut refs, &frames)
             .unwrap()
             .into_iter()
             .enumerate()
@@ -185,10 +188,10 @@ fn bad_settings_are_refused() {
             s.set_penetration_guard(Some(bad)),
             Err(Error::InvalidOption(_))
         ));
-        let options = SessionOptions {
+        let options = ReactorOptions {
             penetration_guard: Some(bad),
             ..Default::default()
         };
-        assert!(model.session(options).is_err());
+        assert!(model.armflow().unwrap().reactor(options).is_err());
     }
 }

@@ -9,7 +9,8 @@ use std::path::{Path, PathBuf};
 use common::*;
 use ndarray::{Array1, Array2};
 use ndarray_npy::read_npy;
-use troupe::{step_sessions, Model, Session, SessionOptions, TokenNoise, Weights};
+use troupe::armflow::step_reactors;
+use troupe::{Model, Reactor, ReactorOptions, TokenNoise, Weights};
 
 /// Largest differences the int8 demo may show against the float32 demo over the golden
 /// stream's 48 tokens, relative to the float32 values' largest magnitude. Measured on
@@ -41,7 +42,9 @@ where
 fn run(model: &Model) -> (Vec<f32>, Vec<f32>, Vec<f32>) {
     let condition: Array1<f32> = golden("default_condition");
     let mut s = model
-        .session(SessionOptions {
+        .armflow()
+        .unwrap()
+        .reactor(ReactorOptions {
             condition: Some(condition.to_vec()),
             ..Default::default()
         })
@@ -57,7 +60,7 @@ fn run(model: &Model) -> (Vec<f32>, Vec<f32>, Vec<f32>) {
     (actor_latents, reactor_latents, frames)
 }
 
-fn queue(s: &mut Session) {
+fn queue(s: &mut Reactor) {
     let (xi, eps): (Array2<f32>, Array2<f32>) = (golden("default_xi"), golden("default_eps"));
     for (a, r) in xi.rows().into_iter().zip(eps.rows()) {
         s.queue_noise(TokenNoise {
@@ -102,20 +105,25 @@ fn the_int8_demo_stays_within_its_stated_error_of_float32() {
 #[test]
 fn an_int8_session_in_a_batch_stays_within_the_int8_error_of_itself_alone() {
     let int8 = Model::load(bundle("armflow-demo-int8")).unwrap();
-    let options = |seed| SessionOptions {
+    let options = |seed| ReactorOptions {
         seed,
         ..Default::default()
     };
     let actor: Array2<f32> = golden("actor");
-    let alone = run_chunked(&mut int8.session(options(1)).unwrap(), &actor, 8).0;
-    let mut sessions: Vec<Session> = [1, 2, 3]
+    let alone = run_chunked(
+        &mut int8.armflow().unwrap().reactor(options(1)).unwrap(),
+        &actor,
+        8,
+    )
+    .0;
+    let mut sessions: Vec<Reactor> = [1, 2, 3]
         .into_iter()
-        .map(|s| int8.session(options(s)).unwrap())
+        .map(|s| int8.armflow().unwrap().reactor(options(s)).unwrap())
         .collect();
     let mut batched = Vec::new();
     for part in actor.as_slice().unwrap().chunks(8 * int8.frame_dim()) {
-        let mut refs: Vec<&mut Session> = sessions.iter_mut().collect();
-        let outs = step_sessions(&mut refs, &[part, part, part]).unwrap();
+        let mut refs: Vec<&mut Reactor> = sessions.iter_mut().collect();
+        let outs = step_reactors(&mut refs, &[part, part, part]).unwrap();
         batched.extend(outs[0].frames.iter().copied());
     }
     let diff = relative(&batched, &alone);

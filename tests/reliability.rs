@@ -10,7 +10,7 @@ use std::time::Duration;
 
 use common::*;
 use ndarray::Array2;
-use troupe::{ClipOptions, Error, Model, SessionOptions, TokenNoise, LIMITS};
+use troupe::{ClipOptions, Error, Model, ReactorOptions, TokenNoise, LIMITS};
 
 /// Loads `path` on another thread; fails the test if the load has not returned in 60 s (a hang)
 /// rather than hanging the suite.
@@ -247,20 +247,20 @@ fn graphs_of_an_unknown_operator_set_are_refused() {
 #[test]
 fn sizes_from_the_caller_are_bounded() {
     let m = model();
-    let huge_steps = SessionOptions {
+    let huge_steps = ReactorOptions {
         steps: Some(u32::MAX),
         ..default_options()
     };
-    let e = m.session(huge_steps).unwrap_err();
+    let e = m.armflow().unwrap().reactor(huge_steps).unwrap_err();
     assert!(matches!(e, Error::InvalidOption(_)), "{e}");
     assert!(e.to_string().contains("limit of 10000"), "{e}");
-    let mut s = m.session(default_options()).unwrap();
+    let mut s = m.armflow().unwrap().reactor(default_options()).unwrap();
     assert!(s.set_steps(u32::MAX).is_err());
-    let huge_capacity = SessionOptions {
+    let huge_capacity = ReactorOptions {
         context_capacity: Some(usize::MAX),
         ..default_options()
     };
-    assert!(m.session(huge_capacity).is_err());
+    assert!(m.armflow().unwrap().reactor(huge_capacity).is_err());
 
     let lat = m.latent_dim();
     let noise = TokenNoise {
@@ -281,14 +281,14 @@ fn sizes_from_the_caller_are_bounded() {
 fn extreme_settings_and_inputs_are_refused_or_give_finite_output_and_the_session_recovers() {
     let m = model();
     let d = m.frame_dim();
-    let mut s = m.session(default_options()).unwrap();
+    let mut s = m.armflow().unwrap().reactor(default_options()).unwrap();
     assert!(s.set_cfg_scale(f32::MAX).is_err());
     assert!(s.set_cfg_scale(-f32::MAX).is_err());
-    let cfg = SessionOptions {
+    let cfg = ReactorOptions {
         cfg_scale: Some(f32::MAX),
         ..default_options()
     };
-    assert!(m.session(cfg).is_err());
+    assert!(m.armflow().unwrap().reactor(cfg).is_err());
 
     // ±FLT_MAX frames are refused; 200 ordinary frames afterwards are all finite.
     for extreme in [f32::MAX, -f32::MAX, f32::MIN_POSITIVE / 2.0] {
@@ -311,7 +311,9 @@ fn extreme_settings_and_inputs_are_refused_or_give_finite_output_and_the_session
         (1.0, -0.0),
     ] {
         let mut s = m
-            .session(SessionOptions {
+            .armflow()
+            .unwrap()
+            .reactor(ReactorOptions {
                 cfg_scale: Some(cfg),
                 ..default_options()
             })
@@ -336,7 +338,9 @@ fn extreme_settings_and_inputs_are_refused_or_give_finite_output_and_the_session
 #[test]
 fn a_long_stream_with_the_smallest_cache_runs() {
     let mut s = model()
-        .session(SessionOptions {
+        .armflow()
+        .unwrap()
+        .reactor(ReactorOptions {
             context_capacity: Some(2),
             ..default_options()
         })
@@ -362,7 +366,9 @@ fn clip_and_text_sizes_are_bounded() {
         ..Default::default()
     };
     assert!(matches!(
-        m.generate_clip(actor.view(), None, &steps),
+        m.armflow()
+            .unwrap()
+            .generate_clip(actor.view(), None, &steps),
         Err(Error::InvalidOption(_))
     ));
     let width = m.text_token_dim().expect("a text branch");
@@ -413,11 +419,14 @@ fn long_calls_report_progress_and_stop_when_the_callback_says_so() {
     let umf =
         Model::load(Path::new(env!("CARGO_MANIFEST_DIR")).join("onnx/bundles/umf-tiny")).unwrap();
     let options = troupe::GroupOptions::default();
-    let e = troupe::with_progress(calls(2), || umf.generate_group(None, 4, &options)).unwrap_err();
+    let e = troupe::with_progress(calls(2), || {
+        umf.umf().unwrap().generate_group(None, 4, &options)
+    })
+    .unwrap_err();
     assert!(matches!(e, Error::Cancelled(_)), "{e}");
     assert_eq!(*seen.lock().unwrap(), [(1, 4), (2, 4)]);
     assert!(
-        umf.generate_group(None, 4, &options).is_ok(),
+        umf.umf().unwrap().generate_group(None, 4, &options).is_ok(),
         "no callback outside the scope"
     );
 
@@ -428,7 +437,10 @@ fn long_calls_report_progress_and_stop_when_the_callback_says_so() {
     .unwrap();
     let actor = Array2::<f32>::zeros((20, official.frame_dim()));
     let e = troupe::with_progress(calls(3), || {
-        official.generate_clip(actor.view(), None, &ClipOptions::default())
+        official
+            .armflow()
+            .unwrap()
+            .generate_clip(actor.view(), None, &ClipOptions::default())
     })
     .unwrap_err();
     assert!(e.to_string().contains("the clip was cancelled"), "{e}");

@@ -5,10 +5,10 @@ mod common;
 
 use common::*;
 use ndarray::{s, Array2};
-use troupe::{ActorLatent, Model, Session, SessionOptions};
+use troupe::{ActorLatent, Model, Reactor, ReactorOptions};
 
-fn session(options: SessionOptions) -> Session {
-    model().session(options).unwrap()
+fn session(options: ReactorOptions) -> Reactor {
+    model().armflow().unwrap().reactor(options).unwrap()
 }
 
 /// The cached context of every token equals a from-scratch causal pass over its history.
@@ -17,7 +17,7 @@ fn kv_cached_stream_equals_full_causal_recompute() {
     let condition: Vec<f32> = (0..model().condition_dim())
         .map(|i| (i as f32 * 0.37).sin())
         .collect();
-    let mut s = session(SessionOptions {
+    let mut s = session(ReactorOptions {
         condition: Some(condition.clone()),
         ..default_options()
     });
@@ -26,7 +26,11 @@ fn kv_cached_stream_equals_full_causal_recompute() {
     let mut pairs = Vec::new();
     let mut worst = 0f32;
     for t in &out.tokens {
-        let full = model().recompute_context(Some(&condition), &pairs).unwrap();
+        let full = model()
+            .armflow()
+            .unwrap()
+            .recompute_context(Some(&condition), &pairs)
+            .unwrap();
         worst = worst.max(max_abs_diff(&full, &t.context));
         pairs.extend(&t.actor_latent);
         pairs.extend(&t.reactor_latent);
@@ -82,7 +86,7 @@ fn frames_come_out_one_token_after_its_last_actor_frame() {
 #[test]
 fn reset_equals_a_fresh_session() {
     let actor = actor();
-    let options = SessionOptions {
+    let options = ReactorOptions {
         steps: Some(2),
         cfg_scale: Some(1.5),
         ..default_options()
@@ -90,7 +94,7 @@ fn reset_equals_a_fresh_session() {
     let fresh = run_chunked(&mut session(options.clone()), &actor, 7);
     let mut s = session(options.clone());
     run_chunked(&mut s, &actor.slice(s![..90, ..]).to_owned(), 5);
-    s.queue_noise(s.seeded_noise(99).unwrap()).unwrap(); // queued noise is dropped by reset too
+    s.queue_noise(s.seeded_noise(99)).unwrap(); // queued noise is dropped by reset too
     s.reset();
     assert_eq!(
         (s.frames_received(), s.tokens_generated(), s.context_len()),
@@ -105,7 +109,7 @@ fn reset_equals_a_fresh_session() {
     s.set_steps(3).unwrap();
     s.reset();
     let want = run_chunked(
-        &mut session(SessionOptions {
+        &mut session(ReactorOptions {
             seed: 3,
             steps: Some(3),
             ..default_options()
@@ -126,7 +130,7 @@ fn same_seed_is_bit_identical_across_runs_and_threads() {
         .map(|_| {
             let (model, actor) = (shared.clone(), actor.clone());
             std::thread::spawn(move || {
-                let mut s = model.session(default_options()).unwrap();
+                let mut s = model.armflow().unwrap().reactor(default_options()).unwrap();
                 run_chunked(&mut s, &actor, 4)
             })
         })
@@ -135,7 +139,7 @@ fn same_seed_is_bit_identical_across_runs_and_threads() {
         assert!(h.join().unwrap() == reference, "a thread's stream differs");
     }
     let other = run_chunked(
-        &mut session(SessionOptions {
+        &mut session(ReactorOptions {
             seed: 12,
             ..default_options()
         }),
@@ -152,13 +156,13 @@ fn same_seed_is_bit_identical_across_runs_and_threads() {
 fn injected_noise_reproduces_a_seeded_run() {
     let actor = actor();
     let seeded = run_chunked(&mut session(default_options()), &actor, 4);
-    let mut s = session(SessionOptions {
+    let mut s = session(ReactorOptions {
         seed: 999,
         ..default_options()
     });
     let donor = session(default_options());
     for j in 0..48 {
-        s.queue_noise(donor.seeded_noise(j).unwrap()).unwrap();
+        s.queue_noise(donor.seeded_noise(j)).unwrap();
     }
     assert!(run_chunked(&mut s, &actor, 4) == seeded);
 }
@@ -166,7 +170,7 @@ fn injected_noise_reproduces_a_seeded_run() {
 #[test]
 fn posterior_mean_ignores_actor_noise() {
     let run = |seed| {
-        let mut s = session(SessionOptions {
+        let mut s = session(ReactorOptions {
             seed,
             actor_latent: Some(ActorLatent::Mean),
             ..default_options()
@@ -199,7 +203,7 @@ fn changing_the_condition_changes_later_tokens_only() {
 #[test]
 fn long_stream_runs_in_bounded_context() {
     let capacity = 8;
-    let mut s = session(SessionOptions {
+    let mut s = session(ReactorOptions {
         context_capacity: Some(capacity),
         ..default_options()
     });
@@ -221,7 +225,7 @@ fn long_stream_runs_in_bounded_context() {
     }
     // Memory stops growing once the cache is full: laps 2.. hold no more than lap 1.
     assert!(held[2..].iter().all(|&b| b <= held[1]), "{held:?}");
-    let c = &model().armflow_spec().unwrap().context;
+    let c = &model().armflow().unwrap().spec().context;
     let kv = capacity * 2 * c.layers * c.heads * c.head_dim * 4;
     assert!(
         held[4] >= kv && held[4] < kv + 1_000_000,
@@ -237,7 +241,9 @@ fn handles_are_send_and_sync_where_documented() {
     fn send_sync<T: Send + Sync>() {}
     fn send<T: Send>() {}
     send_sync::<Model>();
-    send::<Session>();
+    send::<Reactor>();
+    send::<troupe::Session>();
+    send_sync::<troupe::Armflow>();
 }
 
 #[test]
@@ -265,9 +271,9 @@ fn meanflow_grid_runs_from_noise_to_data() {
 #[test]
 fn vae_steps_equal_vae_windows() {
     let model = model();
-    assert!(model.has_vae_steps());
+    assert!(model.armflow().unwrap().has_vae_steps());
     let run = |vae_windows| {
-        let mut s = session(SessionOptions {
+        let mut s = session(ReactorOptions {
             vae_windows,
             cfg_scale: Some(2.0),
             ..default_options()
@@ -301,7 +307,9 @@ fn window_graphs_optimised_on_first_use_serve_racing_threads() {
     let fresh = Model::load(bundle_dir()).unwrap();
     let run = |model: &Model| {
         let mut s = model
-            .session(SessionOptions {
+            .armflow()
+            .unwrap()
+            .reactor(ReactorOptions {
                 vae_windows: true,
                 ..default_options()
             })
@@ -314,4 +322,66 @@ fn window_graphs_optimised_on_first_use_serve_racing_threads() {
     });
     let after = run(&fresh);
     assert!(racing.iter().all(|r| *r == after));
+}
+
+/// The family-neutral `Session` boxes a reactor: the same frames and tokens as the reactor
+/// itself, alone or in a crowd, the reactor's own settings through `family_mut`, and another
+/// family's stream type refused as unsupported.
+#[test]
+fn a_session_streams_what_its_reactor_streams() {
+    let m = model();
+    let actor = actor();
+    let options = |seed| ReactorOptions {
+        seed,
+        ..default_options()
+    };
+    let mut reactor = session(options(3));
+    let mut boxed = m.session(options(3)).unwrap();
+    assert_eq!(boxed.family(), "armflow");
+    assert_eq!(boxed.latency_frames(), reactor.latency_frames());
+    let flat: Vec<f32> = actor.slice(s![..24, ..]).iter().copied().collect();
+    let (a, b) = (
+        reactor.step_flat(&flat).unwrap(),
+        boxed.step_flat(&flat).unwrap(),
+    );
+    assert_eq!(a.frames, b.frames);
+    assert_eq!(a.tokens, b.tokens);
+
+    // The reactor's own settings, through the session.
+    let condition = vec![0.5; m.condition_dim()];
+    boxed
+        .family_mut::<Reactor>()
+        .unwrap()
+        .set_condition(Some(&condition))
+        .unwrap();
+    reactor.set_condition(Some(&condition)).unwrap();
+    let next: Vec<f32> = actor.slice(s![24..40, ..]).iter().copied().collect();
+    assert_eq!(
+        reactor.step_flat(&next).unwrap().frames,
+        boxed.step_flat(&next).unwrap().frames
+    );
+    let e = boxed.family_mut::<troupe::LivePartner>().unwrap_err();
+    assert!(matches!(e, troupe::Error::Unsupported(_)), "{e}");
+    assert!(e.to_string().contains("`armflow` model"), "{e}");
+
+    // A crowd of sessions equals the same crowd of reactors.
+    let mut sessions: Vec<troupe::Session> =
+        (0..3).map(|i| m.session(options(i)).unwrap()).collect();
+    let mut reactors: Vec<Reactor> = (0..3).map(|i| session(options(i))).collect();
+    let chunks = [&flat[..4 * 262], &flat[..], &flat[..0]];
+    let mut session_refs: Vec<&mut troupe::Session> = sessions.iter_mut().collect();
+    let mut reactor_refs: Vec<&mut Reactor> = reactors.iter_mut().collect();
+    let together = troupe::step_sessions(&mut session_refs, &chunks).unwrap();
+    let alone = troupe::armflow::step_reactors(&mut reactor_refs, &chunks).unwrap();
+    for (s, r) in together.iter().zip(&alone) {
+        assert_eq!(s.frames, r.frames);
+    }
+    // Sessions of different families (or models) are not stepped together.
+    let mut other = Model::load(bundle_dir())
+        .unwrap()
+        .session(options(9))
+        .unwrap();
+    let mut mixed = [&mut sessions[0], &mut other];
+    let e = troupe::step_sessions(&mut mixed, &[&flat[..0], &flat[..0]]).unwrap_err();
+    assert!(e.to_string().contains("another model"), "{e}");
 }

@@ -12,7 +12,7 @@ use std::path::{Path, PathBuf};
 use common::*;
 use ndarray::{Array2, Axis};
 use ndarray_npy::read_npy;
-use troupe::{ClipOptions, Error, GroupOptions, Model, SessionOptions};
+use troupe::{Error, Model, ReactorOptions};
 
 /// The bundles exported with a text encoder.
 const PROMPT_BUNDLES: [&str; 4] = [
@@ -94,14 +94,14 @@ fn sessions_clips_and_groups_take_prompts_as_their_vectors() {
     let armflow = Model::load(bundle("armflow-tiny-interhuman")).unwrap();
     let condition = armflow.encode_prompt(prompt).unwrap();
     let actor = golden2_in(&bundle("armflow-tiny-interhuman"), "clip_actor");
-    let run = |options: SessionOptions, set_prompt: bool| {
-        let mut s = armflow.session(options).unwrap();
+    let run = |options: ReactorOptions, set_prompt: bool| {
+        let mut s = armflow.armflow().unwrap().reactor(options).unwrap();
         if set_prompt {
             s.set_prompt(prompt).unwrap();
         }
         s.step(actor.view()).unwrap()
     };
-    let seeded = |condition: Option<Vec<f32>>, prompt: Option<String>| SessionOptions {
+    let seeded = |condition: Option<Vec<f32>>, prompt: Option<String>| ReactorOptions {
         seed: 3,
         condition,
         prompt,
@@ -115,32 +115,14 @@ fn sessions_clips_and_groups_take_prompts_as_their_vectors() {
         by_vector,
         "the prompt changes the output"
     );
-    match armflow.session(seeded(Some(condition.clone()), Some(prompt.into()))) {
+    match armflow
+        .armflow()
+        .unwrap()
+        .reactor(seeded(Some(condition.clone()), Some(prompt.into())))
+    {
         Err(Error::InvalidOption(m)) => assert!(m.contains("not both"), "{m}"),
         other => panic!("condition and prompt together: {other:?}"),
     }
-
-    let options = ClipOptions {
-        seed: 2,
-        ..Default::default()
-    };
-    let clip = armflow
-        .generate_clip_for_prompt(actor.view(), prompt, &options)
-        .unwrap();
-    let want = armflow
-        .generate_clip(actor.view(), Some(&condition), &options)
-        .unwrap();
-    assert_eq!(clip.frames, want.frames);
-
-    let umf = Model::load(bundle("umf-tiny")).unwrap();
-    let options = GroupOptions {
-        seed: 4,
-        ..Default::default()
-    };
-    let group = umf.generate_group_for_prompt(prompt, 2, &options).unwrap();
-    let condition = umf.encode_prompt(prompt).unwrap();
-    let want = umf.generate_group(Some(&condition), 2, &options).unwrap();
-    assert_eq!(group.motion, want.motion);
 }
 
 fn golden2_in(dir: &Path, name: &str) -> Array2<f32> {
@@ -155,7 +137,9 @@ fn bundles_without_a_text_encoder_refuse_prompts_by_name() {
         model.encode_prompt("hello").map(|_| ()),
         model.prompt_token_ids("hello").map(|_| ()),
         model
-            .session(SessionOptions {
+            .armflow()
+            .unwrap()
+            .reactor(ReactorOptions {
                 prompt: Some("hello".into()),
                 ..default_options()
             })
@@ -171,7 +155,7 @@ fn bundles_without_a_text_encoder_refuse_prompts_by_name() {
             other => panic!("a prompt to a bundle without a text encoder: {other:?}"),
         }
     }
-    let mut session = model.session(default_options()).unwrap();
+    let mut session = model.armflow().unwrap().reactor(default_options()).unwrap();
     assert!(session.set_prompt("hello").is_err());
 }
 
@@ -258,13 +242,17 @@ fn a_prompt_session_streams_like_a_vector_session_token_by_token() {
     let actor = golden2_in(&dir, "clip_actor");
     let prompt = "A person waves at the other, then both sit down.";
     let mut a = model
-        .session(SessionOptions {
+        .armflow()
+        .unwrap()
+        .reactor(ReactorOptions {
             prompt: Some(prompt.into()),
             ..Default::default()
         })
         .unwrap();
     let mut b = model
-        .session(SessionOptions {
+        .armflow()
+        .unwrap()
+        .reactor(ReactorOptions {
             condition: Some(model.encode_prompt(prompt).unwrap()),
             ..Default::default()
         })

@@ -1,7 +1,9 @@
 /* MAGNet from C: run one of a `magnet` bundle's sampling configurations on a clip of troupe
  * frames and report the time, through include/troupe.h only.
  *
- *   cc -std=c99 -O2 -Iinclude examples/c/magnet.c -Ltarget/release -ltroupe -o magnet_c
+ *   ln -sf libtroupe.so target/release/libtroupe.so.1    # the SONAME the program asks for
+ *   cc -std=c99 -O2 -Iinclude examples/c/magnet.c -Ltarget/release -ltroupe \
+ *      -Wl,-rpath,$PWD/target/release -o magnet_c
  *   ./magnet_c BUNDLE CONFIG FRAMES.npy [SAMPLES [STEPS]]
  *
  * FRAMES.npy: float32 [frames, people, 145] (betas, the 21 body joints' 6-D rotations, the

@@ -4,6 +4,7 @@
  * print per-step latency and the real-time factor.
  *
  *   cargo build --release
+ *   ln -sf libtroupe.so target/release/libtroupe.so.1    # the SONAME the program asks for
  *   cc -std=c99 -O2 -Iinclude examples/c/stream.c -Ltarget/release -ltroupe \
  *      -Wl,-rpath,$PWD/target/release -lm -o stream_c
  *   ./stream_c [BUNDLE] [FRAMES] [TICK] [OUT.npy] [JOINTS.npy] [RULE]

@@ -9,7 +9,7 @@
 use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 
-use troupe::{Model, SessionOptions};
+use troupe::Model;
 
 /// The committed tiny bundle every target builds on.
 pub fn bundle_dir() -> PathBuf {
@@ -134,7 +134,7 @@ fn step_arbitrarily(session: &mut troupe::Session, bytes: &mut Bytes, most: u8) 
 pub fn session_step(data: &[u8]) {
     let model = model();
     let mut bytes = Bytes(data);
-    let options = SessionOptions {
+    let options = troupe::ReactorOptions {
         seed: u64::from(bytes.u32()),
         steps: Some(u32::from(bytes.u8() % 4)),
         cfg_scale: Some(match bytes.u8() % 4 {
@@ -143,7 +143,7 @@ pub fn session_step(data: &[u8]) {
             _ => f32::from(bytes.u8()) / 16.0,
         }),
         context_capacity: Some(usize::from(bytes.u8() % 12)),
-        ..SessionOptions::default()
+        ..Default::default()
     };
     let Ok(mut session) = model.session(options) else {
         return;
@@ -170,7 +170,7 @@ fn other_model(name: &'static str) -> &'static Model {
 pub fn other_streams(data: &[u8]) {
     let mut bytes = Bytes(data);
     let magnet = bytes.u8() % 2 == 0;
-    let (model, mut options) = if magnet {
+    let session = if magnet {
         // The golden live configuration at 1 to 4 steps, guidance off or on.
         let steps = 1 + bytes.u8() % 4;
         let guidance = if bytes.u8() % 2 == 0 {
@@ -195,33 +195,29 @@ pub fn other_streams(data: &[u8]) {
                 _ => 0.0,
             })
             .collect();
-        let options = SessionOptions {
+        let options = troupe::PartnerOptions {
             seed: u64::from(bytes.u32()),
             live_config: Some(config),
-            partner_opening: (bytes.u8() % 8 != 0).then_some(opening),
+            opening: (bytes.u8() % 8 != 0).then_some(opening),
             early_emission: bytes.u8() % 2 == 0,
-            ..SessionOptions::default()
+            ..Default::default()
         };
-        (other_model("magnet-tiny"), options)
+        other_model("magnet-tiny").session(options)
     } else {
-        let options = SessionOptions {
+        let options = troupe::ArflowOptions {
             seed: u64::from(bytes.u32()),
-            arflow: Some(troupe::ArflowOptions {
-                steps: Some(usize::from(bytes.u8() % 4)),
-                guidance: Some(f32::from(bytes.u8()) / 32.0),
-                weight: Some(f32::from(bytes.u8()) / 200.0),
-                eta: Some(f32::from(bytes.u8()) / 300.0),
-                d_safe: Some(f32::from(bytes.u8()) / 100.0),
-                squared: Some(bytes.u8() % 2 == 0),
-                sigma: Some(f32::from(bytes.u8() % 4) / 100.0),
-                ..Default::default()
-            }),
-            ..SessionOptions::default()
+            steps: Some(usize::from(bytes.u8() % 4)),
+            guidance: Some(f32::from(bytes.u8()) / 32.0),
+            weight: Some(f32::from(bytes.u8()) / 200.0),
+            eta: Some(f32::from(bytes.u8()) / 300.0),
+            d_safe: Some(f32::from(bytes.u8()) / 100.0),
+            squared: Some(bytes.u8() % 2 == 0),
+            sigma: Some(f32::from(bytes.u8() % 4) / 100.0),
+            ..Default::default()
         };
-        (other_model("arflow-tiny-online"), options)
+        other_model("arflow-tiny-online").session(options)
     };
-    options.steps = None;
-    let Ok(mut session) = model.session(options) else {
+    let Ok(mut session) = session else {
         return;
     };
     step_arbitrarily(&mut session, &mut bytes, 40);

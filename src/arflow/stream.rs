@@ -1,4 +1,4 @@
-//! ARFlow's online variant as a stream (a [`crate::Session`] over an online `arflow` bundle):
+//! ARFlow's online variant as a stream, [`OnlineStream`] (also boxed in a [`crate::Session`]):
 //! the actor's frames in, the reactor's out, each frame as soon as it arrives.
 //!
 //! With the causal network, frame `n` of every step's x̂_1 depends only on frames ≤ `n` of that
@@ -8,7 +8,7 @@
 //! `m` (one cache per step), and the sampler's update (`sampler::euler_step`) moves it on. The
 //! reactor's frame `n` is out with the actor's frame `n`: no algorithmic latency.
 //!
-//! With η = 0 and σ = 0 a stream gives what [`crate::Model::arflow_generate`] gives for the whole
+//! With η = 0 and σ = 0 a stream gives what `Arflow::generate` gives for the whole
 //! clip (tested). The draws differ: a stream draws per frame (frame `n`'s start noise is token
 //! `n (M + 1)`, its step `m`'s ε token `n (M + 1) + m + 1`), the whole-clip sampler per step.
 //! The position encoding covers `model.max_frames` frames: a stream ends there (reset it).
@@ -25,10 +25,12 @@ use super::spec::{ArflowSampling, FRAME_DIM};
 use crate::shared::checks::check_frames;
 use crate::shared::error::{Error, Result};
 use crate::shared::noise::fill_normals;
+use crate::shared::stream::{downcast_all, Session, StepOutput, StepTogether, Stream};
 
-/// One actor/reactor stream over an online `arflow` model.
+/// One actor/reactor stream over an online `arflow` model (made by `Arflow::online`, or boxed
+/// in a [`crate::Session`] by `Model::session`). `Send`, not `Sync`.
 #[derive(Debug)]
-pub(crate) struct ArflowStream {
+pub struct OnlineStream {
     nets: Arc<Networks>,
     sampling: ArflowSampling,
     seed: u64,
@@ -39,14 +41,14 @@ pub(crate) struct ArflowStream {
     values: Vec<Vec<f32>>,
 }
 
-impl ArflowStream {
+impl OnlineStream {
     /// A fresh stream; fails unless the bundle streams (the online variant with its one-frame
     /// graph) and the settings are in range.
     pub(crate) fn new(nets: Arc<Networks>, sampling: ArflowSampling, seed: u64) -> Result<Self> {
         if !nets.streams() {
             return Err(Error::InvalidInput(format!(
                 "bundle `{}` is not ARFlow's online variant with a denoiser_step graph: it \
-                 generates whole clips (Model::arflow_generate), it does not stream",
+                 generates whole clips (Arflow::generate), it does not stream",
                 nets.io.name
             )));
         }
@@ -111,10 +113,6 @@ impl ArflowStream {
         self.frames
     }
 
-    pub(crate) fn same_model(&self, other: &ArflowStream) -> bool {
-        Arc::ptr_eq(&self.nets, &other.nets)
-    }
-
     /// Frames a step with `n` more actor frames returns: all of them, up to the stream's end.
     pub(crate) fn frames_ready_after(&self, n: usize) -> usize {
         n
@@ -151,7 +149,7 @@ impl ArflowStream {
 /// its reactor frames `[n_i, 262]`. Round `r` runs every stream's `r`-th new frame, each step one
 /// batch. On error every stream is as it was (caches cut back to their length before the call).
 pub(crate) fn advance(
-    streams: &mut [&mut ArflowStream],
+    streams: &mut [&mut OnlineStream],
     actor: &[&[f32]],
     max_frames: &[usize],
     indexed: bool,
@@ -189,7 +187,7 @@ pub(crate) fn advance(
     result
 }
 
-fn run(streams: &mut [&mut ArflowStream], actor: &[&[f32]]) -> Result<Vec<Array2<f32>>> {
+fn run(streams: &mut [&mut OnlineStream], actor: &[&[f32]]) -> Result<Vec<Array2<f32>>> {
     let mut out: Vec<Vec<f32>> = vec![Vec::new(); streams.len()];
     let rounds = actor.iter().map(|a| a.len() / FRAME_DIM).max().unwrap_or(0);
     for round in 0..rounds {
@@ -226,7 +224,7 @@ fn run(streams: &mut [&mut ArflowStream], actor: &[&[f32]]) -> Result<Vec<Array2
 
 /// The reactor's next frame for each stream of `group` (same settings), given the actor's.
 fn frame(
-    streams: &mut [&mut ArflowStream],
+    streams: &mut [&mut OnlineStream],
     group: &[usize],
     actor: &[&[f32]],
 ) -> Result<Array2<f32>> {
@@ -240,7 +238,7 @@ fn frame(
     let a = Array2::from_shape_fn((b, FRAME_DIM), |(r, i)| (raw[[r, i]] - mean[i]) / std[i]);
     let steps = s.steps;
     let tokens = steps as u64 + 1;
-    let draw = |stream: &ArflowStream, k: u64| {
+    let draw = |stream: &OnlineStream, k: u64| {
         let mut e = vec![0f32; FRAME_DIM];
         fill_normals(stream.seed, stream.frames * tokens + k, s.stream, &mut e);
         e
@@ -307,7 +305,7 @@ fn frame(
 /// out `[B, L, H, 1, W/H]`, one frame's `L · W` floats per row in that order, which is how each
 /// stream keeps them, frame after frame.
 fn pack(
-    streams: &[&mut ArflowStream],
+    streams: &[&mut OnlineStream],
     group: &[usize],
     step: usize,
     cached: usize,
@@ -337,4 +335,98 @@ fn pack(
         }
     }
     ((k, v), mask)
+}
+
+impl OnlineStream {
+    /// Sets the sampler's settings: the bundle's with `options`' changes (its seed too). A new
+    /// step count only before the first frame or after a reset.
+    pub fn set_options(&mut self, options: &super::sampler::ArflowOptions) -> Result<()> {
+        let sampling = options.apply(self.bundle_sampling())?;
+        self.set_sampling(sampling)?;
+        self.set_seed(options.seed);
+        Ok(())
+    }
+}
+
+impl Stream for OnlineStream {
+    fn family(&self) -> &'static str {
+        "arflow"
+    }
+    fn frame_dim(&self) -> usize {
+        FRAME_DIM
+    }
+    /// ARFlow has no latent: a frame.
+    fn latent_dim(&self) -> usize {
+        FRAME_DIM
+    }
+    fn step_bounded(&mut self, frames: &[f32], max_frames: usize) -> Result<StepOutput> {
+        let mut out = advance(&mut [self], &[frames], &[max_frames], false)?;
+        Ok(StepOutput::frames_only(
+            out.pop().expect("one stream, one output"),
+        ))
+    }
+    fn step_together(&self) -> StepTogether {
+        |streams, frames, max_frames| {
+            let mut online = downcast_all::<OnlineStream>(streams);
+            if frames.len() != online.len() {
+                return Err(Error::InvalidInput(format!(
+                    "{} sessions but {} chunks of frames",
+                    online.len(),
+                    frames.len()
+                )));
+            }
+            Ok(advance(&mut online, frames, max_frames, true)?
+                .into_iter()
+                .map(StepOutput::frames_only)
+                .collect())
+        }
+    }
+    fn same_model(&self, other: &dyn Stream) -> bool {
+        other
+            .as_any()
+            .downcast_ref::<OnlineStream>()
+            .is_some_and(|o| Arc::ptr_eq(&self.nets, &o.nets))
+    }
+    fn reset(&mut self) {
+        OnlineStream::reset(self)
+    }
+    /// The reactor's frame `n` is out with the actor's frame `n`.
+    fn latency_frames(&self) -> usize {
+        0
+    }
+    fn set_seed(&mut self, seed: u64) {
+        OnlineStream::set_seed(self, seed)
+    }
+    fn set_steps(&mut self, steps: u32) -> Result<()> {
+        let mut sampling = self.sampling().clone();
+        sampling.steps = steps as usize;
+        self.set_sampling(sampling)
+    }
+    fn frames_ready_after(&self, n: usize) -> usize {
+        OnlineStream::frames_ready_after(self, n)
+    }
+    fn frames_received(&self) -> u64 {
+        self.frames()
+    }
+    fn frames_emitted(&self) -> u64 {
+        self.frames()
+    }
+    fn memory_bytes(&self) -> usize {
+        OnlineStream::memory_bytes(self)
+    }
+    fn context_len(&self) -> usize {
+        self.frames() as usize
+    }
+    fn as_any(&self) -> &dyn std::any::Any {
+        self
+    }
+    fn as_any_mut(&mut self) -> &mut dyn std::any::Any {
+        self
+    }
+}
+
+impl From<OnlineStream> for Session {
+    fn from(stream: OnlineStream) -> Self {
+        Self::new(stream)
+    }
 }

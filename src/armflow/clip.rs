@@ -1,4 +1,4 @@
-//! ARMFlow's official clip loop, [`crate::Model::generate_clip`]: given the same weights and noise,
+//! ARMFlow's official clip loop, [`crate::Armflow::generate_clip`]: given the same weights and noise,
 //! the same motion as the released sampler (`docs/spec/armflow.md` §7).
 //!
 //! Unlike a [`crate::Session`], which streams, the official sampler works on a whole clip:
@@ -40,7 +40,7 @@ pub struct ClipNoise {
     pub reactor_noise: Vec<f32>,
 }
 
-/// Options of [`crate::Model::generate_clip`].
+/// Options of [`crate::Armflow::generate_clip`].
 #[derive(Debug, Clone, Default)]
 pub struct ClipOptions {
     /// Seed of the draws when `noise` is `None`: `xi` of token `j` is the Philox stream
@@ -53,7 +53,7 @@ pub struct ClipOptions {
     pub noise: Option<ClipNoise>,
 }
 
-/// What [`crate::Model::generate_clip`] returns.
+/// What [`crate::Armflow::generate_clip`] returns.
 #[derive(Debug, Clone)]
 pub struct Clip {
     /// Reactor motion, `[clip.frames, frame_dim]`.

@@ -1,18 +1,21 @@
 //! The `armflow` family: online reaction (`docs/spec/armflow.md`). An actor's frames stream in
-//! and a [`Session`] answers with the reactor's, one latent token per step: VAE encoder → causal
+//! and a [`Reactor`] answers with the reactor's, one latent token per step: VAE encoder → causal
 //! context encoder with a key/value cache → MeanFlow velocity → VAE decoder. The official clip
 //! loop runs the same networks over a whole clip.
 //!
+//! - `family`: [`Armflow`], the loaded model (`Model::armflow`): its reactors and clips;
 //! - [`spec`]: the family's manifest section and the interface it requires of its graphs;
 //! - `networks`: the loaded graphs and their typed calls;
 //! - `kv_cache`: the context encoder's per-layer cache and its capacity policy;
 //! - `meanflow`: the sampler's time grid;
-//! - `session`: streams, one or many at once (`session/lanes.rs`, the batched token loop);
-//! - [`clip`]: the official clip loop, [`crate::Model::generate_clip`].
+//! - `session`: [`Reactor`] streams, one or many at once (`session/lanes.rs`, the batched token
+//!   loop);
+//! - [`clip`]: the official clip loop, [`Armflow::generate_clip`].
 //!
 //! Like every family, this folder imports only from `crate::shared`, `crate::motion` and itself.
 
 pub mod clip;
+mod family;
 mod kv_cache;
 mod meanflow;
 pub(crate) mod networks;
@@ -20,10 +23,9 @@ mod session;
 pub mod spec;
 
 pub use clip::{Clip, ClipNoise, ClipOptions};
+pub use family::Armflow;
 pub use meanflow::meanflow_grid;
 pub(crate) use networks::Networks;
-pub(crate) use session::step_sessions_bounded;
 pub use session::{
-    step_sessions, step_sessions_joints, PenetrationGuard, Session, SessionOptions, StepOutput,
-    TokenNoise, TokenTrace,
+    step_reactors, step_reactors_joints, PenetrationGuard, Reactor, ReactorOptions, TokenNoise,
 };

@@ -175,7 +175,7 @@ impl Networks {
     }
 
     /// The context `c` the encoder gives after `[<sos>, pairs...]`, computed from scratch in
-    /// one causal pass (no cache); see [`crate::Model::recompute_context`].
+    /// one causal pass (no cache); see [`crate::Armflow::recompute_context`].
     pub(crate) fn recompute_context(
         &self,
         condition: Option<&[f32]>,

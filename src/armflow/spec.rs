@@ -21,7 +21,7 @@ pub struct ArmFlowSpec {
     /// Default sampler settings (sessions may override them).
     pub sampler: SamplerSpec,
     /// The official clip length, for bundles that run the official clip loop
-    /// ([`crate::Model::generate_clip`]); absent for streaming-only bundles.
+    /// ([`crate::Armflow::generate_clip`]); absent for streaming-only bundles.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub clip: Option<ClipSpec>,
     /// The ONNX graphs of the bundle.

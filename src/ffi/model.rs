@@ -78,9 +78,11 @@ fn publish(model: Model, out: *mut *mut troupe_model) {
         })
         .collect();
     let magnet_configs = model
-        .magnet_spec()
-        .map(|s| {
-            s.sampling
+        .magnet()
+        .ok()
+        .map(|m| {
+            m.spec()
+                .sampling
                 .keys()
                 .map(|name| CString::new(name.as_str()).unwrap_or_default())
                 .collect()

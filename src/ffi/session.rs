@@ -1,5 +1,7 @@
-//! `troupe_session`: one stream, whatever the family: an ARMFlow reactor to an actor, or a MAGNet
-//! live partner to a user (`src/session.rs`).
+//! `troupe_session`: one stream, whatever the family: an ARMFlow reactor to an actor, a MAGNet
+//! live partner to a user, or ARFlow's online stream (`src/shared/stream.rs`). What only one
+//! family's stream takes lives in that family's module (`ffi/armflow/`, `ffi/magnet/`,
+//! `ffi/arflow/`) and is refused with `TROUPE_ERR_UNSUPPORTED` on another family's session.
 
 use std::ffi::c_char;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -7,10 +9,10 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use crate::ffi::boundary::{
     self, check_struct_size, checked_mul, non_null, read_versioned, troupe_status, write_versioned,
     Exclusive, FfiError, FfiResult, TROUPE_ERR_BUFFER_TOO_SMALL, TROUPE_ERR_INVALID_ARG,
-    TROUPE_ERR_POISONED, TROUPE_ERR_SHAPE,
+    TROUPE_ERR_POISONED, TROUPE_ERR_SHAPE, TROUPE_ERR_UNSUPPORTED,
 };
 use crate::ffi::model::troupe_model;
-use crate::{ActorLatent, Model, Session, SessionOptions, TokenNoise};
+use crate::{ActorLatent, Model, Reactor, ReactorOptions, Session, SessionOptions, TokenNoise};
 
 /// Actor tokens are the VAE posterior sample `(mean + std * noise) * scale` (the official choice).
 pub const TROUPE_ACTOR_LATENT_SAMPLE: i32 = 0;
@@ -47,6 +49,28 @@ pub struct troupe_session {
     session: Exclusive<Session>,
     /// Set by a panic inside a call; cleared by `troupe_session_reset`.
     poisoned: AtomicBool,
+}
+
+/// The family's own stream behind a session, or `TROUPE_ERR_UNSUPPORTED` saying that `what` is
+/// for `needed` streams only.
+pub(crate) fn family_stream<'a, S: 'static>(
+    session: &'a mut Session,
+    needed: &str,
+    what: &str,
+) -> FfiResult<&'a mut S> {
+    let family = session.family();
+    session.family_mut::<S>().map_err(|_| {
+        let article = if family.starts_with('a') { "an" } else { "a" };
+        FfiError::new(
+            TROUPE_ERR_UNSUPPORTED,
+            format!("{what}: only {needed} streams take this; this session runs {article} `{family}` model"),
+        )
+    })
+}
+
+/// The ARMFlow reactor behind a session, for what only it takes.
+pub(crate) fn reactor<'a>(session: &'a mut Session, what: &str) -> FfiResult<&'a mut Reactor> {
+    family_stream(session, "armflow", what)
 }
 
 /// `sizeof(troupe_session_options)` in this library, for bindings to check their mirror.
@@ -99,8 +123,8 @@ pub unsafe extern "C" fn troupe_session_options_init(
 
 /// The options `troupe_session_options_init` writes for `model`: the bundle's defaults.
 fn option_defaults(model: &Model, size: usize) -> FfiResult<troupe_session_options> {
-    let defaults = match model.armflow_spec() {
-        Some(m) => troupe_session_options {
+    let defaults = match model.armflow().map(|a| a.spec()) {
+        Ok(m) => troupe_session_options {
             struct_size: size as u32,
             steps: m.sampler.steps,
             seed: 0,
@@ -112,9 +136,9 @@ fn option_defaults(model: &Model, size: usize) -> FfiResult<troupe_session_optio
             },
             reserved: 0,
         },
-        None if model.arflow_spec().is_some() => {
+        Err(_) if model.arflow().is_ok() => {
             // An ARFlow stream: its sampler's steps; no context, CFG or actor latent.
-            let a = model.arflow_spec().expect("checked");
+            let a = model.arflow()?.spec();
             troupe_session_options {
                 struct_size: size as u32,
                 steps: a.sampler.steps.min(u32::MAX as usize) as u32,
@@ -125,10 +149,11 @@ fn option_defaults(model: &Model, size: usize) -> FfiResult<troupe_session_optio
                 reserved: 0,
             }
         }
-        None => {
+        Err(_) => {
             // A magnet live partner: its default configuration's steps and context.
             let live = model
-                .magnet_live_configuration()
+                .magnet()
+                .and_then(|m| m.live_configuration())
                 .map_err(|_| model.wrong_family("armflow", "troupe_session_options"))?;
             troupe_session_options {
                 struct_size: size as u32,
@@ -152,7 +177,7 @@ fn option_defaults(model: &Model, size: usize) -> FfiResult<troupe_session_optio
 unsafe fn read_options(
     model: &Model,
     options: *const troupe_session_options,
-) -> FfiResult<SessionOptions> {
+) -> FfiResult<CallerOptions> {
     let defaults = option_defaults(model, OPTIONS_V1_SIZE)?;
     // SAFETY: readable for its `struct_size` per the contract.
     let o = unsafe {
@@ -182,16 +207,52 @@ unsafe fn read_options(
             "options.reserved must be 0",
         ));
     }
-    Ok(SessionOptions {
-        seed: o.seed,
-        steps: Some(o.steps),
-        cfg_scale: Some(o.cfg_scale),
-        condition: None,
-        prompt: None,
-        context_capacity: Some(o.context_capacity as usize),
-        actor_latent: Some(actor_latent),
-        ..SessionOptions::default()
+    Ok(CallerOptions {
+        common: SessionOptions {
+            seed: o.seed,
+            steps: Some(o.steps),
+            context_capacity: Some(o.context_capacity as usize),
+        },
+        cfg_scale: o.cfg_scale,
+        actor_latent,
     })
+}
+
+/// `troupe_session_options` as read: what every stream takes, and ARMFlow's two fields.
+struct CallerOptions {
+    common: SessionOptions,
+    cfg_scale: f32,
+    actor_latent: ActorLatent,
+}
+
+impl CallerOptions {
+    /// Opens `model`'s stream. ARMFlow takes every field; another family refuses a CFG scale
+    /// other than 1 and the actor's posterior mean, which it cannot honour.
+    fn open(self, model: &Model) -> FfiResult<Session> {
+        if let Ok(armflow) = model.armflow() {
+            let reactor = armflow.reactor(ReactorOptions {
+                seed: self.common.seed,
+                steps: self.common.steps,
+                context_capacity: self.common.context_capacity,
+                cfg_scale: Some(self.cfg_scale),
+                actor_latent: Some(self.actor_latent),
+                ..ReactorOptions::default()
+            })?;
+            return Ok(reactor.into());
+        }
+        if self.cfg_scale != 1.0 || self.actor_latent != ActorLatent::Sample {
+            return Err(FfiError::new(
+                TROUPE_ERR_UNSUPPORTED,
+                format!(
+                    "options.cfg_scale {} or options.actor_latent MEAN: only armflow streams take \
+                     them; this is a `{}` model",
+                    self.cfg_scale,
+                    model.family()
+                ),
+            ));
+        }
+        Ok(model.session(self.common)?)
+    }
 }
 
 /// Starts a stream on `model` with `options` (NULL: the bundle's defaults). On an `armflow`
@@ -232,14 +293,14 @@ pub unsafe extern "C" fn troupe_session_new(
             // SAFETY: checked non-NULL; writable per the contract.
             unsafe { *out = std::ptr::null_mut() };
             let model = &boundary::required(model, "model")?.model;
-            let options = if options.is_null() {
-                SessionOptions::default()
+            let session = if options.is_null() {
+                model.session(SessionOptions::default())?
             } else {
                 // SAFETY: readable per the contract.
-                unsafe { read_options(model, options) }?
+                unsafe { read_options(model, options) }?.open(model)?
             };
             let handle = troupe_session {
-                session: Exclusive::new(model.session(options)?),
+                session: Exclusive::new(session),
                 poisoned: AtomicBool::new(false),
             };
             // SAFETY: checked non-NULL above.
@@ -487,7 +548,7 @@ pub unsafe extern "C" fn troupe_sessions_step(
                 non_null(out[i], &format!("out[{i}]"))?;
             }
         }
-        let outputs = crate::session::step_sessions_bounded(&mut live, &chunks, capacity)?;
+        let outputs = crate::shared::stream::step_sessions_bounded(&mut live, &chunks, capacity)?;
         for (i, output) in outputs.iter().enumerate() {
             let frames = output.frames.as_slice().expect("standard layout");
             if !frames.is_empty() {
@@ -603,7 +664,11 @@ pub unsafe extern "C" fn troupe_session_set_cfg_scale(
     // SAFETY: forwarded contract.
     unsafe {
         with_session(session, "troupe_session_set_cfg_scale", |s| {
-            Ok(s.set_cfg_scale(scale)?)
+            // Every stream runs unguided; only ARMFlow's take another scale.
+            if scale == 1.0 && s.family() != "armflow" {
+                return Ok(());
+            }
+            Ok(reactor(s, "a CFG scale other than 1")?.set_cfg_scale(scale)?)
         })
     }
 }
@@ -628,7 +693,11 @@ pub unsafe extern "C" fn troupe_session_set_condition(
     unsafe {
         with_session(session, "troupe_session_set_condition", |s| {
             if condition.is_null() && len == 0 {
-                return Ok(s.set_condition(None)?);
+                // Every stream runs on the null condition; only ARMFlow's take another.
+                if s.family() != "armflow" {
+                    return Ok(());
+                }
+                return Ok(reactor(s, "a condition")?.set_condition(None)?);
             }
             let dim = s.condition_dim();
             if len != dim {
@@ -638,7 +707,7 @@ pub unsafe extern "C" fn troupe_session_set_condition(
                 ));
             }
             let condition = boundary::slice(condition, len, "condition")?;
-            Ok(s.set_condition(Some(condition))?)
+            Ok(reactor(s, "a condition")?.set_condition(Some(condition))?)
         })
     }
 }
@@ -663,7 +732,7 @@ pub unsafe extern "C" fn troupe_session_set_prompt(
     unsafe {
         with_session(session, "troupe_session_set_prompt", |s| {
             let prompt = boundary::required_str(prompt, "prompt")?;
-            Ok(s.set_prompt(prompt)?)
+            Ok(reactor(s, "a prompt")?.set_prompt(prompt)?)
         })
     }
 }
@@ -702,7 +771,7 @@ pub unsafe extern "C" fn troupe_session_queue_noise(
                 actor: boundary::slice(actor_noise, len, "actor_noise")?.to_vec(),
                 reactor: boundary::slice(reactor_noise, len, "reactor_noise")?.to_vec(),
             };
-            Ok(s.queue_noise(noise)?)
+            Ok(reactor(s, "queued noise")?.queue_noise(noise)?)
         })
     }
 }

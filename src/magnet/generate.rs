@@ -1,4 +1,4 @@
-//! [`crate::Model::magnet_generate`]: one released sampling configuration run on a clip of
+//! [`crate::Magnet::generate`]: one released sampling configuration run on a clip of
 //! troupe frames, from the frames in to the frames out.
 
 use ndarray::{s, Array2, Array3, Array4, ArrayView2, ArrayView3, Axis};
@@ -37,7 +37,7 @@ pub struct MagnetOptions {
     pub draws: Option<Vec<Vec<f32>>>,
 }
 
-/// What [`crate::Model::magnet_generate`] returns.
+/// What [`crate::Magnet::generate`] returns.
 #[derive(Debug, Clone)]
 pub struct MagnetOutput {
     /// The sampled tokens `[S, T, P, D]`.

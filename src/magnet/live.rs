@@ -26,6 +26,7 @@ use super::tasks::{live_matrix, rolling_chunk, Run};
 use super::transforms::{canonical_frame, compose, from_9d, inverse, to_9d, Mat4};
 use crate::shared::checks::{check_frames, check_input};
 use crate::shared::error::{Error, Result};
+use crate::shared::stream::{downcast_all, Session, StepOutput, StepTogether, Stream, TokenTrace};
 
 /// Tokens of the user's past frames the encoder sees before a window (its receptive field
 /// reaches about 21 tokens back).
@@ -47,9 +48,10 @@ pub struct LiveSettings {
     pub opening: Option<Vec<f32>>,
 }
 
-/// One user/partner stream over a `magnet` model.
+/// One user/partner stream over a two-person `magnet` model (made by `Magnet::partner`, or
+/// boxed in a [`crate::Session`] by `Model::session`). `Send`, not `Sync`.
 #[derive(Debug)]
-pub(crate) struct LiveSession {
+pub struct LivePartner {
     nets: Arc<Networks>,
     settings: LiveSettings,
     state: LiveState,
@@ -127,7 +129,7 @@ struct ChunkInput {
     betas: Array2<f32>,
 }
 
-impl LiveSession {
+impl LivePartner {
     /// A fresh stream; `settings.sampling` must be a checked `motion_control_live` configuration
     /// of a two-person model.
     pub(crate) fn new(nets: Arc<Networks>, settings: LiveSettings) -> Result<Self> {
@@ -144,11 +146,6 @@ impl LiveSession {
         let tm = self.nets.spec.model.window;
         let tc = self.settings.sampling.context_len / FRAMES_PER_TOKEN;
         (tm, tc, tm - tc)
-    }
-
-    /// The settings in force.
-    pub(crate) fn settings(&self) -> &LiveSettings {
-        &self.settings
     }
 
     /// Replaces the settings (checked); the stream goes on. Callers change only what a running
@@ -170,11 +167,6 @@ impl LiveSession {
         let mut settings = self.settings.clone();
         settings.sampling = super::generate::configuration(&self.nets, name, &options)?;
         self.configure(settings)
-    }
-
-    /// Whether both streams run the same loaded model.
-    pub(crate) fn same_model(&self, other: &LiveSession) -> bool {
-        Arc::ptr_eq(&self.nets, &other.nets)
     }
 
     /// Sets the seed; applies to chunks not yet run (the draws continue from their count).
@@ -515,7 +507,7 @@ pub(crate) fn check_persons(nets: &Networks) -> Result<()> {
 /// changing no stream, on bad input or when stream `i` would return more than `max_frames[i]`
 /// frames (missing: unbounded). With `indexed`, messages name the stream by its index.
 pub(crate) fn advance(
-    sessions: &mut [&mut LiveSession],
+    sessions: &mut [&mut LivePartner],
     frames: &[&[f32]],
     max_frames: &[usize],
     indexed: bool,
@@ -610,7 +602,7 @@ pub(crate) fn advance(
 
 /// Runs the next chunk of the streams in `group` (same model and configuration) as one batch.
 fn run_chunk(
-    sessions: &[&mut LiveSession],
+    sessions: &[&mut LivePartner],
     states: &mut [LiveState],
     outputs: &mut [Vec<(Array2<f32>, Vec<SentToken>)>],
     group: &[usize],
@@ -720,4 +712,151 @@ fn run_chunk(
         state.chunks += 1;
     }
     Ok(())
+}
+
+impl LivePartner {
+    /// Sets the partner's opening frames (`[context frames, 145]`, row-major), kept across
+    /// resets. Only before the first frame or after a reset.
+    pub fn set_opening(&mut self, frames: &[f32]) -> Result<()> {
+        if self.frames_received() > 0 {
+            return Err(Error::InvalidInput(
+                "the partner's opening frames are set before the first step or after a reset"
+                    .into(),
+            ));
+        }
+        let mut settings = self.settings.clone();
+        settings.opening = Some(frames.to_vec());
+        self.configure(settings)
+    }
+
+    /// Runs the sampling configuration `config` (a released name or JSON). Only before the
+    /// first frame or after a reset; opening frames set before must match its context.
+    pub fn set_live_config(&mut self, config: &str) -> Result<()> {
+        if self.frames_received() > 0 {
+            return Err(Error::InvalidInput(
+                "the live configuration is set before the first step or after a reset".into(),
+            ));
+        }
+        self.set_config(config)
+    }
+
+    /// Emit each chunk's frames as soon as they are generated (see
+    /// `PartnerOptions::early_emission`). Only before the first frame or after a reset.
+    pub fn set_early_emission(&mut self, early: bool) -> Result<()> {
+        if self.frames_received() > 0 {
+            return Err(Error::InvalidInput(
+                "early emission is set before the first step or after a reset".into(),
+            ));
+        }
+        let mut settings = self.settings.clone();
+        settings.early = early;
+        self.configure(settings)
+    }
+
+    /// The sampling configuration in force.
+    pub fn sampling(&self) -> &SamplingSpec {
+        &self.settings.sampling
+    }
+}
+
+impl Stream for LivePartner {
+    fn family(&self) -> &'static str {
+        "magnet"
+    }
+    fn frame_dim(&self) -> usize {
+        FRAME_DIM
+    }
+    fn latent_dim(&self) -> usize {
+        self.token_dim()
+    }
+    fn step_bounded(&mut self, frames: &[f32], max_frames: usize) -> Result<StepOutput> {
+        let mut out = advance(&mut [self], &[frames], &[max_frames], false)?;
+        Ok(out.pop().expect("one stream, one output").into())
+    }
+    fn step_together(&self) -> StepTogether {
+        |streams, frames, max_frames| {
+            let mut partners = downcast_all::<LivePartner>(streams);
+            if frames.len() != partners.len() {
+                return Err(Error::InvalidInput(format!(
+                    "{} sessions but {} chunks of frames",
+                    partners.len(),
+                    frames.len()
+                )));
+            }
+            Ok(advance(&mut partners, frames, max_frames, true)?
+                .into_iter()
+                .map(StepOutput::from)
+                .collect())
+        }
+    }
+    fn same_model(&self, other: &dyn Stream) -> bool {
+        other
+            .as_any()
+            .downcast_ref::<LivePartner>()
+            .is_some_and(|o| Arc::ptr_eq(&self.nets, &o.nets))
+    }
+    fn reset(&mut self) {
+        LivePartner::reset(self)
+    }
+    fn latency_frames(&self) -> usize {
+        LivePartner::latency_frames(self)
+    }
+    fn set_seed(&mut self, seed: u64) {
+        LivePartner::set_seed(self, seed)
+    }
+    fn set_steps(&mut self, steps: u32) -> Result<()> {
+        let mut settings = self.settings.clone();
+        settings.sampling.steps = steps as usize;
+        self.configure(settings)
+    }
+    fn frames_ready_after(&self, n: usize) -> usize {
+        LivePartner::frames_ready_after(self, n)
+    }
+    fn frames_received(&self) -> u64 {
+        LivePartner::frames_received(self)
+    }
+    fn frames_emitted(&self) -> u64 {
+        LivePartner::frames_emitted(self)
+    }
+    fn tokens_generated(&self) -> u64 {
+        LivePartner::tokens_generated(self)
+    }
+    fn memory_bytes(&self) -> usize {
+        LivePartner::memory_bytes(self)
+    }
+    fn context_len(&self) -> usize {
+        LivePartner::context_len(self)
+    }
+    fn as_any(&self) -> &dyn std::any::Any {
+        self
+    }
+    fn as_any_mut(&mut self) -> &mut dyn std::any::Any {
+        self
+    }
+}
+
+/// A live step's output as a neutral one: the partner's tokens as traces (`actor_latent` the
+/// user's token at the same place, `reactor_latent` the partner's, no context vector).
+impl From<LiveOutput> for StepOutput {
+    fn from(out: LiveOutput) -> Self {
+        StepOutput {
+            frames: out.frames,
+            tokens: out
+                .tokens
+                .into_iter()
+                .map(|t| TokenTrace {
+                    index: t.index,
+                    actor_latent: t.user,
+                    reactor_latent: t.partner,
+                    context: Vec::new(),
+                })
+                .collect(),
+        }
+    }
+}
+
+impl From<LivePartner> for Session {
+    fn from(partner: LivePartner) -> Self {
+        Self::new(partner)
+    }
 }

@@ -3,6 +3,7 @@
 //! token, scheduled by matrices: joint generation of a group, partner prediction and inpainting,
 //! in-betweening, turn-taking, synchronous agents and a live partner, all from one network.
 //!
+//! - `family`: [`Magnet`], the loaded model (`Model::magnet`): the tasks and live partners;
 //! - [`spec`]: the family's manifest section and the interface it requires of its graphs;
 //! - [`layout`]: the token layout and troupe's frame layout for MAGNet;
 //! - `networks`: the loaded graphs and the codebook;
@@ -12,13 +13,14 @@
 //! - `tasks`: every sampling entry point;
 //! - `transforms`, `motion`: rigid transforms, frames <-> tokens, roots in the world;
 //! - [`draws`]: troupe's generator or the caller's draws;
-//! - `live`: the live partner as a stream (a [`crate::Session`] over a `magnet` model);
-//! - `generate`: [`crate::Model::magnet_generate`].
+//! - `live`: the live partner as a stream, [`LivePartner`];
+//! - `generate`: configurations and the sampler's entry, [`Magnet::generate`].
 //!
 //! Like every family, this folder imports only from `crate::shared`, `crate::motion` and itself.
 //! The Python reference it is tested against is `onnx/troupe_onnx/magnet/`.
 
 pub mod draws;
+mod family;
 mod generate;
 mod guidance;
 pub mod layout;
@@ -32,7 +34,7 @@ mod tasks;
 pub mod transforms;
 
 pub use draws::{Draws, STREAM_MAGNET};
-pub(crate) use generate::{configuration, default_live_config, generate, output_shape};
+pub use family::{Magnet, PartnerOptions};
 pub use generate::{MagnetOptions, MagnetOutput};
-pub use live::{LiveSettings, DECODER_CONTEXT_TOKENS, ENCODER_CONTEXT_TOKENS};
+pub use live::{LivePartner, DECODER_CONTEXT_TOKENS, ENCODER_CONTEXT_TOKENS};
 pub(crate) use networks::Networks;

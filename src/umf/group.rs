@@ -16,7 +16,7 @@
 //! `G = G_null + w (G_cond - G_null)`, one network call on the batch `[null; cond]`; with
 //! `w = 1` only the conditional half runs.
 //!
-//! [`crate::Model::generate_group`] checks the family and calls [`Networks::generate_group`].
+//! [`crate::Umf::generate_group`] calls [`Networks::generate_group`].
 
 use ndarray::Array3;
 use tract_onnx::prelude::TValue;
@@ -43,7 +43,7 @@ pub const STREAM_REACTION_NOISE: u32 = 4;
 /// person's context reads all previous ones).
 pub const MAX_PEOPLE: usize = crate::shared::limits::LIMITS.max_people as usize;
 
-/// Settings of one [`crate::Model::generate_group`] call; `None` takes the bundle's default.
+/// Settings of one [`crate::Umf::generate_group`] call; `None` takes the bundle's default.
 #[derive(Debug, Clone, Default)]
 pub struct GroupOptions {
     /// Seed of every random draw not given in `noise`.

@@ -9,7 +9,7 @@ use std::sync::OnceLock;
 
 use ndarray::{Array1, Array2};
 use ndarray_npy::read_npy;
-use troupe::{Model, Session, SessionOptions, TokenNoise, TokenTrace};
+use troupe::{Model, Reactor, ReactorOptions, TokenNoise, TokenTrace};
 
 /// The committed tiny bundle.
 pub fn bundle_dir() -> PathBuf {
@@ -76,7 +76,7 @@ pub fn max_abs_diff(a: &[f32], b: &[f32]) -> f32 {
 }
 
 /// Queues the golden case's injected noise into a session.
-pub fn queue_golden_noise(session: &mut Session, case: &str) {
+pub fn queue_golden_noise(session: &mut Reactor, case: &str) {
     let (xi, eps) = (
         golden2(&format!("{case}_xi")),
         golden2(&format!("{case}_eps")),
@@ -93,7 +93,7 @@ pub fn queue_golden_noise(session: &mut Session, case: &str) {
 
 /// Feeds `actor` in chunks of `chunk` frames; returns all frames and the token traces.
 pub fn run_chunked(
-    session: &mut Session,
+    session: &mut Reactor,
     actor: &Array2<f32>,
     chunk: usize,
 ) -> (Vec<f32>, Vec<TokenTrace>) {
@@ -106,8 +106,8 @@ pub fn run_chunked(
     (frames, tokens)
 }
 
-pub fn default_options() -> SessionOptions {
-    SessionOptions {
+pub fn default_options() -> ReactorOptions {
+    ReactorOptions {
         seed: 11,
         ..Default::default()
     }

@@ -6,15 +6,15 @@
 
 use ndarray::ArrayView3;
 
-use super::{step_sessions_bounded, Session};
+use super::{step_reactors_bounded, Reactor};
 use crate::motion::{
     decode_frame, joints_layout, FeatureStream, JointsFormat, Placement, Pose,
     STREAM_LATENCY_FRAMES, T2M22_JOINTS,
 };
 use crate::shared::error::{Error, Result};
 
-impl Session {
-    /// Sets how [`Session::step_joints`] reads actor positions (units, up axis, handedness,
+impl Reactor {
+    /// Sets how [`Reactor::step_joints`] reads actor positions (units, up axis, handedness,
     /// frame rate; resampled to the bundle's rate) and forgets the actor frames and placement
     /// the joint stream had. Without it, positions are metres, Y up, at the bundle's rate.
     pub fn set_joints_format(&mut self, format: JointsFormat) -> Result<()> {
@@ -28,7 +28,7 @@ impl Session {
     }
 
     /// The joint stream's placement: where the reactor's poses are put, fixed by the first actor
-    /// frame given to [`Session::step_joints`] (`None` before it).
+    /// frame given to [`Reactor::step_joints`] (`None` before it).
     pub fn joints_placement(&self) -> Option<&Placement> {
         self.joints.as_ref().and_then(|j| j.placement())
     }
@@ -40,14 +40,14 @@ impl Session {
     }
 
     /// Feeds actor joint positions (`[n, 22, 3]`, n may be 0, measured as
-    /// [`Session::set_joints_format`] said) and returns the reactor poses that became ready, in
+    /// [`Reactor::set_joints_format`] said) and returns the reactor poses that became ready, in
     /// the caller's world. On error the session, joint stream included, is unchanged.
     pub fn step_joints(&mut self, actor: ArrayView3<f32>) -> Result<Vec<Pose>> {
-        let mut out = step_sessions_joints(&mut [self], &[actor])?;
+        let mut out = step_reactors_joints(&mut [self], &[actor])?;
         Ok(out.pop().expect("one session, one result"))
     }
 
-    /// How many reactor poses [`Session::step_joints`] returns for the next `n` actor joint
+    /// How many reactor poses [`Reactor::step_joints`] returns for the next `n` actor joint
     /// frames (what a caller's buffer must hold).
     pub fn joints_ready_after(&self, n: usize) -> Result<usize> {
         Ok(self.frames_ready_after(self.joint_stream()?.rows_after(n)))
@@ -69,11 +69,11 @@ impl Session {
     }
 }
 
-/// [`Session::step_joints`] for many sessions of one model at once, like
-/// [`crate::step_sessions`]: each session's actor positions (`[n_i, 22, 3]`) in, each
+/// [`Reactor::step_joints`] for many sessions of one model at once, like
+/// [`crate::step_reactors`]: each session's actor positions (`[n_i, 22, 3]`) in, each
 /// session's reactor poses out. On error no session changes.
-pub fn step_sessions_joints(
-    sessions: &mut [&mut Session],
+pub fn step_reactors_joints(
+    sessions: &mut [&mut Reactor],
     actor: &[ArrayView3<f32>],
 ) -> Result<Vec<Vec<Pose>>> {
     if actor.len() != sessions.len() {
@@ -112,7 +112,7 @@ pub fn step_sessions_joints(
         features.push(flat);
     }
     let chunks: Vec<&[f32]> = features.iter().map(Vec::as_slice).collect();
-    let outputs = step_sessions_bounded(sessions, &chunks, &[])?;
+    let outputs = step_reactors_bounded(sessions, &chunks, &[])?;
     let mut poses = Vec::with_capacity(sessions.len());
     for ((session, stream), output) in sessions.iter_mut().zip(streams).zip(outputs) {
         // Reactor frames exist only after actor frames, which placed the stream. The session's

@@ -4,14 +4,14 @@
 //! working copy of its state. The loop runs in rounds; each round generates the next token of
 //! every lane that has the frames for one, with one network call per graph for all of them, so
 //! the weights are read once per round however many streams there are. A single
-//! [`Session::step`](super::Session::step) is a batch of one lane through the same code.
+//! [`Reactor::step`](super::Session::step) is a batch of one lane through the same code.
 //!
 //! Every token's actor latent, context, reactor latent, VAE state and decoded frames are checked
 //! to be finite before the loop goes on: extreme settings or inputs can overflow a network, and
 //! a non-finite value must fail the step (leaving the session as it was) rather than be returned
 //! or carried into the next token.
 
-use super::{Session, StepOutput, StreamState, TokenNoise, TokenTrace};
+use super::{Reactor, StepOutput, StreamState, TokenNoise, TokenTrace};
 use crate::armflow::kv_cache::KvCache;
 use crate::armflow::networks::{Networks, VaeState};
 use crate::armflow::spec::{ActorLatent, ArmFlowSpec};
@@ -20,7 +20,7 @@ use crate::shared::error::{Error, Result};
 
 /// One stream's part in a step.
 pub(super) struct Lane<'s> {
-    pub(super) session: &'s Session,
+    pub(super) session: &'s Reactor,
     /// The session's index in a batched call (for messages); `None` when stepped alone.
     pub(super) index: Option<usize>,
     /// Committed to the session only when the whole step succeeds.
@@ -33,7 +33,7 @@ pub(super) struct Lane<'s> {
 impl<'s> Lane<'s> {
     /// A lane over `session` that owns `cache`, the session's cache moved out for the step (so
     /// the step writes it in place rather than into a copy).
-    pub(super) fn new(session: &'s Session, index: Option<usize>, cache: KvCache) -> Self {
+    pub(super) fn new(session: &'s Reactor, index: Option<usize>, cache: KvCache) -> Self {
         let mut state = session.state.clone();
         state.cache = cache;
         Self {
@@ -188,7 +188,7 @@ fn generate_tokens(nets: &Networks, lanes: &mut [&mut Lane]) -> Result<()> {
     }
 
     // 2. context over [<sos>, pairs...]: append token j (<sos> or the last pair) to each cache
-    let sessions: Vec<&Session> = lanes.iter().map(|l| l.session).collect();
+    let sessions: Vec<&Reactor> = lanes.iter().map(|l| l.session).collect();
     let mut tokens = Vec::new();
     let mut positions = Vec::with_capacity(lanes.len());
     for lane in lanes.iter_mut() {
@@ -296,7 +296,7 @@ fn posteriors(nets: &Networks, lanes: &mut [&mut Lane]) -> Result<(Vec<f32>, Vec
 /// conditional row (zero actor token and context): `u = u_null + s * (u_cond - u_null)`.
 fn sample(
     nets: &Networks,
-    sessions: &[&Session],
+    sessions: &[&Reactor],
     actor: &[f32],
     context: &[f32],
     mut z: Vec<f32>,
@@ -306,7 +306,7 @@ fn sample(
     let most_steps = sessions.iter().map(|s| s.settings.steps).max().unwrap_or(0);
     for k in 0..most_steps as usize {
         let (mut a, mut noisy, mut ctx, mut r, mut t) = (vec![], vec![], vec![], vec![], vec![]);
-        let active = |s: &&Session| k < s.settings.steps as usize;
+        let active = |s: &&Reactor| k < s.settings.steps as usize;
         for (i, s) in sessions.iter().enumerate().filter(|(_, s)| active(s)) {
             let rows = if s.settings.cfg_scale != 1.0 { 2 } else { 1 };
             for row in 0..rows {

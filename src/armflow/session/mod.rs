@@ -1,4 +1,4 @@
-//! [`Session`]: one actor/reactor stream. Frames in, reactor frames out, one token at a time.
+//! [`Reactor`]: one actor/reactor stream. Frames in, reactor frames out, one token at a time.
 //!
 //! Per token `j` (frames `4j .. 4j+3` with 4 frames per token):
 //! 1. **Actor token**: the VAE encoder runs on the window of actor frames
@@ -32,6 +32,7 @@ use crate::shared::checks::{check_frames, check_input};
 use crate::shared::error::{Error, Result};
 use crate::shared::limits::{at_most, check_cfg, check_steps, LIMITS};
 use crate::shared::noise::{fill_normals, STREAM_ACTOR_POSTERIOR, STREAM_REACTOR_NOISE};
+use crate::shared::stream::{downcast_all, StepOutput, StepTogether, Stream, TokenTrace};
 use crate::shared::text::prompt::no_prompts;
 
 mod guard;
@@ -39,13 +40,13 @@ mod joints;
 mod lanes;
 use guard::GuardState;
 pub use guard::PenetrationGuard;
-pub use joints::step_sessions_joints;
+pub use joints::step_reactors_joints;
 use lanes::Lane;
 
 /// Options of a session. Fields left `None` take the bundle's defaults (`sampler` and
 /// `context` sections of the manifest).
 #[derive(Debug, Clone, Default)]
-pub struct SessionOptions {
+pub struct ReactorOptions {
     /// Seed of the portable noise generator ([`crate::noise`]).
     pub seed: u64,
     /// MeanFlow steps per token (>= 1).
@@ -76,28 +77,6 @@ pub struct TokenNoise {
     pub actor: Vec<f32>,
     /// The reactor's starting noise `eps` (`latent_dim` floats).
     pub reactor: Vec<f32>,
-}
-
-/// What the session computed for one token.
-#[derive(Debug, Clone, PartialEq)]
-pub struct TokenTrace {
-    /// Token index in the stream (0-based).
-    pub index: u64,
-    /// The actor's latent token `a_j` (scaled).
-    pub actor_latent: Vec<f32>,
-    /// The generated reactor latent token `b_j` (scaled).
-    pub reactor_latent: Vec<f32>,
-    /// The context `c_j` the velocity network was conditioned on.
-    pub context: Vec<f32>,
-}
-
-/// Result of [`Session::step_detailed`].
-#[derive(Debug, Clone)]
-pub struct StepOutput {
-    /// Reactor frames that became ready, `[n, frame_dim]` (n a multiple of frames_per_token).
-    pub frames: Array2<f32>,
-    /// Every token generated during the step, in order.
-    pub tokens: Vec<TokenTrace>,
 }
 
 /// Settings in force; changed by the setters, kept by `reset()`.
@@ -138,10 +117,11 @@ struct StreamState {
     guard: GuardState,
 }
 
-/// One actor/reactor stream over a shared [`crate::Model`] (made by
-/// [`crate::Model::session`]). `Send`, not `Sync`: use it from one thread at a time.
+/// One actor/reactor stream over a loaded ARMFlow model (made by `Armflow::reactor`, or boxed
+/// in a [`crate::Session`] by `Model::session`). `Send`, not `Sync`: use it from one thread at
+/// a time.
 #[derive(Debug)]
-pub struct Session {
+pub struct Reactor {
     /// The model's networks, shared with it and with its other sessions.
     nets: Arc<Networks>,
     settings: Settings,
@@ -150,14 +130,14 @@ pub struct Session {
     state: StreamState,
     /// The VAE steps' zero state, when the session uses step graphs rather than windows.
     vae_start: Option<VaeState>,
-    /// Actor joint positions to features, for [`Session::step_joints`] (`None` until used or
+    /// Actor joint positions to features, for [`Reactor::step_joints`] (`None` until used or
     /// configured).
     joints: Option<FeatureStream>,
 }
 
-impl Session {
+impl Reactor {
     /// A fresh stream over `nets` (the family was checked by [`crate::Model::session`]).
-    pub(crate) fn new(nets: Arc<Networks>, options: SessionOptions) -> Result<Self> {
+    pub(crate) fn new(nets: Arc<Networks>, options: ReactorOptions) -> Result<Self> {
         let m = &nets.spec;
         let settings = Settings {
             seed: options.seed,
@@ -232,7 +212,7 @@ impl Session {
         self.nets.latent_dim()
     }
 
-    /// Floats in the conditioning vector [`Session::set_condition`] takes.
+    /// Floats in the conditioning vector [`Reactor::set_condition`] takes.
     pub fn condition_dim(&self) -> usize {
         self.nets.io.condition.dim
     }
@@ -244,7 +224,7 @@ impl Session {
         Ok(self.step_detailed(actor)?.frames)
     }
 
-    /// [`Session::step`], also returning the latent tokens and contexts it computed.
+    /// [`Reactor::step`], also returning the latent tokens and contexts it computed.
     pub fn step_detailed(&mut self, actor: ArrayView2<f32>) -> Result<StepOutput> {
         let dim = self.nets.frame_dim();
         if actor.ncols() != dim {
@@ -265,12 +245,12 @@ impl Session {
         self.step_flat(flat)
     }
 
-    /// [`Session::step_detailed`] on row-major frames (`n * frame_dim` floats).
+    /// [`Reactor::step_detailed`] on row-major frames (`n * frame_dim` floats).
     pub fn step_flat(&mut self, actor: &[f32]) -> Result<StepOutput> {
         self.step_bounded(actor, usize::MAX)
     }
 
-    /// [`Session::step_flat`] that fails, leaving the session unchanged, when more than
+    /// [`Reactor::step_flat`] that fails, leaving the session unchanged, when more than
     /// `max_frames` frames would come out (the C ABI's caller-sized buffer).
     pub(crate) fn step_bounded(&mut self, actor: &[f32], max_frames: usize) -> Result<StepOutput> {
         let dim = self.nets.frame_dim();
@@ -336,7 +316,7 @@ impl Session {
         Ok(())
     }
 
-    /// Conditions the tokens generated from now on on a text prompt: [`Session::set_condition`]
+    /// Conditions the tokens generated from now on on a text prompt: [`Reactor::set_condition`]
     /// with [`crate::Model::encode_prompt`]'s condition (cached per prompt in the model).
     pub fn set_prompt(&mut self, prompt: &str) -> Result<()> {
         let condition = encode_prompt(&self.nets, prompt)?;
@@ -481,7 +461,7 @@ impl StreamState {
 }
 
 /// Advances many sessions of one model in one call: `actor[i]` (row-major frames, any number)
-/// goes to `sessions[i]`, and the result's entry `i` is what [`Session::step_flat`] would have
+/// goes to `sessions[i]`, and the result's entry `i` is what [`Reactor::step_flat`] would have
 /// returned for it. Each round of the loop runs every graph once for all the sessions that have
 /// a token to generate, so the weights are read once per round rather than once per session;
 /// each session's outputs equal stepping it alone up to float rounding (<= 1e-5 in the tests).
@@ -489,14 +469,14 @@ impl StreamState {
 /// Sessions may differ in everything but their model (same [`crate::Model`] or a clone): seed,
 /// steps, CFG, condition, capacity, history length, and how many frames they are given. On error
 /// every session is unchanged.
-pub fn step_sessions(sessions: &mut [&mut Session], actor: &[&[f32]]) -> Result<Vec<StepOutput>> {
-    step_sessions_bounded(sessions, actor, &[])
+pub fn step_reactors(sessions: &mut [&mut Reactor], actor: &[&[f32]]) -> Result<Vec<StepOutput>> {
+    step_reactors_bounded(sessions, actor, &[])
 }
 
-/// [`step_sessions`] that fails, changing no session, when session `i` would return more than
+/// [`step_reactors`] that fails, changing no session, when session `i` would return more than
 /// `max_frames[i]` frames (the C ABI's caller-sized buffers; empty: unbounded).
-pub(crate) fn step_sessions_bounded(
-    sessions: &mut [&mut Session],
+pub(crate) fn step_reactors_bounded(
+    sessions: &mut [&mut Reactor],
     actor: &[&[f32]],
     max_frames: &[usize],
 ) -> Result<Vec<StepOutput>> {
@@ -532,7 +512,7 @@ pub(crate) fn step_sessions_bounded(
 /// session then unchanged. With `indexed`, messages name the session by its index.
 fn advance_sessions(
     nets: &Networks,
-    sessions: &mut [&mut Session],
+    sessions: &mut [&mut Reactor],
     actor: &[&[f32]],
     max_frames: &[usize],
     indexed: bool,
@@ -585,7 +565,7 @@ fn advance_sessions(
 /// Runs the session's penetration guard, if it has one, on the frames a step sends (on the
 /// step's working state: `session` still holds the state before the step).
 fn guard(
-    session: &Session,
+    session: &Reactor,
     nets: &Networks,
     state: &mut StreamState,
     output: &mut StepOutput,
@@ -621,4 +601,75 @@ fn encode_prompt(nets: &Networks, prompt: &str) -> Result<Vec<f32>> {
         .prompt_encoder()
         .ok_or_else(|| no_prompts(&nets.io.name))?;
     encoder.encode(prompt)
+}
+
+impl Stream for Reactor {
+    fn family(&self) -> &'static str {
+        "armflow"
+    }
+    fn frame_dim(&self) -> usize {
+        Reactor::frame_dim(self)
+    }
+    fn latent_dim(&self) -> usize {
+        Reactor::latent_dim(self)
+    }
+    fn condition_dim(&self) -> usize {
+        Reactor::condition_dim(self)
+    }
+    fn step_bounded(&mut self, frames: &[f32], max_frames: usize) -> Result<StepOutput> {
+        Reactor::step_bounded(self, frames, max_frames)
+    }
+    fn step_together(&self) -> StepTogether {
+        |streams, frames, max_frames| {
+            step_reactors_bounded(&mut downcast_all::<Reactor>(streams), frames, max_frames)
+        }
+    }
+    fn same_model(&self, other: &dyn Stream) -> bool {
+        other
+            .as_any()
+            .downcast_ref::<Reactor>()
+            .is_some_and(|o| Arc::ptr_eq(&self.nets, &o.nets))
+    }
+    fn reset(&mut self) {
+        Reactor::reset(self)
+    }
+    fn latency_frames(&self) -> usize {
+        Reactor::latency_frames(self)
+    }
+    fn set_seed(&mut self, seed: u64) {
+        Reactor::set_seed(self, seed)
+    }
+    fn set_steps(&mut self, steps: u32) -> Result<()> {
+        Reactor::set_steps(self, steps)
+    }
+    fn frames_ready_after(&self, n: usize) -> usize {
+        Reactor::frames_ready_after(self, n)
+    }
+    fn frames_received(&self) -> u64 {
+        Reactor::frames_received(self)
+    }
+    fn frames_emitted(&self) -> u64 {
+        Reactor::frames_emitted(self)
+    }
+    fn tokens_generated(&self) -> u64 {
+        Reactor::tokens_generated(self)
+    }
+    fn memory_bytes(&self) -> usize {
+        Reactor::memory_bytes(self)
+    }
+    fn context_len(&self) -> usize {
+        Reactor::context_len(self)
+    }
+    fn as_any(&self) -> &dyn std::any::Any {
+        self
+    }
+    fn as_any_mut(&mut self) -> &mut dyn std::any::Any {
+        self
+    }
+}
+
+impl From<Reactor> for crate::shared::stream::Session {
+    fn from(reactor: Reactor) -> Self {
+        Self::new(reactor)
+    }
 }

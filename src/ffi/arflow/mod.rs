@@ -1,12 +1,13 @@
 //! The C entry points of the `arflow` family: offline generation with penetration guidance.
 
 use crate::arflow::spec::{ArflowSampling, Mixing};
+use crate::arflow::{Arflow, OnlineStream};
 use crate::ffi::boundary::{
     self, check_struct_size, checked_mul, non_null, read_versioned, room, troupe_status,
-    write_versioned, FfiError, FfiResult, TROUPE_ERR_INVALID_ARG, TROUPE_ERR_UNSUPPORTED,
+    write_versioned, FfiError, FfiResult, TROUPE_ERR_INVALID_ARG,
 };
 use crate::ffi::model::troupe_model;
-use crate::ffi::session::{troupe_session, with_session};
+use crate::ffi::session::{family_stream, troupe_session, with_session};
 use crate::{ArflowOptions, Model};
 
 /// `troupe_arflow_options.flags`: a squared hinge in the penetration loss (else linear).
@@ -56,12 +57,13 @@ pub extern "C" fn troupe_arflow_options_size() -> usize {
     std::mem::size_of::<troupe_arflow_options>()
 }
 
-fn arflow_model(model: Option<&troupe_model>) -> FfiResult<&Model> {
+/// The model behind a handle and its ARFlow API, or an error for NULL or another family.
+fn arflow_model(model: Option<&troupe_model>) -> FfiResult<(&Model, &Arflow)> {
     let model = &boundary::required(model, "model")?.model;
-    model
-        .arflow_spec()
-        .ok_or_else(|| model.wrong_family("arflow", "ARFlow generation"))?;
-    Ok(model)
+    let arflow = model
+        .arflow()
+        .map_err(|_| model.wrong_family("arflow", "ARFlow generation"))?;
+    Ok((model, arflow))
 }
 
 /// The options `troupe_arflow_options_init` writes: the bundle's sampler settings, seed 0.
@@ -107,10 +109,10 @@ pub unsafe extern "C" fn troupe_arflow_options_init(
         "troupe_arflow_options_init",
         || {},
         || {
-            let model = arflow_model(model)?;
+            let (_, arflow) = arflow_model(model)?;
             non_null(options, "options")?;
             check_struct_size(options_size, OPTIONS_V1_SIZE, "troupe_arflow_options")?;
-            let sampler = &model.arflow_spec().expect("checked").sampler;
+            let sampler = &arflow.spec().sampler;
             let defaults = option_defaults(sampler, options_size);
             // SAFETY: writable for `options_size` bytes; no padding (asserted).
             unsafe { write_versioned(options, options_size, &defaults) };
@@ -201,11 +203,11 @@ pub unsafe extern "C" fn troupe_arflow_generate(
         "troupe_arflow_generate",
         || {},
         || {
-            let model = arflow_model(model)?;
+            let (model, arflow) = arflow_model(model)?;
             let opts = if options.is_null() {
                 ArflowOptions::default()
             } else {
-                let sampler = &model.arflow_spec().expect("checked").sampler;
+                let sampler = &arflow.spec().sampler;
                 // SAFETY: per the contract.
                 unsafe { read_options(sampler, options) }?
             };
@@ -218,7 +220,7 @@ pub unsafe extern "C" fn troupe_arflow_generate(
             let input = unsafe { std::slice::from_raw_parts(actor, len) };
             let input =
                 ndarray::ArrayView2::from_shape((n_frames, dim), input).expect("sized above");
-            let reactor = model.arflow_generate(input, &opts)?;
+            let reactor = arflow.generate(input, &opts)?;
             let values = reactor.as_slice().expect("standard layout");
             // SAFETY: `out` is writable for at least `n_frames * 262` floats (checked room).
             unsafe { std::ptr::copy_nonoverlapping(values.as_ptr(), out, values.len()) };
@@ -230,9 +232,9 @@ pub unsafe extern "C" fn troupe_arflow_generate(
 /// Sets an ARFlow stream's sampler settings (`options`, filled by `troupe_arflow_options_init`;
 /// its seed too); a new step count only before the first frame or after `troupe_session_reset`.
 ///
-/// Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (not an ARFlow stream,
-/// settings out of range, unknown flags), `TROUPE_ERR_POISONED`, `TROUPE_ERR_PANIC`. One thread
-/// at a time per session.
+/// Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (settings out of range,
+/// unknown flags), `TROUPE_ERR_UNSUPPORTED` (not an ARFlow stream), `TROUPE_ERR_POISONED`,
+/// `TROUPE_ERR_PANIC`. One thread at a time per session.
 ///
 /// # Safety
 /// `session` must be a live handle; `options` readable for its `struct_size`.
@@ -245,18 +247,11 @@ pub unsafe extern "C" fn troupe_arflow_session_set_options(
     unsafe {
         with_session(session, "troupe_arflow_session_set_options", |s| {
             non_null(options, "options")?;
-            let bundle = s.arflow_bundle_sampling().cloned().ok_or_else(|| {
-                FfiError::new(
-                    TROUPE_ERR_UNSUPPORTED,
-                    format!(
-                        "ARFlow's settings are for arflow streams; this session runs a `{}` model",
-                        s.family()
-                    ),
-                )
-            })?;
+            let stream = family_stream::<OnlineStream>(s, "arflow", "ARFlow's settings")?;
+            let bundle = stream.bundle_sampling().clone();
             // SAFETY: readable for its `struct_size` per the contract.
             let options = read_options(&bundle, options)?;
-            Ok(s.set_arflow_options(&options)?)
+            Ok(stream.set_options(&options)?)
         })
     }
 }

@@ -28,7 +28,12 @@ pub struct troupe_clip_noise {
 /// `model` must be NULL or a live handle.
 #[no_mangle]
 pub unsafe extern "C" fn troupe_armflow_clip_tokens(model: Option<&troupe_model>) -> usize {
-    property(model, |m| m.clip_spec().map_or(0, |c| c.tokens))
+    property(model, |m| {
+        m.armflow()
+            .ok()
+            .and_then(|a| a.clip_spec())
+            .map_or(0, |c| c.tokens)
+    })
 }
 
 /// Runs the official ARMFlow sampler on one actor clip and writes the reactor motion, row-major
@@ -87,7 +92,10 @@ pub unsafe extern "C" fn troupe_armflow_clip_generate(
                 // SAFETY: NULL or readable per the contract.
                 noise: unsafe { noise.as_ref() }.map(read_noise).transpose()?,
             };
-            let tokens = model.clip_spec().map_or(0, |c| c.tokens);
+            let armflow = model
+                .armflow()
+                .map_err(|_| model.wrong_family("armflow", "clip generation"))?;
+            let tokens = armflow.clip_spec().map_or(0, |c| c.tokens);
             let need = model.clip_frames() * d;
             let latent_need = tokens * model.latent_dim();
             non_null(frames, "frames")?;
@@ -97,7 +105,7 @@ pub unsafe extern "C" fn troupe_armflow_clip_generate(
             }
             let actor = ArrayView2::from_shape((n_actor_frames, d), actor)
                 .expect("n_actor_frames * frame_dim floats");
-            let clip = model.generate_clip(actor, condition, &options)?;
+            let clip = armflow.generate_clip(actor, condition, &options)?;
             let out = clip.frames.as_slice().expect("standard layout");
             // SAFETY: non-NULL, writable for frames_capacity >= need floats.
             unsafe { std::ptr::copy_nonoverlapping(out.as_ptr(), frames, out.len()) };

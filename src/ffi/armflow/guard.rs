@@ -1,7 +1,7 @@
 //! What only an ARMFlow stream takes beyond the common options: the penetration guard.
 
 use crate::ffi::boundary::troupe_status;
-use crate::ffi::session::{troupe_session, with_session};
+use crate::ffi::session::{reactor, troupe_session, with_session};
 
 /// Turns an ARMFlow session's penetration guard on (`enabled` nonzero) or off, for the frames
 /// sent from now on: each sent reactor frame is shifted in the floor plane out of the actor's
@@ -31,7 +31,7 @@ pub unsafe extern "C" fn troupe_armflow_session_set_penetration_guard(
                     d_safe: d_safe as f64,
                     max_speed: max_speed as f64,
                 });
-                Ok(s.set_penetration_guard(guard)?)
+                Ok(reactor(s, "the penetration guard")?.set_penetration_guard(guard)?)
             },
         )
     }

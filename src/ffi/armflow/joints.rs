@@ -9,7 +9,7 @@ use crate::ffi::boundary::{
 };
 use crate::ffi::model::{property, troupe_model};
 use crate::ffi::motion::{read_format, troupe_joints_format, troupe_placement, PoseParts};
-use crate::ffi::session::{troupe_session, with_session};
+use crate::ffi::session::{reactor, troupe_session, with_session};
 use crate::motion::T2M22_JOINTS;
 use crate::Model;
 
@@ -32,7 +32,7 @@ pub unsafe extern "C" fn troupe_session_set_joints_format(
     unsafe {
         with_session(session, "troupe_session_set_joints_format", |s| {
             let format = read_format(format)?;
-            s.set_joints_format(format)?;
+            reactor(s, "joint positions")?.set_joints_format(format)?;
             Ok(())
         })
     }
@@ -75,7 +75,7 @@ pub unsafe extern "C" fn troupe_session_step_joints(
             let view =
                 ArrayView3::from_shape((n_frames, T2M22_JOINTS, 3), flat).expect("length checked");
             let parts = PoseParts::check(out, out_capacity_frames, false)?;
-            let ready = s.joints_ready_after(n_frames)?;
+            let ready = reactor(s, "joint positions")?.joints_ready_after(n_frames)?;
             if ready > out_capacity_frames {
                 return Err(FfiError::new(
                     TROUPE_ERR_BUFFER_TOO_SMALL,
@@ -84,7 +84,7 @@ pub unsafe extern "C" fn troupe_session_step_joints(
                     ),
                 ));
             }
-            let poses = s.step_joints(view)?;
+            let poses = reactor(s, "joint positions")?.step_joints(view)?;
             parts.fill(&poses);
             *n_written = poses.len();
             Ok(())
@@ -111,7 +111,7 @@ pub unsafe extern "C" fn troupe_session_joints_ready_after(
     unsafe {
         with_session(session, "troupe_session_joints_ready_after", |s| {
             non_null(n_out, "n_out")?;
-            *n_out = s.joints_ready_after(n_frames)?;
+            *n_out = reactor(s, "joint positions")?.joints_ready_after(n_frames)?;
             Ok(())
         })
     }
@@ -134,12 +134,14 @@ pub unsafe extern "C" fn troupe_session_joints_placement(
     unsafe {
         with_session(session, "troupe_session_joints_placement", |s| {
             non_null(out, "out")?;
-            let p = s.joints_placement().ok_or_else(|| {
-                FfiError::new(
-                    TROUPE_ERR_INVALID_ARG,
-                    "the session has had no actor joint frame yet",
-                )
-            })?;
+            let p = reactor(s, "joint positions")?
+                .joints_placement()
+                .ok_or_else(|| {
+                    FfiError::new(
+                        TROUPE_ERR_INVALID_ARG,
+                        "the session has had no actor joint frame yet",
+                    )
+                })?;
             out.write_unaligned(troupe_placement::from_rust(p));
             Ok(())
         })

@@ -11,7 +11,7 @@ use crate::ffi::boundary::{
 };
 use crate::ffi::model::{property, troupe_model};
 use crate::magnet::layout::FRAME_DIM;
-use crate::{MagnetOptions, Model};
+use crate::{Magnet, MagnetOptions};
 
 /// `troupe_magnet_options.flags`: use `seed` instead of the configuration's.
 pub const TROUPE_MAGNET_SEED: u32 = 1;
@@ -116,7 +116,7 @@ pub unsafe extern "C" fn troupe_magnet_options_init(
 /// `model` must be NULL or a live handle.
 #[no_mangle]
 pub unsafe extern "C" fn troupe_magnet_people(model: Option<&troupe_model>) -> usize {
-    property(model, |m| m.magnet_spec().map_or(0, |s| s.model.persons))
+    property(model, |m| m.magnet().map_or(0, |g| g.spec().model.persons))
 }
 
 /// How many released sampling configurations a `magnet` bundle lists (0 for other bundles or
@@ -198,12 +198,12 @@ unsafe fn read_options(options: *const troupe_magnet_options) -> FfiResult<Magne
     })
 }
 
-fn magnet_model(model: Option<&troupe_model>) -> FfiResult<&Model> {
+/// The model behind a handle as MAGNet, or an error for NULL or another family.
+fn magnet_model(model: Option<&troupe_model>) -> FfiResult<&Magnet> {
     let model = &boundary::required(model, "model")?.model;
-    model
-        .magnet_spec()
-        .ok_or_else(|| model.wrong_family("magnet", "MAGNet generation"))?;
-    Ok(model)
+    Ok(model
+        .magnet()
+        .map_err(|_| model.wrong_family("magnet", "MAGNet generation"))?)
 }
 
 /// Writes the shape of the frames `troupe_magnet_generate` returns for `frame_count` frames of
@@ -233,7 +233,7 @@ pub unsafe extern "C" fn troupe_magnet_output_shape(
             let model = magnet_model(model)?;
             // SAFETY: per the contract.
             let (name, opts) = unsafe { (config_name(config)?, read_options(options)?) };
-            let shape = model.magnet_output_shape(name, frame_count, &opts)?;
+            let shape = model.output_shape(name, frame_count, &opts)?;
             for (out, value) in [(samples, shape[0]), (frames, shape[1]), (people, shape[2])] {
                 if !out.is_null() {
                     // SAFETY: non-NULL, writable per the contract.
@@ -297,8 +297,8 @@ pub unsafe extern "C" fn troupe_magnet_generate(
             let model = magnet_model(model)?;
             // SAFETY: per the contract.
             let (name, opts) = unsafe { (config_name(config)?, read_options(options)?) };
-            let people = model.magnet_spec().map_or(0, |s| s.model.persons);
-            let shape = model.magnet_output_shape(name, frame_count, &opts)?;
+            let people = model.spec().model.persons;
+            let shape = model.output_shape(name, frame_count, &opts)?;
             let need = checked_mul(
                 checked_mul(shape[0], shape[1], "samples * frames")?,
                 checked_mul(shape[2], shape[3], "people * 145")?,
@@ -329,8 +329,7 @@ pub unsafe extern "C" fn troupe_magnet_generate(
                     .expect("sized above"),
                 )
             };
-            let result =
-                model.magnet_generate(name, input, mask.as_ref().map(|m| m.view()), &opts)?;
+            let result = model.generate(name, input, mask.as_ref().map(|m| m.view()), &opts)?;
             let values = result.frames.as_slice().expect("standard layout");
             // SAFETY: `out` is non-NULL and writable for out_capacity >= need floats.
             unsafe { std::ptr::copy_nonoverlapping(values.as_ptr(), out, values.len()) };

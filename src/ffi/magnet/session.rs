@@ -3,8 +3,14 @@
 
 use std::ffi::c_char;
 
-use crate::ffi::boundary::{self, checked_mul, troupe_status};
-use crate::ffi::session::{troupe_session, with_session};
+use crate::ffi::boundary::{self, checked_mul, troupe_status, FfiResult};
+use crate::ffi::session::{family_stream, troupe_session, with_session};
+use crate::{LivePartner, Session};
+
+/// The live partner behind a session, for what only it takes.
+fn partner<'a>(session: &'a mut Session, what: &str) -> FfiResult<&'a mut LivePartner> {
+    family_stream(session, "magnet", what)
+}
 
 /// Sets the partner's opening frames of a MAGNet live partner session: `n_frames` frames
 /// (the configuration's context, `4 * context_capacity`) of `troupe_model_frame_dim` floats,
@@ -32,7 +38,7 @@ pub unsafe extern "C" fn troupe_magnet_session_set_partner_opening(
         with_session(session, "troupe_magnet_session_set_partner_opening", |s| {
             let n = checked_mul(n_frames, s.frame_dim(), "n_frames * frame_dim")?;
             let frames = boundary::slice(frames, n, "frames")?;
-            Ok(s.set_partner_opening(frames)?)
+            Ok(partner(s, "the partner's opening frames")?.set_opening(frames)?)
         })
     }
 }
@@ -56,7 +62,7 @@ pub unsafe extern "C" fn troupe_magnet_session_set_early_emission(
     // SAFETY: forwarded contract.
     unsafe {
         with_session(session, "troupe_magnet_session_set_early_emission", |s| {
-            Ok(s.set_early_emission(early != 0)?)
+            Ok(partner(s, "early emission")?.set_early_emission(early != 0)?)
         })
     }
 }
@@ -81,7 +87,7 @@ pub unsafe extern "C" fn troupe_magnet_session_set_live_config(
     unsafe {
         with_session(session, "troupe_magnet_session_set_live_config", |s| {
             let config = boundary::required_str(config, "config")?;
-            Ok(s.set_live_config(config)?)
+            Ok(partner(s, "a live configuration")?.set_live_config(config)?)
         })
     }
 }

@@ -6,7 +6,7 @@ use crate::ffi::boundary::{
 };
 use crate::ffi::model::{optional_condition, property, troupe_model};
 use crate::manifest::UmfSpec;
-use crate::{GroupNoise, GroupNoiseShape, GroupOptions, Method, Model, Solver};
+use crate::{GroupNoise, GroupNoiseShape, GroupOptions, Method, Model, Solver, Umf};
 
 /// Forward Euler.
 pub const TROUPE_SOLVER_EULER: u32 = 1;
@@ -93,12 +93,12 @@ fn solver_from(code: u32, steps: u32, what: &str) -> FfiResult<Solver> {
 }
 
 /// The model behind a handle and its `umf` fields, or an error for NULL or another family.
-fn umf_model(model: Option<&troupe_model>) -> FfiResult<(&Model, &UmfSpec)> {
+fn umf_model(model: Option<&troupe_model>) -> FfiResult<(&Model, &Umf)> {
     let model = &boundary::required(model, "model")?.model;
-    let spec = model
-        .umf_spec()
-        .ok_or_else(|| model.wrong_family("umf", "group generation"))?;
-    Ok((model, spec))
+    let umf = model
+        .umf()
+        .map_err(|_| model.wrong_family("umf", "group generation"))?;
+    Ok((model, umf))
 }
 
 /// The options `troupe_umf_options_init` writes: the bundle's solvers and CFG scale, seed 0.
@@ -159,7 +159,7 @@ pub unsafe extern "C" fn troupe_umf_options_init(
         || {
             non_null(options, "options")?;
             check_struct_size(options_size, OPTIONS_V1_SIZE, "troupe_group_options")?;
-            let (_, spec) = umf_model(model)?;
+            let spec = umf_model(model)?.1.spec();
             let defaults = option_defaults(spec, options_size)?;
             // SAFETY: writable for `options_size` bytes per the contract; no padding (asserted).
             unsafe { write_versioned(options, options_size, &defaults) };
@@ -175,7 +175,7 @@ pub unsafe extern "C" fn troupe_umf_options_init(
 #[no_mangle]
 pub unsafe extern "C" fn troupe_umf_stages(model: Option<&troupe_model>) -> usize {
     property(model, |m| {
-        m.umf_spec().map_or(0, |u| u.pyramid.stages.len())
+        m.umf().map_or(0, |u| u.spec().pyramid.stages.len())
     })
 }
 
@@ -186,7 +186,7 @@ pub unsafe extern "C" fn troupe_umf_stages(model: Option<&troupe_model>) -> usiz
 /// `model` must be NULL or a live handle.
 #[no_mangle]
 pub unsafe extern "C" fn troupe_umf_tokens(model: Option<&troupe_model>) -> usize {
-    property(model, |m| m.umf_spec().map_or(0, |u| u.latent.tokens))
+    property(model, |m| m.umf().map_or(0, |u| u.spec().latent.tokens))
 }
 
 /// Writes the lengths, in floats, of the three arrays of a `troupe_group_noise` for `people`
@@ -209,7 +209,7 @@ pub unsafe extern "C" fn troupe_umf_noise_lengths(
         "troupe_umf_noise_lengths",
         || {},
         || {
-            let shape = umf_model(model)?.0.group_noise_shape(people as usize)?;
+            let shape = umf_model(model)?.1.group_noise_shape(people as usize)?;
             for (out, value) in [
                 (prior_len, shape.prior),
                 (jumps_len, shape.jumps.iter().sum()),
@@ -273,7 +273,8 @@ pub unsafe extern "C" fn troupe_umf_generate(
         "troupe_umf_generate",
         || {},
         || {
-            let (model, spec) = umf_model(model)?;
+            let (model, umf) = umf_model(model)?;
+            let spec = umf.spec();
             let people_n = people as usize;
             let mut opts = if options.is_null() {
                 GroupOptions::default()
@@ -284,7 +285,7 @@ pub unsafe extern "C" fn troupe_umf_generate(
             // SAFETY: readable for `condition_len` floats per the contract.
             let condition = unsafe { optional_condition(model, condition, condition_len) }?;
             // The noise's shape doubles as the check of `people`.
-            let shape = model.group_noise_shape(people_n)?;
+            let shape = umf.group_noise_shape(people_n)?;
             if !noise.is_null() {
                 // SAFETY: readable per the contract.
                 opts.noise = Some(unsafe { read_noise(&*noise, &shape) }?);
@@ -307,7 +308,7 @@ pub unsafe extern "C" fn troupe_umf_generate(
                     ),
                 ));
             }
-            let group = model.generate_group(condition, people_n, &opts)?;
+            let group = umf.generate_group(condition, people_n, &opts)?;
             let out = group.motion.as_slice().expect("standard layout");
             // SAFETY: `motion` is non-NULL and writable for motion_capacity >= need floats.
             unsafe { std::ptr::copy_nonoverlapping(out.as_ptr(), motion, out.len()) };

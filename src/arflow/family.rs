@@ -1,0 +1,113 @@
+//! [`Arflow`]: a loaded ARFlow model, what `Model::arflow` gives. Generates a reactor for a
+//! whole actor clip ([`Arflow::generate`]); the online variant also streams, frame by frame
+//! ([`Arflow::online`]).
+
+use std::any::Any;
+use std::sync::Arc;
+
+use ndarray::{Array2, ArrayView2};
+
+use crate::arflow::networks::Networks;
+use crate::arflow::sampler::{self, ArflowOptions};
+use crate::arflow::spec::ArflowSpec;
+use crate::arflow::stream::OnlineStream;
+use crate::shared::error::Result;
+use crate::shared::family::{family_as, Family, SessionOptions, StreamOptions};
+use crate::shared::stream::Session;
+
+/// A loaded `arflow` bundle. Cheap to clone; clones and streams share its graphs.
+#[derive(Debug, Clone)]
+pub struct Arflow {
+    nets: Arc<Networks>,
+}
+
+impl Arflow {
+    pub(crate) fn new(nets: Networks) -> Self {
+        Self {
+            nets: Arc::new(nets),
+        }
+    }
+
+    /// The bundle's `arflow` manifest section.
+    pub fn spec(&self) -> &ArflowSpec {
+        &self.nets.spec
+    }
+
+    /// Whether the bundle is the online variant, which streams ([`Arflow::online`]).
+    pub fn streams(&self) -> bool {
+        self.nets.streams()
+    }
+
+    /// ARFlow's offline generation: the reactor's `interhuman262` features `[T, 262]` for the
+    /// actor's `actor` `[T, 262]` (1 to `model.max_frames` frames, one world frame for both),
+    /// with the bundle's sampler settings changed by `options` (guidance strength λ, weight w,
+    /// η, d_safe, ...; `docs/ARFLOW.md`). With the online variant's causal network, frame `n`
+    /// of the result depends only on the actor's frames up to `n`.
+    pub fn generate(&self, actor: ArrayView2<f32>, options: &ArflowOptions) -> Result<Array2<f32>> {
+        let sampling = options.apply(&self.nets.spec.sampler)?;
+        sampler::generate(&self.nets, actor, &sampling, options.seed)
+    }
+
+    /// Starts the online variant's stream: the bundle's sampler settings changed by `options`
+    /// (its seed too).
+    pub fn online(&self, options: &ArflowOptions) -> Result<OnlineStream> {
+        let sampling = options.apply(&self.nets.spec.sampler)?;
+        OnlineStream::new(Arc::clone(&self.nets), sampling, options.seed)
+    }
+}
+
+impl Family for Arflow {
+    fn name(&self) -> &'static str {
+        "arflow"
+    }
+
+    /// ARFlow has no latent tokens.
+    fn frames_per_token(&self) -> usize {
+        0
+    }
+
+    fn latent_dim(&self) -> usize {
+        self.nets.spec.model.dim
+    }
+
+    /// A frame out for each frame in.
+    fn latency_frames(&self) -> usize {
+        0
+    }
+
+    fn max_output_frames(&self, n: usize) -> usize {
+        n
+    }
+
+    fn session(&self, options: &SessionOptions) -> Result<Session> {
+        if let Some(capacity) = options.context_capacity {
+            if capacity != self.nets.spec.model.max_frames {
+                return Err(crate::shared::error::Error::Unsupported(format!(
+                    "an ARFlow stream keeps its whole history ({} frames); it takes no context \
+                     capacity ({capacity} given)",
+                    self.nets.spec.model.max_frames
+                )));
+            }
+        }
+        let options = ArflowOptions {
+            seed: options.seed,
+            steps: options.steps.map(|s| s as usize),
+            ..ArflowOptions::default()
+        };
+        Ok(Session::new(self.online(&options)?))
+    }
+
+    fn as_any(&self) -> &dyn Any {
+        self
+    }
+}
+
+impl crate::shared::family::sealed::Sealed for ArflowOptions {}
+
+impl StreamOptions for ArflowOptions {
+    #[allow(private_interfaces)]
+    fn open(self, family: &dyn Family) -> Result<Session> {
+        let arflow: &Arflow = family_as(family, "arflow", "an ARFlow stream")?;
+        Ok(Session::new(arflow.online(&self)?))
+    }
+}

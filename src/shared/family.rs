@@ -1,0 +1,120 @@
+//! What a model family gives the neutral layer. A family's loaded model (`armflow::Armflow`,
+//! `umf::Umf`, `magnet::Magnet`, `arflow::Arflow`) implements [`Family`]: the questions every
+//! caller asks whatever the family, its text encoder if it has one, and its default stream if
+//! it streams. [`crate::Model`] holds one behind this trait and hands out the family's own type
+//! for everything else (`model.armflow()?`), so no layer above a family grows with its
+//! operations.
+
+use std::any::Any;
+use std::fmt::Debug;
+
+use crate::shared::error::{Error, Result};
+use crate::shared::stream::Session;
+use crate::shared::text::branch::TextBranch;
+use crate::shared::text::prompt::PromptEncoder;
+
+/// A loaded model of one family.
+pub(crate) trait Family: Send + Sync + Debug + Any {
+    /// The family's manifest name (`"armflow"`).
+    fn name(&self) -> &'static str;
+    /// Motion frames per latent token; 0 when tokens are not spans of frames (UMF) or there are
+    /// none (ARFlow).
+    fn frames_per_token(&self) -> usize;
+    /// Floats per latent token of one person.
+    fn latent_dim(&self) -> usize;
+    /// Algorithmic latency of the family's default stream, in frames (0 without one).
+    fn latency_frames(&self) -> usize;
+    /// Latency when the stream reads joint positions (0 for a family that does not).
+    fn joints_latency_frames(&self) -> usize {
+        0
+    }
+    /// The most frames one step with `n` new frames can return (0 without a stream).
+    fn max_output_frames(&self, n: usize) -> usize;
+    /// Frames per generated clip (0 for a family without clips).
+    fn clip_frames(&self) -> usize {
+        0
+    }
+    /// The text encoder, for a bundle that turns prompts into conditions.
+    fn prompt_encoder(&self) -> Option<PromptEncoder<'_>> {
+        None
+    }
+    /// The official text branch (CLIP features to a condition), when the bundle has one.
+    fn text_branch(&self) -> Option<TextBranch<'_>> {
+        None
+    }
+    /// The family's stream with its defaults and the common `options`.
+    fn session(&self, options: &SessionOptions) -> Result<Session> {
+        let _ = options;
+        Err(Error::Unsupported(format!(
+            "a `{}` model does not stream; a session needs an `armflow`, a `magnet` or an \
+             online `arflow` bundle",
+            self.name()
+        )))
+    }
+    /// For the typed access of [`crate::Model`].
+    fn as_any(&self) -> &dyn Any;
+}
+
+/// The options every stream takes, whatever its family; the rest take the bundle's defaults.
+/// Each family's own options type ([`crate::armflow::ReactorOptions`],
+/// [`crate::magnet::PartnerOptions`], [`crate::arflow::ArflowOptions`]) holds everything it
+/// offers.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct SessionOptions {
+    /// Seed of the portable noise generator ([`crate::noise`]).
+    pub seed: u64,
+    /// Sampler steps: MeanFlow steps per token (ARMFlow), DDIM steps per chunk (MAGNet), flow
+    /// steps per frame (ARFlow).
+    pub steps: Option<u32>,
+    /// Context the stream keeps: ARMFlow's cache capacity in tokens (`<sos>` included, >= 2),
+    /// MAGNet's context tokens per window; ARFlow keeps its whole history and takes `None`.
+    pub context_capacity: Option<usize>,
+}
+
+/// Options that open a stream: [`SessionOptions`] for any family's default stream, or one
+/// family's own options type for that family's. `Model::session` takes any of them; a family's
+/// options given to another family's model are refused with [`Error::Unsupported`].
+pub trait StreamOptions: sealed::Sealed {
+    /// Opens the stream on `family`.
+    #[doc(hidden)]
+    #[allow(private_interfaces)]
+    fn open(self, family: &dyn Family) -> Result<Session>;
+}
+
+pub(crate) mod sealed {
+    /// Only troupe's option types open streams.
+    pub trait Sealed {}
+}
+
+impl sealed::Sealed for SessionOptions {}
+
+impl StreamOptions for SessionOptions {
+    #[allow(private_interfaces)]
+    fn open(self, family: &dyn Family) -> Result<Session> {
+        family.session(&self)
+    }
+}
+
+/// `family` as the family type `F`, or [`Error::Unsupported`] saying that `what` needs a
+/// `needed` bundle and which family this one is.
+pub(crate) fn family_as<'a, F: 'static>(
+    family: &'a dyn Family,
+    needed: &str,
+    what: &str,
+) -> Result<&'a F> {
+    family
+        .as_any()
+        .downcast_ref::<F>()
+        .ok_or_else(|| wrong_family(family.name(), needed, what))
+}
+
+/// The error for using a `family` bundle where a `needed` one is: `what` needs it.
+pub(crate) fn wrong_family(family: &str, needed: &str, what: &str) -> Error {
+    // As read aloud: "an armflow", "an arflow", "a umf", "a magnet".
+    let article = |f: &str| if f.starts_with('a') { "an" } else { "a" };
+    Error::Unsupported(format!(
+        "this is {} `{family}` model; {what} needs {} `{needed}` bundle",
+        article(family),
+        article(needed)
+    ))
+}
