@@ -890,7 +890,8 @@ troupe_status troupe_session_set_steps(struct troupe_session *session, uint32_t 
  * now on. The null branch zeroes the actor token and the context.
  *
  * Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (NaN or infinite),
- * `TROUPE_ERR_POISONED`, `TROUPE_ERR_PANIC`. One thread at a time per session.
+ * `TROUPE_ERR_UNSUPPORTED` (a scale other than 1 on a stream without guidance: any but
+ * ARMFlow's), `TROUPE_ERR_POISONED`, `TROUPE_ERR_PANIC`. One thread at a time per session.
  *
  * # Safety
  * `session` must be NULL or a live handle.
@@ -903,8 +904,10 @@ troupe_status troupe_session_set_cfg_scale(struct troupe_session *session, float
  * condition (zeros).
  *
  * Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_SHAPE` (wrong `len`),
- * `TROUPE_ERR_INVALID_ARG` (NaN or infinite value), `TROUPE_ERR_INFERENCE`,
- * `TROUPE_ERR_POISONED`, `TROUPE_ERR_PANIC`. One thread at a time per session.
+ * `TROUPE_ERR_INVALID_ARG` (NaN or infinite value), `TROUPE_ERR_UNSUPPORTED` (a condition other
+ * than the null one on a stream without conditioning: any but ARMFlow's),
+ * `TROUPE_ERR_INFERENCE`, `TROUPE_ERR_POISONED`, `TROUPE_ERR_PANIC`. One thread at a time per
+ * session.
  *
  * # Safety
  * `session` must be a live handle; `condition` readable for `len` floats.
@@ -917,7 +920,8 @@ troupe_status troupe_session_set_condition(struct troupe_session *session, const
  * with `troupe_model_takes_prompts`. The model caches the last 64 prompts it encoded.
  *
  * Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (a bundle that takes no
- * prompts, text that is not UTF-8 or longer than 64 KiB), `TROUPE_ERR_INFERENCE`,
+ * prompts, text that is not UTF-8 or longer than 64 KiB), `TROUPE_ERR_UNSUPPORTED` (a stream
+ * without conditioning: any but ARMFlow's), `TROUPE_ERR_INFERENCE`,
  * `TROUPE_ERR_POISONED`, `TROUPE_ERR_BUSY`, `TROUPE_ERR_PANIC`. One thread at a time per
  * session.
  *
@@ -933,8 +937,8 @@ troupe_status troupe_session_set_prompt(struct troupe_session *session, const ch
  * used in order before the seeded generator; `troupe_session_reset` drops it.
  *
  * Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_SHAPE`, `TROUPE_ERR_INVALID_ARG`
- * (non-finite value), `TROUPE_ERR_POISONED`, `TROUPE_ERR_PANIC`. One thread at a time per
- * session.
+ * (non-finite value), `TROUPE_ERR_UNSUPPORTED` (any stream but ARMFlow's), `TROUPE_ERR_POISONED`,
+ * `TROUPE_ERR_PANIC`. One thread at a time per session.
  *
  * # Safety
  * `session` must be a live handle; both noise pointers readable for `len` floats.
@@ -1519,8 +1523,8 @@ size_t troupe_armflow_clip_tokens(const struct troupe_model *model);
  * otherwise it supplies every draw. Inputs are borrowed for the call; nothing is written unless
  * the call succeeds.
  *
- * Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (a bundle without a
- * clip, a clip of 0 or too many frames, non-finite input, bad noise length: the message says
+ * Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_UNSUPPORTED` (not an `armflow`
+ * bundle), `TROUPE_ERR_INVALID_ARG` (a bundle without a clip, a clip of 0 or too many frames, non-finite input, bad noise length: the message says
  * which), `TROUPE_ERR_SHAPE` (condition length), `TROUPE_ERR_BUFFER_TOO_SMALL`,
  * `TROUPE_ERR_INFERENCE`, `TROUPE_ERR_PANIC`. Thread-safe: any number of threads may generate
  * on one model at once.
@@ -1540,8 +1544,9 @@ troupe_status troupe_armflow_clip_generate(const struct troupe_model *model, con
  * per second (in (0, 10]); `docs/ARFLOW.md` states the rule and what it measured. The defaults
  * are 0.05 m and 2 m/s. `d_safe` and `max_speed` are ignored when turning it off.
  *
- * Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (a value out of range, a
- * MAGNet session), `TROUPE_ERR_POISONED`, `TROUPE_ERR_PANIC`. One thread at a time per session.
+ * Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (a value out of range),
+ * `TROUPE_ERR_UNSUPPORTED` (not an ARMFlow session), `TROUPE_ERR_POISONED`, `TROUPE_ERR_PANIC`.
+ * One thread at a time per session.
  *
  * # Safety
  * `session` must be NULL or a live handle.
@@ -1555,7 +1560,8 @@ troupe_status troupe_armflow_session_set_penetration_guard(struct troupe_session
  *
  * Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (a bad format, or a
  * bundle whose features are not `interhuman262`; the session is then unchanged),
- * `TROUPE_ERR_POISONED`, `TROUPE_ERR_PANIC`. One thread at a time per session.
+ * `TROUPE_ERR_UNSUPPORTED` (not an ARMFlow session), `TROUPE_ERR_POISONED`, `TROUPE_ERR_PANIC`.
+ * One thread at a time per session.
  *
  * # Safety
  * `session` a live handle; `format` readable for its `struct_size` bytes.
@@ -1575,7 +1581,8 @@ troupe_status troupe_session_set_joints_format(struct troupe_session *session, c
  *
  * Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_SHAPE` (a buffer smaller than its
  * capacity says), `TROUPE_ERR_INVALID_ARG` (a NaN or infinite position, naming frame and
- * joint; a bundle whose features are not `interhuman262`), `TROUPE_ERR_BUFFER_TOO_SMALL`,
+ * joint; a bundle whose features are not `interhuman262`), `TROUPE_ERR_UNSUPPORTED` (not an
+ * ARMFlow session), `TROUPE_ERR_BUFFER_TOO_SMALL`,
  * `TROUPE_ERR_INFERENCE`, `TROUPE_ERR_POISONED`, `TROUPE_ERR_PANIC`. One thread at a time per
  * session.
  *
@@ -1590,8 +1597,8 @@ troupe_status troupe_session_step_joints(struct troupe_session *session, const f
  * `n_frames` actor joint frames.
  *
  * Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (a bundle whose
- * features are not `interhuman262`), `TROUPE_ERR_POISONED`, `TROUPE_ERR_PANIC`. One thread at
- * a time per session.
+ * features are not `interhuman262`), `TROUPE_ERR_UNSUPPORTED` (not an ARMFlow session),
+ * `TROUPE_ERR_POISONED`, `TROUPE_ERR_PANIC`. One thread at a time per session.
  *
  * # Safety
  * `session` a live handle; `n_out` writable.
@@ -1603,7 +1610,8 @@ troupe_status troupe_session_joints_ready_after(struct troupe_session *session, 
  * reactor's poses are put) to `*out`.
  *
  * Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (no joint frame yet),
- * `TROUPE_ERR_POISONED`, `TROUPE_ERR_PANIC`. One thread at a time per session.
+ * `TROUPE_ERR_UNSUPPORTED` (not an ARMFlow session), `TROUPE_ERR_POISONED`, `TROUPE_ERR_PANIC`.
+ * One thread at a time per session.
  *
  * # Safety
  * `session` a live handle; `out` writable.
@@ -1723,9 +1731,9 @@ size_t troupe_umf_options_size(void);
  * persons, CFG scale) and seed 0, and sets `struct_size`. Pass `sizeof(troupe_group_options)`
  * as `options_size`: the library writes only that many bytes.
  *
- * Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, or `TROUPE_ERR_INVALID_ARG` (`options_size`
- * smaller than the first version, a bundle that is not `umf`, or one with more than
- * `TROUPE_MAX_STAGES` stages). Thread-safe.
+ * Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (`options_size`
+ * smaller than the first version, or a bundle with more than `TROUPE_MAX_STAGES` stages),
+ * `TROUPE_ERR_UNSUPPORTED` (not a `umf` bundle). Thread-safe.
  *
  * ```c
  * troupe_group_options opt;
@@ -1759,8 +1767,8 @@ size_t troupe_umf_tokens(const struct troupe_model *model);
  * Writes the lengths, in floats, of the three arrays of a `troupe_group_noise` for `people`
  * people. Any out-pointer may be NULL.
  *
- * Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG` (model), `TROUPE_ERR_INVALID_ARG` (not a `umf`
- * bundle; people outside 1..=256). Thread-safe.
+ * Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG` (model), `TROUPE_ERR_INVALID_ARG` (people outside
+ * 1..=256), `TROUPE_ERR_UNSUPPORTED` (not a `umf` bundle). Thread-safe.
  *
  * # Safety
  * `model` must be a live handle; each non-NULL out-pointer writable.
@@ -1780,8 +1788,9 @@ troupe_status troupe_umf_noise_lengths(const struct troupe_model *model, uint32_
  * `troupe_umf_noise_lengths`). Inputs are borrowed for the call. Nothing is written unless
  * the call succeeds.
  *
- * Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (not a `umf` bundle,
- * people outside 1..=256, bad options, non-finite input: the message says which),
+ * Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (people outside
+ * 1..=256, bad options, non-finite input: the message says which), `TROUPE_ERR_UNSUPPORTED`
+ * (not a `umf` bundle),
  * `TROUPE_ERR_SHAPE` (condition or noise length), `TROUPE_ERR_BUFFER_TOO_SMALL` (the message
  * gives the floats needed), `TROUPE_ERR_INFERENCE`, `TROUPE_ERR_PANIC`. Thread-safe: any number
  * of threads may generate on one model at once.
@@ -1932,8 +1941,9 @@ const char *troupe_magnet_config(const struct troupe_model *model, size_t index)
  * input: `*samples`, `*frames`, `*people` (each float row is 145 wide). Any out-pointer may be
  * NULL. Makes the same checks of the configuration and the input's length as the generation.
  *
- * Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (not a `magnet` bundle,
- * an unknown configuration, options the model cannot run, too few input frames). Thread-safe.
+ * Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_UNSUPPORTED` (not a `magnet` bundle),
+ * `TROUPE_ERR_INVALID_ARG` (an unknown configuration, options the model cannot run, too few
+ * input frames). Thread-safe.
  *
  * # Safety
  * `model` must be a live handle; `config` a NUL-terminated string; `options` NULL or readable
@@ -1954,8 +1964,8 @@ troupe_status troupe_magnet_output_shape(const struct troupe_model *model, const
  * pp2joint; the key frames for in-betweening. `options` NULL runs the configuration as
  * released. Inputs are borrowed for the call; nothing is written unless it succeeds.
  *
- * Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (not a `magnet` bundle,
- * an unknown configuration, bad options, non-finite input, too few frames: the message says
+ * Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_UNSUPPORTED` (not a `magnet` bundle),
+ * `TROUPE_ERR_INVALID_ARG` (an unknown configuration, bad options, non-finite input, too few frames: the message says
  * which), `TROUPE_ERR_SHAPE`, `TROUPE_ERR_BUFFER_TOO_SMALL` (the message gives the floats
  * needed), `TROUPE_ERR_CANCELLED` (the progress callback stopped it), `TROUPE_ERR_INFERENCE`,
  * `TROUPE_ERR_PANIC`. Thread-safe: any number of threads may generate on one model at once.
@@ -1984,9 +1994,9 @@ troupe_status troupe_magnet_generate(const struct troupe_model *model, const cha
  * row-major, borrowed for the call; kept across resets. A stream needs them before the user's
  * first frame. Only before the first step or after `troupe_session_reset`.
  *
- * Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (an ARMFlow session, the
- * wrong number of frames, a NaN or infinite value, a stream already started),
- * `TROUPE_ERR_POISONED`, `TROUPE_ERR_PANIC`. One thread at a time per session.
+ * Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (the wrong number of
+ * frames, a NaN or infinite value, a stream already started), `TROUPE_ERR_UNSUPPORTED` (not a
+ * MAGNet session), `TROUPE_ERR_POISONED`, `TROUPE_ERR_PANIC`. One thread at a time per session.
  *
  * ```c
  * troupe_magnet_session_set_partner_opening(session, partner_frames, 32);
@@ -2003,9 +2013,9 @@ troupe_status troupe_magnet_session_set_partner_opening(struct troupe_session *s
  * longer reaches them) or once final (0, the default). Only before the first step or after
  * `troupe_session_reset`.
  *
- * Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (an ARMFlow session, a
- * stream already started), `TROUPE_ERR_POISONED`, `TROUPE_ERR_PANIC`. One thread at a time per
- * session.
+ * Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (a stream already
+ * started), `TROUPE_ERR_UNSUPPORTED` (not a MAGNet session), `TROUPE_ERR_POISONED`,
+ * `TROUPE_ERR_PANIC`. One thread at a time per session.
  *
  * # Safety
  * `session` must be NULL or a live handle.
@@ -2018,8 +2028,8 @@ troupe_status troupe_magnet_session_set_early_emission(struct troupe_session *se
  * borrowed for the call), for instance one with the x0 guidance off. Only before the first
  * step or after `troupe_session_reset`; set opening frames after it when its context differs.
  *
- * Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (an ARMFlow session, an
- * unknown name, bad JSON, a configuration that is not `motion_control_live`, a stream already
+ * Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_UNSUPPORTED` (not a MAGNet session),
+ * `TROUPE_ERR_INVALID_ARG` (an unknown name, bad JSON, a configuration that is not `motion_control_live`, a stream already
  * started), `TROUPE_ERR_POISONED`, `TROUPE_ERR_PANIC`. One thread at a time per session.
  *
  * # Safety
@@ -2103,8 +2113,8 @@ size_t troupe_arflow_options_size(void);
  * η 0, d_safe 0.02 m, linear hinge, guided back-projection, σ 0) and seed 0, and sets
  * `struct_size`. Pass `sizeof(troupe_arflow_options)` as `options_size`.
  *
- * Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (not an `arflow`
- * bundle, or `options_size` smaller than the first version). Thread-safe.
+ * Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (`options_size` smaller
+ * than the first version), `TROUPE_ERR_UNSUPPORTED` (not an `arflow` bundle). Thread-safe.
  *
  * # Safety
  * `model` must be a live handle; `options` writable for `options_size` bytes.
@@ -2119,8 +2129,8 @@ troupe_status troupe_arflow_options_init(const struct troupe_model *model, struc
  * online bundle (a causal network) frame `n` of the result depends only on the actor's frames up
  * to `n`. Nothing is written unless it succeeds.
  *
- * Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (not an `arflow` bundle,
- * settings out of range, a NaN or infinite value, 0 frames or more than the bundle's
+ * Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_UNSUPPORTED` (not an `arflow`
+ * bundle), `TROUPE_ERR_INVALID_ARG` (settings out of range, a NaN or infinite value, 0 frames or more than the bundle's
  * `model.max_frames`), `TROUPE_ERR_BUFFER_TOO_SMALL`, `TROUPE_ERR_CANCELLED`,
  * `TROUPE_ERR_INFERENCE`, `TROUPE_ERR_PANIC`. Thread-safe: any number of threads may generate on
  * one model at once. Reports progress (steps done) to the calling thread's progress callback.

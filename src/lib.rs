@@ -4,8 +4,11 @@
 //! *bundle* (a `troupe.json` manifest plus ONNX graphs, see `onnx/README.md`) and runs the
 //! sampling loop in Rust on tract.
 //!
-//! The online reaction model (ARMFlow): an actor's motion streams in frame by frame, and a
-//! [`Session`] answers with the reactor's motion, one latent token (4 frames) at a time.
+//! One shape for every family: a [`Model`] answers what every bundle answers and opens streams
+//! ([`Model::session`]); everything else is the family's own type, [`Model::armflow`],
+//! [`Model::umf`], [`Model::magnet`] and [`Model::arflow`]. A [`Session`] is one stream of any
+//! family that streams (ARMFlow's reactor, MAGNet's live partner, ARFlow's online variant): the
+//! other person's frames come back as the input's arrive.
 //!
 //! ```no_run
 //! use ndarray::Array2;
@@ -27,11 +30,11 @@
 //! Limits: every size that comes from a file or a caller is checked against [`LIMITS`] before
 //! anything is allocated for it.
 //!
-//! Layout (see `docs/ARCHITECTURE.md`): `shared` machinery at the bottom (bundle files,
-//! graphs, noise, solvers, errors), one folder per model family above it ([`armflow`], [`umf`],
-//! [`magnet`]),
-//! each importing only from `shared` and itself, then [`Model`] and [`manifest`], which know
-//! every family, and the C ABI ([`ffi`]) on top.
+//! Layout (see `docs/ARCHITECTURE.md`): `shared` machinery at the bottom (what a family and a
+//! stream are, bundle files, graphs, noise, solvers, errors), [`motion`] and [`viewer`] above
+//! it, one folder per model family above those ([`armflow`], [`umf`], [`magnet`], [`arflow`]),
+//! each importing only from `shared`, `motion` and itself, then [`Model`] and [`manifest`],
+//! which know every family by name, and the C ABI (`ffi`) on top.
 
 #![warn(missing_docs)]
 

@@ -278,6 +278,12 @@ impl Model {
         options.open(&*self.inner.family)
     }
 
+    /// The common options the default stream starts with: the bundle's steps and context, seed
+    /// 0 ([`Error::Unsupported`] for a family that does not stream).
+    pub fn session_defaults(&self) -> Result<crate::SessionOptions> {
+        self.inner.family.session_defaults()
+    }
+
     // ---- the family's own API -----------------------------------------------------------------
 
     /// The ARMFlow model: reactors, the official clip; [`Error::Unsupported`] for another

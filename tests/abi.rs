@@ -4,7 +4,8 @@
 //!   every one `troupe_`-prefixed and declared in `include/troupe.h`, every header function
 //!   exported;
 //! - its SONAME carries the ABI version;
-//! - a program compiled against the frozen 0.1.0 header (`abi/0.1.0/troupe.h`) runs against it.
+//! - a program compiled against the frozen 0.1.0 header (`abi/0.1.0/troupe.h`) runs against it;
+//! - the 0.1 names compile against today's header with a deprecation warning naming the new one.
 
 mod common;
 
@@ -208,4 +209,42 @@ fn a_program_built_against_the_0_1_header_runs_against_this_library() {
         String::from_utf8_lossy(&run.stderr)
     );
     assert!(run.status.success() && text.contains(" 0 failed"), "{text}");
+}
+
+#[test]
+fn the_old_names_compile_with_a_warning_naming_the_new_one() {
+    let dir = tempfile::tempdir().unwrap();
+    let source = dir.path().join("old_name.c");
+    std::fs::write(
+        &source,
+        "#include \"troupe.h\"\nint main(void) { return (int)troupe_model_clip_tokens(0); }\n",
+    )
+    .unwrap();
+    let compile = |extra: &[&str]| {
+        Command::new("cc")
+            .args(["-std=c99", "-c", "-Werror=deprecated-declarations"])
+            .args(extra)
+            .arg(format!("-I{}", root().join("include").display()))
+            .arg(&source)
+            .arg("-o")
+            .arg(dir.path().join("old_name.o"))
+            .output()
+            .expect("run cc")
+    };
+    let warned = compile(&[]);
+    let text = String::from_utf8_lossy(&warned.stderr);
+    assert!(
+        !warned.status.success(),
+        "the old name compiled without a warning"
+    );
+    assert!(
+        text.contains("deprecated") && text.contains("use troupe_armflow_clip_tokens"),
+        "{text}"
+    );
+    let quiet = compile(&["-DTROUPE_NO_DEPRECATION_WARNINGS"]);
+    assert!(
+        quiet.status.success(),
+        "{}",
+        String::from_utf8_lossy(&quiet.stderr)
+    );
 }

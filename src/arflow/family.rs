@@ -81,6 +81,7 @@ impl Family for Arflow {
 
     fn session(&self, options: &SessionOptions) -> Result<Session> {
         if let Some(capacity) = options.context_capacity {
+            // Only the whole history, which `session_defaults` reports.
             if capacity != self.nets.spec.model.max_frames {
                 return Err(crate::shared::error::Error::Unsupported(format!(
                     "an ARFlow stream keeps its whole history ({} frames); it takes no context \
@@ -95,6 +96,16 @@ impl Family for Arflow {
             ..ArflowOptions::default()
         };
         Ok(Session::new(self.online(&options)?))
+    }
+
+    /// The sampler's steps; the context is the whole history the position encoding covers.
+    fn session_defaults(&self) -> Result<SessionOptions> {
+        let spec = &self.nets.spec;
+        Ok(SessionOptions {
+            seed: 0,
+            steps: Some(spec.sampler.steps.min(u32::MAX as usize) as u32),
+            context_capacity: Some(spec.model.max_frames),
+        })
     }
 
     fn as_any(&self) -> &dyn Any {

@@ -98,35 +98,8 @@ impl OnlineStream {
         Ok(())
     }
 
-    pub(crate) fn set_seed(&mut self, seed: u64) {
-        self.seed = seed;
-    }
-
-    pub(crate) fn reset(&mut self) {
-        self.frames = 0;
-        for cache in self.keys.iter_mut().chain(self.values.iter_mut()) {
-            cache.clear();
-        }
-    }
-
     pub(crate) fn frames(&self) -> u64 {
         self.frames
-    }
-
-    /// Frames a step with `n` more actor frames returns: all of them, up to the stream's end.
-    pub(crate) fn frames_ready_after(&self, n: usize) -> usize {
-        n
-    }
-
-    /// Bytes held: the caches (the model's weights, shared, not counted).
-    pub(crate) fn memory_bytes(&self) -> usize {
-        let floats: usize = self
-            .keys
-            .iter()
-            .chain(&self.values)
-            .map(Vec::capacity)
-            .sum();
-        std::mem::size_of::<Self>() + floats * std::mem::size_of::<f32>()
     }
 
     /// Checks one call's actor frames against the stream's end.
@@ -368,13 +341,6 @@ impl Stream for OnlineStream {
     fn step_together(&self) -> StepTogether {
         |streams, frames, max_frames| {
             let mut online = downcast_all::<OnlineStream>(streams);
-            if frames.len() != online.len() {
-                return Err(Error::InvalidInput(format!(
-                    "{} sessions but {} chunks of frames",
-                    online.len(),
-                    frames.len()
-                )));
-            }
             Ok(advance(&mut online, frames, max_frames, true)?
                 .into_iter()
                 .map(StepOutput::frames_only)
@@ -388,22 +354,26 @@ impl Stream for OnlineStream {
             .is_some_and(|o| Arc::ptr_eq(&self.nets, &o.nets))
     }
     fn reset(&mut self) {
-        OnlineStream::reset(self)
+        self.frames = 0;
+        for cache in self.keys.iter_mut().chain(self.values.iter_mut()) {
+            cache.clear();
+        }
     }
     /// The reactor's frame `n` is out with the actor's frame `n`.
     fn latency_frames(&self) -> usize {
         0
     }
     fn set_seed(&mut self, seed: u64) {
-        OnlineStream::set_seed(self, seed)
+        self.seed = seed;
     }
     fn set_steps(&mut self, steps: u32) -> Result<()> {
         let mut sampling = self.sampling().clone();
         sampling.steps = steps as usize;
         self.set_sampling(sampling)
     }
+    /// Frames a step with `n` more actor frames returns: all of them, up to the stream's end.
     fn frames_ready_after(&self, n: usize) -> usize {
-        OnlineStream::frames_ready_after(self, n)
+        n
     }
     fn frames_received(&self) -> u64 {
         self.frames()
@@ -411,8 +381,15 @@ impl Stream for OnlineStream {
     fn frames_emitted(&self) -> u64 {
         self.frames()
     }
+    /// Bytes held: the caches (the model's weights, shared, not counted).
     fn memory_bytes(&self) -> usize {
-        OnlineStream::memory_bytes(self)
+        let floats: usize = self
+            .keys
+            .iter()
+            .chain(&self.values)
+            .map(Vec::capacity)
+            .sum();
+        std::mem::size_of::<Self>() + floats * std::mem::size_of::<f32>()
     }
     fn context_len(&self) -> usize {
         self.frames() as usize

@@ -137,6 +137,15 @@ impl Family for Armflow {
         Ok(Session::new(self.reactor(options)?))
     }
 
+    fn session_defaults(&self) -> Result<SessionOptions> {
+        let spec = &self.nets.spec;
+        Ok(SessionOptions {
+            seed: 0,
+            steps: Some(spec.sampler.steps),
+            context_capacity: Some(spec.context.capacity_tokens),
+        })
+    }
+
     fn as_any(&self) -> &dyn Any {
         self
     }

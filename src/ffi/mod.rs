@@ -1,8 +1,12 @@
 //! The C ABI of troupe. Everything `extern "C"` lives here, laid out like the crate: the common
-//! boundary, logging, version and model handle beside one module per family. `include/troupe.h`
-//! is generated from these modules by cbindgen (`tests/c_header.rs` checks it is up to date).
+//! boundary, status codes, version, limits, threads, logging and the model and session handles
+//! beside one module per family, whose calls are named `troupe_<family>_...` and answer
+//! `TROUPE_ERR_UNSUPPORTED` on another family's handle; `deprecated.rs` keeps the 0.1 names.
+//! `include/troupe.h` is generated from these modules alone by cbindgen, laid out in one section
+//! per group of files (`tests/c_header.rs`, which also checks it is up to date and names only
+//! `troupe_`/`TROUPE_` identifiers); `docs/ABI.md` states what stays compatible.
 //!
-//! Conventions (repeated at the top of the header):
+//! Conventions (the header's usage guide says them to C programmers):
 //! - Handles: `troupe_model` is immutable and thread-safe; `troupe_session` is one stream, used by
 //!   one thread at a time (a call while another thread uses it fails with `TROUPE_ERR_BUSY`). A
 //!   session keeps its model alive, so handles may be freed in any order. `_free(NULL)` is a
@@ -28,6 +32,7 @@
 
 // The boundary every entry point goes through, and what every bundle answers.
 pub mod boundary;
+// The 0.1 names, forwarding to today's until 2.0.
 pub mod deprecated;
 pub mod limits;
 pub mod log;

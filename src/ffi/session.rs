@@ -121,52 +121,27 @@ pub unsafe extern "C" fn troupe_session_options_init(
     )
 }
 
-/// The options `troupe_session_options_init` writes for `model`: the bundle's defaults.
+/// The options `troupe_session_options_init` writes for `model`: the bundle's defaults (an
+/// ARMFlow bundle's CFG scale and actor latent; 1 and the sample for the others).
 fn option_defaults(model: &Model, size: usize) -> FfiResult<troupe_session_options> {
-    let defaults = match model.armflow().map(|a| a.spec()) {
-        Ok(m) => troupe_session_options {
-            struct_size: size as u32,
-            steps: m.sampler.steps,
-            seed: 0,
-            cfg_scale: m.sampler.cfg_scale,
-            context_capacity: m.context.capacity_tokens.min(u32::MAX as usize) as u32,
-            actor_latent: match m.sampler.actor_latent {
-                ActorLatent::Sample => TROUPE_ACTOR_LATENT_SAMPLE,
-                ActorLatent::Mean => TROUPE_ACTOR_LATENT_MEAN,
-            },
-            reserved: 0,
-        },
-        Err(_) if model.arflow().is_ok() => {
-            // An ARFlow stream: its sampler's steps; no context, CFG or actor latent.
-            let a = model.arflow()?.spec();
-            troupe_session_options {
-                struct_size: size as u32,
-                steps: a.sampler.steps.min(u32::MAX as usize) as u32,
-                seed: 0,
-                cfg_scale: 1.0,
-                context_capacity: a.model.max_frames.min(u32::MAX as usize) as u32,
-                actor_latent: TROUPE_ACTOR_LATENT_SAMPLE,
-                reserved: 0,
-            }
-        }
-        Err(_) => {
-            // A magnet live partner: its default configuration's steps and context.
-            let live = model
-                .magnet()
-                .and_then(|m| m.live_configuration())
-                .map_err(|_| model.wrong_family("armflow", "troupe_session_options"))?;
-            troupe_session_options {
-                struct_size: size as u32,
-                steps: live.steps.min(u32::MAX as usize) as u32,
-                seed: 0,
-                cfg_scale: 1.0,
-                context_capacity: (live.context_len / 4).min(u32::MAX as usize) as u32,
-                actor_latent: TROUPE_ACTOR_LATENT_SAMPLE,
-                reserved: 0,
-            }
-        }
+    let common = model.session_defaults()?;
+    let (cfg_scale, actor_latent) = match model.armflow() {
+        Ok(a) => (a.spec().sampler.cfg_scale, a.spec().sampler.actor_latent),
+        Err(_) => (1.0, ActorLatent::Sample),
     };
-    Ok(defaults)
+    let clamp = |v: usize| v.min(u32::MAX as usize) as u32;
+    Ok(troupe_session_options {
+        struct_size: size as u32,
+        steps: common.steps.unwrap_or(1),
+        seed: common.seed,
+        cfg_scale,
+        context_capacity: clamp(common.context_capacity.unwrap_or(0)),
+        actor_latent: match actor_latent {
+            ActorLatent::Sample => TROUPE_ACTOR_LATENT_SAMPLE,
+            ActorLatent::Mean => TROUPE_ACTOR_LATENT_MEAN,
+        },
+        reserved: 0,
+    })
 }
 
 /// Reads the caller's options (an older caller's missing fields: the bundle's defaults; a newer
@@ -652,7 +627,8 @@ pub unsafe extern "C" fn troupe_session_set_steps(
 /// now on. The null branch zeroes the actor token and the context.
 ///
 /// Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (NaN or infinite),
-/// `TROUPE_ERR_POISONED`, `TROUPE_ERR_PANIC`. One thread at a time per session.
+/// `TROUPE_ERR_UNSUPPORTED` (a scale other than 1 on a stream without guidance: any but
+/// ARMFlow's), `TROUPE_ERR_POISONED`, `TROUPE_ERR_PANIC`. One thread at a time per session.
 ///
 /// # Safety
 /// `session` must be NULL or a live handle.
@@ -678,8 +654,10 @@ pub unsafe extern "C" fn troupe_session_set_cfg_scale(
 /// condition (zeros).
 ///
 /// Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_SHAPE` (wrong `len`),
-/// `TROUPE_ERR_INVALID_ARG` (NaN or infinite value), `TROUPE_ERR_INFERENCE`,
-/// `TROUPE_ERR_POISONED`, `TROUPE_ERR_PANIC`. One thread at a time per session.
+/// `TROUPE_ERR_INVALID_ARG` (NaN or infinite value), `TROUPE_ERR_UNSUPPORTED` (a condition other
+/// than the null one on a stream without conditioning: any but ARMFlow's),
+/// `TROUPE_ERR_INFERENCE`, `TROUPE_ERR_POISONED`, `TROUPE_ERR_PANIC`. One thread at a time per
+/// session.
 ///
 /// # Safety
 /// `session` must be a live handle; `condition` readable for `len` floats.
@@ -699,7 +677,8 @@ pub unsafe extern "C" fn troupe_session_set_condition(
                 }
                 return Ok(reactor(s, "a condition")?.set_condition(None)?);
             }
-            let dim = s.condition_dim();
+            let reactor = reactor(s, "a condition")?;
+            let dim = reactor.condition_dim();
             if len != dim {
                 return Err(FfiError::new(
                     TROUPE_ERR_SHAPE,
@@ -707,7 +686,7 @@ pub unsafe extern "C" fn troupe_session_set_condition(
                 ));
             }
             let condition = boundary::slice(condition, len, "condition")?;
-            Ok(reactor(s, "a condition")?.set_condition(Some(condition))?)
+            Ok(reactor.set_condition(Some(condition))?)
         })
     }
 }
@@ -717,7 +696,8 @@ pub unsafe extern "C" fn troupe_session_set_condition(
 /// with `troupe_model_takes_prompts`. The model caches the last 64 prompts it encoded.
 ///
 /// Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (a bundle that takes no
-/// prompts, text that is not UTF-8 or longer than 64 KiB), `TROUPE_ERR_INFERENCE`,
+/// prompts, text that is not UTF-8 or longer than 64 KiB), `TROUPE_ERR_UNSUPPORTED` (a stream
+/// without conditioning: any but ARMFlow's), `TROUPE_ERR_INFERENCE`,
 /// `TROUPE_ERR_POISONED`, `TROUPE_ERR_BUSY`, `TROUPE_ERR_PANIC`. One thread at a time per
 /// session.
 ///
@@ -743,8 +723,8 @@ pub unsafe extern "C" fn troupe_session_set_prompt(
 /// used in order before the seeded generator; `troupe_session_reset` drops it.
 ///
 /// Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_SHAPE`, `TROUPE_ERR_INVALID_ARG`
-/// (non-finite value), `TROUPE_ERR_POISONED`, `TROUPE_ERR_PANIC`. One thread at a time per
-/// session.
+/// (non-finite value), `TROUPE_ERR_UNSUPPORTED` (any stream but ARMFlow's), `TROUPE_ERR_POISONED`,
+/// `TROUPE_ERR_PANIC`. One thread at a time per session.
 ///
 /// # Safety
 /// `session` must be a live handle; both noise pointers readable for `len` floats.

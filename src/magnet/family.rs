@@ -179,6 +179,16 @@ impl Family for Magnet {
         Ok(Session::new(self.partner(options)?))
     }
 
+    /// The default live configuration's steps and context tokens.
+    fn session_defaults(&self) -> Result<SessionOptions> {
+        let live = self.live_configuration()?;
+        Ok(SessionOptions {
+            seed: 0,
+            steps: Some(live.steps.min(u32::MAX as usize) as u32),
+            context_capacity: Some(live.context_len / FRAMES_PER_TOKEN),
+        })
+    }
+
     fn as_any(&self) -> &dyn Any {
         self
     }

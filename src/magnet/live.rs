@@ -169,35 +169,6 @@ impl LivePartner {
         self.configure(settings)
     }
 
-    /// Sets the seed; applies to chunks not yet run (the draws continue from their count).
-    pub(crate) fn set_seed(&mut self, seed: u64) {
-        self.settings.seed = seed;
-        let count = self.state.draws.count() as u64;
-        self.state.draws = Draws::Seeded { seed, count };
-    }
-
-    /// Back to a fresh stream with the same settings.
-    pub(crate) fn reset(&mut self) {
-        self.state = LiveState::new(self.settings.seed);
-    }
-
-    pub(crate) fn frames_received(&self) -> u64 {
-        self.state.received
-    }
-
-    pub(crate) fn frames_emitted(&self) -> u64 {
-        self.state.frames_out
-    }
-
-    pub(crate) fn tokens_generated(&self) -> u64 {
-        self.state.tokens_out
-    }
-
-    /// Partner tokens held as the next window's context.
-    pub(crate) fn context_len(&self) -> usize {
-        self.state.window.as_ref().map_or(0, |_| self.geometry().1)
-    }
-
     /// Floats per token.
     pub(crate) fn token_dim(&self) -> usize {
         self.nets.spec.model.token_dim
@@ -223,30 +194,6 @@ impl LivePartner {
             (c, true) => f * (tm + st * (c - 1)),
             (c, false) => f * st * c,
         }
-    }
-
-    /// Exactly how many partner frames a step with `n` more user frames returns.
-    pub(crate) fn frames_ready_after(&self, n: usize) -> usize {
-        let total = self.state.received.saturating_add(n as u64);
-        (self.frames_after(self.chunks_for(total)) - self.state.frames_out) as usize
-    }
-
-    /// User frames after frame `t` that arrive before the partner's frame `t` is out, at worst
-    /// (compute time not counted).
-    pub(crate) fn latency_frames(&self) -> usize {
-        let (tm, _, st) = self.geometry();
-        FRAMES_PER_TOKEN * if self.settings.early { st } else { tm } - 1
-    }
-
-    /// Bytes this stream holds (the model's weights, shared, not counted).
-    pub(crate) fn memory_bytes(&self) -> usize {
-        let st = &self.state;
-        let floats = st.user.capacity()
-            + st.sent.iter().map(Vec::capacity).sum::<usize>()
-            + st.window.as_ref().map_or(0, Array4::len)
-            + st.opening_tokens.as_ref().map_or(0, Array2::len)
-            + self.settings.opening.as_ref().map_or(0, Vec::capacity);
-        std::mem::size_of::<Self>() + floats * std::mem::size_of::<f32>()
     }
 
     /// The user's tokens `[Tm, D]` of the window from token `w0`, encoded from the user's frames
@@ -776,13 +723,6 @@ impl Stream for LivePartner {
     fn step_together(&self) -> StepTogether {
         |streams, frames, max_frames| {
             let mut partners = downcast_all::<LivePartner>(streams);
-            if frames.len() != partners.len() {
-                return Err(Error::InvalidInput(format!(
-                    "{} sessions but {} chunks of frames",
-                    partners.len(),
-                    frames.len()
-                )));
-            }
             Ok(advance(&mut partners, frames, max_frames, true)?
                 .into_iter()
                 .map(StepOutput::from)
@@ -795,37 +735,54 @@ impl Stream for LivePartner {
             .downcast_ref::<LivePartner>()
             .is_some_and(|o| Arc::ptr_eq(&self.nets, &o.nets))
     }
+    /// Back to a fresh stream with the same settings.
     fn reset(&mut self) {
-        LivePartner::reset(self)
+        self.state = LiveState::new(self.settings.seed);
     }
+    /// User frames after frame `t` that arrive before the partner's frame `t` is out, at worst
+    /// (compute time not counted).
     fn latency_frames(&self) -> usize {
-        LivePartner::latency_frames(self)
+        let (tm, _, st) = self.geometry();
+        FRAMES_PER_TOKEN * if self.settings.early { st } else { tm } - 1
     }
+    /// Sets the seed; applies to chunks not yet run (the draws continue from their count).
     fn set_seed(&mut self, seed: u64) {
-        LivePartner::set_seed(self, seed)
+        self.settings.seed = seed;
+        let count = self.state.draws.count() as u64;
+        self.state.draws = Draws::Seeded { seed, count };
     }
     fn set_steps(&mut self, steps: u32) -> Result<()> {
         let mut settings = self.settings.clone();
         settings.sampling.steps = steps as usize;
         self.configure(settings)
     }
+    /// Exactly how many partner frames a step with `n` more user frames returns.
     fn frames_ready_after(&self, n: usize) -> usize {
-        LivePartner::frames_ready_after(self, n)
+        let total = self.state.received.saturating_add(n as u64);
+        (self.frames_after(self.chunks_for(total)) - self.state.frames_out) as usize
     }
     fn frames_received(&self) -> u64 {
-        LivePartner::frames_received(self)
+        self.state.received
     }
     fn frames_emitted(&self) -> u64 {
-        LivePartner::frames_emitted(self)
+        self.state.frames_out
     }
     fn tokens_generated(&self) -> u64 {
-        LivePartner::tokens_generated(self)
+        self.state.tokens_out
     }
+    /// Bytes this stream holds (the model's weights, shared, not counted).
     fn memory_bytes(&self) -> usize {
-        LivePartner::memory_bytes(self)
+        let st = &self.state;
+        let floats = st.user.capacity()
+            + st.sent.iter().map(Vec::capacity).sum::<usize>()
+            + st.window.as_ref().map_or(0, Array4::len)
+            + st.opening_tokens.as_ref().map_or(0, Array2::len)
+            + self.settings.opening.as_ref().map_or(0, Vec::capacity);
+        std::mem::size_of::<Self>() + floats * std::mem::size_of::<f32>()
     }
+    /// Partner tokens held as the next window's context.
     fn context_len(&self) -> usize {
-        LivePartner::context_len(self)
+        self.state.window.as_ref().map_or(0, |_| self.geometry().1)
     }
     fn as_any(&self) -> &dyn std::any::Any {
         self

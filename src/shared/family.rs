@@ -45,11 +45,12 @@ pub(crate) trait Family: Send + Sync + Debug + Any {
     /// The family's stream with its defaults and the common `options`.
     fn session(&self, options: &SessionOptions) -> Result<Session> {
         let _ = options;
-        Err(Error::Unsupported(format!(
-            "a `{}` model does not stream; a session needs an `armflow`, a `magnet` or an \
-             online `arflow` bundle",
-            self.name()
-        )))
+        Err(does_not_stream(self.name()))
+    }
+    /// The common options the family's default stream starts with (the bundle's steps and
+    /// context, seed 0), for callers that show or edit them before opening it.
+    fn session_defaults(&self) -> Result<SessionOptions> {
+        Err(does_not_stream(self.name()))
     }
     /// For the typed access of [`crate::Model`].
     fn as_any(&self) -> &dyn Any;
@@ -93,6 +94,14 @@ impl StreamOptions for SessionOptions {
     fn open(self, family: &dyn Family) -> Result<Session> {
         family.session(&self)
     }
+}
+
+/// The error for a session of a family that does not stream.
+fn does_not_stream(family: &str) -> Error {
+    Error::Unsupported(format!(
+        "a `{family}` model does not stream; a session needs an `armflow`, a `magnet` or an \
+         online `arflow` bundle"
+    ))
 }
 
 /// `family` as the family type `F`, or [`Error::Unsupported`] saying that `what` needs a

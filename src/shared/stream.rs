@@ -69,7 +69,8 @@ pub(crate) trait Stream: Send + Debug + Any {
     /// One step on row-major frames, failing without change when more than `max_frames` would
     /// come out.
     fn step_bounded(&mut self, frames: &[f32], max_frames: usize) -> Result<StepOutput>;
-    /// The family's batched step, for [`step_sessions`].
+    /// The family's batched step, for [`step_sessions`], which has checked the streams are of
+    /// this family and model and that there are as many chunks of frames as streams.
     fn step_together(&self) -> StepTogether;
     /// Whether `other` runs on the same loaded model (streams stepped together must).
     fn same_model(&self, other: &dyn Stream) -> bool;

@@ -94,8 +94,8 @@ fn option_defaults(s: &ArflowSampling, size: usize) -> troupe_arflow_options {
 /// η 0, d_safe 0.02 m, linear hinge, guided back-projection, σ 0) and seed 0, and sets
 /// `struct_size`. Pass `sizeof(troupe_arflow_options)` as `options_size`.
 ///
-/// Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (not an `arflow`
-/// bundle, or `options_size` smaller than the first version). Thread-safe.
+/// Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (`options_size` smaller
+/// than the first version), `TROUPE_ERR_UNSUPPORTED` (not an `arflow` bundle). Thread-safe.
 ///
 /// # Safety
 /// `model` must be a live handle; `options` writable for `options_size` bytes.
@@ -173,8 +173,8 @@ unsafe fn read_options(
 /// online bundle (a causal network) frame `n` of the result depends only on the actor's frames up
 /// to `n`. Nothing is written unless it succeeds.
 ///
-/// Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (not an `arflow` bundle,
-/// settings out of range, a NaN or infinite value, 0 frames or more than the bundle's
+/// Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_UNSUPPORTED` (not an `arflow`
+/// bundle), `TROUPE_ERR_INVALID_ARG` (settings out of range, a NaN or infinite value, 0 frames or more than the bundle's
 /// `model.max_frames`), `TROUPE_ERR_BUFFER_TOO_SMALL`, `TROUPE_ERR_CANCELLED`,
 /// `TROUPE_ERR_INFERENCE`, `TROUPE_ERR_PANIC`. Thread-safe: any number of threads may generate on
 /// one model at once. Reports progress (steps done) to the calling thread's progress callback.

@@ -48,8 +48,8 @@ pub unsafe extern "C" fn troupe_armflow_clip_tokens(model: Option<&troupe_model>
 /// otherwise it supplies every draw. Inputs are borrowed for the call; nothing is written unless
 /// the call succeeds.
 ///
-/// Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (a bundle without a
-/// clip, a clip of 0 or too many frames, non-finite input, bad noise length: the message says
+/// Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_UNSUPPORTED` (not an `armflow`
+/// bundle), `TROUPE_ERR_INVALID_ARG` (a bundle without a clip, a clip of 0 or too many frames, non-finite input, bad noise length: the message says
 /// which), `TROUPE_ERR_SHAPE` (condition length), `TROUPE_ERR_BUFFER_TOO_SMALL`,
 /// `TROUPE_ERR_INFERENCE`, `TROUPE_ERR_PANIC`. Thread-safe: any number of threads may generate
 /// on one model at once.

@@ -9,8 +9,9 @@ use crate::ffi::session::{reactor, troupe_session, with_session};
 /// per second (in (0, 10]); `docs/ARFLOW.md` states the rule and what it measured. The defaults
 /// are 0.05 m and 2 m/s. `d_safe` and `max_speed` are ignored when turning it off.
 ///
-/// Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (a value out of range, a
-/// MAGNet session), `TROUPE_ERR_POISONED`, `TROUPE_ERR_PANIC`. One thread at a time per session.
+/// Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (a value out of range),
+/// `TROUPE_ERR_UNSUPPORTED` (not an ARMFlow session), `TROUPE_ERR_POISONED`, `TROUPE_ERR_PANIC`.
+/// One thread at a time per session.
 ///
 /// # Safety
 /// `session` must be NULL or a live handle.

@@ -19,7 +19,8 @@ use crate::Model;
 ///
 /// Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (a bad format, or a
 /// bundle whose features are not `interhuman262`; the session is then unchanged),
-/// `TROUPE_ERR_POISONED`, `TROUPE_ERR_PANIC`. One thread at a time per session.
+/// `TROUPE_ERR_UNSUPPORTED` (not an ARMFlow session), `TROUPE_ERR_POISONED`, `TROUPE_ERR_PANIC`.
+/// One thread at a time per session.
 ///
 /// # Safety
 /// `session` a live handle; `format` readable for its `struct_size` bytes.
@@ -50,7 +51,8 @@ pub unsafe extern "C" fn troupe_session_set_joints_format(
 ///
 /// Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_SHAPE` (a buffer smaller than its
 /// capacity says), `TROUPE_ERR_INVALID_ARG` (a NaN or infinite position, naming frame and
-/// joint; a bundle whose features are not `interhuman262`), `TROUPE_ERR_BUFFER_TOO_SMALL`,
+/// joint; a bundle whose features are not `interhuman262`), `TROUPE_ERR_UNSUPPORTED` (not an
+/// ARMFlow session), `TROUPE_ERR_BUFFER_TOO_SMALL`,
 /// `TROUPE_ERR_INFERENCE`, `TROUPE_ERR_POISONED`, `TROUPE_ERR_PANIC`. One thread at a time per
 /// session.
 ///
@@ -96,8 +98,8 @@ pub unsafe extern "C" fn troupe_session_step_joints(
 /// `n_frames` actor joint frames.
 ///
 /// Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (a bundle whose
-/// features are not `interhuman262`), `TROUPE_ERR_POISONED`, `TROUPE_ERR_PANIC`. One thread at
-/// a time per session.
+/// features are not `interhuman262`), `TROUPE_ERR_UNSUPPORTED` (not an ARMFlow session),
+/// `TROUPE_ERR_POISONED`, `TROUPE_ERR_PANIC`. One thread at a time per session.
 ///
 /// # Safety
 /// `session` a live handle; `n_out` writable.
@@ -121,7 +123,8 @@ pub unsafe extern "C" fn troupe_session_joints_ready_after(
 /// reactor's poses are put) to `*out`.
 ///
 /// Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (no joint frame yet),
-/// `TROUPE_ERR_POISONED`, `TROUPE_ERR_PANIC`. One thread at a time per session.
+/// `TROUPE_ERR_UNSUPPORTED` (not an ARMFlow session), `TROUPE_ERR_POISONED`, `TROUPE_ERR_PANIC`.
+/// One thread at a time per session.
 ///
 /// # Safety
 /// `session` a live handle; `out` writable.

@@ -210,8 +210,9 @@ fn magnet_model(model: Option<&troupe_model>) -> FfiResult<&Magnet> {
 /// input: `*samples`, `*frames`, `*people` (each float row is 145 wide). Any out-pointer may be
 /// NULL. Makes the same checks of the configuration and the input's length as the generation.
 ///
-/// Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (not a `magnet` bundle,
-/// an unknown configuration, options the model cannot run, too few input frames). Thread-safe.
+/// Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_UNSUPPORTED` (not a `magnet` bundle),
+/// `TROUPE_ERR_INVALID_ARG` (an unknown configuration, options the model cannot run, too few
+/// input frames). Thread-safe.
 ///
 /// # Safety
 /// `model` must be a live handle; `config` a NUL-terminated string; `options` NULL or readable
@@ -257,8 +258,8 @@ pub unsafe extern "C" fn troupe_magnet_output_shape(
 /// pp2joint; the key frames for in-betweening. `options` NULL runs the configuration as
 /// released. Inputs are borrowed for the call; nothing is written unless it succeeds.
 ///
-/// Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (not a `magnet` bundle,
-/// an unknown configuration, bad options, non-finite input, too few frames: the message says
+/// Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_UNSUPPORTED` (not a `magnet` bundle),
+/// `TROUPE_ERR_INVALID_ARG` (an unknown configuration, bad options, non-finite input, too few frames: the message says
 /// which), `TROUPE_ERR_SHAPE`, `TROUPE_ERR_BUFFER_TOO_SMALL` (the message gives the floats
 /// needed), `TROUPE_ERR_CANCELLED` (the progress callback stopped it), `TROUPE_ERR_INFERENCE`,
 /// `TROUPE_ERR_PANIC`. Thread-safe: any number of threads may generate on one model at once.

@@ -17,9 +17,9 @@ fn partner<'a>(session: &'a mut Session, what: &str) -> FfiResult<&'a mut LivePa
 /// row-major, borrowed for the call; kept across resets. A stream needs them before the user's
 /// first frame. Only before the first step or after `troupe_session_reset`.
 ///
-/// Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (an ARMFlow session, the
-/// wrong number of frames, a NaN or infinite value, a stream already started),
-/// `TROUPE_ERR_POISONED`, `TROUPE_ERR_PANIC`. One thread at a time per session.
+/// Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (the wrong number of
+/// frames, a NaN or infinite value, a stream already started), `TROUPE_ERR_UNSUPPORTED` (not a
+/// MAGNet session), `TROUPE_ERR_POISONED`, `TROUPE_ERR_PANIC`. One thread at a time per session.
 ///
 /// ```c
 /// troupe_magnet_session_set_partner_opening(session, partner_frames, 32);
@@ -48,9 +48,9 @@ pub unsafe extern "C" fn troupe_magnet_session_set_partner_opening(
 /// longer reaches them) or once final (0, the default). Only before the first step or after
 /// `troupe_session_reset`.
 ///
-/// Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (an ARMFlow session, a
-/// stream already started), `TROUPE_ERR_POISONED`, `TROUPE_ERR_PANIC`. One thread at a time per
-/// session.
+/// Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (a stream already
+/// started), `TROUPE_ERR_UNSUPPORTED` (not a MAGNet session), `TROUPE_ERR_POISONED`,
+/// `TROUPE_ERR_PANIC`. One thread at a time per session.
 ///
 /// # Safety
 /// `session` must be NULL or a live handle.
@@ -72,8 +72,8 @@ pub unsafe extern "C" fn troupe_magnet_session_set_early_emission(
 /// borrowed for the call), for instance one with the x0 guidance off. Only before the first
 /// step or after `troupe_session_reset`; set opening frames after it when its context differs.
 ///
-/// Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (an ARMFlow session, an
-/// unknown name, bad JSON, a configuration that is not `motion_control_live`, a stream already
+/// Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_UNSUPPORTED` (not a MAGNet session),
+/// `TROUPE_ERR_INVALID_ARG` (an unknown name, bad JSON, a configuration that is not `motion_control_live`, a stream already
 /// started), `TROUPE_ERR_POISONED`, `TROUPE_ERR_PANIC`. One thread at a time per session.
 ///
 /// # Safety

@@ -135,9 +135,9 @@ fn option_defaults(spec: &UmfSpec, size: usize) -> FfiResult<troupe_group_option
 /// persons, CFG scale) and seed 0, and sets `struct_size`. Pass `sizeof(troupe_group_options)`
 /// as `options_size`: the library writes only that many bytes.
 ///
-/// Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, or `TROUPE_ERR_INVALID_ARG` (`options_size`
-/// smaller than the first version, a bundle that is not `umf`, or one with more than
-/// `TROUPE_MAX_STAGES` stages). Thread-safe.
+/// Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (`options_size`
+/// smaller than the first version, or a bundle with more than `TROUPE_MAX_STAGES` stages),
+/// `TROUPE_ERR_UNSUPPORTED` (not a `umf` bundle). Thread-safe.
 ///
 /// ```c
 /// troupe_group_options opt;
@@ -192,8 +192,8 @@ pub unsafe extern "C" fn troupe_umf_tokens(model: Option<&troupe_model>) -> usiz
 /// Writes the lengths, in floats, of the three arrays of a `troupe_group_noise` for `people`
 /// people. Any out-pointer may be NULL.
 ///
-/// Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG` (model), `TROUPE_ERR_INVALID_ARG` (not a `umf`
-/// bundle; people outside 1..=256). Thread-safe.
+/// Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG` (model), `TROUPE_ERR_INVALID_ARG` (people outside
+/// 1..=256), `TROUPE_ERR_UNSUPPORTED` (not a `umf` bundle). Thread-safe.
 ///
 /// # Safety
 /// `model` must be a live handle; each non-NULL out-pointer writable.
@@ -237,8 +237,9 @@ pub unsafe extern "C" fn troupe_umf_noise_lengths(
 /// `troupe_umf_noise_lengths`). Inputs are borrowed for the call. Nothing is written unless
 /// the call succeeds.
 ///
-/// Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (not a `umf` bundle,
-/// people outside 1..=256, bad options, non-finite input: the message says which),
+/// Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (people outside
+/// 1..=256, bad options, non-finite input: the message says which), `TROUPE_ERR_UNSUPPORTED`
+/// (not a `umf` bundle),
 /// `TROUPE_ERR_SHAPE` (condition or noise length), `TROUPE_ERR_BUFFER_TOO_SMALL` (the message
 /// gives the floats needed), `TROUPE_ERR_INFERENCE`, `TROUPE_ERR_PANIC`. Thread-safe: any number
 /// of threads may generate on one model at once.
