@@ -16,7 +16,7 @@ use crate::magnet::{self, Magnet};
 use crate::manifest::{self, ConditionLabel, Manifest};
 use crate::shared::bundle::BundleFiles;
 use crate::shared::error::{Error, Result};
-use crate::shared::family::{Family, StreamOptions};
+use crate::shared::family::{wrong_family, Family, StreamOptions};
 use crate::shared::stream::Session;
 use crate::shared::text::branch::TextBranch;
 use crate::shared::text::prompt::{no_prompts, PromptEncoder};
@@ -319,14 +319,6 @@ impl Model {
 
     /// The error for using this bundle where another family is needed: `what` needs `needed`.
     pub(crate) fn wrong_family(&self, needed: &str, what: &str) -> Error {
-        // As read aloud: "an armflow", "an arflow", "a umf", "a magnet".
-        let article = |family: &str| if family.starts_with('a') { "an" } else { "a" };
-        let family = self.family();
-        Error::Unsupported(format!(
-            "bundle `{}` is {} `{family}` model; {what} needs {} `{needed}` bundle",
-            self.inner.manifest.name,
-            article(family),
-            article(needed),
-        ))
+        wrong_family(Some(&self.inner.manifest.name), self.family(), needed, what)
     }
 }

@@ -60,7 +60,7 @@ pub(crate) fn family_stream<'a, S: 'static>(
 ) -> FfiResult<&'a mut S> {
     let family = session.family();
     session.family_mut::<S>().map_err(|_| {
-        let article = if family.starts_with('a') { "an" } else { "a" };
+        let article = crate::shared::family::a_or_an(family);
         FfiError::new(
             TROUPE_ERR_UNSUPPORTED,
             format!("{what}: only {needed} streams take this; this session runs {article} `{family}` model"),

@@ -114,16 +114,28 @@ pub(crate) fn family_as<'a, F: 'static>(
     family
         .as_any()
         .downcast_ref::<F>()
-        .ok_or_else(|| wrong_family(family.name(), needed, what))
+        .ok_or_else(|| wrong_family(None, family.name(), needed, what))
 }
 
-/// The error for using a `family` bundle where a `needed` one is: `what` needs it.
-pub(crate) fn wrong_family(family: &str, needed: &str, what: &str) -> Error {
-    // As read aloud: "an armflow", "an arflow", "a umf", "a magnet".
-    let article = |f: &str| if f.starts_with('a') { "an" } else { "a" };
+/// The error for using a `family` bundle (named `bundle` when known) where a `needed` one is:
+/// `what` needs it.
+pub(crate) fn wrong_family(bundle: Option<&str>, family: &str, needed: &str, what: &str) -> Error {
+    let this = match bundle {
+        Some(name) => format!("bundle `{name}` is"),
+        None => "this is".to_owned(),
+    };
     Error::Unsupported(format!(
-        "this is {} `{family}` model; {what} needs {} `{needed}` bundle",
-        article(family),
-        article(needed)
+        "{this} {} `{family}` model; {what} needs {} `{needed}` bundle",
+        a_or_an(family),
+        a_or_an(needed)
     ))
+}
+
+/// The article of a family's name as read aloud: "an armflow", "an arflow", "a umf", "a magnet".
+pub(crate) fn a_or_an(family: &str) -> &'static str {
+    if family.starts_with('a') {
+        "an"
+    } else {
+        "a"
+    }
 }

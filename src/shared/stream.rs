@@ -13,6 +13,7 @@ use std::fmt::Debug;
 use ndarray::{Array2, ArrayView2};
 
 use crate::shared::error::{Error, Result};
+use crate::shared::family::a_or_an;
 
 /// What a stream computed for one token.
 #[derive(Debug, Clone, PartialEq)]
@@ -247,9 +248,9 @@ impl Session {
 /// The error for a family's own stream type asked of another family's session.
 fn wrong_stream<S>(family: &str) -> Error {
     let wanted = std::any::type_name::<S>().trim_start_matches("troupe::");
-    let article = if family.starts_with('a') { "an" } else { "a" };
     Error::Unsupported(format!(
-        "this session runs {article} `{family}` model, not a `{wanted}`"
+        "this session runs {} `{family}` model, not a `{wanted}`",
+        a_or_an(family)
     ))
 }
 

@@ -70,7 +70,7 @@ impl Reactor {
 }
 
 /// [`Reactor::step_joints`] for many sessions of one model at once, like
-/// [`crate::step_reactors`]: each session's actor positions (`[n_i, 22, 3]`) in, each
+/// [`super::step_reactors`]: each session's actor positions (`[n_i, 22, 3]`) in, each
 /// session's reactor poses out. On error no session changes.
 pub fn step_reactors_joints(
     sessions: &mut [&mut Reactor],
