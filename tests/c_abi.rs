@@ -387,7 +387,7 @@ fn c_threads_share_a_model_and_racing_calls_are_refused() {
 fn c_threads_under_thread_sanitizer() {
     if !slow_tests() {
         common::skip(
-            "c_abi::c_threads_under_thread_sanitizer",
+            "c_threads_under_thread_sanitizer",
             "runs in the long form (TROUPE_SLOW_TESTS=1; needs the nightly toolchain)",
         );
         return;
