@@ -220,8 +220,9 @@ impl CallerOptions {
                 TROUPE_ERR_UNSUPPORTED,
                 format!(
                     "options.cfg_scale {} or options.actor_latent MEAN: only armflow streams take \
-                     them; this is a `{}` model",
+                     them; this is {} `{}` model",
                     self.cfg_scale,
+                    crate::shared::family::a_or_an(model.family()),
                     model.family()
                 ),
             ));
