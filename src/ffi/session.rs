@@ -60,7 +60,7 @@ pub(crate) fn family_stream<'a, S: 'static>(
 ) -> FfiResult<&'a mut S> {
     let family = session.family();
     session.family_mut::<S>().map_err(|_| {
-        let article = crate::shared::family::a_or_an(family);
+        let article = crate::shared::error::a_or_an(family);
         FfiError::new(
             TROUPE_ERR_UNSUPPORTED,
             format!("{what}: only {needed} streams take this; this session runs {article} `{family}` model"),
@@ -222,7 +222,7 @@ impl CallerOptions {
                     "options.cfg_scale {} or options.actor_latent MEAN: only armflow streams take \
                      them; this is {} `{}` model",
                     self.cfg_scale,
-                    crate::shared::family::a_or_an(model.family()),
+                    crate::shared::error::a_or_an(model.family()),
                     model.family()
                 ),
             ));

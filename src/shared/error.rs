@@ -58,3 +58,12 @@ pub enum Error {
         message: String,
     },
 }
+
+/// The article of a family's name as read aloud: "an armflow", "an arflow", "a umf", "a magnet".
+pub(crate) fn a_or_an(family: &str) -> &'static str {
+    if family.starts_with('a') {
+        "an"
+    } else {
+        "a"
+    }
+}

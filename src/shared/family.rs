@@ -8,7 +8,7 @@
 use std::any::Any;
 use std::fmt::Debug;
 
-use crate::shared::error::{Error, Result};
+use crate::shared::error::{a_or_an, Error, Result};
 use crate::shared::stream::Session;
 use crate::shared::text::branch::TextBranch;
 use crate::shared::text::prompt::PromptEncoder;
@@ -129,13 +129,4 @@ pub(crate) fn wrong_family(bundle: Option<&str>, family: &str, needed: &str, wha
         a_or_an(family),
         a_or_an(needed)
     ))
-}
-
-/// The article of a family's name as read aloud: "an armflow", "an arflow", "a umf", "a magnet".
-pub(crate) fn a_or_an(family: &str) -> &'static str {
-    if family.starts_with('a') {
-        "an"
-    } else {
-        "a"
-    }
 }

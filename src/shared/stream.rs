@@ -12,8 +12,7 @@ use std::fmt::Debug;
 
 use ndarray::{Array2, ArrayView2};
 
-use crate::shared::error::{Error, Result};
-use crate::shared::family::a_or_an;
+use crate::shared::error::{a_or_an, Error, Result};
 
 /// What a stream computed for one token.
 #[derive(Debug, Clone, PartialEq)]
