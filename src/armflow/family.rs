@@ -128,13 +128,7 @@ impl Family for Armflow {
     }
 
     fn session(&self, options: &SessionOptions) -> Result<Session> {
-        let options = ReactorOptions {
-            seed: options.seed,
-            steps: options.steps,
-            context_capacity: options.context_capacity,
-            ..ReactorOptions::default()
-        };
-        Ok(Session::new(self.reactor(options)?))
+        Ok(Session::new(self.reactor(options.clone().into())?))
     }
 
     fn session_defaults(&self) -> Result<SessionOptions> {
@@ -148,6 +142,18 @@ impl Family for Armflow {
 
     fn as_any(&self) -> &dyn Any {
         self
+    }
+}
+
+/// The common options, everything else the bundle's.
+impl From<SessionOptions> for ReactorOptions {
+    fn from(common: SessionOptions) -> Self {
+        Self {
+            seed: common.seed,
+            steps: common.steps,
+            context_capacity: common.context_capacity,
+            ..Self::default()
+        }
     }
 }
 

@@ -175,7 +175,8 @@ pub(crate) unsafe fn write_versioned<T: Copy>(dst: *mut T, size: usize, value: &
 
 /// Reads a caller's versioned struct whose first field is `uint32_t struct_size`:
 /// - older than ours (`min_size <= struct_size < sizeof T`: compiled against an older header):
-///   its bytes over `defaults`, so the fields it does not know keep the value `_init` gives them;
+///   its bytes over `defaults()`, so the fields it does not know keep the value `_init` gives
+///   them (the defaults are computed only for such a caller);
 /// - ours: as it is;
 /// - newer (larger): accepted when every byte past ours is zero (fields this library does not
 ///   know, left at their "off" value), refused otherwise.
@@ -188,7 +189,7 @@ pub(crate) unsafe fn write_versioned<T: Copy>(dst: *mut T, size: usize, value: &
 pub(crate) unsafe fn read_versioned<T: Copy>(
     src: *const T,
     min_size: usize,
-    defaults: T,
+    defaults: impl FnOnce() -> FfiResult<T>,
     what: &str,
     init: &str,
 ) -> FfiResult<T> {
@@ -217,15 +218,15 @@ pub(crate) unsafe fn read_versioned<T: Copy>(
             ));
         }
     }
-    let mut value = defaults;
-    // SAFETY: `min(size, ours)` bytes are readable at `src` and writable in `value`, a `T`
+    if size >= ours {
+        // SAFETY: at least `ours` readable bytes.
+        return Ok(unsafe { src.read_unaligned() });
+    }
+    let mut value = defaults()?;
+    // SAFETY: `size` bytes are readable at `src` and writable in `value`, a `T`
     // without padding whose fields take any bit pattern (plain integers and floats).
     unsafe {
-        std::ptr::copy_nonoverlapping(
-            src.cast::<u8>(),
-            (&mut value as *mut T).cast::<u8>(),
-            size.min(ours),
-        );
+        std::ptr::copy_nonoverlapping(src.cast::<u8>(), (&mut value as *mut T).cast::<u8>(), size);
     }
     Ok(value)
 }
@@ -372,7 +373,15 @@ mod tests {
 
     fn read(bytes: &[u8]) -> FfiResult<Options> {
         // SAFETY: `bytes` holds the struct_size the first four bytes give (checked by callers).
-        unsafe { read_versioned(bytes.as_ptr().cast::<Options>(), V1, DEFAULTS, "o", "init") }
+        unsafe {
+            read_versioned(
+                bytes.as_ptr().cast::<Options>(),
+                V1,
+                || Ok(DEFAULTS),
+                "o",
+                "init",
+            )
+        }
     }
 
     fn caller(size: u32, steps: u32, rest: &[u8]) -> Vec<u8> {

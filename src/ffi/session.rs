@@ -153,13 +153,12 @@ unsafe fn read_options(
     model: &Model,
     options: *const troupe_session_options,
 ) -> FfiResult<CallerOptions> {
-    let defaults = option_defaults(model, OPTIONS_V1_SIZE)?;
     // SAFETY: readable for its `struct_size` per the contract.
     let o = unsafe {
         read_versioned(
             options,
             OPTIONS_V1_SIZE,
-            defaults,
+            || option_defaults(model, OPTIONS_V1_SIZE),
             "options",
             "troupe_session_options_init",
         )
@@ -206,12 +205,9 @@ impl CallerOptions {
     fn open(self, model: &Model) -> FfiResult<Session> {
         if let Ok(armflow) = model.armflow() {
             let reactor = armflow.reactor(ReactorOptions {
-                seed: self.common.seed,
-                steps: self.common.steps,
-                context_capacity: self.common.context_capacity,
                 cfg_scale: Some(self.cfg_scale),
                 actor_latent: Some(self.actor_latent),
-                ..ReactorOptions::default()
+                ..self.common.into()
             })?;
             return Ok(reactor.into());
         }

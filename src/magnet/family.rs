@@ -170,13 +170,7 @@ impl Family for Magnet {
     }
 
     fn session(&self, options: &SessionOptions) -> Result<Session> {
-        let options = PartnerOptions {
-            seed: options.seed,
-            steps: options.steps,
-            context_capacity: options.context_capacity,
-            ..PartnerOptions::default()
-        };
-        Ok(Session::new(self.partner(options)?))
+        Ok(Session::new(self.partner(options.clone().into())?))
     }
 
     /// The default live configuration's steps and context tokens.
@@ -191,6 +185,18 @@ impl Family for Magnet {
 
     fn as_any(&self) -> &dyn Any {
         self
+    }
+}
+
+/// The common options, everything else the configuration's.
+impl From<SessionOptions> for PartnerOptions {
+    fn from(common: SessionOptions) -> Self {
+        Self {
+            seed: common.seed,
+            steps: common.steps,
+            context_capacity: common.context_capacity,
+            ..Self::default()
+        }
     }
 }
 

@@ -134,7 +134,7 @@ unsafe fn read_options(
         read_versioned(
             options,
             OPTIONS_V1_SIZE,
-            option_defaults(bundle, OPTIONS_V1_SIZE),
+            || Ok(option_defaults(bundle, OPTIONS_V1_SIZE)),
             "troupe_arflow_options",
             "troupe_arflow_options_init",
         )

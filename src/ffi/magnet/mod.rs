@@ -166,7 +166,7 @@ unsafe fn read_options(options: *const troupe_magnet_options) -> FfiResult<Magne
         read_versioned(
             options,
             OPTIONS_V1_SIZE,
-            no_changes(OPTIONS_V1_SIZE),
+            || Ok(no_changes(OPTIONS_V1_SIZE)),
             "troupe_magnet_options",
             "troupe_magnet_options_init",
         )

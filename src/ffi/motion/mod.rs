@@ -303,7 +303,12 @@ pub(crate) unsafe fn read_format(format: *const troupe_joints_format) -> FfiResu
         read_versioned(
             format,
             FORMAT_V1_SIZE,
-            troupe_joints_format::from_rust(&JointsFormat::default(), FORMAT_V1_SIZE),
+            || {
+                Ok(troupe_joints_format::from_rust(
+                    &JointsFormat::default(),
+                    FORMAT_V1_SIZE,
+                ))
+            },
             "format",
             "troupe_joints_format_init",
         )

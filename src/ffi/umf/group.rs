@@ -329,13 +329,12 @@ unsafe fn read_group_options(
     spec: &UmfSpec,
     options: *const troupe_group_options,
 ) -> FfiResult<GroupOptions> {
-    let defaults = option_defaults(spec, OPTIONS_V1_SIZE)?;
     // SAFETY: forwarded contract.
     let o = unsafe {
         read_versioned(
             options,
             OPTIONS_V1_SIZE,
-            defaults,
+            || option_defaults(spec, OPTIONS_V1_SIZE),
             "options",
             "troupe_umf_options_init",
         )
