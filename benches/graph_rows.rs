@@ -1,13 +1,15 @@
 //! What each streaming graph of a bundle costs per row (per stream) as the batch grows: the
 //! crowd path graph by graph, outside troupe's session code. Each graph is loaded and optimised
-//! by tract as troupe loads it, fed deterministic inputs of the manifest's shapes (`B` the batch,
-//! `S` = 1 new token, `P` the history), and timed over repeated calls on one thread.
+//! by tract as troupe loads it, fed deterministic inputs of the manifest's shapes (`B` and `N` the
+//! batch: one token row per stream), and timed over repeated calls on one thread. A role of
+//! several graphs (`context_layers`) is timed as the sum of its graphs; the attention troupe runs
+//! between them is not a graph, and is in `examples/crowd` and `benches/peers.py`.
 //!
 //!     cargo bench --bench graph_rows                                    # the committed tiny bundle
 //!     TROUPE_BENCH_BUNDLE=onnx/bundles/paper TROUPE_BENCH_BATCHES=1,16,64 \
 //!         TROUPE_BENCH_HISTORY=100 cargo bench --bench graph_rows       # paper size
 //!
-//! `TROUPE_BENCH_GRAPHS=context_step` times only the graphs named (to profile one under `perf`).
+//! `TROUPE_BENCH_GRAPHS=context_layers` times only the graphs named (to profile one under `perf`).
 //!
 //! `cargo test --bench graph_rows` (the suite's smoke run) runs every graph once at batch 2.
 //! Prints one line per graph and batch: median ms per call and per row, and the ratio of the
@@ -23,7 +25,7 @@ use tract_onnx::prelude::*;
 /// The graphs a streaming token runs, in the order a step runs them.
 const STEP_GRAPHS: [&str; 4] = [
     "vae_encoder_step",
-    "context_step",
+    "context_layers",
     "velocity",
     "vae_decoder_step",
 ];
@@ -92,16 +94,13 @@ fn main() {
             })
             .collect()
     };
-    let history: usize = env_or("TROUPE_BENCH_HISTORY", "100")
-        .parse()
-        .expect("TROUPE_BENCH_HISTORY: a number of tokens");
     let (warmup, calls) = if smoke { (0, 1) } else { (3, 15) };
     let manifest: Value = serde_json::from_slice(
         &std::fs::read(bundle.join("troupe.json")).expect("the bundle's troupe.json"),
     )
     .expect("a JSON manifest");
     println!(
-        "{}: history {history}, {calls} timed calls after {warmup} on one thread",
+        "{}: {calls} timed calls after {warmup} on one thread",
         bundle.display()
     );
     let only = std::env::var("TROUPE_BENCH_GRAPHS").ok();
@@ -116,18 +115,28 @@ fn main() {
             println!("{role}: not in this bundle");
             continue;
         };
-        let file = bundle.join(spec["file"].as_str().expect("file"));
-        let plan = tract_onnx::onnx()
-            .model_for_path(&file)
-            .and_then(|m| m.into_optimized())
-            .and_then(|m| m.into_runnable())
-            .unwrap_or_else(|e| panic!("{}: {e:#}", file.display()));
+        let specs = spec
+            .as_array()
+            .map_or_else(|| vec![spec], |all| all.iter().collect());
+        let plans: Vec<_> = specs
+            .iter()
+            .map(|spec| {
+                let file = bundle.join(spec["file"].as_str().expect("file"));
+                tract_onnx::onnx()
+                    .model_for_path(&file)
+                    .and_then(|m| m.into_optimized())
+                    .and_then(|m| m.into_runnable())
+                    .unwrap_or_else(|e| panic!("{}: {e:#}", file.display()))
+            })
+            .collect();
         let mut batch_one = None;
         for &batch in &batches {
-            let symbols = BTreeMap::from([("B", batch), ("S", 1), ("P", history)]);
-            let inputs = inputs(spec, &symbols);
+            let symbols = BTreeMap::from([("B", batch), ("N", batch)]);
+            let inputs: Vec<_> = specs.iter().map(|s| inputs(s, &symbols)).collect();
             let run = || {
-                plan.run(inputs.clone()).expect("the graph runs");
+                for (plan, inputs) in plans.iter().zip(&inputs) {
+                    plan.run(inputs.clone()).expect("the graph runs");
+                }
             };
             (0..warmup).for_each(|_| run());
             let call = median_ms(run, calls);

@@ -6,7 +6,7 @@
     python3 benches/peers.py --histories 10,100 --steps 20 --peers ort,torch-kv \\
         --troupe-binary target/release/examples/stream --json /tmp/peers.json
 
-The paper bundle is not committed: `python3 onnx/cli.py armflow export --preset paper --out onnx/bundles/paper`.
+The paper bundle is not committed: `python3 onnx/cli.py armflow export --preset paper --out onnx/bundles/paper --peer-graphs`.
 
 A **full step** is one reactor token, as troupe's session runs it for an `armflow` bundle with
 per-token VAE steps (onnx/README.md): `vae_encoder_step` on the actor's 4 new frames (posterior
@@ -18,9 +18,11 @@ step's `(a, b)` pair is the next step's context token; the VAE convolution state
 Peers:
 
 - `ort`: onnxruntime on the bundle's graphs, sessions created once, `intra_op_num_threads =
-  --threads`, `inter_op_num_threads = 1`. The context step uses IOBinding: the cache is bound
-  once as OrtValues and the key/value outputs (`new_*`, or `present_*` in bundles exported
-  before the runtime owned the cache) stay in ORT-allocated memory (no copy to numpy).
+  --threads`, `inter_op_num_threads = 1`. The context encoder is the one graph of the same
+  weights with attention inside (`peers/context_step.onnx`, written by `armflow export
+  --peer-graphs`; troupe's bundle holds it as per-layer graphs with attention in Rust). That
+  step uses IOBinding: the cache is bound once as OrtValues and the key/value outputs (`new_*`)
+  stay in ORT-allocated memory (no copy to numpy).
 - `torch-kv`: the PyTorch reference (`troupe_onnx.armflow.reference`) built by the ARMFlow
   exporter's `build_model` with the bundle's `producer.preset` and `producer.seed`, so that it
   holds the same weights; eager, `torch.inference_mode()`, `SkipAdaLNTransformer.step` with the
@@ -85,6 +87,10 @@ WARMUP_STEPS = 3  # untimed full steps after the prefill, at every history
 AGREEMENT_TOL = 1e-3
 BANDWIDTH_BYTES = 512 * 2**20
 STEP_ROLES = ("context_step", "velocity", "vae_encoder_step", "vae_decoder_step")
+# The peers run the context encoder as one graph with attention inside, the form they run best;
+# troupe's bundle holds it as per-layer graphs. `armflow export --peer-graphs` writes the one
+# graph of the same weights here.
+PEER_FILES = {"context_step": "peers/context_step.onnx"}
 PEERS = ("ort", "torch-kv", "torch-recompute")
 
 
@@ -102,9 +108,9 @@ class Bundle:
         m = self.manifest
         if m["family"] != "armflow":
             sys.exit(f"{directory}: family {m['family']!r}, this benchmark runs 'armflow' bundles")
-        missing = [r for r in STEP_ROLES if r not in m["graphs"]]
+        missing = [r for r in STEP_ROLES if r not in m["graphs"] and not (directory / PEER_FILES.get(r, "-")).exists()]
         if missing:
-            sys.exit(f"{directory}: no {', '.join(missing)}; re-export it with onnx/cli.py armflow export")
+            sys.exit(f"{directory}: no {', '.join(missing)}; re-export it with onnx/cli.py armflow export --peer-graphs")
         self.name = m["name"]
         self.latent = m["latent"]["dim"]
         self.scale = np.float32(m["latent"]["scale"])
@@ -117,6 +123,8 @@ class Bundle:
         )
 
     def path(self, role: str) -> str:
+        if role not in self.manifest["graphs"]:
+            return str(self.dir / PEER_FILES[role])
         return str(self.dir / self.manifest["graphs"][role]["file"])
 
     def state_shapes(self, role: str) -> list[tuple[str, list[int]]]:

@@ -14,7 +14,7 @@ collects only inside `Session::step` and writes one profile per call (`--dump-af
 `examples/crowd` runs N sessions batched on one thread (`step_sessions`: one call per graph for
 all of them), and each profile is one round of N tokens.
 
-- per graph: the inclusive instructions of troupe's typed calls (`Networks::context_step`,
+- per graph: the inclusive instructions of troupe's typed calls (`ContextEncoder::step` for the context encoder, its attention included,
   `velocity`, `encode_step`, `decode_step`), the rest of the step being troupe's own work;
 - per kind: every function's own instructions, sorted by name into matrix products
   (tract-linalg's matmul kernels, packing, im2col), memory copies (memcpy/memmove/memset),
@@ -40,7 +40,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 
 GRAPHS = {
-    "context_step": "troupe::armflow::networks::Networks::context_step",
+    "context_step": "troupe::armflow::context::ContextEncoder::step",
     "velocity": "troupe::armflow::networks::Networks::velocity",
     "vae_encoder_step": "troupe::armflow::networks::Networks::encode_step",
     "vae_decoder_step": "troupe::armflow::networks::Networks::decode_step",

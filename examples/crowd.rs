@@ -12,6 +12,10 @@
 //! session holds (`Reactor::memory_bytes`, the largest in the crowd) and the RSS growth from
 //! creating and warming the crowd divided by N (Linux; it includes allocator slack and what the
 //! warm-up's batched calls left behind, so it is an upper bound).
+//!
+//! `--history 10..2000` gives the crowd mixed histories: session `i` of N is warmed to
+//! `10 + (2000 - 10) * i / (N - 1)` tokens and keeps every token (its capacity covers its
+//! history and the timed rounds), so one round attends over very different cache lengths.
 
 use std::time::Instant;
 
@@ -24,7 +28,8 @@ use common::{percentile, synthetic_actor};
 struct Args {
     bundle: String,
     sessions: Vec<usize>,
-    history: usize,
+    /// The least and the most history of the crowd's sessions (equal unless mixed).
+    history: (usize, usize),
     rounds: usize,
     threads: usize,
     modes: Vec<Mode>,
@@ -49,7 +54,7 @@ fn parse_args() -> Result<Args, String> {
     let mut args = Args {
         bundle: concat!(env!("CARGO_MANIFEST_DIR"), "/onnx/bundles/armflow-tiny").into(),
         sessions: vec![1, 8, 32],
-        history: 100,
+        history: (100, 100),
         rounds: 20,
         threads: 1,
         modes: vec![Mode::Batched, Mode::Alone],
@@ -66,7 +71,16 @@ fn parse_args() -> Result<Args, String> {
                     .map(|v| number(v.to_string()))
                     .collect::<Result<_, _>>()?
             }
-            "--history" => args.history = number(value()?)?,
+            "--history" => {
+                let v = value()?;
+                args.history = match v.split_once("..") {
+                    Some((lo, hi)) => (number(lo.into())?, number(hi.into())?),
+                    None => (number(v.clone())?, number(v.clone())?),
+                };
+                if args.history.0 > args.history.1 {
+                    return Err(format!("--history {v}: LO..HI with LO <= HI"));
+                }
+            }
             "--rounds" => args.rounds = number(value()?)?,
             "--threads" => args.threads = number(value()?)?.max(1),
             "--compute-threads" => troupe::set_compute_threads(number(value()?)?)
@@ -81,7 +95,7 @@ fn parse_args() -> Result<Args, String> {
             }
             "-h" | "--help" => {
                 println!(
-                    "crowd [--bundle DIR] [--sessions 1,8,32] [--history 100] [--rounds 20] \
+                    "crowd [--bundle DIR] [--sessions 1,8,32] [--history 100 | LO..HI] [--rounds 20] \
                      [--threads 1] [--mode batched|alone|both]"
                 );
                 std::process::exit(0);
@@ -129,31 +143,41 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let model = Model::load(&args.bundle)?;
     let (dim, fpt) = (model.frame_dim(), model.frames_per_token());
     let budget_ms = 1e3 * fpt as f64 / f64::from(model.fps());
-    let clip = synthetic_actor(
-        (args.history + args.modes.len() * args.rounds + 1) * fpt,
-        dim,
-    );
+    let (least, most) = args.history;
+    let timed = args.modes.len() * args.rounds;
+    let clip = synthetic_actor((most + timed + 1) * fpt, dim);
     let clip = clip.as_slice().expect("standard layout");
     println!(
-        "bundle {} ({}): history {} tokens, {} timed rounds of {fpt} frames ({budget_ms:.1} ms of motion), {} thread(s)",
-        args.bundle, model.manifest().name, args.history, args.rounds, args.threads
+        "bundle {} ({}): history {} tokens, {} timed rounds of {fpt} frames ({budget_ms:.1} ms of motion), {} thread(s), attention kernel {}",
+        args.bundle,
+        model.manifest().name,
+        if least == most { format!("{most}") } else { format!("{least} to {most} (every token kept)") },
+        args.rounds,
+        args.threads,
+        troupe::attention_kernel()
     );
     println!("| sessions | mode | round p50 ms | round p99 ms | per session-token ms | real time | held per session MB | RSS per session MB |");
     println!("|---|---|---|---|---|---|---|---|");
     let mut best = vec![0usize; args.modes.len()];
     for &n in &args.sessions {
         let before = rss_bytes();
+        let history = |i: usize| least + (most - least) * i / (n - 1).max(1);
         let mut sessions: Vec<Reactor> = (0..n)
             .map(|i| {
                 model.armflow()?.reactor(ReactorOptions {
                     seed: i as u64,
+                    // Mixed histories keep every token, so that each cache has its own length.
+                    context_capacity: (least != most).then(|| history(i) + timed + 2),
                     ..Default::default()
                 })
             })
             .collect::<Result<_, _>>()?;
-        let warm = &clip[..args.history * fpt * dim];
-        for group in sessions.chunks_mut(64) {
-            let chunks = vec![warm; group.len()];
+        // Warm-up: each session is fed up to its history; the timed rounds then start where the
+        // longest ended, so every session gets the same frames in each round.
+        for (g, group) in sessions.chunks_mut(64).enumerate() {
+            let chunks: Vec<&[f32]> = (0..group.len())
+                .map(|i| &clip[(most - history(g * 64 + i)) * fpt * dim..most * fpt * dim])
+                .collect();
             let mut refs: Vec<&mut Reactor> = group.iter_mut().collect();
             step_reactors(&mut refs, &chunks)?;
         }
@@ -165,7 +189,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             .unwrap_or(0) as f64
             / 1e6;
         // Both modes continue the same streams; each round advances every stream by a token.
-        let mut fed = args.history;
+        let mut fed = most;
         for (m, &mode) in args.modes.iter().enumerate() {
             let mut times = Vec::with_capacity(args.rounds);
             for _ in 0..args.rounds {

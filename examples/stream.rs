@@ -252,6 +252,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         model.latency_frames(),
         model.joints_latency_frames(),
     );
+    println!("attention kernel: {}", troupe::attention_kernel());
     let reduced = model.manifest().reduced_precision_graphs();
     if !reduced.is_empty() {
         let graphs: Vec<String> = reduced

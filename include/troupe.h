@@ -605,7 +605,7 @@ troupe_status troupe_model_condition_for_label(const struct troupe_model *model,
 size_t troupe_model_reduced_precision_count(const struct troupe_model *model);
 
 /**
- * The role of reduced-precision graph `index` (`"context_step"`, `"velocity"`, ...;
+ * The role of reduced-precision graph `index` (`"context_layers"`, `"velocity"`, ...;
  * `0 <= index < troupe_model_reduced_precision_count`), or NULL for NULL or an index out of
  * range. Owned by the model and valid until `troupe_model_free`; never free it. Thread-safe.
  *

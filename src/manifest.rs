@@ -173,13 +173,17 @@ impl Manifest {
     }
 
     /// The graphs whose weights are not float32 (by role, in manifest order), as each graph's
-    /// `weights` declares and the load checked against its file. Empty for a float32 bundle.
+    /// `weights` declares and the load checked against its file. A role of several graphs
+    /// (`context_layers`) is listed once, with its first reduced graph's weights. Empty for a
+    /// float32 bundle.
     pub fn reduced_precision_graphs(&self) -> Vec<(&'static str, Weights)> {
-        self.graph_contract()
-            .into_iter()
-            .filter(|(_, declared, _)| !declared.weights.is_float32())
-            .map(|(role, declared, _)| (role, declared.weights))
-            .collect()
+        let mut graphs: Vec<(&'static str, Weights)> = Vec::new();
+        for (role, declared, _) in self.graph_contract() {
+            if !declared.weights.is_float32() && graphs.iter().all(|(r, _)| *r != role) {
+                graphs.push((role, declared.weights));
+            }
+        }
+        graphs
     }
 
     /// Each graph as declared, next to the interface the runtime requires of it.

@@ -57,9 +57,11 @@ fn bad_archives_are_rejected_with_the_archive_named() {
 
     // An archive without the velocity graph names the missing member.
     let mut builder = tar::Builder::new(Vec::new());
-    for name in ["troupe.json", "conditioning.onnx", "context_step.onnx"] {
+    let layers = (0..4).map(|i| format!("context_layer_{i}.onnx"));
+    let names = ["troupe.json".to_string(), "conditioning.onnx".into()];
+    for name in names.into_iter().chain(layers) {
         builder
-            .append_path_with_name(bundle_dir().join(name), name)
+            .append_path_with_name(bundle_dir().join(&name), &name)
             .unwrap();
     }
     let e =

@@ -1,41 +1,15 @@
-//! The context cache troupe owns (`src/armflow/kv_cache.rs`): a bundle whose context step
-//! returns only the new entries and one exported before, whose step returns the whole cache,
-//! give the same streams alone and batched; a full cache keeps `<sos>` and the newest entries in
-//! constant memory; and a cache past its first allocation still equals a full recompute. (A step
-//! failing after its context step, alone or batched, is `src/armflow/session/tests.rs`.)
+//! The paged context cache troupe owns (`src/armflow/kv_cache.rs`) and the attention it runs
+//! over it (`src/armflow/context.rs`): streams at very different history lengths stepped in one
+//! round equal the same streams stepped alone; a full cache keeps `<sos>` and the newest entries
+//! in constant memory; a cache grown over many pages still equals a full recompute; and a bundle
+//! of the one-graph context contract is refused with the command that re-exports it. (A step
+//! failing after its context step, alone or batched, is `src/ffi/armflow/rollback_tests.rs`.)
 
 mod common;
 
 use common::*;
 use troupe::armflow::step_reactors;
 use troupe::{Model, Reactor, ReactorOptions};
-
-/// The tiny bundle with the context step it had before the runtime owned the cache
-/// (`present_*` outputs, `[B, heads, P+S, head_dim]`; same weights), and its manifest as then.
-fn whole_cache_bundle() -> tempfile::TempDir {
-    let dir = bundle_copy();
-    std::fs::copy(
-        std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-            .join("tests/data/legacy/armflow-tiny-context_step.onnx"),
-        dir.path().join("context_step.onnx"),
-    )
-    .unwrap();
-    edit_manifest(dir.path(), |v| {
-        let context = v["context"].as_object_mut().unwrap();
-        assert_eq!(context.remove("step_returns").unwrap(), "new_entries");
-        for out in v["graphs"]["context_step"]["outputs"]
-            .as_array_mut()
-            .unwrap()
-            .iter_mut()
-            .skip(1)
-        {
-            let name = out["name"].as_str().unwrap().replace("new_", "present_");
-            out["name"] = name.into();
-            out["shape"][2] = "P+S".into();
-        }
-    });
-    dir
-}
 
 fn options(seed: u64, capacity: Option<usize>) -> ReactorOptions {
     ReactorOptions {
@@ -45,67 +19,63 @@ fn options(seed: u64, capacity: Option<usize>) -> ReactorOptions {
     }
 }
 
-/// Frames and contexts of a stream over the golden actor clip, in chunks of 7 frames.
-fn stream(session: &mut Reactor) -> (Vec<f32>, Vec<f32>) {
-    let (frames, tokens) = run_chunked(session, &actor(), 7);
-    (frames, tokens.into_iter().flat_map(|t| t.context).collect())
+#[test]
+fn streams_at_mixed_history_lengths_step_together_as_they_do_alone() {
+    let m = model();
+    let actor = actor();
+    let d = m.frame_dim();
+    let flat = actor.as_slice().unwrap();
+    // Warm each pair of twins to its own length (1, 9, 30 and 44 tokens; capacity 5 wraps
+    // its ring), then step all of them in one round per token, against their twins alone.
+    let warm = [4usize, 36, 120, 176];
+    let capacities = [None, Some(5), None, Some(1000)];
+    let make = |c| m.armflow().unwrap().reactor(options(11, c)).unwrap();
+    let mut together: Vec<Reactor> = capacities.iter().map(|&c| make(c)).collect();
+    let mut alone: Vec<Reactor> = capacities.iter().map(|&c| make(c)).collect();
+    for ((a, b), &w) in together.iter_mut().zip(&mut alone).zip(&warm) {
+        a.step_flat(&flat[..w * d]).unwrap();
+        b.step_flat(&flat[..w * d]).unwrap();
+    }
+    let lengths: Vec<usize> = together.iter().map(|s| s.context_len()).collect();
+    assert_eq!(lengths, [1, 5, 30, 44], "every stream at its own length");
+    let mut worst = 0f32;
+    for token in 0..4 {
+        let part = &flat[(token * 4) * d..(token * 4 + 4) * d];
+        let mut refs: Vec<&mut Reactor> = together.iter_mut().collect();
+        let parts = vec![part; refs.len()];
+        let batched = step_reactors(&mut refs, &parts).unwrap();
+        for (out, s) in batched.iter().zip(&mut alone) {
+            let own = s.step_flat(part).unwrap();
+            let (x, y) = (
+                out.frames.as_slice().unwrap(),
+                own.frames.as_slice().unwrap(),
+            );
+            worst = worst.max(max_abs_diff(x, y));
+            for (x, y) in out.tokens.iter().zip(&own.tokens) {
+                worst = worst.max(max_abs_diff(&x.context, &y.context));
+            }
+        }
+    }
+    println!("mixed lengths, batched vs alone: {worst:.2e}");
+    assert!(worst <= 1e-5, "{worst}");
 }
 
 #[test]
-fn bundles_whose_step_returns_the_whole_cache_stream_as_before() {
-    let dir = whole_cache_bundle();
-    let old = Model::load(dir.path()).unwrap();
-    let new = model();
-    // Unbounded, and small enough that the ring wraps many times over the clip's 48 tokens.
-    for capacity in [None, Some(5), Some(2)] {
-        let (a, b) = (
-            stream(
-                &mut old
-                    .armflow()
-                    .unwrap()
-                    .reactor(options(3, capacity))
-                    .unwrap(),
-            ),
-            stream(
-                &mut new
-                    .armflow()
-                    .unwrap()
-                    .reactor(options(3, capacity))
-                    .unwrap(),
-            ),
+fn a_bundle_of_the_one_graph_context_contract_is_refused_with_the_command_that_re_exports_it() {
+    let dir = bundle_copy();
+    edit_manifest(dir.path(), |v| {
+        let graphs = v["graphs"].as_object_mut().unwrap();
+        graphs.remove("context_layers").unwrap();
+        graphs.insert(
+            "context_step".into(),
+            serde_json::json!({"file": "context_step.onnx", "inputs": [], "outputs": []}),
         );
-        let (frames, contexts) = (max_abs_diff(&a.0, &b.0), max_abs_diff(&a.1, &b.1));
-        println!("capacity {capacity:?}: frames {frames:.2e}, contexts {contexts:.2e}");
-        assert!(frames <= 1e-5 && contexts <= 1e-5, "capacity {capacity:?}");
-    }
-    // Batched: caches of different sizes padded into one call, new entries taken from the end
-    // of each padded row.
-    let capacities = [Some(3), None, Some(7)];
-    let mut old_sessions: Vec<Reactor> = capacities
-        .iter()
-        .map(|&c| old.armflow().unwrap().reactor(options(9, c)).unwrap())
-        .collect();
-    let actor = actor();
-    let flat = actor.as_slice().unwrap();
-    let chunk = 12 * new.frame_dim();
-    let mut batched = vec![Vec::new(); capacities.len()];
-    for part in flat.chunks(chunk) {
-        let mut refs: Vec<&mut Reactor> = old_sessions.iter_mut().collect();
-        let outs = step_reactors(&mut refs, &vec![part; capacities.len()]).unwrap();
-        for (all, out) in batched.iter_mut().zip(outs) {
-            all.extend(out.frames.iter().copied());
-        }
-    }
-    for (i, &c) in capacities.iter().enumerate() {
-        let alone = run_chunked(
-            &mut new.armflow().unwrap().reactor(options(9, c)).unwrap(),
-            &actor,
-            12,
-        )
-        .0;
-        let diff = max_abs_diff(&batched[i], &alone);
-        assert!(diff <= 1e-5, "session {i}: {diff}");
-    }
+    });
+    let err = Model::load(dir.path()).unwrap_err().to_string();
+    assert!(
+        err.contains("context_step") && err.contains("python3 onnx/cli.py armflow export"),
+        "{err}"
+    );
 }
 
 #[test]
@@ -135,7 +105,7 @@ fn a_full_cache_keeps_its_capacity_in_constant_memory() {
 
 #[test]
 fn a_cache_grown_past_its_first_slots_equals_a_full_recompute() {
-    // 160 tokens with every one kept: the cache allocates 16 slots and doubles up to 256.
+    // 160 tokens with every one kept: the cache holds them in 10 pages.
     let m = model();
     let mut s = m
         .armflow()

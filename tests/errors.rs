@@ -202,12 +202,12 @@ fn corrupt_manifest_is_rejected() {
 fn manifest_inconsistent_with_the_runtime_contract_names_tensor_and_shape() {
     let dir = bundle_copy();
     edit_manifest(dir.path(), |v| {
-        v["graphs"]["context_step"]["inputs"][4]["shape"][1] = 4.into()
+        v["graphs"]["context_layers"][2]["inputs"][1]["shape"][1] = 4.into()
     });
     let text = load_error(dir.path());
     assert!(
-        text.contains("graphs.context_step.inputs")
-            && text.contains("`past_key_0` float32 [B, 4, P, 16]"),
+        text.contains("graphs.context_layers.inputs (context_layer_2.onnx)")
+            && text.contains("`attention` float32 [N, 4]"),
         "{text}"
     );
     let dir = bundle_copy();

@@ -85,7 +85,10 @@ fn the_int8_demo_stays_within_its_stated_error_of_float32() {
     assert!(f32_model.manifest().reduced_precision_graphs().is_empty());
     assert_eq!(
         int8.manifest().reduced_precision_graphs(),
-        [("context_step", Weights::Int8), ("velocity", Weights::Int8)]
+        [
+            ("context_layers", Weights::Int8),
+            ("velocity", Weights::Int8)
+        ]
     );
     let (want, got) = (run(&f32_model), run(&int8));
     let (a, b, f) = (
@@ -149,17 +152,17 @@ fn weights_the_manifest_does_not_declare_are_refused() {
     // A float32 file declared int8.
     let dir = copy_of_bundle("armflow-demo");
     edit_manifest(dir.path(), |v| {
-        v["graphs"]["context_step"]["weights"] = "int8".into();
+        v["graphs"]["context_layers"][1]["weights"] = "int8".into();
     });
     let e = Model::load(dir.path()).unwrap_err().to_string();
     assert!(
-        e.contains("context_step.onnx") && e.contains("no integer matrix product"),
+        e.contains("context_layer_1.onnx") && e.contains("no integer matrix product"),
         "{e}"
     );
     // A precision troupe does not know.
     let dir = copy_of_bundle("armflow-demo");
     edit_manifest(dir.path(), |v| {
-        v["graphs"]["context_step"]["weights"] = "int4".into();
+        v["graphs"]["context_layers"][0]["weights"] = "int4".into();
     });
     let e = Model::load(dir.path()).unwrap_err().to_string();
     assert!(e.contains("int4"), "{e}");

@@ -1,41 +1,39 @@
-//! The context encoder's per-layer key/value cache: runtime-owned slots written in place.
+//! The context encoder's key/value cache: fixed-size pages the runtime owns, written in place
+//! and read where they lie by the attention kernel (`shared/attention.rs`).
 //!
-//! Every layer's keys and values live in one `[1, heads, slots, head_dim]` tensor per stream,
-//! passed to `context_step` as its `past_*` inputs with `key_mask` hiding the empty slots. A step
-//! writes only the new entries into free slots; nothing already held is copied. Attention does not
-//! depend on the order of the keys (each key carries its absolute position, added before the
-//! layers), so slots need no order.
+//! A stream's cache is a list of pages of [`PAGE_SLOTS`] slots. A page holds every layer's keys
+//! and values for its slots, laid out `[layer][head]` then the keys transposed
+//! (`[head_dim][slot]`, what the kernel reads a vector of entries from) and the values
+//! (`[slot][head_dim]`), so what one head of one layer attends over is two contiguous blocks per
+//! page. Growing adds a page;
+//! nothing already held is ever copied, packed or padded, and streams of different lengths
+//! step together with no common shape. Attention does not depend on the order of the keys
+//! (each key carries its absolute position, added before the layers), so slots need no order:
+//! the held entries are always slots `0..len`.
 //!
 //! Policy when full: `<sos>` (slot 0) always stays, and the new entry overwrites the oldest other
 //! entry. The slots after 0 form a ring, so a stream runs forever in bounded memory, and while the
-//! history fits the cached stream equals a full causal recompute of it. Slots are allocated up to
-//! [`PREALLOCATED_SLOTS`] at once and then by doubling up to the capacity, so a stream that keeps
-//! its whole history (a large capacity) attends over at most twice the entries it holds.
+//! history fits the cached stream equals a full causal recompute of it.
 //!
-//! A step is a transaction: [`KvCache::commit`] keeps what it wrote and [`KvCache::rollback`]
-//! restores the cache as the last commit left it (the session is unchanged on failure) from a
-//! journal of the entries each write overwrote.
+//! A step is a transaction: [`KvCache::reserve`] journals what the step's slots held,
+//! [`KvCache::commit`] keeps what it wrote and [`KvCache::rollback`] restores the cache as the
+//! last commit left it (the session is unchanged on failure).
 
-use tract_onnx::prelude::{IntoTensor, TValue, Tensor};
-
-use super::spec::{ContextSpec, StepReturns};
+use super::spec::ContextSpec;
+use crate::shared::attention::{attend, KvBlock, COLUMNS};
 use crate::shared::error::{Error, Result};
-use crate::shared::graph::{f32_tensor, f32_tensor_owned, read_f32};
 
-/// What `key_mask` adds to the score of an empty or padding slot: the softmax gives it weight 0.
-const MASKED: f32 = -1e30;
+/// Slots per page: small enough that a short stream holds little (paper size: 1.8 MB a page),
+/// large enough that a page's block of one head (`64 * head_dim` floats, 16 KB) streams well. A
+/// multiple of the kernel's columns.
+pub(crate) const PAGE_SLOTS: usize = 64;
+const _: () = assert!(PAGE_SLOTS.is_multiple_of(COLUMNS));
 
-/// Slots a cache allocates on its first entry (or its capacity, when smaller).
-pub(crate) const PREALLOCATED_SLOTS: usize = 16;
-
-/// Keys and values of every layer in the graph's order (`key_0, value_0, key_1, ...`).
+/// Keys and values of every layer of one stream.
 #[derive(Debug, Clone, Default)]
 pub(crate) struct KvCache {
-    /// `[1, heads, slots, head_dim]` each; empty before the first entry.
-    tensors: Vec<Tensor>,
-    /// `key_mask` row: 0 for a slot holding an entry, [`MASKED`] for a free one.
-    mask: Vec<f32>,
-    /// Entries held (`<sos>` included), at most `capacity`.
+    pages: Vec<Box<[f32]>>,
+    /// Entries held (`<sos>` included), at most `capacity`: slots `0..len`.
     len: usize,
     /// The most entries held at once (`<sos>` included, >= 2).
     capacity: usize,
@@ -50,13 +48,15 @@ pub(crate) struct KvCache {
     committed: (usize, u64),
 }
 
-/// What one write replaced: the slot, whether it held an entry, and its old rows per tensor.
+/// What one reserved slot held before: its rows of every layer when it held an entry.
 #[derive(Debug, Clone)]
 struct Overwrite {
     slot: usize,
-    held: bool,
-    rows: Vec<f32>,
+    rows: Option<Vec<f32>>,
 }
+
+/// The slots a step writes its new entries to, per stream, in token order.
+pub(crate) type StepSlots = Vec<usize>;
 
 impl KvCache {
     /// A cache holding nothing that keeps up to `capacity` entries (`<sos>` included, >= 2).
@@ -75,142 +75,133 @@ impl KvCache {
         self.len
     }
 
-    /// Slots allocated per layer.
-    fn slots(&self) -> usize {
-        self.mask.len()
+    /// Floats of one page.
+    fn page_floats(&self) -> usize {
+        PAGE_SLOTS * 2 * self.layers * self.heads * self.head_dim
     }
 
     /// Bytes of keys and values allocated.
     pub(crate) fn bytes(&self) -> usize {
-        2 * self.layers * self.heads * self.slots() * self.head_dim * 4
+        self.pages.len() * self.page_floats() * 4
     }
 
-    /// The `past_*` inputs and `key_mask` of a context step that appends `new` entries to each
-    /// of a batch of streams: each cache's slots padded to the most slots in the batch,
-    /// `[B, heads, P, head_dim]`, and `[B, P]` with [`MASKED`] on free slots, padding, and the
-    /// entries the new ones will replace (a full cache drops its oldest before the step, so
-    /// the step attends to `capacity` entries, as a full recompute of the kept ones would). A
-    /// batch of one moves its tensors in without copying: [`KvCache::restore`] takes them back
-    /// after the call.
-    pub(crate) fn batch_inputs(
-        caches: &mut [&mut KvCache],
-        new: usize,
-    ) -> Result<(Vec<TValue>, TValue)> {
-        let slots = caches.iter().map(|c| c.slots()).max().unwrap_or(0);
-        if let [one] = caches {
-            let mask = one.step_mask(new);
-            let past = if one.tensors.is_empty() {
-                vec![Self::zeros(one.heads, one.head_dim, 0); 2 * one.layers]
-            } else {
-                one.tensors.drain(..).map(TValue::from).collect()
-            };
-            return Ok((past, f32_tensor(&[1, slots], &mask)));
-        }
-        let first = caches
-            .first()
-            .ok_or_else(|| Error::InvalidInput("an empty batch".into()))?;
-        let (heads, dh, layers, b) = (first.heads, first.head_dim, first.layers, caches.len());
-        let mut mask = vec![MASKED; b * slots];
-        for (row, cache) in caches.iter().enumerate() {
-            mask[row * slots..row * slots + cache.slots()].copy_from_slice(&cache.step_mask(new));
-        }
-        let mut past = Vec::with_capacity(2 * layers);
-        for i in 0..2 * layers {
-            let mut padded = vec![0f32; b * heads * slots * dh];
-            for (row, cache) in caches.iter().enumerate() {
-                let Some(tensor) = cache.tensors.get(i) else {
-                    continue; // nothing held yet: all padding
-                };
-                let own = cache.slots();
-                let src = plain(tensor)?;
-                for h in 0..heads {
-                    let dst = ((row * heads + h) * slots) * dh;
-                    padded[dst..dst + own * dh]
-                        .copy_from_slice(&src[h * own * dh..(h + 1) * own * dh]);
-                }
-            }
-            past.push(f32_tensor_owned(&[b, heads, slots, dh], padded));
-        }
-        Ok((past, f32_tensor(&[b, slots], &mask)))
+    /// Where the block of `head` of `layer`'s keys (`kind` 0) or values (1) starts in a page.
+    fn block(&self, layer: usize, kind: usize, head: usize) -> usize {
+        ((layer * self.heads + head) * 2 + kind) * PAGE_SLOTS * self.head_dim
     }
 
-    /// Takes back the tensors a batch of one moved into the call (the graph has released them,
-    /// so this does not copy).
-    pub(crate) fn restore(&mut self, past: Vec<TValue>) {
-        if self.tensors.is_empty() && self.slots() > 0 {
-            self.tensors = past.into_iter().map(IntoTensor::into_tensor).collect();
+    /// Where dimension `d` of `slot`'s key (`kind` 0, transposed) or value (1) lies in its page.
+    fn at(&self, layer: usize, kind: usize, head: usize, slot: usize, d: usize) -> usize {
+        let (base, s) = (self.block(layer, kind, head), slot % PAGE_SLOTS);
+        base + if kind == 0 {
+            d * PAGE_SLOTS + s
+        } else {
+            s * self.head_dim + d
         }
     }
 
-    /// Appends the `new` entries of batch row `row` from a step's key/value outputs, which hold
-    /// `returned` entries per row whose last `new` are the new ones: `[B, heads, returned,
-    /// head_dim]` (`returned = new` for [`StepReturns::NewEntries`], past slots + new for
-    /// [`StepReturns::WholeCache`]).
-    pub(crate) fn append(
-        &mut self,
-        outputs: &[TValue],
-        row: usize,
-        new: usize,
-        returns: StepReturns,
-        past_slots: usize,
-    ) -> Result<()> {
-        if self.capacity < 2 {
+    /// Takes the slots of `new` entries, journaling what they held, and counts them as held:
+    /// the caller writes every layer's rows with [`KvCache::write`] before attending. The
+    /// entries a full cache overwrites are the oldest after `<sos>`.
+    pub(crate) fn reserve(&mut self, new: usize) -> Result<StepSlots> {
+        if self.capacity < 2 || self.layers == 0 {
             // Only the placeholder a session leaves while a step holds its cache is this small.
-            return Err(cache_error(&"writing to a cache that holds no slots"));
+            return Err(cache_error("writing to a cache that holds no slots"));
         }
-        let (heads, dh) = (self.heads, self.head_dim);
-        let (returned, what) = match returns {
-            StepReturns::NewEntries => (new, "new key/value"),
-            StepReturns::WholeCache => (past_slots + new, "present key/value"),
-        };
-        let batch = outputs.first().map_or(0, |t| t.shape()[0]);
-        if outputs.len() != 2 * self.layers || row >= batch {
-            return Err(Error::Inference {
-                graph: "context_step",
-                message: format!(
-                    "{} key/value outputs for batch row {row}, expected {} of batch > {row}",
-                    outputs.len(),
-                    2 * self.layers
-                ),
-            });
-        }
-        let sources = outputs
-            .iter()
-            .map(|t| read_f32("context_step", what, t, &[batch, heads, returned, dh]))
-            .collect::<Result<Vec<_>>>()?;
-        for k in 0..new {
-            let entry = returned - new + k;
-            let slot = self.free_slot()?;
-            let held = self.held(slot);
-            let mut rows = Vec::new();
-            if held {
-                for tensor in &self.tensors {
-                    let slots = self.mask.len();
-                    let src = plain(tensor)?;
-                    for h in 0..heads {
-                        let at = (h * slots + slot) * dh;
-                        rows.extend_from_slice(&src[at..at + dh]);
-                    }
-                }
+        let mut slots = Vec::with_capacity(new);
+        for _ in 0..new {
+            let slot = if self.len < self.capacity {
+                self.len
+            } else {
+                1 + (self.written % (self.capacity as u64 - 1)) as usize
+            };
+            if slot / PAGE_SLOTS >= self.pages.len() {
+                self.pages
+                    .push(vec![0f32; self.page_floats()].into_boxed_slice());
             }
-            // Journal first: a rollback then restores this slot whatever happens below.
-            self.journal.push(Overwrite { slot, held, rows });
-            self.mask[slot] = 0.0;
-            for (tensor, src) in self.tensors.iter_mut().zip(&sources) {
-                let dst = plain_mut(tensor)?;
-                let slots = dst.len() / (heads * dh);
-                for h in 0..heads {
-                    let at = (h * slots + slot) * dh;
-                    let from = ((row * heads + h) * returned + entry) * dh;
-                    dst[at..at + dh].copy_from_slice(&src[from..from + dh]);
-                }
-            }
+            let rows = (slot < self.len).then(|| self.rows_of(slot));
+            // Journal first: a rollback then restores this slot whatever happens after.
+            self.journal.push(Overwrite { slot, rows });
             if self.len > 0 {
                 self.written += 1;
             }
             self.len = (self.len + 1).min(self.capacity);
+            slots.push(slot);
         }
-        Ok(())
+        Ok(slots)
+    }
+
+    /// Every layer's key and value rows of `slot`, in page order.
+    fn rows_of(&self, slot: usize) -> Vec<f32> {
+        let (page, dh) = (&self.pages[slot / PAGE_SLOTS], self.head_dim);
+        let mut rows = Vec::with_capacity(2 * self.layers * self.heads * dh);
+        for layer in 0..self.layers {
+            for kind in 0..2 {
+                for head in 0..self.heads {
+                    rows.extend((0..dh).map(|d| page[self.at(layer, kind, head, slot, d)]));
+                }
+            }
+        }
+        rows
+    }
+
+    /// Writes one entry's key and value of `layer` (`heads * head_dim` floats each, the heads
+    /// side by side) into a reserved slot.
+    pub(crate) fn write(&mut self, layer: usize, slot: usize, key: &[f32], value: &[f32]) {
+        let dh = self.head_dim;
+        for (kind, row) in [key, value].into_iter().enumerate() {
+            for head in 0..self.heads {
+                for (d, &x) in row[head * dh..(head + 1) * dh].iter().enumerate() {
+                    let at = self.at(layer, kind, head, slot, d);
+                    self.pages[slot / PAGE_SLOTS][at] = x;
+                }
+            }
+        }
+    }
+
+    /// Attention of a step's `queries` (one row of `heads * head_dim` floats per new entry, in
+    /// the order of `slots`, each already scaled) over `layer`: query `j` sees every held entry
+    /// but those the step's later entries were written to (a causal step), as a full recompute
+    /// of the kept entries would. Writes one row per query into `out`.
+    pub(crate) fn attend(
+        &self,
+        layer: usize,
+        slots: &[usize],
+        queries: &[f32],
+        out: &mut [f32],
+        scores: &mut Vec<f32>,
+    ) {
+        let (heads, dh) = (self.heads, self.head_dim);
+        let used = self.len.div_ceil(PAGE_SLOTS);
+        let mut blocks = Vec::with_capacity(used);
+        for (j, (query, out)) in queries
+            .chunks_exact(heads * dh)
+            .zip(out.chunks_exact_mut(heads * dh))
+            .enumerate()
+        {
+            let hidden = &slots[(j + 1).min(slots.len())..];
+            for head in 0..heads {
+                blocks.clear();
+                let (k, v) = (self.block(layer, 0, head), self.block(layer, 1, head));
+                for (p, page) in self.pages[..used].iter().enumerate() {
+                    let rows = (self.len - p * PAGE_SLOTS).min(PAGE_SLOTS);
+                    blocks.push(KvBlock {
+                        keys: &page[k..k + PAGE_SLOTS * dh],
+                        stride: PAGE_SLOTS,
+                        rows,
+                        values: &page[v..v + rows * dh],
+                    });
+                }
+                let range = head * dh..(head + 1) * dh;
+                attend(
+                    &query[range.clone()],
+                    &blocks,
+                    hidden,
+                    &mut out[range],
+                    scores,
+                );
+            }
+        }
     }
 
     /// Keeps every entry written since the last commit.
@@ -219,120 +210,33 @@ impl KvCache {
         self.committed = (self.len, self.written);
     }
 
-    /// Restores the entries and counts of the last commit (allocated slots stay allocated).
+    /// Restores the entries and counts of the last commit (allocated pages stay allocated).
     pub(crate) fn rollback(&mut self) {
-        let (heads, dh) = (self.heads, self.head_dim);
-        for undo in self.journal.drain(..).rev() {
-            self.mask[undo.slot] = if undo.held { 0.0 } else { MASKED };
-            if !undo.held {
-                continue;
-            }
-            for (tensor, old) in self.tensors.iter_mut().zip(undo.rows.chunks(heads * dh)) {
-                // A tensor that cannot be viewed was never written either.
-                let Ok(dst) = plain_mut(tensor) else { continue };
-                let slots = dst.len() / (heads * dh);
-                for h in 0..heads {
-                    let at = (h * slots + undo.slot) * dh;
-                    dst[at..at + dh].copy_from_slice(&old[h * dh..(h + 1) * dh]);
+        let dh = self.head_dim;
+        for undo in std::mem::take(&mut self.journal).into_iter().rev() {
+            let Some(rows) = undo.rows else { continue };
+            let mut old = rows.into_iter();
+            for layer in 0..self.layers {
+                for kind in 0..2 {
+                    for head in 0..self.heads {
+                        for d in 0..dh {
+                            let at = self.at(layer, kind, head, undo.slot, d);
+                            if let Some(x) = old.next() {
+                                self.pages[undo.slot / PAGE_SLOTS][at] = x;
+                            }
+                        }
+                    }
                 }
             }
         }
         (self.len, self.written) = self.committed;
     }
-
-    /// The `key_mask` row of a step appending `new` entries: the held slots those entries
-    /// will overwrite are hidden.
-    fn step_mask(&self, new: usize) -> Vec<f32> {
-        let mut mask = self.mask.clone();
-        let ring = self.ring();
-        for k in 0..new {
-            if self.len + k >= self.capacity {
-                let slot = 1 + ((self.written + k as u64) % ring) as usize;
-                if let Some(m) = mask.get_mut(slot) {
-                    *m = MASKED;
-                }
-            }
-        }
-        mask
-    }
-
-    /// Slots in the ring after `<sos>` (at least 1, even for the empty placeholder a session
-    /// leaves while a step holds its cache).
-    fn ring(&self) -> u64 {
-        (self.capacity as u64).saturating_sub(1).max(1)
-    }
-
-    /// Whether `slot` holds an entry.
-    fn held(&self, slot: usize) -> bool {
-        self.mask.get(slot).is_some_and(|&m| m == 0.0)
-    }
-
-    /// The slot the next entry goes to, allocating slots when none is free.
-    fn free_slot(&mut self) -> Result<usize> {
-        if self.len < self.capacity {
-            if self.len == self.slots() {
-                self.grow()?;
-            }
-            return Ok(self.len);
-        }
-        // Full: overwrite the oldest entry after `<sos>` (slots 1..capacity form the ring).
-        Ok(1 + (self.written % self.ring()) as usize)
-    }
-
-    /// Allocates more slots, copying the held ones to the same indices (once per doubling).
-    fn grow(&mut self) -> Result<()> {
-        let (heads, dh, old) = (self.heads, self.head_dim, self.slots());
-        let slots = if old == 0 {
-            self.capacity.min(PREALLOCATED_SLOTS)
-        } else {
-            (2 * old).min(self.capacity)
-        };
-        let mut tensors = Vec::with_capacity(2 * self.layers);
-        for i in 0..2 * self.layers {
-            let mut data = vec![0f32; heads * slots * dh];
-            if let Some(t) = self.tensors.get(i) {
-                let src = plain(t)?;
-                for h in 0..heads {
-                    data[h * slots * dh..(h * slots + old) * dh]
-                        .copy_from_slice(&src[h * old * dh..(h + 1) * old * dh]);
-                }
-            }
-            tensors.push(
-                Tensor::from_shape(&[1, heads, slots, dh], &data).map_err(|e| {
-                    Error::Inference {
-                        graph: "context_step",
-                        message: format!("allocating cache slots: {e:#}"),
-                    }
-                })?,
-            );
-        }
-        self.tensors = tensors;
-        self.mask.resize(slots, MASKED);
-        Ok(())
-    }
-
-    fn zeros(heads: usize, dh: usize, slots: usize) -> TValue {
-        f32_tensor(&[1, heads, slots, dh], &[])
-    }
 }
 
-fn plain(t: &Tensor) -> Result<&[f32]> {
-    t.try_as_plain_ram()
-        .and_then(|v| v.as_slice::<f32>())
-        .map_err(|e| cache_error(&e))
-}
-
-fn plain_mut(t: &mut Tensor) -> Result<&mut [f32]> {
-    t.to_plain_array_view_mut::<f32>()
-        .map_err(|e| cache_error(&e))?
-        .into_slice()
-        .ok_or_else(|| cache_error(&"not contiguous"))
-}
-
-fn cache_error(e: &impl std::fmt::Display) -> Error {
+fn cache_error(message: &str) -> Error {
     Error::Inference {
-        graph: "context_step",
-        message: format!("key/value cache tensor: {e:#}"),
+        graph: "context_layers",
+        message: format!("key/value cache: {message}"),
     }
 }
 
@@ -342,52 +246,47 @@ mod tests {
 
     const HEADS: usize = 2;
     const DH: usize = 3;
+    const LAYERS: usize = 2;
 
     fn cache(capacity: usize) -> KvCache {
         let spec = ContextSpec {
             width: HEADS * DH,
-            layers: 1,
+            layers: LAYERS,
             heads: HEADS,
             head_dim: DH,
             capacity_tokens: capacity,
-            step_returns: StepReturns::NewEntries,
         };
         KvCache::empty(&spec, capacity)
     }
 
-    /// The new-entry outputs of one step of one stream whose entry is filled with `id`.
-    fn entry(id: f32) -> Vec<TValue> {
-        vec![f32_tensor(&[1, HEADS, 1, DH], &[id; HEADS * DH]); 2]
+    /// Appends one entry whose every float of layer `l` is `id + l / 10`.
+    fn push(c: &mut KvCache, id: f32) -> usize {
+        let slot = c.reserve(1).unwrap()[0];
+        for layer in 0..LAYERS {
+            let row = [id + layer as f32 / 10.0; HEADS * DH];
+            c.write(layer, slot, &row, &row);
+        }
+        slot
     }
 
-    /// The ids held, as a sorted list (the value of each held slot's first float).
+    /// The ids held, sorted (read from layer 0's keys of head 1).
     fn held(c: &KvCache) -> Vec<f32> {
-        let keys = plain(&c.tensors[0]).unwrap();
-        let mut ids: Vec<f32> = (0..c.slots())
-            .filter(|&s| c.held(s))
-            .map(|s| keys[s * DH])
+        let mut ids: Vec<f32> = (0..c.len())
+            .map(|s| c.pages[s / PAGE_SLOTS][c.at(0, 0, 1, s, 0)])
             .collect();
         ids.sort_by(f32::total_cmp);
         ids
-    }
-
-    fn push(c: &mut KvCache, id: f32) {
-        c.append(&entry(id), 0, 1, StepReturns::NewEntries, c.slots())
-            .unwrap();
     }
 
     #[test]
     fn a_full_ring_keeps_sos_and_the_newest() {
         let mut c = cache(4);
         for id in 0..10 {
-            assert_eq!(
-                c.step_mask(1).iter().filter(|&&m| m == 0.0).count(),
-                id.min(3)
-            );
             push(&mut c, id as f32);
+            c.commit();
         }
         assert_eq!(held(&c), [0.0, 7.0, 8.0, 9.0]);
-        assert_eq!((c.len(), c.slots()), (4, 4));
+        assert_eq!((c.len(), c.pages.len()), (4, 1));
     }
 
     #[test]
@@ -397,29 +296,61 @@ mod tests {
             push(&mut c, id as f32);
         }
         c.commit();
-        let (before, tensors) = (held(&c), c.tensors.clone());
+        let (before, pages) = (held(&c), c.pages.clone());
         for id in 5..9 {
             push(&mut c, id as f32);
         }
         assert_eq!(held(&c), [0.0, 7.0, 8.0]);
         c.rollback();
         assert_eq!(held(&c), before);
-        assert_eq!(c.tensors, tensors);
+        assert_eq!(c.pages, pages, "every layer, key and value restored");
         push(&mut c, 5.0);
         assert_eq!(held(&c), [0.0, 4.0, 5.0], "the ring goes on where it was");
     }
 
     #[test]
-    fn slots_grow_by_doubling_up_to_the_capacity() {
+    fn growing_adds_pages_and_never_moves_what_is_held() {
         let mut c = cache(300);
-        let mut sizes = Vec::new();
-        for id in 0..300 {
+        let first = push(&mut c, 0.0);
+        let page = c.pages[0].as_ptr();
+        for id in 1..300 {
             push(&mut c, id as f32);
-            if sizes.last() != Some(&c.slots()) {
-                sizes.push(c.slots());
+        }
+        assert_eq!((first, c.pages.len()), (0, 300usize.div_ceil(PAGE_SLOTS)));
+        assert_eq!(
+            c.pages[0].as_ptr(),
+            page,
+            "the first page was not reallocated"
+        );
+        assert_eq!(held(&c), (0..300).map(|i| i as f32).collect::<Vec<_>>());
+        let pages = 300usize.div_ceil(PAGE_SLOTS);
+        assert_eq!(c.bytes(), pages * PAGE_SLOTS * 2 * LAYERS * HEADS * DH * 4);
+    }
+
+    #[test]
+    fn a_causal_step_hides_its_later_entries_from_earlier_queries() {
+        let mut c = cache(40);
+        for id in 0..20 {
+            push(&mut c, id as f32);
+        }
+        c.commit();
+        // two new entries in one step with very different values
+        let slots = c.reserve(2).unwrap();
+        for (slot, v) in slots.iter().zip([100.0, -100.0]) {
+            for layer in 0..LAYERS {
+                c.write(layer, *slot, &[0.0; HEADS * DH], &[v; HEADS * DH]);
             }
         }
-        assert_eq!(sizes, [16, 32, 64, 128, 256, 300]);
-        assert_eq!(held(&c), (0..300).map(|i| i as f32).collect::<Vec<_>>());
+        let queries = vec![0.0; 2 * HEADS * DH]; // equal scores: the mean of what is visible
+        let mut out = vec![0.0; 2 * HEADS * DH];
+        c.attend(0, &slots, &queries, &mut out, &mut Vec::new());
+        let mean_first: f32 = ((0..20).map(|i| i as f32).sum::<f32>() + 100.0) / 21.0;
+        let mean_second: f32 = ((0..20).map(|i| i as f32).sum::<f32>()) / 22.0;
+        assert!(
+            (out[0] - mean_first).abs() < 1e-4,
+            "{} vs {mean_first}",
+            out[0]
+        );
+        assert!((out[HEADS * DH] - mean_second).abs() < 1e-4);
     }
 }

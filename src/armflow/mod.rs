@@ -6,7 +6,8 @@
 //! - `family`: [`Armflow`], the loaded model (`Model::armflow`): its reactors and clips;
 //! - [`spec`]: the family's manifest section and the interface it requires of its graphs;
 //! - `networks`: the loaded graphs and their typed calls;
-//! - `kv_cache`: the context encoder's per-layer cache and its capacity policy;
+//! - `context`: the context encoder, its dense layers in graphs and its attention in Rust;
+//! - `kv_cache`: the paged key/value cache it attends over, and its capacity policy;
 //! - `meanflow`: the sampler's time grid;
 //! - `session`: [`Reactor`] streams, one or many at once (`session/lanes.rs`, the batched token
 //!   loop);
@@ -15,6 +16,7 @@
 //! Like every family, this folder imports only from `crate::shared`, `crate::motion` and itself.
 
 pub mod clip;
+mod context;
 mod family;
 mod kv_cache;
 mod meanflow;

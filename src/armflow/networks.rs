@@ -1,9 +1,10 @@
-//! The loaded graphs of an `armflow` bundle and their typed calls: conditioning, one
-//! context-encoder step over a batch of key/value caches, the MeanFlow velocity, and the VAE as
-//! windows or as per-token steps with explicit convolution state.
+//! The loaded graphs of an `armflow` bundle and their typed calls: conditioning, the context
+//! encoder (`context.rs`) over a batch of key/value caches, the MeanFlow velocity, and the VAE
+//! as windows or as per-token steps with explicit convolution state.
 
-use tract_onnx::prelude::{TValue, Tensor};
+use tract_onnx::prelude::TValue;
 
+use super::context::ContextEncoder;
 use super::kv_cache::KvCache;
 use super::spec::ArmFlowSpec;
 use crate::shared::bundle::BundleFiles;
@@ -23,7 +24,7 @@ pub(crate) struct Networks {
     pub io: BundleIo,
     pub spec: ArmFlowSpec,
     conditioning: Graph,
-    context_step: Graph,
+    context: ContextEncoder,
     velocity: Graph,
     vae_encoder: Graph,
     vae_decoder: Graph,
@@ -90,7 +91,6 @@ impl Networks {
         let g = &spec.graphs;
         let mut wanted = vec![
             ("conditioning", &g.conditioning),
-            ("context_step", &g.context_step),
             ("velocity", &g.velocity),
             ("vae_encoder", &g.vae_encoder),
             ("vae_decoder", &g.vae_decoder),
@@ -119,11 +119,15 @@ impl Networks {
         } else {
             &[]
         };
+        wanted.extend(
+            g.context_layers
+                .iter()
+                .map(|layer| ("context_layers", layer)),
+        );
         let mut graphs = load_graphs(files, &wanted, deferred)?.into_iter();
         let mut next = || graphs.next().expect("one graph per wanted entry");
         Ok(Self {
             conditioning: next(),
-            context_step: next(),
             velocity: next(),
             vae_encoder: next(),
             vae_decoder: next(),
@@ -131,6 +135,10 @@ impl Networks {
             context_full: g.context_full.as_ref().map(|_| next()),
             text_branch: g.text_branch.as_ref().map(|_| next()),
             text_encoder: g.text_encoder.as_ref().map(|_| next()),
+            context: ContextEncoder::new(
+                spec.context.clone(),
+                g.context_layers.iter().map(|_| next()).collect(),
+            ),
             prompts: io
                 .tokenizer
                 .as_ref()
@@ -237,11 +245,7 @@ impl Networks {
         })
     }
 
-    /// One context-encoder call for a batch of streams. Row `b` appends its tokens (`S` tokens
-    /// of `width` floats at `positions[b * S..]`) to `caches[b]`, under `modulations[b]`
-    /// (`[1, layers, 6, width]`). More than one stream needs `S = 1`. Returns the contexts at
-    /// the last position, `[B, width]` row-major. The caches are written in place and not
-    /// committed: the caller commits or rolls them back with the rest of the step.
+    /// One context-encoder step for a batch of streams: see [`ContextEncoder::step`].
     pub(crate) fn context_step(
         &self,
         caches: &mut [&mut KvCache],
@@ -249,32 +253,7 @@ impl Networks {
         positions: &[i64],
         modulations: &[&TValue],
     ) -> Result<Vec<f32>> {
-        let (c, b) = (self.spec.context.width, caches.len());
-        let s = positions.len() / b.max(1);
-        let mut inputs = vec![
-            f32_tensor(&[b, s, c], tokens),
-            Tensor::from_shape(&[b, s], positions)
-                .expect("shape matches data")
-                .into(),
-            stack_rows("context_step", modulations)?,
-        ];
-        // From here to `restore`, a batch of one has lent its tensors to `past`: no early return.
-        let (past, key_mask) = KvCache::batch_inputs(caches, s)?;
-        let past_slots = key_mask.shape()[1];
-        inputs.push(key_mask);
-        inputs.extend(past.iter().cloned());
-        let ran = self.context_step.run(inputs);
-        if let [cache] = caches {
-            cache.restore(past); // the graph has dropped its references: no copy
-        }
-        let mut out = ran?;
-        let context = read_f32("context_step", "context", &out[0], &[b, c])?.to_vec();
-        let entries = out.split_off(1);
-        let returns = self.spec.context.step_returns;
-        for (row, cache) in caches.iter_mut().enumerate() {
-            cache.append(&entries, row, s, returns, past_slots)?;
-        }
-        Ok(context)
+        self.context.step(caches, tokens, positions, modulations)
     }
 
     /// The average velocity `u(z, r, t | actor, context)` for a batch of rows, each with its own

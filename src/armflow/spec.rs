@@ -64,25 +64,6 @@ pub struct ContextSpec {
     pub head_dim: usize,
     /// Default number of tokens (`<sos>` included) kept in the key/value cache.
     pub capacity_tokens: usize,
-    /// What `context_step` returns besides the context; bundles written before this field
-    /// existed return the whole cache.
-    #[serde(default)]
-    pub step_returns: StepReturns,
-}
-
-/// The key/value outputs of a bundle's `context_step` graph.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum StepReturns {
-    /// `new_key_i` / `new_value_i`, `[B, heads, S, head_dim]`: only the entries of the new
-    /// tokens, which troupe writes into the cache it owns (no copy of the history per step).
-    NewEntries,
-    /// `present_key_i` / `present_value_i`, `[B, heads, P+S, head_dim]`: the past with the new
-    /// entries appended, as bundles exported before the runtime owned the cache; troupe takes
-    /// the new entries from the end. Still read; re-export to drop the graph's copy of the
-    /// cache (`python3 onnx/cli.py armflow export`).
-    #[default]
-    WholeCache,
 }
 
 /// Streaming properties of the VAE.
@@ -140,8 +121,18 @@ pub struct SamplerSpec {
 pub struct ArmFlowGraphs {
     /// condition -> AdaLN modulation of every layer, and `<sos>`; run when the condition changes.
     pub conditioning: GraphSpec,
-    /// One context-encoder step over new tokens with a per-layer key/value cache.
-    pub context_step: GraphSpec,
+    /// The context encoder's dense work as `layers + 1` graphs over token rows: graph 0 adds
+    /// the positions and starts block 0 (`next_x`, `query`, `key`, `value`); graph `i` finishes
+    /// block `i - 1` from its attention output and starts block `i` (an out layer first fuses
+    /// the skip it pops); the last finishes the last block (`context`). The runtime runs each
+    /// block's attention between them, over the key/value cache it owns.
+    #[serde(default)]
+    pub context_layers: Vec<GraphSpec>,
+    /// The one-graph context encoder of bundles exported before the runtime ran attention: not
+    /// run, only recognised, to refuse such a bundle with the command that re-exports it.
+    #[doc(hidden)]
+    #[serde(default, rename = "context_step", skip_serializing)]
+    pub legacy_context_step: Option<serde::de::IgnoredAny>,
     /// Average-velocity MLP.
     pub velocity: GraphSpec,
     /// VAE encoder over a window of frames.
@@ -205,6 +196,24 @@ impl ArmFlowSpec {
             format!(
                 "context.layers {} must be odd (in, mid, out layers)",
                 c.layers
+            )
+        })?;
+        let graphs = &self.graphs;
+        check(
+            !graphs.context_layers.is_empty() || graphs.legacy_context_step.is_none(),
+            &|| {
+                "the context encoder is one `context_step` graph, as exporters before troupe \
+                 0.2 wrote it; troupe now runs attention itself between per-layer graphs: \
+                 re-export the bundle with `python3 onnx/cli.py armflow export` (the same \
+                 preset or --checkpoint; `demo export` for the demo model)"
+                    .into()
+            },
+        )?;
+        check(graphs.context_layers.len() == c.layers + 1, &|| {
+            format!(
+                "graphs.context_layers lists {} graphs, expected context.layers + 1 = {}",
+                graphs.context_layers.len(),
+                c.layers + 1
             )
         })?;
         check(c.capacity_tokens >= 2, &|| {
@@ -300,44 +309,41 @@ impl ArmFlowSpec {
         condition: &ConditionSpec,
     ) -> Vec<(&'static str, &'a GraphSpec, GraphSpec)> {
         let (c, lat, d) = (self.context.width, self.latent.dim, motion.frame_dim);
-        let (h, dh) = (self.context.heads, self.context.head_dim);
         let (f, n, s) = (float, Dim::Fixed, sym);
-        let kv = |prefix: &str, len: &str| -> Vec<TensorSpec> {
-            (0..self.context.layers)
-                .flat_map(|i| {
-                    ["key", "value"].map(|kv| {
-                        f(
-                            &format!("{prefix}_{kv}_{i}"),
-                            vec![s("B"), n(h), s(len), n(dh)],
-                        )
-                    })
-                })
-                .collect()
-        };
         let spec = contract;
         let g = &self.graphs;
-        // The streaming graphs take a batch of `B` streams (one row each), so that many sessions
-        // stepped together read the weights once; `key_mask` hides free slots of the caches and
-        // the padding of shorter caches in that batch.
-        let mut step_inputs = vec![
-            f("tokens", vec![s("B"), s("S"), n(c)]),
-            TensorSpec {
-                name: "positions".into(),
-                dtype: DType::Int64,
-                shape: vec![s("B"), s("S")],
-            },
-            f(
-                "modulation",
-                vec![s("B"), n(self.context.layers), n(6), n(c)],
-            ),
-            f("key_mask", vec![s("B"), s("P")]),
-        ];
-        step_inputs.extend(kv("past", "P"));
-        let mut step_outputs = vec![f("context", vec![s("B"), n(c)])];
-        step_outputs.extend(match self.context.step_returns {
-            StepReturns::NewEntries => kv("new", "S"),
-            StepReturns::WholeCache => kv("present", "P+S"),
-        });
+        // The context layers take N token rows: the new tokens of every stream of a round.
+        let rows = |names: &[&str]| -> Vec<TensorSpec> {
+            names.iter().map(|m| f(m, vec![s("N"), n(c)])).collect()
+        };
+        let modulation = |name: &str| f(name, vec![s("N"), n(6), n(c)]);
+        let layers = self.context.layers;
+        let layer_contract = |i: usize| -> (Vec<TensorSpec>, Vec<TensorSpec>) {
+            let starts = rows(&["next_x", "query", "key", "value"]);
+            if i == 0 {
+                let positions = TensorSpec {
+                    name: "positions".into(),
+                    dtype: DType::Int64,
+                    shape: vec![s("N")],
+                };
+                let inputs = vec![
+                    f("tokens", vec![s("N"), n(c)]),
+                    positions,
+                    modulation("modulation"),
+                ];
+                return (inputs, starts);
+            }
+            let mut inputs = rows(&["x", "attention"]);
+            inputs.push(modulation("finish_modulation"));
+            if i == layers {
+                return (inputs, rows(&["context"]));
+            }
+            inputs.push(modulation("modulation"));
+            if i > layers / 2 {
+                inputs.extend(rows(&["skip"]));
+            }
+            (inputs, starts)
+        };
         let mut contracts = vec![
             (
                 "conditioning",
@@ -350,11 +356,6 @@ impl ArmFlowSpec {
                         f("start_token", vec![n(1), n(1), n(c)]),
                     ],
                 ),
-            ),
-            (
-                "context_step",
-                &g.context_step,
-                spec(&g.context_step, step_inputs, step_outputs),
             ),
             (
                 "velocity",
@@ -393,6 +394,12 @@ impl ArmFlowSpec {
                 ),
             ),
         ];
+        // After `conditioning`, where the graphs run.
+        let layer_contracts = g.context_layers.iter().enumerate().map(|(i, declared)| {
+            let (inputs, outputs) = layer_contract(i);
+            ("context_layers", declared, spec(declared, inputs, outputs))
+        });
+        contracts.splice(1..1, layer_contracts);
         if let Some(full) = &g.context_full {
             contracts.push((
                 "context_full",

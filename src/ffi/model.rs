@@ -313,7 +313,7 @@ pub unsafe extern "C" fn troupe_model_reduced_precision_count(
     model.map_or(0, |m| m.reduced_precision.len())
 }
 
-/// The role of reduced-precision graph `index` (`"context_step"`, `"velocity"`, ...;
+/// The role of reduced-precision graph `index` (`"context_layers"`, `"velocity"`, ...;
 /// `0 <= index < troupe_model_reduced_precision_count`), or NULL for NULL or an index out of
 /// range. Owned by the model and valid until `troupe_model_free`; never free it. Thread-safe.
 ///

@@ -52,7 +52,7 @@ pub enum Error {
     /// A graph failed while running; the session that ran it is left unchanged.
     #[error("{graph}: inference failed: {message}")]
     Inference {
-        /// The role of the graph in the bundle (`context_step`, `velocity`, ...).
+        /// The role of the graph in the bundle (`context_layers`, `velocity`, ...).
         graph: &'static str,
         /// The runtime's message.
         message: String,

@@ -127,7 +127,7 @@ impl Graph {
         Ok(self.plan.get_or_init(|| plan))
     }
 
-    /// The graph's role in the bundle (`prior`, `context_step`, ...), for messages.
+    /// The graph's role in the bundle (`prior`, `context_layers`, ...), for messages.
     pub(crate) fn role(&self) -> &'static str {
         self.role
     }

@@ -130,8 +130,8 @@ pub(crate) fn contract(
     }
 }
 
-/// Checks one declared graph against the interface the runtime requires of it (`role` names it
-/// in the message).
+/// Checks one declared graph against the interface the runtime requires of it (`role` and the
+/// file name it in the message: a role may hold several graphs).
 pub(crate) fn check_contract(
     role: &str,
     declared: &GraphSpec,
@@ -141,7 +141,8 @@ pub(crate) fn check_contract(
         ("inputs", &declared.inputs, &expected.inputs),
         ("outputs", &declared.outputs, &expected.outputs),
     ] {
-        compare_tensor_lists(got, want).map_err(|e| format!("graphs.{role}.{kind}: {e}"))?;
+        compare_tensor_lists(got, want)
+            .map_err(|e| format!("graphs.{role}.{kind} ({}): {e}", declared.file))?;
     }
     Ok(())
 }

@@ -1,6 +1,7 @@
 //! The machinery every family stands on, one concept per module. Nothing here knows a family or
 //! the [`crate::Model`] handle: a module of this layer imports only from this layer.
 
+pub(crate) mod attention;
 pub mod bundle;
 pub(crate) mod bundle_io;
 pub(crate) mod checks;

@@ -25,7 +25,7 @@ int main(int argc, char **argv) {
     CHECK(troupe_model_reduced_precision_count(demo) == 0);
     CHECK(troupe_model_reduced_precision_graph(demo, 0) == NULL);
     CHECK(troupe_model_reduced_precision_count(int8) == 2);
-    CHECK(strcmp(troupe_model_reduced_precision_graph(int8, 0), "context_step") == 0);
+    CHECK(strcmp(troupe_model_reduced_precision_graph(int8, 0), "context_layers") == 0);
     CHECK(strcmp(troupe_model_reduced_precision_graph(int8, 1), "velocity") == 0);
     CHECK(strcmp(troupe_model_reduced_precision_weights(int8, 1), "int8") == 0);
     CHECK(troupe_model_reduced_precision_weights(int8, 2) == NULL);

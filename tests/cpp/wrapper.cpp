@@ -73,7 +73,7 @@ int main(int argc, char **argv) {
         troupe::Model int8;
         if (argc > 5 && troupe::Model::load(argv[5], int8).ok()) {
             using Graphs = std::vector<std::pair<std::string, std::string>>;
-            CHECK((int8.reduced_precision() == Graphs{{"context_step", "int8"}, {"velocity", "int8"}}));
+            CHECK((int8.reduced_precision() == Graphs{{"context_layers", "int8"}, {"velocity", "int8"}}));
         } else {
             CHECK(argc <= 5);
         }

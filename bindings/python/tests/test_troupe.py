@@ -344,7 +344,7 @@ def test_official_clip_loop_and_text_branch_match_the_reference():
 def test_reduced_precision_graphs_are_listed(model):
     assert model.reduced_precision == {}
     with troupe.Model(REPO / "onnx" / "bundles" / "armflow-demo-int8") as int8:
-        assert int8.reduced_precision == {"context_step": "int8", "velocity": "int8"}
+        assert int8.reduced_precision == {"context_layers": "int8", "velocity": "int8"}
 
 
 def test_named_conditions_of_the_demo_bundle(model):

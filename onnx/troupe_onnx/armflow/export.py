@@ -130,7 +130,27 @@ class ConditioningGraph(torch.nn.Module):
         return self.core.arnet.modulation(condition), self.core.start_token * 1.0
 
 
+class ContextLayerGraph(torch.nn.Module):
+    """Graph `index` of the context encoder's split (`SkipAdaLNTransformer.layer_*`): the dense
+    work between two attentions, over N token rows of any streams. The runtime runs each
+    block's attention itself, over the key/value cache it owns."""
+
+    def __init__(self, model: Armflow, index: int):
+        super().__init__()
+        self.arnet, self.index = model.armflow.arnet, index
+
+    def forward(self, *inputs):
+        if self.index == 0:
+            return self.arnet.layer_entry(*inputs)
+        if self.index == len(self.arnet.blocks()):
+            return self.arnet.layer_exit(*inputs)
+        return self.arnet.layer_link(self.index, *inputs)
+
+
 class ContextStepGraph(torch.nn.Module):
+    """The whole context encoder as one graph with the cache as inputs (attention inside): the
+    form onnxruntime runs best, written only for the benchmarks' peers (`--peer-graphs`)."""
+
     def __init__(self, model: Armflow):
         super().__init__()
         self.arnet = model.armflow.arnet
@@ -139,6 +159,26 @@ class ContextStepGraph(torch.nn.Module):
         past = list(zip(past_flat[0::2], past_flat[1::2]))
         context, new = self.arnet.step(tokens, positions, modulation, past, key_mask)
         return (context, *[t for kv in new for t in kv])
+
+
+def write_peer_graphs(model: Armflow, out_dir: Path):
+    """`peers/context_step.onnx`: the one-graph context step of the same weights, `[B, S]`
+    tokens against `past_*` caches `[B, heads, P, head_dim]`, returning the context and the new
+    entries (`benches/peers.py`)."""
+    cfg = model.cfg
+    c, h, dh, L = cfg.width, cfg.heads, cfg.head_dim, cfg.layers
+    t = lambda name, shape, dtype="float32": {"name": name, "dtype": dtype, "shape": shape}  # noqa: E731
+    kv = lambda prefix, n: [t(f"{prefix}_{x}_{i}", ["B", h, n, dh]) for i in range(L) for x in ("key", "value")]  # noqa: E731
+    spec = {
+        "file": "peers/context_step.onnx",
+        "inputs": [t("tokens", ["B", "S", c]), t("positions", ["B", "S"], "int64"),
+                   t("modulation", ["B", L, 6, c]), t("key_mask", ["B", "P"]), *kv("past", "P")],
+        "outputs": [t("context", ["B", c]), *kv("new", "S")],
+    }
+    (out_dir / "peers").mkdir(parents=True, exist_ok=True)
+    past = [torch.randn(2, h, 3, dh) for _ in range(2 * L)]
+    args = (torch.randn(2, 2, c), torch.tensor([[3, 4], [3, 4]]), torch.randn(2, L, 6, c), torch.zeros(2, 3), *past)
+    export_graph(ContextStepGraph(model), args, spec, out_dir)
 
 
 class ContextFullGraph(torch.nn.Module):
@@ -176,11 +216,28 @@ def graph_specs(model: Armflow) -> dict:
     c, lat, d, h, dh, L = cfg.width, cfg.latent_dim, cfg.frame_dim, cfg.heads, cfg.head_dim, cfg.layers
     fpt = cfg.frames_per_token
     t = lambda name, shape, dtype="float32": {"name": name, "dtype": dtype, "shape": shape}  # noqa: E731
-    # Streaming graphs take a batch of B streams, so that many sessions read the weights once.
-    past = [t(f"past_{kv}_{i}", dims("B", h, "P", dh)) for i in range(L) for kv in ("key", "value")]
-    # Only the new tokens' keys and values come out: the runtime owns the cache and writes them
-    # into it in place (manifest `context.step_returns`).
-    new = [t(f"new_{kv}_{i}", dims("B", h, "S", dh)) for i in range(L) for kv in ("key", "value")]
+    # The context encoder is `layers + 1` graphs over N token rows (the tokens of every stream
+    # of a round): the runtime runs attention between them over the cache it owns.
+    rows = lambda *names: [t(n, dims("N", c)) for n in names]  # noqa: E731
+    mod = lambda name: t(name, dims("N", 6, c))  # noqa: E731
+    qkv = rows("query", "key", "value")
+    layers = [{
+        "file": "context_layer_0.onnx",
+        "inputs": [*rows("tokens"), t("positions", dims("N"), "int64"), mod("modulation")],
+        "outputs": [*rows("next_x"), *qkv],
+    }]
+    for i in range(1, L):
+        skip = rows("skip") if i > L // 2 else []
+        layers.append({
+            "file": f"context_layer_{i}.onnx",
+            "inputs": [*rows("x", "attention"), mod("finish_modulation"), mod("modulation"), *skip],
+            "outputs": [*rows("next_x"), *qkv],
+        })
+    layers.append({
+        "file": f"context_layer_{L}.onnx",
+        "inputs": [*rows("x", "attention"), mod("finish_modulation")],
+        "outputs": rows("context"),
+    })
 
     def state(stack, prefix):
         shapes = VaeStep(stack).state_shapes()
@@ -192,17 +249,7 @@ def graph_specs(model: Armflow) -> dict:
             "inputs": [t("condition", dims(1, cfg.cond_dim))],
             "outputs": [t("modulation", dims(1, L, 6, c)), t("start_token", dims(1, 1, c))],
         },
-        "context_step": {
-            "file": "context_step.onnx",
-            "inputs": [
-                t("tokens", dims("B", "S", c)),
-                t("positions", dims("B", "S"), "int64"),
-                t("modulation", dims("B", L, 6, c)),
-                t("key_mask", dims("B", "P")),
-                *past,
-            ],
-            "outputs": [t("context", dims("B", c)), *new],
-        },
+        "context_layers": layers,
         "velocity": {
             "file": "velocity.onnx",
             "inputs": [
@@ -296,14 +343,8 @@ def export_bundle(
     out_dir.mkdir(parents=True, exist_ok=True)
     specs = graph_specs(model)
     c, lat, h, dh = cfg.width, cfg.latent_dim, cfg.heads, cfg.head_dim
-    past = [torch.randn(2, h, 3, dh) for _ in range(2 * cfg.layers)]
     examples = {  # dynamic dims get example sizes >= 2: a size of 1 can be specialised away
         "conditioning": (ConditioningGraph(model), (torch.randn(1, cfg.cond_dim),)),
-        "context_step": (
-            ContextStepGraph(model),
-            (torch.randn(2, 2, c), torch.tensor([[3, 4], [3, 4]]), torch.randn(2, cfg.layers, 6, c),
-             torch.zeros(2, 3), *past),
-        ),
         "velocity": (
             VelocityGraph(model.armflow),
             (torch.randn(2, lat), torch.randn(2, lat), torch.randn(2, c), torch.rand(2), torch.rand(2)),
@@ -330,6 +371,12 @@ def export_bundle(
     for name, (module, args) in examples.items():
         # Folding would turn the constant `start_token` output into a nameless initializer.
         export_graph(module, args, specs[name], out_dir, fold_constants=name != "conditioning")
+    for i, spec in enumerate(specs["context_layers"]):
+        n = lambda *shape: torch.randn(3, *shape)  # noqa: E731
+        args = ((n(c), torch.tensor([3, 4, 9]), n(6, c)) if i == 0
+                else (n(c), n(c), n(6, c)) if i == cfg.layers
+                else (n(c), n(c), n(6, c), n(6, c), *([n(c)] if i > cfg.layers // 2 else [])))
+        export_graph(ContextLayerGraph(model, i), args, spec, out_dir)
     windows = VaeWindows.of(model)
     source = {"checkpoint": checkpoint.name} if checkpoint else {"seed": seed}
     producer = {"tool": TOOL, "preset": preset, **source, "opset": OPSET}
@@ -345,7 +392,7 @@ def export_bundle(
         "condition": condition_manifest(model),
         "context": {
             "width": c, "layers": cfg.layers, "heads": h, "head_dim": dh,
-            "capacity_tokens": cfg.context_capacity, "step_returns": "new_entries",
+            "capacity_tokens": cfg.context_capacity,
         },
         "vae": {
             "streaming": cfg.vae.causal,
@@ -539,4 +586,7 @@ def write_checkpoint(preset: str, seed: int, path: Path, extras: bool = True):
 def main(argv: list[str] | None = None, prog: str | None = None):
     """`onnx/cli.py armflow export`."""
     os.environ.setdefault("PYTHONHASHSEED", "0")
-    exporter_cli(__doc__, PRESETS, export_bundle, write_golden, write_checkpoint, argv=argv, prog=prog)
+    exporter_cli(
+        __doc__, PRESETS, export_bundle, write_golden, write_checkpoint, argv=argv, prog=prog,
+        peer_graphs=write_peer_graphs,
+    )

@@ -339,6 +339,13 @@ class SelfAttention(nn.Module):
         out = past_v.transpose(-2, -1) @ att[..., :p, :] + v.transpose(-2, -1) @ att[..., p:, :]  # [B, H, Dh, S]
         return self.proj(out.permute(0, 3, 1, 2).reshape(b, s, c)), k, v
 
+    def projections(self, x):
+        """The runtime's split (`layer_entry`): x [N, C] to the queries, already multiplied by
+        the scale, and the keys and values, [N, C] each with the heads side by side."""
+        bias = torch.cat((self.q_bias, self.zero_k_bias, self.v_bias))
+        q, k, v = F.linear(x, self.mat_qkv.weight, bias).chunk(3, dim=-1)
+        return q * self.scale, k, v
+
 
 class FFN(nn.Module):
     def __init__(self, width: int):
@@ -368,6 +375,18 @@ class AdaLNSelfAttn(nn.Module):
         x = x + g1 * a
         x = x + g2 * self.ffn(ln(x) * (1 + s2) + sh2)
         return x, k, v
+
+    def start(self, x, mod):
+        """The block up to its attention: x [N, C], mod [N, 6, C] to (q, k, v) [N, C]."""
+        _, _, s1, _, sh1, _ = mod.unbind(1)
+        return self.attn.projections(F.layer_norm(x, (self.width,), eps=1e-6) * (1 + s1) + sh1)
+
+    def finish(self, x, attention, mod):
+        """The block after its attention: `attention` [N, C] is the softmax-weighted sum of the
+        values, heads side by side, before the output projection."""
+        g1, g2, _, s2, _, sh2 = mod.unbind(1)
+        x = x + g1 * self.attn.proj(attention)
+        return x + g2 * self.ffn(F.layer_norm(x, (self.width,), eps=1e-6) * (1 + s2) + sh2)
 
 
 class SkipAdaLNTransformer(nn.Module):
@@ -421,6 +440,32 @@ class SkipAdaLNTransformer(nn.Module):
             tokens + sinusoid_positions(positions, self.width), modulation, past, key_mask[:, None, None, :], causal
         )
         return x[:, -1], new
+
+    # The split the runtime runs: the dense parts as `layers + 1` graphs over N token rows of
+    # any streams, the attention between them its own (over the cache it owns).
+
+    def layer_entry(self, tokens, positions, modulation):
+        """Graph 0: tokens [N, C] at positions [N] (int64) under layer 0's modulation [N, 6, C]
+        to the residual stream x and block 0's (q, k, v), [N, C] each."""
+        x = tokens + sinusoid_positions(positions, self.width)
+        return (x, *self.blocks()[0].start(x, modulation))
+
+    def layer_link(self, index, x, attention, finish_modulation, modulation, skip=None):
+        """Graph `index` (1 <= index < layers): finishes block index-1 with its attention output,
+        fuses the skip an out layer pops (index > n_in), and starts block `index`."""
+        blocks = self.blocks()
+        x = blocks[index - 1].finish(x, attention, finish_modulation)
+        if index > self.n_in:
+            x = self.linear_layers[index - self.n_in - 1](torch.cat([x, skip], dim=-1))
+        return (x, *blocks[index].start(x, modulation))
+
+    def layer_exit(self, x, attention, finish_modulation):
+        """Graph `layers`: finishes the last block; the context of every row."""
+        return self.blocks()[-1].finish(x, attention, finish_modulation)
+
+    def layer_skip_source(self, index) -> bool:
+        """Whether graph `index`'s x output is a skip an out layer reads later (LIFO)."""
+        return 1 <= index <= self.n_in
 
     def full(self, tokens, modulation):
         """The official inference call: the whole prefix [B, S, C] at positions 0..S-1 with no

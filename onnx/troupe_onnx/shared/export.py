@@ -90,7 +90,7 @@ def check_reexport(committed: Path, rebuild) -> None:
 
 def exporter_cli(
     doc: str, presets: dict, export_bundle, write_golden, write_checkpoint=None, normaliser: bool = False,
-    config_file: bool = False, argv: list[str] | None = None, prog: str | None = None,
+    config_file: bool = False, argv: list[str] | None = None, prog: str | None = None, peer_graphs=None,
 ):
     """The command line every exporter shares: `--preset P --out DIR [--golden]` writes a
     bundle; `--preset P --check DIR` re-exports into a temporary directory and exits non-zero
@@ -98,7 +98,8 @@ def exporter_cli(
     take official checkpoints add `--checkpoint FILE` and `--write-checkpoint FILE`; those whose
     feature normaliser lives outside the checkpoint add `--mean FILE --std FILE`; those whose
     checkpoints store no configuration add `--config FILE` (JSON: configuration fields that
-    replace the preset's). `argv` and `prog` default to the process's."""
+    replace the preset's); those with `peer_graphs(model, dir)` add `--peer-graphs` (graphs for
+    the benchmarks' peers only, under `peers/`). `argv` and `prog` default to the process's."""
     ap = argparse.ArgumentParser(prog=prog, description=doc, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--preset", choices=sorted(presets), required=True)
     ap.add_argument("--out", type=Path, help="bundle directory to write")
@@ -111,6 +112,9 @@ def exporter_cli(
     if normaliser:
         ap.add_argument("--mean", type=Path, help="the dataset's feature mean (.npy) to denormalise with")
         ap.add_argument("--std", type=Path, help="the dataset's feature std (.npy)")
+    if peer_graphs:
+        ap.add_argument("--peer-graphs", action="store_true",
+                        help="also write the graphs benches/peers.py runs in onnxruntime (peers/, not read by troupe)")
     if config_file:
         ap.add_argument("--config", type=Path, help="JSON of configuration fields replacing the preset's")
     args = ap.parse_args(argv)
@@ -142,5 +146,7 @@ def exporter_cli(
         sys.exit(f"error: {e}")
     if args.golden:
         write_golden(model, args.out)
+    if getattr(args, "peer_graphs", False):
+        peer_graphs(model, args.out)
     size = sum(f.stat().st_size for f in args.out.rglob("*.onnx"))
     print(f"wrote {args.out} ({size / 1e6:.1f} MB of ONNX)")

@@ -1,7 +1,7 @@
 """A bundle with int8 weights, from a float32 one (`onnx/cli.py armflow quantize`).
 
     python3 onnx/cli.py armflow quantize --bundle onnx/bundles/armflow-demo \\
-        --out onnx/bundles/armflow-demo-int8                  # context_step and velocity
+        --out onnx/bundles/armflow-demo-int8                  # context_layers and velocity
     python3 onnx/cli.py armflow quantize --bundle onnx/bundles/armflow-demo \\
         --check onnx/bundles/armflow-demo-int8                # byte-identical, or a non-zero exit
 
@@ -29,7 +29,7 @@ from pathlib import Path
 
 from troupe_onnx.shared.export import compare_bundles
 
-DEFAULT_GRAPHS = ("context_step", "velocity")
+DEFAULT_GRAPHS = ("context_layers", "velocity")
 SCHEME = "int8 weights, symmetric per output channel; int8 activations, per tensor at run time"
 
 
@@ -42,7 +42,9 @@ def quantize_bundle(src: Path, out: Path, graphs: list[str]) -> dict:
     unknown = [g for g in graphs if g not in manifest["graphs"]]
     if unknown:
         sys.exit(f"{src} has no graph {', '.join(unknown)} (it has {', '.join(manifest['graphs'])})")
-    already = [g for g in graphs if manifest["graphs"][g].get("weights", "float32") != "float32"]
+    # A role names one graph, or a list of them (`context_layers`): each is quantized alike.
+    entries = lambda role: (lambda e: e if isinstance(e, list) else [e])(manifest["graphs"][role])  # noqa: E731
+    already = [g for g in graphs if any(e.get("weights", "float32") != "float32" for e in entries(g))]
     if already:
         sys.exit(f"{src}: {', '.join(already)} already hold reduced-precision weights")
     out.mkdir(parents=True, exist_ok=True)
@@ -50,12 +52,12 @@ def quantize_bundle(src: Path, out: Path, graphs: list[str]) -> dict:
         if f.is_file() and f.name != "troupe.json":
             shutil.copyfile(f, out / f.name)
     for role in graphs:
-        file = manifest["graphs"][role]["file"]
-        quantize_dynamic(
-            str(src / file), str(out / file), weight_type=QuantType.QInt8, per_channel=True,
-            op_types_to_quantize=["MatMul", "Gemm"],
-        )
-        manifest["graphs"][role]["weights"] = "int8"
+        for entry in entries(role):
+            quantize_dynamic(
+                str(src / entry["file"]), str(out / entry["file"]), weight_type=QuantType.QInt8,
+                per_channel=True, op_types_to_quantize=["MatMul", "Gemm"],
+            )
+            entry["weights"] = "int8"
     source_name = manifest["name"]
     manifest["name"] = f"{source_name}-int8"
     manifest["producer"] = {

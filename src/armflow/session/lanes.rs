@@ -220,7 +220,7 @@ fn generate_tokens(nets: &Networks, lanes: &mut [&mut Lane]) -> Result<()> {
             &context[i * c..(i + 1) * c],
             &reactor[i * lat..(i + 1) * lat],
         );
-        lane.in_token(check_output("context_step", "context", ci))?;
+        lane.in_token(check_output("context_layers", "context", ci))?;
         lane.in_token(check_output("velocity", "reactor latent", bi))?;
     }
     for (i, lane) in lanes.iter_mut().enumerate() {
