@@ -30,6 +30,7 @@ from troupe_onnx.armflow.reference import (
     ArmflowConfig,
     StreamOptions,
     VaeConfig,
+    ChannelsLastVaeStep,
     VaeStep,
     VaeWindows,
     VelocityGraph,
@@ -197,7 +198,7 @@ class EncoderStepGraph(torch.nn.Module):
 
     def __init__(self, model: Armflow):
         super().__init__()
-        self.step = VaeStep(model.vae.encoder)
+        self.step = ChannelsLastVaeStep(model.vae.encoder)
         self.latent_dim = model.cfg.latent_dim
 
     def forward(self, motion, *state):
@@ -366,7 +367,7 @@ def export_bundle(
             EncoderStepGraph(model), (torch.randn(2, fpt, cfg.frame_dim), *states(model.vae.encoder)),
         )
         examples["vae_decoder_step"] = (
-            VaeStep(model.vae.decoder), (torch.randn(2, 1, lat), *states(model.vae.decoder)),
+            ChannelsLastVaeStep(model.vae.decoder), (torch.randn(2, 1, lat), *states(model.vae.decoder)),
         )
     for name, (module, args) in examples.items():
         # Folding would turn the constant `start_token` output into a nameless initializer.
@@ -550,7 +551,8 @@ def check_windows_match_full_clip(model: Armflow, actor: np.ndarray):
         assert torch.allclose(f[0, -fpt:], full_frames[0, j * fpt : (j + 1) * fpt], atol=1e-5), f"decoder window, token {j}"
     if not cfg.vae.causal:
         return
-    enc, dec = VaeStep(model.vae.encoder), VaeStep(model.vae.decoder)
+    # The step graphs' own (channels-last) form against the full causal pass.
+    enc, dec = ChannelsLastVaeStep(model.vae.encoder), ChannelsLastVaeStep(model.vae.decoder)
     enc_state = [torch.zeros(s) for s in enc.state_shapes()]
     dec_state = [torch.zeros(s) for s in dec.state_shapes()]
     for j in range(n):

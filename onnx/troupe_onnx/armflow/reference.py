@@ -279,6 +279,46 @@ class VaeStep(nn.Module):
         return (h.transpose(1, 2), *next_state)
 
 
+class ChannelsLastVaeStep(VaeStep):
+    """`VaeStep` written channels-last, as the bundle's step graphs are: every convolution one matrix product
+    over the rows of all streams and output frames (`[B·T_out, k·C_in] @ [k·C_in, C_out]`, taps
+    gathered by static slices), every group norm a layer norm over the channels of a group.
+    Same function, same weights, same state (`[B, C, K]`); no per-stream convolution and no
+    broadcast over a strided axis, which is what makes the channels-first graph slow in tract."""
+
+    def forward(self, chunk, *state):
+        assert len(state) == len(self.convs)
+        states, next_state = iter(state), []
+
+        def conv(c: TimeConv, h):  # h [B, T, C_in] -> [B, T_out, C_out]
+            if c.left > 0:
+                h = torch.cat([next(states).transpose(1, 2), h], dim=1)
+                next_state.append(h[:, -c.left :, :].transpose(1, 2))
+            k, s, d = c.kernel_size[0], c.stride[0], c.dilation[0]
+            t_out = (h.shape[1] - (k - 1) * d - 1) // s + 1
+            taps = [h[:, i * d : i * d + (t_out - 1) * s + 1 : s, :] for i in range(k)]
+            w = c.weight.permute(0, 2, 1).reshape(c.out_channels, -1)  # tap-major, as `taps`
+            return F.linear(torch.cat(taps, dim=2) if k > 1 else taps[0], w, c.bias)
+
+        def norm(n: FrameGroupNorm, h):  # per frame, over each group's channels
+            width = n.weight.shape[0] // n.groups  # static sizes: the export keeps them constant
+            g = F.layer_norm(h.unflatten(-1, (n.groups, width)), (width,), eps=n.eps)
+            return g.flatten(-2) * n.weight + n.bias
+
+        h = chunk
+        for layer in flat_layers(self.stack.model):
+            if isinstance(layer, TimeConv):
+                h = conv(layer, h)
+            elif isinstance(layer, ResConv1DBlock):
+                r = conv(layer.conv1, F.relu(norm(layer.norm1, h)))
+                h = h + conv(layer.conv2, F.relu(norm(layer.norm2, r)))
+            elif isinstance(layer, Upsample2):
+                h = h.repeat_interleave(2, dim=1)
+            else:
+                h = layer(h)
+        return (h, *next_state)
+
+
 def encoder_context_frames(enc: VaeEncoder, fpt: int) -> int:
     """Frames before a token's first frame that its (causal) encoding depends on, rounded up to a
     whole token so that every window starts on the token grid."""
