@@ -24,14 +24,16 @@ def split_step(arnet, tokens, positions, modulation, past):
         return (weights * values).sum(dim=2).reshape(b, c)
 
     layers = len(arnet.blocks())
-    x, q, k, v = arnet.layer_entry(tokens, positions, modulation[:, 0])
+    modulation = modulation.transpose(1, 2)  # [B, L, 6, C] -> [B, 6, L, C]: mod(i) is [6, B, C]
+    mod = lambda i: modulation[:, :, i].transpose(0, 1)  # noqa: E731
+    x, q, k, v = arnet.layer_entry(tokens, positions, mod(0))
     skips = []
     for i in range(1, layers + 1):
         attention = attend(i - 1, q, k, v)
         if i == layers:
-            return arnet.layer_exit(x, attention, modulation[:, i - 1])
+            return arnet.layer_exit(x, attention, mod(i - 1))
         skip = skips.pop() if i > layers // 2 else None
-        x, q, k, v = arnet.layer_link(i, x, attention, modulation[:, i - 1], modulation[:, i], skip)
+        x, q, k, v = arnet.layer_link(i, x, attention, mod(i - 1), mod(i), skip)
         if arnet.layer_skip_source(i):
             skips.append(x)
 

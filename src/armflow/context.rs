@@ -64,17 +64,21 @@ impl ContextEncoder {
             .iter()
             .map(|m| read_f32(ROLE, "modulation", m, &[1, layers, 6, c]))
             .collect::<Result<Vec<_>>>()?;
-        // Every row's modulation of each layer: its stream's, for each of its tokens (a block's
-        // is read by the graph that starts it and the one that finishes it).
+        // Every row's modulation of each layer, `[6, rows, width]`: component-major, so that
+        // the graphs read each component as one contiguous block (a block's modulation is read
+        // by the graph that starts it and by the one that finishes it).
         let layer_modulation: Vec<TValue> = (0..layers)
             .map(|i| {
-                let mut data = Vec::with_capacity(rows * 6 * c);
-                for m in &modulations {
-                    for _ in 0..s {
-                        data.extend_from_slice(&m[i * 6 * c..(i + 1) * 6 * c]);
+                let mut data = Vec::with_capacity(6 * rows * c);
+                for k in 0..6 {
+                    let at = (i * 6 + k) * c;
+                    for m in &modulations {
+                        for _ in 0..s {
+                            data.extend_from_slice(&m[at..at + c]);
+                        }
                     }
                 }
-                f32_tensor_owned(&[rows, 6, c], data)
+                f32_tensor_owned(&[6, rows, c], data)
             })
             .collect();
         let slots = caches

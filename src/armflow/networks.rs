@@ -112,19 +112,20 @@ impl Networks {
                 .iter()
                 .filter_map(|(n, g)| g.as_ref().map(|g| (*n, g))),
         );
-        // With per-token steps, only sessions that ask for windows (and clips) run the window
-        // VAE: its graphs are checked now and optimised on first use.
-        let deferred: &[&str] = if steps.is_some() {
-            &["vae_encoder", "vae_decoder"]
-        } else {
-            &[]
-        };
+        // Graphs not every session runs are checked now and optimised on first use: the window
+        // VAE when the bundle has per-token steps (only sessions that ask for windows, and
+        // clips, run it), the official clip's context call, and the text tower (only a prompt
+        // runs it).
+        let mut deferred = vec!["context_full", "text_encoder", "text_branch"];
+        if steps.is_some() {
+            deferred.extend(["vae_encoder", "vae_decoder"]);
+        }
         wanted.extend(
             g.context_layers
                 .iter()
                 .map(|layer| ("context_layers", layer)),
         );
-        let mut graphs = load_graphs(files, &wanted, deferred)?.into_iter();
+        let mut graphs = load_graphs(files, &wanted, &deferred)?.into_iter();
         let mut next = || graphs.next().expect("one graph per wanted entry");
         Ok(Self {
             conditioning: next(),

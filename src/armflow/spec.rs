@@ -316,7 +316,7 @@ impl ArmFlowSpec {
         let rows = |names: &[&str]| -> Vec<TensorSpec> {
             names.iter().map(|m| f(m, vec![s("N"), n(c)])).collect()
         };
-        let modulation = |name: &str| f(name, vec![s("N"), n(6), n(c)]);
+        let modulation = |name: &str| f(name, vec![n(6), s("N"), n(c)]);
         let layers = self.context.layers;
         let layer_contract = |i: usize| -> (Vec<TensorSpec>, Vec<TensorSpec>) {
             let starts = rows(&["next_x", "query", "key", "value"]);

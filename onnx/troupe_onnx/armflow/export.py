@@ -220,7 +220,7 @@ def graph_specs(model: Armflow) -> dict:
     # The context encoder is `layers + 1` graphs over N token rows (the tokens of every stream
     # of a round): the runtime runs attention between them over the cache it owns.
     rows = lambda *names: [t(n, dims("N", c)) for n in names]  # noqa: E731
-    mod = lambda name: t(name, dims("N", 6, c))  # noqa: E731
+    mod = lambda name: t(name, dims(6, "N", c))  # noqa: E731  (component-major: contiguous slices)
     qkv = rows("query", "key", "value")
     layers = [{
         "file": "context_layer_0.onnx",
@@ -374,9 +374,10 @@ def export_bundle(
         export_graph(module, args, specs[name], out_dir, fold_constants=name != "conditioning")
     for i, spec in enumerate(specs["context_layers"]):
         n = lambda *shape: torch.randn(3, *shape)  # noqa: E731
-        args = ((n(c), torch.tensor([3, 4, 9]), n(6, c)) if i == 0
-                else (n(c), n(c), n(6, c)) if i == cfg.layers
-                else (n(c), n(c), n(6, c), n(6, c), *([n(c)] if i > cfg.layers // 2 else [])))
+        m = lambda: torch.randn(6, 3, c)  # noqa: E731
+        args = ((n(c), torch.tensor([3, 4, 9]), m()) if i == 0
+                else (n(c), n(c), m()) if i == cfg.layers
+                else (n(c), n(c), m(), m(), *([n(c)] if i > cfg.layers // 2 else [])))
         export_graph(ContextLayerGraph(model, i), args, spec, out_dir)
     windows = VaeWindows.of(model)
     source = {"checkpoint": checkpoint.name} if checkpoint else {"seed": seed}

@@ -417,14 +417,15 @@ class AdaLNSelfAttn(nn.Module):
         return x, k, v
 
     def start(self, x, mod):
-        """The block up to its attention: x [N, C], mod [N, 6, C] to (q, k, v) [N, C]."""
-        _, _, s1, _, sh1, _ = mod.unbind(1)
+        """The block up to its attention: x [N, C], mod [6, N, C] to (q, k, v) [N, C]. The
+        modulation is component-major so that each component is one contiguous [N, C] block."""
+        _, _, s1, _, sh1, _ = mod.unbind(0)
         return self.attn.projections(F.layer_norm(x, (self.width,), eps=1e-6) * (1 + s1) + sh1)
 
     def finish(self, x, attention, mod):
         """The block after its attention: `attention` [N, C] is the softmax-weighted sum of the
         values, heads side by side, before the output projection."""
-        g1, g2, _, s2, _, sh2 = mod.unbind(1)
+        g1, g2, _, s2, _, sh2 = mod.unbind(0)
         x = x + g1 * self.attn.proj(attention)
         return x + g2 * self.ffn(F.layer_norm(x, (self.width,), eps=1e-6) * (1 + s2) + sh2)
 
@@ -485,7 +486,7 @@ class SkipAdaLNTransformer(nn.Module):
     # any streams, the attention between them its own (over the cache it owns).
 
     def layer_entry(self, tokens, positions, modulation):
-        """Graph 0: tokens [N, C] at positions [N] (int64) under layer 0's modulation [N, 6, C]
+        """Graph 0: tokens [N, C] at positions [N] (int64) under layer 0's modulation [6, N, C]
         to the residual stream x and block 0's (q, k, v), [N, C] each."""
         x = tokens + sinusoid_positions(positions, self.width)
         return (x, *self.blocks()[0].start(x, modulation))
