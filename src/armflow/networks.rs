@@ -24,7 +24,8 @@ pub(crate) struct Networks {
     pub io: BundleIo,
     pub spec: ArmFlowSpec,
     conditioning: Graph,
-    context: ContextEncoder,
+    /// The context encoder: its layer graphs, and the attention between them.
+    pub context: ContextEncoder,
     velocity: Graph,
     vae_encoder: Graph,
     vae_decoder: Graph,
@@ -203,7 +204,8 @@ impl Networks {
         tokens.extend_from_slice(pairs);
         let positions: Vec<i64> = (0..(tokens.len() / width) as i64).collect();
         let mut cache = KvCache::empty(&self.spec.context, positions.len());
-        self.context_step(&mut [&mut cache], &tokens, &positions, &[&cond.modulation])
+        self.context
+            .step(&mut [&mut cache], &tokens, &positions, &[&cond.modulation])
     }
 
     // ---- typed network calls ------------------------------------------------------------------
@@ -244,17 +246,6 @@ impl Networks {
             modulation: out[0].clone(),
             start_token,
         })
-    }
-
-    /// One context-encoder step for a batch of streams: see [`ContextEncoder::step`].
-    pub(crate) fn context_step(
-        &self,
-        caches: &mut [&mut KvCache],
-        tokens: &[f32],
-        positions: &[i64],
-        modulations: &[&TValue],
-    ) -> Result<Vec<f32>> {
-        self.context.step(caches, tokens, positions, modulations)
     }
 
     /// The average velocity `u(z, r, t | actor, context)` for a batch of rows, each with its own

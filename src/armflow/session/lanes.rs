@@ -205,7 +205,9 @@ fn generate_tokens(nets: &Networks, lanes: &mut [&mut Lane]) -> Result<()> {
         .map(|s| &s.conditioning.modulation)
         .collect();
     let mut caches: Vec<_> = lanes.iter_mut().map(|l| &mut l.state.cache).collect();
-    let context = nets.context_step(&mut caches, &tokens, &positions, &modulations)?;
+    let context = nets
+        .context
+        .step(&mut caches, &tokens, &positions, &modulations)?;
 
     // 3. MeanFlow from the noise
     let z: Vec<f32> = noise
