@@ -124,7 +124,16 @@ fn main() {
                 let file = bundle.join(spec["file"].as_str().expect("file"));
                 tract_onnx::onnx()
                     .model_for_path(&file)
-                    .and_then(|m| m.into_optimized())
+                    .and_then(|m| m.into_typed())
+                    .and_then(|m| {
+                        // As troupe's loader: row counts are at least 1 (`shared/graph.rs`).
+                        for name in ["B", "N"] {
+                            if m.symbols.get(name).is_some() {
+                                m.symbols.add_assertion(format!("{name} >= 1"))?;
+                            }
+                        }
+                        m.into_optimized()
+                    })
                     .and_then(|m| m.into_runnable())
                     .unwrap_or_else(|e| panic!("{}: {e:#}", file.display()))
             })

@@ -152,14 +152,24 @@ fn attend_generic(
     }
     let top = max(scores);
     let total = exp_shifted(scores, top);
-    let mut row = 0;
-    for block in blocks {
-        for value in block.values.chunks_exact(dh).take(block.rows) {
-            let p = scores[row];
-            row += 1;
-            if p != 0.0 {
-                for (o, v) in out.iter_mut().zip(value) {
-                    *o += p * v;
+    // The usual head widths keep the sum in registers; any other width sums in `out`. Both
+    // add the same products in the same order.
+    match dh {
+        16 => weighted_values::<16>(blocks, scores, out),
+        32 => weighted_values::<32>(blocks, scores, out),
+        64 => weighted_values::<64>(blocks, scores, out),
+        128 => weighted_values::<128>(blocks, scores, out),
+        _ => {
+            let mut row = 0;
+            for block in blocks {
+                for value in block.values.chunks_exact(dh).take(block.rows) {
+                    let p = scores[row];
+                    row += 1;
+                    if p != 0.0 {
+                        for (o, v) in out.iter_mut().zip(value) {
+                            *o += p * v;
+                        }
+                    }
                 }
             }
         }
@@ -168,6 +178,26 @@ fn attend_generic(
     for o in out.iter_mut() {
         *o *= inv;
     }
+}
+
+/// `out = sum over rows of p_row * value_row` for a head width known at compile time.
+#[inline(always)]
+fn weighted_values<const D: usize>(blocks: &[KvBlock<'_>], weights: &[f32], out: &mut [f32]) {
+    let mut acc = [0f32; D];
+    let mut row = 0;
+    for block in blocks {
+        let (values, _) = block.values.as_chunks::<D>();
+        for value in values.iter().take(block.rows) {
+            let p = weights[row];
+            row += 1;
+            if p != 0.0 {
+                for d in 0..D {
+                    acc[d] += p * value[d];
+                }
+            }
+        }
+    }
+    out.copy_from_slice(&acc);
 }
 
 /// Sums lanes in a fixed tree.
@@ -401,6 +431,27 @@ mod tests {
         let mut chosen = vec![0.0; dh];
         attend(&q, &blocks, &[3], &mut chosen, &mut Vec::new());
         assert_eq!(portable, chosen, "kernel {}", kernel());
+    }
+
+    #[test]
+    fn the_fixed_width_sums_equal_the_general_one() {
+        let (rows, dh) = (70, 64);
+        let (v, p) = (data(rows * dh, 9), data(rows, 10));
+        let block = [KvBlock {
+            keys: &[],
+            stride: COLUMNS,
+            rows,
+            values: &v,
+        }];
+        let mut fixed = vec![0.0; dh];
+        weighted_values::<64>(&block, &p, &mut fixed);
+        let mut general = vec![0f32; dh];
+        for (r, value) in v.chunks_exact(dh).enumerate() {
+            for (o, x) in general.iter_mut().zip(value) {
+                *o += p[r] * x;
+            }
+        }
+        assert_eq!(fixed, general);
     }
 
     #[test]

@@ -69,6 +69,7 @@ impl Graph {
         let model = model
             .into_typed()
             .map_err(|e| bad(format!("shapes cannot be resolved: {e:#}")))?;
+        assert_row_counts(&model).map_err(&bad)?;
         phases.mark("typed");
         let (input_order, output_order) = check_interface(&model, spec).map_err(&bad)?;
         let graph = Self {
@@ -366,6 +367,21 @@ pub(crate) fn f32_tensor(shape: &[usize], data: &[f32]) -> TValue {
     Tensor::from_shape(shape, data)
         .expect("shape matches data")
         .into_tvalue()
+}
+
+/// Tells tract that the row counts of a call (the symbols `B`, batch, and `N`, rows or tokens,
+/// as every exporter names them) are at least 1. With an unbounded symbol tract cannot prove an
+/// element-wise op long enough for its vectorised kernels and runs it one element at a time.
+pub(crate) fn assert_row_counts(model: &TypedModel) -> std::result::Result<(), String> {
+    for name in ["B", "N"] {
+        if model.symbols.get(name).is_some() {
+            model
+                .symbols
+                .add_assertion(format!("{name} >= 1"))
+                .map_err(|e| format!("symbol {name}: {e:#}"))?;
+        }
+    }
+    Ok(())
 }
 
 /// Builds a float tensor that takes ownership of row-major `data` (no copy).
