@@ -151,6 +151,21 @@ fn official_checkpoints_load_strictly() {
     }
 }
 
+/// The context encoder's per-layer split that the bundles hold (`context_layers`, with troupe's
+/// attention between them) equals the reference's whole cached step
+/// (`onnx/tests/test_context_layers.py`).
+#[test]
+fn the_context_layer_split_equals_the_whole_step() {
+    if torch_available("the_context_layer_split_equals_the_whole_step") {
+        let (ok, text) = run_python(
+            &["-m", "pytest", "-q", "onnx/tests/test_context_layers.py"],
+            &AVX2_KERNELS,
+        );
+        assert!(ok, "{text}");
+        assert!(text.contains("1 passed"), "{text}");
+    }
+}
+
 /// The committed demo bundle is exactly what its exporter makes of the committed checkpoint
 /// (`onnx/checkpoints/armflow-demo.pt`, written by `onnx/cli.py demo train`), goldens included.
 #[test]
