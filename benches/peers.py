@@ -1,8 +1,10 @@
 #!/usr/bin/env python3
-"""Benchmark troupe's peers on ARMFlow's streaming step, on the same ONNX files troupe loads.
+"""Benchmark troupe's peers on ARMFlow's streaming step, on the same weights troupe loads (its ONNX files,
+but for the context encoder: see `ort` below).
 
     python3 benches/peers.py                                       # onnx/bundles/paper, all peers
-    python3 benches/peers.py --bundle onnx/bundles/armflow-tiny --histories 10,100 --steps 20
+    python3 benches/peers.py --bundle /tmp/tiny --histories 10,100 --steps 20     # after `armflow export
+                                                  # --preset tiny --out /tmp/tiny --peer-graphs`
     python3 benches/peers.py --histories 10,100 --steps 20 --peers ort,torch-kv \\
         --troupe-binary target/release/examples/stream --json /tmp/peers.json
 
@@ -108,7 +110,8 @@ class Bundle:
         m = self.manifest
         if m["family"] != "armflow":
             sys.exit(f"{directory}: family {m['family']!r}, this benchmark runs 'armflow' bundles")
-        missing = [r for r in STEP_ROLES if r not in m["graphs"] and not (directory / PEER_FILES.get(r, "-")).exists()]
+        peer_file = lambda r: r in PEER_FILES and (directory / PEER_FILES[r]).exists()  # noqa: E731
+        missing = [r for r in STEP_ROLES if r not in m["graphs"] and not peer_file(r)]
         if missing:
             sys.exit(f"{directory}: no {', '.join(missing)}; re-export it with onnx/cli.py armflow export --peer-graphs")
         self.name = m["name"]

@@ -131,18 +131,22 @@ impl KvCache {
         Ok(slots)
     }
 
-    /// Every layer's key and value rows of `slot`, in page order.
+    /// Where every float of `slot` lies in its page, every layer's key then value, head by head:
+    /// the order the journal keeps a slot's rows in.
+    fn slot_floats(&self, slot: usize) -> impl Iterator<Item = usize> + '_ {
+        (0..self.layers).flat_map(move |layer| {
+            (0..2).flat_map(move |kind| {
+                (0..self.heads).flat_map(move |head| {
+                    (0..self.head_dim).map(move |d| self.at(layer, kind, head, slot, d))
+                })
+            })
+        })
+    }
+
+    /// Every layer's key and value rows of `slot`, in [`KvCache::slot_floats`] order.
     fn rows_of(&self, slot: usize) -> Vec<f32> {
-        let (page, dh) = (&self.pages[slot / PAGE_SLOTS], self.head_dim);
-        let mut rows = Vec::with_capacity(2 * self.layers * self.heads * dh);
-        for layer in 0..self.layers {
-            for kind in 0..2 {
-                for head in 0..self.heads {
-                    rows.extend((0..dh).map(|d| page[self.at(layer, kind, head, slot, d)]));
-                }
-            }
-        }
-        rows
+        let page = &self.pages[slot / PAGE_SLOTS];
+        self.slot_floats(slot).map(|at| page[at]).collect()
     }
 
     /// Writes one entry's key and value of `layer` (`heads * head_dim` floats each, the heads
@@ -179,6 +183,7 @@ impl KvCache {
             .zip(out.chunks_exact_mut(heads * dh))
             .enumerate()
         {
+            // The blocks are the pages in order, so a slot is also its row index in them.
             let hidden = &slots[(j + 1).min(slots.len())..];
             for head in 0..heads {
                 blocks.clear();
@@ -212,21 +217,12 @@ impl KvCache {
 
     /// Restores the entries and counts of the last commit (allocated pages stay allocated).
     pub(crate) fn rollback(&mut self) {
-        let dh = self.head_dim;
         for undo in std::mem::take(&mut self.journal).into_iter().rev() {
             let Some(rows) = undo.rows else { continue };
-            let mut old = rows.into_iter();
-            for layer in 0..self.layers {
-                for kind in 0..2 {
-                    for head in 0..self.heads {
-                        for d in 0..dh {
-                            let at = self.at(layer, kind, head, undo.slot, d);
-                            if let Some(x) = old.next() {
-                                self.pages[undo.slot / PAGE_SLOTS][at] = x;
-                            }
-                        }
-                    }
-                }
+            let positions: Vec<usize> = self.slot_floats(undo.slot).collect();
+            let page = &mut self.pages[undo.slot / PAGE_SLOTS];
+            for (at, x) in positions.into_iter().zip(rows) {
+                page[at] = x;
             }
         }
         (self.len, self.written) = self.committed;

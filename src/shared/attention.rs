@@ -134,7 +134,7 @@ fn attend_generic(
     }
     let rows: usize = blocks.iter().map(|b| b.rows).sum();
     scores.clear();
-    scores.reserve(rows + LANES);
+    scores.reserve(rows);
     for block in blocks {
         block_scores(query, block, scores);
     }

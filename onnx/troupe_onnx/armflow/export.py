@@ -301,6 +301,16 @@ def graph_specs(model: Armflow) -> dict:
     return specs
 
 
+def traced_inputs(spec: dict, rows: int = 3) -> tuple:
+    """Example inputs of a graph's declared shapes to trace it with: `rows` (>= 2, so that it is
+    not specialised away) for every symbol, positions for int64 inputs."""
+    size = lambda d: rows if isinstance(d, str) else d  # noqa: E731
+    return tuple(
+        torch.arange(rows) + 3 if x["dtype"] == "int64" else torch.randn(*map(size, x["shape"]))
+        for x in spec["inputs"]
+    )
+
+
 def build_model(preset: str, seed: int, checkpoint: Path | None = None, config: ArmflowConfig | None = None) -> Armflow:
     """The preset's model (or `config`'s) with seeded random weights, or the weights of `checkpoint`."""
     torch.manual_seed(seed)
@@ -373,12 +383,7 @@ def export_bundle(
         # Folding would turn the constant `start_token` output into a nameless initializer.
         export_graph(module, args, specs[name], out_dir, fold_constants=name != "conditioning")
     for i, spec in enumerate(specs["context_layers"]):
-        n = lambda *shape: torch.randn(3, *shape)  # noqa: E731
-        m = lambda: torch.randn(6, 3, c)  # noqa: E731
-        args = ((n(c), torch.tensor([3, 4, 9]), m()) if i == 0
-                else (n(c), n(c), m()) if i == cfg.layers
-                else (n(c), n(c), m(), m(), *([n(c)] if i > cfg.layers // 2 else [])))
-        export_graph(ContextLayerGraph(model, i), args, spec, out_dir)
+        export_graph(ContextLayerGraph(model, i), traced_inputs(spec), spec, out_dir)
     windows = VaeWindows.of(model)
     source = {"checkpoint": checkpoint.name} if checkpoint else {"seed": seed}
     producer = {"tool": TOOL, "preset": preset, **source, "opset": OPSET}

@@ -42,8 +42,13 @@ def quantize_bundle(src: Path, out: Path, graphs: list[str]) -> dict:
     unknown = [g for g in graphs if g not in manifest["graphs"]]
     if unknown:
         sys.exit(f"{src} has no graph {', '.join(unknown)} (it has {', '.join(manifest['graphs'])})")
-    # A role names one graph, or a list of them (`context_layers`): each is quantized alike.
-    entries = lambda role: (lambda e: e if isinstance(e, list) else [e])(manifest["graphs"][role])  # noqa: E731
+
+    def entries(role: str) -> list[dict]:
+        """The manifest entries of a role: one graph, or a list of them (`context_layers`),
+        each quantized alike."""
+        entry = manifest["graphs"][role]
+        return entry if isinstance(entry, list) else [entry]
+
     already = [g for g in graphs if any(e.get("weights", "float32") != "float32" for e in entries(g))]
     if already:
         sys.exit(f"{src}: {', '.join(already)} already hold reduced-precision weights")
