@@ -9,7 +9,13 @@
 //!     TROUPE_BENCH_BUNDLE=onnx/bundles/paper TROUPE_BENCH_BATCHES=1,16,64 \
 //!         TROUPE_BENCH_HISTORY=100 cargo bench --bench graph_rows       # paper size
 //!
-//! `TROUPE_BENCH_GRAPHS=context_layers` times only the graphs named (to profile one under `perf`).
+//! `TROUPE_BENCH_GRAPHS=context_layers` times only the graphs named (to profile one under `perf`);
+//! it may name any role of the manifest, so other families' graphs are timed the same way, with
+//! their other dimensions from `TROUPE_BENCH_SYMBOLS` (MAGNet at released size: the denoiser's
+//! `B` is samples, the guidance's `N` one person of one sample a row):
+//!
+//!     TROUPE_BENCH_BUNDLE=onnx/bundles/magnet-dd100 TROUPE_BENCH_GRAPHS=denoiser,guidance \
+//!         TROUPE_BENCH_BATCHES=1,10 cargo bench --bench graph_rows
 //!
 //! `cargo test --bench graph_rows` (the suite's smoke run) runs every graph once at batch 2.
 //! Prints one line per graph and batch: median ms per call and per row, and the ratio of the
@@ -104,13 +110,20 @@ fn main() {
         bundle.display()
     );
     let only = std::env::var("TROUPE_BENCH_GRAPHS").ok();
-    for role in STEP_GRAPHS {
-        if only
-            .as_deref()
-            .is_some_and(|only| !only.split(',').any(|g| g == role))
-        {
-            continue;
+    let roles: Vec<&str> = only
+        .as_deref()
+        .map_or_else(|| STEP_GRAPHS.to_vec(), |only| only.split(',').collect());
+    let mut fixed = BTreeMap::new();
+    for pair in env_or("TROUPE_BENCH_SYMBOLS", "").split(',') {
+        if let Some((name, value)) = pair.split_once('=') {
+            let value = value
+                .trim()
+                .parse()
+                .expect("TROUPE_BENCH_SYMBOLS: like T=64,Z=16");
+            fixed.insert(name.trim().to_owned(), value);
         }
+    }
+    for role in roles {
         let Some(spec) = manifest["graphs"].get(role) else {
             println!("{role}: not in this bundle");
             continue;
@@ -140,7 +153,9 @@ fn main() {
             .collect();
         let mut batch_one = None;
         for &batch in &batches {
-            let symbols = BTreeMap::from([("B", batch), ("N", batch)]);
+            let mut symbols: BTreeMap<&str, usize> =
+                fixed.iter().map(|(k, v)| (k.as_str(), *v)).collect();
+            symbols.extend([("B", batch), ("N", batch)]);
             let inputs: Vec<_> = specs.iter().map(|s| inputs(s, &symbols)).collect();
             let run = || {
                 for (plan, inputs) in plans.iter().zip(&inputs) {

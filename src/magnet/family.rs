@@ -51,6 +51,12 @@ impl Magnet {
         }
     }
 
+    /// The loaded graphs (the family's own tests call them directly).
+    #[cfg(test)]
+    pub(crate) fn networks(&self) -> &Networks {
+        &self.nets
+    }
+
     /// The bundle's `magnet` manifest section.
     pub fn spec(&self) -> &MagnetSpec {
         &self.nets.spec

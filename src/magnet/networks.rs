@@ -1,7 +1,7 @@
 //! The loaded graphs of a `magnet` bundle and their typed calls, with the codebook (read from its
 //! file) and the manifest section they are run by.
 
-use ndarray::{Array3, Array4, ArrayView3, ArrayView4};
+use ndarray::{s, Array2, Array3, Array4, ArrayView3, ArrayView4, Axis};
 use tract_onnx::prelude::{IntoTValue, TValue};
 
 use super::layout::{BETAS, DECODER_COND_DIM, ENCODER_COND_DIM, FRAMES_PER_TOKEN, POSE_DIM};
@@ -125,27 +125,49 @@ impl Networks {
         Ok(Array3::from_shape_vec(shape, values).expect("shape checked"))
     }
 
-    /// The x0 corrections' gradient on the latents (§6.4): of `weights[0] * smoothing +
-    /// weights[1] * foot skating` at x0 `[B, Tm, P, D]` with betas `[B, P, 10]` ->
-    /// `[B, Tm, P, d_latent]`.
+    /// The x0 corrections' gradient on the latents (§6.4) of the people `persons` of x0
+    /// `[B, Tm, P, D]` (betas `[B, P, 10]`): of `weights[0] * smoothing + weights[1] * foot
+    /// skating`, the losses' means taken over the person-sequences given ->
+    /// `[B, Tm, persons.len(), d_latent]`. The graph sees one person of one sample a row,
+    /// sample-major as the decoder folds them.
     pub(crate) fn correction_gradient(
         &self,
         x0: ArrayView4<f32>,
         betas: ArrayView3<f32>,
+        persons: &[usize],
         weights: [f32; 2],
     ) -> Result<Array4<f32>> {
         debug_assert_eq!(betas.shape()[2], BETAS);
-        let s = x0.shape();
-        let shape = [s[0], s[1], s[2], self.spec.model.vq.d_latent];
+        let (b, t, _, d) = x0.dim();
+        let q = persons.len();
+        let mut sequences = Array3::<f32>::zeros((b * q, t, d));
+        let mut sequence_betas = Array2::<f32>::zeros((b * q, BETAS));
+        for sample in 0..b {
+            for (j, &person) in persons.iter().enumerate() {
+                let row = sample * q + j;
+                sequences.index_axis_mut(Axis(0), row).assign(&x0.slice(s![
+                    sample,
+                    ..,
+                    person,
+                    ..
+                ]));
+                sequence_betas
+                    .row_mut(row)
+                    .assign(&betas.slice(s![sample, person, ..]));
+            }
+        }
+        let latent = self.spec.model.vq.d_latent;
+        let shape = [b * q, t, latent];
         let inputs: Vec<TValue> = vec![
-            x0.to_owned().into_dyn().into_tvalue(),
-            betas.to_owned().into_dyn().into_tvalue(),
+            sequences.into_dyn().into_tvalue(),
+            sequence_betas.into_dyn().into_tvalue(),
             ndarray::arr1(&weights).into_dyn().into_tvalue(),
         ];
         let values = self
             .guidance
             .run_checked("latent_gradient", inputs, &shape)?;
-        Ok(Array4::from_shape_vec(shape, values).expect("shape checked"))
+        let by_sequence = Array4::from_shape_vec((b, q, t, latent), values).expect("shape checked");
+        Ok(by_sequence.permuted_axes([0, 2, 1, 3]))
     }
 
     /// The nearest codebook row of `z` by `‖z‖² − 2 z·c + ‖c‖²`, ties to the first (§1.4).

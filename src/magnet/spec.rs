@@ -310,6 +310,20 @@ impl MagnetSpec {
                 )
             },
         )?;
+        ensure(
+            self.graphs
+                .guidance
+                .inputs
+                .first()
+                .is_none_or(|x0| x0.shape.len() != 4),
+            || {
+                "graphs.guidance takes whole windows `[B, Tm, P, D]`, as earlier exporters wrote \
+                 it; troupe now gives it person-sequences `[N, Tm, D]` (and leaves out people \
+                 whose window is given): re-export the bundle with \
+                 `python3 onnx/cli.py magnet export` (the same preset or --checkpoint)"
+                    .into()
+            },
+        )?;
         ensure((1..=MAX_PERSONS).contains(&m.persons), || {
             format!("model.persons {} is not in 1..={MAX_PERSONS}", m.persons)
         })?;
@@ -543,11 +557,11 @@ impl MagnetSpec {
                 contract(
                     &g.guidance,
                     vec![
-                        window("x0"),
-                        float("betas", vec![sym("B"), n(p), n(BETAS)]),
+                        float("x0", vec![sym("N"), n(w), n(d)]),
+                        float("betas", vec![sym("N"), n(BETAS)]),
                         float("weights", vec![n(2)]),
                     ],
-                    vec![float("latent_gradient", vec![sym("B"), n(w), n(p), n(lat)])],
+                    vec![float("latent_gradient", vec![sym("N"), n(w), n(lat)])],
                 ),
             ),
         ]

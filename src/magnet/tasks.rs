@@ -78,7 +78,19 @@ impl Run<'_> {
     ) -> Result<()> {
         let tm = self.window;
         let win = x.slice(s![.., ts..ts + tm, .., ..]).to_owned();
-        let x0 = self.guidance.x0(win.view(), k, ctx_len, &mut self.draws)?;
+        // A person protected at every token of the window in every sample keeps its tokens
+        // whatever x0 says: the corrections need not be taken for it.
+        let given: Vec<bool> = (0..win.dim().2)
+            .map(|person| {
+                protect
+                    .slice(s![.., ts..ts + tm, person])
+                    .iter()
+                    .all(|&kept| kept)
+            })
+            .collect();
+        let x0 = self
+            .guidance
+            .x0(win.view(), k, ctx_len, &given, &mut self.draws)?;
         let z = self.draws.normal(win.len())?;
         let (s, _, p, d) = win.dim();
         let mut new = vec![0f32; d];

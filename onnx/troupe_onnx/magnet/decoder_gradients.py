@@ -170,3 +170,151 @@ def _foot_skating_grad(r):
         at = 6 * joint + 6
     parts.append(torch.zeros_like(r[:, at:]))
     return torch.cat(parts, dim=1)
+
+
+class ChannelsLastDecoderVjp(nn.Module):
+    """`DecoderVjp` per person-sequence and channels-last, as the bundle's `guidance` graph is:
+    x0 `[N, T, D]` (one person of one sample a row), betas `[N, 10]`, weights `[2]` -> the
+    gradient on the latents `[N, T, latent]`, the losses' means taken over the N sequences given
+    (a runtime that leaves out sequences whose gradient it will not use scales the weights by the
+    share it passes). Activations are `[N, frames, channels]`, every convolution one matrix product over the rows of all
+    sequences and frames (`[rows, k·C_in] @ [k·C_in, C_out]`, taps gathered by static slices of
+    the zero-padded input), every transposed convolution the same with the taps reversed and the
+    channel axes swapped, every norm and its backward over the last axis. Same function, same
+    weights, laid out for both products when the module is built (plain initializers in the
+    graph, nothing for the runtime to fold at load). No convolution op and no broadcast over a
+    strided axis is left, which is what made the channels-first graph spend a third of its time
+    outside the matrix products in tract."""
+
+    def __init__(self, decoder: Decoder, latent: int):
+        super().__init__()
+        self.latent = latent
+        m = decoder.model
+        rows = lambda conv, **cut: _RowConv(conv, **cut)  # noqa: E731
+        self.first, self.head = rows(m[0], inputs=latent), rows(m[4])
+        self.out = rows(m[6], outputs=BODY_JOINTS * 6)  # d/d(out) is zero on the root dims
+        self.stages = nn.ModuleList(
+            nn.ModuleList([nn.ModuleList([_RowBlock(b) for b in stage[0].model]), rows(stage[2])])
+            for stage in (m[2], m[3])
+        )
+
+    def forward(self, x0, betas, weights):
+        n, t, _ = x0.shape
+        lat = self.latent
+        tm1_t = x0[..., lat : lat + FRAMES_PER_TOKEN * TRANSFORM]  # the person's own transforms
+        h = torch.cat([x0[..., :lat], betas[:, None].expand(n, t, BETAS), tm1_t], dim=-1)  # [N, T, C]
+        tape = []
+        a = self.first(h)
+        tape.append(a)
+        h = F.relu(a)
+        for blocks, conv in self.stages:
+            for block in blocks:
+                h = block(h, tape)
+            n, frames, c = h.shape
+            h = conv(h[:, :, None].expand(n, frames, 2, c).reshape(n, 2 * frames, c))  # nearest x2
+        a4 = self.head(h)
+        r = self.out(F.relu(a4))  # [N, F, 126]: the rotations (the root rows are not computed)
+        g = weights[0] * _smoothing_grad_frames(r) + weights[1] * _foot_skating_grad_frames(r)
+        g = self.out.input_grad(g) * (a4 > 0).to(g.dtype)
+        g = self.head.input_grad(g)
+        for blocks, conv in reversed(self.stages):
+            g = conv.input_grad(g)
+            n, frames, c = g.shape
+            pairs = g.reshape(n, frames // 2, 2 * c)  # nearest x2's backward: frames 2i and 2i+1
+            g = pairs[..., :c] + pairs[..., c:]
+            for block in reversed(blocks):
+                g = block.backward(g, tape)
+        g = g * (tape.pop() > 0).to(g.dtype)
+        return self.first.input_grad(g)  # [N, T, latent]
+
+
+class _RowConv(nn.Module):
+    """A stride-1 `Conv1d` on channels-last `[N, T, C]` as one matrix product each way: its
+    output (the first `outputs` channels) and the input gradient on the first `inputs` input
+    channels (the convolution with the taps reversed, the channel axes swapped and the padding
+    mirrored). The weights are copied into both layouts once, here."""
+
+    def __init__(self, conv: nn.Conv1d, inputs: int | None = None, outputs: int | None = None):
+        super().__init__()
+        assert conv.stride[0] == 1
+        self.k, self.d, self.p = conv.kernel_size[0], conv.dilation[0], conv.padding[0]
+        w = conv.weight.detach()[:outputs]  # [C_out, C_in, k]
+        self.register_buffer("weight", w.permute(2, 1, 0).reshape(-1, w.shape[0]).contiguous())  # [k·C_in, C_out]
+        self.register_buffer("bias", conv.bias.detach()[:outputs].clone())
+        w = w[:, :inputs].flip(2)
+        self.register_buffer("grad_weight", w.permute(2, 0, 1).reshape(-1, w.shape[1]).contiguous())  # [k·C_out, C_in]
+
+    def forward(self, h):
+        return _taps(h, self.k, self.d, self.p, self.p) @ self.weight + self.bias
+
+    def input_grad(self, g):
+        edge = (self.k - 1) * self.d - self.p
+        return _taps(g, self.k, self.d, edge, edge) @ self.grad_weight
+
+
+class _RowBlock(nn.Module):
+    """A `ResConv1DBlock` channels-last: the forward keeps what the backward needs on the tape."""
+
+    def __init__(self, block: ResConv1DBlock):
+        super().__init__()
+        self.norm1, self.norm2 = block.norm1, block.norm2
+        self.conv1, self.conv2 = _RowConv(block.conv1), _RowConv(block.conv2)
+
+    def forward(self, x, tape):
+        u, xhat1, inv1 = _ln_forward_last(self.norm1, x)
+        c1 = self.conv1(F.gelu(u))
+        w, xhat2, inv2 = _ln_forward_last(self.norm2, c1)
+        tape.append((u, xhat1, inv1, w, xhat2, inv2))
+        return x + self.conv2(F.gelu(w))
+
+    def backward(self, g, tape):
+        u, xhat1, inv1, w, xhat2, inv2 = tape.pop()
+        gw = self.conv2.input_grad(g) * _gelu_grad(w)
+        gu = self.conv1.input_grad(_ln_backward_last(self.norm2, gw, xhat2, inv2)) * _gelu_grad(u)
+        return g + _ln_backward_last(self.norm1, gu, xhat1, inv1)
+
+
+def _taps(h, kernel: int, dilation: int, left: int, right: int):
+    """`[N, T, C]` -> `[N, T_out, kernel·C]`: the input zero-padded along frames, then the
+    `kernel` views `dilation` frames apart side by side (tap-major)."""
+    if kernel == 1 and left == right == 0:
+        return h
+    padded = F.pad(h, (0, 0, left, right))
+    frames = padded.shape[1] - (kernel - 1) * dilation
+    return torch.cat([padded[:, i * dilation : i * dilation + frames] for i in range(kernel)], dim=2)
+
+
+def _ln_forward_last(norm: nn.LayerNorm, x):
+    """`_ln_forward` over the last axis of `[N, T, C]`."""
+    mean = x.mean(dim=-1, keepdim=True)
+    centred = x - mean
+    inv = torch.rsqrt((centred * centred).mean(dim=-1, keepdim=True) + norm.eps)
+    xhat = centred * inv
+    return xhat * norm.weight + norm.bias, xhat, inv
+
+
+def _ln_backward_last(norm: nn.LayerNorm, g, xhat, inv):
+    """`_ln_backward` over the last axis of `[N, T, C]`."""
+    gh = g * norm.weight
+    return inv * (gh - gh.mean(dim=-1, keepdim=True) - xhat * (gh * xhat).mean(dim=-1, keepdim=True))
+
+
+def _smoothing_grad_frames(r):
+    """`_smoothing_grad` for `R` `[N, F, 126]` (frames second)."""
+    lap = r[:, :-2] - 2 * r[:, 1:-1] + r[:, 2:]
+    c = 2.0 / torch.ones_like(lap).sum()
+    return c * (F.pad(lap, (0, 0, 0, 2)) - 2 * F.pad(lap, (0, 0, 1, 1)) + F.pad(lap, (0, 0, 2, 0)))
+
+
+def _foot_skating_grad_frames(r):
+    """`_foot_skating_grad` for `R` `[N, F, 126]` (frames second)."""
+    feet = torch.cat([r[..., 6 * j : 6 * j + 6] for j in FOOT_JOINTS], dim=-1)  # [N, F, 24]
+    diff = feet[:, 1:] - feet[:, :-1]
+    c = 2.0 / torch.ones_like(diff).sum()
+    gf = c * (F.pad(diff, (0, 0, 1, 0)) - F.pad(diff, (0, 0, 0, 1)))
+    parts, at = [], 0
+    for j, joint in enumerate(FOOT_JOINTS):  # ascending joints
+        parts += [torch.zeros_like(r[..., at : 6 * joint]), gf[..., 6 * j : 6 * j + 6]]
+        at = 6 * joint + 6
+    parts.append(torch.zeros_like(r[..., at:]))
+    return torch.cat(parts, dim=-1)

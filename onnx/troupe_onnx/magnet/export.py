@@ -32,7 +32,7 @@ import torch
 
 from troupe_onnx.magnet.checkpoint import load_release, write_release
 from troupe_onnx.magnet.configs import released_for
-from troupe_onnx.magnet.decoder_gradients import DecoderVjp, weighted_gradient
+from troupe_onnx.magnet.decoder_gradients import ChannelsLastDecoderVjp, weighted_gradient
 from troupe_onnx.magnet.draws import RecordingDraws, SeededDraws
 from troupe_onnx.magnet.guidance import GuidanceConfig, X0Guidance
 from troupe_onnx.magnet.live import LiveSettings, LiveStream, make_live_run
@@ -99,8 +99,8 @@ def graph_specs(cfg: MagnetConfig) -> dict:
         },
         "guidance": {
             "file": "guidance.onnx",
-            "inputs": [t("x0", ["B", w, p, d]), t("betas", ["B", p, 10]), t("weights", [2])],
-            "outputs": [t("latent_gradient", ["B", w, p, lat])],
+            "inputs": [t("x0", ["N", w, d]), t("betas", ["N", 10]), t("weights", [2])],
+            "outputs": [t("latent_gradient", ["N", w, lat])],
         },
     }
 
@@ -122,7 +122,7 @@ def graph_modules(model: Magnet) -> dict:
         "denoiser": model.denoiser,
         "vq_encoder": _VqCall(model, "encode_continuous"),
         "vq_decoder": _VqCall(model, "decode"),
-        "guidance": DecoderVjp(model.vqvae.decoder, lat),
+        "guidance": ChannelsLastDecoderVjp(model.vqvae.decoder, lat),
     }
 
 
@@ -135,7 +135,7 @@ def example_inputs(cfg: MagnetConfig, name: str, batch: int, gen: torch.Generato
         return (r(batch, 8 * FRAMES_PER_TOKEN, POSE_DIM), r(batch, 8 * FRAMES_PER_TOKEN, ENCODER_COND_DIM))
     if name == "vq_decoder":
         return (r(batch, 8, lat), r(batch, 8, DECODER_COND_DIM))
-    return (r(batch, w, p, d), r(batch, p, 10), torch.rand(2, generator=gen) * 3)
+    return (r(batch * p, w, d), r(batch * p, 10), torch.rand(2, generator=gen) * 3)
 
 
 def validate_graphs(model: Magnet, out_dir: Path, specs: dict) -> dict:
