@@ -55,9 +55,11 @@ impl Graph {
             message,
         };
         let onnx = tract_onnx::onnx();
-        let proto = onnx
-            .proto_model_for_read(&mut &bytes[..])
+        // Decoded from the bytes in hand: every weight is copied out once, here, and the file's
+        // bytes are freed before tract builds the graph.
+        let proto = <tract_onnx::pb::ModelProto as prost::Message>::decode(&bytes[..])
             .map_err(|e| bad(format!("not a loadable ONNX model: {e:#}")))?;
+        drop(bytes);
         onnx_guard::check_model(&proto).map_err(&bad)?;
         onnx_guard::check_weights(&proto, spec.weights).map_err(&bad)?;
         phases.mark("parsed");
