@@ -187,23 +187,32 @@ fn committed_demo_bundle_is_reproducible_from_its_checkpoint() {
     }
 }
 
-/// The committed int8 demo is exactly what `armflow quantize` makes of the float32 demo.
+/// The committed int8 and float16 demos are exactly what `armflow quantize` makes of the float32
+/// demo.
 #[test]
-fn committed_int8_demo_is_reproducible_from_the_float32_demo() {
-    if torch_available("committed_int8_demo_is_reproducible_from_the_float32_demo") {
-        let (ok, text) = run_python(
-            &[
-                "onnx/cli.py",
-                "armflow",
-                "quantize",
-                "--bundle",
-                "onnx/bundles/armflow-demo",
-                "--check",
-                "onnx/bundles/armflow-demo-int8",
-            ],
-            &AVX2_KERNELS,
-        );
-        assert!(ok && text.contains("reproducible"), "{text}");
+fn committed_reduced_precision_demos_are_reproducible_from_the_float32_demo() {
+    let test = "committed_reduced_precision_demos_are_reproducible_from_the_float32_demo";
+    if torch_available(test) {
+        for (weights, bundle) in [
+            ("int8", "onnx/bundles/armflow-demo-int8"),
+            ("float16", "onnx/bundles/armflow-demo-f16"),
+        ] {
+            let (ok, text) = run_python(
+                &[
+                    "onnx/cli.py",
+                    "armflow",
+                    "quantize",
+                    "--weights",
+                    weights,
+                    "--bundle",
+                    "onnx/bundles/armflow-demo",
+                    "--check",
+                    bundle,
+                ],
+                &AVX2_KERNELS,
+            );
+            assert!(ok && text.contains("reproducible"), "{weights}: {text}");
+        }
     }
 }
 

@@ -1,6 +1,7 @@
-//! Bundles with int8 weights (`onnx/cli.py armflow quantize`): the committed int8 demo stays
-//! within its stated error of the float32 demo on the golden stream, batched and alone; a graph
-//! whose file and manifest disagree about its weights is refused at load.
+//! Bundles with int8 or float16 weights (`onnx/cli.py armflow quantize`): the committed int8 and
+//! float16 demos stay within their stated errors of the float32 demo on the golden stream,
+//! batched and alone; a graph whose file and manifest disagree about its weights is refused at
+//! load.
 
 mod common;
 
@@ -19,6 +20,12 @@ use troupe::{Model, Reactor, ReactorOptions, TokenNoise, Weights};
 /// next one's context. The bounds leave about twice the measured values.
 const LATENT_TOL: f32 = 0.1;
 const FRAME_TOL: f32 = 0.1;
+
+/// The same for the float16 demo (every streaming graph's matrix-product weights in 16 bits,
+/// activations float32). Measured on 2026-11-26: actor latents 1.5e-4, reactor latents 5.1e-4,
+/// frames 7.9e-4 (docs/PERFORMANCE.md, "Weights in float16"). The bound leaves about
+/// twice the measured values.
+const FLOAT16_TOL: f32 = 2e-3;
 
 fn bundle(name: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))
@@ -135,6 +142,67 @@ fn an_int8_session_in_a_batch_stays_within_the_int8_error_of_itself_alone() {
 }
 
 #[test]
+fn the_float16_demo_stays_within_its_stated_error_of_float32() {
+    let (f32_model, half) = (
+        Model::load(bundle("armflow-demo")).unwrap(),
+        Model::load(bundle("armflow-demo-f16")).unwrap(),
+    );
+    assert_eq!(
+        half.manifest().reduced_precision_graphs(),
+        [
+            ("context_layers", Weights::Float16),
+            ("velocity", Weights::Float16),
+            ("vae_encoder_step", Weights::Float16),
+            ("vae_decoder_step", Weights::Float16),
+        ]
+    );
+    let (want, got) = (run(&f32_model), run(&half));
+    let (a, b, f) = (
+        relative(&got.0, &want.0),
+        relative(&got.1, &want.1),
+        relative(&got.2, &want.2),
+    );
+    println!(
+        "float16 vs float32, 48 tokens, max-abs / scale: actor latents {a:.2e}, reactor latents {b:.2e}, frames {f:.2e}"
+    );
+    assert!(
+        a <= FLOAT16_TOL && b <= FLOAT16_TOL && f <= FLOAT16_TOL,
+        "{a} {b} {f}"
+    );
+    assert!(a > 0.0 && b > 0.0, "the float16 graphs ran");
+}
+
+#[test]
+fn a_float16_session_in_a_batch_equals_itself_alone() {
+    // Weights in 16 bits, activations in 32: nothing is shared between batch mates.
+    let half = Model::load(bundle("armflow-demo-f16")).unwrap();
+    let options = |seed| ReactorOptions {
+        seed,
+        ..Default::default()
+    };
+    let actor: Array2<f32> = golden("actor");
+    let alone = run_chunked(
+        &mut half.armflow().unwrap().reactor(options(1)).unwrap(),
+        &actor,
+        8,
+    )
+    .0;
+    let mut sessions: Vec<Reactor> = [1, 2, 3]
+        .into_iter()
+        .map(|s| half.armflow().unwrap().reactor(options(s)).unwrap())
+        .collect();
+    let mut batched = Vec::new();
+    for part in actor.as_slice().unwrap().chunks(8 * half.frame_dim()) {
+        let mut refs: Vec<&mut Reactor> = sessions.iter_mut().collect();
+        let outs = step_reactors(&mut refs, &[part, part, part]).unwrap();
+        batched.extend(outs[0].frames.iter().copied());
+    }
+    let diff = relative(&batched, &alone);
+    println!("float16 demo, session 0 batched with 2 others vs alone: frames {diff:.2e}");
+    assert!(diff <= 1e-5, "{diff}");
+}
+
+#[test]
 fn weights_the_manifest_does_not_declare_are_refused() {
     // int8 files declared float32.
     let dir = copy_of_bundle("armflow-demo-int8");
@@ -157,6 +225,29 @@ fn weights_the_manifest_does_not_declare_are_refused() {
     let e = Model::load(dir.path()).unwrap_err().to_string();
     assert!(
         e.contains("context_layer_1.onnx") && e.contains("no integer matrix product"),
+        "{e}"
+    );
+    // float16 files declared float32, and a float32 file declared float16.
+    let dir = copy_of_bundle("armflow-demo-f16");
+    edit_manifest(dir.path(), |v| {
+        v["graphs"]["velocity"]
+            .as_object_mut()
+            .unwrap()
+            .remove("weights");
+    });
+    let e = Model::load(dir.path()).unwrap_err().to_string();
+    assert!(
+        e.contains("velocity.onnx")
+            && e.contains("float16 initializers but is declared with float32"),
+        "{e}"
+    );
+    let dir = copy_of_bundle("armflow-demo");
+    edit_manifest(dir.path(), |v| {
+        v["graphs"]["velocity"]["weights"] = "float16".into();
+    });
+    let e = Model::load(dir.path()).unwrap_err().to_string();
+    assert!(
+        e.contains("velocity.onnx") && e.contains("holds no float16 initializer"),
         "{e}"
     );
     // A precision troupe does not know.

@@ -13,7 +13,7 @@ use tract_onnx::prelude::*;
 
 use crate::shared::bundle::BundleFiles;
 use crate::shared::error::{Error, Result};
-use crate::shared::graph_spec::{DType, Dim, GraphSpec, TensorSpec};
+use crate::shared::graph_spec::{DType, Dim, GraphSpec, TensorSpec, Weights};
 use crate::shared::limits::LIMITS;
 use crate::shared::logging::{log, Level};
 use crate::shared::onnx_guard;
@@ -68,10 +68,13 @@ impl Graph {
             .map_err(|e| bad(format!("not a loadable ONNX model: {e:#}")))?;
         drop(proto);
         phases.mark("built");
-        let model = model
+        let mut model = model
             .into_typed()
             .map_err(|e| bad(format!("shapes cannot be resolved: {e:#}")))?;
         assert_row_counts(&model).map_err(&bad)?;
+        if spec.weights == Weights::Float16 {
+            keep_float16_weights(&mut model).map_err(&bad)?;
+        }
         phases.mark("typed");
         let (input_order, output_order) = check_interface(&model, spec).map_err(&bad)?;
         let graph = Self {
@@ -382,6 +385,55 @@ pub(crate) fn assert_row_counts(model: &TypedModel) -> std::result::Result<(), S
                 .add_assertion(format!("{name} >= 1"))
                 .map_err(|e| format!("symbol {name}: {e:#}"))?;
         }
+    }
+    Ok(())
+}
+
+/// Gives back to a `float16` graph's matrix products the weights its file stores in 16 bits.
+/// Building the graph folds each `Cast` of a float16 initializer into a float32 constant; every
+/// matrix-product constant whose values are all float16 values (those, and no float32 weight,
+/// since a float32 weight rounded to 16 bits would not be) becomes float16 again, so that tract
+/// packs 16-bit weights and picks its float16 × float32 kernels. The values are unchanged.
+fn keep_float16_weights(model: &mut TypedModel) -> std::result::Result<(), String> {
+    use tract_onnx::prelude::f16;
+    use tract_onnx::tract_core::ops::einsum::EinSum;
+    use tract_onnx::tract_core::ops::konst::Const;
+    let mut kept = 0;
+    for id in 0..model.nodes.len() {
+        let node = &model.nodes[id];
+        let Some(konst) = node.op_as::<Const>() else {
+            continue;
+        };
+        let value = konst.val();
+        let successors = &node.outputs[0].successors;
+        if value.datum_type() != DatumType::F32
+            || value.rank() < 2
+            || successors.is_empty()
+            || !successors
+                .iter()
+                .all(|s| model.nodes[s.node].op_is::<EinSum>())
+        {
+            continue;
+        }
+        let floats = value
+            .to_plain_array_view::<f32>()
+            .map_err(|e| format!("a weight's values: {e:#}"))?;
+        if !floats.iter().all(|v| f16::from_f32(*v).to_f32() == *v) {
+            continue;
+        }
+        let half = value
+            .cast_to::<f16>()
+            .map_err(|e| format!("a weight in float16: {e:#}"))?
+            .into_owned()
+            .into_arc_tensor();
+        let fact = TypedFact::try_from(half.clone()).map_err(|e| format!("{e:#}"))?;
+        let node = &mut model.nodes[id];
+        node.op = Box::new(Const::new(half).map_err(|e| format!("{e:#}"))?);
+        node.outputs[0].fact = fact;
+        kept += 1;
+    }
+    if kept == 0 {
+        return Err("is declared with float16 weights, but no matrix product uses one".into());
     }
     Ok(())
 }

@@ -34,6 +34,12 @@ pub enum Weights {
     /// outputs differ from float32 by the quantization error, and a session's output in a batch
     /// depends on its batch mates within that error (one activation scale per batch).
     Int8,
+    /// 16-bit floats (`float16` initializers, each cast to float32 where a matrix product uses
+    /// it): `onnx/cli.py armflow quantize --weights float16`. troupe keeps them in 16 bits and
+    /// multiplies them with float32 activations (tract's mixed kernels), so a batch-1 step reads
+    /// half the bytes; outputs differ from float32 by the weights' rounding alone, and a batched
+    /// session's output equals its output alone.
+    Float16,
 }
 
 impl Weights {
@@ -47,6 +53,7 @@ impl Weights {
         match self {
             Weights::Float32 => "float32",
             Weights::Int8 => "int8",
+            Weights::Float16 => "float16",
         }
     }
 }

@@ -54,21 +54,40 @@ pub(crate) fn check_model(model: &pb::ModelProto) -> Check {
 /// have integer products (`MatMulInteger`, `ConvInteger`), float32 graphs none.
 pub(crate) fn check_weights(model: &pb::ModelProto, declared: Weights) -> Check {
     const INTEGER: [&str; 2] = ["MatMulInteger", "ConvInteger"];
-    let integer = model.graph.as_ref().map_or(0, |g| {
+    const FLOAT16: i32 = 10; // TensorProto.DataType.FLOAT16
+    let graph = model.graph.as_ref();
+    let integer = graph.map_or(0, |g| {
         g.node
             .iter()
             .filter(|n| INTEGER.contains(&n.op_type.as_str()))
             .count()
     });
-    match (declared, integer) {
-        (Weights::Int8, 0) => Err(
+    let half = graph.map_or(0, |g| {
+        g.initializer
+            .iter()
+            .filter(|t| t.data_type == FLOAT16)
+            .count()
+    });
+    match (declared, integer, half) {
+        (Weights::Int8, 0, _) => Err(
             "is declared with int8 weights (`\"weights\": \"int8\"`) but has no integer matrix \
              product"
                 .into(),
         ),
-        (Weights::Float32, n) if n > 0 => Err(format!(
-            "has {n} integer matrix products but is declared with float32 weights; a bundle \
-             with reduced precision must say so (`\"weights\": \"int8\"` on the graph)"
+        (Weights::Float16, _, 0) => Err(
+            "is declared with float16 weights (`\"weights\": \"float16\"`) but holds no float16 \
+             initializer"
+                .into(),
+        ),
+        (Weights::Float32 | Weights::Float16, n, _) if n > 0 => Err(format!(
+            "has {n} integer matrix products but is declared with {} weights; a bundle \
+             with reduced precision must say so (`\"weights\": \"int8\"` on the graph)",
+            declared.name()
+        )),
+        (Weights::Float32 | Weights::Int8, _, n) if n > 0 => Err(format!(
+            "holds {n} float16 initializers but is declared with {} weights; a bundle with \
+             reduced precision must say so (`\"weights\": \"float16\"` on the graph)",
+            declared.name()
         )),
         _ => Ok(()),
     }

@@ -1,9 +1,17 @@
-"""A bundle with int8 weights, from a float32 one (`onnx/cli.py armflow quantize`).
+"""A bundle with int8 or float16 weights, from a float32 one (`onnx/cli.py armflow quantize`).
 
     python3 onnx/cli.py armflow quantize --bundle onnx/bundles/armflow-demo \\
         --out onnx/bundles/armflow-demo-int8                  # context_layers and velocity
     python3 onnx/cli.py armflow quantize --bundle onnx/bundles/armflow-demo \\
         --check onnx/bundles/armflow-demo-int8                # byte-identical, or a non-zero exit
+    python3 onnx/cli.py armflow quantize --weights float16 --bundle onnx/bundles/armflow-demo \\
+        --out onnx/bundles/armflow-demo-f16                   # every streaming graph
+
+float16: every float32 weight of a matrix product (`MatMul`, `Gemm`; two-dimensional, at least
+4096 values) is stored as float16 and cast to float32 where it is used, so the file is valid ONNX
+that any runtime runs; troupe keeps those weights in 16 bits and multiplies them with float32
+activations. Nothing else changes: norms, biases, embeddings and activations stay float32, and a
+session's output does not depend on its batch mates. The manifest says `"weights": "float16"`.
 
 Each named graph goes through onnxruntime's dynamic quantization: the weights of its matrix
 products become int8, symmetric, one scale per output channel (`MatMulInteger` with the weights
@@ -29,14 +37,53 @@ from pathlib import Path
 
 from troupe_onnx.shared.export import compare_bundles
 
-DEFAULT_GRAPHS = ("context_layers", "velocity")
-SCHEME = "int8 weights, symmetric per output channel; int8 activations, per tensor at run time"
+DEFAULT_GRAPHS = {
+    "int8": ("context_layers", "velocity"),
+    "float16": ("context_layers", "velocity", "vae_encoder_step", "vae_decoder_step"),
+}
+SCHEMES = {
+    "int8": "int8 weights, symmetric per output channel; int8 activations, per tensor at run time",
+    "float16": "float16 weights of the matrix products (cast to float32 where used); float32 activations",
+}
+SUFFIX = {"int8": "int8", "float16": "f16"}
+HALF_MIN_VALUES = 4096  # smaller weights are not worth a cast
 
 
-def quantize_bundle(src: Path, out: Path, graphs: list[str]) -> dict:
-    """Writes `out`: the bundle `src` with `graphs` quantized. Returns the new manifest."""
+def half_weights(src: Path, dst: Path) -> int:
+    """Writes `src` with its matrix products' large float32 weights stored as float16 (each
+    behind a `Cast` to float32). Returns how many weights it converted."""
+    import numpy as np
+    import onnx
+    from onnx import TensorProto, helper, numpy_helper
+
+    model = onnx.load(str(src))
+    graph = model.graph
+    users: dict[str, list] = {}
+    for node in graph.node:
+        for name in node.input:
+            users.setdefault(name, []).append(node)
+    casts, converted = [], 0
+    for init in list(graph.initializer):
+        values = numpy_helper.to_array(init)
+        used = users.get(init.name, [])
+        if (values.dtype != np.float32 or values.ndim != 2 or values.size < HALF_MIN_VALUES
+                or not used or any(n.op_type not in ("MatMul", "Gemm") for n in used)):
+            continue
+        graph.initializer.remove(init)
+        graph.initializer.append(numpy_helper.from_array(values.astype(np.float16), f"{init.name}_float16"))
+        casts.append(helper.make_node("Cast", [f"{init.name}_float16"], [init.name], to=TensorProto.FLOAT,
+                                      name=f"{init.name}_to_float32"))
+        converted += 1
+    for cast in reversed(casts):
+        graph.node.insert(0, cast)
+    onnx.save(model, str(dst))
+    return converted
+
+
+def quantize_bundle(src: Path, out: Path, graphs: list[str], weights: str = "int8") -> dict:
+    """Writes `out`: the bundle `src` with `graphs` in `weights` (`int8` or `float16`). Returns
+    the new manifest."""
     import onnxruntime
-    from onnxruntime.quantization import QuantType, quantize_dynamic
 
     manifest = json.loads((src / "troupe.json").read_text())
     unknown = [g for g in graphs if g not in manifest["graphs"]]
@@ -58,21 +105,31 @@ def quantize_bundle(src: Path, out: Path, graphs: list[str]) -> dict:
             shutil.copyfile(f, out / f.name)
     for role in graphs:
         for entry in entries(role):
-            quantize_dynamic(
-                str(src / entry["file"]), str(out / entry["file"]), weight_type=QuantType.QInt8,
-                per_channel=True, op_types_to_quantize=["MatMul", "Gemm"],
-            )
-            entry["weights"] = "int8"
+            if weights == "float16":
+                if half_weights(src / entry["file"], out / entry["file"]) == 0:
+                    sys.exit(f"{src / entry['file']}: no matrix-product weight to store in float16")
+            else:
+                from onnxruntime.quantization import QuantType, quantize_dynamic
+
+                quantize_dynamic(
+                    str(src / entry["file"]), str(out / entry["file"]), weight_type=QuantType.QInt8,
+                    per_channel=True, op_types_to_quantize=["MatMul", "Gemm"],
+                )
+            entry["weights"] = weights
     source_name = manifest["name"]
-    manifest["name"] = f"{source_name}-int8"
+    manifest["name"] = f"{source_name}-{SUFFIX[weights]}"
+    tool = {
+        "int8": "onnx/cli.py armflow quantize (onnxruntime.quantization.quantize_dynamic)",
+        "float16": "onnx/cli.py armflow quantize --weights float16 (onnx, numpy float16)",
+    }[weights]
     manifest["producer"] = {
         **manifest.get("producer", {}),
         "quantized": {
-            "tool": "onnx/cli.py armflow quantize (onnxruntime.quantization.quantize_dynamic)",
+            "tool": tool,
             "onnxruntime": onnxruntime.__version__,
             "from": source_name,
             "graphs": list(graphs),
-            "scheme": SCHEME,
+            "scheme": SCHEMES[weights],
         },
     }
     (out / "troupe.json").write_text(json.dumps(manifest, indent=2) + "\n")
@@ -85,14 +142,15 @@ def main(argv: list[str] | None = None, prog: str | None = None):
     ap.add_argument("--bundle", type=Path, required=True, help="the float32 bundle")
     ap.add_argument("--out", type=Path, help="bundle directory to write")
     ap.add_argument("--check", type=Path, help="quantize afresh and compare with this committed bundle")
-    ap.add_argument("--graphs", default=",".join(DEFAULT_GRAPHS),
-                    help=f"comma-separated roles to quantize (default: {','.join(DEFAULT_GRAPHS)})")
+    ap.add_argument("--weights", choices=sorted(DEFAULT_GRAPHS), default="int8")
+    ap.add_argument("--graphs", help="comma-separated roles to quantize (default: int8 "
+                    f"{','.join(DEFAULT_GRAPHS['int8'])}; float16 {','.join(DEFAULT_GRAPHS['float16'])})")
     args = ap.parse_args(argv)
-    graphs = [g for g in args.graphs.split(",") if g]
+    graphs = [g for g in (args.graphs or ",".join(DEFAULT_GRAPHS[args.weights])).split(",") if g]
     if args.check:
         with tempfile.TemporaryDirectory() as tmp:
             fresh = Path(tmp) / "bundle"
-            quantize_bundle(args.bundle, fresh, graphs)
+            quantize_bundle(args.bundle, fresh, graphs, args.weights)
             problems = compare_bundles(args.check, fresh)
         for p in problems:
             print(f"MISMATCH {p}")
@@ -100,6 +158,6 @@ def main(argv: list[str] | None = None, prog: str | None = None):
         sys.exit(1 if problems else 0)
     if not args.out:
         ap.error("--out or --check is required")
-    quantize_bundle(args.bundle, args.out, graphs)
+    quantize_bundle(args.bundle, args.out, graphs, args.weights)
     size = sum(f.stat().st_size for f in args.out.rglob("*") if f.is_file())
-    print(f"wrote {args.out} ({size / 1e6:.1f} MB): {', '.join(graphs)} with int8 weights")
+    print(f"wrote {args.out} ({size / 1e6:.1f} MB): {', '.join(graphs)} with {args.weights} weights")
