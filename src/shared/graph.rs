@@ -395,6 +395,7 @@ pub(crate) fn assert_row_counts(model: &TypedModel) -> std::result::Result<(), S
 /// since a float32 weight rounded to 16 bits would not be) becomes float16 again, so that tract
 /// packs 16-bit weights and picks its float16 × float32 kernels. The values are unchanged.
 fn keep_float16_weights(model: &mut TypedModel) -> std::result::Result<(), String> {
+    use half::slice::HalfFloatSliceExt;
     use tract_onnx::prelude::f16;
     use tract_onnx::tract_core::ops::einsum::EinSum;
     use tract_onnx::tract_core::ops::konst::Const;
@@ -415,16 +416,26 @@ fn keep_float16_weights(model: &mut TypedModel) -> std::result::Result<(), Strin
         {
             continue;
         }
-        let floats = value
+        let view = value
             .to_plain_array_view::<f32>()
             .map_err(|e| format!("a weight's values: {e:#}"))?;
-        if !floats.iter().all(|v| f16::from_f32(*v).to_f32() == *v) {
+        let Some(floats) = view.as_slice() else {
+            continue;
+        };
+        // Both conversions run on whole slices (F16C where the CPU has it).
+        let mut halves = vec![f16::ZERO; floats.len()];
+        halves.convert_from_f32_slice(floats);
+        let mut back = vec![0f32; floats.len()];
+        halves.convert_to_f32_slice(&mut back);
+        if back
+            .iter()
+            .zip(floats)
+            .any(|(a, b)| a.to_bits() != b.to_bits())
+        {
             continue;
         }
-        let half = value
-            .cast_to::<f16>()
+        let half = Tensor::from_shape(value.shape(), &halves)
             .map_err(|e| format!("a weight in float16: {e:#}"))?
-            .into_owned()
             .into_arc_tensor();
         let fact = TypedFact::try_from(half.clone()).map_err(|e| format!("{e:#}"))?;
         let node = &mut model.nodes[id];
