@@ -112,31 +112,36 @@ fn the_int8_demo_stays_within_its_stated_error_of_float32() {
     assert!(b > 0.0, "the int8 graphs ran");
 }
 
-#[test]
-fn an_int8_session_in_a_batch_stays_within_the_int8_error_of_itself_alone() {
-    let int8 = Model::load(bundle("armflow-demo-int8")).unwrap();
+/// Session 0 (seed 1) batched with two others (seeds 2, 3) on the golden actor, against itself
+/// alone: the largest frame difference over the largest frame value.
+fn batched_against_alone(model: &Model) -> f32 {
     let options = |seed| ReactorOptions {
         seed,
         ..Default::default()
     };
     let actor: Array2<f32> = golden("actor");
     let alone = run_chunked(
-        &mut int8.armflow().unwrap().reactor(options(1)).unwrap(),
+        &mut model.armflow().unwrap().reactor(options(1)).unwrap(),
         &actor,
         8,
     )
     .0;
     let mut sessions: Vec<Reactor> = [1, 2, 3]
         .into_iter()
-        .map(|s| int8.armflow().unwrap().reactor(options(s)).unwrap())
+        .map(|s| model.armflow().unwrap().reactor(options(s)).unwrap())
         .collect();
     let mut batched = Vec::new();
-    for part in actor.as_slice().unwrap().chunks(8 * int8.frame_dim()) {
+    for part in actor.as_slice().unwrap().chunks(8 * model.frame_dim()) {
         let mut refs: Vec<&mut Reactor> = sessions.iter_mut().collect();
         let outs = step_reactors(&mut refs, &[part, part, part]).unwrap();
         batched.extend(outs[0].frames.iter().copied());
     }
-    let diff = relative(&batched, &alone);
+    relative(&batched, &alone)
+}
+
+#[test]
+fn an_int8_session_in_a_batch_stays_within_the_int8_error_of_itself_alone() {
+    let diff = batched_against_alone(&Model::load(bundle("armflow-demo-int8")).unwrap());
     println!("int8 demo, session 0 batched with 2 others vs alone: frames {diff:.2e}");
     assert!(diff <= FRAME_TOL, "{diff}");
 }
@@ -175,81 +180,58 @@ fn the_float16_demo_stays_within_its_stated_error_of_float32() {
 #[test]
 fn a_float16_session_in_a_batch_equals_itself_alone() {
     // Weights in 16 bits, activations in 32: nothing is shared between batch mates.
-    let half = Model::load(bundle("armflow-demo-f16")).unwrap();
-    let options = |seed| ReactorOptions {
-        seed,
-        ..Default::default()
-    };
-    let actor: Array2<f32> = golden("actor");
-    let alone = run_chunked(
-        &mut half.armflow().unwrap().reactor(options(1)).unwrap(),
-        &actor,
-        8,
-    )
-    .0;
-    let mut sessions: Vec<Reactor> = [1, 2, 3]
-        .into_iter()
-        .map(|s| half.armflow().unwrap().reactor(options(s)).unwrap())
-        .collect();
-    let mut batched = Vec::new();
-    for part in actor.as_slice().unwrap().chunks(8 * half.frame_dim()) {
-        let mut refs: Vec<&mut Reactor> = sessions.iter_mut().collect();
-        let outs = step_reactors(&mut refs, &[part, part, part]).unwrap();
-        batched.extend(outs[0].frames.iter().copied());
-    }
-    let diff = relative(&batched, &alone);
+    let diff = batched_against_alone(&Model::load(bundle("armflow-demo-f16")).unwrap());
     println!("float16 demo, session 0 batched with 2 others vs alone: frames {diff:.2e}");
     assert!(diff <= 1e-5, "{diff}");
 }
 
+/// A change to a bundle's manifest.
+type ManifestEdit = dyn Fn(&mut serde_json::Value);
+
 #[test]
 fn weights_the_manifest_does_not_declare_are_refused() {
-    // int8 files declared float32.
-    let dir = copy_of_bundle("armflow-demo-int8");
-    edit_manifest(dir.path(), |v| {
+    let undeclared = |v: &mut serde_json::Value| {
         v["graphs"]["velocity"]
             .as_object_mut()
             .unwrap()
             .remove("weights");
-    });
-    let e = Model::load(dir.path()).unwrap_err().to_string();
-    assert!(
-        e.contains("velocity.onnx") && e.contains("declared with float32 weights"),
-        "{e}"
-    );
-    // A float32 file declared int8.
-    let dir = copy_of_bundle("armflow-demo");
-    edit_manifest(dir.path(), |v| {
-        v["graphs"]["context_layers"][1]["weights"] = "int8".into();
-    });
-    let e = Model::load(dir.path()).unwrap_err().to_string();
-    assert!(
-        e.contains("context_layer_1.onnx") && e.contains("no integer matrix product"),
-        "{e}"
-    );
-    // float16 files declared float32, and a float32 file declared float16.
-    let dir = copy_of_bundle("armflow-demo-f16");
-    edit_manifest(dir.path(), |v| {
-        v["graphs"]["velocity"]
-            .as_object_mut()
-            .unwrap()
-            .remove("weights");
-    });
-    let e = Model::load(dir.path()).unwrap_err().to_string();
-    assert!(
-        e.contains("velocity.onnx")
-            && e.contains("float16 initializers but is declared with float32"),
-        "{e}"
-    );
-    let dir = copy_of_bundle("armflow-demo");
-    edit_manifest(dir.path(), |v| {
-        v["graphs"]["velocity"]["weights"] = "float16".into();
-    });
-    let e = Model::load(dir.path()).unwrap_err().to_string();
-    assert!(
-        e.contains("velocity.onnx") && e.contains("holds no float16 initializer"),
-        "{e}"
-    );
+    };
+    let cases: [(&str, &ManifestEdit, &str, &str); 4] = [
+        // int8 files declared float32.
+        (
+            "armflow-demo-int8",
+            &undeclared,
+            "velocity.onnx",
+            "declared with float32 weights",
+        ),
+        // A float32 file declared int8.
+        (
+            "armflow-demo",
+            &|v| v["graphs"]["context_layers"][1]["weights"] = "int8".into(),
+            "context_layer_1.onnx",
+            "no integer matrix product",
+        ),
+        // float16 files declared float32.
+        (
+            "armflow-demo-f16",
+            &undeclared,
+            "velocity.onnx",
+            "float16 initializers but is declared with float32",
+        ),
+        // A float32 file declared float16.
+        (
+            "armflow-demo",
+            &|v| v["graphs"]["velocity"]["weights"] = "float16".into(),
+            "velocity.onnx",
+            "holds no float16 initializer",
+        ),
+    ];
+    for (name, edit, file, message) in cases {
+        let dir = copy_of_bundle(name);
+        edit_manifest(dir.path(), edit);
+        let e = Model::load(dir.path()).unwrap_err().to_string();
+        assert!(e.contains(file) && e.contains(message), "{name}: {e}");
+    }
     // A precision troupe does not know.
     let dir = copy_of_bundle("armflow-demo");
     edit_manifest(dir.path(), |v| {
