@@ -51,7 +51,8 @@ pub(crate) fn check_model(model: &pb::ModelProto) -> Check {
 }
 
 /// Checks that the graph's matrix products hold the weights the manifest declares: int8 graphs
-/// have integer products (`MatMulInteger`, `ConvInteger`), float32 graphs none.
+/// have integer products (`MatMulInteger`, `ConvInteger`) and float16 graphs float16
+/// initializers; a graph declared otherwise has neither.
 pub(crate) fn check_weights(model: &pb::ModelProto, declared: Weights) -> Check {
     const INTEGER: [&str; 2] = ["MatMulInteger", "ConvInteger"];
     const FLOAT16: i32 = 10; // TensorProto.DataType.FLOAT16

@@ -72,119 +72,19 @@ def _gelu_grad(x):
     return 0.5 * (1.0 + torch.erf(x * _INV_SQRT2)) + x * torch.exp(-0.5 * x * x) * _INV_SQRT_2PI
 
 
-def _ln_forward(norm: nn.LayerNorm, x):
-    """LayerNorm over the channels of [N, C, T]; returns (output, x_hat, 1/sigma)."""
-    mean = x.mean(dim=1, keepdim=True)
-    centred = x - mean
-    inv = torch.rsqrt((centred * centred).mean(dim=1, keepdim=True) + norm.eps)
-    xhat = centred * inv
-    return xhat * norm.weight[None, :, None] + norm.bias[None, :, None], xhat, inv
-
-
-def _ln_backward(norm: nn.LayerNorm, g, xhat, inv):
-    gh = g * norm.weight[None, :, None]
-    return inv * (gh - gh.mean(dim=1, keepdim=True) - xhat * (gh * xhat).mean(dim=1, keepdim=True))
-
-
-def _conv_backward(conv: nn.Conv1d, g):
-    """The input gradient of a stride-1 conv: the transposed conv with the same weights."""
-    return F.conv_transpose1d(g, conv.weight, padding=conv.padding[0], dilation=conv.dilation[0])
-
-
 class DecoderVjp(nn.Module):
-    """x0 [B, T, P, D], betas [B, P, 10], weights [2] -> the gradient on the latents
-    [B, T, P, latent] of `weights[0] * smoothing + weights[1] * foot skating` (§6.4): both
-    corrections from one decoder forward and one backward, as they are taken at the same x0 and
-    subtracted together. A weight of 0 leaves its loss out."""
-
-    def __init__(self, decoder: Decoder, latent: int):
-        super().__init__()
-        self.decoder, self.latent = decoder, latent
-
-    def forward(self, x0, betas, weights):
-        b, t, p, _ = x0.shape
-        lat = self.latent
-        tm1_t = x0[..., lat : lat + FRAMES_PER_TOKEN * TRANSFORM]
-        cond = torch.cat([betas[:, None].expand(b, t, p, BETAS), tm1_t], dim=-1)
-        h = torch.cat([x0[..., :lat], cond], dim=-1).permute(0, 2, 3, 1).reshape(b * p, -1, t)  # [BP, C, T]
-        m = self.decoder.model
-        tape = []
-        a = m[0](h)
-        tape.append(a)
-        h = F.relu(a)
-        for stage in (m[2], m[3]):
-            res, conv = stage[0], stage[2]
-            for block in res.model:
-                h = self._block_forward(block, h, tape)
-            h = conv(F.interpolate(h, scale_factor=2.0, mode="nearest"))
-        a4 = m[4](h)
-        out = m[6](F.relu(a4))  # [BP, 135, F]
-        r = out[:, : BODY_JOINTS * 6]
-        g = weights[0] * _smoothing_grad(r) + weights[1] * _foot_skating_grad(r)
-        g = F.pad(g, (0, 0, 0, out.shape[1] - g.shape[1]))  # d/d(out): zero on the root dims
-        g = _conv_backward(m[6], g) * (a4 > 0).to(g.dtype)
-        g = _conv_backward(m[4], g)
-        for stage in (m[3], m[2]):
-            res, conv = stage[0], stage[2]
-            g = _conv_backward(conv, g)
-            g = g.reshape(g.shape[0], g.shape[1], -1, 2).sum(-1)  # nearest x2's backward
-            for block in reversed(res.model):
-                g = self._block_backward(block, g, tape)
-        g = g * (tape.pop() > 0).to(g.dtype)
-        g = _conv_backward(m[0], g)[:, :lat]  # [BP, latent, T]
-        return g.reshape(b, p, lat, t).permute(0, 3, 1, 2)
-
-    @staticmethod
-    def _block_forward(block: ResConv1DBlock, x, tape):
-        u, xhat1, inv1 = _ln_forward(block.norm1, x)
-        c1 = block.conv1(F.gelu(u))
-        w, xhat2, inv2 = _ln_forward(block.norm2, c1)
-        tape.append((u, xhat1, inv1, w, xhat2, inv2))
-        return x + block.conv2(F.gelu(w))
-
-    @staticmethod
-    def _block_backward(block: ResConv1DBlock, g, tape):
-        u, xhat1, inv1, w, xhat2, inv2 = tape.pop()
-        gw = _conv_backward(block.conv2, g) * _gelu_grad(w)
-        gu = _conv_backward(block.conv1, _ln_backward(block.norm2, gw, xhat2, inv2)) * _gelu_grad(u)
-        return g + _ln_backward(block.norm1, gu, xhat1, inv1)
-
-
-def _smoothing_grad(r):
-    """d mean(Lap^2) / dR for R [B*P, 126, F] (frames last); the mean is over the whole batch,
-    so its count comes from the tensors' shapes (the batch is dynamic)."""
-    lap = r[..., :-2] - 2 * r[..., 1:-1] + r[..., 2:]
-    c = 2.0 / torch.ones_like(lap).sum()
-    return c * (F.pad(lap, (0, 2)) - 2 * F.pad(lap, (1, 1)) + F.pad(lap, (2, 0)))
-
-
-def _foot_skating_grad(r):
-    """d mean(diff^2) / dR of the foot joints' rotations, zero on every other joint."""
-    feet = torch.cat([r[:, 6 * j : 6 * j + 6] for j in FOOT_JOINTS], dim=1)  # [BP, 24, F]
-    diff = feet[..., 1:] - feet[..., :-1]
-    c = 2.0 / torch.ones_like(diff).sum()
-    gf = c * (F.pad(diff, (1, 0)) - F.pad(diff, (0, 1)))
-    parts, at = [], 0
-    for j, joint in enumerate(FOOT_JOINTS):  # ascending joints
-        parts += [torch.zeros_like(r[:, at : 6 * joint]), gf[:, 6 * j : 6 * j + 6]]
-        at = 6 * joint + 6
-    parts.append(torch.zeros_like(r[:, at:]))
-    return torch.cat(parts, dim=1)
-
-
-class ChannelsLastDecoderVjp(nn.Module):
-    """`DecoderVjp` per person-sequence and channels-last, as the bundle's `guidance` graph is:
-    x0 `[N, T, D]` (one person of one sample a row), betas `[N, 10]`, weights `[2]` -> the
-    gradient on the latents `[N, T, latent]`, the losses' means taken over the N sequences given
-    (a runtime that leaves out sequences whose gradient it will not use scales the weights by the
-    share it passes). Activations are `[N, frames, channels]`, every convolution one matrix product over the rows of all
-    sequences and frames (`[rows, k·C_in] @ [k·C_in, C_out]`, taps gathered by static slices of
-    the zero-padded input), every transposed convolution the same with the taps reversed and the
-    channel axes swapped, every norm and its backward over the last axis. Same function, same
-    weights, laid out for both products when the module is built (plain initializers in the
+    """The bundle's `guidance` graph, per person-sequence and channels-last: x0 `[N, T, D]` (one
+    person of one sample a row), betas `[N, 10]`, weights `[2]` -> the gradient on the latents
+    `[N, T, latent]`, the losses' means taken over the N sequences given (a runtime that leaves
+    out sequences whose gradient it will not use scales the weights by the share it passes).
+    Activations are `[N, frames, channels]`; every convolution is one matrix product over the
+    rows of all sequences and frames (`[rows, k·C_in] @ [k·C_in, C_out]`, taps gathered by
+    static slices of the zero-padded input), every transposed convolution the same with the taps
+    reversed and the channel axes swapped, every norm and its backward over the last axis. The
+    weights are laid out for both products when the module is built (plain initializers in the
     graph, nothing for the runtime to fold at load). No convolution op and no broadcast over a
-    strided axis is left, which is what made the channels-first graph spend a third of its time
-    outside the matrix products in tract."""
+    strided axis is left: an earlier channels-first form spent a third of its time outside the
+    matrix products in tract."""
 
     def __init__(self, decoder: Decoder, latent: int):
         super().__init__()
@@ -214,7 +114,7 @@ class ChannelsLastDecoderVjp(nn.Module):
             h = conv(h[:, :, None].expand(n, frames, 2, c).reshape(n, 2 * frames, c))  # nearest x2
         a4 = self.head(h)
         r = self.out(F.relu(a4))  # [N, F, 126]: the rotations (the root rows are not computed)
-        g = weights[0] * _smoothing_grad_frames(r) + weights[1] * _foot_skating_grad_frames(r)
+        g = weights[0] * _smoothing_grad(r) + weights[1] * _foot_skating_grad(r)
         g = self.out.input_grad(g) * (a4 > 0).to(g.dtype)
         g = self.head.input_grad(g)
         for blocks, conv in reversed(self.stages):
@@ -261,17 +161,17 @@ class _RowBlock(nn.Module):
         self.conv1, self.conv2 = _RowConv(block.conv1), _RowConv(block.conv2)
 
     def forward(self, x, tape):
-        u, xhat1, inv1 = _ln_forward_last(self.norm1, x)
+        u, xhat1, inv1 = _ln_forward(self.norm1, x)
         c1 = self.conv1(F.gelu(u))
-        w, xhat2, inv2 = _ln_forward_last(self.norm2, c1)
+        w, xhat2, inv2 = _ln_forward(self.norm2, c1)
         tape.append((u, xhat1, inv1, w, xhat2, inv2))
         return x + self.conv2(F.gelu(w))
 
     def backward(self, g, tape):
         u, xhat1, inv1, w, xhat2, inv2 = tape.pop()
         gw = self.conv2.input_grad(g) * _gelu_grad(w)
-        gu = self.conv1.input_grad(_ln_backward_last(self.norm2, gw, xhat2, inv2)) * _gelu_grad(u)
-        return g + _ln_backward_last(self.norm1, gu, xhat1, inv1)
+        gu = self.conv1.input_grad(_ln_backward(self.norm2, gw, xhat2, inv2)) * _gelu_grad(u)
+        return g + _ln_backward(self.norm1, gu, xhat1, inv1)
 
 
 def _taps(h, kernel: int, dilation: int, left: int, right: int):
@@ -284,8 +184,8 @@ def _taps(h, kernel: int, dilation: int, left: int, right: int):
     return torch.cat([padded[:, i * dilation : i * dilation + frames] for i in range(kernel)], dim=2)
 
 
-def _ln_forward_last(norm: nn.LayerNorm, x):
-    """`_ln_forward` over the last axis of `[N, T, C]`."""
+def _ln_forward(norm: nn.LayerNorm, x):
+    """LayerNorm over the last axis of `[N, T, C]`; returns (output, x_hat, 1/sigma)."""
     mean = x.mean(dim=-1, keepdim=True)
     centred = x - mean
     inv = torch.rsqrt((centred * centred).mean(dim=-1, keepdim=True) + norm.eps)
@@ -293,21 +193,23 @@ def _ln_forward_last(norm: nn.LayerNorm, x):
     return xhat * norm.weight + norm.bias, xhat, inv
 
 
-def _ln_backward_last(norm: nn.LayerNorm, g, xhat, inv):
-    """`_ln_backward` over the last axis of `[N, T, C]`."""
+def _ln_backward(norm: nn.LayerNorm, g, xhat, inv):
+    """The input gradient of `_ln_forward`'s output `g`."""
     gh = g * norm.weight
     return inv * (gh - gh.mean(dim=-1, keepdim=True) - xhat * (gh * xhat).mean(dim=-1, keepdim=True))
 
 
-def _smoothing_grad_frames(r):
-    """`_smoothing_grad` for `R` `[N, F, 126]` (frames second)."""
+def _smoothing_grad(r):
+    """d mean(Lap^2) / dR for R `[N, F, 126]` (frames second); the mean is over the whole batch,
+    so its count comes from the tensors' shapes (the batch is dynamic)."""
     lap = r[:, :-2] - 2 * r[:, 1:-1] + r[:, 2:]
     c = 2.0 / torch.ones_like(lap).sum()
     return c * (F.pad(lap, (0, 0, 0, 2)) - 2 * F.pad(lap, (0, 0, 1, 1)) + F.pad(lap, (0, 0, 2, 0)))
 
 
-def _foot_skating_grad_frames(r):
-    """`_foot_skating_grad` for `R` `[N, F, 126]` (frames second)."""
+def _foot_skating_grad(r):
+    """d mean(diff^2) / dR of the foot joints' rotations `R` `[N, F, 126]`, zero on every other
+    joint."""
     feet = torch.cat([r[..., 6 * j : 6 * j + 6] for j in FOOT_JOINTS], dim=-1)  # [N, F, 24]
     diff = feet[:, 1:] - feet[:, :-1]
     c = 2.0 / torch.ones_like(diff).sum()

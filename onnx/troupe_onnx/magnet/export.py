@@ -32,7 +32,7 @@ import torch
 
 from troupe_onnx.magnet.checkpoint import load_release, write_release
 from troupe_onnx.magnet.configs import released_for
-from troupe_onnx.magnet.decoder_gradients import ChannelsLastDecoderVjp, weighted_gradient
+from troupe_onnx.magnet.decoder_gradients import DecoderVjp, weighted_gradient
 from troupe_onnx.magnet.draws import RecordingDraws, SeededDraws
 from troupe_onnx.magnet.guidance import GuidanceConfig, X0Guidance
 from troupe_onnx.magnet.live import LiveSettings, LiveStream, make_live_run
@@ -122,7 +122,7 @@ def graph_modules(model: Magnet) -> dict:
         "denoiser": model.denoiser,
         "vq_encoder": _VqCall(model, "encode_continuous"),
         "vq_decoder": _VqCall(model, "decode"),
-        "guidance": ChannelsLastDecoderVjp(model.vqvae.decoder, lat),
+        "guidance": DecoderVjp(model.vqvae.decoder, lat),
     }
 
 
