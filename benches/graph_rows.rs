@@ -17,6 +17,13 @@
 //!     TROUPE_BENCH_BUNDLE=onnx/bundles/magnet-dd100 TROUPE_BENCH_GRAPHS=denoiser,guidance \
 //!         TROUPE_BENCH_BATCHES=1,10 cargo bench --bench graph_rows
 //!
+//! `TROUPE_BENCH_CONCRETE=1` plans each graph for each batch with every dimension known, as troupe
+//! plans the graphs it always runs with one row (the text tower: `shared/graph.rs`); the
+//! difference to the default shows what knowing the sizes is worth to tract's kernel choice:
+//!
+//!     TROUPE_BENCH_CONCRETE=1 TROUPE_BENCH_BUNDLE=onnx/bundles/paper-interhuman \
+//!         TROUPE_BENCH_GRAPHS=text_encoder TROUPE_BENCH_BATCHES=1 cargo bench --bench graph_rows
+//!
 //! `cargo test --bench graph_rows` (the suite's smoke run) runs every graph once at batch 2.
 //! Prints one line per graph and batch: median ms per call and per row, and the ratio of the
 //! per-row cost to batch 1's (how much a crowd saves by batching that graph).
@@ -131,32 +138,59 @@ fn main() {
         let specs = spec
             .as_array()
             .map_or_else(|| vec![spec], |all| all.iter().collect());
-        let plans: Vec<_> = specs
-            .iter()
-            .map(|spec| {
-                let file = bundle.join(spec["file"].as_str().expect("file"));
-                tract_onnx::onnx()
-                    .model_for_path(&file)
-                    .and_then(|m| m.into_typed())
-                    .and_then(|m| {
-                        // As troupe's loader: row counts are at least 1 (`shared/graph.rs`).
-                        for name in ["B", "N"] {
-                            if m.symbols.get(name).is_some() {
-                                m.symbols.add_assertion(format!("{name} >= 1"))?;
+        // `TROUPE_BENCH_CONCRETE=1`: every symbol fixed before optimising (a plan per batch
+        // size), so tract's kernel choice sees the real row counts.
+        let concrete = std::env::var_os("TROUPE_BENCH_CONCRETE").is_some();
+        let load = |values: Option<&BTreeMap<&str, usize>>| -> Vec<_> {
+            specs
+                .iter()
+                .map(|spec| {
+                    let file = bundle.join(spec["file"].as_str().expect("file"));
+                    tract_onnx::onnx()
+                        .model_for_path(&file)
+                        .and_then(|mut m| {
+                            if let Some(values) = values {
+                                for (ix, tensor) in inputs(spec, values).iter().enumerate() {
+                                    let fact = InferenceFact::dt_shape(
+                                        tensor.datum_type(),
+                                        tensor.shape(),
+                                    );
+                                    m.set_input_fact(ix, fact)?;
+                                }
                             }
-                        }
-                        m.into_optimized()
-                    })
-                    .and_then(|m| m.into_runnable())
-                    .unwrap_or_else(|e| panic!("{}: {e:#}", file.display()))
-            })
-            .collect();
+                            m.into_typed()
+                        })
+                        .and_then(|m| {
+                            // As troupe's loader: row counts are at least 1 (`shared/graph.rs`).
+                            for name in ["B", "N"] {
+                                if m.symbols.get(name).is_some() {
+                                    m.symbols.add_assertion(format!("{name} >= 1"))?;
+                                }
+                            }
+                            m.into_optimized()
+                        })
+                        .and_then(|m| m.into_runnable())
+                        .unwrap_or_else(|e| panic!("{}: {e:#}", file.display()))
+                })
+                .collect()
+        };
+        let symbolic_plans = if concrete { Vec::new() } else { load(None) };
         let mut batch_one = None;
         for &batch in &batches {
             let mut symbols: BTreeMap<&str, usize> =
                 fixed.iter().map(|(k, v)| (k.as_str(), *v)).collect();
             symbols.extend([("B", batch), ("N", batch)]);
             let inputs: Vec<_> = specs.iter().map(|s| inputs(s, &symbols)).collect();
+            let concrete_plans = if concrete {
+                load(Some(&symbols))
+            } else {
+                Vec::new()
+            };
+            let plans = if concrete {
+                &concrete_plans
+            } else {
+                &symbolic_plans
+            };
             let run = || {
                 for (plan, inputs) in plans.iter().zip(&inputs) {
                     plan.run(inputs.clone()).expect("the graph runs");

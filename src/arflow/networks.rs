@@ -8,7 +8,7 @@ use crate::shared::bundle::BundleFiles;
 use crate::shared::bundle_io::BundleIo;
 use crate::shared::checks::check_output;
 use crate::shared::error::Result;
-use crate::shared::graph::{load_graphs, read_f32, Graph};
+use crate::shared::graph::{load_graphs, read_f32, Graph, PlanPolicy};
 
 /// An `arflow` bundle's graph, loaded and optimised, with its manifest section. Shared (`Arc`)
 /// by the [`crate::Model`] handles that loaded it.
@@ -36,7 +36,7 @@ impl Networks {
         if let Some(step) = &spec.graphs.denoiser_step {
             wanted.push(("denoiser_step", step));
         }
-        let mut graphs = load_graphs(files, &wanted, &[])?.into_iter();
+        let mut graphs = load_graphs(files, &wanted, |_| PlanPolicy::default())?.into_iter();
         let denoiser = graphs.next().expect("one graph per wanted entry");
         let denoiser_step = graphs.next();
         Ok(Self {

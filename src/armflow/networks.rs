@@ -11,10 +11,13 @@ use crate::shared::bundle::BundleFiles;
 use crate::shared::bundle_io::BundleIo;
 use crate::shared::checks::check_input;
 use crate::shared::error::{Error, Result};
-use crate::shared::graph::{f32_tensor, load_graphs, read_f32, split_rows, stack_rows, Graph};
+use crate::shared::graph::{
+    f32_tensor, load_graphs, read_f32, split_rows, stack_rows, Graph, PlanPolicy,
+};
 use crate::shared::graph_spec::{Dim, GraphSpec};
 use crate::shared::text::branch::TextBranch;
 use crate::shared::text::prompt::{PromptEncoder, Prompts};
+use crate::shared::text::ONE_ROW_ROLES;
 
 /// An `armflow` bundle's graphs, loaded and optimised, with its own manifest section and the
 /// common facts it needs. Shared (`Arc`) by the [`crate::Model`] handles that loaded it and by
@@ -126,7 +129,11 @@ impl Networks {
                 .iter()
                 .map(|layer| ("context_layers", layer)),
         );
-        let mut graphs = load_graphs(files, &wanted, &deferred)?.into_iter();
+        let mut graphs = load_graphs(files, &wanted, |role| PlanPolicy {
+            deferred: deferred.contains(&role),
+            one_row: ONE_ROW_ROLES.contains(&role),
+        })?
+        .into_iter();
         let mut next = || graphs.next().expect("one graph per wanted entry");
         Ok(Self {
             conditioning: next(),

@@ -10,7 +10,7 @@ use super::spec::MagnetSpec;
 use crate::shared::bundle::BundleFiles;
 use crate::shared::bundle_io::BundleIo;
 use crate::shared::error::{Error, Result};
-use crate::shared::graph::{load_graphs, Graph};
+use crate::shared::graph::{load_graphs, Graph, PlanPolicy};
 use crate::shared::limits::LIMITS;
 
 /// A `magnet` bundle's graphs, loaded and optimised, with its own manifest section, the common
@@ -42,7 +42,11 @@ impl Networks {
             ("vq_decoder", &g.vq_decoder),
             ("guidance", &g.guidance),
         ];
-        let mut graphs = load_graphs(files, &wanted, &["guidance"])?.into_iter();
+        let mut graphs = load_graphs(files, &wanted, |role| PlanPolicy {
+            deferred: role == "guidance",
+            ..PlanPolicy::default()
+        })?
+        .into_iter();
         let mut next = || graphs.next().expect("one graph per wanted entry");
         let (denoiser, vq_encoder, vq_decoder, guidance) = (next(), next(), next(), next());
         let codebook = read_codebook(files, &spec)?;

@@ -3,9 +3,10 @@
 use crate::shared::bundle::BundleFiles;
 use crate::shared::bundle_io::BundleIo;
 use crate::shared::error::Result;
-use crate::shared::graph::{load_graphs, Graph};
+use crate::shared::graph::{load_graphs, Graph, PlanPolicy};
 use crate::shared::text::branch::TextBranch;
 use crate::shared::text::prompt::{PromptEncoder, Prompts};
+use crate::shared::text::ONE_ROW_ROLES;
 
 use super::spec::UmfSpec;
 
@@ -37,7 +38,11 @@ impl Networks {
         ];
         wanted.extend(g.text_branch.as_ref().map(|t| ("text_branch", t)));
         wanted.extend(g.text_encoder.as_ref().map(|t| ("text_encoder", t)));
-        let mut graphs = load_graphs(files, &wanted, &[])?.into_iter();
+        let mut graphs = load_graphs(files, &wanted, |role| PlanPolicy {
+            one_row: ONE_ROW_ROLES.contains(&role),
+            ..PlanPolicy::default()
+        })?
+        .into_iter();
         let mut next = || graphs.next().expect("one graph per wanted entry");
         Ok(Self {
             prior: next(),

@@ -7,3 +7,7 @@ pub(crate) mod branch;
 pub(crate) mod encoder;
 pub(crate) mod prompt;
 pub(crate) mod tokenizer;
+
+/// The text graphs, which troupe runs one prompt at a time (`encoder`, `branch`), so they are
+/// planned for one row.
+pub(crate) const ONE_ROW_ROLES: [&str; 2] = ["text_encoder", "text_branch"];
