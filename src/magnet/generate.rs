@@ -30,8 +30,10 @@ pub struct MagnetOptions {
     /// Turns the x0 corrections (smoothing, foot skating) off: three to five times cheaper
     /// (`docs/MAGNET.md`), not the released behaviour (§6.5 option (c)).
     pub without_x0_guidance: bool,
-    /// In-betweening's key frames within the window: frames `k..k + 4` set token `k / 4`, as
-    /// the reference does (multiples of 4 keep each key on its own frames, §11 A10).
+    /// In-betweening's key frames within the window: key frame `k` sets token `k / 4`, its
+    /// latent from frames `k..k + 4`, its transforms from the token's own frames, as the
+    /// official code does (§11 A10); the output's frames `k..k + 4` are the key decoded on its
+    /// own where the window holds them (§7.4).
     pub keyframes: Option<Vec<usize>>,
     /// Every draw of the run, in the order of §3.5, instead of troupe's generator.
     pub draws: Option<Vec<Vec<f32>>>,
@@ -210,6 +212,8 @@ pub(crate) fn generate(
     };
     let tc = run.cfg.context_len / FRAMES_PER_TOKEN;
     let task = run.cfg.task;
+    // In-betweening's key tokens as given, which decoding puts back (§7.4).
+    let mut key_frames = None;
     let tokens = match task {
         Task::Joint | Task::AgenticTurnTaking | Task::AgenticSync => {
             let context = motion::encode(nets, &clip, 0, tc * FRAMES_PER_TOKEN)?;
@@ -232,15 +236,10 @@ pub(crate) fn generate(
             }
         }
         Task::Inbetweening => {
-            let mut keys = Array3::zeros((m.window, p, m.token_dim));
-            let mut key_mask = vec![false; m.window];
-            for &k in &run.cfg.keyframes.clone() {
-                let token = motion::encode(nets, &clip, k, FRAMES_PER_TOKEN)?;
-                keys.slice_mut(s![k / FRAMES_PER_TOKEN, .., ..])
-                    .assign(&token.slice(s![0, .., ..]));
-                key_mask[k / FRAMES_PER_TOKEN] = true;
-            }
-            tasks::inbetweening(&mut run, per_sample(keys).view(), &key_mask)?
+            let (keys, is_key) = motion::key_tokens(nets, &clip, &run.cfg.keyframes)?;
+            let tokens = tasks::inbetweening(&mut run, per_sample(keys.clone()).view(), &is_key)?;
+            key_frames = Some(keys);
+            tokens
         }
         Task::PartnerPrediction
         | Task::MotionControlLive
@@ -259,12 +258,19 @@ pub(crate) fn generate(
         }
     };
     let used = run.draws.count();
-    let decoded = motion::decode(nets, tokens.view(), betas.view())?;
-    let c = if task == Task::Inbetweening {
-        0
-    } else {
-        run.cfg.context_len
-    };
+    let mut decoded = motion::decode(nets, tokens.view(), betas.view())?;
+    if let Some(keys) = key_frames {
+        let keyframes = &run.cfg.keyframes;
+        motion::overwrite_key_frames(
+            nets,
+            &mut decoded,
+            tokens.view(),
+            keys.view(),
+            keyframes,
+            betas.view(),
+        )?;
+    }
+    let c = motion::anchor_frame(run.cfg.context_len);
     let roots = motion::world_roots(&decoded, c, &clip);
     let raw_betas = clip.betas.clone();
     let frames_out = motion::frames_out(&decoded, &roots, raw_betas.view());

@@ -215,20 +215,72 @@ pub(crate) fn decode(
     x: ArrayView4<f32>,
     betas: ArrayView2<f32>,
 ) -> Result<Decoded> {
+    let (s, _, p, _) = x.dim();
+    let (mut z, cond) = fold_for_decoder(nets, x, betas);
+    let mut snapped = vec![0f32; z.dim().2];
+    for mut latent in z.rows_mut() {
+        nets.snap(latent.as_slice().expect("contiguous"), &mut snapped);
+        latent.assign(&ndarray::ArrayView1::from(&snapped[..]));
+    }
+    decode_folded(nets, z.view(), cond.view(), s, p)
+}
+
+/// §7.4: after the whole sequence is decoded, each key frame `kf` whose 4 frames the output
+/// holds gets frames `kf..kf + 4` from its original key latent decoded on its own (one token,
+/// not snapped), with the sampled token `kf / 4`'s transitions as the condition: body,
+/// canonical root and transitions replaced. `x` `[S, T, P, D]` sampled, `keys` `[Tm, P, D]`
+/// as [`key_tokens`] made them.
+pub(crate) fn overwrite_key_frames(
+    nets: &Networks,
+    decoded: &mut Decoded,
+    x: ArrayView4<f32>,
+    keys: ArrayView3<f32>,
+    keyframes: &[usize],
+    betas: ArrayView2<f32>,
+) -> Result<()> {
+    let (s, t, p, _) = x.dim();
+    let lat = nets.spec.model.vq.d_latent;
+    for &kf in keyframes {
+        if t * FRAMES_PER_TOKEN < kf + FRAMES_PER_TOKEN {
+            continue;
+        }
+        let tau = kf / FRAMES_PER_TOKEN;
+        let (mut z, cond) = fold_for_decoder(nets, x.slice(s![.., tau..=tau, .., ..]), betas);
+        for sample in 0..s {
+            for person in 0..p {
+                z.slice_mut(s![sample * p + person, 0, ..])
+                    .assign(&keys.slice(s![tau, person, ..lat]));
+            }
+        }
+        let one = decode_folded(nets, z.view(), cond.view(), s, p)?;
+        let frames = s![.., kf..kf + FRAMES_PER_TOKEN, .., ..];
+        decoded.body.slice_mut(frames).assign(&one.body);
+        decoded
+            .canonical_root
+            .slice_mut(frames)
+            .assign(&one.canonical_root);
+        decoded.tm1_t.slice_mut(frames).assign(&one.tm1_t);
+    }
+    Ok(())
+}
+
+/// The decoder's inputs from tokens `[S, T, P, D]`: latents as they are `[S*P, T, d_latent]` and
+/// the condition `[betas, tm1_t]` `[S*P, T, 46]`, one person of one sample a row.
+fn fold_for_decoder(
+    nets: &Networks,
+    x: ArrayView4<f32>,
+    betas: ArrayView2<f32>,
+) -> (Array3<f32>, Array3<f32>) {
     let (s, t, p, _) = x.dim();
     let lat = nets.spec.model.vq.d_latent;
     let mut z = Array3::zeros((s * p, t, lat));
     let mut cond = Array3::zeros((s * p, t, BETAS + TOKEN_TRANSFORMS));
-    let mut snapped = vec![0f32; lat];
     for sample in 0..s {
         for person in 0..p {
             let n = sample * p + person;
             for tau in 0..t {
                 let token = x.slice(s![sample, tau, person, ..]);
-                let zv = token.slice(s![..lat]).to_owned();
-                nets.snap(zv.as_slice().expect("contiguous"), &mut snapped);
-                z.slice_mut(s![n, tau, ..])
-                    .assign(&ndarray::ArrayView1::from(&snapped[..]));
+                z.slice_mut(s![n, tau, ..]).assign(&token.slice(s![..lat]));
                 cond.slice_mut(s![n, tau, ..BETAS])
                     .assign(&betas.slice(s![person, ..]));
                 cond.slice_mut(s![n, tau, BETAS..])
@@ -236,8 +288,20 @@ pub(crate) fn decode(
             }
         }
     }
-    let pose = nets.decode(z.view(), cond.view())?; // [S*P, 4T, 135]
-    let frames = t * FRAMES_PER_TOKEN;
+    (z, cond)
+}
+
+/// Decodes folded latents and condition (as [`fold_for_decoder`] lays them out, `S` samples of
+/// `P` people) to frames, de-normalised; the transitions are the condition's.
+fn decode_folded(
+    nets: &Networks,
+    z: ArrayView3<f32>,
+    cond: ArrayView3<f32>,
+    s: usize,
+    p: usize,
+) -> Result<Decoded> {
+    let pose = nets.decode(z, cond)?; // [S*P, 4T, 135]
+    let frames = z.dim().1 * FRAMES_PER_TOKEN;
     let mut body = Array4::zeros((s, frames, p, BODY_JOINTS * 6));
     let mut root = Array4::zeros((s, frames, p, TRANSFORM));
     let mut tm1 = Array4::zeros((s, frames, p, TRANSFORM));
@@ -250,13 +314,9 @@ pub(crate) fn decode(
                 root.slice_mut(s![sample, f, person, ..])
                     .assign(&pose.slice(s![n, f, BODY_JOINTS * 6..]));
                 let (tau, fr) = (f / FRAMES_PER_TOKEN, f % FRAMES_PER_TOKEN);
-                let at = lat + fr * TRANSFORM;
-                tm1.slice_mut(s![sample, f, person, ..]).assign(&x.slice(s![
-                    sample,
-                    tau,
-                    person,
-                    at..at + TRANSFORM
-                ]));
+                let at = BETAS + fr * TRANSFORM;
+                tm1.slice_mut(s![sample, f, person, ..])
+                    .assign(&cond.slice(s![n, tau, at..at + TRANSFORM]));
             }
         }
     }
@@ -274,8 +334,48 @@ pub(crate) fn decode(
     })
 }
 
+/// §5.0 step 2 for in-betweening: the window's key tokens `[Tm, P, D]` and which are keys.
+/// Key frame `kf` sets token `kf / 4`: its latent from frames `kf..kf + 4` encoded on their own,
+/// its transforms from the token's own frames (the official code fills every token's transform
+/// slices from the ground truth), so a key frame off the token grid (63) takes its latent from
+/// frames 63-66 and its transforms from 60-63.
+pub(crate) fn key_tokens(
+    nets: &Networks,
+    clip: &Clip,
+    keyframes: &[usize],
+) -> Result<(Array3<f32>, Vec<bool>)> {
+    let m = &nets.spec.model;
+    let mut keys = Array3::zeros((m.window, clip.persons, m.token_dim));
+    let mut is_key = vec![false; m.window];
+    for &kf in keyframes {
+        let tau = kf / FRAMES_PER_TOKEN;
+        let own = encode(nets, clip, tau * FRAMES_PER_TOKEN, FRAMES_PER_TOKEN)?;
+        keys.slice_mut(s![tau, .., ..])
+            .assign(&own.slice(s![0, .., ..]));
+        if kf % FRAMES_PER_TOKEN != 0 {
+            let at_key = encode(nets, clip, kf, FRAMES_PER_TOKEN)?;
+            let lat = m.vq.d_latent;
+            keys.slice_mut(s![tau, .., ..lat])
+                .assign(&at_key.slice(s![0, .., ..lat]));
+        }
+        is_key[tau] = true;
+    }
+    Ok((keys, is_key))
+}
+
+/// §7.2: the frame every task's roots are anchored at, `context_seq_len` (4 when that is 0), as
+/// the official inference passes it; the frames before it are the input's.
+pub(crate) fn anchor_frame(context_len: usize) -> usize {
+    if context_len == 0 {
+        FRAMES_PER_TOKEN
+    } else {
+        context_len
+    }
+}
+
 /// §7.2 (mode `temporal`): each person's root in the world `[S, F, P]` from the first generated
-/// frame `c` on, chaining the predicted transitions; the clip's roots before it. When the clip
+/// frame `c` on, chaining the predicted transitions; the clip's roots before it (its last one
+/// repeated past its end, as the reference pads the ground truth). When the clip
 /// covers frame `c`, its canonical frame there is the anchor, as the reference's (§11 A2);
 /// otherwise the online default: the clip's last canonical frame chained with the predicted
 /// transition into frame `c`.
@@ -286,8 +386,9 @@ pub(crate) fn world_roots(decoded: &Decoded, context_frames: usize, clip: &Clip)
     let mut roots = vec![IDENTITY; s * f * p];
     for sample in 0..s {
         for person in 0..p {
-            for frame in 0..c.min(clip.frames) {
-                roots[at(sample, frame, person)] = clip.world_root[frame * p + person];
+            for frame in 0..c {
+                let known = frame.min(clip.frames - 1);
+                roots[at(sample, frame, person)] = clip.world_root[known * p + person];
             }
             // The last axis of a standard-layout array is contiguous.
             let nine = |a: &Array4<f32>, frame: usize| {

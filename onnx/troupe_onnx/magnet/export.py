@@ -37,7 +37,8 @@ from troupe_onnx.magnet.draws import RecordingDraws, SeededDraws
 from troupe_onnx.magnet.guidance import GuidanceConfig, X0Guidance
 from troupe_onnx.magnet.live import LiveSettings, LiveStream, make_live_run
 from troupe_onnx.magnet.motion import (
-    FRAME_DIM, FRAME_LAYOUT, Clip, Stats, clip_from_frames, decode_tokens, encode_clip, frames_from_decoded, world_roots,
+    FRAME_DIM, FRAME_LAYOUT, Clip, Stats, anchor_frame, clip_from_frames, decode_tokens, encode_clip, frames_from_decoded,
+    key_tokens, overwrite_key_frames, world_roots,
 )
 from troupe_onnx.magnet.transforms import rotation_to_6d, to_9d
 from troupe_onnx.magnet.layout import BODY_JOINTS, DECODER_COND_DIM, ENCODER_COND_DIM, FRAMES_PER_TOKEN, POSE_DIM
@@ -246,7 +247,7 @@ def golden_sampling(task: str) -> Sampling:
     """Each task at golden size: 4 DDIM steps, 2 samples, guidance on (weights as released),
     lengths that give the AR and rolling loops more than one window."""
     guidance = GuidanceConfig(smoothing=X0Guidance(2.0, 0.0, 1.0), foot_skating=X0Guidance(2.0, 0.0, 1.0))
-    base = Sampling(task=task.removesuffix("_eta"), steps=4, samples=2, guidance=guidance, seed=5)
+    base = Sampling(task=task.removesuffix("_eta").removesuffix("_off_grid"), steps=4, samples=2, guidance=guidance, seed=5)
     per_task = {
         "joint": dict(subseq_len=4, ar_seq_stride=16, seq_len=96, root_mode="temporal_partner"),
         "joint_eta": dict(subseq_len=2, ar_seq_stride=16, seq_len=96, eta=1.0, root_mode="temporal",
@@ -255,6 +256,8 @@ def golden_sampling(task: str) -> Sampling:
         "motion_control_live": dict(subseq_len=4, ar_seq_stride=8, seq_len=96, samples=1, root_mode="temporal"),
         "partner_inpainting": dict(schedule="full_sequence", subseq_len=2, ar_seq_stride=32, seq_len=96),
         "inbetweening": dict(subseq_len=2, ar_seq_stride=4, seq_len=64, samples=1, keyframes=(0, 60), root_mode="temporal"),
+        "inbetweening_off_grid": dict(subseq_len=2, ar_seq_stride=4, seq_len=64, samples=2, keyframes=(0, 63),
+                                      root_mode="temporal"),
         "agentic_turn_taking": dict(subseq_len=4, ar_seq_stride=8, seq_len=80, root_mode="temporal"),
         "agentic_sync": dict(subseq_len=4, ar_seq_stride=8, seq_len=80, root_mode="temporal"),
         "pp2joint": dict(subseq_len=1, ar_seq_stride=8, seq_len=64),
@@ -282,12 +285,7 @@ def run_task(model: Magnet, stats: Stats, sampling: Sampling, name: str, clip: C
         fn = {"joint": T.joint, "agentic_turn_taking": T.agentic_turn_taking, "agentic_sync": T.agentic_sync}[sampling.task]
         return fn(run, context, mask)
     if sampling.task == "inbetweening":
-        keys = np.zeros((cfg.window, cfg.persons, cfg.token_dim), np.float32)
-        key_mask = np.zeros(cfg.window, bool)
-        for kf in sampling.keyframes:
-            key_tokens, _ = encode_clip(model.vqvae, clip.slice(kf, kf + FRAMES_PER_TOKEN), stats)
-            keys[kf // FRAMES_PER_TOKEN] = key_tokens[0]
-            key_mask[kf // FRAMES_PER_TOKEN] = True
+        keys, key_mask = key_tokens(model.vqvae, clip, sampling.keyframes, stats, cfg.window, lat)
         return T.inbetweening(run, keys, key_mask)
     span = min(clip.frames, sampling.seq_len) // FRAMES_PER_TOKEN * FRAMES_PER_TOKEN
     gt, _ = encode_clip(model.vqvae, clip.slice(0, span), stats)
@@ -338,7 +336,7 @@ def write_golden(exported, out_dir: Path):
     np.save(g / "tokens.npy", tokens)
     tasks = ["joint", "joint_eta"] if cfg.persons != 2 else [
         "joint", "joint_eta", "partner_prediction", "motion_control_live", "partner_inpainting", "inbetweening",
-        "agentic_turn_taking", "agentic_sync", "pp2joint"]
+        "inbetweening_off_grid", "agentic_turn_taking", "agentic_sync", "pp2joint"]
     index = {}
     betas = stats.normalize("betas", clip.betas)
     for name in tasks:
@@ -346,7 +344,11 @@ def write_golden(exported, out_dir: Path):
         draws = RecordingDraws(SeededDraws(sampling.seed))
         out = run_task(model, stats, sampling, name, clip, draws)
         decoded = decode_tokens(model.vqvae, out, betas, stats, cfg.vq.d_latent)
-        c = 0 if sampling.task == "inbetweening" else sampling.context_len
+        if sampling.task == "inbetweening":
+            keys, _ = key_tokens(model.vqvae, clip, sampling.keyframes, stats, cfg.window, cfg.vq.d_latent)
+            decoded = overwrite_key_frames(model.vqvae, decoded, out, keys, sampling.keyframes, betas, stats,
+                                           cfg.vq.d_latent)
+        c = anchor_frame(sampling.context_len)
         roots = world_roots(decoded, c, clip.world_canonical[c], clip.world_root)
         result = frames_from_decoded(decoded, roots, clip.betas)
         np.save(g / f"{name}_tokens.npy", np.ascontiguousarray(out, dtype=np.float32))

@@ -141,18 +141,71 @@ def decode_tokens(vqvae: "PoseVQVAE", x: np.ndarray, betas: np.ndarray, stats: S
     condition. x [S, T, P, D]; betas [P, 10] normalised."""
     import torch
 
-    s, t, p, _ = x.shape
-    tm1 = x[..., latent : latent + TOKEN_TRANSFORMS]
+    with torch.no_grad():
+        z = vqvae.quantizer.snap(torch.from_numpy(np.ascontiguousarray(x[..., :latent]))).numpy()
+    return _decode(vqvae, z, x[..., latent : latent + TOKEN_TRANSFORMS], betas, stats)
+
+
+def _decode(vqvae: "PoseVQVAE", z: np.ndarray, tm1: np.ndarray, betas: np.ndarray, stats: Stats) -> Decoded:
+    """Latents z [S, T, P, latent] (decoded as given) and the tokens' transitions tm1
+    [S, T, P, 36] (normalised) -> per frame, de-normalised."""
+    import torch
+
+    s, t, p, _ = z.shape
     cond = np.concatenate([np.broadcast_to(betas[None, None], (s, t, p, BETAS)), tm1], axis=-1)
     fold = lambda a: np.ascontiguousarray(a.transpose(0, 2, 1, 3).reshape(s * p, t, -1))  # noqa: E731
     with torch.no_grad():
-        z = vqvae.quantizer.snap(torch.from_numpy(fold(x[..., :latent])))
-        pose = vqvae.decode(z, torch.from_numpy(fold(cond))).numpy()  # [S*P, 4T, 135]
+        pose = vqvae.decode(torch.from_numpy(fold(z)), torch.from_numpy(fold(cond))).numpy()  # [S*P, 4T, 135]
     pose = pose.reshape(s, p, FRAMES_PER_TOKEN * t, -1).transpose(0, 2, 1, 3)
     body = stats.denormalize("body_joint_rotations", pose[..., : BODY_JOINTS * 6]).reshape(s, -1, p, BODY_JOINTS, 6)
     root = stats.denormalize("T_canonical_root", pose[..., BODY_JOINTS * 6 :])
     tm1_frames = tm1.reshape(s, t, p, FRAMES_PER_TOKEN, TRANSFORM).transpose(0, 1, 3, 2, 4).reshape(s, -1, p, TRANSFORM)
     return Decoded(body, root, stats.denormalize("T_canonical_tm1_canonical_t", tm1_frames))
+
+
+def key_tokens(vqvae: "PoseVQVAE", clip: Clip, keyframes, stats: Stats, window: int, latent: int):
+    """§5.0 step 2 for in-betweening: the window's key tokens [Tm, P, D] and their mask [Tm].
+    Key frame kf sets token kf // 4: its latent from frames kf..kf+3 encoded on their own, its
+    transforms from the token's own frames (the official code fills every token's transform
+    slices from the ground truth), so a key frame off the token grid (63) takes its latent from
+    frames 63-66 and its transforms from 60-63."""
+    keys, key_mask = None, np.zeros(window, bool)
+    for kf in keyframes:
+        tau = kf // FRAMES_PER_TOKEN
+        own, _ = encode_clip(vqvae, clip.slice(tau * FRAMES_PER_TOKEN, (tau + 1) * FRAMES_PER_TOKEN), stats)
+        at_key, _ = encode_clip(vqvae, clip.slice(kf, kf + FRAMES_PER_TOKEN), stats)
+        if keys is None:
+            keys = np.zeros((window,) + own.shape[1:], np.float32)
+        keys[tau] = own[0]
+        keys[tau, :, :latent] = at_key[0, :, :latent]
+        key_mask[tau] = True
+    return keys, key_mask
+
+
+def overwrite_key_frames(vqvae: "PoseVQVAE", decoded: Decoded, x: np.ndarray, keys: np.ndarray, keyframes,
+                         betas: np.ndarray, stats: Stats, latent: int) -> Decoded:
+    """§7.4: after the whole sequence is decoded, each key frame kf whose 4 frames the output
+    holds gets frames kf..kf+3 from its original key latent decoded on its own (one token, not
+    snapped: `decode_wo_quantize`), with the sampled token kf // 4's transitions as the
+    condition; body, canonical root and transitions are replaced. x [S, T, P, D] sampled,
+    keys [Tm, P, D] as `key_tokens` made them."""
+    s, t, p, _ = x.shape
+    body, root, tm1_t = decoded.body.copy(), decoded.canonical_root.copy(), decoded.tm1_t.copy()
+    for kf in keyframes:
+        if FRAMES_PER_TOKEN * t < kf + FRAMES_PER_TOKEN:
+            continue
+        tau = kf // FRAMES_PER_TOKEN
+        z = np.broadcast_to(keys[None, tau : tau + 1, :, :latent], (s, 1, p, latent))
+        one = _decode(vqvae, z, x[:, tau : tau + 1, :, latent : latent + TOKEN_TRANSFORMS], betas, stats)
+        frames = slice(kf, kf + FRAMES_PER_TOKEN)
+        body[:, frames], root[:, frames], tm1_t[:, frames] = one.body, one.canonical_root, one.tm1_t
+    return Decoded(body, root, tm1_t)
+
+
+def anchor_frame(context_len: int) -> int:
+    """§7.2: the frame the reference anchors every task's roots at, `context_seq_len` (4 when
+    that is 0); the frames before it are the input's."""
+    return context_len or FRAMES_PER_TOKEN
 
 
 def world_roots(decoded: Decoded, context_frames: int, anchor_world_canonical: np.ndarray,
