@@ -1502,6 +1502,52 @@ typedef struct troupe_clip_noise {
 } troupe_clip_noise;
 
 /**
+ * The settings of one `troupe_armflow_clip_generate_with_options` call. Fill with
+ * `troupe_armflow_clip_options_init` (the bundle's defaults), then change fields. Fields are
+ * only ever appended; `struct_size` tells the library which version the caller has.
+ */
+typedef struct troupe_armflow_clip_options {
+  /**
+   * `sizeof(troupe_armflow_clip_options)` as the caller compiled it (set by `_init`).
+   */
+  uint32_t struct_size;
+  /**
+   * MeanFlow steps per token, >= 1 (`_init`: the bundle's, 1 for the official models).
+   */
+  uint32_t steps;
+  /**
+   * Seed of the draws when no noise is given.
+   */
+  uint64_t seed;
+  /**
+   * Classifier-free guidance scale, finite; 1 disables guidance (`_init`: the bundle's
+   * `sampler.cfg_scale`, which the official sampler applies).
+   */
+  float cfg_scale;
+  /**
+   * Must be 0.
+   */
+  uint32_t reserved;
+} troupe_armflow_clip_options;
+
+/**
+ * `sizeof(troupe_armflow_clip_options)` in this library, for bindings to check their mirror.
+ */
+size_t troupe_armflow_clip_options_size(void);
+
+/**
+ * Fills `options` with `model`'s sampler settings (MeanFlow steps, CFG scale) and seed 0, and
+ * sets `struct_size`. Pass `sizeof(troupe_armflow_clip_options)` as `options_size`.
+ *
+ * Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (`options_size` smaller
+ * than the first version), `TROUPE_ERR_UNSUPPORTED` (not an `armflow` bundle). Thread-safe.
+ *
+ * # Safety
+ * `model` must be a live handle; `options` writable for `options_size` bytes.
+ */
+troupe_status troupe_armflow_clip_options_init(const struct troupe_model *model, struct troupe_armflow_clip_options *options, size_t options_size);
+
+/**
  * Tokens of the official clip of an `armflow` bundle exported from the official layout (75
  * InterHuman, 37 InterX); 0 for other bundles or NULL. Thread-safe.
  *
@@ -1511,16 +1557,19 @@ typedef struct troupe_clip_noise {
 size_t troupe_armflow_clip_tokens(const struct troupe_model *model);
 
 /**
- * Runs the official ARMFlow sampler on one actor clip and writes the reactor motion, row-major
- * float32 `[clip_frames][frame_dim]`, into `frames` (capacity `frames_capacity` floats), and,
- * when `reactor_latents` is not NULL, the reactor tokens `[clip_tokens][latent_dim]` into it
- * (capacity `latents_capacity` floats).
+ * Runs the official ARMFlow sampler on one actor clip with the bundle's settings (its MeanFlow
+ * steps when `steps` is 0, and its CFG scale, `sampler.cfg_scale`, as the official sampler
+ * applies it): `troupe_armflow_clip_generate_with_options` with `steps` and `seed` set and
+ * the rest of `troupe_armflow_clip_options_init`'s defaults. Writes the reactor motion,
+ * row-major float32 `[clip_frames][frame_dim]`, into `frames` (capacity `frames_capacity`
+ * floats), and, when `reactor_latents` is not NULL, the reactor tokens
+ * `[clip_tokens][latent_dim]` into it (capacity `latents_capacity` floats).
  *
  * `actor` holds `n_actor_frames` frames (1 to `troupe_model_clip_frames`), zero-padded to the
  * clip. `condition` holds `troupe_model_condition_dim` floats (NULL with `condition_len` 0:
- * the null condition). `steps` is the MeanFlow steps per token, 0 for the bundle's default.
- * `noise` NULL draws from `seed` (the draws a session with that seed makes for those tokens);
- * otherwise it supplies every draw. Inputs are borrowed for the call; nothing is written unless
+ * the null condition). `noise` NULL draws from `seed` (the draws a session with that seed
+ * makes for those tokens); otherwise it supplies every draw, the way to reproduce another
+ * implementation's run exactly. Inputs are borrowed for the call; nothing is written unless
  * the call succeeds.
  *
  * Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_UNSUPPORTED` (not an `armflow`
@@ -1536,6 +1585,30 @@ size_t troupe_armflow_clip_tokens(const struct troupe_model *model);
  * not NULL) for `latents_capacity`, neither overlapping an input.
  */
 troupe_status troupe_armflow_clip_generate(const struct troupe_model *model, const float *actor, size_t n_actor_frames, const float *condition, size_t condition_len, uint64_t seed, uint32_t steps, const struct troupe_clip_noise *noise, float *frames, size_t frames_capacity, float *reactor_latents, size_t latents_capacity);
+
+/**
+ * `troupe_armflow_clip_generate` with every setting of the sampler: `options` NULL takes the
+ * bundle's (`troupe_armflow_clip_options_init`). Guidance (`cfg_scale` other than 1) runs a
+ * null row beside each conditional one, the actor token and the context zeroed, and takes
+ * `u_null + cfg_scale * (u_cond - u_null)`, as the official sampler does.
+ *
+ * ```c
+ * troupe_armflow_clip_options opt;
+ * troupe_armflow_clip_options_init(model, &opt, sizeof opt);
+ * opt.cfg_scale = 2.0f;
+ * troupe_status st = troupe_armflow_clip_generate_with_options(model, &opt, actor, n, NULL, 0,
+ *                                                             NULL, frames, n_frames, NULL, 0);
+ * ```
+ *
+ * Returns what `troupe_armflow_clip_generate` returns, and `TROUPE_ERR_INVALID_ARG` for
+ * options out of range (0 steps, a non-finite or too large CFG scale, a non-zero `reserved`,
+ * a wrong `struct_size`). Thread-safe: any number of threads may generate on one model at
+ * once.
+ *
+ * # Safety
+ * As `troupe_armflow_clip_generate`; `options` NULL or readable for its `struct_size`.
+ */
+troupe_status troupe_armflow_clip_generate_with_options(const struct troupe_model *model, const struct troupe_armflow_clip_options *options, const float *actor, size_t n_actor_frames, const float *condition, size_t condition_len, const struct troupe_clip_noise *noise, float *frames, size_t frames_capacity, float *reactor_latents, size_t latents_capacity);
 
 /**
  * Turns an ARMFlow session's penetration guard on (`enabled` nonzero) or off, for the frames

@@ -52,9 +52,12 @@ fn golden_noise(config: &str, case: &str) -> ClipNoise {
     }
 }
 
-/// The text branch, then the clip loop on its condition, against the reference.
+/// The clip loop on `condition` with the golden case's draws, against the reference.
 fn check_clip(config: &str, case: &str, condition: Option<&[f32]>) {
-    let m = model(config);
+    check_clip_of(model(config), config, case, condition);
+}
+
+fn check_clip_of(m: &Model, config: &str, case: &str, condition: Option<&[f32]>) {
     let options = ClipOptions {
         noise: Some(golden_noise(config, case)),
         ..Default::default()
@@ -144,44 +147,92 @@ fn interx_pads_the_decoded_clip_by_repeating_the_last_frame() {
 #[test]
 fn stream_mode_with_lookahead_windows_matches_the_reference() {
     for config in CONFIGS {
-        let m = model(config);
-        let condition = g1(config, "text_condition").to_vec();
-        let mut session = m
-            .armflow()
-            .unwrap()
-            .reactor(ReactorOptions {
-                condition: Some(condition),
-                ..Default::default()
+        check_stream(model(config), config, "stream");
+    }
+}
+
+/// A session with the bundle's default options, on the `clip` golden's actor and text condition
+/// with the golden `case`'s draws, against the reference stream loop.
+fn check_stream(m: &Model, config: &str, case: &str) {
+    let condition = g1(config, "text_condition").to_vec();
+    let mut session = m
+        .armflow()
+        .unwrap()
+        .reactor(ReactorOptions {
+            condition: Some(condition),
+            ..Default::default()
+        })
+        .unwrap();
+    for (a, r) in g2(config, &format!("{case}_xi"))
+        .rows()
+        .into_iter()
+        .zip(g2(config, &format!("{case}_eps")).rows())
+    {
+        session
+            .queue_noise(TokenNoise {
+                actor: a.to_vec(),
+                reactor: r.to_vec(),
             })
             .unwrap();
-        for (a, r) in g2(config, "stream_xi")
-            .rows()
-            .into_iter()
-            .zip(g2(config, "stream_eps").rows())
-        {
-            session
-                .queue_noise(TokenNoise {
-                    actor: a.to_vec(),
-                    reactor: r.to_vec(),
-                })
-                .unwrap();
-        }
-        let actor = g2(config, "clip_actor");
-        let (mut frames, mut reactor) = (Vec::new(), Vec::new());
-        for chunk in actor.axis_chunks_iter(ndarray::Axis(0), 7) {
-            let out = session.step_detailed(chunk).unwrap();
-            frames.extend(out.frames.iter().copied());
-            reactor.extend(out.tokens.iter().flat_map(|t| t.reactor_latent.clone()));
-        }
-        let (fb, rb) = (
-            max_abs_diff(&frames, &flat(&g2(config, "stream_frames"))),
-            max_abs_diff(&reactor, &flat(&g2(config, "stream_reactor_latents"))),
-        );
-        println!("{config} stream: max-abs reactor latents {rb:.2e}, frames {fb:.2e}");
-        assert!(
-            rb <= LATENT_TOL && fb <= FRAME_TOL,
-            "{config} stream off: {rb} {fb}"
-        );
+    }
+    let actor = g2(config, "clip_actor");
+    let (mut frames, mut reactor) = (Vec::new(), Vec::new());
+    for chunk in actor.axis_chunks_iter(ndarray::Axis(0), 7) {
+        let out = session.step_detailed(chunk).unwrap();
+        frames.extend(out.frames.iter().copied());
+        reactor.extend(out.tokens.iter().flat_map(|t| t.reactor_latent.clone()));
+    }
+    let (fb, rb) = (
+        max_abs_diff(&frames, &flat(&g2(config, &format!("{case}_frames")))),
+        max_abs_diff(
+            &reactor,
+            &flat(&g2(config, &format!("{case}_reactor_latents"))),
+        ),
+    );
+    println!("{config} {case}: max-abs reactor latents {rb:.2e}, frames {fb:.2e}");
+    assert!(
+        rb <= LATENT_TOL && fb <= FRAME_TOL,
+        "{config} {case} off: {rb} {fb}"
+    );
+}
+
+/// A checkpoint saved with `mf.cfg_scale: 2` exports `sampler.cfg_scale: 2`; with no option
+/// given, the clip loop and the stream then guide as the official sampler does (a null row with
+/// the actor token and context zeroed, `u_null + 2 (u_cond - u_null)`), against the reference
+/// with guidance. The same scale given as an option on the unguided bundle gives the same clip.
+#[test]
+fn a_guided_checkpoint_guides_the_clip_and_the_stream() {
+    for config in CONFIGS {
+        let dir = common::copy_of_bundle(&format!("armflow-tiny-{config}"));
+        common::edit_manifest(dir.path(), |m| m["sampler"]["cfg_scale"] = 2.0.into());
+        let guided = Model::load(dir.path()).unwrap();
+        let condition = g1(config, "text_condition").to_vec();
+        check_clip_of(&guided, config, "clip_guided", Some(&condition));
+        check_stream(&guided, config, "stream_guided");
+        let asked = ClipOptions {
+            noise: Some(golden_noise(config, "clip_guided")),
+            cfg_scale: Some(2.0),
+            ..Default::default()
+        };
+        let actor = g2(config, "clip_guided_actor");
+        let by_option = model(config)
+            .armflow()
+            .unwrap()
+            .generate_clip(actor.view(), Some(&condition), &asked)
+            .unwrap();
+        let by_default = guided
+            .armflow()
+            .unwrap()
+            .generate_clip(
+                actor.view(),
+                Some(&condition),
+                &ClipOptions {
+                    noise: asked.noise.clone(),
+                    ..Default::default()
+                },
+            )
+            .unwrap();
+        assert_eq!(by_option.reactor_latents, by_default.reactor_latents);
     }
 }
 

@@ -247,6 +247,26 @@ def test_baked_in_guidance_turns_cfg_off_as_the_official_test_loop(official_chec
     assert m["sampler"]["cfg_scale"] == 1.0
 
 
+def test_the_notes_quote_the_checkpoints_own_values():
+    """What the exporter prints: each setting as the checkpoint writes it, and what troupe
+    derived from it (not the derived width or head count in the setting's place)."""
+    from troupe_onnx.armflow.hparams import config_from_checkpoint, hyper_parameters
+
+    preset = export.PRESETS["tiny-interhuman"]
+    hp = hyper_parameters(preset)
+    hp["vae"]["is_double"] = not hp["vae"]["is_double"]
+    hp["mf"]["text_encoder"]["clip_version"] = "ViT-B/32"
+    hp["mf"]["cfg_scale"], hp["mf"]["siloss"]["cfg_omega"] = 2.0, 1.0
+    cfg, notes = config_from_checkpoint(hp, preset)
+    text = "\n".join(notes)
+    assert f"vae.is_double = {hp['vae']['is_double']!r} from the checkpoint, so vae.encoder_width" in text, text
+    assert "mf.text_encoder.clip_version = 'ViT-B/32' from the checkpoint, so clip_layers = 12" in text, text
+    assert "mf.text_encoder.clip_version = 'ViT-B/32' from the checkpoint, so clip_heads = 8" in text, text
+    assert "= 2.0 from the checkpoint (the preset has cfg_scale = 1.0)" in text, text
+    assert (cfg.clip_layers, cfg.clip_heads, cfg.cfg_scale) == (12, 8, 2.0)
+    assert "= 256" not in text and "clip_version = 8" not in text, text
+
+
 def test_configurations_troupe_cannot_follow_are_refused_by_field(official_checkpoint, tmp_path):
     def edit(hp):
         hp["mf"]["text_encoder"]["is_intergen_clip"] = "easy"

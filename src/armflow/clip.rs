@@ -9,7 +9,10 @@
 //!    the context encoder with **no attention mask** (earlier tokens see later ones), and the
 //!    context is the output at the last position;
 //! 3. **one** noise token `eps` (the official `E[N-1]`) is used for every token:
-//!    `b_i = eps - u(eps, r = 0, t = 1)` (more MeanFlow steps follow the session's grid);
+//!    `b_i = eps - u(eps, r = 0, t = 1)` (more MeanFlow steps follow the session's grid); with
+//!    a CFG scale `s` other than 1 (a checkpoint saved with `mf.cfg_scale`, the manifest's
+//!    `sampler.cfg_scale`), `u = u_null + s * (u_cond - u_null)`, the null row with the actor
+//!    token and the context zeroed, as the official sampler guides;
 //! 4. all reactor tokens are decoded at once and padded to the clip length by repeating the
 //!    last frame (InterX's 37 tokens decode to 148 frames).
 //!
@@ -24,7 +27,7 @@ use super::spec::ClipSpec;
 use crate::shared::checks::{check_input, check_output};
 use crate::shared::error::{Error, Result};
 use crate::shared::graph::{f32_tensor, read_f32, stack_rows};
-use crate::shared::limits::check_steps;
+use crate::shared::limits::{check_cfg, check_steps};
 use crate::shared::noise::{fill_normals, STREAM_ACTOR_POSTERIOR, STREAM_REACTOR_NOISE};
 use crate::shared::progress;
 
@@ -51,6 +54,9 @@ pub struct ClipOptions {
     pub steps: Option<u32>,
     /// Injected draws; `None` draws from `seed`.
     pub noise: Option<ClipNoise>,
+    /// Classifier-free guidance scale; `None` takes the bundle's (`sampler.cfg_scale`, 1 for
+    /// the released models), as the official sampler does.
+    pub cfg_scale: Option<f32>,
 }
 
 /// What [`crate::Armflow::generate_clip`] returns.
@@ -109,6 +115,8 @@ impl Networks {
         }
         let steps = options.steps.unwrap_or(spec.sampler.steps);
         check_steps("clip steps", steps)?;
+        let cfg_scale = options.cfg_scale.unwrap_or(spec.sampler.cfg_scale);
+        check_cfg(cfg_scale)?;
         let mut padded = vec![0f32; clip.frames * d];
         for (dst, src) in padded.iter_mut().zip(actor.iter()) {
             *dst = *src;
@@ -148,7 +156,7 @@ impl Networks {
             let a = &actor_latents[i * lat..(i + 1) * lat];
             let mut z = noise.reactor_noise.clone();
             for k in 0..steps as usize {
-                let u = self.velocity(a, &z, &context, &[grid[k + 1]], &[grid[k]])?;
+                let u = self.guided_velocity(a, &z, &context, grid[k + 1], grid[k], cfg_scale)?;
                 let dt = grid[k] - grid[k + 1];
                 for (zv, uv) in z.iter_mut().zip(&u) {
                     *zv -= dt * uv;
@@ -178,6 +186,35 @@ impl Networks {
             reactor_latents: rows(reactor, lat).expect("whole tokens"),
             contexts: rows(contexts, c).expect("whole contexts"),
         })
+    }
+
+    /// `u(z, r, t)` for one token, guided when `scale` is not 1: the conditional and the null
+    /// row (actor token and context zeroed) in one call, `u_null + scale * (u_cond - u_null)`.
+    fn guided_velocity(
+        &self,
+        actor: &[f32],
+        z: &[f32],
+        context: &[f32],
+        r: f32,
+        t: f32,
+        scale: f32,
+    ) -> Result<Vec<f32>> {
+        if scale == 1.0 {
+            return self.velocity(actor, z, context, &[r], &[t]);
+        }
+        let (lat, c) = (actor.len(), context.len());
+        let mut actors = actor.to_vec();
+        actors.resize(2 * lat, 0.0);
+        let mut contexts = context.to_vec();
+        contexts.resize(2 * c, 0.0);
+        let noisy = [z, z].concat();
+        let u = self.velocity(&actors, &noisy, &contexts, &[r, r], &[t, t])?;
+        let (cond, null) = u.split_at(lat);
+        Ok(cond
+            .iter()
+            .zip(null)
+            .map(|(uc, un)| un + scale * (uc - un))
+            .collect())
     }
 
     fn require_clip(&self) -> Result<&ClipSpec> {

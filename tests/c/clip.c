@@ -151,6 +151,77 @@ int main(int argc, char **argv) {
     }
     CHECK(memcmp(out, again, n_frames * sizeof(float)) == 0);
 
+    {
+        /* every setting: _init gives the bundle's; a CFG scale of 2 (what a checkpoint saved
+         * with mf.cfg_scale 2 runs) equals the reference guided as the official sampler guides */
+        troupe_armflow_clip_options opt;
+        size_t n_xi = 0, n_eps = 0, n_lat_g = 0, n_frames_g = 0;
+        float *gxi = read_npy(dir, "clip_guided_xi", &n_xi), *geps = read_npy(dir, "clip_guided_eps", &n_eps);
+        float *glat = read_npy(dir, "clip_guided_reactor_latents", &n_lat_g);
+        float *gframes = read_npy(dir, "clip_guided_frames", &n_frames_g);
+        CHECK(gxi && geps && glat && gframes && n_xi == n_lat && n_eps == lat && n_lat_g == n_lat &&
+              n_frames_g == n_frames);
+        CHECK(troupe_armflow_clip_options_size() == sizeof opt);
+        EXPECT(troupe_armflow_clip_options_init(model, &opt, sizeof opt), TROUPE_OK);
+        CHECK(opt.struct_size == sizeof opt && opt.steps == 1 && opt.cfg_scale == 1.0f && opt.seed == 0 &&
+              opt.reserved == 0);
+        opt.seed = 3; /* the plain call's seeded clip, held in `out` */
+        EXPECT(troupe_armflow_clip_generate_with_options(model, &opt, actor, 200, NULL, 0, NULL, again, n_frames,
+                                                         NULL, 0),
+               TROUPE_OK);
+        CHECK(memcmp(out, again, n_frames * sizeof(float)) == 0);
+        if (gxi && geps && glat && gframes) {
+            noise.actor_posterior = gxi;
+            noise.reactor_noise = geps;
+            opt.cfg_scale = 2.0f;
+            EXPECT(troupe_armflow_clip_generate_with_options(model, &opt, actor, 200, condition, cdim, &noise, again,
+                                                             n_frames, latents, n_lat),
+                   TROUPE_OK);
+            printf("guided clip: reactor latents max-abs %.2e, frames %.2e vs the reference\n",
+                   (double)max_abs(latents, glat, n_lat), (double)max_abs(again, gframes, n_frames));
+            CHECK(max_abs(latents, glat, n_lat) <= 1e-5f);
+            CHECK(max_abs(again, gframes, n_frames) <= 1e-4f);
+            /* bad settings: refused with a message, nothing written */
+            memcpy(out, again, n_frames * sizeof(float));
+            opt.reserved = 1;
+            EXPECT(troupe_armflow_clip_generate_with_options(model, &opt, actor, 200, NULL, 0, NULL, again, n_frames,
+                                                             NULL, 0),
+                   TROUPE_ERR_INVALID_ARG);
+            CHECK(strstr(troupe_last_error_message(), "reserved") != NULL);
+            opt.reserved = 0;
+            opt.cfg_scale = NAN;
+            EXPECT(troupe_armflow_clip_generate_with_options(model, &opt, actor, 200, NULL, 0, NULL, again, n_frames,
+                                                             NULL, 0),
+                   TROUPE_ERR_INVALID_ARG);
+            opt.cfg_scale = 2.0f;
+            opt.steps = 0;
+            EXPECT(troupe_armflow_clip_generate_with_options(model, &opt, actor, 200, NULL, 0, NULL, again, n_frames,
+                                                             NULL, 0),
+                   TROUPE_ERR_INVALID_ARG);
+            opt.steps = 1;
+            opt.struct_size = 4;
+            EXPECT(troupe_armflow_clip_generate_with_options(model, &opt, actor, 200, NULL, 0, NULL, again, n_frames,
+                                                             NULL, 0),
+                   TROUPE_ERR_INVALID_ARG);
+            CHECK(memcmp(out, again, n_frames * sizeof(float)) == 0);
+            noise.actor_posterior = xi;
+            noise.reactor_noise = eps;
+        }
+        EXPECT(troupe_armflow_clip_options_init(NULL, &opt, sizeof opt), TROUPE_ERR_NULL_ARG);
+        EXPECT(troupe_armflow_clip_options_init(model, NULL, sizeof opt), TROUPE_ERR_NULL_ARG);
+        EXPECT(troupe_armflow_clip_options_init(model, &opt, 4), TROUPE_ERR_INVALID_ARG);
+        /* NULL options are the bundle's: the plain call's clip */
+        EXPECT(troupe_armflow_clip_generate_with_options(model, NULL, actor, 200, NULL, 0, NULL, again, n_frames,
+                                                         NULL, 0),
+               TROUPE_OK);
+        EXPECT(troupe_armflow_clip_generate(model, actor, 200, NULL, 0, 0, 0, NULL, out, n_frames, NULL, 0), TROUPE_OK);
+        CHECK(memcmp(out, again, n_frames * sizeof(float)) == 0);
+        free(gxi);
+        free(geps);
+        free(glat);
+        free(gframes);
+    }
+
     free(out);
     free(again);
     free(latents);

@@ -341,6 +341,23 @@ def test_official_clip_loop_and_text_branch_match_the_reference():
         m.encode_text(np.zeros((5, 7), np.float32), 0)
 
 
+def test_guided_clip_matches_the_reference_guided():
+    m = troupe.Model(OFFICIAL)
+    assert ctypes.sizeof(_native.ClipOptions) == _native.load().troupe_armflow_clip_options_size()
+    cond = official_golden("text_condition")
+    noise = (official_golden("clip_guided_xi"), official_golden("clip_guided_eps"))
+    motion, latents = m.generate_clip(official_golden("clip_guided_actor"), cond, noise=noise, return_latents=True,
+                                      cfg_scale=2.0)
+    assert np.abs(latents - official_golden("clip_guided_reactor_latents")).max() <= 1e-5
+    assert np.abs(motion - official_golden("clip_guided_frames")).max() <= 1e-4
+    unguided = m.generate_clip(official_golden("clip_guided_actor"), cond, noise=noise)
+    assert np.array_equal(unguided, m.generate_clip(official_golden("clip_guided_actor"), cond, noise=noise,
+                                                    cfg_scale=1.0))
+    assert np.abs(unguided - motion).max() > 1e-3
+    with pytest.raises(troupe.TroupeError, match="(?i)cfg"):
+        m.generate_clip(official_golden("clip_guided_actor"), cond, cfg_scale=float("nan"))
+
+
 def test_reduced_precision_graphs_are_listed(model):
     assert model.reduced_precision == {}
     with troupe.Model(REPO / "onnx" / "bundles" / "armflow-demo-int8") as int8:

@@ -193,7 +193,8 @@ class Model:
                            doc="tokens of an official ARMFlow clip (0 otherwise)")
 
     def generate_clip(self, actor, condition=None, seed: int = 0, steps: int = 0, noise=None,
-                      return_latents: bool = False, prompt: str | None = None):
+                      return_latents: bool = False, prompt: str | None = None,
+                      cfg_scale: float | None = None):
         """The official ARMFlow clip loop (an armflow bundle exported from the official layout):
         `actor` [frames, frame_dim] with 1..clip_frames frames, zero-padded to the clip.
         Returns the reactor motion [clip_frames, frame_dim] (and the reactor tokens
@@ -201,13 +202,22 @@ class Model:
 
         `condition`: condition_dim floats, or None for the null condition; or `prompt`, a text
         (see encode_prompt). `steps`: MeanFlow steps per token, 0 for the bundle's default.
-        `noise`: (actor_posterior [clip_tokens, latent_dim], reactor_noise [latent_dim])
-        replacing the seeded draws. Releases the GIL."""
+        `cfg_scale`: classifier-free guidance, None for the bundle's (`sampler.cfg_scale`, which
+        the official sampler applies; 1 is off). `noise`: (actor_posterior [clip_tokens,
+        latent_dim], reactor_noise [latent_dim]) replacing the seeded draws, the way to
+        reproduce another implementation's run exactly. Releases the GIL."""
         h = self._h()
         a = _floats(actor, "actor")
         if a.ndim != 2 or a.shape[1] != self.frame_dim:
             raise ValueError(f"actor must be [frames, {self.frame_dim}], got {list(a.shape)}")
         cond = self._condition_or_prompt(condition, prompt)
+        opt = _native.ClipOptions()
+        _check(_lib.troupe_armflow_clip_options_init(h, ctypes.byref(opt), ctypes.sizeof(opt)))
+        opt.seed = seed
+        if steps:
+            opt.steps = steps
+        if cfg_scale is not None:
+            opt.cfg_scale = cfg_scale
         noise_struct = None
         if noise is not None:
             # `arrays` stays alive until the call returns, so the struct's pointers stay valid.
@@ -215,10 +225,10 @@ class Model:
             noise_struct = _native.ClipNoise(*[v for x in arrays for v in (_ptr(x), x.size)])
         motion = np.empty((self.clip_frames, self.frame_dim), np.float32)
         latents = np.empty((self.clip_tokens, self.latent_dim), np.float32) if return_latents else None
-        _check(_lib.troupe_armflow_clip_generate(
-            h, _ptr(a), a.shape[0],
+        _check(_lib.troupe_armflow_clip_generate_with_options(
+            h, ctypes.byref(opt), _ptr(a), a.shape[0],
             None if cond is None else _ptr(cond), 0 if cond is None else cond.size,
-            seed, steps, None if noise_struct is None else ctypes.byref(noise_struct),
+            None if noise_struct is None else ctypes.byref(noise_struct),
             _ptr(motion), motion.size,
             None if latents is None else _ptr(latents), 0 if latents is None else latents.size))
         return (motion, latents) if return_latents else motion

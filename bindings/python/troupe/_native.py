@@ -124,6 +124,19 @@ class GroupNoise(ctypes.Structure):
     ]
 
 
+class ClipOptions(ctypes.Structure):
+    """Mirror of `troupe_armflow_clip_options` (checked against
+    troupe_armflow_clip_options_size())."""
+
+    _fields_ = [
+        ("struct_size", ctypes.c_uint32),
+        ("steps", ctypes.c_uint32),
+        ("seed", ctypes.c_uint64),
+        ("cfg_scale", ctypes.c_float),
+        ("reserved", ctypes.c_uint32),
+    ]
+
+
 class ClipNoise(ctypes.Structure):
     """Mirror of `troupe_clip_noise`."""
 
@@ -256,6 +269,11 @@ PROTOTYPES = {
                                         ctypes.POINTER(ctypes.c_uint8), f32p, c_size]),
     "troupe_armflow_clip_tokens": (c_size, [model_p]),
     "troupe_model_text_token_dim": (c_size, [model_p]),
+    "troupe_armflow_clip_options_size": (c_size, []),
+    "troupe_armflow_clip_options_init": (status, [model_p, ctypes.POINTER(ClipOptions), c_size]),
+    "troupe_armflow_clip_generate_with_options": (status, [
+        model_p, ctypes.POINTER(ClipOptions), f32p, c_size, f32p, c_size, ctypes.POINTER(ClipNoise),
+        f32p, c_size, f32p, c_size]),
     "troupe_armflow_clip_generate": (status, [
         model_p, f32p, c_size, f32p, c_size, ctypes.c_uint64, ctypes.c_uint32, ctypes.POINTER(ClipNoise),
         f32p, c_size, f32p, c_size]),

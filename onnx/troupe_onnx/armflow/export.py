@@ -494,6 +494,7 @@ def write_golden(model: Armflow, out_dir: Path, actor: np.ndarray | None = None)
     check_windows_match_full_clip(model, actor)
 
 
+GUIDED_SCALE = 2.0  # the CFG scale of the `clip_guided` and `stream_guided` goldens
 CLIP_TEXT_TOKENS, CLIP_EOT = 77, 9  # CLIP's context length; the end-of-text token of a short prompt
 
 
@@ -504,7 +505,9 @@ def write_clip_golden(model: Armflow, out_dir: Path):
     - `clip`: the official clip loop on a short actor (zero-padded to the clip length),
       conditioned on that text, with injected posterior noise and noise token;
     - `clip_null`: a full-length actor, null condition, other noise;
-    - `stream`: the stream loop with the bundle's windows (non-causal VAE, lookahead)."""
+    - `stream`: the stream loop with the bundle's windows (non-causal VAE, lookahead);
+    - `clip_guided`, `stream_guided`: the `clip` actor and text with classifier-free guidance
+      at scale 2 (what a checkpoint saved with `mf.cfg_scale: 2` runs), other noise."""
     cfg = model.cfg
     g = out_dir / "golden"
     g.mkdir(exist_ok=True)
@@ -534,6 +537,15 @@ def write_clip_golden(model: Armflow, out_dir: Path):
     eps = rng.standard_normal((tokens_stream, lat)).astype(np.float32)
     out = stream_reference(model, actor, xi, eps, StreamOptions(condition=condition), w)
     arrays |= {"stream_xi": xi, "stream_eps": eps} | {f"stream_{k}": v for k, v in out.items()}
+    xi = rng.standard_normal((n, lat)).astype(np.float32)
+    eps = rng.standard_normal(lat).astype(np.float32)
+    out = clip_reference(model, actor, xi, eps, condition, cfg_scale=GUIDED_SCALE)
+    arrays |= {"clip_guided_actor": actor, "clip_guided_xi": xi, "clip_guided_eps": eps}
+    arrays |= {f"clip_guided_{k}": v for k, v in out.items()}
+    xi = rng.standard_normal((tokens_stream, lat)).astype(np.float32)
+    eps = rng.standard_normal((tokens_stream, lat)).astype(np.float32)
+    out = stream_reference(model, actor, xi, eps, StreamOptions(condition=condition, cfg_scale=GUIDED_SCALE), w)
+    arrays |= {"stream_guided_xi": xi, "stream_guided_eps": eps} | {f"stream_guided_{k}": v for k, v in out.items()}
     for k, v in arrays.items():  # C order: the C ABI test reads them with a minimal reader
         np.save(g / f"{k}.npy", np.ascontiguousarray(v))
 

@@ -101,30 +101,34 @@ def config_from_checkpoint(hp: dict, preset: ArmflowConfig) -> tuple[ArmflowConf
         raise CheckpointError("the checkpoint's configuration selects what troupe does not implement:\n  " + "\n  ".join(problems))
     cfg, notes = preset, []
 
-    def take(path: str, field: str, value):
+    def take(path: str, field: str, value, given=_MISSING):
+        """Sets `field` to `value`, derived from the checkpoint's `path` (whose own value,
+        `given`, the note quotes when it differs from the derived one)."""
         nonlocal cfg
         if value is _MISSING:
             return
         old = _field(cfg, field)
         value = type(old)(value)
         if value != old:
-            notes.append(f"{path} = {value!r} from the checkpoint (the preset has {field} = {old!r})")
+            shown = value if given is _MISSING else given
+            derived = "" if given is _MISSING or given == value else f", so {field} = {value!r}"
+            notes.append(f"{path} = {shown!r} from the checkpoint{derived} (the preset has {field} = {old!r})")
             cfg = _replace(cfg, field, value)
 
     for path, field in COPIED.items():
         take(path, field, _get(hp, path))
     double = _get(hp, "vae.is_double")
     if double is not _MISSING:
-        take("vae.is_double", "vae.encoder_width", cfg.vae.decoder_width * (2 if double else 1))
+        take("vae.is_double", "vae.encoder_width", cfg.vae.decoder_width * (2 if double else 1), double)
     if version is not _MISSING:
         layers, heads = CLIP_TOWERS[version]
-        take("mf.text_encoder.clip_version", "clip_layers", layers)
-        take("mf.text_encoder.clip_version", "clip_heads", heads)
+        take("mf.text_encoder.clip_version", "clip_layers", layers, version)
+        take("mf.text_encoder.clip_version", "clip_heads", heads, version)
     # The official test loop forces guidance off when training baked it in (cfg_omega > 1).
     omega, scale = _get(hp, "mf.siloss.cfg_omega"), _get(hp, "mf.cfg_scale")
     if scale is not _MISSING:
-        take("mf.cfg_scale (1 when mf.siloss.cfg_omega > 1)", "cfg_scale",
-             1.0 if omega is not _MISSING and float(omega) > 1 else float(scale))
+        baked = omega is not _MISSING and float(omega) > 1
+        take("mf.cfg_scale (1 when mf.siloss.cfg_omega > 1)", "cfg_scale", 1.0 if baked else float(scale), scale)
     return cfg, notes
 
 

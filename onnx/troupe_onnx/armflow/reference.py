@@ -785,7 +785,8 @@ def clip_tokens(cfg: ArmflowConfig) -> int:
 
 @torch.no_grad()
 def clip_reference(model: Armflow, actor: np.ndarray, xi: np.ndarray, eps: np.ndarray,
-                   condition: np.ndarray | None, steps: int = 1, causal_context: bool = False):
+                   condition: np.ndarray | None, steps: int = 1, causal_context: bool = False,
+                   cfg_scale: float | None = None):
     """The official sampling loop: the actor clip zero-padded to the clip length and encoded
     once with the posterior sample `xi` [N, latent]; for every token the whole prefix
     [sos, (a_j || b_j) for j < i] re-run through the context encoder with no attention mask;
@@ -794,6 +795,10 @@ def clip_reference(model: Armflow, actor: np.ndarray, xi: np.ndarray, eps: np.nd
 
     `causal_context` swaps the unmasked prefix for the causal mask that stream mode's key/value
     cache implies (a measurement aid, not the official loop).
+
+    `cfg_scale` (default: the model's, `mf.cfg_scale` of a checkpoint) other than 1 guides as
+    the official sampler does: a null row with the actor token and the context zeroed,
+    `u = u_null + cfg_scale * (u_cond - u_null)`.
 
     Returns actor_latents, reactor_latents, contexts [N, *] and frames [clip_frames, D]."""
     cfg, core = model.cfg, model.armflow
@@ -805,6 +810,7 @@ def clip_reference(model: Armflow, actor: np.ndarray, xi: np.ndarray, eps: np.nd
     a = (mean + logvar.exp().pow(0.5) * torch.from_numpy(xi)[None]) * cfg.latent_scale  # [1, N, lat]
     modulation = core.arnet.modulation(condition_or_null(model, condition))
     grid = meanflow_grid(steps)
+    scale = cfg.cfg_scale if cfg_scale is None else cfg_scale
     e = torch.from_numpy(eps)[None]
     b_hist, c_hist = [], []
     for i in range(a.shape[1]):
@@ -821,7 +827,12 @@ def clip_reference(model: Armflow, actor: np.ndarray, xi: np.ndarray, eps: np.nd
         z = e
         for k in range(steps):
             t_hi, t_lo = grid[k], grid[k + 1]
-            z = z - np.float32(t_hi - t_lo) * core.velocity(a[:, i], z, c, torch.tensor([t_lo]), torch.tensor([t_hi]))
+            r_t = torch.tensor([t_lo]), torch.tensor([t_hi])
+            u = core.velocity(a[:, i], z, c, *r_t)
+            if scale != 1.0:
+                u_null = core.velocity(torch.zeros_like(a[:, i]), z, torch.zeros_like(c), *r_t)
+                u = u_null + scale * (u - u_null)
+            z = z - np.float32(t_hi - t_lo) * u
         b_hist.append(z[0])
         c_hist.append(c[0])
     b = torch.stack(b_hist)[None]
