@@ -2062,6 +2062,24 @@ troupe_status troupe_magnet_output_shape(const struct troupe_model *model, const
 troupe_status troupe_magnet_generate(const struct troupe_model *model, const char *config, const struct troupe_magnet_options *options, const float *frames, size_t frame_count, const uint8_t *present, float *out, size_t out_capacity);
 
 /**
+ * `troupe_magnet_generate` with the run's standard normals given instead of drawn: `draws`
+ * holds `draws_len` normals (borrowed for the call), and each draw the sampler makes, in the
+ * order `docs/MAGNET.md` lists, takes the next ones it needs. This is how a run of another
+ * implementation (the official code, with its random draws recorded) is reproduced exactly.
+ * `*draws_used` (when not NULL) receives how many it took; a run that needs more than given
+ * fails with `TROUPE_ERR_INVALID_ARG`, naming the draw. Nothing is written unless the call
+ * succeeds.
+ *
+ * Returns what `troupe_magnet_generate` returns. Thread-safe: any number of threads may
+ * generate on one model at once.
+ *
+ * # Safety
+ * As `troupe_magnet_generate`; `draws` readable for `draws_len` floats; `draws_used` NULL or
+ * writable.
+ */
+troupe_status troupe_magnet_generate_with_draws(const struct troupe_model *model, const char *config, const struct troupe_magnet_options *options, const float *frames, size_t frame_count, const uint8_t *present, const float *draws, size_t draws_len, size_t *draws_used, float *out, size_t out_capacity);
+
+/**
  * Sets the partner's opening frames of a MAGNet live partner session: `n_frames` frames
  * (the configuration's context, `4 * context_capacity`) of `troupe_model_frame_dim` floats,
  * row-major, borrowed for the call; kept across resets. A stream needs them before the user's
@@ -2221,6 +2239,23 @@ troupe_status troupe_arflow_options_init(const struct troupe_model *model, struc
  * and not overlapping `actor`.
  */
 troupe_status troupe_arflow_generate(const struct troupe_model *model, const struct troupe_arflow_options *options, const float *actor, size_t n_frames, float *out, size_t out_capacity_frames);
+
+/**
+ * `troupe_arflow_generate` with the run's standard normals given instead of drawn from the
+ * seed: `draws` holds `draws_len` normals (borrowed for the call), and each draw (the start
+ * noise when σ > 0, then one ε per step when η > 0, each `n_frames * 262` normals) takes the
+ * next ones, as another implementation's recorded draws are replayed. `*draws_used` (when
+ * not NULL) receives how many it took; a run that needs more than given fails with
+ * `TROUPE_ERR_INVALID_ARG`, naming the draw. Nothing is written unless the call succeeds.
+ *
+ * Returns what `troupe_arflow_generate` returns. Thread-safe: any number of threads may
+ * generate on one model at once.
+ *
+ * # Safety
+ * As `troupe_arflow_generate`; `draws` readable for `draws_len` floats; `draws_used` NULL or
+ * writable.
+ */
+troupe_status troupe_arflow_generate_with_draws(const struct troupe_model *model, const struct troupe_arflow_options *options, const float *actor, size_t n_frames, const float *draws, size_t draws_len, size_t *draws_used, float *out, size_t out_capacity_frames);
 
 /**
  * Sets an ARFlow stream's sampler settings (`options`, filled by `troupe_arflow_options_init`;

@@ -410,3 +410,60 @@ fn arflow_streams_refuse_what_they_cannot_do() {
     s.reset();
     assert_eq!(s.frames_received(), 0);
 }
+
+/// The run's normals given as one queue (what C and Python pass to replay another
+/// implementation's draws): the seed's own normals, queued in the sampler's order (the start
+/// noise when σ > 0, then one ε per step when η > 0), give the seeded run bit for bit; a queue
+/// that runs short, or holds a NaN, is refused naming the draw.
+#[test]
+fn injected_normals_replay_a_seeded_run_exactly() {
+    let golden = bundle("arflow-tiny").join("golden");
+    let actor: Array2<f32> = read_npy(golden.join("actor.npy")).unwrap();
+    let model = Model::load(bundle("arflow-tiny")).unwrap();
+    let arflow = model.arflow().unwrap();
+    let options = ArflowOptions {
+        steps: Some(3),
+        eta: Some(0.5),
+        sigma: Some(0.1),
+        seed: 7,
+        ..Default::default()
+    };
+    let seeded = arflow.generate(actor.view(), &options).unwrap();
+    let n = actor.len();
+    let stream = troupe::arflow::spec::STREAM_ARFLOW;
+    let mut queue = vec![0f32; 4 * n];
+    for (draw, chunk) in queue.chunks_mut(n).enumerate() {
+        troupe::noise::fill_normals(7, draw as u64, stream, chunk);
+    }
+    let (replayed, used) = arflow
+        .generate_with_normals(actor.view(), &options, &queue)
+        .unwrap();
+    assert_eq!(used, 4 * n);
+    assert_eq!(replayed, seeded);
+    let err = arflow
+        .generate_with_normals(actor.view(), &options, &queue[..3 * n + 5])
+        .unwrap_err()
+        .to_string();
+    assert!(
+        err.contains(&format!("draw 3 needs {n} normals, and 5 of the")),
+        "{err}"
+    );
+    queue[n + 2] = f32::NAN;
+    let err = arflow
+        .generate_with_normals(actor.view(), &options, &queue)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        err.contains(&format!("injected normal {} is not finite", n + 2)),
+        "{err}"
+    );
+    // Deterministic settings draw nothing: an empty queue is all they need.
+    let plain = ArflowOptions::default();
+    let (out, used) = arflow
+        .generate_with_normals(actor.view(), &plain, &[])
+        .unwrap();
+    assert_eq!(
+        (out, used),
+        (arflow.generate(actor.view(), &plain).unwrap(), 0)
+    );
+}

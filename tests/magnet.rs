@@ -342,3 +342,100 @@ fn a_generation_reports_progress_and_can_be_cancelled() {
     .expect_err("cancelled");
     assert!(matches!(e, troupe::Error::Cancelled(_)), "{e}");
 }
+
+/// The seed's own normals for `config`, queued in the sampler's order: each draw's size is read
+/// from the refusal of a queue that stops short of it (the sizes are §3.5's, which a caller
+/// replaying a recorded run already has).
+fn seeded_normals(
+    model: &Model,
+    config: &str,
+    frames: &Array3<f32>,
+    options: &MagnetOptions,
+) -> Vec<f32> {
+    let seed = options.seed.expect("a seeded run");
+    let mut queue = Vec::new();
+    for draw in 0.. {
+        let probe = MagnetOptions {
+            normals: Some(queue.clone()),
+            ..options.clone()
+        };
+        let Err(e) = model
+            .magnet()
+            .unwrap()
+            .generate(config, frames.view(), None, &probe)
+        else {
+            return queue;
+        };
+        let e = e.to_string();
+        let needs = format!("draw {draw} needs ");
+        let at = e.find(&needs).unwrap_or_else(|| panic!("{e}")) + needs.len();
+        let n: usize = e[at..].split(' ').next().unwrap().parse().unwrap();
+        let mut normals = vec![0f32; n];
+        troupe::noise::fill_normals(seed, draw, troupe::magnet::STREAM_MAGNET, &mut normals);
+        queue.extend(normals);
+    }
+    unreachable!()
+}
+
+/// The run's normals as one queue (what C and Python give to replay another implementation's
+/// draws): the seed's own normals give the seeded run bit for bit, every one of them used; a
+/// queue that runs short or holds a NaN is refused naming the draw, and draws given both ways
+/// are refused.
+#[test]
+fn injected_normals_replay_a_seeded_run_exactly() {
+    let (model, frames) = tiny();
+    let magnet = model.magnet().unwrap();
+    for config in ["dd100", "dd100_inbetweening"] {
+        let mut options = MagnetOptions {
+            seed: Some(4),
+            ..quick()
+        };
+        if config == "dd100_inbetweening" {
+            options.keyframes = Some(vec![0, 63]);
+            options.without_x0_guidance = false;
+        }
+        let seeded = magnet
+            .generate(config, frames.view(), None, &options)
+            .unwrap();
+        let queue = seeded_normals(&model, config, &frames, &options);
+        let replay = MagnetOptions {
+            normals: Some(queue.clone()),
+            ..options.clone()
+        };
+        let replayed = magnet
+            .generate(config, frames.view(), None, &replay)
+            .unwrap();
+        assert_eq!(replayed.tokens, seeded.tokens, "{config}");
+        assert_eq!(replayed.frames, seeded.frames, "{config}");
+        assert_eq!(
+            (replayed.draws, replayed.normals_used),
+            (seeded.draws, queue.len()),
+            "{config}"
+        );
+        let mut bad = queue.clone();
+        bad[3] = f32::NAN;
+        let e = magnet
+            .generate(
+                config,
+                frames.view(),
+                None,
+                &MagnetOptions {
+                    normals: Some(bad),
+                    ..options.clone()
+                },
+            )
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("injected normal 3 is not finite"), "{e}");
+    }
+    let both = MagnetOptions {
+        normals: Some(vec![0.0; 4]),
+        draws: Some(vec![vec![0.0; 4]]),
+        ..quick()
+    };
+    let e = magnet
+        .generate("dd100", frames.view(), None, &both)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("not both"), "{e}");
+}

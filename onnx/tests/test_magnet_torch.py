@@ -150,6 +150,38 @@ def test_unsupported_or_broken_configs_are_refused_by_field(tmp_path, edit, expe
     assert expected in str(e.value)
 
 
+def test_omegaconf_path_tags_are_read_as_plain_paths(tmp_path):
+    """omegaconf 2.3/2.4 writes `Path` fields as `!!python/object/apply:pathlib.PosixPath` over
+    the path's parts, which `yaml.safe_load` refuses: they load as the paths they name."""
+    import pathlib
+
+    folder = release(tmp_path)
+    path = folder.parent / "config.yaml"
+    cfg = yaml.safe_load(path.read_text())
+    cfg["vqvae_model_path"] = pathlib.PosixPath(cfg["vqvae_model_path"])
+    cfg["mean_std_path"] = pathlib.PosixPath(tmp_path.resolve() / cfg["mean_std_path"])  # absolute: "/" a part
+    text = yaml.dump(cfg)  # the full dumper, as omegaconf's: the pickled form of PosixPath
+    assert "!!python/object/apply:pathlib.PosixPath" in text
+    path.write_text(text)
+    model, stats, config = load_release(folder, export.PRESETS["tiny"])
+    assert config["vqvae_model_path"] == str(cfg["vqvae_model_path"])
+    assert config["mean_std_path"] == str(cfg["mean_std_path"])
+
+
+@pytest.mark.parametrize("hostile", [
+    "!!python/object/apply:os.system ['echo owned']",
+    "!!python/object/apply:pathlib.PosixPath [[1, 2]]",
+    "!!python/object/apply:pathlib.Thing ['a']",
+    "!!python/object/new:pathlib.PosixPath ['a']",
+])
+def test_other_python_tags_are_still_refused(tmp_path, hostile):
+    folder = release(tmp_path)
+    path = folder.parent / "config.yaml"
+    path.write_text(path.read_text() + f"extra: {hostile}\n")
+    with pytest.raises(CheckpointError, match="not readable YAML"):
+        load_release(folder, export.PRESETS["tiny"])
+
+
 def test_vq_config_that_the_exporter_cannot_follow_is_refused(tmp_path):
     folder = release(tmp_path)
     vq_config = next((tmp_path / "checkpoints" / "vqvae").rglob("config.yaml"))
@@ -177,3 +209,32 @@ def test_committed_graphs_run_in_onnxruntime_as_torch(bundle, preset):
     specs = json.loads((BUNDLES / bundle / "troupe.json").read_text())["graphs"]
     errors = export.validate_graphs(model, BUNDLES / bundle, specs)
     assert max(errors.values()) <= export.MAX_ABS_ERROR
+
+
+class _Float32Drift(torch.nn.Module):
+    """`inner`, but 2 % of its largest value off whenever it runs in float32: a torch float32
+    forward far from float64, as one of a DD100-size checkpoint was found to be."""
+
+    def __init__(self, inner, also_float64=False):
+        super().__init__()
+        self.inner, self.also_float64 = inner, also_float64
+
+    def forward(self, *args):
+        out = self.inner(*args)
+        if out.dtype == torch.float32 or self.also_float64:
+            out = out + 0.02 * out.abs().max()
+        return out
+
+
+def test_the_export_check_compares_with_float64_not_torch_float32():
+    """A checkpoint whose torch float32 forward is far from float64 exports (onnxruntime is
+    compared with float64); a graph that is itself off is still refused."""
+    model, _, _ = export.build_model("tiny", 0)
+    specs = json.loads((BUNDLES / "magnet-tiny" / "troupe.json").read_text())["graphs"]
+    modules = export.graph_modules(model)
+    drifting = dict(modules, denoiser=_Float32Drift(modules["denoiser"]))
+    errors = export.validate_graphs(model, BUNDLES / "magnet-tiny", specs, drifting)
+    assert errors["denoiser"] <= export.MAX_ABS_ERROR
+    wrong = dict(modules, denoiser=_Float32Drift(modules["denoiser"], also_float64=True))
+    with pytest.raises(RuntimeError, match="denoiser: onnxruntime differs from torch"):
+        export.validate_graphs(model, BUNDLES / "magnet-tiny", specs, wrong)

@@ -13,6 +13,7 @@ use crate::arflow::spec::ArflowSpec;
 use crate::arflow::stream::OnlineStream;
 use crate::shared::error::Result;
 use crate::shared::family::{family_as, Family, SessionOptions, StreamOptions};
+use crate::shared::noise::NormalSource;
 use crate::shared::stream::Session;
 
 /// A loaded `arflow` bundle. Cheap to clone; clones and streams share its graphs.
@@ -45,7 +46,25 @@ impl Arflow {
     /// of the result depends only on the actor's frames up to `n`.
     pub fn generate(&self, actor: ArrayView2<f32>, options: &ArflowOptions) -> Result<Array2<f32>> {
         let sampling = options.apply(&self.nets.spec.sampler)?;
-        sampler::generate(&self.nets, actor, &sampling, options.seed)
+        let mut normals = NormalSource::seeded(options.seed, sampling.stream);
+        sampler::generate(&self.nets, actor, &sampling, &mut normals)
+    }
+
+    /// [`Arflow::generate`] with the run's standard normals given instead of drawn from the
+    /// seed: each draw (the start noise when σ > 0, then one ε per step when η > 0, each
+    /// `T * 262` normals) takes the next ones from `normals`, as another implementation's
+    /// recorded draws would be replayed. Returns the reactor and how many normals it took; a
+    /// run that needs more than given is an error naming the draw.
+    pub fn generate_with_normals(
+        &self,
+        actor: ArrayView2<f32>,
+        options: &ArflowOptions,
+        normals: &[f32],
+    ) -> Result<(Array2<f32>, usize)> {
+        let sampling = options.apply(&self.nets.spec.sampler)?;
+        let mut queue = NormalSource::queue(normals);
+        let reactor = sampler::generate(&self.nets, actor, &sampling, &mut queue)?;
+        Ok((reactor, queue.used()))
     }
 
     /// Starts the online variant's stream: the bundle's sampler settings changed by `options`

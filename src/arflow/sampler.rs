@@ -29,7 +29,7 @@ use crate::motion::penetration::{Hinge, PenetrationLoss};
 use crate::motion::vec3::Vec3;
 use crate::shared::checks::check_frames;
 use crate::shared::error::{Error, Result};
-use crate::shared::noise::fill_normals;
+use crate::shared::noise::NormalSource;
 use crate::shared::progress;
 
 /// Changes to the bundle's sampler settings for one call; `None` keeps the bundle's.
@@ -210,7 +210,7 @@ pub(crate) fn generate(
     nets: &Networks,
     actor: ArrayView2<f32>,
     s: &ArflowSampling,
-    seed: u64,
+    normals: &mut NormalSource,
 ) -> Result<Array2<f32>> {
     let m = &nets.spec.model;
     let (frames, dim) = actor.dim();
@@ -238,7 +238,7 @@ pub(crate) fn generate(
             .index_axis_move(Axis(0), 0))
     };
     let norm = &nets.spec.normalizer;
-    sample(&mut denoise, raw.view(), &norm.mean, &norm.std, s, seed)
+    sample(&mut denoise, raw.view(), &norm.mean, &norm.std, s, normals)
 }
 
 /// The sampler's loop over any network (`denoise`), on checked input.
@@ -248,7 +248,7 @@ pub(crate) fn sample(
     mean: &[f32],
     std: &[f32],
     s: &ArflowSampling,
-    seed: u64,
+    normals: &mut NormalSource,
 ) -> Result<Array2<f32>> {
     let mut a = raw.to_owned();
     for mut row in a.outer_iter_mut() {
@@ -257,23 +257,20 @@ pub(crate) fn sample(
         }
     }
     let loss = loss_of(s);
-    let mut draw = 0u64;
-    let mut normals = |n: usize| {
-        let mut out = vec![0f32; n];
-        fill_normals(seed, draw, s.stream, &mut out);
-        draw += 1;
-        out
-    };
     let mut x = a.clone();
     if s.sigma > 0.0 {
-        let eps = normals(x.len());
+        let eps = normals.draw(x.len())?;
         x.iter_mut().zip(&eps).for_each(|(v, e)| *v += s.sigma * e);
     }
     let steps = s.steps;
     for step in 0..steps {
         let (t, t_next) = times(step, steps);
         let x1 = denoise(x.view(), t)?;
-        let eps = (s.eta > 0.0).then(|| normals(x.len()));
+        let eps = if s.eta > 0.0 {
+            Some(normals.draw(x.len())?)
+        } else {
+            None
+        };
         euler_step(
             &mut x,
             &x1,
@@ -346,7 +343,8 @@ mod tests {
     fn without_guidance_reweighting_or_noise_it_is_eulers_step() {
         let (mean, std) = unit();
         let a = actor();
-        let got = sample(&mut stub, a.view(), &mean, &std, &settings(), 0).unwrap();
+        let mut normals = NormalSource::seeded(0, STREAM_ARFLOW);
+        let got = sample(&mut stub, a.view(), &mean, &std, &settings(), &mut normals).unwrap();
         // Eq. 9, written out independently.
         let mut x = a.clone();
         let m = 5;
@@ -370,7 +368,8 @@ mod tests {
         s.eta = 0.1;
         s.mixing = Mixing::VariancePreserving;
         let seed = 11;
-        let got = sample(&mut stub, a.view(), &mean, &std, &s, seed).unwrap();
+        let mut normals = NormalSource::seeded(seed, s.stream);
+        let got = sample(&mut stub, a.view(), &mean, &std, &s, &mut normals).unwrap();
         let loss = PenetrationLoss {
             d_safe: 0.02,
             hinge: Hinge::Linear,
@@ -389,7 +388,7 @@ mod tests {
             let x0w = &x0 * 0.7 + &a * 0.3;
             let v = &x1g - &x0w;
             let mut eps = vec![0f32; x.len()];
-            fill_normals(seed, step, STREAM_ARFLOW, &mut eps);
+            crate::shared::noise::fill_normals(seed, step, STREAM_ARFLOW, &mut eps);
             let eps = Array2::from_shape_vec(x.raw_dim(), eps).unwrap();
             let d = &v * (1.0f32 - 0.01).sqrt() + &eps * 0.1;
             x = &x1g - &(&d * (1.0 - tn));

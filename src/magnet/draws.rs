@@ -1,10 +1,11 @@
 //! Where MAGNet's samplers get their standard normals, in the order of
 //! `docs/spec/magnet.md` §3.5: troupe's portable generator (draw `i` of a run is the Philox
 //! normals of token `i` on stream [`STREAM_MAGNET`], so every language and platform draws the
-//! same), or the caller's own draws, injected in order (for parity with another generator).
+//! same), or the caller's own draws, injected in order (for parity with another generator):
+//! each draw given whole, or one queue of normals from which each draw takes the next `n`.
 
 use crate::shared::error::{Error, Result};
-use crate::shared::noise::fill_normals;
+use crate::shared::noise::{fill_normals, NormalSource};
 
 /// troupe's Philox stream for MAGNet's draws.
 pub const STREAM_MAGNET: u32 = 8;
@@ -26,6 +27,15 @@ pub enum Draws {
         /// Draws used so far.
         count: usize,
     },
+    /// The caller's normals as one queue: each draw takes the next `n` (what C and Python give).
+    Queue {
+        /// The normals, in the order of §3.5.
+        normals: Vec<f32>,
+        /// Normals taken so far.
+        used: usize,
+        /// Draws made so far.
+        count: usize,
+    },
     /// Independent runs stacked along the sample axis (a crowd of live sessions): every draw is
     /// `[S, ...]`, and run `i`'s share (its samples) comes from its own draws.
     PerRun(Vec<Draws>),
@@ -42,11 +52,20 @@ impl Draws {
         Draws::Injected { draws, count: 0 }
     }
 
+    /// The caller's normals, taken in order.
+    pub fn queue(normals: Vec<f32>) -> Self {
+        Draws::Queue {
+            normals,
+            used: 0,
+            count: 0,
+        }
+    }
+
     /// Draws made so far.
     pub fn count(&self) -> usize {
         match self {
             Draws::Seeded { count, .. } => *count as usize,
-            Draws::Injected { count, .. } => *count,
+            Draws::Injected { count, .. } | Draws::Queue { count, .. } => *count,
             Draws::PerRun(runs) => runs.iter().map(Draws::count).max().unwrap_or(0),
         }
     }
@@ -81,6 +100,21 @@ impl Draws {
                 }
                 *count += 1;
                 Ok(draw.clone())
+            }
+            Draws::Queue {
+                normals,
+                used,
+                count,
+            } => {
+                let mut queue = NormalSource::Queue {
+                    normals,
+                    used: *used,
+                    draws: *count,
+                };
+                let draw = queue.draw(n)?;
+                *used = queue.used();
+                *count += 1;
+                Ok(draw)
             }
             Draws::PerRun(runs) => {
                 let share = n / runs.len().max(1);

@@ -7,8 +7,10 @@ use std::sync::Arc;
 
 use ndarray::{ArrayView2, ArrayView3};
 
+use crate::magnet::draws::Draws;
 use crate::magnet::generate::{
-    configuration, default_live_config, generate, output_shape, MagnetOptions, MagnetOutput,
+    configuration, default_live_config, generate, injected_draws, output_shape, MagnetOptions,
+    MagnetOutput,
 };
 use crate::magnet::layout::FRAMES_PER_TOKEN;
 use crate::magnet::live::{check_persons, LivePartner, LiveSettings};
@@ -81,7 +83,7 @@ impl Magnet {
         options: &MagnetOptions,
     ) -> Result<MagnetOutput> {
         let cfg = configuration(&self.nets, config, options)?;
-        generate(&self.nets, cfg, frames, mask, options.draws.clone())
+        generate(&self.nets, cfg, frames, mask, injected_draws(options)?)
     }
 
     /// [`Magnet::generate`] with a configuration of the caller's (checked as the manifest's
@@ -94,7 +96,13 @@ impl Magnet {
         mask: Option<ArrayView2<bool>>,
         draws: Option<Vec<Vec<f32>>>,
     ) -> Result<MagnetOutput> {
-        generate(&self.nets, sampling.clone(), frames, mask, draws)
+        generate(
+            &self.nets,
+            sampling.clone(),
+            frames,
+            mask,
+            draws.map(Draws::injected),
+        )
     }
 
     /// The shape `[S, F, P, 145]` of the frames [`Magnet::generate`] returns for

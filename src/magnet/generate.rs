@@ -14,6 +14,18 @@ use crate::shared::checks::check_input;
 use crate::shared::error::{Error, Result};
 use crate::shared::limits::{at_most, LIMITS};
 
+/// The injected draws `options` give, if any.
+pub(crate) fn injected_draws(options: &MagnetOptions) -> Result<Option<Draws>> {
+    match (&options.draws, &options.normals) {
+        (Some(_), Some(_)) => Err(Error::InvalidOption(
+            "give the draws whole or as one queue of normals, not both".into(),
+        )),
+        (Some(draws), None) => Ok(Some(Draws::injected(draws.clone()))),
+        (None, Some(normals)) => Ok(Some(Draws::queue(normals.clone()))),
+        (None, None) => Ok(None),
+    }
+}
+
 /// Changes to a released configuration for one call; `None` keeps the configuration's value.
 #[derive(Debug, Clone, Default)]
 pub struct MagnetOptions {
@@ -37,6 +49,10 @@ pub struct MagnetOptions {
     pub keyframes: Option<Vec<usize>>,
     /// Every draw of the run, in the order of §3.5, instead of troupe's generator.
     pub draws: Option<Vec<Vec<f32>>>,
+    /// The run's standard normals as one queue instead of troupe's generator: each draw of
+    /// §3.5, in order, takes the next ones it needs (the form C and Python give; not with
+    /// `draws`).
+    pub normals: Option<Vec<f32>>,
 }
 
 /// What [`crate::Magnet::generate`] returns.
@@ -49,6 +65,8 @@ pub struct MagnetOutput {
     pub frames: Array4<f32>,
     /// The draws the run made.
     pub draws: usize,
+    /// The normals it took from [`MagnetOptions::normals`] (0 when none were given).
+    pub normals_used: usize,
 }
 
 /// The configuration `name` (a released one's name, or a whole configuration as JSON, the
@@ -151,7 +169,7 @@ pub(crate) fn generate(
     cfg: SamplingSpec,
     frames: ArrayView3<f32>,
     mask: Option<ArrayView2<bool>>,
-    draws: Option<Vec<Vec<f32>>>,
+    draws: Option<Draws>,
 ) -> Result<MagnetOutput> {
     let m = &nets.spec.model;
     let (f, p, width) = frames.dim();
@@ -188,7 +206,7 @@ pub(crate) fn generate(
     let mut run = Run {
         nets,
         schedule: &nets.schedule,
-        draws: draws.map_or_else(|| Draws::seeded(seed), Draws::injected),
+        draws: draws.unwrap_or_else(|| Draws::seeded(seed)),
         guidance: Guidance {
             nets,
             spec: &guidance_spec,
@@ -258,6 +276,10 @@ pub(crate) fn generate(
         }
     };
     let used = run.draws.count();
+    let normals_used = match run.draws {
+        Draws::Queue { used, .. } => used,
+        _ => 0,
+    };
     let mut decoded = motion::decode(nets, tokens.view(), betas.view())?;
     if let Some(keys) = key_frames {
         let keyframes = &run.cfg.keyframes;
@@ -278,6 +300,7 @@ pub(crate) fn generate(
         tokens: tokens.as_standard_layout().into_owned(),
         frames: frames_out,
         draws: used,
+        normals_used,
     })
 }
 

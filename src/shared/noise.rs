@@ -49,6 +49,100 @@ pub fn philox4x32_10(counter: [u32; 4], key: [u32; 2]) -> [u32; 4] {
     [c0, c1, c2, c3]
 }
 
+/// Where a sampler's standard normals come from, draw by draw: troupe's generator (draw `i` is
+/// token `i` of `stream` under `seed`), or the caller's normals as one queue, each draw taking
+/// the next `n` (how C and Python reproduce another implementation's run exactly).
+#[derive(Debug, Clone)]
+pub(crate) enum NormalSource<'a> {
+    /// troupe's generator.
+    Seeded {
+        /// The run's seed.
+        seed: u64,
+        /// The family's stream.
+        stream: u32,
+        /// Draws made so far (the next draw's token).
+        draws: u64,
+    },
+    /// The caller's normals.
+    Queue {
+        /// The normals, in the order the sampler draws.
+        normals: &'a [f32],
+        /// Normals taken so far.
+        used: usize,
+        /// Draws made so far.
+        draws: usize,
+    },
+}
+
+impl<'a> NormalSource<'a> {
+    /// troupe's generator on `stream` under `seed`.
+    pub(crate) fn seeded(seed: u64, stream: u32) -> Self {
+        NormalSource::Seeded {
+            seed,
+            stream,
+            draws: 0,
+        }
+    }
+
+    /// The caller's normals, taken in order.
+    pub(crate) fn queue(normals: &'a [f32]) -> Self {
+        NormalSource::Queue {
+            normals,
+            used: 0,
+            draws: 0,
+        }
+    }
+
+    /// The next draw: `n` standard normals. A queue with fewer left, or a non-finite one among
+    /// them, is an error naming the draw.
+    pub(crate) fn draw(&mut self, n: usize) -> crate::shared::error::Result<Vec<f32>> {
+        use crate::shared::error::Error;
+        match self {
+            NormalSource::Seeded {
+                seed,
+                stream,
+                draws,
+            } => {
+                let mut out = vec![0f32; n];
+                fill_normals(*seed, *draws, *stream, &mut out);
+                *draws += 1;
+                Ok(out)
+            }
+            NormalSource::Queue {
+                normals,
+                used,
+                draws,
+            } => {
+                let left = normals.len() - *used;
+                if left < n {
+                    return Err(Error::InvalidInput(format!(
+                        "draw {draws} needs {n} normals, and {left} of the {} injected are left",
+                        normals.len()
+                    )));
+                }
+                let out = &normals[*used..*used + n];
+                if let Some(at) = out.iter().position(|v| !v.is_finite()) {
+                    return Err(Error::InvalidInput(format!(
+                        "injected normal {} is not finite",
+                        *used + at
+                    )));
+                }
+                *used += n;
+                *draws += 1;
+                Ok(out.to_vec())
+            }
+        }
+    }
+
+    /// Normals taken from the queue (0 for the generator).
+    pub(crate) fn used(&self) -> usize {
+        match self {
+            NormalSource::Seeded { .. } => 0,
+            NormalSource::Queue { used, .. } => *used,
+        }
+    }
+}
+
 /// Fills `out` with the standard normals of `(seed, token, stream)`.
 pub fn fill_normals(seed: u64, token: u64, stream: u32, out: &mut [f32]) {
     let key = [seed as u32, (seed >> 32) as u32];

@@ -55,6 +55,35 @@ int main(int argc, char **argv) {
            (double)(max_abs(out, guided, n_actor) / max_value(guided, n_actor)));
     CHECK(max_abs(out, guided, n_actor) <= 1e-4f * max_value(guided, n_actor));
 
+    {
+        /* the run's normals given as one queue: the start noise (sigma > 0), then one eps per
+         * step (eta > 0), frames x 262 each, taken in that order; fewer are refused */
+        size_t each = n_actor, used = 0;
+        float *zeros = (float *)calloc(5 * each, sizeof *zeros), *again = (float *)malloc(n_actor * sizeof *again);
+        troupe_arflow_options noisy;
+        EXPECT(troupe_arflow_options_init(model, &noisy, sizeof noisy), TROUPE_OK);
+        noisy.steps = 3;
+        noisy.eta = 0.5f;
+        noisy.sigma = 0.1f;
+        EXPECT(troupe_arflow_generate_with_draws(model, &noisy, actor, frames, zeros, 5 * each, &used, out, frames),
+               TROUPE_OK);
+        CHECK(used == 4 * each);
+        EXPECT(troupe_arflow_generate_with_draws(model, &noisy, actor, frames, zeros, used, NULL, again, frames),
+               TROUPE_OK);
+        CHECK(memcmp(out, again, n_actor * sizeof *out) == 0);
+        EXPECT(troupe_arflow_generate(model, &noisy, actor, frames, again, frames), TROUPE_OK);
+        CHECK(memcmp(out, again, n_actor * sizeof *out) != 0); /* the seed's draws are not zeros */
+        again[0] = 12345.0f;
+        EXPECT(troupe_arflow_generate_with_draws(model, &noisy, actor, frames, zeros, used - 1, NULL, again, frames),
+               TROUPE_ERR_INVALID_ARG);
+        CHECK(strstr(troupe_last_error_message(), "draw 3 needs") != NULL);
+        EXPECT(troupe_arflow_generate_with_draws(model, &noisy, actor, frames, NULL, 3, NULL, again, frames),
+               TROUPE_ERR_NULL_ARG);
+        CHECK(again[0] == 12345.0f);
+        free(zeros);
+        free(again);
+    }
+
     /* bad input: a clear status, the output untouched */
     out[0] = 12345.0f;
     EXPECT(troupe_arflow_generate(NULL, &opt, actor, frames, out, frames), TROUPE_ERR_NULL_ARG);

@@ -145,6 +145,36 @@ int main(int argc, char **argv) {
         if (!isfinite(out[i])) break;
     CHECK(i == s * f * p * 145);
 
+    {
+        /* the run's normals given as one queue (all zero: any finite values are normals to the
+         * sampler): the call says how many it took; exactly that many replay it, fewer are
+         * refused naming the draw, and nothing is written then */
+        size_t big = (size_t)1 << 20, used = 0, used_again = 0, m = s * f * p * 145;
+        float *zeros = (float *)calloc(big, sizeof *zeros), *again = (float *)malloc(n * sizeof *again);
+        EXPECT(troupe_magnet_generate_with_draws(model, "dd100", &opt, frames, 128, NULL, zeros, big, &used, out, n),
+               TROUPE_OK);
+        CHECK(used > 0 && used < big);
+        EXPECT(troupe_magnet_generate_with_draws(model, "dd100", &opt, frames, 128, NULL, zeros, used, &used_again,
+                                                 again, n),
+               TROUPE_OK);
+        CHECK(used_again == used && memcmp(out, again, m * sizeof *out) == 0);
+        again[0] = 12345.0f;
+        EXPECT(troupe_magnet_generate_with_draws(model, "dd100", &opt, frames, 128, NULL, zeros, used - 1, NULL,
+                                                 again, n),
+               TROUPE_ERR_INVALID_ARG);
+        CHECK(strstr(troupe_last_error_message(), "needs") != NULL);
+        EXPECT(troupe_magnet_generate_with_draws(model, "dd100", &opt, frames, 128, NULL, NULL, 5, NULL, again, n),
+               TROUPE_ERR_NULL_ARG);
+        zeros[7] = NAN;
+        EXPECT(troupe_magnet_generate_with_draws(model, "dd100", &opt, frames, 128, NULL, zeros, used, NULL, again,
+                                                 n),
+               TROUPE_ERR_INVALID_ARG);
+        CHECK(strstr(troupe_last_error_message(), "injected normal 7 is not finite") != NULL);
+        CHECK(again[0] == 12345.0f);
+        free(zeros);
+        free(again);
+    }
+
     /* bad input: a clear status and message, the output untouched */
     out[0] = 12345.0f;
     EXPECT(troupe_magnet_generate(model, NULL, &opt, frames, 128, NULL, out, n), TROUPE_ERR_NULL_ARG);

@@ -574,6 +574,53 @@ def test_arflow_matches_the_reference_and_refuses_bad_input(model):
         model.arflow_generate(actor)
 
 
+def _philox_normals():
+    """troupe's generator in Python (onnx/troupe_onnx/shared/noise.py, numpy only), loaded by path."""
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("troupe_noise", REPO / "onnx" / "troupe_onnx" / "shared" / "noise.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module.philox_normals
+
+
+def test_arflow_injected_draws_replay_the_seeded_run():
+    """The seed's own normals, given as draws in the documented order (the start noise, then one
+    eps per step, T x 262 each), replay the seeded run exactly; draws the run does not take in
+    full are refused."""
+    actor = np.load(ARFLOW / "golden" / "actor.npy")
+    philox = _philox_normals()
+    with troupe.Model(ARFLOW) as arflow:
+        settings = dict(steps=3, eta=0.5, sigma=0.1)
+        seeded = arflow.arflow_generate(actor, seed=7, **settings)
+        draws = np.concatenate([philox(7, i, 9, actor.size) for i in range(4)]).astype(np.float32)
+        assert np.array_equal(arflow.arflow_generate(actor, draws=draws, **settings), seeded)
+        with pytest.raises(ValueError, match="took .* of the .* normals given"):
+            arflow.arflow_generate(actor, draws=np.concatenate([draws, draws[:5]]), **settings)
+        with pytest.raises(troupe.TroupeError, match="draw 3 needs"):
+            arflow.arflow_generate(actor, draws=draws[:-1], **settings)
+
+
+def test_magnet_injected_draws_replay_the_seeded_run(magnet):
+    """MAGNet's draws as one queue: the seed's normals, each draw's size read from the refusal
+    of a queue that stops short of it, replay the seeded run exactly."""
+    import re
+
+    frames = np.load(MAGNET / "golden" / "frames.npy")
+    philox = _philox_normals()
+    settings = dict(samples=1, steps=2, seq_len=64, seed=4, x0_guidance=False)
+    seeded = magnet.magnet_generate("dd100", frames, **settings)
+    draws = np.zeros(0, np.float32)
+    for draw in range(100):
+        try:
+            replayed = magnet.magnet_generate("dd100", frames, draws=draws, **settings)
+            break
+        except troupe.TroupeError as e:
+            n = int(re.search(rf"draw {draw} needs (\d+) normals", str(e)).group(1))
+            draws = np.concatenate([draws, philox(4, draw, 8, n)]).astype(np.float32)
+    assert np.array_equal(replayed, seeded)
+
+
 def test_penetration_metrics():
     from troupe import motion
 

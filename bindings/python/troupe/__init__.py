@@ -344,7 +344,8 @@ class Model:
 
     def magnet_generate(self, config, frames, present=None, samples: int | None = None,
                         steps: int | None = None, seq_len: int | None = None, seed: int | None = None,
-                        eta: float | None = None, x0_guidance: bool = True, keyframes=None) -> np.ndarray:
+                        eta: float | None = None, x0_guidance: bool = True, keyframes=None,
+                        draws=None) -> np.ndarray:
         """Runs a MAGNet sampling configuration on `frames` [F, people, 145] (per person and
         frame: betas, the 21 body joints' 6-D rotations, the root's pose in the world, y up) and
         returns the frames it generates, float32 [samples, frames, people, 145], every root in
@@ -354,7 +355,10 @@ class Model:
         of the manifest's `sampling` entries). `present`: [F, people] booleans (None: everyone).
         The other arguments change the configuration for this call (None keeps it);
         `x0_guidance=False` turns the decoder-space corrections off (three to five times
-        cheaper, not the released behaviour). Releases the GIL."""
+        cheaper, not the released behaviour). `draws`: the run's standard normals instead of
+        troupe's generator, one flat array from which each draw (in the order docs/MAGNET.md
+        lists) takes the next ones it needs, the way to replay another implementation's
+        recorded draws exactly; the run must take all of them. Releases the GIL."""
         import json
 
         name = (json.dumps(config) if isinstance(config, dict) else str(config)).encode("utf-8")
@@ -373,20 +377,29 @@ class Model:
             if mask.shape != data.shape[:2]:
                 raise ValueError(f"present must be {data.shape[:2]}, got {mask.shape}")
         out = np.empty((s.value, f.value, p.value, 145), np.float32)
-        _check(_lib.troupe_magnet_generate(
-            h, name, ctypes.byref(opt), _ptr(data), data.shape[0],
-            None if mask is None else mask.ctypes.data_as(ctypes.POINTER(ctypes.c_uint8)),
-            _ptr(out), out.size))
+        present_p = None if mask is None else mask.ctypes.data_as(ctypes.POINTER(ctypes.c_uint8))
+        if draws is None:
+            _check(_lib.troupe_magnet_generate(h, name, ctypes.byref(opt), _ptr(data), data.shape[0], present_p,
+                                               _ptr(out), out.size))
+            return out
+        normals, used = _normals(draws), ctypes.c_size_t()
+        _check(_lib.troupe_magnet_generate_with_draws(h, name, ctypes.byref(opt), _ptr(data), data.shape[0],
+                                                      present_p, _ptr(normals), normals.size, ctypes.byref(used),
+                                                      _ptr(out), out.size))
+        _all_used(used.value, normals.size)
         return out
 
     def arflow_generate(self, actor, seed: int = 0, steps: int | None = None, guidance: float | None = None,
                         weight: float | None = None, eta: float | None = None, d_safe: float | None = None,
                         sigma: float | None = None, squared: bool | None = None,
-                        guided_backprojection: bool | None = None, mixing: str | None = None) -> np.ndarray:
+                        guided_backprojection: bool | None = None, mixing: str | None = None,
+                        draws=None) -> np.ndarray:
         """ARFlow: the reactor's interhuman262 frames [T, 262] for the actor's (one world frame
         for both). Unset settings take the bundle's defaults (5 steps, guidance λ 2, weight w 0.7,
         η 0, d_safe 0.02 m, linear hinge, guided back-projection, `mixing` "linear"; see
-        docs/ARFLOW.md). Releases the GIL."""
+        docs/ARFLOW.md). `draws`: the run's standard normals instead of the seed's, one flat
+        array from which each draw (the start noise when σ > 0, then one ε per step when η > 0,
+        T × 262 each) takes the next ones; the run must take all of them. Releases the GIL."""
         a = _floats(actor, "actor")
         if a.ndim != 2 or a.shape[1] != 262:
             raise ValueError(f"actor must be [frames, 262], got {list(a.shape)}")
@@ -394,7 +407,13 @@ class Model:
         opt = _arflow_options(h, seed, steps, guidance, weight, eta, d_safe, sigma, squared,
                               guided_backprojection, mixing)
         out = np.empty_like(a)
-        _check(_lib.troupe_arflow_generate(h, ctypes.byref(opt), _ptr(a), a.shape[0], _ptr(out), out.shape[0]))
+        if draws is None:
+            _check(_lib.troupe_arflow_generate(h, ctypes.byref(opt), _ptr(a), a.shape[0], _ptr(out), out.shape[0]))
+            return out
+        normals, used = _normals(draws), ctypes.c_size_t()
+        _check(_lib.troupe_arflow_generate_with_draws(h, ctypes.byref(opt), _ptr(a), a.shape[0], _ptr(normals),
+                                                      normals.size, ctypes.byref(used), _ptr(out), out.shape[0]))
+        _all_used(used.value, normals.size)
         return out
 
     def session(self, seed: int = 0, steps: int | None = None, cfg: float | None = None,
@@ -422,6 +441,16 @@ class Model:
 
     def __exit__(self, *exc):
         self.close()
+
+
+def _normals(draws) -> np.ndarray:
+    """Injected draws as the flat float32 queue the C calls read."""
+    return _floats(np.asarray(draws, dtype=np.float32).reshape(-1), "draws")
+
+
+def _all_used(used: int, given: int) -> None:
+    if used != given:
+        raise ValueError(f"the run took {used} of the {given} normals given: they are not its draws")
 
 
 def _arflow_options(h, seed, steps, guidance, weight, eta, d_safe, sigma, squared, guided_backprojection,

@@ -257,6 +257,8 @@ PROTOTYPES = {
     "troupe_arflow_options_size": (c_size, []),
     "troupe_arflow_options_init": (status, [model_p, ctypes.POINTER(ArflowOptions), c_size]),
     "troupe_arflow_generate": (status, [model_p, ctypes.POINTER(ArflowOptions), f32p, c_size, f32p, c_size]),
+    "troupe_arflow_generate_with_draws": (status, [model_p, ctypes.POINTER(ArflowOptions), f32p, c_size, f32p, c_size,
+                                                   ctypes.POINTER(c_size), f32p, c_size]),
     "troupe_motion_penetration_metrics": (status, [f32p, f32p, c_size, ctypes.POINTER(c_size),
                                             ctypes.POINTER(ctypes.c_double), ctypes.POINTER(ctypes.c_double),
                                             ctypes.POINTER(ctypes.c_double)]),
@@ -267,6 +269,9 @@ PROTOTYPES = {
                                             ctypes.POINTER(c_size), ctypes.POINTER(c_size), ctypes.POINTER(c_size)]),
     "troupe_magnet_generate": (status, [model_p, ctypes.c_char_p, ctypes.POINTER(MagnetOptions), f32p, c_size,
                                         ctypes.POINTER(ctypes.c_uint8), f32p, c_size]),
+    "troupe_magnet_generate_with_draws": (status, [
+        model_p, ctypes.c_char_p, ctypes.POINTER(MagnetOptions), f32p, c_size, ctypes.POINTER(ctypes.c_uint8),
+        f32p, c_size, ctypes.POINTER(c_size), f32p, c_size]),
     "troupe_armflow_clip_tokens": (c_size, [model_p]),
     "troupe_model_text_token_dim": (c_size, [model_p]),
     "troupe_armflow_clip_options_size": (c_size, []),

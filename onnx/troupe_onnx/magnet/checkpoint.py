@@ -18,7 +18,7 @@ named.
 from __future__ import annotations
 
 import dataclasses
-from pathlib import Path
+from pathlib import Path, PurePosixPath, PureWindowsPath
 
 import numpy as np
 
@@ -48,11 +48,43 @@ def _safetensors():
     return st
 
 
+# The path classes whose pickled form omegaconf 2.3/2.4 writes for `Path` fields.
+_PATH_TAGS = {"PosixPath": PurePosixPath, "PurePosixPath": PurePosixPath, "Path": PurePosixPath,
+              "WindowsPath": PureWindowsPath, "PureWindowsPath": PureWindowsPath}
+
+
+def _config_loader(yaml):
+    """PyYAML's safe loader, plus the tags omegaconf 2.3/2.4 writes for `Path` fields
+    (`!!python/object/apply:pathlib.PosixPath` over the path's parts), read as plain path
+    strings. Nothing is imported or constructed: any other Python tag stays refused."""
+
+    class ConfigLoader(yaml.SafeLoader):
+        pass
+
+    def path(loader, suffix, node):
+        kind = _PATH_TAGS.get(suffix)
+        if isinstance(node, yaml.MappingNode):  # the long form: {args: [parts...]}
+            fields = loader.construct_mapping(node, deep=True)
+            parts = fields.get("args") if set(fields) == {"args"} else None
+        elif isinstance(node, yaml.SequenceNode):
+            parts = loader.construct_sequence(node, deep=True)
+        else:
+            parts = [loader.construct_scalar(node)]
+        if kind is None or not isinstance(parts, list) or not all(isinstance(p, str) for p in parts):
+            raise yaml.constructor.ConstructorError(
+                None, None, f"python/object/apply:pathlib.{suffix} is not a path of string parts", node.start_mark)
+        return str(kind(*parts))
+
+    ConfigLoader.add_multi_constructor("tag:yaml.org,2002:python/object/apply:pathlib.", path)
+    return ConfigLoader
+
+
 def read_config(path: Path) -> dict:
     if not path.is_file():
         raise CheckpointError(f"{path}: no config.yaml beside the checkpoint (the run's v0/ folder holds it)")
     try:
-        data = _yaml().safe_load(path.read_text())
+        yaml = _yaml()
+        data = yaml.load(path.read_text(), Loader=_config_loader(yaml))  # noqa: S506 - a safe loader
     except Exception as e:  # noqa: BLE001 - the YAML parser raises many kinds
         raise CheckpointError(f"{path}: not readable YAML ({type(e).__name__}: {e})") from e
     if not isinstance(data, dict) or not isinstance(data.get("model_cfg"), dict):

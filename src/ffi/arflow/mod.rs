@@ -203,30 +203,107 @@ pub unsafe extern "C" fn troupe_arflow_generate(
         "troupe_arflow_generate",
         || {},
         || {
-            let (model, arflow) = arflow_model(model)?;
-            let opts = if options.is_null() {
-                ArflowOptions::default()
-            } else {
-                let sampler = &arflow.spec().sampler;
-                // SAFETY: per the contract.
-                unsafe { read_options(sampler, options) }?
-            };
-            let dim = model.frame_dim();
-            let len = checked_mul(n_frames, dim, "n_frames * 262")?;
-            non_null(actor, "actor")?;
-            non_null(out, "out")?;
-            room(n_frames, out_capacity_frames, "out (frames)")?;
-            // SAFETY: readable for `n_frames * 262` floats per the contract.
-            let input = unsafe { std::slice::from_raw_parts(actor, len) };
-            let input =
-                ndarray::ArrayView2::from_shape((n_frames, dim), input).expect("sized above");
-            let reactor = arflow.generate(input, &opts)?;
-            let values = reactor.as_slice().expect("standard layout");
-            // SAFETY: `out` is writable for at least `n_frames * 262` floats (checked room).
-            unsafe { std::ptr::copy_nonoverlapping(values.as_ptr(), out, values.len()) };
+            // SAFETY: per the contract, which `generate` shares.
+            unsafe {
+                generate(
+                    model,
+                    options,
+                    (actor, n_frames),
+                    None,
+                    (out, out_capacity_frames),
+                )
+            }
+            .map(|_| ())
+        },
+    )
+}
+
+/// `troupe_arflow_generate` with the run's standard normals given instead of drawn from the
+/// seed: `draws` holds `draws_len` normals (borrowed for the call), and each draw (the start
+/// noise when σ > 0, then one ε per step when η > 0, each `n_frames * 262` normals) takes the
+/// next ones, as another implementation's recorded draws are replayed. `*draws_used` (when
+/// not NULL) receives how many it took; a run that needs more than given fails with
+/// `TROUPE_ERR_INVALID_ARG`, naming the draw. Nothing is written unless the call succeeds.
+///
+/// Returns what `troupe_arflow_generate` returns. Thread-safe: any number of threads may
+/// generate on one model at once.
+///
+/// # Safety
+/// As `troupe_arflow_generate`; `draws` readable for `draws_len` floats; `draws_used` NULL or
+/// writable.
+#[no_mangle]
+#[allow(clippy::too_many_arguments)]
+pub unsafe extern "C" fn troupe_arflow_generate_with_draws(
+    model: Option<&troupe_model>,
+    options: *const troupe_arflow_options,
+    actor: *const f32,
+    n_frames: usize,
+    draws: *const f32,
+    draws_len: usize,
+    draws_used: *mut usize,
+    out: *mut f32,
+    out_capacity_frames: usize,
+) -> troupe_status {
+    boundary::call(
+        "troupe_arflow_generate_with_draws",
+        || {},
+        || {
+            // SAFETY: readable for `draws_len` floats per the contract.
+            let normals = unsafe { boundary::slice(draws, draws_len, "draws") }?;
+            // SAFETY: per the contract, which `generate` shares.
+            let used = unsafe {
+                generate(
+                    model,
+                    options,
+                    (actor, n_frames),
+                    Some(normals),
+                    (out, out_capacity_frames),
+                )
+            }?;
+            if !draws_used.is_null() {
+                // SAFETY: non-NULL, writable per the contract.
+                unsafe { *draws_used = used };
+            }
             Ok(())
         },
     )
+}
+
+/// The generation calls' shared body; returns the injected normals used.
+///
+/// # Safety
+/// As `troupe_arflow_generate`'s contract states for the same arguments.
+unsafe fn generate(
+    model: Option<&troupe_model>,
+    options: *const troupe_arflow_options,
+    (actor, n_frames): (*const f32, usize),
+    normals: Option<&[f32]>,
+    (out, out_capacity_frames): (*mut f32, usize),
+) -> FfiResult<usize> {
+    let (model, arflow) = arflow_model(model)?;
+    let opts = if options.is_null() {
+        ArflowOptions::default()
+    } else {
+        let sampler = &arflow.spec().sampler;
+        // SAFETY: per the contract.
+        unsafe { read_options(sampler, options) }?
+    };
+    let dim = model.frame_dim();
+    let len = checked_mul(n_frames, dim, "n_frames * 262")?;
+    non_null(actor, "actor")?;
+    non_null(out, "out")?;
+    room(n_frames, out_capacity_frames, "out (frames)")?;
+    // SAFETY: readable for `n_frames * 262` floats per the contract.
+    let input = unsafe { std::slice::from_raw_parts(actor, len) };
+    let input = ndarray::ArrayView2::from_shape((n_frames, dim), input).expect("sized above");
+    let (reactor, used) = match normals {
+        Some(normals) => arflow.generate_with_normals(input, &opts, normals)?,
+        None => (arflow.generate(input, &opts)?, 0),
+    };
+    let values = reactor.as_slice().expect("standard layout");
+    // SAFETY: `out` is writable for at least `n_frames * 262` floats (checked room).
+    unsafe { std::ptr::copy_nonoverlapping(values.as_ptr(), out, values.len()) };
+    Ok(used)
 }
 
 /// Sets an ARFlow stream's sampler settings (`options`, filled by `troupe_arflow_options_init`;

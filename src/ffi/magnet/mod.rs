@@ -195,6 +195,7 @@ unsafe fn read_options(options: *const troupe_magnet_options) -> FfiResult<Magne
         keyframes: (o.flags & TROUPE_MAGNET_KEYFRAMES != 0)
             .then(|| o.keyframes[..count].iter().map(|&k| k as usize).collect()),
         draws: None,
+        normals: None,
     })
 }
 
@@ -295,46 +296,128 @@ pub unsafe extern "C" fn troupe_magnet_generate(
         "troupe_magnet_generate",
         || {},
         || {
-            let model = magnet_model(model)?;
-            // SAFETY: per the contract.
-            let (name, opts) = unsafe { (config_name(config)?, read_options(options)?) };
-            let people = model.spec().model.persons;
-            let shape = model.output_shape(name, frame_count, &opts)?;
-            let need = checked_mul(
-                checked_mul(shape[0], shape[1], "samples * frames")?,
-                checked_mul(shape[2], shape[3], "people * 145")?,
-                "output floats",
-            )?;
-            non_null(out, "out")?;
-            room(need, out_capacity, "out")?;
-            non_null(frames, "frames")?;
-            let len = checked_mul(
-                checked_mul(frame_count, people, "frames * people")?,
-                FRAME_DIM,
-                "input floats",
-            )?;
-            // SAFETY: readable for `frame_count * people * 145` floats per the contract.
-            let input = unsafe { std::slice::from_raw_parts(frames, len) };
-            let input = ndarray::ArrayView3::from_shape((frame_count, people, FRAME_DIM), input)
-                .expect("sized above");
-            let mask = if present.is_null() {
-                None
-            } else {
-                // SAFETY: readable for `frame_count * people` bytes per the contract.
-                let bytes = unsafe { std::slice::from_raw_parts(present, frame_count * people) };
-                Some(
-                    ndarray::Array2::from_shape_vec(
-                        (frame_count, people),
-                        bytes.iter().map(|&b| b != 0).collect(),
-                    )
-                    .expect("sized above"),
+            // SAFETY: per the contract, which `generate` shares.
+            unsafe {
+                generate(
+                    model,
+                    config,
+                    options,
+                    (frames, frame_count, present),
+                    None,
+                    (out, out_capacity),
                 )
-            };
-            let result = model.generate(name, input, mask.as_ref().map(|m| m.view()), &opts)?;
-            let values = result.frames.as_slice().expect("standard layout");
-            // SAFETY: `out` is non-NULL and writable for out_capacity >= need floats.
-            unsafe { std::ptr::copy_nonoverlapping(values.as_ptr(), out, values.len()) };
+            }
+            .map(|_| ())
+        },
+    )
+}
+
+/// `troupe_magnet_generate` with the run's standard normals given instead of drawn: `draws`
+/// holds `draws_len` normals (borrowed for the call), and each draw the sampler makes, in the
+/// order `docs/MAGNET.md` lists, takes the next ones it needs. This is how a run of another
+/// implementation (the official code, with its random draws recorded) is reproduced exactly.
+/// `*draws_used` (when not NULL) receives how many it took; a run that needs more than given
+/// fails with `TROUPE_ERR_INVALID_ARG`, naming the draw. Nothing is written unless the call
+/// succeeds.
+///
+/// Returns what `troupe_magnet_generate` returns. Thread-safe: any number of threads may
+/// generate on one model at once.
+///
+/// # Safety
+/// As `troupe_magnet_generate`; `draws` readable for `draws_len` floats; `draws_used` NULL or
+/// writable.
+#[no_mangle]
+#[allow(clippy::too_many_arguments)]
+pub unsafe extern "C" fn troupe_magnet_generate_with_draws(
+    model: Option<&troupe_model>,
+    config: *const c_char,
+    options: *const troupe_magnet_options,
+    frames: *const f32,
+    frame_count: usize,
+    present: *const u8,
+    draws: *const f32,
+    draws_len: usize,
+    draws_used: *mut usize,
+    out: *mut f32,
+    out_capacity: usize,
+) -> troupe_status {
+    boundary::call(
+        "troupe_magnet_generate_with_draws",
+        || {},
+        || {
+            // SAFETY: readable for `draws_len` floats per the contract.
+            let normals = unsafe { boundary::slice(draws, draws_len, "draws") }?.to_vec();
+            // SAFETY: per the contract, which `generate` shares.
+            let used = unsafe {
+                generate(
+                    model,
+                    config,
+                    options,
+                    (frames, frame_count, present),
+                    Some(normals),
+                    (out, out_capacity),
+                )
+            }?;
+            if !draws_used.is_null() {
+                // SAFETY: non-NULL, writable per the contract.
+                unsafe { *draws_used = used };
+            }
             Ok(())
         },
     )
+}
+
+/// The generation calls' shared body; returns the injected normals used.
+///
+/// # Safety
+/// As `troupe_magnet_generate`'s contract states for the same arguments.
+unsafe fn generate(
+    model: Option<&troupe_model>,
+    config: *const c_char,
+    options: *const troupe_magnet_options,
+    (frames, frame_count, present): (*const f32, usize, *const u8),
+    normals: Option<Vec<f32>>,
+    (out, out_capacity): (*mut f32, usize),
+) -> FfiResult<usize> {
+    let model = magnet_model(model)?;
+    // SAFETY: per the contract.
+    let (name, mut opts) = unsafe { (config_name(config)?, read_options(options)?) };
+    opts.normals = normals;
+    let people = model.spec().model.persons;
+    let shape = model.output_shape(name, frame_count, &opts)?;
+    let need = checked_mul(
+        checked_mul(shape[0], shape[1], "samples * frames")?,
+        checked_mul(shape[2], shape[3], "people * 145")?,
+        "output floats",
+    )?;
+    non_null(out, "out")?;
+    room(need, out_capacity, "out")?;
+    non_null(frames, "frames")?;
+    let len = checked_mul(
+        checked_mul(frame_count, people, "frames * people")?,
+        FRAME_DIM,
+        "input floats",
+    )?;
+    // SAFETY: readable for `frame_count * people * 145` floats per the contract.
+    let input = unsafe { std::slice::from_raw_parts(frames, len) };
+    let input = ndarray::ArrayView3::from_shape((frame_count, people, FRAME_DIM), input)
+        .expect("sized above");
+    let mask = if present.is_null() {
+        None
+    } else {
+        // SAFETY: readable for `frame_count * people` bytes per the contract.
+        let bytes = unsafe { std::slice::from_raw_parts(present, frame_count * people) };
+        Some(
+            ndarray::Array2::from_shape_vec(
+                (frame_count, people),
+                bytes.iter().map(|&b| b != 0).collect(),
+            )
+            .expect("sized above"),
+        )
+    };
+    let result = model.generate(name, input, mask.as_ref().map(|m| m.view()), &opts)?;
+    let values = result.frames.as_slice().expect("standard layout");
+    // SAFETY: `out` is non-NULL and writable for out_capacity >= need floats.
+    unsafe { std::ptr::copy_nonoverlapping(values.as_ptr(), out, values.len()) };
+    Ok(result.normals_used)
 }
