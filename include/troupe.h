@@ -945,6 +945,26 @@ troupe_status troupe_session_set_prompt(struct troupe_session *session, const ch
  */
 troupe_status troupe_session_queue_noise(struct troupe_session *session, const float *actor_noise, const float *reactor_noise, size_t len);
 
+/**
+ * Queues standard normals for the draws a MAGNet live partner or an ARFlow online stream makes
+ * next, to replay another implementation's stream exactly: `normals` holds `len` floats
+ * (borrowed for the call), appended to any still queued. Each draw (in the order
+ * `docs/MAGNET.md` and `docs/ARFLOW.md` give: ARFlow per frame the start noise when σ > 0,
+ * then one ε per step when η > 0, 262 each) takes the next ones it needs while any are
+ * queued; then the seeded generator goes on as if the queued draws had been its. A step whose
+ * draw needs more than are left fails with `TROUPE_ERR_INVALID_ARG`, the session as it was.
+ * `troupe_session_reset` drops them.
+ *
+ * Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (a non-finite value),
+ * `TROUPE_ERR_UNSUPPORTED` (an ARMFlow stream: its noise is queued per token,
+ * `troupe_session_queue_noise`), `TROUPE_ERR_POISONED`, `TROUPE_ERR_PANIC`. One thread at a
+ * time per session.
+ *
+ * # Safety
+ * `session` must be a live handle; `normals` readable for `len` floats.
+ */
+troupe_status troupe_session_queue_normals(struct troupe_session *session, const float *normals, size_t len);
+
 /* ============================================================================================
  * 7. Text prompts
  *

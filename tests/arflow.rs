@@ -467,3 +467,64 @@ fn injected_normals_replay_a_seeded_run_exactly() {
         (arflow.generate(actor.view(), &plain).unwrap(), 0)
     );
 }
+
+/// An online stream replays another's draws from queued normals: a stream seeded 99 given the
+/// normals seed 5 would draw (per frame the start noise, then one ε per step) streams exactly
+/// as the stream seeded 5; a draw the queue cannot fill fails with the stream as it was, and
+/// then, the rest queued, goes on as if nothing had failed.
+#[test]
+fn an_online_stream_replays_queued_normals() {
+    let name = "arflow-tiny-online";
+    let model = Model::load(bundle(name)).unwrap();
+    let actor: Array2<f32> = read_npy(bundle(name).join("golden/actor.npy")).unwrap();
+    let actor = actor.slice(s![..12, ..]).to_owned();
+    let make = |seed: u64| {
+        model
+            .session(ArflowOptions {
+                seed,
+                steps: Some(2),
+                eta: Some(0.4),
+                sigma: Some(0.1),
+                ..Default::default()
+            })
+            .unwrap()
+    };
+    let want = stream_frames(&mut make(5), &actor, 4);
+    let stream = troupe::arflow::spec::STREAM_ARFLOW;
+    let mut normals = Vec::new();
+    for frame in 0..12u64 {
+        for k in 0..3 {
+            let mut e = vec![0f32; 262];
+            troupe::noise::fill_normals(5, frame * 3 + k, stream, &mut e);
+            normals.extend(e);
+        }
+    }
+    let mut replay = make(99);
+    // One frame short by 10 normals: the fourth frame's last draw cannot be filled.
+    replay.queue_normals(&normals[..4 * 3 * 262 - 10]).unwrap();
+    let e = replay
+        .step(actor.slice(s![..4, ..]))
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("needs 262 normals, and 252 of the"), "{e}");
+    assert_eq!(replay.frames_received(), 0);
+    replay.queue_normals(&normals[4 * 3 * 262 - 10..]).unwrap();
+    let got = stream_frames(&mut replay, &actor, 4);
+    assert_eq!(got, want);
+    // Queued normals end: the seed goes on, and a reset drops what was queued.
+    let mut tail = make(5);
+    tail.queue_normals(&normals[..3 * 262]).unwrap();
+    assert_eq!(stream_frames(&mut tail, &actor, 4), want);
+    let mut dropped = make(5);
+    dropped.queue_normals(&vec![0.0; 3 * 262]).unwrap();
+    dropped.reset();
+    assert_eq!(stream_frames(&mut dropped, &actor, 4), want);
+    let e = dropped.queue_normals(&[f32::NAN]).unwrap_err();
+    assert!(matches!(e, Error::InvalidInput(_)), "{e}");
+    let mut armflow = Model::load(bundle("armflow-tiny"))
+        .unwrap()
+        .session(SessionOptions::default())
+        .unwrap();
+    let e = armflow.queue_normals(&[0.0]).unwrap_err();
+    assert!(matches!(e, Error::Unsupported(_)), "{e}");
+}

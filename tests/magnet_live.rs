@@ -338,3 +338,38 @@ fn lower_latency_settings_run_and_stay_close_to_the_released_ones() {
 fn partner(session: &mut Session) -> &mut LivePartner {
     session.family_mut::<LivePartner>().unwrap()
 }
+
+/// A live partner replays another stream's draws from queued normals: seeded 1234, given every
+/// normal seed 5 draws (each draw's size read from the refusal of a queue one normal short of
+/// it), it streams exactly as the stream seeded 5. A draw the queue cannot fill fails with the
+/// stream as it was.
+#[test]
+fn queued_normals_replay_another_streams_draws() {
+    let g = golden();
+    let user = g.user();
+    let seed = g.options("live_stream").seed;
+    let want = stream(&mut g.session("live_stream"), &user, 128);
+    let mut queue: Vec<f32> = Vec::new();
+    for draw in 0u64.. {
+        let mut s = g.session("live_stream");
+        s.set_seed(1234);
+        s.queue_normals(&[queue.as_slice(), &[0.0]].concat())
+            .unwrap();
+        let Err(e) = s.step_flat(&user) else {
+            break;
+        };
+        assert_eq!(s.frames_received(), 0, "a failed step changes nothing");
+        let e = e.to_string();
+        let needs = format!("draw {draw} needs ");
+        let at = e.find(&needs).unwrap_or_else(|| panic!("{e}")) + needs.len();
+        let n: usize = e[at..].split(' ').next().unwrap().parse().unwrap();
+        let mut normals = vec![0f32; n];
+        troupe::noise::fill_normals(seed, draw, troupe::magnet::STREAM_MAGNET, &mut normals);
+        queue.extend(normals);
+    }
+    assert!(!queue.is_empty());
+    let mut replay = g.session("live_stream");
+    replay.set_seed(1234);
+    replay.queue_normals(&queue).unwrap();
+    assert_eq!(stream(&mut replay, &user, 128), want);
+}

@@ -24,7 +24,7 @@ use super::sampler::{euler_step, loss_of, times};
 use super::spec::{ArflowSampling, FRAME_DIM};
 use crate::shared::checks::check_frames;
 use crate::shared::error::{Error, Result};
-use crate::shared::noise::fill_normals;
+use crate::shared::noise::{fill_normals, NormalSource};
 use crate::shared::stream::{downcast_all, Session, StepOutput, StepTogether, Stream};
 
 /// One actor/reactor stream over an online `arflow` model (made by `Arflow::online`, or boxed
@@ -39,6 +39,9 @@ pub struct OnlineStream {
     /// Per step: the earlier frames' keys and values, frame-major `[n, L, H, W/H]`.
     keys: Vec<Vec<f32>>,
     values: Vec<Vec<f32>>,
+    /// Normals the caller queued ([`crate::Session::queue_normals`]), and how many are taken.
+    queued: Vec<f32>,
+    queued_used: usize,
 }
 
 impl OnlineStream {
@@ -61,7 +64,36 @@ impl OnlineStream {
             frames: 0,
             keys: vec![Vec::new(); steps],
             values: vec![Vec::new(); steps],
+            queued: Vec::new(),
+            queued_used: 0,
         })
+    }
+
+    /// This frame's draws, in order: the start noise when σ > 0, then one ε per step when
+    /// η > 0 (token `frames (M + 1) + k` of the seed's stream, or the next queued normals).
+    fn frame_draws(&mut self, s: &ArflowSampling) -> Result<Vec<Vec<f32>>> {
+        let tokens = s.steps as u64 + 1;
+        let start = (s.sigma > 0.0).then_some(0);
+        let steps = (s.eta > 0.0).then_some(1..tokens).into_iter().flatten();
+        start
+            .into_iter()
+            .chain(steps)
+            .map(|k| {
+                if self.queued_used == self.queued.len() {
+                    let mut e = vec![0f32; FRAME_DIM];
+                    fill_normals(self.seed, self.frames * tokens + k, s.stream, &mut e);
+                    return Ok(e);
+                }
+                let mut queue = NormalSource::Queue {
+                    normals: &self.queued,
+                    used: self.queued_used,
+                    draws: k as usize,
+                };
+                let e = queue.draw(FRAME_DIM)?;
+                self.queued_used = queue.used();
+                Ok(e)
+            })
+            .collect()
     }
 
     /// Floats of one frame's keys (or values) over the layers.
@@ -144,14 +176,15 @@ pub(crate) fn advance(
             ));
         }
     }
-    let before: Vec<(u64, usize)> = streams
+    let before: Vec<(u64, usize, usize)> = streams
         .iter()
-        .map(|s| (s.frames, s.keys.first().map_or(0, Vec::len)))
+        .map(|s| (s.frames, s.keys.first().map_or(0, Vec::len), s.queued_used))
         .collect();
     let result = run(streams, actor);
     if result.is_err() {
-        for (s, &(frames, kept)) in streams.iter_mut().zip(&before) {
+        for (s, &(frames, kept, queued_used)) in streams.iter_mut().zip(&before) {
             s.frames = frames;
+            s.queued_used = queued_used;
             for cache in s.keys.iter_mut().chain(s.values.iter_mut()) {
                 cache.truncate(kept);
             }
@@ -202,31 +235,32 @@ fn frame(
     actor: &[&[f32]],
 ) -> Result<Array2<f32>> {
     let lead = &streams[group[0]];
-    let nets = Arc::clone(&lead.nets);
-    let s = lead.sampling.clone();
+    let (nets, s, kv) = (
+        Arc::clone(&lead.nets),
+        lead.sampling.clone(),
+        lead.kv_floats(),
+    );
     let norm = &nets.spec.normalizer;
     let (mean, std) = (&norm.mean[..], &norm.std[..]);
     let b = group.len();
     let raw = Array2::from_shape_fn((b, FRAME_DIM), |(r, i)| actor[r][i]);
     let a = Array2::from_shape_fn((b, FRAME_DIM), |(r, i)| (raw[[r, i]] - mean[i]) / std[i]);
     let steps = s.steps;
-    let tokens = steps as u64 + 1;
-    let draw = |stream: &OnlineStream, k: u64| {
-        let mut e = vec![0f32; FRAME_DIM];
-        fill_normals(stream.seed, stream.frames * tokens + k, s.stream, &mut e);
-        e
-    };
+    // Every draw of the frame first, so that a failed frame gives queued normals back.
+    let mut draws = Vec::with_capacity(b);
+    for &i in group {
+        draws.push(streams[i].frame_draws(&s)?.into_iter());
+    }
     let mut x = a.clone();
     if s.sigma > 0.0 {
-        for (row, &i) in group.iter().enumerate() {
-            let e = draw(streams[i], 0);
+        for (row, draws) in draws.iter_mut().enumerate() {
+            let e = draws.next().expect("the start noise");
             for (v, e) in x.row_mut(row).iter_mut().zip(e) {
                 *v += s.sigma * e;
             }
         }
     }
     let loss = loss_of(&s);
-    let kv = lead.kv_floats();
     let m = &nets.spec.model;
     let dh = m.width / m.heads;
     for step in 0..steps {
@@ -241,9 +275,9 @@ fn frame(
         let position: Vec<i64> = group.iter().map(|&i| streams[i].frames as i64).collect();
         let out = nets.denoise_step(x.view(), &vec![t; b], &position, cache, mask, cached)?;
         let eps: Option<Vec<f32>> = (s.eta > 0.0).then(|| {
-            group
-                .iter()
-                .flat_map(|&i| draw(streams[i], step as u64 + 1))
+            draws
+                .iter_mut()
+                .flat_map(|d| d.next().expect("one eps per step"))
                 .collect()
         });
         euler_step(
@@ -355,6 +389,8 @@ impl Stream for OnlineStream {
     }
     fn reset(&mut self) {
         self.frames = 0;
+        self.queued.clear();
+        self.queued_used = 0;
         for cache in self.keys.iter_mut().chain(self.values.iter_mut()) {
             cache.clear();
         }
@@ -365,6 +401,12 @@ impl Stream for OnlineStream {
     }
     fn set_seed(&mut self, seed: u64) {
         self.seed = seed;
+    }
+    fn queue_normals(&mut self, normals: &[f32]) -> Result<()> {
+        self.queued.drain(..self.queued_used);
+        self.queued_used = 0;
+        self.queued.extend_from_slice(normals);
+        Ok(())
     }
     fn set_steps(&mut self, steps: u32) -> Result<()> {
         let mut sampling = self.sampling().clone();

@@ -753,6 +753,37 @@ pub unsafe extern "C" fn troupe_session_queue_noise(
     }
 }
 
+/// Queues standard normals for the draws a MAGNet live partner or an ARFlow online stream makes
+/// next, to replay another implementation's stream exactly: `normals` holds `len` floats
+/// (borrowed for the call), appended to any still queued. Each draw (in the order
+/// `docs/MAGNET.md` and `docs/ARFLOW.md` give: ARFlow per frame the start noise when σ > 0,
+/// then one ε per step when η > 0, 262 each) takes the next ones it needs while any are
+/// queued; then the seeded generator goes on as if the queued draws had been its. A step whose
+/// draw needs more than are left fails with `TROUPE_ERR_INVALID_ARG`, the session as it was.
+/// `troupe_session_reset` drops them.
+///
+/// Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (a non-finite value),
+/// `TROUPE_ERR_UNSUPPORTED` (an ARMFlow stream: its noise is queued per token,
+/// `troupe_session_queue_noise`), `TROUPE_ERR_POISONED`, `TROUPE_ERR_PANIC`. One thread at a
+/// time per session.
+///
+/// # Safety
+/// `session` must be a live handle; `normals` readable for `len` floats.
+#[no_mangle]
+pub unsafe extern "C" fn troupe_session_queue_normals(
+    session: *mut troupe_session,
+    normals: *const f32,
+    len: usize,
+) -> troupe_status {
+    // SAFETY: forwarded contract.
+    unsafe {
+        with_session(session, "troupe_session_queue_normals", |s| {
+            let normals = boundary::slice(normals, len, "normals")?;
+            Ok(s.queue_normals(normals)?)
+        })
+    }
+}
+
 /// Test hook, built only with the `testing` cargo feature and absent from the header: panics
 /// inside the boundary so tests can check `TROUPE_ERR_PANIC` -> `TROUPE_ERR_POISONED` -> reset.
 ///

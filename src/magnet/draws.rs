@@ -36,6 +36,17 @@ pub enum Draws {
         /// Draws made so far.
         count: usize,
     },
+    /// A stream's queued normals (`Session::queue_normals`) in front of its own draws: while
+    /// any are queued, a draw takes the next it needs from them, and `then` moves on by one
+    /// draw as if it had been its.
+    Queued {
+        /// The normals, in the order the sampler draws.
+        queue: Vec<f32>,
+        /// Normals taken so far.
+        used: usize,
+        /// The draws behind the queue.
+        then: Box<Draws>,
+    },
     /// Independent runs stacked along the sample axis (a crowd of live sessions): every draw is
     /// `[S, ...]`, and run `i`'s share (its samples) comes from its own draws.
     PerRun(Vec<Draws>),
@@ -66,7 +77,36 @@ impl Draws {
         match self {
             Draws::Seeded { count, .. } => *count as usize,
             Draws::Injected { count, .. } | Draws::Queue { count, .. } => *count,
+            Draws::Queued { then, .. } => then.count(),
             Draws::PerRun(runs) => runs.iter().map(Draws::count).max().unwrap_or(0),
+        }
+    }
+
+    /// Puts `normals` in front of the draws to come, after any still queued.
+    pub(crate) fn enqueue(&mut self, normals: &[f32]) {
+        match self {
+            Draws::Queued { queue, used, .. } => {
+                queue.drain(..*used);
+                *used = 0;
+                queue.extend_from_slice(normals);
+            }
+            other => {
+                let then = Box::new(std::mem::replace(other, Draws::seeded(0)));
+                *other = Draws::Queued {
+                    queue: normals.to_vec(),
+                    used: 0,
+                    then,
+                };
+            }
+        }
+    }
+
+    /// Draws from `seed` from now on, the count (and any queued normals) kept.
+    pub(crate) fn reseed(&mut self, seed: u64) {
+        match self {
+            Draws::Seeded { seed: s, .. } => *s = seed,
+            Draws::Queued { then, .. } => then.reseed(seed),
+            _ => {}
         }
     }
 
@@ -116,6 +156,18 @@ impl Draws {
                 *count += 1;
                 Ok(draw)
             }
+            Draws::Queued { queue, used, then } if *used < queue.len() => {
+                let mut source = NormalSource::Queue {
+                    normals: queue,
+                    used: *used,
+                    draws: then.count(),
+                };
+                let draw = source.draw(n)?;
+                *used = source.used();
+                then.normal(n)?; // the draw the queued one stands for
+                Ok(draw)
+            }
+            Draws::Queued { then, .. } => then.normal(n),
             Draws::PerRun(runs) => {
                 let share = n / runs.len().max(1);
                 debug_assert_eq!(

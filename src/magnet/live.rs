@@ -748,8 +748,11 @@ impl Stream for LivePartner {
     /// Sets the seed; applies to chunks not yet run (the draws continue from their count).
     fn set_seed(&mut self, seed: u64) {
         self.settings.seed = seed;
-        let count = self.state.draws.count() as u64;
-        self.state.draws = Draws::Seeded { seed, count };
+        self.state.draws.reseed(seed);
+    }
+    fn queue_normals(&mut self, normals: &[f32]) -> Result<()> {
+        self.state.draws.enqueue(normals);
+        Ok(())
     }
     fn set_steps(&mut self, steps: u32) -> Result<()> {
         let mut settings = self.settings.clone();

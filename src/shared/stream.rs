@@ -82,6 +82,14 @@ pub(crate) trait Stream: Send + Debug + Any {
     fn set_seed(&mut self, seed: u64);
     /// The sampler's steps for what is generated from now on.
     fn set_steps(&mut self, steps: u32) -> Result<()>;
+    /// Queues standard normals taken, in the order the sampler draws, before the seeded
+    /// generator (see [`Session::queue_normals`]).
+    fn queue_normals(&mut self, _normals: &[f32]) -> Result<()> {
+        Err(Error::Unsupported(format!(
+            "queued normals: {} streams take their noise per token (queue_noise)",
+            self.family()
+        )))
+    }
     /// Exactly how many frames a step with `n` new frames returns.
     fn frames_ready_after(&self, n: usize) -> usize;
     /// Input frames received since the start or the last reset.
@@ -203,6 +211,19 @@ impl Session {
     /// Sets the noise seed; applies to what is generated from now on.
     pub fn set_seed(&mut self, seed: u64) {
         self.stream.set_seed(seed)
+    }
+
+    /// Queues standard normals for the draws to come, to replay another implementation's
+    /// stream exactly: each draw the sampler makes (MAGNet's live partner: as its offline run,
+    /// `docs/MAGNET.md`; ARFlow online: per frame the start noise when σ > 0, then one ε per
+    /// step when η > 0, 262 each) takes the next ones it needs while any are queued, then the
+    /// seeded generator goes on (draw `i` its token `i`, as if the queued draws were its). A
+    /// draw that needs more than are left fails, the stream as it was. [`Session::reset`] drops
+    /// them. ARMFlow streams take their noise per token (`Reactor::queue_noise`) and refuse
+    /// this with [`Error::Unsupported`].
+    pub fn queue_normals(&mut self, normals: &[f32]) -> Result<()> {
+        crate::shared::checks::check_input("queued normals", normals)?;
+        self.stream.queue_normals(normals)
     }
 
     /// Sets the sampler's steps (>= 1): MeanFlow steps per token, DDIM steps per chunk, flow

@@ -172,6 +172,40 @@ int main(int argc, char **argv) {
         printf("arflow stream through the C ABI: %.2e relative\n",
                (double)(max_abs(out, want, n_actor) / max_value(want, n_actor)));
         CHECK(max_abs(out, want, n_actor) <= 1e-4f * max_value(want, n_actor));
+        {
+            /* queued normals: all zero, a stream given them steps as the whole clip given the
+             * same zeros as its draws (the order cannot matter then); a draw the queue cannot
+             * fill fails and changes nothing; ARMFlow sessions take noise per token instead */
+            size_t m = (size_t)frames * 6 * 262, used = 0;
+            float *zeros = (float *)calloc(m, sizeof *zeros), *whole = (float *)malloc(n_actor * sizeof *whole);
+            troupe_session *reactor = NULL;
+            opt.eta = 0.5f;
+            opt.sigma = 0.1f;
+            EXPECT(troupe_arflow_generate_with_draws(online, &opt, actor, frames, zeros, m, &used, whole, frames),
+                   TROUPE_OK);
+            CHECK(used == m); /* 5 steps: the start noise and 5 eps per frame */
+            EXPECT(troupe_session_reset(flow), TROUPE_OK);
+            EXPECT(troupe_arflow_session_set_options(flow, &opt), TROUPE_OK);
+            EXPECT(troupe_session_queue_normals(flow, zeros, m), TROUPE_OK);
+            for (t = 0; t < frames; t++)
+                EXPECT(troupe_session_step(flow, actor + t * 262, 1, out + t * 262, 1, &written), TROUPE_OK);
+            printf("arflow stream with queued normals vs the whole clip given them: %.2e relative\n",
+                   (double)(max_abs(out, whole, n_actor) / max_value(whole, n_actor)));
+            CHECK(max_abs(out, whole, n_actor) <= 1e-4f * max_value(whole, n_actor));
+            EXPECT(troupe_session_reset(flow), TROUPE_OK);
+            EXPECT(troupe_session_queue_normals(flow, zeros, 100), TROUPE_OK);
+            written = 77;
+            EXPECT(troupe_session_step(flow, actor, 1, out, 1, &written), TROUPE_ERR_INVALID_ARG);
+            CHECK(strstr(troupe_last_error_message(), "needs 262 normals") != NULL && written == 77);
+            EXPECT(troupe_session_queue_normals(flow, NULL, 4), TROUPE_ERR_NULL_ARG);
+            zeros[0] = NAN;
+            EXPECT(troupe_session_queue_normals(flow, zeros, 4), TROUPE_ERR_INVALID_ARG);
+            EXPECT(troupe_session_new(armflow, NULL, &reactor), TROUPE_OK);
+            EXPECT(troupe_session_queue_normals(reactor, whole, 4), TROUPE_ERR_UNSUPPORTED);
+            troupe_session_free(reactor);
+            free(zeros);
+            free(whole);
+        }
         opt.weight = 7.0f;
         EXPECT(troupe_arflow_session_set_options(flow, &opt), TROUPE_ERR_INVALID_ARG);
         EXPECT(troupe_arflow_session_set_options(flow, NULL), TROUPE_ERR_NULL_ARG);

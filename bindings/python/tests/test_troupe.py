@@ -664,3 +664,27 @@ def test_the_online_arflow_variant_streams_frame_by_frame():
         assert np.abs(got - want).max() <= 1e-4 * np.abs(want).max()
         with pytest.raises(TypeError, match="unknown ARFlow settings"):
             s.set_arflow_options(lambda_=2)
+
+
+def test_an_online_arflow_stream_replays_queued_normals():
+    """Queued normals stand for the seed's draws: a stream seeded 99 given the normals seed 5
+    draws (per frame the start noise, then one eps per step) streams as the stream seeded 5."""
+    online = REPO / "onnx" / "bundles" / "arflow-tiny-online"
+    actor = np.load(online / "golden" / "actor.npy")[:6]
+    philox = _philox_normals()
+    with troupe.Model(online) as m:
+        def stream(seed, normals=None):
+            s = troupe.Session(m)
+            s.set_arflow_options(seed=seed, steps=2, eta=0.4, sigma=0.1)
+            if normals is not None:
+                s.queue_normals(normals)
+            return np.concatenate([s.step(actor[i:i + 1]) for i in range(len(actor))])
+
+        want = stream(5)
+        normals = np.concatenate([philox(5, f * 3 + k, 9, 262) for f in range(len(actor)) for k in range(3)])
+        assert np.array_equal(stream(99, normals), want)
+        s = troupe.Session(m)
+        with pytest.raises(troupe.TroupeError, match="normals"):
+            s.queue_normals([float("nan")])
+    with troupe.Model(BUNDLE) as armflow, pytest.raises(troupe.TroupeError, match="per token"):
+        troupe.Session(armflow).queue_normals([0.0])

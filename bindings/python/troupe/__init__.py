@@ -703,6 +703,14 @@ class Session:
         r = _floats(reactor_noise, "reactor_noise", a.size)
         self._call(_lib.troupe_session_queue_noise, _ptr(a), _ptr(r), a.size)
 
+    def queue_normals(self, normals) -> None:
+        """Queues standard normals for a magnet live partner's or an arflow online stream's next
+        draws, to replay another implementation's stream exactly: each draw takes the next ones
+        it needs while any are queued, then the seed goes on as if they had been its; reset()
+        drops them. (armflow streams take noise per token: set_noise.)"""
+        a = _floats(np.asarray(normals, dtype=np.float32).reshape(-1), "normals")
+        self._call(_lib.troupe_session_queue_normals, _ptr(a), a.size)
+
     def close(self) -> None:
         handle, self._handle = getattr(self, "_handle", None), None
         if handle:

@@ -242,6 +242,7 @@ PROTOTYPES = {
     "troupe_session_set_cfg_scale": (status, [session_p, ctypes.c_float]),
     "troupe_session_set_condition": (status, [session_p, f32p, c_size]),
     "troupe_session_queue_noise": (status, [session_p, f32p, f32p, c_size]),
+    "troupe_session_queue_normals": (status, [session_p, f32p, c_size]),
     "troupe_umf_options_size": (c_size, []),
     "troupe_umf_options_init": (status, [model_p, ctypes.POINTER(GroupOptions), c_size]),
     "troupe_umf_stages": (c_size, [model_p]),
