@@ -366,13 +366,7 @@ fn seeded_normals(
         else {
             return queue;
         };
-        let e = e.to_string();
-        let needs = format!("draw {draw} needs ");
-        let at = e.find(&needs).unwrap_or_else(|| panic!("{e}")) + needs.len();
-        let n: usize = e[at..].split(' ').next().unwrap().parse().unwrap();
-        let mut normals = vec![0f32; n];
-        troupe::noise::fill_normals(seed, draw, troupe::magnet::STREAM_MAGNET, &mut normals);
-        queue.extend(normals);
+        queue.extend(common::magnet_draw_refused(&e, draw, seed));
     }
     unreachable!()
 }

@@ -359,13 +359,7 @@ fn queued_normals_replay_another_streams_draws() {
             break;
         };
         assert_eq!(s.frames_received(), 0, "a failed step changes nothing");
-        let e = e.to_string();
-        let needs = format!("draw {draw} needs ");
-        let at = e.find(&needs).unwrap_or_else(|| panic!("{e}")) + needs.len();
-        let n: usize = e[at..].split(' ').next().unwrap().parse().unwrap();
-        let mut normals = vec![0f32; n];
-        troupe::noise::fill_normals(seed, draw, troupe::magnet::STREAM_MAGNET, &mut normals);
-        queue.extend(normals);
+        queue.extend(common::magnet_draw_refused(&e, draw, seed));
     }
     assert!(!queue.is_empty());
     let mut replay = g.session("live_stream");

@@ -249,3 +249,16 @@ pub fn pypi_sdist(requirement: &str) -> PathBuf {
         .unwrap()
         .path()
 }
+
+/// The normals MAGNet's draw `draw` takes under `seed`, its size read from `refusal`: the error
+/// of a run whose queued normals stopped short of that draw ("draw {draw} needs {n} normals,
+/// ..."), as a caller replaying a recorded run knows each draw's size from its recording.
+pub fn magnet_draw_refused(refusal: &troupe::Error, draw: u64, seed: u64) -> Vec<f32> {
+    let e = refusal.to_string();
+    let needs = format!("draw {draw} needs ");
+    let at = e.find(&needs).unwrap_or_else(|| panic!("{e}")) + needs.len();
+    let n: usize = e[at..].split(' ').next().unwrap().parse().unwrap();
+    let mut normals = vec![0f32; n];
+    troupe::noise::fill_normals(seed, draw, troupe::magnet::STREAM_MAGNET, &mut normals);
+    normals
+}
