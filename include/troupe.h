@@ -1273,8 +1273,9 @@ troupe_status troupe_motion_penetration_metrics(const float *first, const float 
  * `n_frames` position frames measured as `format` says: the clip resampled to the bundle's
  * rate, less one (velocities look one frame ahead).
  *
- * Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (a bad format, or a
- * bundle whose features are not `interhuman262`). Thread-safe.
+ * Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (a bad format, more
+ * frames than `troupe_motion_encode` takes, or a bundle whose features are not
+ * `interhuman262`). Thread-safe.
  *
  * # Safety
  * `format` readable, `n_frames_out` writable.

@@ -401,3 +401,275 @@ fn our_bvh_files_are_read_back_by_an_independent_reader() {
         assert!(worst < 1e-4, "{name}: {worst} m");
     }
 }
+
+/// Finite in, finite out, or an error: offsets and position channels beyond ±1e6 (whose sums
+/// overflowed `f32` to ±inf in forward kinematics) are refused, naming the joint; what the
+/// reader accepts gives finite positions.
+#[test]
+fn coordinates_that_would_overflow_are_refused() {
+    for (text, wanted) in [
+        (
+            CHAIN.replace("OFFSET 0 10 0", "OFFSET 0 1e39 0"),
+            "OFFSET of Spine",
+        ),
+        (CHAIN.replace("OFFSET 0 10 0", "OFFSET 0 1e308 0"), "beyond"),
+        (
+            CHAIN
+                .replace("OFFSET 0 0 0", "OFFSET 0 3e38 0")
+                .replace("OFFSET 0 10 0", "OFFSET 0 3e38 0"),
+            "OFFSET of Hips",
+        ),
+        (
+            CHAIN.replace("OFFSET 0 0 5", "OFFSET 0 0 5e6"),
+            "End Site of Spine",
+        ),
+        (
+            CHAIN.replace("1 2 3 0 0 0", "1 2e7 3 0 0 0"),
+            "frame 0, joint `Hips`, Yposition",
+        ),
+    ] {
+        let err = parse_bvh(text.as_bytes(), "far.bvh")
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains(wanted), "wanted {wanted:?} in: {err}");
+    }
+    let ok = CHAIN
+        .replace("OFFSET 0 10 0", "OFFSET 0 1e6 0")
+        .replace("1 2 3 0 0 0", "1e6 -1e6 1e6 0 0 0");
+    let positions = parse_bvh(ok.as_bytes(), "edge.bvh").unwrap().positions();
+    assert!(positions.iter().all(|v| v.is_finite()));
+}
+
+/// A message quotes at most 64 bytes of what it was given, escaped, with the input's length:
+/// a 1 MiB token of NUL bytes no longer becomes a 1 MiB message, and a long joint name is
+/// refused.
+#[test]
+fn messages_quote_bounded_escaped_excerpts() {
+    let nul = format!(
+        "HIERARCHY\nROOT Hips\n{{\n  OFFSET {} 0 0\n",
+        "\0".repeat(1 << 20)
+    );
+    let err = parse_bvh(nul.as_bytes(), "nul.bvh")
+        .unwrap_err()
+        .to_string();
+    assert!(
+        err.len() < 400,
+        "{} bytes: {}",
+        err.len(),
+        &err[..400.min(err.len())]
+    );
+    assert!(
+        err.contains("\\0\\0") && err.contains("(1048576 bytes)"),
+        "{err}"
+    );
+    let all_nul = vec![0u8; 1 << 20];
+    let err = parse_bvh(&all_nul, "zeros.bvh").unwrap_err().to_string();
+    assert!(
+        err.len() < 400 && err.contains("HIERARCHY"),
+        "{}",
+        err.len()
+    );
+    let long = CHAIN.replace("JOINT Spine", &format!("JOINT {}", "S".repeat(300)));
+    let err = parse_bvh(long.as_bytes(), "long.bvh")
+        .unwrap_err()
+        .to_string();
+    assert!(
+        err.contains("at most 256 bytes") && err.len() < 400,
+        "{err}"
+    );
+    let bell = CHAIN.replace("JOINT Spine", "JOINT Spi\u{7}ne");
+    let err = parse_bvh(bell.as_bytes(), "bell.bvh")
+        .unwrap_err()
+        .to_string();
+    assert!(
+        err.contains("control characters") && err.contains("\\u{7}"),
+        "{err}"
+    );
+}
+
+/// The writers' policy (`src/shared/files.rs`, shared by every writer): a new file, or a regular
+/// file replaced; a FIFO, a socket, a symbolic link or a directory at the path is refused
+/// before anything is written and left as it was (before, a FIFO or a link was replaced by a
+/// regular file).
+#[cfg(unix)]
+#[test]
+fn writers_refuse_special_files_and_links() {
+    use std::os::unix::fs::FileTypeExt;
+    let dir = tempfile::tempdir().unwrap();
+    let clip = vec![vec![[0.0f64, 1.0, 0.0]; 22]; 3];
+    let people = [BvhPerson {
+        name: "actor",
+        positions: &clip,
+    }];
+    let write = |path: &std::path::Path| {
+        troupe::motion::bvh::write_bvh_file(path, &people, &BvhWriteOptions::default())
+    };
+    let fifo = dir.path().join("fifo.bvh");
+    let made = std::process::Command::new("mkfifo")
+        .arg(&fifo)
+        .status()
+        .unwrap();
+    assert!(made.success());
+    let socket = dir.path().join("socket.bvh");
+    let _listener = std::os::unix::net::UnixListener::bind(&socket).unwrap();
+    let target = dir.path().join("target.txt");
+    std::fs::write(&target, "keep").unwrap();
+    let link = dir.path().join("link.bvh");
+    std::os::unix::fs::symlink(&target, &link).unwrap();
+    let folder = dir.path().join("folder.bvh");
+    std::fs::create_dir(&folder).unwrap();
+    for (path, what) in [
+        (&fifo, "a FIFO"),
+        (&socket, "a socket"),
+        (&link, "a symbolic link"),
+        (&folder, "a directory"),
+    ] {
+        let err = write(path).unwrap_err().to_string();
+        assert!(err.contains(what) && err.contains("nothing else"), "{err}");
+    }
+    assert!(std::fs::symlink_metadata(&fifo)
+        .unwrap()
+        .file_type()
+        .is_fifo());
+    assert!(std::fs::symlink_metadata(&socket)
+        .unwrap()
+        .file_type()
+        .is_socket());
+    assert!(std::fs::symlink_metadata(&link)
+        .unwrap()
+        .file_type()
+        .is_symlink());
+    assert_eq!(std::fs::read_to_string(&target).unwrap(), "keep");
+    // A regular file is replaced; a new one is made; no temporary file is left.
+    write(&target).unwrap();
+    write(&dir.path().join("new.bvh")).unwrap();
+    assert!(std::fs::read_to_string(&target)
+        .unwrap()
+        .starts_with("HIERARCHY"));
+    let names: Vec<String> = std::fs::read_dir(dir.path())
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    assert!(names.iter().all(|n| !n.ends_with(".tmp")), "{names:?}");
+}
+
+/// Write, then read: every file the writer makes, its own reader takes, with the same joints
+/// and the same positions (seeded random cases: one to three people, names from an alphabet
+/// with non-ASCII letters, poses by forward kinematics, roots near and far, centimetres and
+/// metres). What the writer refuses is exactly what could not read back: a repeated name, a
+/// name too long for the reader, a root beyond its range.
+#[test]
+fn everything_written_reads_back_equal() {
+    use troupe::motion::bvh::{MAX_BVH_COORDINATE, MAX_BVH_NAME_BYTES};
+    use troupe::motion::rotation::Quat;
+    let neutral = Skeleton::t2m22();
+    let alphabet: Vec<char> = "abcXYZ019_-.éüß漢".chars().collect();
+    let (mut written, mut refused) = (0, 0);
+    for case in 0..150u64 {
+        let mut normals = vec![0f32; 4096];
+        troupe::noise::fill_normals(2026, case, 77, &mut normals);
+        let mut draws = normals.iter().map(|v| f64::from(*v));
+        let mut next = || draws.next().unwrap();
+        let mut pick = |n: usize| ((next().abs() * 1000.0) as usize) % n;
+        let people = 1 + pick(3);
+        let frames = 1 + pick(4);
+        let units = if pick(2) == 0 {
+            Units::Centimeters
+        } else {
+            Units::Meters
+        };
+        let far = pick(10) == 0;
+        let mut names: Vec<String> = (0..people)
+            .map(|_| {
+                let len = if pick(20) == 0 { 300 } else { 1 + pick(12) };
+                (0..len).map(|_| alphabet[pick(alphabet.len())]).collect()
+            })
+            .collect();
+        if people > 1 && pick(8) == 0 {
+            names[1] = names[0].clone();
+        }
+        let clips: Vec<Vec<Vec<Vec3>>> = (0..people)
+            .map(|p| {
+                (0..frames)
+                    .map(|_| {
+                        let spread = if far && p == 0 { 2e4 } else { 5.0 };
+                        let root = [next() * spread, 1.0 + next() * 0.1, next() * spread];
+                        let local: Vec<Quat> = (0..neutral.len())
+                            .map(|_| {
+                                let axis = [next(), next(), next()];
+                                let n = norm(axis).max(1e-9);
+                                Quat::from_axis_angle(axis.map(|v| v / n), next() * 0.5)
+                            })
+                            .collect();
+                        forward_kinematics(&neutral, root, &local)
+                    })
+                    .collect()
+            })
+            .collect();
+        let persons: Vec<BvhPerson> = names
+            .iter()
+            .zip(&clips)
+            .map(|(name, clip)| BvhPerson {
+                name,
+                positions: clip,
+            })
+            .collect();
+        let options = BvhWriteOptions {
+            units,
+            ..Default::default()
+        };
+        let per_unit = 1.0 / units.meters();
+        let duplicate = people > 1 && names[1] == names[0];
+        let too_long = people > 1 && names.iter().any(|n| n.len() + 16 > MAX_BVH_NAME_BYTES);
+        let beyond = clips.iter().flatten().any(|pose| {
+            pose[0]
+                .iter()
+                .any(|v| (v * per_unit).abs() > MAX_BVH_COORDINATE)
+        });
+        let text = match write_bvh(&persons, &options) {
+            Ok(text) => text,
+            Err(e) => {
+                assert!(duplicate || too_long || beyond, "case {case}: refused: {e}");
+                refused += 1;
+                continue;
+            }
+        };
+        assert!(
+            !duplicate && !beyond,
+            "case {case}: written though it cannot read back"
+        );
+        let back = parse_bvh(text.as_bytes(), "ours.bvh")
+            .unwrap_or_else(|e| panic!("case {case}: its own file is refused: {e}"));
+        assert_eq!(back.frames(), frames, "case {case}");
+        let positions = back.positions();
+        for (name, clip) in names.iter().zip(&clips) {
+            for (j, joint) in neutral.names().iter().enumerate() {
+                let full = if people > 1 {
+                    format!("{name}_{joint}")
+                } else {
+                    joint.clone()
+                };
+                let index = back
+                    .joint(&full)
+                    .unwrap_or_else(|| panic!("case {case}: no joint `{full}`"));
+                for (t, pose) in clip.iter().enumerate() {
+                    for d in 0..3 {
+                        let got = f64::from(positions[[t, index, d]]) / per_unit;
+                        let tolerance = 1e-3 * (1.0 + pose[j][d].abs());
+                        assert!(
+                            (got - pose[j][d]).abs() < tolerance,
+                            "case {case}, {full}, frame {t}: {got} vs {}",
+                            pose[j][d]
+                        );
+                    }
+                }
+            }
+        }
+        written += 1;
+    }
+    println!("{written} written and read back, {refused} refused");
+    assert!(
+        written > 100 && refused > 5,
+        "{written} written, {refused} refused"
+    );
+}

@@ -433,3 +433,40 @@ fn injected_normals_replay_a_seeded_run_exactly() {
         .to_string();
     assert!(e.contains("not both"), "{e}");
 }
+
+/// A configuration given as JSON is held to the manifest's rules: an unknown key is refused with
+/// the key named (a misspelt `stepz` was silently the default), and `subseq_len` and `eta` out of
+/// range are refused before anything runs (2^64 - 1 and 1e30 failed later as inference errors).
+#[test]
+fn json_configurations_refuse_unknown_keys_and_values_out_of_range() {
+    let (model, frames) = tiny();
+    let magnet = model.magnet().unwrap();
+    let base = serde_json::to_value(&magnet.spec().sampling["dd100"]).unwrap();
+    let with = |edit: &dyn Fn(&mut serde_json::Value)| {
+        let mut v = base.clone();
+        edit(&mut v);
+        v.to_string()
+    };
+    for (config, wanted) in [
+        (with(&|v| v["stepz"] = 3.into()), "unknown field `stepz`"),
+        (
+            with(&|v| v["guidance"]["smoothing"]["wieght"] = 1.0.into()),
+            "unknown field `wieght`",
+        ),
+        (with(&|v| v["subseq_len"] = u64::MAX.into()), "subseq_len"),
+        (with(&|v| v["eta"] = 1e30.into()), "eta"),
+        (with(&|v| v["eta"] = (-0.5).into()), "eta"),
+    ] {
+        let e = magnet
+            .generate(&config, frames.view(), None, &quick())
+            .unwrap_err();
+        assert!(
+            matches!(e, troupe::Error::InvalidOption(_)) && e.to_string().contains(wanted),
+            "wanted {wanted}: {e}"
+        );
+    }
+    let fine = with(&|v| v["subseq_len"] = 16.into());
+    assert!(magnet
+        .generate(&fine, frames.view(), None, &quick())
+        .is_ok());
+}

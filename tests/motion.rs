@@ -179,3 +179,41 @@ fn cmu_inverse_then_forward_kinematics_with_a_fitted_skeleton() {
         );
     }
 }
+
+/// Finite in, finite out, or an error: a placement or a joint position beyond 1e6 m (a floor
+/// of 1e300 gave non-finite features before) is refused by the clip encoder and the feature
+/// stream, naming what; a stream left as it was by a refused reset.
+#[test]
+fn placements_and_positions_beyond_the_world_are_refused() {
+    use troupe::motion::stream::FeatureStream;
+    use troupe::motion::Placement;
+    let clip = clip().slice(ndarray::s![..20, .., ..]).to_owned();
+    let far = |floor: f64| Placement {
+        floor,
+        ..Placement::identity(format())
+    };
+    for floor in [1e300, -1e300, 2e6] {
+        let err = encode_clip(clip.view(), format(), FEATURE_FPS, Some(&far(floor)))
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("placement"), "{err}");
+        let err = FeatureStream::new(format(), FEATURE_FPS, Some(far(floor)))
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("within 1000000 m"), "{err}");
+    }
+    let near = encode_clip(clip.view(), format(), FEATURE_FPS, Some(&far(-1e5))).unwrap();
+    assert!(near.features.iter().all(|v| v.is_finite()));
+    let mut huge = clip.clone();
+    huge[[3, 5, 0]] = 3e30;
+    let err = encode_clip(huge.view(), format(), FEATURE_FPS, None)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        err.contains("frame 3, joint 5") && err.contains("beyond"),
+        "{err}"
+    );
+    let mut stream = FeatureStream::new(format(), FEATURE_FPS, None).unwrap();
+    assert!(stream.reset(Some(far(f64::INFINITY))).is_err());
+    assert!(stream.reset(None).is_ok());
+}

@@ -544,14 +544,14 @@ fn failed_writes_leave_nothing_behind() {
         Err(Error::Io { path, .. }) => assert_eq!(path, missing),
         other => panic!("{other:?}"),
     }
-    // The target is a directory: the temporary file is written, the rename fails, and the
-    // temporary file is removed.
+    // The target is a directory: refused before anything is written (the writers' policy,
+    // `src/shared/files.rs`).
     let taken = dir.path().join("taken.gif");
     std::fs::create_dir(&taken).unwrap();
-    assert!(matches!(
-        scene.write_gif(&taken, &GifOptions::default()),
-        Err(Error::Io { .. })
-    ));
+    match scene.write_gif(&taken, &GifOptions::default()) {
+        Err(Error::InvalidInput(m)) => assert!(m.contains("a directory"), "{m}"),
+        other => panic!("{other:?}"),
+    }
     let empty = Scene::new(30.0, "").unwrap();
     assert!(empty.write_html(dir.path().join("empty.html")).is_err());
     let left: Vec<_> = std::fs::read_dir(dir.path())

@@ -24,6 +24,7 @@ use super::sampler::{euler_step, loss_of, times};
 use super::spec::{ArflowSampling, FRAME_DIM};
 use crate::shared::checks::check_frames;
 use crate::shared::error::{Error, Result};
+use crate::shared::limits::{at_most, LIMITS};
 use crate::shared::noise::{fill_normals, NormalSource};
 use crate::shared::stream::{downcast_all, Session, StepOutput, StepTogether, Stream};
 
@@ -403,6 +404,8 @@ impl Stream for OnlineStream {
         self.seed = seed;
     }
     fn queue_normals(&mut self, normals: &[f32]) -> Result<()> {
+        let total = (self.queued.len() - self.queued_used) as u64 + normals.len() as u64;
+        at_most("queued normals", total, LIMITS.max_tensor_elements, false)?;
         self.queued.drain(..self.queued_used);
         self.queued_used = 0;
         self.queued.extend_from_slice(normals);

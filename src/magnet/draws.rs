@@ -5,6 +5,7 @@
 //! each draw given whole, or one queue of normals from which each draw takes the next `n`.
 
 use crate::shared::error::{Error, Result};
+use crate::shared::limits::{at_most, LIMITS};
 use crate::shared::noise::{fill_normals, NormalSource};
 
 /// troupe's Philox stream for MAGNet's draws.
@@ -82,8 +83,15 @@ impl Draws {
         }
     }
 
-    /// Puts `normals` in front of the draws to come, after any still queued.
-    pub(crate) fn enqueue(&mut self, normals: &[f32]) {
+    /// Puts `normals` in front of the draws to come, after any still queued (at most
+    /// `LIMITS.max_tensor_elements` queued at once).
+    pub(crate) fn enqueue(&mut self, normals: &[f32]) -> Result<()> {
+        let queued = match self {
+            Draws::Queued { queue, used, .. } => queue.len() - *used,
+            _ => 0,
+        };
+        let total = queued as u64 + normals.len() as u64;
+        at_most("queued normals", total, LIMITS.max_tensor_elements, false)?;
         match self {
             Draws::Queued { queue, used, .. } => {
                 queue.drain(..*used);
@@ -99,6 +107,7 @@ impl Draws {
                 };
             }
         }
+        Ok(())
     }
 
     /// Draws from `seed` from now on, the count (and any queued normals) kept.

@@ -751,8 +751,7 @@ impl Stream for LivePartner {
         self.state.draws.reseed(seed);
     }
     fn queue_normals(&mut self, normals: &[f32]) -> Result<()> {
-        self.state.draws.enqueue(normals);
-        Ok(())
+        self.state.draws.enqueue(normals)
     }
     fn set_steps(&mut self, steps: u32) -> Result<()> {
         let mut settings = self.settings.clone();

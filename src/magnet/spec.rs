@@ -199,6 +199,7 @@ pub enum RootMode {
 
 /// One x0-space correction (§6.4).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct X0GuidanceSpec {
     /// Its weight (2 DD100, 3 trio).
     pub weight: f32,
@@ -210,6 +211,7 @@ pub struct X0GuidanceSpec {
 
 /// Guidance (§6): the mask modes' weights, in order, and the two x0 corrections.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct GuidanceSpec {
     /// `(mode, weight)`: `clean`, `full`, `subset`, `partial`, `person<i>`, `~person<i>`.
     pub scales: Vec<(String, f32)>,
@@ -223,8 +225,10 @@ pub struct GuidanceSpec {
     pub foot_skating: Option<X0GuidanceSpec>,
 }
 
-/// One sampling configuration (§5.12), lengths in frames as the YAML has them.
+/// One sampling configuration (§5.12), lengths in frames as the YAML has them. Unknown keys are
+/// refused, naming the key (a misspelt `stepz` is not silently the default).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct SamplingSpec {
     /// What it does.
     pub task: Task,
@@ -454,8 +458,8 @@ impl MagnetSpec {
                 m.persons
             )
         })?;
-        ensure(s.eta.is_finite() && s.eta >= 0.0, || {
-            format!("eta {} must be finite and not negative", s.eta)
+        ensure((0.0..=1.0).contains(&s.eta), || {
+            format!("eta {} must be in [0, 1]", s.eta)
         })?;
         ensure(
             s.offset_proportion.is_finite() && (0.0..=1.0).contains(&s.offset_proportion),
@@ -478,9 +482,16 @@ impl MagnetSpec {
                 )
             },
         )?;
-        ensure(s.subseq_len >= 1 && s.seq_len >= f, || {
-            "subseq_len must be at least 1 and seq_len at least one token".into()
-        })?;
+        ensure(
+            (1..=m.window).contains(&s.subseq_len) && s.seq_len >= f,
+            || {
+                format!(
+                    "subseq_len {} must be 1 to the window's {} tokens, and seq_len at least \
+                     one token",
+                    s.subseq_len, m.window
+                )
+            },
+        )?;
         if let Some(lambda) = s.temporal_smoothing {
             ensure(lambda.is_finite(), || {
                 "temporal_smoothing must be finite".into()

@@ -25,7 +25,7 @@ use crate::motion::resample::Resampler;
 use crate::motion::rotation::{Quat, SixD};
 use crate::motion::skeleton::{Skeleton, FOOT_JOINTS, T2M22, T2M22_JOINTS};
 use crate::motion::vec3::{norm, sub, Vec3};
-use crate::motion::world::JointsFormat;
+use crate::motion::world::{JointsFormat, MAX_WORLD_METRES};
 use crate::shared::bundle_io::MotionSpec;
 use crate::shared::error::{Error, Result};
 
@@ -135,7 +135,15 @@ pub(crate) fn read_frame(
                 Skeleton::t2m22().names()[j]
             )));
         }
-        out.push(format.to_canonical_axes(p));
+        let c = format.to_canonical_axes(p);
+        if c.iter().any(|v| v.abs() > MAX_WORLD_METRES) {
+            return Err(Error::InvalidInput(format!(
+                "{what}, joint {j} ({}): position {p:?} is beyond troupe's {MAX_WORLD_METRES} m \
+                 from the origin",
+                Skeleton::t2m22().names()[j]
+            )));
+        }
+        out.push(c);
     }
     Ok(out)
 }
@@ -198,7 +206,7 @@ pub fn encode_clip(
         );
     }
     let placement = match placement {
-        Some(p) => Placement { format, ..*p },
+        Some(p) => Placement { format, ..*p }.checked()?,
         None => Placement::of_clip(format, &frames, None)?,
     };
     let canonical: Vec<Vec<Vec3>> = frames

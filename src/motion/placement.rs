@@ -11,7 +11,7 @@
 use crate::motion::rotation::Quat;
 use crate::motion::skeleton::FACE_JOINTS;
 use crate::motion::vec3::{cross, normalize, sub, Vec3};
-use crate::motion::world::JointsFormat;
+use crate::motion::world::{JointsFormat, MAX_WORLD_METRES};
 use crate::shared::error::{Error, Result};
 
 /// The transform between a caller's world and the canonical frame of a clip.
@@ -28,6 +28,26 @@ pub struct Placement {
 }
 
 impl Placement {
+    /// `self`, if its numbers are finite, within [`MAX_WORLD_METRES`] of the origin and its
+    /// heading a unit quaternion (to 1e-3); an error naming what is not, otherwise.
+    pub fn checked(self) -> Result<Self> {
+        let q = self.heading;
+        let norm = (q.w * q.w + q.x * q.x + q.y * q.y + q.z * q.z).sqrt();
+        let within = |v: f64| v.is_finite() && v.abs() <= MAX_WORLD_METRES;
+        if !(within(self.floor) && self.origin.iter().all(|&v| within(v))) {
+            return Err(Error::InvalidInput(format!(
+                "placement: floor {} and origin {:?} must be finite and within {MAX_WORLD_METRES} m",
+                self.floor, self.origin
+            )));
+        }
+        if !norm.is_finite() || (norm - 1.0).abs() > 1e-3 {
+            return Err(Error::InvalidInput(format!(
+                "placement: the heading {q:?} is not a unit quaternion"
+            )));
+        }
+        Ok(self)
+    }
+
     /// The identity placement for `format`: canonical frame = the caller's world (converted to
     /// troupe's axes).
     pub fn identity(format: JointsFormat) -> Placement {

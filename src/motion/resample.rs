@@ -43,7 +43,8 @@ impl Resampler {
             return 0;
         }
         let span = (n - 1) as f64 * f64::from(fps_out) / f64::from(fps_in);
-        (span + 1e-9).floor() as usize + 1
+        // Saturating: a length beyond `usize` (more frames than memory holds) stays the largest.
+        ((span + 1e-9).floor() as usize).saturating_add(1)
     }
 
     /// How many output frames the next `n` input frames complete.

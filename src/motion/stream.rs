@@ -36,11 +36,14 @@ impl FeatureStream {
     pub fn new(format: JointsFormat, fps: f32, placement: Option<Placement>) -> Result<Self> {
         format.validate()?;
         JointsFormat { fps, ..format }.validate()?;
+        let placement = placement
+            .map(|p| Placement { format, ..p }.checked())
+            .transpose()?;
         Ok(FeatureStream {
             format,
             skeleton: Skeleton::t2m22(),
             resampler: Resampler::new(format.fps, fps),
-            placement: placement.map(|p| Placement { format, ..p }),
+            placement,
             previous: None,
         })
     }
@@ -92,17 +95,20 @@ impl FeatureStream {
         Ok(out)
     }
 
-    /// Forgets the motion and the canonical frame, as if new.
-    pub fn reset(&mut self, placement: Option<Placement>) {
+    /// Forgets the motion and the canonical frame, as if new; a placement that
+    /// [`Placement::checked`] refuses leaves the stream as it was.
+    pub fn reset(&mut self, placement: Option<Placement>) -> Result<()> {
+        let format = self.format;
+        let placement = placement
+            .map(|p| Placement { format, ..p }.checked())
+            .transpose()?;
         *self = FeatureStream {
-            format: self.format,
+            format,
             skeleton: Skeleton::t2m22(),
-            resampler: Resampler::new(self.format.fps, self.resampler.fps_out() as f32),
-            placement: placement.map(|p| Placement {
-                format: self.format,
-                ..p
-            }),
+            resampler: Resampler::new(format.fps, self.resampler.fps_out() as f32),
+            placement,
             previous: None,
         };
+        Ok(())
     }
 }

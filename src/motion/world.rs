@@ -84,6 +84,11 @@ impl Default for JointsFormat {
 /// Frame rates troupe accepts, frames per second.
 pub const FPS_RANGE: std::ops::RangeInclusive<f32> = 1.0..=1000.0;
 
+/// The farthest a joint position or a placement may lie from the origin along any axis, in
+/// metres (1000 km). Beyond, single-precision features lose all precision and differences can
+/// overflow to infinity: such input is refused, so that finite input gives finite output.
+pub const MAX_WORLD_METRES: f64 = 1e6;
+
 impl JointsFormat {
     /// Refuses a frame rate outside [`FPS_RANGE`] (which also bounds what resampling allocates).
     pub fn validate(&self) -> Result<()> {

@@ -13,7 +13,7 @@ use std::io::Read;
 use std::path::{Component, Path, PathBuf};
 use std::sync::atomic::{AtomicU64, Ordering};
 
-use crate::shared::error::{Error, Result};
+use crate::shared::error::{excerpt, excerpt_of, Error, Result, EXCERPT_BYTES};
 use crate::shared::limits::LIMITS;
 
 /// The files of one bundle.
@@ -180,7 +180,16 @@ impl BundleFiles {
     /// sizes are checked against what is left of the archive before any is read; links, devices
     /// and FIFOs, unsafe or repeated names, and too many members are refused.
     fn read_archive(reader: impl Read, len: u64, label: &Path) -> Result<Self> {
-        let bad = |e: std::io::Error| invalid(label, format!("not a readable tar archive: {e}"));
+        // The tar reader's errors can quote the archive's bytes: a bounded, escaped excerpt.
+        let bad = |e: std::io::Error| {
+            invalid(
+                label,
+                format!(
+                    "not a readable tar archive: {}",
+                    excerpt_of(&e.to_string(), 4 * EXCERPT_BYTES)
+                ),
+            )
+        };
         let mut files: HashMap<String, Vec<u8>> = HashMap::new();
         let mut archive = tar::Archive::new(reader);
         let (mut members, mut total) = (0u64, 0u64);
@@ -197,6 +206,7 @@ impl BundleFiles {
                 ));
             }
             let raw = entry.path().map_err(bad)?.to_string_lossy().into_owned();
+            let shown = excerpt(&raw);
             let kind = entry.header().entry_type();
             if kind.is_dir() || kind.is_pax_global_extensions() {
                 continue;
@@ -205,15 +215,15 @@ impl BundleFiles {
                 return Err(invalid(
                     label,
                     format!(
-                        "member `{raw}` is a {kind:?} entry; a bundle holds only regular files \
-                         and directories"
+                        "member `{shown}` is a {kind:?} entry; a bundle holds only regular \
+                         files and directories"
                     ),
                 ));
             }
             let name = plain_name(&raw).ok_or_else(|| {
                 invalid(
                     label,
-                    format!("member `{raw}` is not a plain relative path"),
+                    format!("member `{shown}` is not a plain relative path"),
                 )
             })?;
             let size = entry.size();
@@ -222,13 +232,13 @@ impl BundleFiles {
                 return Err(invalid(
                     label,
                     format!(
-                        "member `{name}` declares {size} bytes, more than the {len}-byte archive \
-                         holds"
+                        "member `{shown}` declares {size} bytes, more than the {len}-byte \
+                         archive holds"
                     ),
                 ));
             }
             if files.contains_key(&name) {
-                return Err(invalid(label, format!("member `{name}` appears twice")));
+                return Err(invalid(label, format!("member `{shown}` appears twice")));
             }
             let mut data = Vec::with_capacity(size as usize);
             (&mut entry)
@@ -236,7 +246,7 @@ impl BundleFiles {
                 .read_to_end(&mut data)
                 .map_err(bad)?;
             if data.len() as u64 != size {
-                return Err(invalid(label, format!("member `{name}` is truncated")));
+                return Err(invalid(label, format!("member `{shown}` is truncated")));
             }
             files.insert(name, data);
         }

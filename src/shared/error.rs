@@ -67,3 +67,46 @@ pub(crate) fn a_or_an(family: &str) -> &'static str {
         "a"
     }
 }
+
+/// How much of a caller's input a message quotes.
+pub(crate) const EXCERPT_BYTES: usize = 64;
+
+/// At most `max` bytes of `text` (cut on a character boundary), escaped so that control
+/// characters, quotes and backslashes show as escapes, and its whole length when cut: how a
+/// message quotes what it was given, so that a huge or binary input never becomes a huge or
+/// unprintable message.
+pub(crate) fn excerpt_of(text: &str, max: usize) -> String {
+    let mut end = text.len().min(max);
+    while !text.is_char_boundary(end) {
+        end -= 1;
+    }
+    let shown: String = text[..end].escape_debug().collect();
+    if end < text.len() {
+        format!("{shown}... ({} bytes)", text.len())
+    } else {
+        shown
+    }
+}
+
+/// [`excerpt_of`] at [`EXCERPT_BYTES`].
+pub(crate) fn excerpt(text: &str) -> String {
+    excerpt_of(text, EXCERPT_BYTES)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn excerpts_are_bounded_escaped_and_say_how_long_the_input_was() {
+        assert_eq!(excerpt("Hips"), "Hips");
+        assert_eq!(excerpt("a\0b\n\"c\""), "a\\0b\\n\\\"c\\\"");
+        let long = "\0".repeat(1 << 20);
+        let e = excerpt(&long);
+        assert!(e.len() <= 4 * EXCERPT_BYTES + 32, "{}", e.len());
+        assert!(e.ends_with("... (1048576 bytes)"), "{e}");
+        // A cut never splits a character.
+        let wide = "é".repeat(100);
+        assert!(excerpt(&wide).starts_with(&"é".repeat(32)));
+    }
+}

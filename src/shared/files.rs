@@ -1,6 +1,12 @@
 //! Writing files a caller asked for: through a temporary file in the target's directory, renamed
 //! into place once complete, so that a failed write leaves neither a partial file nor the
 //! temporary one.
+//!
+//! What may be at the path: nothing, or a regular file, which is replaced. Anything else (a
+//! directory, a symbolic link, a FIFO, a socket, a device) is refused before anything is
+//! written: a writer never writes through a link or into a special file, nor replaces one
+//! with a regular file. (The check and the final rename are two steps: something created at
+//! the path between them is replaced.)
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -22,9 +28,53 @@ fn io_error(path: &Path, source: std::io::Error) -> Error {
     }
 }
 
+/// Refuses a path where something other than a regular file is (see the module documentation).
+fn check_target(path: &Path) -> Result<()> {
+    let kind = match std::fs::symlink_metadata(path) {
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(()),
+        Err(e) => return Err(io_error(path, e)),
+        Ok(meta) => meta.file_type(),
+    };
+    if kind.is_file() {
+        return Ok(());
+    }
+    let what = if kind.is_dir() {
+        "a directory"
+    } else if kind.is_symlink() {
+        "a symbolic link"
+    } else {
+        special_kind(&kind)
+    };
+    Err(Error::InvalidInput(format!(
+        "{}: {what} is there; troupe writes a new file or replaces a regular file, nothing else",
+        path.display()
+    )))
+}
+
+#[cfg(unix)]
+fn special_kind(kind: &std::fs::FileType) -> &'static str {
+    use std::os::unix::fs::FileTypeExt;
+    if kind.is_fifo() {
+        "a FIFO"
+    } else if kind.is_socket() {
+        "a socket"
+    } else if kind.is_char_device() || kind.is_block_device() {
+        "a device"
+    } else {
+        "a special file"
+    }
+}
+
+#[cfg(not(unix))]
+fn special_kind(_: &std::fs::FileType) -> &'static str {
+    "a special file"
+}
+
 impl Pending {
-    /// Writes `bytes` to a new temporary file beside `path`.
+    /// Writes `bytes` to a new temporary file beside `path`, once `path` is checked to hold
+    /// nothing or a regular file.
     pub(crate) fn write(path: &Path, bytes: &[u8]) -> Result<Pending> {
+        check_target(path)?;
         static COUNTER: AtomicU64 = AtomicU64::new(0);
         let name = path.file_name().ok_or_else(|| {
             io_error(

@@ -144,7 +144,20 @@ int main(int argc, char **argv) {
     EXPECT(troupe_motion_encode(model, &format, clip, FRAMES, NULL, features, FRAMES, &n, NULL), TROUPE_ERR_INVALID_ARG);
     format.fps = NAN;
     EXPECT(troupe_motion_encoded_frames(model, &format, FRAMES, &frames), TROUPE_ERR_INVALID_ARG);
+    /* lengths at the edge: SIZE_MAX frames at 1 fps (x30 overflowed to 0 with TROUPE_OK) */
+    format.fps = 1.0f;
+    frames = 12345;
+    EXPECT(troupe_motion_encoded_frames(model, &format, (size_t)-1, &frames), TROUPE_ERR_INVALID_ARG);
+    CHECK(frames == 12345 && strstr(troupe_last_error_message(), "troupe encodes") != NULL);
+    EXPECT(troupe_motion_encoded_frames(model, &format, 36000, &frames), TROUPE_OK);
+    CHECK(frames == 1079970);
+    EXPECT(troupe_motion_encoded_frames(model, &format, 36001, &frames), TROUPE_ERR_INVALID_ARG);
     format.fps = 30.0f;
+    /* a placement beyond 1e6 m gave non-finite features with TROUPE_OK */
+    again = placement;
+    again.floor = 1e300;
+    EXPECT(troupe_motion_encode(model, &format, clip, FRAMES, &again, features, FRAMES, &n, NULL), TROUPE_ERR_INVALID_ARG);
+    CHECK(strstr(troupe_last_error_message(), "within 1000000 m") != NULL);
     again = placement;
     again.heading[0] = 2.0;
     EXPECT(troupe_motion_encode(model, &format, clip, FRAMES, &again, features, FRAMES, &n, NULL), TROUPE_ERR_INVALID_ARG);

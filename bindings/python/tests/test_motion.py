@@ -127,6 +127,8 @@ def test_bvh_round_trip_and_bad_files(tmp_path, clip):
     with pytest.raises(troupe.TroupeError, match="frame 3, joint 3"):
         motion.write_bvh(tmp_path / "nan.bvh", nan, fmt)
     assert not (tmp_path / "nan.bvh").exists()
+    with pytest.raises(ValueError, match="without NUL"):
+        motion.write_bvh(tmp_path / "nul.bvh", {"act\0or": actor, "reactor": reactor}, fmt)
     with pytest.raises(ValueError):
         motion.JointsFormat(units="furlongs")
 

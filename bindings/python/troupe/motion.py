@@ -265,6 +265,9 @@ def _people(people, fmt):
     arrays = [_positions(p, f"positions of {name}") for name, p in people.items()]
     if len({a.shape[0] for a in arrays}) > 1:
         raise ValueError("every person needs the same number of frames")
+    for name in people:
+        if not isinstance(name, str) or "\0" in name:
+            raise ValueError(f"person name {name!r} must be a str without NUL characters")
     names = (ctypes.c_char_p * len(arrays))(*[n.encode() for n in people])
     return np.ascontiguousarray(np.stack(arrays)), names, (fmt or JointsFormat())._c()
 

@@ -266,7 +266,7 @@ impl Reactor {
     pub fn reset(&mut self) {
         self.state = StreamState::new(self.spec(), self.settings.capacity, self.vae_start.clone());
         if let Some(joints) = &mut self.joints {
-            joints.reset(None);
+            joints.reset(None).expect("no placement to refuse");
         }
     }
 

@@ -18,7 +18,7 @@ use crate::ffi::boundary::{
     TROUPE_ERR_INVALID_ARG, TROUPE_ERR_SHAPE,
 };
 use crate::ffi::model::troupe_model;
-use crate::motion::features::encoded_frames;
+use crate::motion::features::{encoded_frames, MAX_CLIP_FRAMES};
 use crate::motion::rotation::Quat;
 use crate::motion::{
     decode_frame, encode_clip, joints_layout, FeatureStream, Handedness, JointsFormat, Placement,
@@ -202,7 +202,8 @@ impl troupe_placement {
             floor: self.floor,
             origin: [self.origin_x, self.origin_z],
             heading: q.normalized(),
-        })
+        }
+        .checked()?)
     }
 
     pub(crate) fn from_rust(p: &Placement) -> Self {
@@ -556,8 +557,9 @@ pub unsafe extern "C" fn troupe_motion_penetration_metrics(
 /// `n_frames` position frames measured as `format` says: the clip resampled to the bundle's
 /// rate, less one (velocities look one frame ahead).
 ///
-/// Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (a bad format, or a
-/// bundle whose features are not `interhuman262`). Thread-safe.
+/// Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (a bad format, more
+/// frames than `troupe_motion_encode` takes, or a bundle whose features are not
+/// `interhuman262`). Thread-safe.
 ///
 /// # Safety
 /// `format` readable, `n_frames_out` writable.
@@ -578,6 +580,16 @@ pub unsafe extern "C" fn troupe_motion_encoded_frames(
             let format = unsafe { read_format(format) }?;
             let fps = motion_fps(model)?;
             let n = encoded_frames(format.fps, fps, n_frames);
+            if n >= MAX_CLIP_FRAMES {
+                return Err(FfiError::new(
+                    TROUPE_ERR_INVALID_ARG,
+                    format!(
+                        "{n_frames} frames at {} fps: longer at {fps} fps than the \
+                         {MAX_CLIP_FRAMES} frames troupe encodes",
+                        format.fps
+                    ),
+                ));
+            }
             // SAFETY: checked non-NULL, writable per the contract.
             unsafe { *n_frames_out = n };
             Ok(())
@@ -960,8 +972,7 @@ pub unsafe extern "C" fn troupe_motion_stream_reset(
                 .claim("the stream")?;
             // SAFETY: forwarded contract.
             let placement = unsafe { optional_placement(placement, s.format()) }?;
-            s.reset(placement);
-            Ok(())
+            Ok(s.reset(placement)?)
         },
     )
 }

@@ -15,7 +15,9 @@
 mod parse;
 mod write;
 
-pub use parse::{parse_bvh, read_bvh, MAX_BVH_BYTES, MAX_BVH_JOINTS};
+pub use parse::{
+    parse_bvh, read_bvh, MAX_BVH_BYTES, MAX_BVH_COORDINATE, MAX_BVH_JOINTS, MAX_BVH_NAME_BYTES,
+};
 pub use write::{write_bvh, write_bvh_file, BvhPerson, BvhWriteOptions};
 
 use ndarray::{s, Array3};

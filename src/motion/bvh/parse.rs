@@ -6,12 +6,18 @@ use std::path::Path;
 
 use super::{Bvh, BvhJoint, Channel};
 use crate::motion::features::MAX_CLIP_FRAMES;
-use crate::shared::error::{Error, Result};
+use crate::shared::error::{excerpt, Error, Result};
 
 /// The largest BVH file troupe reads: 256 MiB (LAFAN1's longest take is about 10 MB).
 pub const MAX_BVH_BYTES: u64 = 1 << 28;
 /// The most joints a BVH hierarchy may have.
 pub const MAX_BVH_JOINTS: usize = 1024;
+/// The longest joint name, in bytes.
+pub const MAX_BVH_NAME_BYTES: usize = 256;
+/// The largest offset or position channel value, in the file's units (10 km in centimetres):
+/// with at most [`MAX_BVH_JOINTS`] joints, every position forward kinematics gives is then
+/// finite in `f32`.
+pub const MAX_BVH_COORDINATE: f64 = 1e6;
 
 #[derive(Clone, Copy)]
 struct Token<'a> {
@@ -81,7 +87,10 @@ impl<'a> Tokens<'a> {
         let t = self.next(word)?;
         let (text, line) = (t.text, t.line);
         if !text.eq_ignore_ascii_case(word) {
-            return Err(self.error(line, format!("expected `{word}`, found `{text}`")));
+            return Err(self.error(
+                line,
+                format!("expected `{word}`, found `{}`", excerpt(text)),
+            ));
         }
         Ok(line)
     }
@@ -91,18 +100,28 @@ impl<'a> Tokens<'a> {
         let (text, line) = (t.text, t.line);
         match text.parse::<f64>() {
             Ok(v) if v.is_finite() => Ok(v),
-            _ => Err(self.error(line, format!("{what}: `{text}` is not a finite number"))),
+            _ => Err(self.error(
+                line,
+                format!("{what}: `{}` is not a finite number", excerpt(text)),
+            )),
         }
     }
 
     fn offset(&mut self, joint: &str) -> Result<[f64; 3]> {
         self.expect("OFFSET")?;
         let what = format!("OFFSET of {joint}");
-        Ok([
-            self.number(&what)?,
-            self.number(&what)?,
-            self.number(&what)?,
-        ])
+        let mut offset = [0.0; 3];
+        for v in &mut offset {
+            let line = self.line();
+            *v = self.number(&what)?;
+            if v.abs() > MAX_BVH_COORDINATE {
+                return Err(self.error(
+                    line,
+                    format!("{what}: {v} is beyond troupe's ±{MAX_BVH_COORDINATE}"),
+                ));
+            }
+        }
+        Ok(offset)
     }
 
     /// The rest of the current line up to a `{`: a joint's name (names may hold spaces).
@@ -118,7 +137,18 @@ impl<'a> Tokens<'a> {
         if parts.is_empty() {
             return Err(self.error(keyword_line, "a joint without a name"));
         }
-        Ok(parts.join(" "))
+        let name = parts.join(" ");
+        if name.len() > MAX_BVH_NAME_BYTES || name.chars().any(char::is_control) {
+            return Err(self.error(
+                keyword_line,
+                format!(
+                    "joint name `{}`: names are at most {MAX_BVH_NAME_BYTES} bytes without \
+                     control characters",
+                    excerpt(&name)
+                ),
+            ));
+        }
+        Ok(name)
     }
 }
 
@@ -208,8 +238,9 @@ fn hierarchy(tokens: &mut Tokens) -> Result<Vec<BvhJoint>> {
                     tokens.error(
                         line,
                         format!(
-                            "joint `{name}`: unknown channel `{text}` (expected X/Y/Z position \
-                             or rotation)"
+                            "joint `{name}`: unknown channel `{}` (expected X/Y/Z position or \
+                             rotation)",
+                            excerpt(text)
                         ),
                     )
                 })?;
@@ -250,8 +281,9 @@ fn hierarchy(tokens: &mut Tokens) -> Result<Vec<BvhJoint>> {
                 return Err(tokens.error(
                     line,
                     format!(
-                        "in joint `{}`: expected JOINT, End Site or }}, found `{other}`",
-                        joints[current].name
+                        "in joint `{}`: expected JOINT, End Site or }}, found `{}`",
+                        joints[current].name,
+                        excerpt(other)
                     ),
                 ))
             }
@@ -294,7 +326,19 @@ fn motion(tokens: &mut Tokens, joints: Vec<BvhJoint>, bytes_left: usize) -> Resu
                         ),
                     ));
                 };
+                let position = c.rotation_axis().is_none();
                 match t.text.parse::<f32>() {
+                    Ok(v) if position && f64::from(v.abs()) > MAX_BVH_COORDINATE => {
+                        return Err(tokens.error(
+                            t.line,
+                            format!(
+                                "frame {f}, joint `{}`, {}: {v} is beyond troupe's \
+                                 ±{MAX_BVH_COORDINATE}",
+                                joint.name,
+                                c.name()
+                            ),
+                        ))
+                    }
                     Ok(v) if v.is_finite() => values.push(v),
                     _ => {
                         return Err(tokens.error(
@@ -303,7 +347,7 @@ fn motion(tokens: &mut Tokens, joints: Vec<BvhJoint>, bytes_left: usize) -> Resu
                                 "frame {f}, joint `{}`, {}: `{}` is not a finite number",
                                 joint.name,
                                 c.name(),
-                                t.text
+                                excerpt(t.text)
                             ),
                         ))
                     }
@@ -314,7 +358,10 @@ fn motion(tokens: &mut Tokens, joints: Vec<BvhJoint>, bytes_left: usize) -> Resu
     if let Some(t) = tokens.pull() {
         return Err(tokens.error(
             t.line,
-            format!("`{}` after the {frames} frames the file declares", t.text),
+            format!(
+                "`{}` after the {frames} frames the file declares",
+                excerpt(t.text)
+            ),
         ));
     }
     Ok(Bvh {

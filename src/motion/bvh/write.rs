@@ -3,12 +3,13 @@
 
 use std::fmt::Write as _;
 
+use super::parse::{MAX_BVH_COORDINATE, MAX_BVH_NAME_BYTES};
 use crate::motion::ik::inverse_kinematics;
 use crate::motion::rotation::Quat;
 use crate::motion::skeleton::Skeleton;
 use crate::motion::vec3::{norm, normalize, scale, Vec3};
 use crate::motion::world::{Units, FPS_RANGE};
-use crate::shared::error::{Error, Result};
+use crate::shared::error::{excerpt, Error, Result};
 
 /// One person to write: a name (prefixed to joint names when a file holds several people) and
 /// joint positions per frame in troupe's canonical axes (metres, Y up), indexed like the
@@ -98,12 +99,36 @@ pub fn write_bvh(people: &[BvhPerson], options: &BvhWriteOptions) -> Result<Stri
         if p.name.is_empty()
             || p.name
                 .chars()
-                .any(|c| c.is_whitespace() || c == '{' || c == '}')
+                .any(|c| c.is_whitespace() || c.is_control() || c == '{' || c == '}')
         {
             return Err(bad(format!(
-                "person name {:?} cannot be part of a joint name",
-                p.name
+                "person name `{}` cannot be part of a joint name",
+                excerpt(p.name)
             )));
+        }
+    }
+    // Every joint name once, each as the reader takes it (what is written reads back).
+    let mut joint_names = std::collections::HashSet::new();
+    for p in people {
+        for joint in neutral.names() {
+            let name = if people.len() > 1 {
+                format!("{}_{joint}", p.name)
+            } else {
+                joint.to_string()
+            };
+            if name.len() > MAX_BVH_NAME_BYTES {
+                return Err(bad(format!(
+                    "person name `{}` makes joint names longer than {MAX_BVH_NAME_BYTES} bytes",
+                    excerpt(p.name)
+                )));
+            }
+            if name == "scene" || !joint_names.insert(name) {
+                return Err(bad(format!(
+                    "person name `{}` gives a joint name another person's has: names must \
+                     differ",
+                    excerpt(p.name)
+                )));
+            }
         }
     }
     let per_metre = 1.0 / options.units.meters();
@@ -118,6 +143,16 @@ pub fn write_bvh(people: &[BvhPerson], options: &BvhWriteOptions) -> Result<Stri
             }
         })
         .collect();
+    // Roots and bones within what the reader takes.
+    for (p, skeleton) in people.iter().zip(&skeletons) {
+        let far = |v: &Vec3| v.iter().any(|c| (c * per_metre).abs() > MAX_BVH_COORDINATE);
+        if p.positions.iter().any(|pose| far(&pose[0])) || skeleton.offsets().iter().any(far) {
+            return Err(bad(format!(
+                "{}: a root or bone beyond ±{MAX_BVH_COORDINATE} file units",
+                p.name
+            )));
+        }
+    }
 
     let mut out = String::from("HIERARCHY\n");
     let mut depth = 0;
