@@ -414,9 +414,10 @@ troupe_status troupe_set_log_callback(troupe_log_fn callback, void *user_data, i
 /**
  * Sets the calling thread's progress callback (NULL removes it): from now on, long calls made
  * on this thread (`troupe_model_load_file`, `troupe_model_load_memory`,
- * `troupe_umf_generate`, `troupe_armflow_clip_generate`) report to it between units of work (graphs
- * loaded, people generated, clip tokens) and stop with `TROUPE_ERR_CANCELLED` when it returns
- * non-zero. To cancel from another thread, have the callback read a flag that thread sets.
+ * `troupe_umf_generate`, `troupe_armflow_clip_generate`, `troupe_magnet_generate`,
+ * `troupe_arflow_generate`, `troupe_bvh_read`, `troupe_viewer_write`) report to it between units
+ * of work (graphs loaded, a group's network evaluations, clip tokens, sampler steps, BVH frames
+ * by 4096, GIF frames) and stop with `TROUPE_ERR_CANCELLED` when it returns non-zero. To cancel from another thread, have the callback read a flag that thread sets.
  * `user_data` is passed back untouched and must stay valid while the callback is set.
  * Per thread, like the last error; thread-safe.
  *
@@ -1406,7 +1407,8 @@ void troupe_motion_stream_free(struct troupe_motion_stream *stream);
  *
  * Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_IO` (unreadable file),
  * `TROUPE_ERR_INVALID_ARG` (malformed file, naming line, joint and frame; a rig lacking a
- * t2m-22 joint, naming it and the names tried; a bad map or units), `TROUPE_ERR_PANIC`.
+ * t2m-22 joint, naming it and the names tried; a bad map or units), `TROUPE_ERR_CANCELLED`
+ * (the progress callback stopped it: it reports every 4096 frames), `TROUPE_ERR_PANIC`.
  * Thread-safe.
  *
  * # Safety
@@ -1464,8 +1466,11 @@ void troupe_bvh_free(struct troupe_bvh *bvh);
  * (`TROUPE_UNITS_*`; centimetres are what most tools expect). The file is Y up.
  *
  * Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (NaN or infinite
- * positions, no people or frames, a bad format, units or name), `TROUPE_ERR_IO`,
- * `TROUPE_ERR_PANIC`. Thread-safe.
+ * positions, no people or frames, a bad format or units; a name its reader would refuse:
+ * repeated, too long, with whitespace, braces or control characters; a root beyond ±1e6 file
+ * units; something at `path` that is not a regular file: a directory, link, FIFO, socket or
+ * device), `TROUPE_ERR_IO`, `TROUPE_ERR_PANIC`. What it writes, `troupe_bvh_read` reads back.
+ * Thread-safe.
  *
  * # Safety
  * `path` NUL-terminated; `positions` readable for `n_people * n_frames * 66` floats; `format`
@@ -2313,8 +2318,11 @@ troupe_status troupe_arflow_session_set_options(struct troupe_session *session, 
  * Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG` (`positions` or `format` NULL, or both paths
  * NULL), `TROUPE_ERR_INVALID_ARG` (`n_people` not in 1..=8; `n_frames` not in 1..=18000; a
  * non-finite position or one farther than 10 km, naming the person, frame and joint; a bad
- * format; a path, name or title not UTF-8 or too long), `TROUPE_ERR_IO` (a file that cannot be
- * written, e.g. its directory is missing), `TROUPE_ERR_PANIC`. Nothing is written on error:
+ * format; a path, name or title not UTF-8 or too long; something at a path that is not a
+ * regular file: a directory, link, FIFO, socket or device), `TROUPE_ERR_IO` (a file that
+ * cannot be written, e.g. its directory is missing), `TROUPE_ERR_CANCELLED` (the progress
+ * callback stopped the GIF, which reports every frame), `TROUPE_ERR_PANIC`. Nothing is
+ * written on error:
  * both files are rendered and written to temporary files beside them first, then renamed into
  * place. Thread-safe.
  *

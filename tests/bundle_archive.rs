@@ -72,3 +72,33 @@ fn bad_archives_are_rejected_with_the_archive_named() {
         "{e}"
     );
 }
+
+/// A message quotes a bounded, escaped excerpt of an archive: a symbolic link whose name is
+/// 100,000 bytes (a GNU long name) is refused with a message of a few hundred bytes giving the
+/// name's length, not the name; a header of garbage does not paste the file into the message.
+#[test]
+fn archive_messages_quote_bounded_excerpts() {
+    let mut builder = tar::Builder::new(Vec::new());
+    let long = format!("{}\u{7}", "n".repeat(99_999));
+    let mut header = tar::Header::new_gnu();
+    header.set_entry_type(tar::EntryType::Symlink);
+    header.set_size(0);
+    builder
+        .append_link(&mut header, &long, "troupe.json")
+        .unwrap();
+    let e = Model::from_archive_bytes(&builder.into_inner().unwrap(), "long.troupe")
+        .unwrap_err()
+        .to_string();
+    assert!(e.len() < 400, "{} bytes", e.len());
+    assert!(e.contains("(100000 bytes)") && e.contains("Symlink"), "{e}");
+    let mut garbage = vec![0xABu8; 1 << 16];
+    garbage[..512].fill(b'7');
+    let e = Model::from_archive_bytes(&garbage, "garbage.troupe")
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.len() < 600 && e.contains("garbage.troupe"),
+        "{} bytes: {e}",
+        e.len()
+    );
+}

@@ -415,16 +415,25 @@ fn long_calls_report_progress_and_stop_when_the_callback_says_so() {
     }
     troupe::set_load_threads(0);
 
-    // A group of four people stops after the second.
+    // A group reports every network evaluation: one long solve (10,000 prior steps) stops
+    // at the second, long before it would end.
     let umf =
         Model::load(Path::new(env!("CARGO_MANIFEST_DIR")).join("onnx/bundles/umf-tiny")).unwrap();
     let options = troupe::GroupOptions::default();
+    let stages = umf.umf().unwrap().spec().pyramid.stages.len();
+    let long = troupe::GroupOptions {
+        prior: Some(vec![troupe::Solver::euler(10_000); stages]),
+        ..troupe::GroupOptions::default()
+    };
+    let started = std::time::Instant::now();
     let e = troupe::with_progress(calls(2), || {
-        umf.umf().unwrap().generate_group(None, 4, &options)
+        umf.umf().unwrap().generate_group(None, 4, &long)
     })
     .unwrap_err();
     assert!(matches!(e, Error::Cancelled(_)), "{e}");
-    assert_eq!(*seen.lock().unwrap(), [(1, 4), (2, 4)]);
+    let total = 10_000 * stages as u64 + 3 * 4 * 4; // RK4 with 4 steps per further person
+    assert_eq!(*seen.lock().unwrap(), [(1, total), (2, total)]);
+    assert!(started.elapsed().as_secs_f64() < 5.0);
     assert!(
         umf.umf().unwrap().generate_group(None, 4, &options).is_ok(),
         "no callback outside the scope"
@@ -445,4 +454,59 @@ fn long_calls_report_progress_and_stop_when_the_callback_says_so() {
     .unwrap_err();
     assert!(e.to_string().contains("the clip was cancelled"), "{e}");
     assert_eq!(seen.lock().unwrap().len(), 3);
+}
+
+/// A BVH file of a million frames reports every 4096 and stops when told; so does the GIF
+/// writer, every frame.
+#[test]
+fn reading_bvh_and_writing_gifs_can_be_stopped() {
+    let mut text = String::from(
+        "HIERARCHY\nROOT Hips\n{\n OFFSET 0 0 0\n CHANNELS 3 Xposition Yposition Zposition\n \
+         End Site\n {\n  OFFSET 0 1 0\n }\n}\nMOTION\nFrames: 1000000\nFrame Time: 0.0333\n",
+    );
+    for _ in 0..1_000_000 {
+        text.push_str("0 0 0\n");
+    }
+    let e = troupe::with_progress(
+        |done, total| {
+            assert_eq!((done, total), (4096, 1_000_000), "the first report stops it");
+            false
+        },
+        || troupe::motion::bvh::parse_bvh(text.as_bytes(), "long.bvh"),
+    )
+    .unwrap_err();
+    assert!(
+        e.to_string().contains("reading the BVH was cancelled"),
+        "{e}"
+    );
+
+    let mut scene = troupe::viewer::Scene::new(30.0, "").unwrap();
+    let pose = ndarray::Array3::<f32>::from_shape_fn((60, 22, 3), |(t, j, d)| {
+        (t as f32) * 0.01 + (j as f32) * 0.05 * (d == 1) as u8 as f32
+    });
+    scene.add_person("p", pose.view()).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let gif = dir.path().join("stopped.gif");
+    let e = troupe::with_progress(
+        |done, _| done < 10,
+        || scene.write_gif(&gif, &troupe::viewer::GifOptions::default()),
+    )
+    .unwrap_err();
+    assert!(matches!(e, Error::Cancelled(_)), "{e}");
+    assert!(!gif.exists(), "nothing written");
+}
+
+/// A latent scale far from 1 (3.4e38, a denormal) made every step overflow after the bundle
+/// loaded: it is refused at load, naming the field.
+#[test]
+fn latent_scales_that_overflow_every_step_are_refused_at_load() {
+    for scale in [3.4e38f64, 1e-40, 1e5, 0.0] {
+        let dir = common::bundle_copy();
+        common::edit_manifest(dir.path(), |m| m["latent"]["scale"] = scale.into());
+        let e = Model::load(dir.path()).unwrap_err().to_string();
+        assert!(
+            e.contains("latent.scale must be in [1e-4, 1e4]"),
+            "{scale}: {e}"
+        );
+    }
 }

@@ -176,8 +176,13 @@ impl ArmFlowSpec {
         check(l.dim > 0 && l.frames_per_token > 0, &|| {
             "latent.dim and latent.frames_per_token must be positive".into()
         })?;
-        check(l.scale.is_finite() && l.scale > 0.0, &|| {
-            format!("latent.scale must be finite and positive, got {}", l.scale)
+        // Latents are multiplied by the scale and decoded divided by it: far from 1 either way
+        // (3.4e38, a denormal) every step overflows, so such a bundle is refused at load.
+        check((1e-4..=1e4).contains(&l.scale), &|| {
+            format!(
+                "latent.scale must be in [1e-4, 1e4] (the official models use 0.1825), got {}",
+                l.scale
+            )
         })?;
         check(c.width == 2 * l.dim, &|| {
             format!(

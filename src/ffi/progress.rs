@@ -15,9 +15,10 @@ pub type troupe_progress_fn =
 
 /// Sets the calling thread's progress callback (NULL removes it): from now on, long calls made
 /// on this thread (`troupe_model_load_file`, `troupe_model_load_memory`,
-/// `troupe_umf_generate`, `troupe_armflow_clip_generate`) report to it between units of work (graphs
-/// loaded, people generated, clip tokens) and stop with `TROUPE_ERR_CANCELLED` when it returns
-/// non-zero. To cancel from another thread, have the callback read a flag that thread sets.
+/// `troupe_umf_generate`, `troupe_armflow_clip_generate`, `troupe_magnet_generate`,
+/// `troupe_arflow_generate`, `troupe_bvh_read`, `troupe_viewer_write`) report to it between units
+/// of work (graphs loaded, a group's network evaluations, clip tokens, sampler steps, BVH frames
+/// by 4096, GIF frames) and stop with `TROUPE_ERR_CANCELLED` when it returns non-zero. To cancel from another thread, have the callback read a flag that thread sets.
 /// `user_data` is passed back untouched and must stay valid while the callback is set.
 /// Per thread, like the last error; thread-safe.
 ///

@@ -25,8 +25,11 @@ use crate::viewer::{GifOptions, Scene, MAX_FRAMES, MAX_PEOPLE};
 /// Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG` (`positions` or `format` NULL, or both paths
 /// NULL), `TROUPE_ERR_INVALID_ARG` (`n_people` not in 1..=8; `n_frames` not in 1..=18000; a
 /// non-finite position or one farther than 10 km, naming the person, frame and joint; a bad
-/// format; a path, name or title not UTF-8 or too long), `TROUPE_ERR_IO` (a file that cannot be
-/// written, e.g. its directory is missing), `TROUPE_ERR_PANIC`. Nothing is written on error:
+/// format; a path, name or title not UTF-8 or too long; something at a path that is not a
+/// regular file: a directory, link, FIFO, socket or device), `TROUPE_ERR_IO` (a file that
+/// cannot be written, e.g. its directory is missing), `TROUPE_ERR_CANCELLED` (the progress
+/// callback stopped the GIF, which reports every frame), `TROUPE_ERR_PANIC`. Nothing is
+/// written on error:
 /// both files are rendered and written to temporary files beside them first, then renamed into
 /// place. Thread-safe.
 ///

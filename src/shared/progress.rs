@@ -27,8 +27,8 @@ pub(crate) fn set_thread_callback(callback: Option<ProgressFn>) -> Option<Progre
 
 /// Runs `body` with `callback` as this thread's progress callback, then restores the previous
 /// one. Long calls made by `body` on this thread report `(done, total)` to it between units of
-/// work (graphs loaded, people generated, clip tokens) and stop with [`Error::Cancelled`] when
-/// it returns `false`.
+/// work (graphs loaded, a group's network evaluations, clip tokens, BVH frames, GIF frames)
+/// and stop with [`Error::Cancelled`] when it returns `false`.
 ///
 /// ```no_run
 /// use std::sync::atomic::{AtomicBool, Ordering};

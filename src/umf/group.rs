@@ -104,6 +104,19 @@ struct Plan<'a> {
     cfg_scale: f32,
 }
 
+/// A group's network evaluations so far, reported as its progress.
+struct Evaluations {
+    done: std::cell::Cell<u64>,
+    total: u64,
+}
+
+impl Evaluations {
+    fn one_more(&self) -> Result<()> {
+        self.done.set(self.done.get() + 1);
+        progress::report("the group", self.done.get(), self.total)
+    }
+}
+
 impl Networks {
     /// Generates `people` persons' motion for `condition` (`None`: the null condition).
     pub(crate) fn generate_group(
@@ -125,9 +138,15 @@ impl Networks {
         };
         let (tokens, dim) = (spec.latent.tokens, spec.latent.dim);
 
+        // Progress counts network evaluations, so that one long solve can be stopped too.
+        let total = plan.prior.iter().map(|s| s.evaluations()).sum::<usize>()
+            + (people - 1) * plan.reaction.evaluations();
+        let counter = Evaluations {
+            done: std::cell::Cell::new(0),
+            total: total as u64,
+        };
         let mut latents = Vec::with_capacity(people * tokens * dim);
-        latents.extend(self.first_person(&plan, &self.prior, &texts, &noise)?);
-        progress::report("the group", 1, people as u64)?;
+        latents.extend(self.first_person(&plan, &self.prior, &texts, &noise, &counter)?);
         for (p, eps) in noise.reactions.iter().enumerate().map(|(i, e)| (i + 1, e)) {
             let context = read_context(&self.context, &latents[..p * tokens * dim], tokens, dim)?;
             let mut state = Vec::with_capacity(tokens * 2 * dim);
@@ -136,12 +155,13 @@ impl Networks {
                 state.extend_from_slice(&context[k * dim..(k + 1) * dim]);
             }
             plan.reaction.solve(&mut state, |tau, w| {
-                guided(&self.reaction, &plan, w, tokens, tau, &texts.reaction)
+                let v = guided(&self.reaction, &plan, w, tokens, tau, &texts.reaction)?;
+                counter.one_more()?;
+                Ok(v)
             })?;
             for k in 0..tokens {
                 latents.extend_from_slice(&state[(2 * k + 1) * dim..(2 * k + 2) * dim]);
             }
-            progress::report("the group", p as u64 + 1, people as u64)?;
         }
 
         let frames = spec.clip_frames;
@@ -313,6 +333,7 @@ impl Networks {
         prior: &Graph,
         texts: &Texts,
         noise: &GroupNoise,
+        counter: &Evaluations,
     ) -> Result<Vec<f32>> {
         let pyramid = &plan.spec.pyramid;
         let dim = plan.spec.latent.dim;
@@ -328,7 +349,9 @@ impl Networks {
             let (slope, intercept) = ((last - first) as f32, first as f32);
             solver.solve(&mut z, |tau, y| {
                 let timestep = (slope * tau + intercept) / time_scale;
-                guided(prior, plan, y, stage.tokens, timestep, &texts.prior)
+                let v = guided(prior, plan, y, stage.tokens, timestep, &texts.prior)?;
+                counter.one_more()?;
+                Ok(v)
             })?;
         }
         Ok(z)

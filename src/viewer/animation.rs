@@ -12,6 +12,7 @@ use std::path::Path;
 use crate::motion::{Skeleton, T2M22_JOINTS};
 use crate::shared::error::{Error, Result};
 use crate::shared::files::write_atomically;
+use crate::shared::progress;
 use crate::viewer::camera::Camera;
 use crate::viewer::html::grid;
 use crate::viewer::raster::{palette, Area, Ink, Raster, GRID};
@@ -234,6 +235,7 @@ impl Scene {
         let mut pending: Option<Patch> = None;
         let mut previous: Option<Raster> = None;
         for t in (0..self.frames()).step_by(stride) {
+            progress::report("the GIF", t as u64 + 1, self.frames() as u64)?;
             let raster = painter.draw(t);
             let delay_cs = centiseconds(t + stride) - centiseconds(t);
             let changed = match &previous {

@@ -52,7 +52,8 @@ fn units_from(code: u32, what: &str) -> FfiResult<Units> {
 ///
 /// Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_IO` (unreadable file),
 /// `TROUPE_ERR_INVALID_ARG` (malformed file, naming line, joint and frame; a rig lacking a
-/// t2m-22 joint, naming it and the names tried; a bad map or units), `TROUPE_ERR_PANIC`.
+/// t2m-22 joint, naming it and the names tried; a bad map or units), `TROUPE_ERR_CANCELLED`
+/// (the progress callback stopped it: it reports every 4096 frames), `TROUPE_ERR_PANIC`.
 /// Thread-safe.
 ///
 /// # Safety
@@ -199,8 +200,11 @@ pub unsafe extern "C" fn troupe_bvh_free(bvh: *mut troupe_bvh) {
 /// (`TROUPE_UNITS_*`; centimetres are what most tools expect). The file is Y up.
 ///
 /// Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (NaN or infinite
-/// positions, no people or frames, a bad format, units or name), `TROUPE_ERR_IO`,
-/// `TROUPE_ERR_PANIC`. Thread-safe.
+/// positions, no people or frames, a bad format or units; a name its reader would refuse:
+/// repeated, too long, with whitespace, braces or control characters; a root beyond ±1e6 file
+/// units; something at `path` that is not a regular file: a directory, link, FIFO, socket or
+/// device), `TROUPE_ERR_IO`, `TROUPE_ERR_PANIC`. What it writes, `troupe_bvh_read` reads back.
+/// Thread-safe.
 ///
 /// # Safety
 /// `path` NUL-terminated; `positions` readable for `n_people * n_frames * 66` floats; `format`

@@ -7,6 +7,7 @@ use std::path::Path;
 use super::{Bvh, BvhJoint, Channel};
 use crate::motion::features::MAX_CLIP_FRAMES;
 use crate::shared::error::{excerpt, Error, Result};
+use crate::shared::progress;
 
 /// The largest BVH file troupe reads: 256 MiB (LAFAN1's longest take is about 10 MB).
 pub const MAX_BVH_BYTES: u64 = 1 << 28;
@@ -314,6 +315,10 @@ fn motion(tokens: &mut Tokens, joints: Vec<BvhJoint>, bytes_left: usize) -> Resu
     let total = frames.saturating_mul(per_frame);
     let mut values = Vec::with_capacity(total.min(bytes_left / 2 + 1));
     for f in 0..frames {
+        // A long file can be stopped: progress every 4096 frames.
+        if f % 4096 == 4095 {
+            progress::report("reading the BVH", f as u64 + 1, frames as u64)?;
+        }
         for joint in &joints {
             for c in &joint.channels {
                 let Some(t) = tokens.pull() else {
