@@ -67,6 +67,8 @@ pub use model::Model;
 pub use shared::attention::kernel as attention_kernel;
 pub use shared::error::{Error, Result};
 pub use shared::family::{SessionOptions, StreamOptions};
+#[doc(hidden)]
+pub use shared::graph::load_graph_for_fuzzing;
 pub use shared::limits::{Limits, LIMITS};
 pub use shared::noise;
 pub use shared::progress::with_progress;

@@ -469,7 +469,11 @@ fn reading_bvh_and_writing_gifs_can_be_stopped() {
     }
     let e = troupe::with_progress(
         |done, total| {
-            assert_eq!((done, total), (4096, 1_000_000), "the first report stops it");
+            assert_eq!(
+                (done, total),
+                (4096, 1_000_000),
+                "the first report stops it"
+            );
             false
         },
         || troupe::motion::bvh::parse_bvh(text.as_bytes(), "long.bvh"),

@@ -198,6 +198,44 @@ impl Phases {
     }
 }
 
+/// Loads `onnx` as a bundle's graph is loaded (the protobuf guard, tract's typing, the
+/// interface check against an ARMFlow `velocity` graph's, optimisation) and runs it once on
+/// zeros: the graph loader without a bundle around it, for the `onnx_graph` fuzz target (a
+/// whole bundle's other graphs made each execution a quarter of a second).
+#[doc(hidden)]
+pub fn load_graph_for_fuzzing(onnx: &[u8]) -> Result<()> {
+    const SPEC: &str = r#"{"file": "velocity.onnx", "inputs": [
+        {"name": "actor", "dtype": "float32", "shape": ["B", 16]},
+        {"name": "noisy", "dtype": "float32", "shape": ["B", 16]},
+        {"name": "context", "dtype": "float32", "shape": ["B", 32]},
+        {"name": "r", "dtype": "float32", "shape": ["B"]},
+        {"name": "t", "dtype": "float32", "shape": ["B"]}],
+        "outputs": [{"name": "velocity", "dtype": "float32", "shape": ["B", 16]}]}"#;
+    let spec: GraphSpec = serde_json::from_str(SPEC).expect("a valid graph declaration");
+    let files = BundleFiles::Archive {
+        label: std::path::PathBuf::from("fuzz.troupe"),
+        files: std::collections::HashMap::from([("velocity.onnx".to_string(), onnx.to_vec())]),
+    };
+    let quiet = panics::is_quiet();
+    let graph = panics::catch(quiet, || {
+        Graph::load("velocity", &files, &spec, PlanPolicy::default())
+    })
+    .unwrap_or_else(|reason| Err(Error::InvalidInput(format!("loading panicked: {reason}"))))?;
+    let zeros = |shape: &[usize]| f32_tensor(shape, &vec![0.0; shape.iter().product()]);
+    // A panic while running is caught as every C entry point catches it.
+    panics::catch(quiet, || {
+        let outputs = graph.run(vec![
+            zeros(&[1, 16]),
+            zeros(&[1, 16]),
+            zeros(&[1, 32]),
+            zeros(&[1]),
+            zeros(&[1]),
+        ])?;
+        read_f32("velocity", "velocity", &outputs[0], &[1, 16]).map(|_| ())
+    })
+    .unwrap_or_else(|reason| Err(Error::InvalidInput(format!("running panicked: {reason}"))))
+}
+
 /// When and for which row counts a graph's plan is made.
 #[derive(Debug, Clone, Copy, Default)]
 pub(crate) struct PlanPolicy {
