@@ -185,25 +185,19 @@ impl troupe_joints_format {
 
 impl troupe_placement {
     pub(crate) fn to_rust(self, format: JointsFormat) -> FfiResult<Placement> {
-        let q = Quat::from_wxyz(self.heading);
-        let norm = (q.w * q.w + q.x * q.x + q.y * q.y + q.z * q.z).sqrt();
-        let finite = [self.floor, self.origin_x, self.origin_z]
-            .iter()
-            .chain(&self.heading)
-            .all(|v| v.is_finite());
-        if !finite || (norm - 1.0).abs() > 1e-3 {
-            return Err(FfiError::new(
-                TROUPE_ERR_INVALID_ARG,
-                "placement is not finite or its heading is not a unit quaternion",
-            ));
-        }
-        Ok(Placement {
+        // `checked` refuses what is not finite, out of range, or not a unit heading; the
+        // heading is normalised only once it is known to be one.
+        let placement = Placement {
             format,
             floor: self.floor,
             origin: [self.origin_x, self.origin_z],
-            heading: q.normalized(),
+            heading: Quat::from_wxyz(self.heading),
         }
-        .checked()?)
+        .checked()?;
+        Ok(Placement {
+            heading: placement.heading.normalized(),
+            ..placement
+        })
     }
 
     pub(crate) fn from_rust(p: &Placement) -> Self {
