@@ -152,14 +152,17 @@ impl KvCache {
     /// Writes one entry's key and value of `layer` (`heads * head_dim` floats each, the heads
     /// side by side) into a reserved slot.
     pub(crate) fn write(&mut self, layer: usize, slot: usize, key: &[f32], value: &[f32]) {
-        let dh = self.head_dim;
-        for (kind, row) in [key, value].into_iter().enumerate() {
-            for head in 0..self.heads {
-                for (d, &x) in row[head * dh..(head + 1) * dh].iter().enumerate() {
-                    let at = self.at(layer, kind, head, slot, d);
-                    self.pages[slot / PAGE_SLOTS][at] = x;
-                }
+        let (dh, s) = (self.head_dim, slot % PAGE_SLOTS);
+        let (k_at, v_at) = (self.block(layer, 0, 0), self.block(layer, 1, 0));
+        let page = &mut self.pages[slot / PAGE_SLOTS];
+        // A head's key and value blocks lie side by side; one slice per head, no index per float.
+        let block = PAGE_SLOTS * dh;
+        for (head, (k, v)) in key.chunks_exact(dh).zip(value.chunks_exact(dh)).enumerate() {
+            let keys = &mut page[k_at + 2 * head * block..][..block];
+            for (column, &x) in keys.chunks_exact_mut(PAGE_SLOTS).zip(k) {
+                column[s] = x;
             }
+            page[v_at + 2 * head * block + s * dh..][..dh].copy_from_slice(v);
         }
     }
 

@@ -1,0 +1,249 @@
+#!/usr/bin/env python3
+"""Every speed target of performance round three, measured in one run and set against its bound.
+
+    cargo build --release --lib --example stream --example crowd
+    python3 onnx/cli.py armflow export --preset paper --out onnx/bundles/paper --peer-graphs
+    python3 onnx/cli.py armflow export --preset interhuman --out onnx/bundles/paper-interhuman
+    python3 benches/targets.py --json /tmp/targets.json \
+        --magnet-bundle onnx/bundles/magnet-dd100 \
+        --magnet-checkpoint /tmp/magnet-release/checkpoints/dfot/magnet_dd100/v0/checkpoints_500000 \
+        --magnet-frames /tmp/dd100_frames.npy
+
+(`docs/MAGNET.md`, "Speed at released size", makes the MAGNet bundle, checkpoint and clip.)
+
+This script measures nothing itself: it runs the benchmarks that each own a target, one after
+the other on this machine, reads what they report, and prints one table of target, measured
+value and whether it is met. Each part can be left out (`--skip magnet,prompt`); a part left out
+is a row that says so, never a pass. The parts and their commands:
+
+- `step`: `benches/peers.py` at H = 10, 100, 1000, 2000, onnxruntime and troupe's
+  `examples/stream` side by side (batch 1, every token cached; load to the first step).
+- `f16`: `examples/stream` at H = 100 on the paper bundle with float16 weights (made once by
+  `armflow quantize --weights float16` under `target/bench/`), against the `step` part's
+  onnxruntime at H = 100.
+- `crowd`: `examples/crowd` on two threads at `--crowd-sizes` (history 100, batched), then
+  `benches/sgemm_peak.py` on two threads; a session-token does at least two FLOP per float32
+  weight of the step (`peers.py`'s `weights_bytes`), which sets the round's arithmetic against
+  that peak. Mixed histories: 16 streams at 10 to 2000 against 16 at the mean.
+- `magnet`: `benches/magnet.py` (troupe against torch eager, per iteration) and
+  `benches/magnet_live.py` (the released live partner and the low-latency setting).
+- `prompt`: `benches/prompts.py` on the official-size text path.
+- `exactness`: the tests that hold batched = alone and the golden parity of the streaming path
+  (`cargo test --release --test batch --test context_cache --test golden`).
+
+Needs what those need: numpy, onnx, onnxruntime; torch for the MAGNet and prompt peers.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import re
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT / "benches"))
+PARTS = ("step", "f16", "crowd", "magnet", "prompt", "exactness")
+HISTORIES = (10, 100, 1000, 2000)
+BUDGET_MS = 4 / 30 * 1e3  # a round is real time when its p99 fits in one token's 4 frames
+
+
+def sh(cmd: list[str], env: dict | None = None) -> str:
+    """Runs `cmd` from the repository root, echoing it; its stdout, or exit with its stderr."""
+    print("$", " ".join(cmd), flush=True)
+    done = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, env={**os.environ, **(env or {})})
+    if done.returncode != 0:
+        sys.exit(f"failed ({done.returncode}): {' '.join(cmd)}\n{done.stdout[-4000:]}\n{done.stderr[-4000:]}")
+    return done.stdout
+
+
+def crowd_rows(out: str) -> dict[int, dict]:
+    """`examples/crowd`'s table rows: sessions -> round p50 / p99 ms."""
+    rows = {}
+    for m in re.finditer(r"^\| (\d+) \| batched \| ([\d.]+) \| ([\d.]+) \|", out, re.M):
+        rows[int(m[1])] = {"p50": float(m[2]), "p99": float(m[3])}
+    if not rows:
+        sys.exit(f"cannot parse the crowd's output:\n{out}")
+    return rows
+
+
+class Table:
+    """The target rows, in the issue's order."""
+
+    def __init__(self):
+        self.rows: list[dict] = []
+
+    def add(self, target: str, measured: str, met: bool | None):
+        self.rows.append({"target": target, "measured": measured, "met": met})
+
+    def skipped(self, target: str, part: str):
+        self.add(target, f"not measured: part `{part}` left out", None)
+
+    def markdown(self) -> str:
+        word = {True: "yes", False: "no", None: "skipped"}
+        lines = ["| target | measured | met? |", "|---|---|---|"]
+        lines += [f"| {r['target']} | {r['measured']} | {word[r['met']]} |" for r in self.rows]
+        met = sum(r["met"] is True for r in self.rows)
+        skipped = sum(r["met"] is None for r in self.rows)
+        lines.append(f"\n{met} of {len(self.rows)} targets met, {skipped} not measured")
+        return "\n".join(lines)
+
+
+def main(argv=None) -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--bundle", type=Path, default=ROOT / "onnx/bundles/paper")
+    ap.add_argument("--prompt-bundle", type=Path, default=ROOT / "onnx/bundles/paper-interhuman")
+    ap.add_argument("--magnet-bundle", type=Path, default=ROOT / "onnx/bundles/magnet-dd100")
+    ap.add_argument("--magnet-checkpoint", type=Path)
+    ap.add_argument("--magnet-frames", type=Path, help="float32 [F, 2, 145], for the live partner")
+    ap.add_argument("--crowd-sizes", default="96,112,128,150")
+    ap.add_argument("--steps", type=int, default=30, help="timed batch-1 steps per history")
+    ap.add_argument("--skip", default="", help=f"comma-separated parts to leave out, of {', '.join(PARTS)}")
+    ap.add_argument("--json", type=Path)
+    args = ap.parse_args(argv)
+    skip = {s for s in args.skip.split(",") if s}
+    if skip - set(PARTS):
+        sys.exit(f"--skip: unknown parts {sorted(skip - set(PARTS))}")
+    if "magnet" not in skip and not (args.magnet_checkpoint and args.magnet_frames):
+        sys.exit("the magnet part needs --magnet-checkpoint and --magnet-frames (or --skip magnet)")
+    release = ROOT / "target/release"
+    stream, crowd = str(release / "examples/stream"), str(release / "examples/crowd")
+    library = release / "libtroupe.so"
+    for built in (stream, crowd, library):
+        if not Path(built).exists():
+            sys.exit(f"{built} is missing: cargo build --release --lib --example stream --example crowd")
+    lib_env = {"TROUPE_LIBRARY_PATH": str(library)}
+    cpu = next((ln.split(":", 1)[1].strip() for ln in Path("/proc/cpuinfo").read_text().splitlines()
+                if ln.startswith("model name")), "unknown CPU")
+    report: dict = {"cpu": cpu, "parts_skipped": sorted(skip)}
+    table = Table()
+    tmp = Path(tempfile.mkdtemp(prefix="troupe-targets-"))
+
+    # --- ARMFlow batch 1 --------------------------------------------------------------------
+    peers = None
+    if "step" not in skip:
+        sh([sys.executable, "benches/peers.py", "--bundle", str(args.bundle), "--histories",
+            ",".join(map(str, HISTORIES)), "--steps", str(args.steps), "--peers", "ort",
+            "--troupe-binary", stream, "--json", str(tmp / "peers.json")])
+        peers = report["step"] = json.loads((tmp / "peers.json").read_text())
+        ratios = {h: peers["troupe"][str(h)]["p50"] / peers["results"][str(h)]["ort"]["p50"] for h in HISTORIES}
+        table.add("ARMFlow batch 1, f32, all cached: ≤ 0.9× onnxruntime at H = 10, 100, 1000, 2000",
+                  ", ".join(f"{r:.2f}×" for r in ratios.values()), all(r <= 0.9 for r in ratios.values()))
+    else:
+        table.skipped("ARMFlow batch 1, f32: ≤ 0.9× onnxruntime", "step")
+
+    if "f16" not in skip and peers:
+        from peers import run_troupe
+
+        f16 = ROOT / "target/bench/paper-f16"
+        if not (f16 / "troupe.json").exists():
+            sh([sys.executable, "onnx/cli.py", "armflow", "quantize", "--weights", "float16",
+                "--bundle", str(args.bundle), "--out", str(f16)])
+        print("$", stream, "--bundle", f16, "(H = 100)", flush=True)
+        half = report["f16"] = run_troupe(stream, f16, 100, args.steps)
+        ratio = half["p50"] / peers["results"]["100"]["ort"]["p50"]
+        table.add("float16 weights ≤ 0.6× onnxruntime f32 at H = 100",
+                  f"{ratio:.2f}× ({half['p50']:.2f} / {peers['results']['100']['ort']['p50']:.2f} ms)", ratio <= 0.6)
+    else:
+        table.skipped("float16 weights ≤ 0.6× onnxruntime f32 at H = 100", "f16" if "f16" in skip else "step")
+
+    if peers:
+        growth = peers["troupe"]["2000"]["p50"] / peers["troupe"]["10"]["p50"]
+        table.add("unbounded step at H = 2000 ≤ 1.3× the step at H = 10",
+                  f"{growth:.2f}× ({peers['troupe']['2000']['p50']:.2f} / {peers['troupe']['10']['p50']:.2f} ms)",
+                  growth <= 1.3)
+        first = peers["troupe_first"]
+        total = (first["load_ms"] + first["first_step_ms"]) / 1e3
+        table.add("load to first step ≤ 0.35 s (paper bundle)",
+                  f"{total:.3f} s (load {first['load_ms']:.0f} ms + first token {first['first_step_ms']:.1f} ms)",
+                  total <= 0.35)
+    else:
+        table.skipped("unbounded step at H = 2000 ≤ 1.3× H = 10", "step")
+        table.skipped("load to first step ≤ 0.35 s", "step")
+
+    # --- crowds -----------------------------------------------------------------------------
+    if "crowd" not in skip:
+        common = ["--bundle", str(args.bundle), "--rounds", "10", "--threads", "2", "--mode", "batched"]
+        rows = report["crowd"] = crowd_rows(sh([crowd, *common, "--sessions", args.crowd_sizes, "--history", "100"]))
+        peak_out = sh([sys.executable, "benches/sgemm_peak.py", "--threads", "2"])
+        peak = report["sgemm_peak_gflops"] = float(re.findall(r"([\d.]+) GFLOP/s", peak_out)[-1])
+        live = [n for n, r in rows.items() if r["p99"] <= BUDGET_MS]
+        largest = max(live, default=0)
+        table.add("≥ 150 real-time paper-size streams on 2 cores",
+                  f"{largest} of the sizes tried ({args.crowd_sizes}); " + ", ".join(
+                      f"{n}: p99 {r['p99']:.1f} ms" for n, r in sorted(rows.items())), largest >= 150)
+        if peers:
+            flop = 2 * peers["weights_bytes"] / 4  # a lower bound: two per float32 weight
+            at = largest or min(rows)
+            gflops = flop * at / (rows[at]["p50"] / 1e3) / 1e9
+            table.add("crowd arithmetic ≥ 40 % of the sgemm peak of the same run",
+                      f"{100 * gflops / peak:.0f} % ({gflops:.1f} of {peak:.1f} GFLOP/s, {at} sessions)",
+                      gflops / peak >= 0.4)
+        else:
+            table.skipped("crowd arithmetic ≥ 40 % of the sgemm peak", "step")
+        mixed = crowd_rows(sh([crowd, *common, "--sessions", "16", "--history", "10..2000"]))[16]["p50"]
+        uniform = crowd_rows(sh([crowd, *common, "--sessions", "16", "--history", "1004..1006"]))[16]["p50"]
+        report["mixed_histories"] = {"mixed_p50": mixed, "uniform_p50": uniform}
+        table.add("mixed histories (16 streams, 10 to 2000) cost what their lengths cost: "
+                  "round ≤ 1.2× 16 streams at the mean history",
+                  f"{mixed / uniform:.2f}× ({mixed:.1f} / {uniform:.1f} ms)", mixed / uniform <= 1.2)
+    else:
+        for t in ("≥ 150 real-time streams", "crowd arithmetic ≥ 40 % of peak", "mixed histories"):
+            table.skipped(t, "crowd")
+
+    # --- MAGNet -----------------------------------------------------------------------------
+    if "magnet" not in skip:
+        sh([sys.executable, "benches/magnet.py", "--bundle", str(args.magnet_bundle), "--checkpoint",
+            str(args.magnet_checkpoint), "--json", str(tmp / "magnet.json")], lib_env)
+        per = report["magnet"] = json.loads((tmp / "magnet.json").read_text())["per_iteration_ms"]
+        ratios = {f"S = {s}, guidance {g}": per[f"troupe_S{s}_guidance_{g}"] / per[f"torch_S{s}_guidance_{g}"]
+                  for s in (1, 10) for g in ("off", "on")}
+        table.add("MAGNet DD100 iteration ≤ 0.8× torch eager (" + "; ".join(ratios) + ")",
+                  ", ".join(f"{r:.2f}×" for r in ratios.values()), all(r <= 0.8 for r in ratios.values()))
+        sh([sys.executable, "benches/magnet_live.py", "--bundle", str(args.magnet_bundle), "--frames",
+            str(args.magnet_frames), "--only", "released;10 steps, guidance off, early",
+            "--json", str(tmp / "live.json")], lib_env)
+        live = {r["setting"]: r for r in json.loads((tmp / "live.json").read_text())["results"]}
+        report["magnet_live"] = live
+        released, fast = live["released"]["real_time_factor"], live["10 steps, guidance off, early"]["real_time_factor"]
+        table.add("MAGNet live partner, released settings, one core: ≥ 0.5× real time", f"{released:.2f}×", released >= 0.5)
+        table.add("MAGNet live partner, lower-latency setting (10 steps, guidance off, early): ≥ 1.5× real time",
+                  f"{fast:.2f}×", fast >= 1.5)
+    else:
+        table.skipped("MAGNet DD100 iteration ≤ 0.8× torch eager", "magnet")
+        table.skipped("MAGNet live partner ≥ 0.5× real time", "magnet")
+        table.skipped("MAGNet lower-latency setting ≥ 1.5× real time", "magnet")
+
+    # --- prompts ----------------------------------------------------------------------------
+    if "prompt" not in skip:
+        env = {**lib_env, "PYTHONPATH": os.pathsep.join([str(ROOT / "bindings/python"), str(ROOT / "onnx")])}
+        sh([sys.executable, "benches/prompts.py", "--bundle", str(args.prompt_bundle), "--json",
+            str(tmp / "prompts.json")], env)
+        p = report["prompt"] = json.loads((tmp / "prompts.json").read_text())
+        table.add("prompt → condition ≤ 0.9× onnxruntime",
+                  f"{p['troupe_vs_ort']:.2f}× ({p['troupe']['median_ms']:.1f} / {p['ort']['median_ms']:.1f} ms)",
+                  p["troupe_vs_ort"] <= 0.9)
+    else:
+        table.skipped("prompt → condition ≤ 0.9× onnxruntime", "prompt")
+
+    # --- exactness --------------------------------------------------------------------------
+    if "exactness" not in skip:
+        out = sh(["cargo", "test", "--release", "--test", "batch", "--test", "context_cache", "--test", "golden"])
+        passed = sum(int(n) for n in re.findall(r"test result: ok\. (\d+) passed", out))
+        table.add("batched = alone ≤ 1e-5 in f32; golden parity unchanged", f"{passed} tests passed", True)
+    else:
+        table.skipped("batched = alone ≤ 1e-5 in f32; golden parity unchanged", "exactness")
+
+    report["targets"] = table.rows
+    print(f"\nCPU: {cpu}\n")
+    print(table.markdown())
+    if args.json:
+        args.json.write_text(json.dumps(report, indent=2) + "\n")
+
+
+if __name__ == "__main__":
+    main()
