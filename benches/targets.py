@@ -40,9 +40,9 @@ import argparse
 import json
 import os
 import re
+import shutil
 import subprocess
 import sys
-import tempfile
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -104,6 +104,8 @@ def main(argv=None) -> None:
     ap.add_argument("--steps", type=int, default=30, help="timed batch-1 steps per history")
     ap.add_argument("--skip", default="", help=f"comma-separated parts to leave out, of {', '.join(PARTS)}")
     ap.add_argument("--json", type=Path)
+    ap.add_argument("--resume", action="store_true",
+                    help="keep the results of the parts an interrupted run finished (in target/bench/targets)")
     args = ap.parse_args(argv)
     skip = {s for s in args.skip.split(",") if s}
     if skip - set(PARTS):
@@ -121,15 +123,31 @@ def main(argv=None) -> None:
                 if ln.startswith("model name")), "unknown CPU")
     report: dict = {"cpu": cpu, "parts_skipped": sorted(skip)}
     table = Table()
-    tmp = Path(tempfile.mkdtemp(prefix="troupe-targets-"))
+    tmp = ROOT / "target/bench/targets"
+    if not args.resume:
+        shutil.rmtree(tmp, ignore_errors=True)
+    tmp.mkdir(parents=True, exist_ok=True)
+
+    def once(name: str, measure):
+        """`measure()`'s result, or the one an interrupted run saved with `--resume`."""
+        saved = tmp / f"{name}.result.json"
+        if saved.exists():
+            print(f"(kept from the interrupted run: {name})", flush=True)
+            return json.loads(saved.read_text())
+        result = measure()
+        saved.write_text(json.dumps(result))
+        return result
 
     # --- ARMFlow batch 1 --------------------------------------------------------------------
     peers = None
     if "step" not in skip:
-        sh([sys.executable, "benches/peers.py", "--bundle", str(args.bundle), "--histories",
-            ",".join(map(str, HISTORIES)), "--steps", str(args.steps), "--peers", "ort",
-            "--troupe-binary", stream, "--json", str(tmp / "peers.json")])
-        peers = report["step"] = json.loads((tmp / "peers.json").read_text())
+        def measure_steps():
+            sh([sys.executable, "benches/peers.py", "--bundle", str(args.bundle), "--histories",
+                ",".join(map(str, HISTORIES)), "--steps", str(args.steps), "--peers", "ort",
+                "--troupe-binary", stream, "--json", str(tmp / "peers.json")])
+            return json.loads((tmp / "peers.json").read_text())
+
+        peers = report["step"] = once("step", measure_steps)
         ratios = {h: peers["troupe"][str(h)]["p50"] / peers["results"][str(h)]["ort"]["p50"] for h in HISTORIES}
         table.add("ARMFlow batch 1, f32, all cached: ≤ 0.9× onnxruntime at H = 10, 100, 1000, 2000",
                   ", ".join(f"{r:.2f}×" for r in ratios.values()), all(r <= 0.9 for r in ratios.values()))
@@ -144,7 +162,7 @@ def main(argv=None) -> None:
             sh([sys.executable, "onnx/cli.py", "armflow", "quantize", "--weights", "float16",
                 "--bundle", str(args.bundle), "--out", str(f16)])
         print("$", stream, "--bundle", f16, "(H = 100)", flush=True)
-        half = report["f16"] = run_troupe(stream, f16, 100, args.steps)
+        half = report["f16"] = once("f16", lambda: run_troupe(stream, f16, 100, args.steps))
         ratio = half["p50"] / peers["results"]["100"]["ort"]["p50"]
         table.add("float16 weights ≤ 0.6× onnxruntime f32 at H = 100",
                   f"{ratio:.2f}× ({half['p50']:.2f} / {peers['results']['100']['ort']['p50']:.2f} ms)", ratio <= 0.6)
@@ -168,16 +186,21 @@ def main(argv=None) -> None:
     # --- crowds -----------------------------------------------------------------------------
     if "crowd" not in skip:
         common = ["--bundle", str(args.bundle), "--rounds", "10", "--threads", "2", "--mode", "batched"]
-        rows = report["crowd"] = crowd_rows(sh([crowd, *common, "--sessions", args.crowd_sizes, "--history", "100"]))
-        peak_out = sh([sys.executable, "benches/sgemm_peak.py", "--threads", "2"])
-        peak = report["sgemm_peak_gflops"] = float(re.findall(r"([\d.]+) GFLOP/s", peak_out)[-1])
+        def measure_crowd():
+            rows = crowd_rows(sh([crowd, *common, "--sessions", args.crowd_sizes, "--history", "100"]))
+            peak_out = sh([sys.executable, "benches/sgemm_peak.py", "--threads", "2"])
+            return {"rows": rows, "sgemm_peak_gflops": float(re.findall(r"([\d.]+) GFLOP/s", peak_out)[-1])}
+
+        measured = report["crowd"] = once("crowd", measure_crowd)
+        rows = {int(n): r for n, r in measured["rows"].items()}
+        peak = measured["sgemm_peak_gflops"]
         live = [n for n, r in rows.items() if r["p99"] <= BUDGET_MS]
         largest = max(live, default=0)
         table.add("≥ 150 real-time paper-size streams on 2 cores",
                   f"{largest} of the sizes tried ({args.crowd_sizes}); " + ", ".join(
                       f"{n}: p99 {r['p99']:.1f} ms" for n, r in sorted(rows.items())), largest >= 150)
         if peers:
-            flop = 2 * peers["weights_bytes"] / 4  # a lower bound: two per float32 weight
+            flop = 2 * sum(peers["weights_bytes"].values()) / 4  # a lower bound: two per float32 weight
             at = largest or min(rows)
             gflops = flop * at / (rows[at]["p50"] / 1e3) / 1e9
             table.add("crowd arithmetic ≥ 40 % of the sgemm peak of the same run",
@@ -185,9 +208,11 @@ def main(argv=None) -> None:
                       gflops / peak >= 0.4)
         else:
             table.skipped("crowd arithmetic ≥ 40 % of the sgemm peak", "step")
-        mixed = crowd_rows(sh([crowd, *common, "--sessions", "16", "--history", "10..2000"]))[16]["p50"]
-        uniform = crowd_rows(sh([crowd, *common, "--sessions", "16", "--history", "1004..1006"]))[16]["p50"]
-        report["mixed_histories"] = {"mixed_p50": mixed, "uniform_p50": uniform}
+        mix = report["mixed_histories"] = once("mixed", lambda: {
+            "mixed_p50": crowd_rows(sh([crowd, *common, "--sessions", "16", "--history", "10..2000"]))[16]["p50"],
+            "uniform_p50": crowd_rows(sh([crowd, *common, "--sessions", "16", "--history", "1004..1006"]))[16]["p50"],
+        })
+        mixed, uniform = mix["mixed_p50"], mix["uniform_p50"]
         table.add("mixed histories (16 streams, 10 to 2000) cost what their lengths cost: "
                   "round ≤ 1.2× 16 streams at the mean history",
                   f"{mixed / uniform:.2f}× ({mixed:.1f} / {uniform:.1f} ms)", mixed / uniform <= 1.2)
@@ -197,18 +222,23 @@ def main(argv=None) -> None:
 
     # --- MAGNet -----------------------------------------------------------------------------
     if "magnet" not in skip:
-        sh([sys.executable, "benches/magnet.py", "--bundle", str(args.magnet_bundle), "--checkpoint",
-            str(args.magnet_checkpoint), "--json", str(tmp / "magnet.json")], lib_env)
-        per = report["magnet"] = json.loads((tmp / "magnet.json").read_text())["per_iteration_ms"]
+        def measure_magnet():
+            sh([sys.executable, "benches/magnet.py", "--bundle", str(args.magnet_bundle), "--checkpoint",
+                str(args.magnet_checkpoint), "--json", str(tmp / "magnet.json")], lib_env)
+            return json.loads((tmp / "magnet.json").read_text())["per_iteration_ms"]
+
+        per = report["magnet"] = once("magnet", measure_magnet)
         ratios = {f"S = {s}, guidance {g}": per[f"troupe_S{s}_guidance_{g}"] / per[f"torch_S{s}_guidance_{g}"]
                   for s in (1, 10) for g in ("off", "on")}
         table.add("MAGNet DD100 iteration ≤ 0.8× torch eager (" + "; ".join(ratios) + ")",
                   ", ".join(f"{r:.2f}×" for r in ratios.values()), all(r <= 0.8 for r in ratios.values()))
-        sh([sys.executable, "benches/magnet_live.py", "--bundle", str(args.magnet_bundle), "--frames",
-            str(args.magnet_frames), "--only", "released;10 steps, guidance off, early",
-            "--json", str(tmp / "live.json")], lib_env)
-        live = {r["setting"]: r for r in json.loads((tmp / "live.json").read_text())["results"]}
-        report["magnet_live"] = live
+        def measure_live():
+            sh([sys.executable, "benches/magnet_live.py", "--bundle", str(args.magnet_bundle), "--frames",
+                str(args.magnet_frames), "--only", "released;10 steps, guidance off, early",
+                "--json", str(tmp / "live.json")], lib_env)
+            return {r["setting"]: r for r in json.loads((tmp / "live.json").read_text())["results"]}
+
+        live = report["magnet_live"] = once("live", measure_live)
         released, fast = live["released"]["real_time_factor"], live["10 steps, guidance off, early"]["real_time_factor"]
         table.add("MAGNet live partner, released settings, one core: ≥ 0.5× real time", f"{released:.2f}×", released >= 0.5)
         table.add("MAGNet live partner, lower-latency setting (10 steps, guidance off, early): ≥ 1.5× real time",
@@ -221,9 +251,12 @@ def main(argv=None) -> None:
     # --- prompts ----------------------------------------------------------------------------
     if "prompt" not in skip:
         env = {**lib_env, "PYTHONPATH": os.pathsep.join([str(ROOT / "bindings/python"), str(ROOT / "onnx")])}
-        sh([sys.executable, "benches/prompts.py", "--bundle", str(args.prompt_bundle), "--json",
-            str(tmp / "prompts.json")], env)
-        p = report["prompt"] = json.loads((tmp / "prompts.json").read_text())
+        def measure_prompts():
+            sh([sys.executable, "benches/prompts.py", "--bundle", str(args.prompt_bundle), "--json",
+                str(tmp / "prompts.json")], env)
+            return json.loads((tmp / "prompts.json").read_text())
+
+        p = report["prompt"] = once("prompt", measure_prompts)
         table.add("prompt → condition ≤ 0.9× onnxruntime",
                   f"{p['troupe_vs_ort']:.2f}× ({p['troupe']['median_ms']:.1f} / {p['ort']['median_ms']:.1f} ms)",
                   p["troupe_vs_ort"] <= 0.9)
