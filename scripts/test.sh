@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # The project's test command: on a machine with only the Rust toolchain, a C compiler and a bare
 # python3, it installs what the suite needs (a project-local virtual environment for the Python
-# tests, Debian's chromium for the picture tests, valgrind for the C memory check) and runs every
+# tests, Debian's chromium for the picture tests, valgrind for the C memory check, cmake for the
+# installed package's consumer) and runs every
 # check CI runs. It ends with the count of checks the tests skipped, and why (torch-dependent
 # ones are optional; see tests/common/mod.rs, `skip`).
 #
@@ -73,6 +74,17 @@ if ! command -v valgrind >/dev/null 2>&1; then
     if ! command -v valgrind >/dev/null 2>&1; then
         echo "valgrind is missing and could not be installed (apt-get install valgrind):" \
             "c_tests_under_valgrind fails under CI and is skipped elsewhere" >&2
+    fi
+fi
+
+# 4. cmake: the installed package's CMake consumer (tests/install.rs). Under CI that test fails
+#    without it; elsewhere it is a counted skip.
+if ! command -v cmake >/dev/null 2>&1; then
+    echo "== cmake: installing Debian's package"
+    apt_install cmake
+    if ! command -v cmake >/dev/null 2>&1; then
+        echo "cmake is missing and could not be installed (apt-get install cmake):" \
+            "cmake_consumer_builds_and_streams fails under CI and is skipped elsewhere" >&2
     fi
 fi
 

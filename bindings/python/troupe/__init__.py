@@ -4,8 +4,10 @@
     with troupe.Model("onnx/bundles/armflow-tiny") as model, model.session(seed=7) as session:
         reactor = session.step(np.zeros((4, model.frame_dim), np.float32))  # [frames, frame_dim]
 
-A thin ctypes layer over the C ABI (include/troupe.h): errors raise `TroupeError` with the
-library's message; calls release the GIL, so sessions on several Python threads run in parallel.
+A thin ctypes layer over the C ABI (include/troupe.h): a failed call raises the subclass of
+`TroupeError` for its status code (`troupe.errors`: `InvalidArgument`, `ModelError`, `Busy`, ...)
+with the library's message, and an argument of the wrong type a `TypeError`; calls release the
+GIL, so sessions on several Python threads run in parallel.
 A `Model` may be shared by threads; a `Session` is used by one thread at a time.
 """
 
@@ -14,12 +16,16 @@ from __future__ import annotations
 import ctypes
 import os
 import threading
+from typing import Any, Callable, Sequence
+
+from numpy.typing import ArrayLike
 
 import numpy as np
 
-from . import _native
+from . import _native, errors
+from .errors import *  # noqa: F403  (the exception classes, re-exported)
 
-__all__ = ["Model", "Session", "TroupeError", "motion", "viewer", "step_sessions", "version", "limits",
+__all__ = [*errors.__all__, "Model", "Session", "bundles", "errors", "motion", "viewer", "step_sessions", "version", "limits",
            "set_load_threads", "set_compute_threads", "compute_threads", "progress", "ACTOR_LATENT_SAMPLE", "ACTOR_LATENT_MEAN", "EULER", "RK4"]
 
 ACTOR_LATENT_SAMPLE = 0
@@ -31,19 +37,11 @@ _SOLVERS = {"euler": EULER, "rk4": RK4}
 _lib = _native.load()
 
 
-class TroupeError(Exception):
-    """A troupe call failed. `status` is the TROUPE_ERR_* code, `name` its symbolic name."""
-
-    def __init__(self, status: int, message: str):
-        self.status = status
-        self.name = _lib.troupe_status_name(status).decode()
-        super().__init__(f"{self.name}: {message}")
-
-
 def _check(status: int) -> None:
     if status != 0:
         message = _lib.troupe_last_error_message()
-        raise TroupeError(status, message.decode() if message else "")
+        name = _lib.troupe_status_name(status).decode()
+        raise errors.from_status(status, message.decode() if message else "", name)
 
 
 def version() -> str:
@@ -87,7 +85,7 @@ class progress:
             group = model.generate_group(people=64)
     """
 
-    def __init__(self, callback):
+    def __init__(self, callback: Callable[[int, int], bool]):
         self._callback = callback
         self._error = None
 
@@ -100,11 +98,11 @@ class progress:
 
         self._c_callback = _native.PROGRESS_FN(call)
 
-    def __enter__(self):
+    def __enter__(self) -> progress:
         _lib.troupe_set_progress_callback(self._c_callback, None)
         return self
 
-    def __exit__(self, kind, value, traceback):
+    def __exit__(self, kind: type[BaseException] | None, value: BaseException | None, traceback: Any) -> bool:
         _lib.troupe_set_progress_callback(_native.PROGRESS_FN(), None)
         if self._error is not None and kind is not None:
             raise self._error from value
@@ -192,9 +190,10 @@ class Model:
     clip_tokens = property(lambda self: _lib.troupe_armflow_clip_tokens(self._h()),
                            doc="tokens of an official ARMFlow clip (0 otherwise)")
 
-    def generate_clip(self, actor, condition=None, seed: int = 0, steps: int = 0, noise=None,
-                      return_latents: bool = False, prompt: str | None = None,
-                      cfg_scale: float | None = None):
+    def generate_clip(self, actor: ArrayLike, condition: str | ArrayLike | None = None, seed: int = 0,
+                      steps: int = 0, noise: ArrayLike | None = None, return_latents: bool = False,
+                      prompt: str | None = None,
+                      cfg_scale: float | None = None) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
         """The official ARMFlow clip loop (an armflow bundle exported from the official layout):
         `actor` [frames, frame_dim] with 1..clip_frames frames, zero-padded to the clip.
         Returns the reactor motion [clip_frames, frame_dim] (and the reactor tokens
@@ -236,7 +235,7 @@ class Model:
     text_token_dim = property(lambda self: _lib.troupe_model_text_token_dim(self._h()),
                               doc="width of the CLIP token features encode_text reads (0: no text branch)")
 
-    def encode_text(self, clip_tokens, eot_index: int) -> np.ndarray:
+    def encode_text(self, clip_tokens: ArrayLike, eot_index: int) -> np.ndarray:
         """The official text branch (official ARMFlow and UMF bundles): CLIP token features
         [tokens, text_token_dim] and the end-of-text index (argmax of CLIP's token ids) -> the
         condition [condition_dim]."""
@@ -269,9 +268,11 @@ class Model:
         _check(_lib.troupe_text_prompt_encode(self._h(), prompt.encode("utf-8"), _ptr(out), out.size))
         return out
 
-    def generate_group(self, people: int, condition=None, seed: int = 0, cfg: float | None = None,
-                       prior=None, reaction=None, noise=None, return_latents: bool = False,
-                       prompt: str | None = None):
+    def generate_group(self, people: int, condition: str | ArrayLike | None = None, seed: int = 0,
+                       cfg: float | None = None, prior: Sequence[tuple[str, int]] | None = None,
+                       reaction: tuple[str, int] | None = None, noise: ArrayLike | None = None,
+                       return_latents: bool = False,
+                       prompt: str | None = None) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
         """Generates `people` persons' motion with a `umf` bundle: float32
         [people, clip_frames, frame_dim] (and [people, tokens, latent_dim] latents with
         `return_latents`).
@@ -342,10 +343,11 @@ class Model:
                 opt.keyframes[i] = k
         return opt
 
-    def magnet_generate(self, config, frames, present=None, samples: int | None = None,
+    def magnet_generate(self, config: str | dict, frames: ArrayLike, present: ArrayLike | None = None,
+                        samples: int | None = None,
                         steps: int | None = None, seq_len: int | None = None, seed: int | None = None,
-                        eta: float | None = None, x0_guidance: bool = True, keyframes=None,
-                        draws=None) -> np.ndarray:
+                        eta: float | None = None, x0_guidance: bool = True, keyframes: Sequence[int] | None = None,
+                        draws: ArrayLike | None = None) -> np.ndarray:
         """Runs a MAGNet sampling configuration on `frames` [F, people, 145] (per person and
         frame: betas, the 21 body joints' 6-D rotations, the root's pose in the world, y up) and
         returns the frames it generates, float32 [samples, frames, people, 145], every root in
@@ -389,11 +391,11 @@ class Model:
         _all_used(used.value, normals.size)
         return out
 
-    def arflow_generate(self, actor, seed: int = 0, steps: int | None = None, guidance: float | None = None,
+    def arflow_generate(self, actor: ArrayLike, seed: int = 0, steps: int | None = None, guidance: float | None = None,
                         weight: float | None = None, eta: float | None = None, d_safe: float | None = None,
                         sigma: float | None = None, squared: bool | None = None,
                         guided_backprojection: bool | None = None, mixing: str | None = None,
-                        draws=None) -> np.ndarray:
+                        draws: ArrayLike | None = None) -> np.ndarray:
         """ARFlow: the reactor's interhuman262 frames [T, 262] for the actor's (one world frame
         for both). Unset settings take the bundle's defaults (5 steps, guidance λ 2, weight w 0.7,
         η 0, d_safe 0.02 m, linear hinge, guided back-projection, `mixing` "linear"; see
@@ -418,7 +420,8 @@ class Model:
 
     def session(self, seed: int = 0, steps: int | None = None, cfg: float | None = None,
                 capacity: int | None = None, actor_latent: int | None = None,
-                condition=None, partner_opening=None, live_config: str | None = None,
+                condition: str | ArrayLike | None = None, partner_opening: ArrayLike | None = None,
+                live_config: str | None = None,
                 early: bool = False) -> "Session":
         """Starts a stream; unset options take the bundle's defaults. On an armflow model the
         session answers an actor with the reactor; on a two-person magnet model it answers a
@@ -436,10 +439,10 @@ class Model:
 
     __del__ = close
 
-    def __enter__(self):
+    def __enter__(self) -> Model:
         return self
 
-    def __exit__(self, *exc):
+    def __exit__(self, *exc: object) -> None:
         self.close()
 
 
@@ -482,13 +485,14 @@ def _solver(method) -> int:
     return int(method)
 
 
-def step_sessions(sessions, actors) -> list[np.ndarray]:
+def step_sessions(sessions: Sequence[Session], actors: Sequence[np.ndarray]) -> list[np.ndarray]:
     """Advances many sessions of one model in one call (`troupe_sessions_step`): `actors[i]`
     (float32 [n_i, frame_dim], n_i >= 0) goes to `sessions[i]`; returns each session's reactor
     frames. The weights are read once per token for all sessions, which is how a crowd runs in
     real time; each result equals `sessions[i].step(actors[i])` up to float rounding. On error no
     session changes."""
-    sessions, actors = list(sessions), list(actors)
+    sessions = [errors.expect_type(s, Session, "each of sessions") for s in sessions]
+    actors = list(actors)
     if len(actors) != len(sessions):
         raise ValueError(f"{len(sessions)} sessions but {len(actors)} actor arrays")
     actors = [s._actor(a) for s, a in zip(sessions, actors)]
@@ -509,7 +513,7 @@ def step_sessions(sessions, actors) -> list[np.ndarray]:
     try:
         for s in sessions:
             if not s._lock.acquire(blocking=False):
-                raise RuntimeError("a troupe Session is being used by two threads at once")
+                raise Busy("a troupe Session is being used by two threads at once")
             locked.append(s)
         _check(_lib.troupe_sessions_step(handles, n, ins, n_in, outp, cap, written))
     finally:
@@ -522,9 +526,11 @@ class Session:
     """One stream: an armflow reactor answering an actor, or a magnet live partner answering a
     user. Use it from one thread at a time."""
 
-    def __init__(self, model: Model, seed=0, steps=None, cfg=None, capacity=None, actor_latent=None,
-                 condition=None, prompt: str | None = None, partner_opening=None,
-                 live_config: str | None = None, early: bool = False):
+    def __init__(self, model: Model, seed: int = 0, steps: int | None = None, cfg: float | None = None,
+                 capacity: int | None = None, actor_latent: int | None = None,
+                 condition: str | np.ndarray | None = None, prompt: str | None = None,
+                 partner_opening: np.ndarray | None = None, live_config: str | None = None, early: bool = False):
+        errors.expect_type(model, Model, "model")
         if condition is not None and prompt is not None:
             raise ValueError("give a condition or a prompt, not both")
         opt = _native.SessionOptions()
@@ -564,7 +570,7 @@ class Session:
         if not self._handle:
             raise ValueError("the session is closed")
         if not self._lock.acquire(blocking=False):
-            raise RuntimeError("a troupe Session is being used by two threads at once")
+            raise Busy("a troupe Session is being used by two threads at once")
         try:
             _check(fn(self._handle, *args))
         finally:
@@ -595,13 +601,13 @@ class Session:
         self._call(_lib.troupe_session_step, _ptr(a), a.shape[0], _ptr(out), out.shape[0], ctypes.byref(written))
         return out[: written.value]
 
-    def set_joints_format(self, fmt) -> None:
+    def set_joints_format(self, fmt: motion.JointsFormat) -> None:
         """How `step_joints` reads actor positions (a `troupe.motion.JointsFormat`); forgets the
         joint stream's frames and placement."""
-        c = fmt._c()
+        c = motion._format(fmt)
         self._call(_lib.troupe_session_set_joints_format, ctypes.byref(c))
 
-    def step_joints(self, positions):
+    def step_joints(self, positions: ArrayLike) -> motion.Poses:
         """Feeds actor joint positions ([n, 22, 3], as `set_joints_format` said; metres, Y up at the
         bundle's rate by default) and returns the reactor poses that became ready, in the caller's
         world (a `troupe.motion.Poses`). One frame more latency than `step`."""
@@ -617,7 +623,7 @@ class Session:
         return type(poses)(*(a[: written.value] for a in poses))
 
     @property
-    def joints_placement(self):
+    def joints_placement(self) -> motion.Placement | None:
         """Where the reactor's poses are put (fixed by the first actor joint frame), or None."""
         from .motion import Placement
 
@@ -647,7 +653,7 @@ class Session:
     def set_cfg_scale(self, scale: float) -> None:
         self._call(_lib.troupe_session_set_cfg_scale, scale)
 
-    def set_condition(self, condition) -> None:
+    def set_condition(self, condition: str | ArrayLike | None) -> None:
         """Sets the conditioning vector (condition_dim floats, or the name of one of the model's
         `condition_labels`); None selects the null condition."""
         if condition is None:
@@ -664,7 +670,7 @@ class Session:
             raise ValueError("prompt must be a str without NUL characters")
         self._call(_lib.troupe_session_set_prompt, prompt.encode("utf-8"))
 
-    def set_partner_opening(self, frames) -> None:
+    def set_partner_opening(self, frames: ArrayLike) -> None:
         """A magnet live partner's opening frames (float32 [context frames, 145]); before the
         first step or after a reset."""
         f = _floats(frames, "frames")
@@ -677,7 +683,7 @@ class Session:
         before the first step or after a reset."""
         self._call(_lib.troupe_magnet_session_set_early_emission, 1 if early else 0)
 
-    def set_arflow_options(self, seed: int = 0, **settings) -> None:
+    def set_arflow_options(self, seed: int = 0, **settings: float | int | bool | None) -> None:
         """An ARFlow stream's sampler settings: the bundle's with `settings` changed (the
         arguments of `Model.arflow_generate`) and `seed`."""
         opt = _arflow_options(self._model._h(), seed, *(settings.pop(k, None) for k in (
@@ -697,13 +703,13 @@ class Session:
         before the first step or after a reset."""
         self._call(_lib.troupe_magnet_session_set_live_config, config.encode("utf-8"))
 
-    def set_noise(self, actor_noise, reactor_noise) -> None:
+    def set_noise(self, actor_noise: ArrayLike, reactor_noise: ArrayLike) -> None:
         """Queues one token's noise (latent_dim floats each), used before the seeded generator."""
         a = _floats(actor_noise, "actor_noise")
         r = _floats(reactor_noise, "reactor_noise", a.size)
         self._call(_lib.troupe_session_queue_noise, _ptr(a), _ptr(r), a.size)
 
-    def queue_normals(self, normals) -> None:
+    def queue_normals(self, normals: ArrayLike) -> None:
         """Queues standard normals for a magnet live partner's or an arflow online stream's next
         draws, to replay another implementation's stream exactly: each draw takes the next ones
         it needs while any are queued, then the seed goes on as if they had been its; reset()
@@ -718,10 +724,11 @@ class Session:
 
     __del__ = close
 
-    def __enter__(self):
+    def __enter__(self) -> Session:
         return self
 
-    def __exit__(self, *exc):
+    def __exit__(self, *exc: object) -> None:
         self.close()
-from . import motion  # noqa: E402  (needs the names above)
+from . import bundles  # noqa: E402,F401  (needs the names above)
+from . import motion  # noqa: E402
 from . import viewer  # noqa: E402

@@ -328,15 +328,25 @@ PROTOTYPES = {
 
 
 def _candidates() -> list[Path]:
+    """Where the library is looked for, in order: TROUPE_LIBRARY_PATH (a file, or a folder
+    holding it) alone when set; else next to this package (an installed wheel); else, for the
+    package used from a checkout of the repository, where `cargo build --release` and the
+    README's first command leave it."""
     env = os.environ.get("TROUPE_LIBRARY_PATH")
     if env:
         p = Path(env)
         return [p / LIB_NAME if p.is_dir() else p]
-    return [Path(__file__).resolve().parent / LIB_NAME]
+    here = Path(__file__).resolve().parent
+    candidates = [here / LIB_NAME]
+    repo = here.parents[2] if len(here.parents) > 2 else None
+    if repo is not None and (repo / "Cargo.toml").is_file() and (repo / "include" / "troupe.h").is_file():
+        target = Path(os.environ.get("CARGO_TARGET_DIR", repo / "target"))
+        candidates.append(target / "release" / LIB_NAME)
+    return candidates
 
 
 def load() -> ctypes.CDLL:
-    """Opens libtroupe (from TROUPE_LIBRARY_PATH, else next to this package) and declares every
+    """Opens libtroupe (see `_candidates` for where it is looked for) and declares every
     prototype. CDLL releases the GIL during each call."""
     tried = []
     for path in _candidates():
@@ -347,7 +357,8 @@ def load() -> ctypes.CDLL:
     else:
         raise OSError(
             f"libtroupe not found (looked at {', '.join(tried)}); build it with "
-            "`cargo build --release` and set TROUPE_LIBRARY_PATH, or pip install the package"
+            "`cargo build --release`, or set TROUPE_LIBRARY_PATH to a built libtroupe, or install "
+            "the wheel (docs/INSTALL.md)"
         )
     for name, (restype, argtypes) in PROTOTYPES.items():
         fn = getattr(lib, name)

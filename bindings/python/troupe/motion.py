@@ -20,9 +20,11 @@ import os
 from typing import NamedTuple
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from . import _native
-from . import _check, _floats, _lib, _ptr
+from . import Model, _check, _floats, _lib, _ptr
+from .errors import expect_type
 
 __all__ = ["JointsFormat", "Placement", "Poses", "Skeleton", "FeatureStream", "skeleton", "encode", "decode",
            "read_bvh", "write_bvh", "write_json", "save_npz", "smplx145_positions", "penetration_metrics", "JOINTS"]
@@ -106,7 +108,7 @@ def skeleton() -> Skeleton:
     return Skeleton([_lib.troupe_motion_joint_name(j).decode() for j in range(n)], parents, offsets)
 
 
-def smplx145_positions(frames) -> np.ndarray:
+def smplx145_positions(frames: ArrayLike) -> np.ndarray:
     """MAGNet's frames of one person (float32 [frames, 145], the `magnet-smplx145` layout) posed
     on the t2m-22 skeleton: joint positions [frames, 22, 3] in metres, Y up, the frames' world.
     Bone lengths are troupe's neutral body's, not the person's betas. For pictures
@@ -119,7 +121,7 @@ def smplx145_positions(frames) -> np.ndarray:
     return out
 
 
-def penetration_metrics(first, second) -> dict:
+def penetration_metrics(first: ArrayLike, second: ArrayLike) -> dict:
     """How much two people's bodies pass through each other (docs/ARFLOW.md): t2m-22 joints
     [frames, 22, 3] each (metres, Y up, one world), each person's joints against the other's
     capsule body. Returns frames_intersecting, frequency, depth_sum (metres, the intersection
@@ -151,34 +153,50 @@ def _pose_buffers(frames: int):
     return poses, b
 
 
-def encode(model, positions, fmt: JointsFormat | None = None, placement: Placement | None = None):
+def _format(fmt: JointsFormat | None, model: Model | None = None) -> _native.JointsFormat:
+    """The C form of `fmt` (checked to be a JointsFormat); None: the defaults at the model's rate."""
+    if fmt is None:
+        fmt = JointsFormat(fps=model.fps) if model is not None else JointsFormat()
+    return expect_type(fmt, JointsFormat, "fmt")._c()
+
+
+def _placement(placement: Placement | None):
+    """A reference to `placement`'s C form (checked to be a Placement), or None."""
+    if placement is None:
+        return None
+    return ctypes.byref(expect_type(placement, Placement, "placement")._c)
+
+
+def encode(model: Model, positions: np.ndarray, fmt: JointsFormat | None = None,
+           placement: Placement | None = None) -> tuple[np.ndarray, Placement]:
     """Features of a clip of joint positions ([T, 22, 3] as `fmt` says), resampled to the bundle's
     rate, in InterGen's canonical frame (or `placement`'s). Returns (features [T' - 1, frame_dim],
     the Placement used)."""
-    fmt = fmt or JointsFormat(fps=model.fps)
+    expect_type(model, Model, "model")
     p = _positions(positions, "positions")
-    c = fmt._c()
+    c = _format(fmt, model)
     n = ctypes.c_size_t()
     _check(_lib.troupe_motion_encoded_frames(model._h(), ctypes.byref(c), p.shape[0], ctypes.byref(n)))
     out = np.empty((n.value, model.frame_dim), np.float32)
     used = _native.Placement()
-    given = ctypes.byref(placement._c) if placement is not None else None
+    given = _placement(placement)
     written = ctypes.c_size_t()
     _check(_lib.troupe_motion_encode(model._h(), ctypes.byref(c), _ptr(p), p.shape[0], given, _ptr(out),
                                      out.shape[0], ctypes.byref(written), ctypes.byref(used)))
     return out[: written.value], Placement(used)
 
 
-def decode(model, features, placement: Placement, fmt: JointsFormat | None = None) -> Poses:
+def decode(model: Model, features: np.ndarray, placement: Placement, fmt: JointsFormat | None = None) -> Poses:
     """Poses of feature frames ([T, frame_dim]) in the caller's world (`placement` from `encode`
     or a stream; `fmt`'s axes and units)."""
-    fmt = fmt or JointsFormat(fps=model.fps)
+    expect_type(model, Model, "model")
+    given = _placement(expect_type(placement, Placement, "placement"))
+    c = _format(fmt, model)
     f = _floats(features, "features")
     if f.ndim != 2 or f.shape[1] != model.frame_dim:
         raise ValueError(f"features must be [frames, {model.frame_dim}], got {list(f.shape)}")
     poses, buffers = _pose_buffers(f.shape[0])
-    c = fmt._c()
-    _check(_lib.troupe_motion_decode(model._h(), ctypes.byref(c), ctypes.byref(placement._c), _ptr(f), f.shape[0],
+    _check(_lib.troupe_motion_decode(model._h(), ctypes.byref(c), given, _ptr(f), f.shape[0],
                                      ctypes.byref(buffers)))
     return poses
 
@@ -187,15 +205,15 @@ class FeatureStream:
     """Joint-position frames in, feature frames out, one frame at a time (one frame of latency:
     velocities need the next frame). One thread at a time."""
 
-    def __init__(self, model, fmt: JointsFormat | None = None, placement: Placement | None = None):
-        fmt = fmt or JointsFormat(fps=model.fps)
+    def __init__(self, model: Model, fmt: JointsFormat | None = None, placement: Placement | None = None):
+        expect_type(model, Model, "model")
         handle = _native.stream_p()
-        c = fmt._c()
-        given = ctypes.byref(placement._c) if placement is not None else None
+        c = _format(fmt, model)
+        given = _placement(placement)
         _check(_lib.troupe_motion_stream_new(model._h(), ctypes.byref(c), given, ctypes.byref(handle)))
         self._handle, self._dim = handle, model.frame_dim
 
-    def push(self, frame) -> np.ndarray:
+    def push(self, frame: ArrayLike) -> np.ndarray:
         """One frame of positions ([22, 3]) in; the feature frames it completes out ([k, frame_dim])."""
         f = _floats(frame, "frame", JOINTS * 3)
         cap = _lib.troupe_motion_stream_max_frames(self._handle)
@@ -213,7 +231,7 @@ class FeatureStream:
         return Placement(c)
 
     def reset(self, placement: Placement | None = None) -> None:
-        _check(_lib.troupe_motion_stream_reset(self._handle, ctypes.byref(placement._c) if placement else None))
+        _check(_lib.troupe_motion_stream_reset(self._handle, _placement(placement)))
 
     def close(self) -> None:
         if self._handle:
@@ -222,14 +240,15 @@ class FeatureStream:
 
     __del__ = close
 
-    def __enter__(self):
+    def __enter__(self) -> FeatureStream:
         return self
 
-    def __exit__(self, *exc):
+    def __exit__(self, *exc: object) -> None:
         self.close()
 
 
-def read_bvh(path: str | os.PathLike, units: str | None = None, joint_map: str | None = None):
+def read_bvh(path: str | os.PathLike, units: str | None = None,
+             joint_map: str | None = None) -> tuple[np.ndarray, JointsFormat]:
     """A BVH take as t2m-22 joint positions: (positions [T, 22, 3] in the file's units and axes,
     its JointsFormat). `units`: the file's ("m", "cm", ...), or None to guess from the figure's
     height; `joint_map`: a joint-map JSON text to use instead of the built-in one."""
@@ -248,7 +267,7 @@ def read_bvh(path: str | os.PathLike, units: str | None = None, joint_map: str |
         _lib.troupe_bvh_free(handle)
 
 
-def write_bvh(path: str | os.PathLike, people, fmt: JointsFormat | None = None, units: str = "cm",
+def write_bvh(path: str | os.PathLike, people: ArrayLike | dict[str, ArrayLike], fmt: JointsFormat | None = None, units: str = "cm",
               fit_skeleton: bool = True) -> None:
     """Writes people on the t2m-22 skeleton to a BVH file (atomically). `people`: a dict
     {name: positions [T, 22, 3]} (or one array for one person) in the world `fmt` describes (its
@@ -269,10 +288,10 @@ def _people(people, fmt):
         if not isinstance(name, str) or "\0" in name:
             raise ValueError(f"person name {name!r} must be a str without NUL characters")
     names = (ctypes.c_char_p * len(arrays))(*[n.encode() for n in people])
-    return np.ascontiguousarray(np.stack(arrays)), names, (fmt or JointsFormat())._c()
+    return np.ascontiguousarray(np.stack(arrays)), names, _format(fmt)
 
 
-def write_json(path: str | os.PathLike, people, fmt: JointsFormat | None = None) -> None:
+def write_json(path: str | os.PathLike, people: ArrayLike | dict[str, ArrayLike], fmt: JointsFormat | None = None) -> None:
     """Writes people's poses ({name: positions [T, 22, 3]} in the world `fmt` describes) as a
     JSON document for robots and tools: per frame, joint positions, rotations (wxyz; joint 0 the
     root's world orientation, the others local to their parent) and contacts, with the skeleton,

@@ -11,13 +11,16 @@ from __future__ import annotations
 import ctypes
 import os
 
+from numpy.typing import ArrayLike
+
 from . import _check, _lib, _ptr
 from .motion import JointsFormat, _people
 
 __all__ = ["write"]
 
 
-def write(people, html: str | os.PathLike | None = None, gif: str | os.PathLike | None = None,
+def write(people: ArrayLike | dict[str, ArrayLike], html: str | os.PathLike | None = None,
+          gif: str | os.PathLike | None = None,
           fmt: JointsFormat | None = None, title: str = "troupe") -> None:
     """Writes the HTML player and/or the GIF of `people` ({name: positions [T, 22, 3]} in the
     world `fmt` describes; its fps is the playback rate). Both or neither are written."""

@@ -1,0 +1,162 @@
+#!/usr/bin/env bash
+# Installs troupe as a C/C++ library into a prefix, the way a system package would:
+#
+#   scripts/install.sh --prefix /opt/troupe            # builds the release library first
+#
+#   PREFIX/lib/libtroupe.so.1                the shared library (SONAME libtroupe.so.1)
+#   PREFIX/lib/libtroupe.so -> libtroupe.so.1  for -ltroupe at link time
+#   PREFIX/lib/libtroupe.a                   the static library
+#   PREFIX/include/troupe/troupe.h           the C header
+#   PREFIX/include/troupe/troupe.hpp         the header-only C++ wrapper
+#   PREFIX/lib/pkgconfig/troupe.pc           pkg-config, shared (Libs.private: the static link's)
+#   PREFIX/lib/pkgconfig/troupe-static.pc    pkg-config, static
+#   PREFIX/lib/cmake/troupe/troupeConfig.cmake, troupeConfigVersion.cmake
+#                                            find_package(troupe 1): troupe::troupe (shared),
+#                                            troupe::troupe_static
+#   PREFIX/share/troupe/bundles/armflow-demo the trained demo model
+#
+# Options:
+#   --prefix DIR       where to install (required)
+#   --profile NAME     the Cargo profile to build with: release (default), dist (release with
+#                      link-time optimisation, one codegen unit, symbols stripped: smaller and
+#                      what a package should ship, a longer build), or dev
+#   --features LIST    Cargo features, as `cargo build --features` takes them
+#   --no-build         install what the profile's last build left in target/
+#
+# Every file installed is relocatable: the pkg-config and CMake files find the prefix from
+# their own location, so the prefix may be moved or packed as it is. The shared library's
+# SONAME carries the C ABI version (docs/ABI.md): a program linked against it asks for
+# libtroupe.so.1 and never picks up an incompatible library.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+prefix= profile=release features= build=1
+# An option's value: present and not empty, else a usage error (exit status 2).
+value() { [ "$#" -ge 2 ] && [ -n "$2" ] || { echo "install.sh: $1 needs a value" >&2; exit 2; }; }
+while [ "$#" -gt 0 ]; do
+    case "$1" in
+        --prefix) value "$@"; prefix=$2; shift 2 ;;
+        --profile) value "$@"; profile=$2; shift 2 ;;
+        --features) value "$@"; features=$2; shift 2 ;;
+        --no-build) build=; shift ;;
+        -h|--help) sed -n '2,/^set -euo/p' "$0" | sed '$d; s/^# \{0,1\}//'; exit 0 ;;
+        *) echo "install.sh: unknown argument $1 (see --help)" >&2; exit 2 ;;
+    esac
+done
+[ -n "$prefix" ] || { echo "install.sh: --prefix DIR is required" >&2; exit 2; }
+case "$(uname -s)" in
+    Linux) ;;
+    *) echo "install.sh: installs for Linux only so far (docs/INSTALL.md)" >&2; exit 2 ;;
+esac
+
+# The library's release (Cargo.toml) and the C ABI's major version (src/ffi/version.rs).
+version=$(sed -n 's/^version = "\(.*\)"$/\1/p' Cargo.toml | head -n1)
+abi=$(sed -n 's/^pub const TROUPE_ABI_VERSION: u32 = \([0-9]*\);$/\1/p' src/ffi/version.rs)
+[ -n "$version" ] && [ -n "$abi" ] || { echo "install.sh: cannot read the version" >&2; exit 1; }
+
+if [ -n "$build" ]; then
+    echo "== building the library (cargo build --profile $profile --lib)"
+    cargo build --profile "$profile" --lib ${features:+--features "$features"}
+fi
+out_dir=${CARGO_TARGET_DIR:-target}/$([ "$profile" = dev ] && echo debug || echo "$profile")
+for f in libtroupe.so libtroupe.a; do
+    [ -f "$out_dir/$f" ] || { echo "install.sh: $out_dir/$f is missing (build it, or drop --no-build)" >&2; exit 1; }
+done
+
+# What the static library needs besides itself: the system libraries Rust's standard library
+# links on Linux with glibc (rustc --print native-static-libs), and a non-executable stack,
+# which the linker would otherwise not infer: some of tract's assembly objects carry no
+# .note.GNU-stack section.
+static_libs="-lgcc_s -lutil -lrt -lpthread -lm -ldl -lc"
+static_flags="-Wl,-z,noexecstack"
+
+prefix=$(mkdir -p "$prefix" && cd "$prefix" && pwd)
+lib=$prefix/lib include=$prefix/include/troupe
+mkdir -p "$lib/pkgconfig" "$lib/cmake/troupe" "$include" "$prefix/share/troupe/bundles"
+echo "== installing troupe $version (C ABI $abi) into $prefix"
+
+install -m 755 "$out_dir/libtroupe.so" "$lib/libtroupe.so.$abi"
+ln -sf "libtroupe.so.$abi" "$lib/libtroupe.so"
+install -m 644 "$out_dir/libtroupe.a" "$lib/libtroupe.a"
+install -m 644 include/troupe.h bindings/cpp/troupe.hpp "$include/"
+rm -rf "$prefix/share/troupe/bundles/armflow-demo"
+cp -R onnx/bundles/armflow-demo "$prefix/share/troupe/bundles/"
+
+cat >"$lib/pkgconfig/troupe.pc" <<EOF
+prefix=\${pcfiledir}/../..
+libdir=\${prefix}/lib
+includedir=\${prefix}/include/troupe
+bundledir=\${prefix}/share/troupe/bundles
+
+Name: troupe
+Description: Real-time human interaction motion generation (C ABI $abi)
+Version: $version
+Cflags: -I\${includedir}
+Libs: -L\${libdir} -ltroupe
+Libs.private: $static_flags $static_libs
+EOF
+
+cat >"$lib/pkgconfig/troupe-static.pc" <<EOF
+prefix=\${pcfiledir}/../..
+libdir=\${prefix}/lib
+includedir=\${prefix}/include/troupe
+bundledir=\${prefix}/share/troupe/bundles
+
+Name: troupe-static
+Description: Real-time human interaction motion generation, linked statically (C ABI $abi)
+Version: $version
+Cflags: -I\${includedir}
+Libs: \${libdir}/libtroupe.a $static_flags $static_libs
+EOF
+
+cat >"$lib/cmake/troupe/troupeConfig.cmake" <<EOF
+# troupe's CMake package (scripts/install.sh). find_package(troupe $abi) gives:
+#   troupe::troupe          the shared library, libtroupe.so.$abi
+#   troupe::troupe_static   the static library with the system libraries it needs
+#   troupe_VERSION          the C ABI version the package is found by ($abi)
+#   troupe_LIBRARY_VERSION  the library's release ($version)
+#   troupe_BUNDLE_DIR       the installed models (armflow-demo)
+get_filename_component(_troupe_prefix "\${CMAKE_CURRENT_LIST_DIR}/../../.." ABSOLUTE)
+set(troupe_LIBRARY_VERSION "$version")
+set(troupe_BUNDLE_DIR "\${_troupe_prefix}/share/troupe/bundles")
+if(NOT TARGET troupe::troupe)
+    add_library(troupe::troupe SHARED IMPORTED)
+    set_target_properties(troupe::troupe PROPERTIES
+        IMPORTED_LOCATION "\${_troupe_prefix}/lib/libtroupe.so.$abi"
+        IMPORTED_SONAME "libtroupe.so.$abi"
+        INTERFACE_INCLUDE_DIRECTORIES "\${_troupe_prefix}/include/troupe")
+endif()
+if(NOT TARGET troupe::troupe_static)
+    find_package(Threads REQUIRED)
+    add_library(troupe::troupe_static STATIC IMPORTED)
+    set_target_properties(troupe::troupe_static PROPERTIES
+        IMPORTED_LOCATION "\${_troupe_prefix}/lib/libtroupe.a"
+        INTERFACE_INCLUDE_DIRECTORIES "\${_troupe_prefix}/include/troupe"
+        INTERFACE_LINK_LIBRARIES "Threads::Threads;\${CMAKE_DL_LIBS};m;rt;util;gcc_s"
+        INTERFACE_LINK_OPTIONS "LINKER:-z,noexecstack")
+endif()
+unset(_troupe_prefix)
+EOF
+
+cat >"$lib/cmake/troupe/troupeConfigVersion.cmake" <<EOF
+# The package is versioned by the C ABI ($abi): any request for major version $abi is met, as
+# the shared library's SONAME promises (docs/ABI.md); the library's release is $version.
+set(PACKAGE_VERSION "$abi")
+if(PACKAGE_FIND_VERSION STREQUAL "")
+    set(PACKAGE_VERSION_COMPATIBLE TRUE)
+elseif(NOT PACKAGE_FIND_VERSION_MAJOR EQUAL $abi)
+    set(PACKAGE_VERSION_COMPATIBLE FALSE)
+else()
+    set(PACKAGE_VERSION_COMPATIBLE TRUE)
+    if(PACKAGE_FIND_VERSION STREQUAL PACKAGE_VERSION)
+        set(PACKAGE_VERSION_EXACT TRUE)
+    endif()
+endif()
+if(NOT CMAKE_SIZEOF_VOID_P STREQUAL "8")
+    set(PACKAGE_VERSION "\${PACKAGE_VERSION} (64-bit)")
+    set(PACKAGE_VERSION_UNSUITABLE TRUE)
+endif()
+EOF
+
+du_of() { du -k "$1" | cut -f1; }
+echo "installed: libtroupe.so.$abi $(du_of "$lib/libtroupe.so.$abi") KiB, libtroupe.a $(du_of "$lib/libtroupe.a") KiB"

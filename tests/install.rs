@@ -1,0 +1,271 @@
+//! troupe installed as a C/C++ package (`scripts/install.sh`) and used the ways an engine's
+//! build would: the layout of the prefix, the shared library's SONAME and stack, a pkg-config
+//! consumer (shared and static) and the CMake consumer project `examples/cmake/`
+//! (`find_package(troupe 1)`, shared and static), each built against a fresh prefix and run
+//! on the installed demo model. Every consumer streams the same clip: their outputs must be
+//! identical.
+//!
+//! The installer installs the libraries `common::c_libraries` builds (`--no-build --profile
+//! dev`, the testing feature on) rather than building its own, so that the suite compiles
+//! troupe once; it installs a release build the same way. `cmake` is installed by
+//! `scripts/test.sh`; without it the CMake half fails under CI and is a counted skip elsewhere.
+
+mod common;
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+use std::sync::OnceLock;
+
+fn root() -> &'static Path {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+}
+
+/// A scratch directory shared by the tests of this binary.
+fn scratch() -> &'static Path {
+    static DIR: OnceLock<tempfile::TempDir> = OnceLock::new();
+    DIR.get_or_init(|| tempfile::tempdir().unwrap()).path()
+}
+
+/// Runs `cmd`, panicking with its output unless it succeeds.
+fn run(cmd: &mut Command) -> Output {
+    let out = cmd.output().unwrap_or_else(|e| panic!("run {cmd:?}: {e}"));
+    assert!(
+        out.status.success(),
+        "{cmd:?} failed:\n{}\n{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    out
+}
+
+fn stdout(out: &Output) -> String {
+    String::from_utf8_lossy(&out.stdout).into_owned()
+}
+
+/// A fresh prefix with troupe installed in it, once per test binary.
+fn prefix() -> &'static Path {
+    static PREFIX: OnceLock<PathBuf> = OnceLock::new();
+    PREFIX.get_or_init(|| {
+        common::c_libraries();
+        let prefix = scratch().join("prefix");
+        let out = run(Command::new("bash")
+            .arg(root().join("scripts/install.sh"))
+            .args(["--prefix", prefix.to_str().unwrap()])
+            .args(["--profile", "dev", "--no-build"]));
+        assert!(stdout(&out).contains("installed: libtroupe.so.1"));
+        prefix
+    })
+}
+
+/// The C streaming demo's run on the installed demo model with the repository's CMU clip,
+/// from the repository root: its output file's bytes and its stdout.
+fn stream_demo(bin: &Path, name: &str) -> (Vec<u8>, String) {
+    let npy = scratch().join(format!("{name}.npy"));
+    let bundle = prefix().join("share/troupe/bundles/armflow-demo");
+    let out = run(Command::new(bin).current_dir(root()).args([
+        bundle.to_str().unwrap(),
+        "240",
+        "4",
+        npy.to_str().unwrap(),
+    ]));
+    let text = stdout(&out);
+    assert!(text.contains("240 actor frames"), "{text}");
+    (std::fs::read(&npy).unwrap(), text)
+}
+
+/// The answers every consumer must reproduce: the C demo built in place against the build
+/// folder's library.
+fn reference_output() -> &'static [u8] {
+    static OUT: OnceLock<Vec<u8>> = OnceLock::new();
+    OUT.get_or_init(|| {
+        let libs = common::c_libraries();
+        let bin = scratch().join("stream_reference");
+        run(Command::new("cc")
+            .args(["-std=c99", "-O2"])
+            .arg(format!("-I{}", root().join("include").display()))
+            .arg(root().join("examples/c/stream.c"))
+            .arg("-o")
+            .arg(&bin)
+            .arg(format!("-L{}", libs.display()))
+            .args(["-ltroupe", "-lm"])
+            .arg(format!("-Wl,-rpath,{}", libs.display())));
+        stream_demo(&bin, "reference").0
+    })
+}
+
+/// What a program linked against `bin` loads at run time (`ldd`).
+fn needed(bin: &Path) -> String {
+    stdout(&run(Command::new("ldd").arg(bin)))
+}
+
+#[test]
+fn prefix_holds_the_package() {
+    let p = prefix();
+    for file in [
+        "lib/libtroupe.so.1",
+        "lib/libtroupe.a",
+        "include/troupe/troupe.h",
+        "include/troupe/troupe.hpp",
+        "lib/pkgconfig/troupe.pc",
+        "lib/pkgconfig/troupe-static.pc",
+        "lib/cmake/troupe/troupeConfig.cmake",
+        "lib/cmake/troupe/troupeConfigVersion.cmake",
+        "share/troupe/bundles/armflow-demo/troupe.json",
+    ] {
+        assert!(p.join(file).is_file(), "{file} is not installed");
+    }
+    assert_eq!(
+        std::fs::read_link(p.join("lib/libtroupe.so")).unwrap(),
+        Path::new("libtroupe.so.1")
+    );
+    // The headers are the repository's, byte for byte.
+    for (installed, source) in [
+        ("include/troupe/troupe.h", "include/troupe.h"),
+        ("include/troupe/troupe.hpp", "bindings/cpp/troupe.hpp"),
+    ] {
+        assert_eq!(
+            std::fs::read(p.join(installed)).unwrap(),
+            std::fs::read(root().join(source)).unwrap(),
+            "{installed}"
+        );
+    }
+    let dynamic = stdout(&run(Command::new("readelf")
+        .args(["-d", "-l", "-W"])
+        .arg(p.join("lib/libtroupe.so.1"))));
+    assert!(
+        dynamic.contains("Library soname: [libtroupe.so.1]"),
+        "{dynamic}"
+    );
+    let stack = dynamic
+        .lines()
+        .find(|l| l.contains("GNU_STACK"))
+        .expect("a GNU_STACK header");
+    assert!(
+        !stack.trim_end().ends_with('E'),
+        "executable stack: {stack}"
+    );
+}
+
+#[test]
+fn installer_refuses_bad_arguments() {
+    for args in [&[][..], &["--prefix"][..], &["--frobnicate"][..]] {
+        let out = Command::new("bash")
+            .arg(root().join("scripts/install.sh"))
+            .args(args)
+            .output()
+            .unwrap();
+        assert_eq!(out.status.code(), Some(2), "{args:?}");
+        assert!(!out.stderr.is_empty(), "{args:?}: no message");
+    }
+}
+
+/// Flags from pkg-config for `package`, read from the installed prefix only.
+fn pkg_config(package: &str, what: &str) -> Vec<String> {
+    let out = run(Command::new("pkg-config")
+        .env("PKG_CONFIG_PATH", prefix().join("lib/pkgconfig"))
+        .env("PKG_CONFIG_LIBDIR", prefix().join("lib/pkgconfig"))
+        .args([what, package]));
+    stdout(&out).split_whitespace().map(String::from).collect()
+}
+
+#[test]
+fn pkg_config_consumers_build_and_stream() {
+    let version = pkg_config("troupe", "--modversion");
+    assert_eq!(version, [env!("CARGO_PKG_VERSION")]);
+    let libdir = pkg_config("troupe", "--variable=libdir").remove(0);
+    for (package, name) in [("troupe", "pc_shared"), ("troupe-static", "pc_static")] {
+        let bin = scratch().join(name);
+        run(Command::new("cc")
+            .args(["-std=c99", "-O2"])
+            .arg(root().join("examples/c/stream.c"))
+            .arg("-o")
+            .arg(&bin)
+            .args(pkg_config(package, "--cflags"))
+            .args(pkg_config(package, "--libs"))
+            .arg(format!("-Wl,-rpath,{libdir}"))
+            .arg("-lm"));
+        let linked = needed(&bin);
+        assert_eq!(
+            linked.contains("libtroupe.so.1"),
+            package == "troupe",
+            "{name}: {linked}"
+        );
+        let (npy, text) = stream_demo(&bin, name);
+        assert!(
+            npy == reference_output(),
+            "{name} streamed other values:\n{text}"
+        );
+    }
+}
+
+#[test]
+fn cmake_consumer_builds_and_streams() {
+    if Command::new("cmake").arg("--version").output().is_err() {
+        assert!(
+            std::env::var_os("CI").is_none_or(|v| v.is_empty()),
+            "cmake is not installed and CI is set: this check is required there \
+             (scripts/test.sh installs it: apt-get install cmake)"
+        );
+        common::skip(
+            "cmake_consumer_builds_and_streams",
+            "cmake is not installed",
+        );
+        return;
+    }
+    for (static_link, name) in [("OFF", "cmake_shared"), ("ON", "cmake_static")] {
+        let build = scratch().join(name);
+        run(Command::new("cmake")
+            .arg("-S")
+            .arg(root().join("examples/cmake"))
+            .arg("-B")
+            .arg(&build)
+            .arg(format!("-DCMAKE_PREFIX_PATH={}", prefix().display()))
+            .arg(format!("-DTROUPE_STATIC={static_link}"))
+            .arg("-DCMAKE_BUILD_TYPE=Release"));
+        run(Command::new("cmake").arg("--build").arg(&build));
+        for program in ["stream_cpp", "stream_c"] {
+            let linked = needed(&build.join(program));
+            assert_eq!(
+                linked.contains("libtroupe.so.1"),
+                static_link == "OFF",
+                "{name}/{program}: {linked}"
+            );
+        }
+        let cpp = stdout(&run(&mut Command::new(build.join("stream_cpp"))));
+        assert!(
+            cpp.contains("streamed 120 actor frames") && cpp.contains("(C ABI 1)"),
+            "{cpp}"
+        );
+        let (npy, text) = stream_demo(&build.join("stream_c"), name);
+        assert!(
+            npy == reference_output(),
+            "{name} streamed other values:\n{text}"
+        );
+    }
+}
+
+#[test]
+fn cmake_refuses_another_abi() {
+    if Command::new("cmake").arg("--version").output().is_err() {
+        common::skip("cmake_refuses_another_abi", "cmake is not installed");
+        return;
+    }
+    let project = scratch().join("abi2");
+    std::fs::create_dir_all(&project).unwrap();
+    std::fs::write(
+        project.join("CMakeLists.txt"),
+        "cmake_minimum_required(VERSION 3.16)\nproject(abi2 LANGUAGES C)\nfind_package(troupe 2 REQUIRED)\n",
+    )
+    .unwrap();
+    let out = Command::new("cmake")
+        .arg("-S")
+        .arg(&project)
+        .arg("-B")
+        .arg(project.join("build"))
+        .arg(format!("-DCMAKE_PREFIX_PATH={}", prefix().display()))
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "ABI 2 was accepted");
+    assert!(text.contains("troupeConfig.cmake"), "{text}");
+}
