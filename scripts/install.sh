@@ -22,6 +22,9 @@
 #                      what a package should ship, a longer build), or dev
 #   --features LIST    Cargo features, as `cargo build --features` takes them
 #   --no-build         install what the profile's last build left in target/
+#   --unity-package DIR
+#                      also write the Unity package (unity/: the C# binding and a sample) to DIR
+#                      with the library in Runtime/Plugins/x86_64/
 #
 # Every file installed is relocatable: the pkg-config and CMake files find the prefix from
 # their own location, so the prefix may be moved or packed as it is. The shared library's
@@ -30,7 +33,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
-prefix= profile=release features= build=1
+prefix= profile=release features= build=1 unity=
 # An option's value: present and not empty, else a usage error (exit status 2).
 value() { [ "$#" -ge 2 ] && [ -n "$2" ] || { echo "install.sh: $1 needs a value" >&2; exit 2; }; }
 while [ "$#" -gt 0 ]; do
@@ -39,6 +42,7 @@ while [ "$#" -gt 0 ]; do
         --profile) value "$@"; profile=$2; shift 2 ;;
         --features) value "$@"; features=$2; shift 2 ;;
         --no-build) build=; shift ;;
+        --unity-package) value "$@"; unity=$2; shift 2 ;;
         -h|--help) sed -n '2,/^set -euo/p' "$0" | sed '$d; s/^# \{0,1\}//'; exit 0 ;;
         *) echo "install.sh: unknown argument $1 (see --help)" >&2; exit 2 ;;
     esac
@@ -157,6 +161,15 @@ if(NOT CMAKE_SIZEOF_VOID_P STREQUAL "8")
     set(PACKAGE_VERSION_UNSUITABLE TRUE)
 endif()
 EOF
+
+if [ -n "$unity" ]; then
+    rm -rf "$unity"
+    mkdir -p "$unity"
+    cp -R unity/. "$unity/"
+    mkdir -p "$unity/Runtime/Plugins/x86_64"
+    install -m 755 "$out_dir/libtroupe.so" "$unity/Runtime/Plugins/x86_64/libtroupe.so"
+    echo "unity package: $unity (com.troupe.runtime $version)"
+fi
 
 du_of() { du -k "$1" | cut -f1; }
 echo "installed: libtroupe.so.$abi $(du_of "$lib/libtroupe.so.$abi") KiB, libtroupe.a $(du_of "$lib/libtroupe.a") KiB"

@@ -2,7 +2,7 @@
 # The project's test command: on a machine with only the Rust toolchain, a C compiler and a bare
 # python3, it installs what the suite needs (a project-local virtual environment for the Python
 # tests, Debian's chromium for the picture tests, valgrind for the C memory check, cmake for the
-# installed package's consumer) and runs every
+# installed package's consumer, Mono for the C# binding) and runs every
 # check CI runs. It ends with the count of checks the tests skipped, and why (torch-dependent
 # ones are optional; see tests/common/mod.rs, `skip`).
 #
@@ -85,6 +85,17 @@ if ! command -v cmake >/dev/null 2>&1; then
     if ! command -v cmake >/dev/null 2>&1; then
         echo "cmake is missing and could not be installed (apt-get install cmake):" \
             "cmake_consumer_builds_and_streams fails under CI and is skipped elsewhere" >&2
+    fi
+fi
+
+# 5. Mono: the C# binding's test (tests/csharp.rs) compiles with mcs and runs under mono. Under
+#    CI that test fails without them; elsewhere it is a counted skip.
+if ! command -v mcs >/dev/null 2>&1 || ! command -v mono >/dev/null 2>&1; then
+    echo "== mono: installing Debian's packages"
+    apt_install mono-mcs mono-runtime
+    if ! command -v mcs >/dev/null 2>&1; then
+        echo "Mono is missing and could not be installed (apt-get install mono-mcs mono-runtime):" \
+            "csharp_binding_streams_like_rust_and_refuses_misuse fails under CI and is skipped elsewhere" >&2
     fi
 fi
 

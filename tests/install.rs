@@ -51,7 +51,9 @@ fn prefix() -> &'static Path {
         let out = run(Command::new("bash")
             .arg(root().join("scripts/install.sh"))
             .args(["--prefix", prefix.to_str().unwrap()])
-            .args(["--profile", "dev", "--no-build"]));
+            .args(["--profile", "dev", "--no-build"])
+            .arg("--unity-package")
+            .arg(scratch().join("unity")));
         assert!(stdout(&out).contains("installed: libtroupe.so.1"));
         prefix
     })
@@ -143,6 +145,25 @@ fn prefix_holds_the_package() {
     assert!(
         !stack.trim_end().ends_with('E'),
         "executable stack: {stack}"
+    );
+}
+
+#[test]
+fn unity_package_holds_the_binding_and_the_library() {
+    prefix();
+    let unity = scratch().join("unity");
+    for file in [
+        "package.json",
+        "Runtime/Troupe.cs",
+        "Runtime/Troupe.Runtime.asmdef",
+        "Runtime/Plugins/x86_64/libtroupe.so",
+        "Samples~/AnimatorPartner/TroupePartner.cs",
+    ] {
+        assert!(unity.join(file).is_file(), "the Unity package lacks {file}");
+    }
+    assert_eq!(
+        std::fs::read(unity.join("Runtime/Troupe.cs")).unwrap(),
+        std::fs::read(root().join("bindings/csharp/Troupe.cs")).unwrap()
     );
 }
 

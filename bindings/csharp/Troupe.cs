@@ -1,0 +1,488 @@
+// Troupe.cs: C# bindings of troupe's C ABI (include/troupe.h) for .NET, Mono and Unity.
+//
+//   using (var model = Troupe.Model.Load("armflow-demo"))
+//   using (var session = model.CreateSession(new Troupe.SessionOptions { Seed = 7 }))
+//   {
+//       session.SetCondition("mirror");
+//       session.SetJointsFormat(Troupe.JointsFormat.Default);      // metres, Y up, 30 fps
+//       var partner = new float[session.JointsReadyAfter(1) * 22 * 3];
+//       int ready = session.StepJoints(actorFrame, 1, partner);   // [22 * 3] per frame in and out
+//   }
+//
+// One file, C# 7.3, no unsafe code: drop it into a project with the native library (libtroupe.so,
+// troupe.dll or libtroupe.dylib) where the runtime finds it (Unity: Plugins/x86_64/). Arrays go
+// to the library pinned, never copied; no callback crosses from native code into managed code.
+//
+// Ownership and threading follow the C ABI: a Model may be shared by any number of threads and
+// sessions keep it alive; a Session is used by one thread at a time (a second thread gets
+// BusyException). Model and Session own their native handles through SafeHandles: Dispose them
+// (or let the finalizer) and they are freed once. Every failed call throws the TroupeException
+// subclass of its status code with the library's message; a failed step leaves the session as
+// it was. Arguments the binding can check itself (null, array lengths) throw
+// ArgumentException and ArgumentNullException before any native call.
+using System;
+using System.Collections.Generic;
+using System.Runtime.InteropServices;
+using System.Text;
+
+namespace Troupe
+{
+    /// <summary>A troupe call failed: <see cref="Status"/> is the TROUPE_ERR_* code and
+    /// <see cref="StatusName"/> its name; the message is the library's.</summary>
+    public class TroupeException : Exception
+    {
+        /// <summary>The TROUPE_ERR_* status code.</summary>
+        public int Status { get; }
+        /// <summary>The symbolic name of <see cref="Status"/>, e.g. "TROUPE_ERR_INVALID_ARG".</summary>
+        public string StatusName { get; }
+
+        /// <summary>An exception for <paramref name="status"/> with the library's message.</summary>
+        public TroupeException(int status, string name, string message) : base(name + ": " + message)
+        {
+            Status = status;
+            StatusName = name;
+        }
+
+        /// <summary>The exception class of a status code (a code this binding does not know,
+        /// from a newer library, is a plain TroupeException carrying it).</summary>
+        internal static TroupeException FromStatus(int status, string message)
+        {
+            string name = Native.Utf8(Native.troupe_status_name(status)) ?? "TROUPE_ERR_UNKNOWN";
+            switch (status)
+            {
+                case 1: return new NullArgumentException(status, name, message);
+                case 2: return new InvalidArgumentException(status, name, message);
+                case 3: return new ShapeMismatchException(status, name, message);
+                case 4: return new BufferTooSmallException(status, name, message);
+                case 5: return new IoException(status, name, message);
+                case 6: return new ModelException(status, name, message);
+                case 7: return new InferenceException(status, name, message);
+                case 8: return new PoisonedException(status, name, message);
+                case 9: return new PanicException(status, name, message);
+                case 10: return new BusyException(status, name, message);
+                case 11: return new CancelledException(status, name, message);
+                case 12: return new UnsupportedException(status, name, message);
+                default: return new TroupeException(status, name, message);
+            }
+        }
+    }
+
+    /// <summary>TROUPE_ERR_NULL_ARG: a required pointer was NULL (a binding bug).</summary>
+    public sealed class NullArgumentException : TroupeException { internal NullArgumentException(int s, string n, string m) : base(s, n, m) { } }
+    /// <summary>TROUPE_ERR_INVALID_ARG: a value out of range, non-finite or unknown.</summary>
+    public sealed class InvalidArgumentException : TroupeException { internal InvalidArgumentException(int s, string n, string m) : base(s, n, m) { } }
+    /// <summary>TROUPE_ERR_SHAPE: an array of the wrong size for the model.</summary>
+    public sealed class ShapeMismatchException : TroupeException { internal ShapeMismatchException(int s, string n, string m) : base(s, n, m) { } }
+    /// <summary>TROUPE_ERR_BUFFER_TOO_SMALL: an output array could not hold the result.</summary>
+    public sealed class BufferTooSmallException : TroupeException { internal BufferTooSmallException(int s, string n, string m) : base(s, n, m) { } }
+    /// <summary>TROUPE_ERR_IO: a file could not be read or written.</summary>
+    public sealed class IoException : TroupeException { internal IoException(int s, string n, string m) : base(s, n, m) { } }
+    /// <summary>TROUPE_ERR_MODEL: the bundle is corrupt, of another version, or not loadable.</summary>
+    public sealed class ModelException : TroupeException { internal ModelException(int s, string n, string m) : base(s, n, m) { } }
+    /// <summary>TROUPE_ERR_INFERENCE: a network failed; the session is as it was.</summary>
+    public sealed class InferenceException : TroupeException { internal InferenceException(int s, string n, string m) : base(s, n, m) { } }
+    /// <summary>TROUPE_ERR_POISONED: an earlier panic left the object unusable until reset.</summary>
+    public sealed class PoisonedException : TroupeException { internal PoisonedException(int s, string n, string m) : base(s, n, m) { } }
+    /// <summary>TROUPE_ERR_PANIC: the library caught an internal panic (a bug in troupe).</summary>
+    public sealed class PanicException : TroupeException { internal PanicException(int s, string n, string m) : base(s, n, m) { } }
+    /// <summary>TROUPE_ERR_BUSY: another thread is using this session.</summary>
+    public sealed class BusyException : TroupeException { internal BusyException(int s, string n, string m) : base(s, n, m) { } }
+    /// <summary>TROUPE_ERR_CANCELLED: a progress callback stopped the call.</summary>
+    public sealed class CancelledException : TroupeException { internal CancelledException(int s, string n, string m) : base(s, n, m) { } }
+    /// <summary>TROUPE_ERR_UNSUPPORTED: the bundle's family does not offer this call.</summary>
+    public sealed class UnsupportedException : TroupeException { internal UnsupportedException(int s, string n, string m) : base(s, n, m) { } }
+
+    /// <summary>Options of a new session; a field left null takes the bundle's default.</summary>
+    public sealed class SessionOptions
+    {
+        /// <summary>Seed of the session's noise.</summary>
+        public ulong Seed;
+        /// <summary>Sampling steps per token.</summary>
+        public uint? Steps;
+        /// <summary>Classifier-free guidance scale.</summary>
+        public float? CfgScale;
+        /// <summary>Tokens the key/value cache keeps.</summary>
+        public uint? ContextCapacity;
+    }
+
+    /// <summary>Units of joint positions.</summary>
+    public enum Units : uint { Metres = 0, Centimetres = 1, Millimetres = 2, Inches = 3 }
+    /// <summary>The up axis of joint positions.</summary>
+    public enum UpAxis : uint { Y = 0, Z = 1 }
+    /// <summary>Handedness of the caller's axes.</summary>
+    public enum Handedness : uint { Right = 0, Left = 1 }
+
+    /// <summary>How the caller measures joint positions (troupe_joints_format).</summary>
+    public struct JointsFormat
+    {
+        /// <summary>Units of positions.</summary>
+        public Units Units;
+        /// <summary>The up axis.</summary>
+        public UpAxis Up;
+        /// <summary>Handedness.</summary>
+        public Handedness Handedness;
+        /// <summary>Frames per second of the caller's stream (resampled to the model's).</summary>
+        public float Fps;
+
+        /// <summary>Metres, Y up, right-handed, 30 fps (Unity: use Handedness.Left).</summary>
+        public static JointsFormat Default
+        {
+            get { return new JointsFormat { Units = Units.Metres, Up = UpAxis.Y, Handedness = Handedness.Right, Fps = 30f }; }
+        }
+    }
+
+    /// <summary>A loaded bundle. Thread-safe; sessions keep it alive.</summary>
+    public sealed class Model : IDisposable
+    {
+        internal readonly ModelHandle Handle;
+
+        private Model(ModelHandle handle) { Handle = handle; }
+
+        /// <summary>The library's version, e.g. "0.1.0".</summary>
+        public static string Version { get { return Native.Utf8(Native.troupe_version_string()); } }
+        /// <summary>The C ABI version the library speaks (this binding needs 1).</summary>
+        public static uint AbiVersion { get { return Native.troupe_abi_version(); } }
+
+        /// <summary>Loads a bundle directory or archive file.</summary>
+        public static Model Load(string path)
+        {
+            if (path == null) throw new ArgumentNullException("path");
+            Native.CheckAbi();
+            ModelHandle handle;
+            Native.Check(Native.troupe_model_load_file(Native.Utf8Z(path), out handle));
+            return new Model(handle);
+        }
+
+        /// <summary>Loads a bundle archive from memory (the bytes are copied).</summary>
+        public static Model LoadMemory(byte[] archive)
+        {
+            if (archive == null) throw new ArgumentNullException("archive");
+            Native.CheckAbi();
+            ModelHandle handle;
+            Native.Check(Native.troupe_model_load_memory(archive, (UIntPtr)archive.Length, out handle));
+            return new Model(handle);
+        }
+
+        /// <summary>Floats per frame of the model's features.</summary>
+        public int FrameDim { get { return (int)Native.troupe_model_frame_dim(Live()); } }
+        /// <summary>Frames per second of the model.</summary>
+        public int Fps { get { return (int)Native.troupe_model_fps(Live()); } }
+        /// <summary>Frames per token.</summary>
+        public int FramesPerToken { get { return (int)Native.troupe_model_frames_per_token(Live()); } }
+
+        /// <summary>The names of the model's conditions (the demo model: mirror, follow, keep-away).</summary>
+        public IList<string> ConditionLabels
+        {
+            get
+            {
+                var h = Live();
+                var labels = new List<string>();
+                ulong n = (ulong)Native.troupe_model_condition_label_count(h);
+                for (ulong i = 0; i < n; i++)
+                    labels.Add(Native.Utf8(Native.troupe_model_condition_label(h, (UIntPtr)i)));
+                return labels;
+            }
+        }
+
+        /// <summary>A new stream of this model.</summary>
+        public Session CreateSession(SessionOptions options = null)
+        {
+            var h = Live();
+            var opt = new Native.SessionOptionsC();
+            Native.Check(Native.troupe_session_options_init(h, ref opt, (UIntPtr)Marshal.SizeOf(typeof(Native.SessionOptionsC))));
+            if (options != null)
+            {
+                opt.seed = options.Seed;
+                if (options.Steps.HasValue) opt.steps = options.Steps.Value;
+                if (options.CfgScale.HasValue) opt.cfg_scale = options.CfgScale.Value;
+                if (options.ContextCapacity.HasValue) opt.context_capacity = options.ContextCapacity.Value;
+            }
+            SessionHandle session;
+            Native.Check(Native.troupe_session_new(h, ref opt, out session));
+            session.HoldModel(h);
+            return new Session(session, FrameDim);
+        }
+
+        // Disposal is tracked here: a SafeHandle that sessions still reference is not yet closed.
+        private bool disposed;
+
+        internal ModelHandle Live()
+        {
+            if (disposed || Handle.IsInvalid) throw new ObjectDisposedException("Troupe.Model");
+            return Handle;
+        }
+
+        /// <summary>Releases this reference (sessions keep the model alive).</summary>
+        public void Dispose()
+        {
+            disposed = true;
+            Handle.Dispose();
+        }
+    }
+
+    /// <summary>One stream: the reactor answering an actor. One thread at a time.</summary>
+    public sealed class Session : IDisposable
+    {
+        private readonly SessionHandle handle;
+        private readonly int frameDim;
+
+        internal Session(SessionHandle handle, int frameDim)
+        {
+            this.handle = handle;
+            this.frameDim = frameDim;
+        }
+
+        private bool disposed;
+
+        private SessionHandle Live()
+        {
+            if (disposed || handle.IsInvalid) throw new ObjectDisposedException("Troupe.Session");
+            return handle;
+        }
+
+        /// <summary>Feeds <paramref name="actorFrames"/> frames of actor features (FrameDim floats
+        /// each) and writes the reactor frames that are ready into <paramref name="output"/>
+        /// (its length a multiple of FrameDim); returns how many frames it wrote.</summary>
+        public int Step(float[] actor, int actorFrames, float[] output)
+        {
+            int dim = frameDim;
+            CheckFrames(actor, "actor", actorFrames, dim);
+            if (output == null) throw new ArgumentNullException("output");
+            UIntPtr written;
+            Native.Check(Native.troupe_session_step(Live(), actor, (UIntPtr)actorFrames, output,
+                (UIntPtr)(output.Length / dim), out written));
+            return (int)written;
+        }
+
+        /// <summary>How `StepJoints` reads actor positions; forgets the joint stream's frames.</summary>
+        public void SetJointsFormat(JointsFormat format)
+        {
+            var c = new Native.JointsFormatC();
+            Native.Check(Native.troupe_joints_format_init(ref c, (UIntPtr)Marshal.SizeOf(typeof(Native.JointsFormatC))));
+            c.units = (uint)format.Units;
+            c.up_axis = (uint)format.Up;
+            c.handedness = (uint)format.Handedness;
+            c.fps = format.Fps;
+            Native.Check(Native.troupe_session_set_joints_format(Live(), ref c));
+        }
+
+        /// <summary>How many reactor poses a `StepJoints` of <paramref name="actorFrames"/>
+        /// frames would return now: size its output array with it.</summary>
+        public int JointsReadyAfter(int actorFrames)
+        {
+            if (actorFrames < 0) throw new ArgumentOutOfRangeException("actorFrames");
+            UIntPtr n;
+            Native.Check(Native.troupe_session_joints_ready_after(Live(), (UIntPtr)actorFrames, out n));
+            return (int)n;
+        }
+
+        /// <summary>Feeds <paramref name="actorFrames"/> frames of actor joint positions
+        /// ([22][3] floats each, as SetJointsFormat said) and writes the reactor poses that are
+        /// ready into <paramref name="positions"/> (22 * 3 floats per pose, in the caller's
+        /// world); returns how many poses it wrote.</summary>
+        public int StepJoints(float[] actor, int actorFrames, float[] positions)
+        {
+            CheckFrames(actor, "actor", actorFrames, Native.Joints * 3);
+            if (positions == null) throw new ArgumentNullException("positions");
+            var pinned = GCHandle.Alloc(positions, GCHandleType.Pinned);
+            try
+            {
+                var buffers = new Native.PoseBuffersC
+                {
+                    positions = pinned.AddrOfPinnedObject(),
+                    positions_len = (UIntPtr)positions.Length,
+                };
+                UIntPtr written;
+                Native.Check(Native.troupe_session_step_joints(Live(), actor, (UIntPtr)actorFrames, ref buffers,
+                    (UIntPtr)(positions.Length / (Native.Joints * 3)), out written));
+                return (int)written;
+            }
+            finally
+            {
+                pinned.Free();
+            }
+        }
+
+        /// <summary>Selects one of the model's named conditions (see Model.ConditionLabels).</summary>
+        public void SetCondition(string label)
+        {
+            if (label == null) throw new ArgumentNullException("label");
+            var session = Live();
+            // The session holds a reference to its model's handle: valid even after Model.Dispose.
+            IntPtr m = session.Model;
+            var condition = new float[(int)Native.troupe_model_condition_dim(m)];
+            Native.Check(Native.troupe_model_condition_for_label(m, Native.Utf8Z(label), condition, (UIntPtr)condition.Length));
+            Native.Check(Native.troupe_session_set_condition(session, condition, (UIntPtr)condition.Length));
+        }
+
+        /// <summary>Sets the seed of the session's noise from now on.</summary>
+        public void SetSeed(ulong seed) { Native.Check(Native.troupe_session_set_seed(Live(), seed)); }
+
+        /// <summary>Starts the stream again (same options).</summary>
+        public void Reset() { Native.Check(Native.troupe_session_reset(Live())); }
+
+        /// <summary>Frees the session.</summary>
+        public void Dispose()
+        {
+            disposed = true;
+            handle.Dispose();
+        }
+
+        private static void CheckFrames(float[] data, string name, int frames, int floatsPerFrame)
+        {
+            if (data == null) throw new ArgumentNullException(name);
+            if (frames < 0 || (long)frames * floatsPerFrame > data.Length)
+                throw new ArgumentException(name + " holds " + data.Length + " floats, fewer than " + frames
+                    + " frames of " + floatsPerFrame, name);
+        }
+    }
+
+    /// <summary>A model handle, freed once with troupe_model_free.</summary>
+    public sealed class ModelHandle : SafeHandle
+    {
+        /// <summary>An empty handle (the marshaller fills it).</summary>
+        public ModelHandle() : base(IntPtr.Zero, true) { }
+        /// <summary>Whether the handle holds no model.</summary>
+        public override bool IsInvalid { get { return handle == IntPtr.Zero; } }
+        /// <summary>Frees the model.</summary>
+        protected override bool ReleaseHandle() { Native.troupe_model_free(handle); return true; }
+    }
+
+    /// <summary>A session handle, freed once with troupe_session_free. It holds a reference to
+    /// its model's handle, so the model handle stays valid (for condition lookups) until the
+    /// session is freed, whenever the Model is disposed.</summary>
+    public sealed class SessionHandle : SafeHandle
+    {
+        private ModelHandle model;
+
+        /// <summary>An empty handle (the marshaller fills it).</summary>
+        public SessionHandle() : base(IntPtr.Zero, true) { }
+        /// <summary>Whether the handle holds no session.</summary>
+        public override bool IsInvalid { get { return handle == IntPtr.Zero; } }
+
+        internal void HoldModel(ModelHandle owner)
+        {
+            bool added = false;
+            owner.DangerousAddRef(ref added);
+            if (added) model = owner;
+        }
+
+        internal IntPtr Model { get { return model.DangerousGetHandle(); } }
+
+        /// <summary>Frees the session, then lets go of the model.</summary>
+        protected override bool ReleaseHandle()
+        {
+            Native.troupe_session_free(handle);
+            if (model != null) model.DangerousRelease();
+            return true;
+        }
+    }
+
+    /// <summary>The C functions, as include/troupe.h declares them.</summary>
+    internal static class Native
+    {
+        private const string Lib = "troupe";
+        internal const int Joints = 22;
+        internal const uint AbiVersion = 1;
+
+        [StructLayout(LayoutKind.Sequential)]
+        internal struct SessionOptionsC
+        {
+            public uint struct_size;
+            public uint steps;
+            public ulong seed;
+            public float cfg_scale;
+            public uint context_capacity;
+            public int actor_latent;
+            public uint reserved;
+        }
+
+        [StructLayout(LayoutKind.Sequential)]
+        internal struct JointsFormatC
+        {
+            public uint struct_size;
+            public uint units;
+            public uint up_axis;
+            public uint handedness;
+            public float fps;
+            public uint reserved;
+        }
+
+        [StructLayout(LayoutKind.Sequential)]
+        internal struct PoseBuffersC
+        {
+            public IntPtr positions;
+            public UIntPtr positions_len;
+            public IntPtr rotations;
+            public UIntPtr rotations_len;
+            public IntPtr rotations_6d;
+            public UIntPtr rotations_6d_len;
+            public IntPtr contacts;
+            public UIntPtr contacts_len;
+        }
+
+        [DllImport(Lib, CallingConvention = CallingConvention.Cdecl)] internal static extern IntPtr troupe_version_string();
+        [DllImport(Lib, CallingConvention = CallingConvention.Cdecl)] internal static extern uint troupe_abi_version();
+        [DllImport(Lib, CallingConvention = CallingConvention.Cdecl)] internal static extern IntPtr troupe_status_name(int status);
+        [DllImport(Lib, CallingConvention = CallingConvention.Cdecl)] internal static extern IntPtr troupe_last_error_message();
+        [DllImport(Lib, CallingConvention = CallingConvention.Cdecl)] internal static extern int troupe_model_load_file(byte[] path, out ModelHandle model);
+        [DllImport(Lib, CallingConvention = CallingConvention.Cdecl)] internal static extern int troupe_model_load_memory(byte[] data, UIntPtr len, out ModelHandle model);
+        [DllImport(Lib, CallingConvention = CallingConvention.Cdecl)] internal static extern void troupe_model_free(IntPtr model);
+        [DllImport(Lib, CallingConvention = CallingConvention.Cdecl)] internal static extern UIntPtr troupe_model_frame_dim(ModelHandle model);
+        [DllImport(Lib, CallingConvention = CallingConvention.Cdecl)] internal static extern UIntPtr troupe_model_fps(ModelHandle model);
+        [DllImport(Lib, CallingConvention = CallingConvention.Cdecl)] internal static extern UIntPtr troupe_model_frames_per_token(ModelHandle model);
+        [DllImport(Lib, CallingConvention = CallingConvention.Cdecl)] internal static extern UIntPtr troupe_model_condition_dim(IntPtr model);
+        [DllImport(Lib, CallingConvention = CallingConvention.Cdecl)] internal static extern UIntPtr troupe_model_condition_label_count(ModelHandle model);
+        [DllImport(Lib, CallingConvention = CallingConvention.Cdecl)] internal static extern IntPtr troupe_model_condition_label(ModelHandle model, UIntPtr index);
+        [DllImport(Lib, CallingConvention = CallingConvention.Cdecl)] internal static extern int troupe_model_condition_for_label(IntPtr model, byte[] label, [Out] float[] condition, UIntPtr capacity);
+        [DllImport(Lib, CallingConvention = CallingConvention.Cdecl)] internal static extern int troupe_session_options_init(ModelHandle model, ref SessionOptionsC options, UIntPtr size);
+        [DllImport(Lib, CallingConvention = CallingConvention.Cdecl)] internal static extern int troupe_session_new(ModelHandle model, ref SessionOptionsC options, out SessionHandle session);
+        [DllImport(Lib, CallingConvention = CallingConvention.Cdecl)] internal static extern void troupe_session_free(IntPtr session);
+        [DllImport(Lib, CallingConvention = CallingConvention.Cdecl)] internal static extern int troupe_session_step(SessionHandle session, [In] float[] actor, UIntPtr frames, [Out] float[] output, UIntPtr capacity, out UIntPtr written);
+        [DllImport(Lib, CallingConvention = CallingConvention.Cdecl)] internal static extern int troupe_session_reset(SessionHandle session);
+        [DllImport(Lib, CallingConvention = CallingConvention.Cdecl)] internal static extern int troupe_session_set_seed(SessionHandle session, ulong seed);
+        [DllImport(Lib, CallingConvention = CallingConvention.Cdecl)] internal static extern int troupe_session_set_condition(SessionHandle session, [In] float[] condition, UIntPtr len);
+        [DllImport(Lib, CallingConvention = CallingConvention.Cdecl)] internal static extern int troupe_joints_format_init(ref JointsFormatC format, UIntPtr size);
+        [DllImport(Lib, CallingConvention = CallingConvention.Cdecl)] internal static extern int troupe_session_set_joints_format(SessionHandle session, ref JointsFormatC format);
+        [DllImport(Lib, CallingConvention = CallingConvention.Cdecl)] internal static extern int troupe_session_joints_ready_after(SessionHandle session, UIntPtr frames, out UIntPtr ready);
+        [DllImport(Lib, CallingConvention = CallingConvention.Cdecl)] internal static extern int troupe_session_step_joints(SessionHandle session, [In] float[] actor, UIntPtr frames, ref PoseBuffersC output, UIntPtr capacity, out UIntPtr written);
+
+        private static bool abiChecked;
+
+        /// <summary>Refuses a library of another ABI before any other call.</summary>
+        internal static void CheckAbi()
+        {
+            if (abiChecked) return;
+            uint abi = troupe_abi_version();
+            if (abi != AbiVersion)
+                throw new TroupeException(-1, "TROUPE_ERR_UNKNOWN", "the native library speaks troupe ABI " + abi
+                    + ", this binding needs " + AbiVersion);
+            abiChecked = true;
+        }
+
+        internal static void Check(int status)
+        {
+            if (status != 0) throw TroupeException.FromStatus(status, Utf8(troupe_last_error_message()) ?? "");
+        }
+
+        /// <summary>A NUL-terminated UTF-8 copy of <paramref name="s"/>; a NUL inside it is refused.</summary>
+        internal static byte[] Utf8Z(string s)
+        {
+            if (s.IndexOf('\0') >= 0) throw new ArgumentException("a string passed to troupe cannot hold NUL characters");
+            var bytes = new byte[Encoding.UTF8.GetByteCount(s) + 1];
+            Encoding.UTF8.GetBytes(s, 0, s.Length, bytes, 0);
+            return bytes;
+        }
+
+        /// <summary>The NUL-terminated UTF-8 string at <paramref name="p"/> (null for NULL).</summary>
+        internal static string Utf8(IntPtr p)
+        {
+            if (p == IntPtr.Zero) return null;
+            int n = 0;
+            while (Marshal.ReadByte(p, n) != 0) n++;
+            var bytes = new byte[n];
+            Marshal.Copy(p, bytes, 0, n);
+            return Encoding.UTF8.GetString(bytes);
+        }
+    }
+}

@@ -1,0 +1,205 @@
+// The C# binding through the real library, run by tests/csharp.rs under Mono:
+//
+//   mcs -out:troupe-tests.exe bindings/csharp/Troupe.cs bindings/csharp/tests/TroupeTests.cs
+//   LD_LIBRARY_PATH=target/debug mono troupe-tests.exe DEMO_BUNDLE CLIP.npy OUT.f32 TINY_BUNDLE
+//
+// TINY_BUNDLE: an ARMFlow bundle of other features than the demo's (armflow-tiny-interx); the
+// group bundle umf-tiny beside it is loaded too.
+//
+// Streams CLIP (float32 [T, 22, 3], metres, z up, 120 fps) through the demo model under its
+// `mirror` rule, seed 7, one frame per call, and writes the partner's positions to OUT.f32 (raw
+// little-endian float32) for the Rust side to compare with its own stream; then checks that
+// every misuse is refused with the right exception and leaves the session as it was. Prints one
+// line per check and "ALL PASSED" at the end; exits non-zero on the first failure.
+using System;
+using System.Collections.Generic;
+using System.IO;
+using System.Text;
+using Troupe;
+
+internal static class TroupeTests
+{
+    private static int checks;
+
+    private static void Check(bool ok, string what)
+    {
+        if (!ok) throw new Exception("FAILED: " + what);
+        checks++;
+        Console.WriteLine("ok: " + what);
+    }
+
+    private static void Throws<T>(Action action, string what) where T : Exception
+    {
+        try
+        {
+            action();
+        }
+        catch (T e)
+        {
+            Check(true, what + " -> " + e.GetType().Name + " (" + e.Message + ")");
+            return;
+        }
+        catch (Exception e)
+        {
+            throw new Exception("FAILED: " + what + ": expected " + typeof(T).Name + ", got " + e.GetType().Name + ": " + e.Message);
+        }
+        throw new Exception("FAILED: " + what + ": expected " + typeof(T).Name + ", nothing was thrown");
+    }
+
+    /// <summary>A float32 C-order .npy file: its shape and values.</summary>
+    private static float[] ReadNpy(string path, out int[] shape)
+    {
+        byte[] bytes = File.ReadAllBytes(path);
+        int headerLen = bytes[8] | (bytes[9] << 8);
+        string header = Encoding.ASCII.GetString(bytes, 10, headerLen);
+        if (!header.Contains("'<f4'") || header.Contains("'fortran_order': True"))
+            throw new Exception(path + ": not a C-order float32 .npy");
+        string dims = header.Substring(header.IndexOf('(') + 1);
+        dims = dims.Substring(0, dims.IndexOf(')'));
+        var parts = new List<int>();
+        foreach (string d in dims.Split(','))
+            if (d.Trim().Length > 0) parts.Add(int.Parse(d.Trim()));
+        shape = parts.ToArray();
+        int offset = 10 + headerLen;
+        var values = new float[(bytes.Length - offset) / 4];
+        Buffer.BlockCopy(bytes, offset, values, 0, values.Length * 4);
+        return values;
+    }
+
+    private static int Main(string[] args)
+    {
+        if (args.Length != 4)
+        {
+            Console.Error.WriteLine("usage: troupe-tests.exe DEMO_BUNDLE CLIP.npy OUT.f32 TINY_BUNDLE");
+            return 2;
+        }
+        try
+        {
+            Run(args[0], args[1], args[2], args[3]);
+            Console.WriteLine("ALL PASSED (" + checks + " checks)");
+            return 0;
+        }
+        catch (Exception e)
+        {
+            Console.WriteLine(e.Message);
+            Console.WriteLine(e.StackTrace);
+            return 1;
+        }
+    }
+
+    private static void Run(string demoBundle, string clipPath, string outPath, string tinyBundle)
+    {
+        Check(Model.AbiVersion == 1, "the library speaks ABI 1");
+        Check(!string.IsNullOrEmpty(Model.Version), "version " + Model.Version);
+
+        int[] shape;
+        float[] clip = ReadNpy(clipPath, out shape);
+        Check(shape.Length == 3 && shape[1] == 22 && shape[2] == 3, "the clip is [T, 22, 3]");
+        int frames = shape[0];
+        const int Pose = 22 * 3;
+
+        var format = new JointsFormat { Units = Units.Metres, Up = UpAxis.Z, Handedness = Handedness.Right, Fps = 120f };
+        var partner = new List<float>();
+        using (var model = Model.Load(demoBundle))
+        {
+            Check(string.Join(",", model.ConditionLabels) == "mirror,follow,keep-away", "the demo model's rules");
+            Check(model.FrameDim == 262 && model.Fps == 30 && model.FramesPerToken == 4, "the demo model's sizes");
+            using (var session = model.CreateSession(new SessionOptions { Seed = 7 }))
+            {
+                session.SetCondition("mirror");
+                session.SetJointsFormat(format);
+                var frame = new float[Pose];
+                var poses = new float[4 * Pose];
+                for (int t = 0; t < frames; t++)
+                {
+                    Array.Copy(clip, t * Pose, frame, 0, Pose);
+                    int ready = session.JointsReadyAfter(1);
+                    int n = session.StepJoints(frame, 1, poses);
+                    if (n != ready) throw new Exception("FAILED: frame " + t + ": " + n + " poses, " + ready + " announced");
+                    for (int i = 0; i < n * Pose; i++) partner.Add(poses[i]);
+                }
+                Check(partner.Count > 0 && partner.Count % Pose == 0, "streamed " + frames + " frames, " + partner.Count / Pose + " partner poses back");
+            }
+        }
+        using (var w = new BinaryWriter(File.Create(outPath)))
+            foreach (float v in partner) w.Write(v);
+
+        Misuse(demoBundle, tinyBundle, clip);
+    }
+
+    private static void Misuse(string demoBundle, string tinyBundle, float[] clip)
+    {
+        Throws<ArgumentNullException>(() => Model.Load(null), "a null path");
+        Throws<IoException>(() => Model.Load("/nonexistent/bundle"), "a path that does not exist");
+        string corrupt = Path.Combine(Path.GetTempPath(), "troupe-cs-corrupt-" + Guid.NewGuid().ToString("N"));
+        Directory.CreateDirectory(corrupt);
+        File.WriteAllText(Path.Combine(corrupt, "troupe.json"), "{ not json");
+        try
+        {
+            Throws<ModelException>(() => Model.Load(corrupt), "a corrupt manifest");
+        }
+        finally
+        {
+            Directory.Delete(corrupt, true);
+        }
+        Throws<IoException>(() => Model.LoadMemory(new byte[] { 1, 2, 3 }), "three bytes as an archive (not a readable tar)");
+        Throws<ArgumentException>(() => Model.Load("bad\0path"), "a path with a NUL");
+
+        using (var model = Model.Load(demoBundle))
+        {
+            Throws<InvalidArgumentException>(() => model.CreateSession(new SessionOptions { Steps = 0 }), "zero steps");
+            Throws<InvalidArgumentException>(() => model.CreateSession(new SessionOptions { CfgScale = float.NaN }), "a NaN guidance scale");
+            var a = model.CreateSession(new SessionOptions { Seed = 3 });
+            var b = model.CreateSession(new SessionOptions { Seed = 3 });
+            var format = new JointsFormat { Units = Units.Metres, Up = UpAxis.Z, Handedness = Handedness.Right, Fps = 120f };
+            a.SetJointsFormat(format);
+            b.SetJointsFormat(format);
+            Throws<InvalidArgumentException>(() => a.SetCondition("dance"), "an unknown rule");
+            Throws<InvalidArgumentException>(() => a.SetJointsFormat(new JointsFormat { Units = Units.Metres, Up = UpAxis.Y, Fps = -1f }), "a negative frame rate");
+            var frames = new float[40 * 66];
+            Array.Copy(clip, frames, frames.Length);
+            var poses = new float[16 * 66];
+            Throws<ArgumentNullException>(() => a.StepJoints(null, 1, poses), "null positions");
+            Throws<ArgumentException>(() => a.StepJoints(frames, 41, poses), "more frames than the array holds");
+            var nan = (float[])frames.Clone();
+            nan[100] = float.NaN;
+            Throws<InvalidArgumentException>(() => a.StepJoints(nan, 40, poses), "a NaN coordinate");
+            Throws<BufferTooSmallException>(() => a.StepJoints(frames, 40, new float[66]), "an output array too small");
+            // The refused calls left `a` as it was: it streams exactly as `b`, which saw none of them.
+            var pa = new float[16 * 66];
+            var pb = new float[16 * 66];
+            int na = a.StepJoints(frames, 40, pa), nb = b.StepJoints(frames, 40, pb);
+            bool same = na == nb && na > 0;
+            for (int i = 0; i < na * 66 && same; i++) same = pa[i] == pb[i];
+            Check(same, "after every refused call the session streams as one that saw none (" + na + " poses)");
+            model.Dispose();
+            // Sessions keep the model alive: they work after the Model is disposed.
+            a.SetCondition("follow");
+            Check(a.StepJoints(frames, 4, pa) >= 0, "a session outlives its disposed Model");
+            Throws<ObjectDisposedException>(() => model.CreateSession(), "a session from a disposed Model");
+            a.Dispose();
+            a.Dispose();
+            Throws<ObjectDisposedException>(() => a.StepJoints(frames, 1, pa), "a step on a disposed Session");
+            b.Dispose();
+        }
+
+        using (var tiny = Model.Load(tinyBundle))
+        using (var s = tiny.CreateSession())
+        {
+            Throws<InvalidArgumentException>(() => s.SetJointsFormat(JointsFormat.Default), "joint positions on a bundle of other features");
+            int dim = tiny.FrameDim;
+            var actor = new float[32 * dim];
+            for (int i = 0; i < actor.Length; i++) actor[i] = (float)Math.Sin(0.01 * i);
+            var output = new float[32 * dim];
+            Throws<ArgumentException>(() => s.Step(new float[dim - 1], 1, output), "a frame shorter than FrameDim");
+            int n = s.Step(actor, 32, output);
+            Check(n > 0 && n <= 32, "features in, " + n + " reactor frames out");
+            s.Reset();
+            Check(s.Step(actor, 32, output) == n, "after Reset the stream starts again");
+        }
+
+        // A group model (UMF) streams nothing: its family does not offer sessions.
+        using (var group = Model.Load(Path.Combine(Path.GetDirectoryName(Path.GetFullPath(tinyBundle)), "umf-tiny")))
+            Throws<UnsupportedException>(() => group.CreateSession(), "a session of a group model");
+    }
+}

@@ -1,0 +1,152 @@
+//! The C# binding (`bindings/csharp/Troupe.cs`) through the real shared library under Mono:
+//! `bindings/csharp/tests/TroupeTests.cs` streams the CMU clip through the demo model and checks
+//! every misuse it can think of (each refused with its exception, the session left as it was);
+//! here its stream is compared with the same stream run through the Rust API. The Unity
+//! package's copy of the binding must equal it byte for byte.
+//!
+//! `scripts/test.sh` installs Mono (`mono-mcs`, `mono-runtime`); without it this test fails
+//! under CI and is a counted skip elsewhere.
+
+mod common;
+
+use std::path::Path;
+use std::process::Command;
+
+use ndarray::{s, Array3};
+use troupe::motion::{JointsFormat, Units, UpAxis};
+use troupe::{Model, ReactorOptions};
+
+fn root() -> &'static Path {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+}
+
+/// Whether `mcs` and `mono` run; under CI their absence fails the test.
+fn mono_available(test: &str) -> bool {
+    let found = ["mcs", "mono"].iter().all(|tool| {
+        Command::new(tool)
+            .arg("--version")
+            .output()
+            .is_ok_and(|o| o.status.success())
+    });
+    if !found {
+        assert!(
+            std::env::var_os("CI").is_none_or(|v| v.is_empty()),
+            "Mono is not installed and CI is set: this check is required there \
+             (scripts/test.sh installs it: apt-get install mono-mcs mono-runtime)"
+        );
+        common::skip(test, "Mono (mcs, mono) is not installed");
+    }
+    found
+}
+
+/// The demo model's `mirror` partner for the CMU clip, seed 7, one frame per call: what the C#
+/// program must reproduce.
+fn rust_stream(clip: &Array3<f32>) -> Vec<f32> {
+    let model = Model::load(root().join("onnx/bundles/armflow-demo")).unwrap();
+    let mut session = model
+        .armflow()
+        .unwrap()
+        .reactor(ReactorOptions {
+            seed: 7,
+            condition: Some(model.condition_for("mirror").unwrap()),
+            ..Default::default()
+        })
+        .unwrap();
+    session
+        .set_joints_format(JointsFormat {
+            units: Units::Meters,
+            up: UpAxis::Z,
+            fps: 120.0,
+            ..Default::default()
+        })
+        .unwrap();
+    let mut out = Vec::new();
+    for t in 0..clip.dim().0 {
+        for pose in session
+            .step_joints(clip.slice(s![t..t + 1, .., ..]))
+            .unwrap()
+        {
+            out.extend(pose.positions.iter().flatten());
+        }
+    }
+    out
+}
+
+#[test]
+fn csharp_binding_streams_like_rust_and_refuses_misuse() {
+    if !mono_available("csharp_binding_streams_like_rust_and_refuses_misuse") {
+        return;
+    }
+    let libs = common::c_libraries();
+    let scratch = tempfile::tempdir().unwrap();
+    let exe = scratch.path().join("troupe-tests.exe");
+    let compiled = Command::new("mcs")
+        .arg("-warnaserror")
+        .arg(format!("-out:{}", exe.display()))
+        .arg(root().join("bindings/csharp/Troupe.cs"))
+        .arg(root().join("bindings/csharp/tests/TroupeTests.cs"))
+        .output()
+        .expect("run mcs");
+    assert!(
+        compiled.status.success(),
+        "mcs failed:\n{}{}",
+        String::from_utf8_lossy(&compiled.stdout),
+        String::from_utf8_lossy(&compiled.stderr)
+    );
+    let clip_path = root().join("tests/data/mocap/cmu-playground-120fps.npy");
+    let out_path = scratch.path().join("partner.f32");
+    let run = Command::new("mono")
+        .arg(&exe)
+        .arg(root().join("onnx/bundles/armflow-demo"))
+        .arg(&clip_path)
+        .arg(&out_path)
+        .arg(root().join("onnx/bundles/armflow-tiny-interx"))
+        .env("LD_LIBRARY_PATH", libs)
+        .output()
+        .expect("run mono");
+    let text = format!(
+        "{}{}",
+        String::from_utf8_lossy(&run.stdout),
+        String::from_utf8_lossy(&run.stderr)
+    );
+    assert!(
+        run.status.success() && text.contains("ALL PASSED"),
+        "{text}"
+    );
+    println!("{text}");
+
+    let bytes = std::fs::read(&out_path).unwrap();
+    let csharp: Vec<f32> = bytes
+        .chunks_exact(4)
+        .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]))
+        .collect();
+    let clip: Array3<f32> = ndarray_npy::read_npy(&clip_path).unwrap();
+    let rust = rust_stream(&clip);
+    assert_eq!(csharp.len(), rust.len(), "poses streamed");
+    assert!(!rust.is_empty());
+    let worst = csharp
+        .iter()
+        .zip(&rust)
+        .map(|(a, b)| (a - b).abs())
+        .fold(0f32, f32::max);
+    println!(
+        "C# against Rust: {} poses, largest difference {worst:e} m",
+        rust.len() / 66
+    );
+    assert!(worst <= 1e-5, "C# and Rust differ by {worst}");
+}
+
+/// The Unity package carries the same binding as `bindings/csharp/`, byte for byte.
+#[test]
+fn unity_package_carries_the_binding() {
+    let binding = std::fs::read(root().join("bindings/csharp/Troupe.cs")).unwrap();
+    let copy = std::fs::read(root().join("unity/Runtime/Troupe.cs")).unwrap();
+    assert!(
+        binding == copy,
+        "unity/Runtime/Troupe.cs differs from bindings/csharp/Troupe.cs: copy it over"
+    );
+    let manifest: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(root().join("unity/package.json")).unwrap())
+            .unwrap();
+    assert_eq!(manifest["version"], env!("CARGO_PKG_VERSION"));
+}
