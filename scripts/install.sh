@@ -23,8 +23,9 @@
 #   --features LIST    Cargo features, as `cargo build --features` takes them
 #   --no-build         install what the profile's last build left in target/
 #   --unity-package DIR
-#                      also write the Unity package (unity/: the C# binding and a sample) to DIR
-#                      with the library in Runtime/Plugins/x86_64/
+#                      also write the Unity package to DIR: unity/ (its manifest, assembly
+#                      definition and sample) with the C# binding (bindings/csharp/Troupe.cs)
+#                      in Runtime/ and the library in Runtime/Plugins/x86_64/
 #
 # Every file installed is relocatable: the pkg-config and CMake files find the prefix from
 # their own location, so the prefix may be moved or packed as it is. The shared library's
@@ -166,6 +167,8 @@ if [ -n "$unity" ]; then
     rm -rf "$unity"
     mkdir -p "$unity"
     cp -R unity/. "$unity/"
+    # The binding is kept once, in bindings/csharp; the package gets its copy here.
+    install -m 644 bindings/csharp/Troupe.cs "$unity/Runtime/Troupe.cs"
     mkdir -p "$unity/Runtime/Plugins/x86_64"
     install -m 755 "$out_dir/libtroupe.so" "$unity/Runtime/Plugins/x86_64/libtroupe.so"
     echo "unity package: $unity (com.troupe.runtime $version)"

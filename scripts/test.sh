@@ -66,38 +66,22 @@ if [ -z "${TROUPE_CHROMIUM:-}" ] && ! command -v chromium >/dev/null 2>&1; then
     fi
 fi
 
-# 3. valgrind: the C smoke test runs under it (tests/c_abi.rs). Under CI that test fails without
-#    it; elsewhere it is a counted skip.
-if ! command -v valgrind >/dev/null 2>&1; then
-    echo "== valgrind: installing Debian's package"
-    apt_install valgrind
-    if ! command -v valgrind >/dev/null 2>&1; then
-        echo "valgrind is missing and could not be installed (apt-get install valgrind):" \
-            "c_tests_under_valgrind fails under CI and is skipped elsewhere" >&2
+# 3. Tools tests need, each a Debian package. Under CI a test whose tool is missing fails;
+#    elsewhere it records a counted skip.
+#    ensure_tool COMMAND "PACKAGES" "WHAT NEEDS IT"
+ensure_tool() {
+    command -v "$1" >/dev/null 2>&1 && return
+    echo "== $1: installing Debian's $2"
+    # shellcheck disable=SC2086  (the packages are a list)
+    apt_install $2
+    if ! command -v "$1" >/dev/null 2>&1; then
+        echo "$1 is missing and could not be installed (apt-get install $2): $3 fails under CI" \
+            "and is skipped elsewhere" >&2
     fi
-fi
-
-# 4. cmake: the installed package's CMake consumer (tests/install.rs). Under CI that test fails
-#    without it; elsewhere it is a counted skip.
-if ! command -v cmake >/dev/null 2>&1; then
-    echo "== cmake: installing Debian's package"
-    apt_install cmake
-    if ! command -v cmake >/dev/null 2>&1; then
-        echo "cmake is missing and could not be installed (apt-get install cmake):" \
-            "cmake_consumer_builds_and_streams fails under CI and is skipped elsewhere" >&2
-    fi
-fi
-
-# 5. Mono: the C# binding's test (tests/csharp.rs) compiles with mcs and runs under mono. Under
-#    CI that test fails without them; elsewhere it is a counted skip.
-if ! command -v mcs >/dev/null 2>&1 || ! command -v mono >/dev/null 2>&1; then
-    echo "== mono: installing Debian's packages"
-    apt_install mono-mcs mono-runtime
-    if ! command -v mcs >/dev/null 2>&1; then
-        echo "Mono is missing and could not be installed (apt-get install mono-mcs mono-runtime):" \
-            "csharp_binding_streams_like_rust_and_refuses_misuse fails under CI and is skipped elsewhere" >&2
-    fi
-fi
+}
+ensure_tool valgrind valgrind "the C tests under valgrind (tests/c_abi.rs)"
+ensure_tool cmake cmake "the installed package's CMake consumer (tests/install.rs)"
+ensure_tool mcs "mono-mcs mono-runtime" "the C# binding's test under Mono (tests/csharp.rs)"
 
 # Tests that cannot run their check append `<test binary>::<test><TAB><reason>` here
 # (tests/common/mod.rs, `skip`); emptied before the tests, summed up when the script ends,

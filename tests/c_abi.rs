@@ -278,14 +278,7 @@ fn c_programs() -> Vec<(&'static str, Vec<PathBuf>, &'static [&'static str])> {
 /// uninitialised-padding comparisons at model load (explained there).
 #[test]
 fn c_tests_under_valgrind() {
-    if Command::new("valgrind").arg("--version").output().is_err() {
-        // CI must run this check, not count it as skipped.
-        assert!(
-            std::env::var_os("CI").is_none_or(|v| v.is_empty()),
-            "valgrind is not installed and CI is set: this check is required there \
-             (scripts/test.sh installs it: apt-get install valgrind)"
-        );
-        common::skip("c_tests_under_valgrind", "valgrind is not installed");
+    if !common::tools_or_skip("c_tests_under_valgrind", &["valgrind"], "valgrind") {
         return;
     }
     let supp = format!(

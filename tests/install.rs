@@ -165,6 +165,11 @@ fn unity_package_holds_the_binding_and_the_library() {
         std::fs::read(unity.join("Runtime/Troupe.cs")).unwrap(),
         std::fs::read(root().join("bindings/csharp/Troupe.cs")).unwrap()
     );
+    let manifest = std::fs::read_to_string(unity.join("package.json")).unwrap();
+    assert!(
+        manifest.contains(&format!("\"version\": \"{}\"", env!("CARGO_PKG_VERSION"))),
+        "{manifest}"
+    );
 }
 
 #[test]
@@ -221,16 +226,7 @@ fn pkg_config_consumers_build_and_stream() {
 
 #[test]
 fn cmake_consumer_builds_and_streams() {
-    if Command::new("cmake").arg("--version").output().is_err() {
-        assert!(
-            std::env::var_os("CI").is_none_or(|v| v.is_empty()),
-            "cmake is not installed and CI is set: this check is required there \
-             (scripts/test.sh installs it: apt-get install cmake)"
-        );
-        common::skip(
-            "cmake_consumer_builds_and_streams",
-            "cmake is not installed",
-        );
+    if !common::tools_or_skip("cmake_consumer_builds_and_streams", &["cmake"], "cmake") {
         return;
     }
     for (static_link, name) in [("OFF", "cmake_shared"), ("ON", "cmake_static")] {
@@ -267,8 +263,7 @@ fn cmake_consumer_builds_and_streams() {
 
 #[test]
 fn cmake_refuses_another_abi() {
-    if Command::new("cmake").arg("--version").output().is_err() {
-        common::skip("cmake_refuses_another_abi", "cmake is not installed");
+    if !common::tools_or_skip("cmake_refuses_another_abi", &["cmake"], "cmake") {
         return;
     }
     let project = scratch().join("abi2");

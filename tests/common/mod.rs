@@ -181,6 +181,34 @@ pub fn skip(test: &str, reason: &str) {
     }
 }
 
+/// Whether every one of `tools` runs (`TOOL --version`). When one does not, `test` cannot run
+/// its check: under CI (`CI` set, where `scripts/test.sh` installs `packages`) that is a
+/// failure; elsewhere a skip the suite counts, and the caller returns.
+#[allow(dead_code)] // not every test binary needs a tool
+pub fn tools_or_skip(test: &str, tools: &[&str], packages: &str) -> bool {
+    let missing: Vec<&str> = tools
+        .iter()
+        .copied()
+        .filter(|tool| {
+            !Command::new(tool)
+                .arg("--version")
+                .output()
+                .is_ok_and(|o| o.status.success())
+        })
+        .collect();
+    if missing.is_empty() {
+        return true;
+    }
+    assert!(
+        std::env::var_os("CI").is_none_or(|v| v.is_empty()),
+        "{} not installed and CI is set: {test} is required there (scripts/test.sh installs it: \
+         apt-get install {packages})",
+        missing.join(", ")
+    );
+    skip(test, &format!("{} not installed", missing.join(", ")));
+    false
+}
+
 /// The Python interpreter the tests run: `TROUPE_PYTHON`, else the project's environment that
 /// `scripts/test.sh` makes (`target/venv`), else `python3` on PATH.
 pub fn python_command() -> &'static str {
