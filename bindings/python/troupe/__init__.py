@@ -49,12 +49,12 @@ def version() -> str:
     return _lib.troupe_version_string().decode()
 
 
-def limits() -> dict:
+def limits() -> dict[str, int]:
     """troupe's limits (`troupe_limits`): every size from a file or a caller is checked against
     them before anything is allocated. Keys: `max_steps`, `max_text_tokens`, ..."""
     out = _native.Limits()
     _check(_lib.troupe_limits_get(ctypes.byref(out), ctypes.sizeof(out)))
-    return {name: getattr(out.values, name) for name, _ in _native.LimitValues._fields_}
+    return {field[0]: getattr(out.values, field[0]) for field in _native.LimitValues._fields_}
 
 
 def set_load_threads(threads: int) -> None:
@@ -87,9 +87,9 @@ class progress:
 
     def __init__(self, callback: Callable[[int, int], bool]):
         self._callback = callback
-        self._error = None
+        self._error: BaseException | None = None
 
-        def call(_user, done, total):
+        def call(_user: Any, done: int, total: int) -> int:
             try:
                 return 0 if self._callback(done, total) else 1
             except BaseException as e:  # never unwind into the library
@@ -102,21 +102,20 @@ class progress:
         _lib.troupe_set_progress_callback(self._c_callback, None)
         return self
 
-    def __exit__(self, kind: type[BaseException] | None, value: BaseException | None, traceback: Any) -> bool:
+    def __exit__(self, kind: type[BaseException] | None, value: BaseException | None, traceback: Any) -> None:
         _lib.troupe_set_progress_callback(_native.PROGRESS_FN(), None)
         if self._error is not None and kind is not None:
             raise self._error from value
-        return False
 
 
-def _floats(x, what: str, length: int | None = None) -> np.ndarray:
+def _floats(x: ArrayLike, what: str, length: int | None = None) -> np.ndarray:
     a = np.ascontiguousarray(x, dtype=np.float32)
     if length is not None and a.size != length:
         raise ValueError(f"{what} must have {length} floats, got {a.size}")
     return a
 
 
-def _ptr(a: np.ndarray):
+def _ptr(a: np.ndarray) -> Any:
     return a.ctypes.data_as(_native.f32p)
 
 
@@ -137,7 +136,7 @@ class Model:
         self._handle = handle
         return self
 
-    def _h(self):
+    def _h(self) -> _native.model_p:
         if not self._handle:
             raise ValueError("the model is closed")
         return self._handle
@@ -191,9 +190,9 @@ class Model:
                            doc="tokens of an official ARMFlow clip (0 otherwise)")
 
     def generate_clip(self, actor: ArrayLike, condition: str | ArrayLike | None = None, seed: int = 0,
-                      steps: int = 0, noise: ArrayLike | None = None, return_latents: bool = False,
+                      steps: int = 0, noise: Sequence[ArrayLike] | None = None, return_latents: bool = False,
                       prompt: str | None = None,
-                      cfg_scale: float | None = None) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
+                      cfg_scale: float | None = None) -> np.ndarray | tuple[np.ndarray, np.ndarray | None]:
         """The official ARMFlow clip loop (an armflow bundle exported from the official layout):
         `actor` [frames, frame_dim] with 1..clip_frames frames, zero-padded to the clip.
         Returns the reactor motion [clip_frames, frame_dim] (and the reactor tokens
@@ -246,7 +245,7 @@ class Model:
         _check(_lib.troupe_text_encode(self._h(), _ptr(t), t.shape[0], eot_index, _ptr(out), out.size))
         return out
 
-    def _condition_or_prompt(self, condition, prompt):
+    def _condition_or_prompt(self, condition: str | ArrayLike | None, prompt: str | None) -> Any:
         if prompt is not None:
             if condition is not None:
                 raise ValueError("give a condition or a prompt, not both")
@@ -270,9 +269,9 @@ class Model:
 
     def generate_group(self, people: int, condition: str | ArrayLike | None = None, seed: int = 0,
                        cfg: float | None = None, prior: Sequence[tuple[str, int]] | None = None,
-                       reaction: tuple[str, int] | None = None, noise: ArrayLike | None = None,
+                       reaction: tuple[str, int] | None = None, noise: Sequence[ArrayLike] | None = None,
                        return_latents: bool = False,
-                       prompt: str | None = None) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
+                       prompt: str | None = None) -> np.ndarray | tuple[np.ndarray, np.ndarray | None]:
         """Generates `people` persons' motion with a `umf` bundle: float32
         [people, clip_frames, frame_dim] (and [people, tokens, latent_dim] latents with
         `return_latents`).
@@ -322,7 +321,8 @@ class Model:
         return [_lib.troupe_magnet_config(h, i).decode("utf-8")
                 for i in range(_lib.troupe_magnet_config_count(h))]
 
-    def _magnet_options(self, samples, steps, seq_len, seed, eta, x0_guidance, keyframes):
+    def _magnet_options(self, samples: int | None, steps: int | None, seq_len: int | None, seed: int | None,
+                        eta: float | None, x0_guidance: bool, keyframes: Sequence[int] | None) -> Any:
         opt = _native.MagnetOptions()
         _check(_lib.troupe_magnet_options_init(ctypes.byref(opt), ctypes.sizeof(opt)))
         opt.samples, opt.steps, opt.seq_len = samples or 0, steps or 0, seq_len or 0
@@ -433,7 +433,7 @@ class Model:
 
     def close(self) -> None:
         """Releases this reference (sessions keep the model alive)."""
-        handle, self._handle = getattr(self, "_handle", None), None
+        handle, self._handle = getattr(self, "_handle", None), None  # type: ignore[assignment]
         if handle:
             _lib.troupe_model_free(handle)
 
@@ -446,7 +446,7 @@ class Model:
         self.close()
 
 
-def _normals(draws) -> np.ndarray:
+def _normals(draws: ArrayLike) -> np.ndarray:
     """Injected draws as the flat float32 queue the C calls read."""
     return _floats(np.asarray(draws, dtype=np.float32).reshape(-1), "draws")
 
@@ -456,8 +456,10 @@ def _all_used(used: int, given: int) -> None:
         raise ValueError(f"the run took {used} of the {given} normals given: they are not its draws")
 
 
-def _arflow_options(h, seed, steps, guidance, weight, eta, d_safe, sigma, squared, guided_backprojection,
-                    mixing) -> "_native.ArflowOptions":
+def _arflow_options(h: _native.model_p, seed: int, steps: int | None, guidance: float | None,
+                    weight: float | None, eta: float | None, d_safe: float | None, sigma: float | None,
+                    squared: bool | None, guided_backprojection: bool | None,
+                    mixing: str | None) -> _native.ArflowOptions:
     """The bundle's ARFlow settings with the given changes (None keeps a setting)."""
     if mixing not in (None, "linear", "variance_preserving"):
         raise ValueError(f"mixing is linear or variance_preserving, not {mixing!r}")
@@ -477,7 +479,7 @@ def _arflow_options(h, seed, steps, guidance, weight, eta, d_safe, sigma, square
     return opt
 
 
-def _solver(method) -> int:
+def _solver(method: str | int) -> int:
     if isinstance(method, str):
         if method.lower() not in _SOLVERS:
             raise ValueError(f"unknown solver {method!r} (euler or rk4)")
@@ -528,8 +530,8 @@ class Session:
 
     def __init__(self, model: Model, seed: int = 0, steps: int | None = None, cfg: float | None = None,
                  capacity: int | None = None, actor_latent: int | None = None,
-                 condition: str | np.ndarray | None = None, prompt: str | None = None,
-                 partner_opening: np.ndarray | None = None, live_config: str | None = None, early: bool = False):
+                 condition: str | ArrayLike | None = None, prompt: str | None = None,
+                 partner_opening: ArrayLike | None = None, live_config: str | None = None, early: bool = False):
         errors.expect_type(model, Model, "model")
         if condition is not None and prompt is not None:
             raise ValueError("give a condition or a prompt, not both")
@@ -566,7 +568,7 @@ class Session:
         if early:
             self.set_early_emission(True)
 
-    def _call(self, fn, *args):
+    def _call(self, fn: Any, *args: Any) -> None:
         if not self._handle:
             raise ValueError("the session is closed")
         if not self._lock.acquire(blocking=False):
@@ -576,7 +578,7 @@ class Session:
         finally:
             self._lock.release()
 
-    def _actor(self, actor) -> np.ndarray:
+    def _actor(self, actor: ArrayLike) -> np.ndarray:
         a = _floats(actor, "actor")
         if a.ndim != 2 or a.shape[1] != self.frame_dim:
             raise ValueError(f"actor must be [frames, {self.frame_dim}], got {list(a.shape)}")
@@ -683,7 +685,7 @@ class Session:
         before the first step or after a reset."""
         self._call(_lib.troupe_magnet_session_set_early_emission, 1 if early else 0)
 
-    def set_arflow_options(self, seed: int = 0, **settings: float | int | bool | None) -> None:
+    def set_arflow_options(self, seed: int = 0, **settings: Any) -> None:
         """An ARFlow stream's sampler settings: the bundle's with `settings` changed (the
         arguments of `Model.arflow_generate`) and `seed`."""
         opt = _arflow_options(self._model._h(), seed, *(settings.pop(k, None) for k in (
@@ -718,7 +720,7 @@ class Session:
         self._call(_lib.troupe_session_queue_normals, _ptr(a), a.size)
 
     def close(self) -> None:
-        handle, self._handle = getattr(self, "_handle", None), None
+        handle, self._handle = getattr(self, "_handle", None), None  # type: ignore[assignment]
         if handle:
             _lib.troupe_session_free(handle)
 

@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import ctypes
 import os
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -72,7 +72,7 @@ class Placement:
     origin = property(lambda self: (self._c.origin_x, self._c.origin_z))
     heading = property(lambda self: tuple(self._c.heading))
 
-    def __eq__(self, other) -> bool:
+    def __eq__(self, other: object) -> bool:
         return isinstance(other, Placement) and bytes(self._c) == bytes(other._c)
 
     def __repr__(self) -> str:
@@ -137,14 +137,14 @@ def penetration_metrics(first: ArrayLike, second: ArrayLike) -> dict:
             "depth_sum": depth.value, "max_depth": deepest.value}
 
 
-def _positions(x, what: str) -> np.ndarray:
+def _positions(x: ArrayLike, what: str) -> np.ndarray:
     a = _floats(x, what)
     if a.ndim != 3 or a.shape[1:] != (JOINTS, 3):
         raise ValueError(f"{what} must be [frames, 22, 3], got {list(a.shape)}")
     return a
 
 
-def _pose_buffers(frames: int):
+def _pose_buffers(frames: int) -> tuple[Poses, _native.PoseBuffers]:
     poses = Poses(np.empty((frames, JOINTS, 3), np.float32), np.empty((frames, JOINTS, 4), np.float32),
                   np.empty((frames, JOINTS, 6), np.float32), np.empty((frames, 4), np.float32))
     b = _native.PoseBuffers(_ptr(poses.positions), poses.positions.size, _ptr(poses.rotations), poses.rotations.size,
@@ -160,7 +160,7 @@ def _format(fmt: JointsFormat | None, model: Model | None = None) -> _native.Joi
     return expect_type(fmt, JointsFormat, "fmt")._c()
 
 
-def _placement(placement: Placement | None):
+def _placement(placement: Placement | None) -> Any:
     """A reference to `placement`'s C form (checked to be a Placement), or None."""
     if placement is None:
         return None
@@ -236,7 +236,7 @@ class FeatureStream:
     def close(self) -> None:
         if self._handle:
             _lib.troupe_motion_stream_free(self._handle)
-            self._handle = None
+            self._handle = None  # type: ignore[assignment]
 
     __del__ = close
 
@@ -278,7 +278,8 @@ def write_bvh(path: str | os.PathLike, people: ArrayLike | dict[str, ArrayLike],
                                  names, _UNITS[units], int(fit_skeleton)))
 
 
-def _people(people, fmt):
+def _people(people: ArrayLike | dict[str, ArrayLike],
+            fmt: JointsFormat | None) -> tuple[np.ndarray, Any, _native.JointsFormat]:
     if not isinstance(people, dict):
         people = {"person1": people}
     arrays = [_positions(p, f"positions of {name}") for name, p in people.items()]
