@@ -32,23 +32,31 @@
 # SONAME carries the C ABI version (docs/ABI.md): a program linked against it asks for
 # libtroupe.so.1 and never picks up an incompatible library.
 set -euo pipefail
+# Paths given relative are the caller's, not the repository's.
+caller=$PWD
 cd "$(dirname "$0")/.."
+from_caller() { case "$1" in /*) echo "$1" ;; *) echo "$caller/$1" ;; esac; }
 
 prefix= profile=release features= build=1 unity=
 # An option's value: present and not empty, else a usage error (exit status 2).
 value() { [ "$#" -ge 2 ] && [ -n "$2" ] || { echo "install.sh: $1 needs a value" >&2; exit 2; }; }
 while [ "$#" -gt 0 ]; do
     case "$1" in
-        --prefix) value "$@"; prefix=$2; shift 2 ;;
+        --prefix) value "$@"; prefix=$(from_caller "$2"); shift 2 ;;
         --profile) value "$@"; profile=$2; shift 2 ;;
         --features) value "$@"; features=$2; shift 2 ;;
         --no-build) build=; shift ;;
-        --unity-package) value "$@"; unity=$2; shift 2 ;;
+        --unity-package) value "$@"; unity=$(from_caller "$2"); shift 2 ;;
         -h|--help) sed -n '2,/^set -euo/p' "$0" | sed '$d; s/^# \{0,1\}//'; exit 0 ;;
         *) echo "install.sh: unknown argument $1 (see --help)" >&2; exit 2 ;;
     esac
 done
 [ -n "$prefix" ] || { echo "install.sh: --prefix DIR is required" >&2; exit 2; }
+# The Unity package folder is replaced whole, so only ever an earlier copy of that package.
+if [ -n "$unity" ] && [ -e "$unity" ] && ! grep -qs '"name": "com.troupe.runtime"' "$unity/package.json"; then
+    echo "install.sh: $unity exists and is not a troupe Unity package; give a new folder" >&2
+    exit 2
+fi
 case "$(uname -s)" in
     Linux) ;;
     *) echo "install.sh: installs for Linux only so far (docs/INSTALL.md)" >&2; exit 2 ;;

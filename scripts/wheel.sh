@@ -19,7 +19,10 @@
 # the library's glibc symbols allow and refuses a library that needs anything outside that
 # policy; `auditwheel show` then prints what the wheel is.
 set -euo pipefail
+# Paths given relative are the caller's, not the repository's.
+caller=$PWD
 cd "$(dirname "$0")/.."
+from_caller() { case "$1" in /*) echo "$1" ;; *) echo "$caller/$1" ;; esac; }
 
 profile=release features= build=1 out=target/wheels
 # An option's value: present and not empty, else a usage error (exit status 2).
@@ -29,7 +32,7 @@ while [ "$#" -gt 0 ]; do
         --profile) value "$@"; profile=$2; shift 2 ;;
         --features) value "$@"; features=$2; shift 2 ;;
         --no-build) build=; shift ;;
-        --out) value "$@"; out=$2; shift 2 ;;
+        --out) value "$@"; out=$(from_caller "$2"); shift 2 ;;
         -h|--help) sed -n '2,/^set -euo/p' "$0" | sed '$d; s/^# \{0,1\}//'; exit 0 ;;
         *) echo "wheel.sh: unknown argument $1 (see --help)" >&2; exit 2 ;;
     esac

@@ -174,7 +174,25 @@ fn unity_package_holds_the_binding_and_the_library() {
 
 #[test]
 fn installer_refuses_bad_arguments() {
-    for args in [&[][..], &["--prefix"][..], &["--frobnicate"][..]] {
+    // A Unity package folder that is someone's other folder is never replaced.
+    let theirs = scratch().join("not-a-package");
+    std::fs::create_dir_all(&theirs).unwrap();
+    std::fs::write(theirs.join("keep.txt"), "mine").unwrap();
+    let theirs_arg = theirs.to_str().unwrap();
+    let prefix_arg = scratch().join("unused-prefix");
+    let prefix_arg = prefix_arg.to_str().unwrap();
+    for args in [
+        &[][..],
+        &["--prefix"][..],
+        &["--frobnicate"][..],
+        &[
+            "--prefix",
+            prefix_arg,
+            "--no-build",
+            "--unity-package",
+            theirs_arg,
+        ][..],
+    ] {
         let out = Command::new("bash")
             .arg(root().join("scripts/install.sh"))
             .args(args)
@@ -183,6 +201,7 @@ fn installer_refuses_bad_arguments() {
         assert_eq!(out.status.code(), Some(2), "{args:?}");
         assert!(!out.stderr.is_empty(), "{args:?}: no message");
     }
+    assert_eq!(std::fs::read(theirs.join("keep.txt")).unwrap(), b"mine");
 }
 
 /// Flags from pkg-config for `package`, read from the installed prefix only.
