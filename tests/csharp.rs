@@ -65,39 +65,25 @@ fn csharp_binding_streams_like_rust_and_refuses_misuse() {
     let libs = common::c_libraries();
     let scratch = tempfile::tempdir().unwrap();
     let exe = scratch.path().join("troupe-tests.exe");
-    let compiled = Command::new("mcs")
-        .arg("-warnaserror")
-        .arg(format!("-out:{}", exe.display()))
-        .arg(root().join("bindings/csharp/Troupe.cs"))
-        .arg(root().join("bindings/csharp/tests/TroupeTests.cs"))
-        .output()
-        .expect("run mcs");
-    assert!(
-        compiled.status.success(),
-        "mcs failed:\n{}{}",
-        String::from_utf8_lossy(&compiled.stdout),
-        String::from_utf8_lossy(&compiled.stderr)
+    common::run_ok(
+        Command::new("mcs")
+            .arg("-warnaserror")
+            .arg(format!("-out:{}", exe.display()))
+            .arg(root().join("bindings/csharp/Troupe.cs"))
+            .arg(root().join("bindings/csharp/tests/TroupeTests.cs")),
     );
     let clip_path = root().join("tests/data/mocap/cmu-playground-120fps.npy");
     let out_path = scratch.path().join("partner.f32");
-    let run = Command::new("mono")
-        .arg(&exe)
-        .arg(root().join("onnx/bundles/armflow-demo"))
-        .arg(&clip_path)
-        .arg(&out_path)
-        .arg(root().join("onnx/bundles/armflow-tiny-interx"))
-        .env("LD_LIBRARY_PATH", libs)
-        .output()
-        .expect("run mono");
-    let text = format!(
-        "{}{}",
-        String::from_utf8_lossy(&run.stdout),
-        String::from_utf8_lossy(&run.stderr)
-    );
-    assert!(
-        run.status.success() && text.contains("ALL PASSED"),
-        "{text}"
-    );
+    let text = common::output_text(&common::run_ok(
+        Command::new("mono")
+            .arg(&exe)
+            .arg(root().join("onnx/bundles/armflow-demo"))
+            .arg(&clip_path)
+            .arg(&out_path)
+            .arg(root().join("onnx/bundles/armflow-tiny-interx"))
+            .env("LD_LIBRARY_PATH", libs),
+    ));
+    assert!(text.contains("ALL PASSED"), "{text}");
     println!("{text}");
 
     let bytes = std::fs::read(&out_path).unwrap();

@@ -25,14 +25,7 @@ fn python(args: &[&str], env: &[(&str, &Path)], unset_library: bool) -> String {
     if unset_library {
         cmd.env_remove("TROUPE_LIBRARY_PATH");
     }
-    let out = cmd.output().expect("run python3");
-    let text = format!(
-        "{}{}",
-        String::from_utf8_lossy(&out.stdout),
-        String::from_utf8_lossy(&out.stderr)
-    );
-    assert!(out.status.success(), "python3 {args:?} failed:\n{text}");
-    text
+    common::output_text(&common::run_ok(&mut cmd))
 }
 
 fn require_python_tools() {
@@ -94,20 +87,14 @@ fn wheel_installs_into_a_fresh_environment_and_passes_the_suite() {
     c_libraries();
     let scratch = tempfile::tempdir().unwrap();
     let wheels = scratch.path().join("wheels");
-    let out = Command::new("bash")
-        .current_dir(root())
-        .arg("scripts/wheel.sh")
-        .env("PYTHON", common::python_command())
-        .args(["--profile", "dev", "--no-build", "--out"])
-        .arg(&wheels)
-        .output()
-        .expect("run scripts/wheel.sh");
-    let text = format!(
-        "{}{}",
-        String::from_utf8_lossy(&out.stdout),
-        String::from_utf8_lossy(&out.stderr)
-    );
-    assert!(out.status.success(), "scripts/wheel.sh failed:\n{text}");
+    let text = common::output_text(&common::run_ok(
+        Command::new("bash")
+            .current_dir(root())
+            .arg("scripts/wheel.sh")
+            .env("PYTHON", common::python_command())
+            .args(["--profile", "dev", "--no-build", "--out"])
+            .arg(&wheels),
+    ));
     let wheel = std::fs::read_dir(&wheels)
         .unwrap()
         .map(|e| e.unwrap().path())
@@ -150,20 +137,13 @@ fn wheel_installs_into_a_fresh_environment_and_passes_the_suite() {
     python(&["-m", "venv", venv.to_str().unwrap()], &[], false);
     let venv_python = venv.join("bin/python");
     let in_venv = |args: &[&str]| -> String {
-        let out = Command::new(&venv_python)
-            .current_dir(scratch.path())
-            .args(args)
-            .env_remove("TROUPE_LIBRARY_PATH")
-            .env_remove("PYTHONPATH")
-            .output()
-            .expect("run the fresh environment's python");
-        let text = format!(
-            "{}{}",
-            String::from_utf8_lossy(&out.stdout),
-            String::from_utf8_lossy(&out.stderr)
-        );
-        assert!(out.status.success(), "python {args:?} failed:\n{text}");
-        text
+        common::output_text(&common::run_ok(
+            Command::new(&venv_python)
+                .current_dir(scratch.path())
+                .args(args)
+                .env_remove("TROUPE_LIBRARY_PATH")
+                .env_remove("PYTHONPATH"),
+        ))
     };
     in_venv(&[
         "-m",

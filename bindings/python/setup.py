@@ -42,8 +42,7 @@ def library() -> Path:
         p = Path(env)
         p = p / LIB_NAME if p.is_dir() else p
     else:
-        target = Path(os.environ.get("CARGO_TARGET_DIR", REPO / "target"))
-        p = (target if target.is_absolute() else REPO / target) / "release" / LIB_NAME
+        p = REPO / os.environ.get("CARGO_TARGET_DIR", "target") / "release" / LIB_NAME  # a relative one is the repository's
     if not p.is_file():
         sys.exit(
             f"troupe's wheel needs the built library, and {p} is missing: run `cargo build --release` "

@@ -153,16 +153,16 @@ impl KvCache {
     /// side by side) into a reserved slot.
     pub(crate) fn write(&mut self, layer: usize, slot: usize, key: &[f32], value: &[f32]) {
         let (dh, s) = (self.head_dim, slot % PAGE_SLOTS);
-        let (k_at, v_at) = (self.block(layer, 0, 0), self.block(layer, 1, 0));
-        let page = &mut self.pages[slot / PAGE_SLOTS];
-        // A head's key and value blocks lie side by side; one slice per head, no index per float.
-        let block = PAGE_SLOTS * dh;
+        // One slice per head's block, not an index computation per float.
         for (head, (k, v)) in key.chunks_exact(dh).zip(value.chunks_exact(dh)).enumerate() {
-            let keys = &mut page[k_at + 2 * head * block..][..block];
+            let (k_at, v_at) = (self.block(layer, 0, head), self.block(layer, 1, head));
+            let page = &mut self.pages[slot / PAGE_SLOTS];
+            // Keys are stored transposed: dimension d of every slot in a row of PAGE_SLOTS.
+            let keys = &mut page[k_at..][..PAGE_SLOTS * dh];
             for (column, &x) in keys.chunks_exact_mut(PAGE_SLOTS).zip(k) {
                 column[s] = x;
             }
-            page[v_at + 2 * head * block + s * dh..][..dh].copy_from_slice(v);
+            page[v_at + s * dh..][..dh].copy_from_slice(v);
         }
     }
 

@@ -181,6 +181,29 @@ pub fn skip(test: &str, reason: &str) {
     }
 }
 
+/// Runs `cmd` and returns its output; panics showing its stdout and stderr unless it succeeds.
+#[allow(dead_code)] // not every test binary runs commands
+pub fn run_ok(cmd: &mut Command) -> std::process::Output {
+    let out = cmd.output().unwrap_or_else(|e| panic!("run {cmd:?}: {e}"));
+    assert!(
+        out.status.success(),
+        "{cmd:?} failed ({}):\n{}",
+        out.status,
+        output_text(&out)
+    );
+    out
+}
+
+/// A command's stdout then stderr, as text.
+#[allow(dead_code)]
+pub fn output_text(out: &std::process::Output) -> String {
+    format!(
+        "{}{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    )
+}
+
 /// Whether every one of `tools` runs (`TOOL --version`). When one does not, `test` cannot run
 /// its check: under CI (`CI` set, where `scripts/test.sh` installs `packages`) that is a
 /// failure; elsewhere a skip the suite counts, and the caller returns.

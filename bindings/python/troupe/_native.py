@@ -340,7 +340,7 @@ def _candidates() -> list[Path]:
     candidates = [here / LIB_NAME]
     repo = here.parents[2] if len(here.parents) > 2 else None
     if repo is not None and (repo / "Cargo.toml").is_file() and (repo / "include" / "troupe.h").is_file():
-        target = Path(os.environ.get("CARGO_TARGET_DIR", repo / "target"))
+        target = repo / os.environ.get("CARGO_TARGET_DIR", "target")  # a relative one is the repository's
         candidates.append(target / "release" / LIB_NAME)
     return candidates
 
