@@ -15,12 +15,23 @@
 #                                            troupe::troupe_static
 #   PREFIX/share/troupe/bundles/armflow-demo the trained demo model
 #
+# For Windows x64 (--target x86_64-pc-windows-gnu, cross-built with MinGW-w64) the library is
+#   PREFIX/bin/troupe.dll                    the DLL (beside the programs that load it)
+#   PREFIX/lib/libtroupe.dll.a               its import library for MinGW (-ltroupe)
+#   PREFIX/lib/troupe.def                    its exports, for an MSVC import library:
+#                                            lib /def:troupe.def /machine:x64 /out:troupe.lib
+#   PREFIX/lib/libtroupe.a                   the static library (MinGW)
+# with the same headers, bundles, pkg-config file (troupe.pc) and CMake package (troupe::troupe
+# imports the DLL through its import library); docs/PLATFORMS.md.
+#
 # Options:
 #   --prefix DIR       where to install (required)
 #   --profile NAME     the Cargo profile to build with: release (default), dist (release with
 #                      link-time optimisation, one codegen unit, symbols stripped: smaller and
 #                      what a package should ship, a longer build), or dev
 #   --features LIST    Cargo features, as `cargo build --features` takes them
+#   --target TRIPLE    cross-build for another target: aarch64-unknown-linux-gnu (Linux arm64)
+#                      or x86_64-pc-windows-gnu (Windows x64); default: this machine
 #   --no-build         install what the profile's last build left in target/
 #   --unity-package DIR
 #                      also write the Unity package to DIR: unity/ (its manifest, assembly
@@ -37,7 +48,7 @@ caller=$PWD
 cd "$(dirname "$0")/.."
 from_caller() { case "$1" in /*) echo "$1" ;; *) echo "$caller/$1" ;; esac; }
 
-prefix= profile=release features= build=1 unity=
+prefix= profile=release features= build=1 unity= target=
 # An option's value: present and not empty, else a usage error (exit status 2).
 value() { [ "$#" -ge 2 ] && [ -n "$2" ] || { echo "install.sh: $1 needs a value" >&2; exit 2; }; }
 while [ "$#" -gt 0 ]; do
@@ -45,6 +56,7 @@ while [ "$#" -gt 0 ]; do
         --prefix) value "$@"; prefix=$(from_caller "$2"); shift 2 ;;
         --profile) value "$@"; profile=$2; shift 2 ;;
         --features) value "$@"; features=$2; shift 2 ;;
+        --target) value "$@"; target=$2; shift 2 ;;
         --no-build) build=; shift ;;
         --unity-package) value "$@"; unity=$(from_caller "$2"); shift 2 ;;
         -h|--help) sed -n '2,/^set -euo/p' "$0" | sed '$d; s/^# \{0,1\}//'; exit 0 ;;
@@ -59,7 +71,12 @@ if [ -n "$unity" ] && [ -e "$unity" ] && ! grep -qs '"name": "com.troupe.runtime
 fi
 case "$(uname -s)" in
     Linux) ;;
-    *) echo "install.sh: installs for Linux only so far (docs/INSTALL.md)" >&2; exit 2 ;;
+    *) echo "install.sh: runs on Linux only so far (docs/INSTALL.md)" >&2; exit 2 ;;
+esac
+case "$target" in
+    "" | x86_64-unknown-linux-gnu | aarch64-unknown-linux-gnu) windows= ;;
+    x86_64-pc-windows-gnu) windows=1 ;;
+    *) echo "install.sh: no install layout for target $target (docs/PLATFORMS.md)" >&2; exit 2 ;;
 esac
 
 # The library's release (Cargo.toml) and the C ABI's major version (src/ffi/version.rs).
@@ -68,11 +85,17 @@ abi=$(sed -n 's/^pub const TROUPE_ABI_VERSION: u32 = \([0-9]*\);$/\1/p' src/ffi/
 [ -n "$version" ] && [ -n "$abi" ] || { echo "install.sh: cannot read the version" >&2; exit 1; }
 
 if [ -n "$build" ]; then
-    echo "== building the library (cargo build --profile $profile --lib)"
-    cargo build --profile "$profile" --lib ${features:+--features "$features"}
+    echo "== building the library (cargo build --profile $profile --lib${target:+ --target $target})"
+    cargo build --profile "$profile" --lib ${features:+--features "$features"} \
+        ${target:+--target "$target"}
 fi
-out_dir=${CARGO_TARGET_DIR:-target}/$([ "$profile" = dev ] && echo debug || echo "$profile")
-for f in libtroupe.so libtroupe.a; do
+out_dir=${CARGO_TARGET_DIR:-target}${target:+/$target}/$([ "$profile" = dev ] && echo debug || echo "$profile")
+if [ -n "$windows" ]; then
+    built="troupe.dll libtroupe.dll.a libtroupe.a"
+else
+    built="libtroupe.so libtroupe.a"
+fi
+for f in $built; do
     [ -f "$out_dir/$f" ] || { echo "install.sh: $out_dir/$f is missing (build it, or drop --no-build)" >&2; exit 1; }
 done
 
@@ -83,17 +106,108 @@ done
 static_libs="-lgcc_s -lutil -lrt -lpthread -lm -ldl -lc"
 static_flags="-Wl,-z,noexecstack"
 
+# The Unity package, with the library file `$1` of the build in its plugin folder.
+write_unity() {
+    local plugins=x86_64
+    [ "$target" = aarch64-unknown-linux-gnu ] && plugins=ARM64
+    rm -rf "$unity"
+    mkdir -p "$unity"
+    cp -R unity/. "$unity/"
+    # The binding is kept once, in bindings/csharp; the package gets its copy here.
+    install -m 644 bindings/csharp/Troupe.cs "$unity/Runtime/Troupe.cs"
+    mkdir -p "$unity/Runtime/Plugins/$plugins"
+    install -m 755 "$out_dir/$1" "$unity/Runtime/Plugins/$plugins/$1"
+    echo "unity package: $unity (com.troupe.runtime $version)"
+}
+du_of() { du -k "$1" | cut -f1; }
+
+# The Windows layout: the DLL in bin/, its MinGW import library and an MSVC .def in lib/, and
+# pkg-config and CMake files that import the DLL through the import library.
+install_windows() {
+    mkdir -p "$prefix/bin"
+    install -m 755 "$out_dir/troupe.dll" "$prefix/bin/troupe.dll"
+    install -m 644 "$out_dir/libtroupe.dll.a" "$lib/libtroupe.dll.a"
+    {
+        echo "LIBRARY troupe.dll"
+        echo "EXPORTS"
+        grep -v '^#' abi/troupe.symbols | sed 's/^/    /'
+    } >"$lib/troupe.def"
+    cat >"$lib/pkgconfig/troupe.pc" <<EOF
+prefix=\${pcfiledir}/../..
+libdir=\${prefix}/lib
+includedir=\${prefix}/include/troupe
+bundledir=\${prefix}/share/troupe/bundles
+
+Name: troupe
+Description: Real-time human interaction motion generation (C ABI $abi, Windows x64 DLL)
+Version: $version
+Cflags: -I\${includedir}
+Libs: \${libdir}/libtroupe.dll.a
+EOF
+    rm -f "$lib/pkgconfig/troupe-static.pc"
+    cat >"$lib/cmake/troupe/troupeConfig.cmake" <<EOF
+# troupe's CMake package for Windows x64 (scripts/install.sh --target x86_64-pc-windows-gnu).
+# find_package(troupe $abi) gives troupe::troupe: bin/troupe.dll, imported through
+# lib/libtroupe.dll.a (MinGW); with MSVC, make troupe.lib from lib/troupe.def and set the
+# target's IMPORTED_IMPLIB to it. troupe_BUNDLE_DIR: the installed models.
+get_filename_component(_troupe_prefix "\${CMAKE_CURRENT_LIST_DIR}/../../.." ABSOLUTE)
+set(troupe_LIBRARY_VERSION "$version")
+set(troupe_BUNDLE_DIR "\${_troupe_prefix}/share/troupe/bundles")
+if(NOT TARGET troupe::troupe)
+    add_library(troupe::troupe SHARED IMPORTED)
+    set_target_properties(troupe::troupe PROPERTIES
+        IMPORTED_LOCATION "\${_troupe_prefix}/bin/troupe.dll"
+        IMPORTED_IMPLIB "\${_troupe_prefix}/lib/libtroupe.dll.a"
+        INTERFACE_INCLUDE_DIRECTORIES "\${_troupe_prefix}/include/troupe")
+endif()
+unset(_troupe_prefix)
+EOF
+    write_config_version
+    if [ -n "$unity" ]; then
+        write_unity troupe.dll
+    fi
+    echo "installed: troupe.dll $(du_of "$prefix/bin/troupe.dll") KiB," \
+        "libtroupe.dll.a $(du_of "$lib/libtroupe.dll.a") KiB, libtroupe.a $(du_of "$lib/libtroupe.a") KiB"
+}
+
+# The CMake package's version file, the same for every target.
+write_config_version() {
+cat >"$lib/cmake/troupe/troupeConfigVersion.cmake" <<EOF
+# The package is versioned by the C ABI ($abi): any request for major version $abi is met, as
+# the shared library's SONAME promises (docs/ABI.md); the library's release is $version.
+set(PACKAGE_VERSION "$abi")
+if(PACKAGE_FIND_VERSION STREQUAL "")
+    set(PACKAGE_VERSION_COMPATIBLE TRUE)
+elseif(NOT PACKAGE_FIND_VERSION_MAJOR EQUAL $abi)
+    set(PACKAGE_VERSION_COMPATIBLE FALSE)
+else()
+    set(PACKAGE_VERSION_COMPATIBLE TRUE)
+    if(PACKAGE_FIND_VERSION STREQUAL PACKAGE_VERSION)
+        set(PACKAGE_VERSION_EXACT TRUE)
+    endif()
+endif()
+if(NOT CMAKE_SIZEOF_VOID_P STREQUAL "8")
+    set(PACKAGE_VERSION "\${PACKAGE_VERSION} (64-bit)")
+    set(PACKAGE_VERSION_UNSUITABLE TRUE)
+endif()
+EOF
+}
+
 prefix=$(mkdir -p "$prefix" && cd "$prefix" && pwd)
 lib=$prefix/lib include=$prefix/include/troupe
 mkdir -p "$lib/pkgconfig" "$lib/cmake/troupe" "$include" "$prefix/share/troupe/bundles"
 echo "== installing troupe $version (C ABI $abi) into $prefix"
 
-install -m 755 "$out_dir/libtroupe.so" "$lib/libtroupe.so.$abi"
-ln -sf "libtroupe.so.$abi" "$lib/libtroupe.so"
 install -m 644 "$out_dir/libtroupe.a" "$lib/libtroupe.a"
 install -m 644 include/troupe.h bindings/cpp/troupe.hpp "$include/"
 rm -rf "$prefix/share/troupe/bundles/armflow-demo"
 cp -R onnx/bundles/armflow-demo "$prefix/share/troupe/bundles/"
+if [ -n "$windows" ]; then
+    install_windows
+    exit 0
+fi
+install -m 755 "$out_dir/libtroupe.so" "$lib/libtroupe.so.$abi"
+ln -sf "libtroupe.so.$abi" "$lib/libtroupe.so"
 
 cat >"$lib/pkgconfig/troupe.pc" <<EOF
 prefix=\${pcfiledir}/../..
@@ -151,36 +265,9 @@ endif()
 unset(_troupe_prefix)
 EOF
 
-cat >"$lib/cmake/troupe/troupeConfigVersion.cmake" <<EOF
-# The package is versioned by the C ABI ($abi): any request for major version $abi is met, as
-# the shared library's SONAME promises (docs/ABI.md); the library's release is $version.
-set(PACKAGE_VERSION "$abi")
-if(PACKAGE_FIND_VERSION STREQUAL "")
-    set(PACKAGE_VERSION_COMPATIBLE TRUE)
-elseif(NOT PACKAGE_FIND_VERSION_MAJOR EQUAL $abi)
-    set(PACKAGE_VERSION_COMPATIBLE FALSE)
-else()
-    set(PACKAGE_VERSION_COMPATIBLE TRUE)
-    if(PACKAGE_FIND_VERSION STREQUAL PACKAGE_VERSION)
-        set(PACKAGE_VERSION_EXACT TRUE)
-    endif()
-endif()
-if(NOT CMAKE_SIZEOF_VOID_P STREQUAL "8")
-    set(PACKAGE_VERSION "\${PACKAGE_VERSION} (64-bit)")
-    set(PACKAGE_VERSION_UNSUITABLE TRUE)
-endif()
-EOF
+write_config_version
 
 if [ -n "$unity" ]; then
-    rm -rf "$unity"
-    mkdir -p "$unity"
-    cp -R unity/. "$unity/"
-    # The binding is kept once, in bindings/csharp; the package gets its copy here.
-    install -m 644 bindings/csharp/Troupe.cs "$unity/Runtime/Troupe.cs"
-    mkdir -p "$unity/Runtime/Plugins/x86_64"
-    install -m 755 "$out_dir/libtroupe.so" "$unity/Runtime/Plugins/x86_64/libtroupe.so"
-    echo "unity package: $unity (com.troupe.runtime $version)"
+    write_unity libtroupe.so
 fi
-
-du_of() { du -k "$1" | cut -f1; }
 echo "installed: libtroupe.so.$abi $(du_of "$lib/libtroupe.so.$abi") KiB, libtroupe.a $(du_of "$lib/libtroupe.a") KiB"

@@ -2,8 +2,8 @@
 # The project's test command: on a machine with only the Rust toolchain, a C compiler and a bare
 # python3, it installs what the suite needs (a project-local virtual environment for the Python
 # tests, Debian's chromium for the picture tests, valgrind for the C memory check, cmake for the
-# installed package's consumer, Mono for the C# binding) and runs every
-# check CI runs. It ends with the count of checks the tests skipped, and why (torch-dependent
+# installed package's consumer, Mono for the C# binding, the Windows and arm64 cross toolchains
+# with Wine and qemu-user) and runs every check CI runs. It ends with the count of checks the tests skipped, and why (torch-dependent
 # ones are optional; see tests/common/mod.rs, `skip`).
 #
 #   scripts/test.sh              format, lint, every test, the demo and benchmark smoke runs
@@ -83,6 +83,21 @@ ensure_tool valgrind valgrind "the C tests under valgrind (tests/c_abi.rs)"
 ensure_tool cmake cmake "the installed package's CMake consumer (tests/install.rs)"
 ensure_tool mcs "mono-mcs mono-runtime" "the C# binding's test under Mono (tests/csharp.rs)"
 
+# 4. The other platforms (docs/PLATFORMS.md): Windows x64 cross-built with MinGW-w64 and run under
+#    Wine, Linux arm64 cross-built and run under qemu-user; the Rust standard library for each.
+cross_targets="x86_64-pc-windows-gnu aarch64-unknown-linux-gnu"
+ensure_tool x86_64-w64-mingw32-g++ "gcc-mingw-w64-x86-64 g++-mingw-w64-x86-64" \
+    "the Windows x64 build (tests/platforms.rs)"
+ensure_tool wine "wine wine64" "the Windows x64 tests under Wine (tests/platforms.rs)"
+ensure_tool aarch64-linux-gnu-g++ "gcc-aarch64-linux-gnu g++-aarch64-linux-gnu libc6-dev-arm64-cross" \
+    "the Linux arm64 build (tests/platforms.rs)"
+ensure_tool qemu-aarch64 qemu-user "the Linux arm64 tests under qemu (tests/platforms.rs)"
+if command -v rustup >/dev/null 2>&1; then
+    # shellcheck disable=SC2086  (the targets are a list)
+    rustup target add $cross_targets >/dev/null 2>&1 ||
+        echo "rustup target add $cross_targets failed: the cross tests fail under CI" >&2
+fi
+
 # Tests that cannot run their check append `<test binary>::<test><TAB><reason>` here
 # (tests/common/mod.rs, `skip`); emptied before the tests, summed up when the script ends,
 # whether it passes or fails.
@@ -120,6 +135,22 @@ cargo clippy --all-targets -- -D warnings
 echo "== tests"
 start_tests
 cargo test
+
+echo "== other platforms: the unit and golden parity tests under Wine and qemu (docs/PLATFORMS.md)"
+sysroot="$(rustc --print sysroot)"
+for triple in $cross_targets; do
+    runner_tool=wine
+    [ "$triple" = aarch64-unknown-linux-gnu ] && runner_tool=qemu-aarch64
+    if [ -d "$sysroot/lib/rustlib/$triple" ] && command -v "$runner_tool" >/dev/null 2>&1; then
+        cargo test --target "$triple" --features testing --lib --test golden
+    elif [ -n "${CI:-}" ]; then
+        echo "the Rust target $triple or $runner_tool is missing and CI is set" >&2
+        exit 1
+    else
+        printf 'scripts/test.sh::cargo test --target %s\t%s\n' "$triple" \
+            "the Rust target or $runner_tool is not installed" >>"$skips"
+    fi
+done
 
 echo "== streaming demo smoke run"
 cargo run --example stream -- --frames 120 --tick 3 --out target/ci-reactor.npy

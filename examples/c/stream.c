@@ -28,11 +28,24 @@
 #define J 22
 #define CLIP_FPS 120.0f
 
+#ifdef _WIN32
+/* kernel32's monotonic clock, declared here so that the example needs no <windows.h>. */
+__declspec(dllimport) int __stdcall QueryPerformanceCounter(long long *count);
+__declspec(dllimport) int __stdcall QueryPerformanceFrequency(long long *frequency);
+
+static double now_ms(void) {
+    long long count, frequency;
+    QueryPerformanceCounter(&count);
+    QueryPerformanceFrequency(&frequency);
+    return (double)count * 1e3 / (double)frequency;
+}
+#else
 static double now_ms(void) {
     struct timespec ts;
     clock_gettime(CLOCK_MONOTONIC, &ts);
     return (double)ts.tv_sec * 1e3 + (double)ts.tv_nsec / 1e6;
 }
+#endif
 
 static int cmp_double(const void *a, const void *b) {
     double x = *(const double *)a, y = *(const double *)b;

@@ -15,6 +15,7 @@ use std::sync::atomic::{AtomicU64, Ordering};
 
 use crate::shared::error::{excerpt, excerpt_of, Error, Result, EXCERPT_BYTES};
 use crate::shared::limits::LIMITS;
+use crate::shared::paths;
 
 /// The files of one bundle.
 #[derive(Debug)]
@@ -44,16 +45,25 @@ fn invalid(path: &Path, message: impl Into<String>) -> Error {
     io_error(path, std::io::ErrorKind::InvalidData, message)
 }
 
-/// Opens `path` for reading without blocking (a FIFO would otherwise wait for a writer) and
-/// without following a symlink in its last component, and checks that it is a regular file of
-/// at most `limit` bytes. Returns the file and its length.
+/// Opens `path` for reading without blocking (a FIFO would otherwise wait for a writer; on
+/// Windows a device name is refused before opening) and without following a symbolic link or
+/// junction in its last component, and checks that it is a regular file of at most `limit`
+/// bytes. Returns the file and its length.
 fn open_regular(path: &Path, limit: u64, what: &str) -> Result<(File, u64)> {
+    paths::refuse_device(path, what)?;
     let mut options = std::fs::OpenOptions::new();
     options.read(true);
     #[cfg(unix)]
     {
         use std::os::unix::fs::OpenOptionsExt;
         options.custom_flags(libc::O_NONBLOCK | libc::O_NOFOLLOW);
+    }
+    #[cfg(windows)]
+    {
+        use std::os::windows::fs::OpenOptionsExt;
+        // FILE_FLAG_OPEN_REPARSE_POINT: a symbolic link or junction is opened itself (and then
+        // refused below), not followed.
+        options.custom_flags(0x0020_0000);
     }
     let file = options.open(path).map_err(|source| Error::Io {
         path: path.to_path_buf(),
@@ -63,10 +73,13 @@ fn open_regular(path: &Path, limit: u64, what: &str) -> Result<(File, u64)> {
         path: path.to_path_buf(),
         source,
     })?;
-    if !meta.file_type().is_file() {
+    if !meta.file_type().is_file() || is_reparse_point(&meta) {
         return Err(invalid(
             path,
-            format!("the {what} is not a regular file (a device, FIFO, socket or directory)"),
+            format!(
+                "the {what} is not a regular file (a device, FIFO, socket, directory, symbolic \
+                 link or junction)"
+            ),
         ));
     }
     if meta.len() > limit {
@@ -79,6 +92,20 @@ fn open_regular(path: &Path, limit: u64, what: &str) -> Result<(File, u64)> {
         ));
     }
     Ok((file, meta.len()))
+}
+
+/// Whether Windows marks the file a reparse point (a symbolic link, a junction, a cloud or
+/// deduplicated placeholder): troupe reads only what is stored at the path itself.
+#[cfg(windows)]
+fn is_reparse_point(meta: &std::fs::Metadata) -> bool {
+    use std::os::windows::fs::MetadataExt;
+    const FILE_ATTRIBUTE_REPARSE_POINT: u32 = 0x400;
+    meta.file_attributes() & FILE_ATTRIBUTE_REPARSE_POINT != 0
+}
+
+#[cfg(not(windows))]
+fn is_reparse_point(_: &std::fs::Metadata) -> bool {
+    false
 }
 
 /// Files at least this large are mapped, not read: a graph's weights are then copied once, by
@@ -122,13 +149,24 @@ fn read_exactly(mut file: File, len: u64, path: &Path) -> Result<Vec<u8>> {
 }
 
 /// A bundle file's name as the manifest or archive gives it: a plain relative path (no `..`, no
-/// root, no empty or NUL-holding name), leading `./` dropped.
+/// root, no empty or NUL-holding name) whose parts name the same file on every platform (no `\`,
+/// `:` or Windows device name: `shared/paths.rs`), leading `./` dropped.
 fn plain_name(name: &str) -> Option<String> {
+    // Checked on the whole name: Windows would already have split it at a `\`.
+    if name.contains(['\\', ':']) {
+        return None;
+    }
     let path = Path::new(name);
     let mut parts = Vec::new();
     for part in path.components() {
         match part {
-            Component::Normal(p) => parts.push(p.to_str()?),
+            Component::Normal(p) => {
+                let part = p.to_str()?;
+                if !paths::is_portable_name(part) {
+                    return None;
+                }
+                parts.push(part);
+            }
             Component::CurDir => {}
             _ => return None,
         }
@@ -143,6 +181,7 @@ impl BundleFiles {
     /// A directory is read file by file; any other path is read as a tar archive (a regular file
     /// of at most `LIMITS.max_bundle_bytes`).
     pub(crate) fn open(path: &Path) -> Result<Self> {
+        paths::refuse_device(path, "bundle")?;
         let meta = std::fs::metadata(path).map_err(|source| Error::Io {
             path: path.join("troupe.json"),
             source: std::io::Error::new(source.kind(), format!("no such bundle ({source})")),
@@ -282,7 +321,8 @@ impl BundleFiles {
         let plain = plain_name(name).ok_or_else(|| {
             invalid(
                 &path,
-                "a bundle file must be named by a plain relative path (no `..`, no root)",
+                "a bundle file must be named by a plain relative path (no `..`, no root, no `\\` or `:`, \
+                 no Windows device name such as `NUL`)",
             )
         })?;
         match self {

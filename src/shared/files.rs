@@ -3,9 +3,9 @@
 //! temporary one.
 //!
 //! What may be at the path: nothing, or a regular file, which is replaced. Anything else (a
-//! directory, a symbolic link, a FIFO, a socket, a device) is refused before anything is
-//! written: a writer never writes through a link or into a special file, nor replaces one
-//! with a regular file. (The check and the final rename are two steps: something created at
+//! directory, a symbolic link, a FIFO, a socket, a device, a Windows device name such as `NUL`)
+//! is refused before anything is written: a writer never writes through a link or into a
+//! special file, nor replaces one with a regular file. (The check and the final rename are two steps: something created at
 //! the path between them is replaced.)
 
 use std::io::Write;
@@ -30,6 +30,7 @@ fn io_error(path: &Path, source: std::io::Error) -> Error {
 
 /// Refuses a path where something other than a regular file is (see the module documentation).
 fn check_target(path: &Path) -> Result<()> {
+    crate::shared::paths::refuse_device(path, "output")?;
     let kind = match std::fs::symlink_metadata(path) {
         Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(()),
         Err(e) => return Err(io_error(path, e)),
@@ -67,7 +68,8 @@ fn special_kind(kind: &std::fs::FileType) -> &'static str {
 
 #[cfg(not(unix))]
 fn special_kind(_: &std::fs::FileType) -> &'static str {
-    "a special file"
+    // Windows: a junction or another reparse point that is neither a file nor a directory.
+    "a special file (a junction or another reparse point)"
 }
 
 impl Pending {

@@ -15,6 +15,7 @@ pub(crate) mod logging;
 pub mod noise;
 pub(crate) mod onnx_guard;
 pub(crate) mod panics;
+pub(crate) mod paths;
 pub mod progress;
 pub mod solver;
 pub mod stream;

@@ -271,9 +271,12 @@ int main(int argc, char **argv) {
         troupe_bvh *bvh = NULL;
         troupe_joints_format read_format;
         const char *names[2] = {"actor", "reactor"};
-        const char *self = strrchr(argv[0], '/') ? strrchr(argv[0], '/') + 1 : argv[0];
+        const char *self = argv[0];
+        const char *c;
         float *back = (float *)malloc(sizeof(float) * FRAMES * J * 3);
         FILE *f;
+        for (c = argv[0]; *c; c++) /* the program's own name, after either separator */
+            if (*c == '/' || *c == '\\') self = c + 1;
         if (!back) return 1;
         /* named after this binary: the C, C++ and valgrind runs may share the directory */
         snprintf(path, sizeof path, "%s/%s.bvh", argv[3], self);

@@ -1,6 +1,7 @@
 //! Helpers shared by the integration tests: the committed tiny bundle and its golden files.
 #![allow(dead_code)]
 
+pub mod c_programs;
 pub mod pictures;
 
 use std::path::{Path, PathBuf};

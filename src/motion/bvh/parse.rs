@@ -161,6 +161,7 @@ pub fn read_bvh(path: impl AsRef<Path>) -> Result<Bvh> {
         path: path.to_path_buf(),
         source,
     };
+    crate::shared::paths::refuse_device(path, "BVH")?;
     let meta = std::fs::metadata(path).map_err(io)?;
     if !meta.is_file() {
         return Err(Error::InvalidInput(format!(

@@ -880,38 +880,48 @@ mod tests {
     }
 
     #[test]
-    fn long_inputs_stay_fast() {
+    fn long_inputs_stay_linear() {
         let t = tokenizer(&["a a", "aa aa", "aaaa aaaa"]);
+        // Each hostile shape at `max` bytes, or `max / 16`.
+        let cases = |max: usize| {
+            [
+                format!("&{}", "amp;".repeat((max - 1) / 4)),
+                "a".repeat(max),
+                "ab".repeat(max / 2),
+                "&amp;amp;\n".repeat(max / 10),
+                format!("{}{}", "\u{1b}[".repeat(max / 5), "31m".repeat(max / 5)),
+                format!(
+                    "{}{}",
+                    "\u{301}".repeat(max / 4),
+                    "&amp;#x301;".repeat(max / 24)
+                ),
+                // Chains of every depth to 120 after a long run of combining marks: one
+                // completes per pass, so the passes are bounded by the depth, not the length.
+                format!(
+                    "{}{}",
+                    "\u{301}".repeat(max / 4),
+                    (0..120)
+                        .map(|depth| format!("&{}#x301;", "amp;".repeat(depth)))
+                        .collect::<String>()
+                ),
+            ]
+        };
         let max = ClipTokenizer::MAX_PROMPT_BYTES;
-        let cases = [
-            format!("&{}", "amp;".repeat((max - 1) / 4)),
-            "a".repeat(max),
-            "ab".repeat(max / 2),
-            "&amp;amp;\n".repeat(max / 10),
-            format!("{}{}", "\u{1b}[".repeat(max / 5), "31m".repeat(max / 5)),
-            format!(
-                "{}{}",
-                "\u{301}".repeat(max / 4),
-                "&amp;#x301;".repeat(max / 24)
-            ),
-            // Chains of every depth after a long run of combining marks: one completes per pass.
-            format!(
-                "{}{}",
-                "\u{301}".repeat(max / 4),
-                (0..120)
-                    .map(|depth| format!("&{}#x301;", "amp;".repeat(depth)))
-                    .collect::<String>()
-            ),
-        ];
-        for case in &cases {
+        let time = |text: &str| {
             let start = std::time::Instant::now();
-            t.encode(case).unwrap();
-            // A few milliseconds optimised, well under a second unoptimised; the bound only
-            // catches a return to quadratic work (tens of seconds).
+            t.encode(text).unwrap();
+            start.elapsed().as_secs_f64()
+        };
+        for (i, (small, large)) in cases(max / 16).iter().zip(&cases(max)).enumerate() {
+            // The same work done linearly: sixteen inputs a sixteenth as long. Quadratic work
+            // takes sixteen times that; the bound allows noise, and any machine's speed (the
+            // suite also runs unoptimised and under an emulator).
+            let linear: f64 = (0..16).map(|_| time(small)).sum();
+            let whole = time(large);
             assert!(
-                start.elapsed().as_secs_f64() < 5.0,
-                "{:?}…",
-                case.chars().take(20).collect::<String>()
+                whole < 6.0 * linear + 0.05,
+                "case {i}, {:?}…: {whole:.3} s against {linear:.3} s for 16 sixteenths",
+                large.chars().take(20).collect::<String>()
             );
         }
     }
