@@ -142,7 +142,8 @@ for triple in $cross_targets; do
     runner_tool=wine
     [ "$triple" = aarch64-unknown-linux-gnu ] && runner_tool=qemu-aarch64
     if [ -d "$sysroot/lib/rustlib/$triple" ] && command -v "$runner_tool" >/dev/null 2>&1; then
-        cargo test --target "$triple" --features testing --lib --test golden
+        # Optimised: emulated unoptimised code is slow. The same build as tests/platforms.rs'.
+        cargo test --release --target "$triple" --features testing --lib --test golden
     elif [ -n "${CI:-}" ]; then
         echo "the Rust target $triple or $runner_tool is missing and CI is set" >&2
         exit 1

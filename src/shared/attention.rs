@@ -303,6 +303,29 @@ fn exp_nonpositive(x: f32) -> f32 {
 mod tests {
     use super::*;
 
+    /// The kernels chosen at run time for this machine, this module's and tract's matrix
+    /// kernels: on arm64, tract's NEON ones (`arm64simd`) are among those it may run
+    /// (docs/PLATFORMS.md; the test also runs under qemu-user).
+    #[test]
+    fn kernels_are_chosen_for_this_machine() {
+        let machine = tract_linalg::isa::native();
+        let kernels: Vec<String> = tract_linalg::mmm_routines::runnable_for(&machine)
+            .iter()
+            .map(|kernel| kernel.name().to_string())
+            .collect();
+        println!(
+            "attention: {:?}; tract: {machine:?}, matrix kernels {kernels:?}",
+            isa()
+        );
+        assert!(!kernels.is_empty());
+        if cfg!(target_arch = "aarch64") {
+            assert!(
+                kernels.iter().any(|k| k.starts_with("arm64simd")),
+                "{kernels:?}"
+            );
+        }
+    }
+
     /// Softmax attention in f64, the plain way.
     fn reference(q: &[f32], keys: &[f32], values: &[f32], hidden: &[usize]) -> Vec<f64> {
         let dh = q.len();

@@ -50,7 +50,12 @@ fn invalid(path: &Path, message: impl Into<String>) -> Error {
 /// junction in its last component, and checks that it is a regular file of at most `limit`
 /// bytes. Returns the file and its length.
 fn open_regular(path: &Path, limit: u64, what: &str) -> Result<(File, u64)> {
-    paths::refuse_device(path, what)?;
+    if let Some(device) = paths::windows_device(path) {
+        return Err(invalid(
+            path,
+            format!("the {what}: {}", paths::device_message(&device)),
+        ));
+    }
     let mut options = std::fs::OpenOptions::new();
     options.read(true);
     #[cfg(unix)]
@@ -181,7 +186,12 @@ impl BundleFiles {
     /// A directory is read file by file; any other path is read as a tar archive (a regular file
     /// of at most `LIMITS.max_bundle_bytes`).
     pub(crate) fn open(path: &Path) -> Result<Self> {
-        paths::refuse_device(path, "bundle")?;
+        if let Some(device) = paths::windows_device(path) {
+            return Err(invalid(
+                path,
+                format!("the bundle: {}", paths::device_message(&device)),
+            ));
+        }
         let meta = std::fs::metadata(path).map_err(|source| Error::Io {
             path: path.join("troupe.json"),
             source: std::io::Error::new(source.kind(), format!("no such bundle ({source})")),

@@ -30,7 +30,13 @@ fn io_error(path: &Path, source: std::io::Error) -> Error {
 
 /// Refuses a path where something other than a regular file is (see the module documentation).
 fn check_target(path: &Path) -> Result<()> {
-    crate::shared::paths::refuse_device(path, "output")?;
+    if let Some(device) = crate::shared::paths::windows_device(path) {
+        return Err(Error::InvalidInput(format!(
+            "{}: {}; troupe writes a new file or replaces a regular file, nothing else",
+            path.display(),
+            crate::shared::paths::device_message(&device)
+        )));
+    }
     let kind = match std::fs::symlink_metadata(path) {
         Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(()),
         Err(e) => return Err(io_error(path, e)),

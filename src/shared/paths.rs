@@ -10,8 +10,6 @@
 
 use std::path::Path;
 
-use crate::shared::error::{Error, Result};
-
 /// Whether a path component is a name Windows reserves for a device: its part before the first
 /// `.` or `:`, less trailing spaces, is `CON`, `PRN`, `AUX`, `NUL`, `COM0`-`COM9`, `LPT0`-`LPT9`
 /// (superscript digits included), `CONIN$` or `CONOUT$`, in any case.
@@ -52,26 +50,20 @@ pub(crate) fn windows_device_in(path: &str) -> Option<String> {
         .map(str::to_string)
 }
 
-/// Refuses, on Windows, a path that names a device (see the module documentation); `what` says
-/// what the path was for. Elsewhere every name is an ordinary name and the file-type checks that
-/// follow (no FIFO, no device) apply.
-pub(crate) fn refuse_device(path: &Path, what: &str) -> Result<()> {
-    if !cfg!(windows) {
-        return Ok(());
+/// The device `path` names under Windows' rules, on Windows (see the module documentation);
+/// elsewhere every name is an ordinary name, and the file-type checks that follow (no FIFO, no
+/// device) apply. The callers refuse a device as they refuse any other special file.
+pub(crate) fn windows_device(path: &Path) -> Option<String> {
+    if cfg!(windows) {
+        windows_device_in(&path.to_string_lossy())
+    } else {
+        None
     }
-    match windows_device_in(&path.to_string_lossy()) {
-        None => Ok(()),
-        Some(device) => Err(Error::Io {
-            path: path.to_path_buf(),
-            source: std::io::Error::new(
-                std::io::ErrorKind::InvalidInput,
-                format!(
-                    "the {what} path names the Windows device `{device}`, not a file; \
-                     troupe reads and writes regular files only"
-                ),
-            ),
-        }),
-    }
+}
+
+/// How a refused device is described in messages.
+pub(crate) fn device_message(device: &str) -> String {
+    format!("the path names the Windows device `{device}`, not a file")
 }
 
 /// Whether `part` (one component of a bundle's file name) means the same file on every
@@ -153,9 +145,8 @@ mod tests {
     }
 
     #[test]
-    fn only_windows_refuses_device_names() {
-        let refused = refuse_device(Path::new("NUL"), "bundle").is_err();
-        assert_eq!(refused, cfg!(windows));
-        assert!(refuse_device(Path::new("bundles/armflow-demo"), "bundle").is_ok());
+    fn only_windows_has_device_names() {
+        assert_eq!(windows_device(Path::new("NUL")).is_some(), cfg!(windows));
+        assert_eq!(windows_device(Path::new("bundles/armflow-demo")), None);
     }
 }

@@ -161,7 +161,13 @@ pub fn read_bvh(path: impl AsRef<Path>) -> Result<Bvh> {
         path: path.to_path_buf(),
         source,
     };
-    crate::shared::paths::refuse_device(path, "BVH")?;
+    if let Some(device) = crate::shared::paths::windows_device(path) {
+        return Err(Error::InvalidInput(format!(
+            "{}: {}",
+            path.display(),
+            crate::shared::paths::device_message(&device)
+        )));
+    }
     let meta = std::fs::metadata(path).map_err(io)?;
     if !meta.is_file() {
         return Err(Error::InvalidInput(format!(
