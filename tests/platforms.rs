@@ -27,7 +27,7 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::sync::OnceLock;
 
-use common::c_programs::{c_programs, compile, root, run, scratch, slow_tests};
+use common::c_programs::{c_programs, compile, root, run, scratch};
 
 /// A target troupe is cross-built for and run on here.
 struct Target {
@@ -204,10 +204,6 @@ fn windows_path(path: &Path) -> String {
     format!("Z:{}", path.display()).replace('/', "\\")
 }
 
-/// The C programs whose emulated run is long (the official clip loop, 62 s under qemu-user on
-/// 2 cores; 8 threads x 8 sessions, 41 s): under qemu they run in the long form only.
-const EMULATED_IN_LONG_FORM: [&str; 2] = ["clip", "threads"];
-
 /// Every C test program compiled for `target` and run there: the checks it makes (golden
 /// parity, every bad input) must all pass, as on the host.
 fn c_programs_on(target: &Target, test: &str) {
@@ -218,14 +214,6 @@ fn c_programs_on(target: &Target, test: &str) {
     let runner = target.runner();
     let runner: Vec<&str> = runner.iter().map(String::as_str).collect();
     for (name, args, flags) in c_programs() {
-        if !target.windows() && EMULATED_IN_LONG_FORM.contains(&name) && !slow_tests() {
-            common::skip(
-                &format!("{test}::{name}"),
-                "runs under qemu in the long form only (TROUPE_SLOW_TESTS=1): about a minute \
-                 emulated; it runs natively and under Wine in every run",
-            );
-            continue;
-        }
         let source = root().join(format!("tests/c/{name}.c"));
         let bin = target.compile(&source, flags, false, name);
         let args: Vec<&Path> = args.iter().map(PathBuf::as_path).collect();
@@ -331,11 +319,7 @@ fn paths_on(target: &Target, test: &str) {
         .stdin(std::process::Stdio::null())
         .output()
         .expect("run the paths test");
-    let text = format!(
-        "{}{}",
-        String::from_utf8_lossy(&out.stdout),
-        String::from_utf8_lossy(&out.stderr)
-    );
+    let text = common::output_text(&out);
     println!("{text}");
     assert!(out.status.success() && text.contains(" 0 failed"), "{text}");
     assert_eq!(
