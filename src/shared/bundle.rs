@@ -331,8 +331,8 @@ impl BundleFiles {
         let plain = plain_name(name).ok_or_else(|| {
             invalid(
                 &path,
-                "a bundle file must be named by a plain relative path (no `..`, no root, no `\\` or `:`, \
-                 no Windows device name such as `NUL`)",
+                "a bundle file must be named by a plain relative path (no `..`, no root, no \
+                 `\\` or `:`, no Windows device name such as `NUL`)",
             )
         })?;
         match self {
@@ -404,6 +404,29 @@ impl BundleFiles {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn bundle_file_names_are_plain_and_portable() {
+        assert_eq!(plain_name("./vae.onnx").as_deref(), Some("vae.onnx"));
+        assert_eq!(
+            plain_name("graphs/vae.onnx").as_deref(),
+            Some("graphs/vae.onnx")
+        );
+        for name in [
+            "../vae.onnx",
+            "/etc/passwd",
+            "",
+            "graphs\\vae.onnx",
+            "C:vae.onnx",
+            "vae.onnx:hidden",
+            "nul.onnx",
+            "graphs/AUX/vae.onnx",
+            "com1",
+            "a\0b",
+        ] {
+            assert_eq!(plain_name(name), None, "{name:?}");
+        }
+    }
 
     #[test]
     fn large_files_are_mapped_small_ones_read_and_both_hold_the_files_bytes() {

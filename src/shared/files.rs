@@ -5,8 +5,8 @@
 //! What may be at the path: nothing, or a regular file, which is replaced. Anything else (a
 //! directory, a symbolic link, a FIFO, a socket, a device, a Windows device name such as `NUL`)
 //! is refused before anything is written: a writer never writes through a link or into a
-//! special file, nor replaces one with a regular file. (The check and the final rename are two steps: something created at
-//! the path between them is replaced.)
+//! special file, nor replaces one with a regular file. (The check and the final rename are two
+//! steps: something created at the path between them is replaced.)
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
