@@ -35,12 +35,18 @@ x86_64-pc-windows-gnu)
     export WINEDLLOVERRIDES="${WINEDLLOVERRIDES:-mscoree,mshtml,winemenubuilder.exe=}"
     # Wine 8 has no bcryptprimitives.dll, from which Rust's standard library draws its random
     # seeds: a shim (scripts/wine/bcryptprimitives.c) goes into the prefix's system folder.
+    # Tests run in parallel: the first to get the lock makes the prefix, the others wait for it.
     shim="$WINEPREFIX/drive_c/windows/system32/bcryptprimitives.dll"
     if [ ! -f "$shim" ]; then
-        "$wine" cmd /c exit >/dev/null 2>&1 || true # creates the prefix
-        x86_64-w64-mingw32-gcc -O2 -shared -o "$shim.tmp" "$root/scripts/wine/bcryptprimitives.c" \
-            -ladvapi32
-        mv "$shim.tmp" "$shim"
+        (
+            flock 9
+            if [ ! -f "$shim" ]; then
+                "$wine" cmd /c exit >/dev/null 2>&1 || true # creates the prefix
+                x86_64-w64-mingw32-gcc -O2 -shared -o "$shim.$$.tmp" \
+                    "$root/scripts/wine/bcryptprimitives.c" -ladvapi32
+                mv "$shim.$$.tmp" "$shim"
+            fi
+        ) 9>"$WINEPREFIX.lock"
     fi
     exec "$wine" "$@"
     ;;
