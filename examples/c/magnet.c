@@ -17,6 +17,25 @@
 #include <string.h>
 #include <time.h>
 
+#ifdef _WIN32
+/* kernel32's monotonic clock, declared here so that the example needs no <windows.h>. */
+__declspec(dllimport) int __stdcall QueryPerformanceCounter(long long *count);
+__declspec(dllimport) int __stdcall QueryPerformanceFrequency(long long *frequency);
+
+static double now_seconds(void) {
+    long long count, frequency;
+    QueryPerformanceCounter(&count);
+    QueryPerformanceFrequency(&frequency);
+    return (double)count / (double)frequency;
+}
+#else
+static double now_seconds(void) {
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+#endif
+
 /* Reads a little-endian float32 .npy (format 1.0) of `row` floats per frame; returns the
  * frames, or 0 on failure. */
 static size_t read_rows(const char *path, size_t row, float **out) {
@@ -47,7 +66,6 @@ int main(int argc, char **argv) {
     troupe_magnet_options opt;
     size_t people, frames, s = 0, f = 0, p = 0, n, i, bad = 0;
     float *clip = NULL, *out;
-    struct timespec t0, t1;
     double seconds;
     troupe_status st;
 
@@ -76,15 +94,14 @@ int main(int argc, char **argv) {
     }
     n = s * f * p * 145;
     out = (float *)malloc(n * sizeof *out);
-    clock_gettime(CLOCK_MONOTONIC, &t0);
+    seconds = now_seconds();
     st = troupe_magnet_generate(model, argv[2], &opt, clip, frames, NULL, out, n);
-    clock_gettime(CLOCK_MONOTONIC, &t1);
+    seconds = now_seconds() - seconds;
     if (st != TROUPE_OK) {
         fprintf(stderr, "generate: %s\n", troupe_last_error_message());
         return 1;
     }
     for (i = 0; i < n; i++) bad += !isfinite(out[i]);
-    seconds = (double)(t1.tv_sec - t0.tv_sec) + 1e-9 * (double)(t1.tv_nsec - t0.tv_nsec);
     printf("%s on %lu frames: %lu samples x %lu frames x %lu people in %.2f s; non-finite values: %lu\n", argv[2],
            (unsigned long)frames, (unsigned long)s, (unsigned long)f, (unsigned long)p, seconds, (unsigned long)bad);
     free(out);
