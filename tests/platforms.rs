@@ -242,18 +242,6 @@ fn linux_arm64_c_programs_under_qemu() {
     c_programs_on(&LINUX_ARM64, "linux_arm64_c_programs_under_qemu");
 }
 
-/// Copies the tiny bundle's files into `to` (created).
-fn copy_bundle(to: &Path) {
-    std::fs::create_dir_all(to).unwrap();
-    let from = root().join("onnx/bundles/armflow-tiny");
-    for entry in std::fs::read_dir(from).unwrap() {
-        let path = entry.unwrap().path();
-        if path.is_file() {
-            std::fs::copy(&path, to.join(path.file_name().unwrap())).unwrap();
-        }
-    }
-}
-
 /// The paths test (`tests/c/paths.c`) on `target`: a copy of the tiny bundle under a folder
 /// named in several scripts, loaded by every spelling of its path the platform has; a copy
 /// whose graph is a link to a file outside it; device names and special files, refused.
@@ -264,10 +252,10 @@ fn paths_on(target: &Target, test: &str) {
     let base = scratch().join(format!("paths-{}", target.triple));
     let unicode = base.join("bündel ü-ß 日本 Ωμέγα");
     let bundle = unicode.join("armflow-tiny");
-    copy_bundle(&bundle);
+    common::copy_bundle_into("armflow-tiny", &bundle);
     // A bundle whose velocity graph is a symbolic link to a copy outside the bundle.
     let linked = base.join("linked");
-    copy_bundle(&linked);
+    common::copy_bundle_into("armflow-tiny", &linked);
     let outside = base.join("outside.onnx");
     std::fs::rename(linked.join("velocity.onnx"), &outside).unwrap();
     std::os::unix::fs::symlink(&outside, linked.join("velocity.onnx")).unwrap();

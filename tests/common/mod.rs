@@ -26,16 +26,23 @@ pub fn bundle_copy() -> tempfile::TempDir {
 /// fresh directory.
 pub fn copy_of_bundle(name: &str) -> tempfile::TempDir {
     let dir = tempfile::tempdir().unwrap();
+    copy_bundle_into(name, dir.path());
+    dir
+}
+
+/// Copies the files of the committed bundle `onnx/bundles/NAME` (not its goldens) into `to`,
+/// which is created if missing.
+pub fn copy_bundle_into(name: &str, to: &Path) {
+    std::fs::create_dir_all(to).unwrap();
     let from = Path::new(env!("CARGO_MANIFEST_DIR"))
         .join("onnx/bundles")
         .join(name);
     for entry in std::fs::read_dir(from).unwrap() {
         let path = entry.unwrap().path();
         if path.is_file() {
-            std::fs::copy(&path, dir.path().join(path.file_name().unwrap())).unwrap();
+            std::fs::copy(&path, to.join(path.file_name().unwrap())).unwrap();
         }
     }
-    dir
 }
 
 /// Rewrites the `troupe.json` in `dir` with `edit`.
