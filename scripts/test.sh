@@ -3,7 +3,8 @@
 # python3, it installs what the suite needs (a project-local virtual environment for the Python
 # tests, Debian's chromium for the picture tests, valgrind for the C memory check, cmake for the
 # installed package's consumer, Mono for the C# binding, the Windows and arm64 cross toolchains
-# with Wine and qemu-user) and runs every check CI runs. It ends with the count of checks the tests skipped, and why (torch-dependent
+# with Wine and qemu-user, Node.js with gltf-validator and three.js, Blender's bpy) and runs every
+# check CI runs. It ends with the count of checks the tests skipped, and why (torch-dependent
 # ones are optional; see tests/common/mod.rs, `skip`).
 #
 #   scripts/test.sh              format, lint, every test, the demo and benchmark smoke runs
@@ -97,6 +98,42 @@ if command -v rustup >/dev/null 2>&1; then
     # shellcheck disable=SC2086  (the targets are a list)
     rustup target add $cross_targets $android >/dev/null 2>&1 ||
         echo "rustup target add $cross_targets $android failed: the cross tests fail under CI" >&2
+fi
+
+# 5. The clients the rig and glTF tests run (tests/rigs.rs): Node.js with Khronos' gltf-validator
+#    and three.js from npm, pinned, in target/npm; Blender as PyPI's `bpy` (a build for this
+#    Python, 3.11) in its own environment, target/blender (about 1 GB; its numpy pin differs
+#    from the suite's), with the X and GL libraries its module links.
+ensure_tool node "nodejs npm" "the glTF validator and three.js tests (tests/rigs.rs)"
+npm_packages="gltf-validator@2.0.0-dev.3.10 three@0.187.0"
+npm_dir=target/npm
+if command -v npm >/dev/null 2>&1 && [ "$(cat "$npm_dir/.installed" 2>/dev/null)" != "$npm_packages" ]; then
+    echo "== npm: installing $npm_packages into $npm_dir"
+    mkdir -p "$npm_dir"
+    [ -f "$npm_dir/package.json" ] || echo '{"private": true}' >"$npm_dir/package.json"
+    # shellcheck disable=SC2086  (the packages are a list)
+    if (cd "$npm_dir" && npm install --no-audit --no-fund --silent $npm_packages); then
+        echo "$npm_packages" >"$npm_dir/.installed"
+    else
+        echo "npm install $npm_packages failed: tests/rigs.rs fails" >&2
+    fi
+fi
+blender_requirement="bpy==4.5.15"
+blender=target/blender
+if [ "$(cat "$blender/.installed" 2>/dev/null)" != "$blender_requirement" ]; then
+    echo "== blender: installing $blender_requirement into $blender"
+    rm -rf "$blender"
+    if python3 -m venv "$blender" &&
+        "$blender/bin/python3" -m pip install --quiet --disable-pip-version-check "$blender_requirement"; then
+        echo "$blender_requirement" >"$blender/.installed"
+    else
+        echo "pip install $blender_requirement failed: the Blender test fails under CI" >&2
+    fi
+fi
+if [ -x "$blender/bin/python3" ] && ! "$blender/bin/python3" -c "import bpy" >/dev/null 2>&1; then
+    echo "== blender: installing the libraries bpy links"
+    apt_install libx11-6 libxrender1 libxfixes3 libxi6 libxkbcommon0 libxext6 libsm6 libice6 \
+        libgl1 libvulkan1 libxxf86vm1
 fi
 
 # Tests that cannot run their check append `<test binary>::<test><TAB><reason>` here

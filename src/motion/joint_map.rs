@@ -81,26 +81,45 @@ impl JointMap {
         Ok(self)
     }
 
-    /// For each t2m-22 joint, the index of its joint among `rig` (a rig's joint names), or an
-    /// error naming every t2m-22 joint the rig lacks and the names that were tried (`label`
-    /// names the rig, e.g. its file). A name matching with its case wins over one matching
-    /// without (LAFAN1's `Spine1` is t2m's `spine2`, not its `spine1`).
-    pub fn resolve(&self, rig: &[String], label: &str) -> Result<Vec<usize>> {
-        let names = Skeleton::t2m22().names().to_vec();
-        let mut found = Vec::with_capacity(names.len());
-        let mut missing = Vec::new();
-        let find = |candidates: &[String], same: &dyn Fn(&str, &str) -> bool| {
-            candidates
-                .iter()
-                .find_map(|c| rig.iter().position(|r| same(bare(r), bare(c))))
-        };
-        for (j, candidates) in self.candidates.iter().enumerate() {
-            let exact = find(candidates, &|a, b| a == b);
-            match exact.or_else(|| find(candidates, &|a, b| a.eq_ignore_ascii_case(b))) {
-                Some(i) => found.push(i),
-                None => missing.push(format!("{} (tried {})", names[j], candidates.join(", "))),
+    /// For each t2m-22 joint, the index of its joint among `rig` (a rig's joint names), or
+    /// `None` where the rig has no joint of any of its names. A name matching with its case
+    /// wins over one matching without (LAFAN1's `Spine1` is t2m's `spine2`, not its `spine1`),
+    /// and no rig joint is taken twice.
+    pub fn resolve_partial(&self, rig: &[String]) -> Vec<Option<usize>> {
+        let mut taken = vec![false; rig.len()];
+        let mut out = vec![None; self.candidates.len()];
+        // Exact matches for every joint first, then the rest without regard to case.
+        type Same = fn(&str, &str) -> bool;
+        let passes: [Same; 2] = [|a, b| a == b, |a, b| a.eq_ignore_ascii_case(b)];
+        for same in passes {
+            for (j, candidates) in self.candidates.iter().enumerate() {
+                if out[j].is_some() {
+                    continue;
+                }
+                let hit = candidates.iter().find_map(|c| {
+                    (0..rig.len()).find(|&i| !taken[i] && same(bare(&rig[i]), bare(c)))
+                });
+                if let Some(i) = hit {
+                    taken[i] = true;
+                    out[j] = Some(i);
+                }
             }
         }
+        out
+    }
+
+    /// For each t2m-22 joint, the index of its joint among `rig` (a rig's joint names), or an
+    /// error naming every t2m-22 joint the rig lacks and the names that were tried (`label`
+    /// names the rig, e.g. its file).
+    pub fn resolve(&self, rig: &[String], label: &str) -> Result<Vec<usize>> {
+        let names = Skeleton::t2m22().names().to_vec();
+        let found = self.resolve_partial(rig);
+        let missing: Vec<String> = found
+            .iter()
+            .enumerate()
+            .filter(|(_, f)| f.is_none())
+            .map(|(j, _)| format!("{} (tried {})", names[j], self.candidates[j].join(", ")))
+            .collect();
         if !missing.is_empty() {
             return Err(Error::InvalidInput(format!(
                 "{label}: no joint of this rig is the t2m-22 joint {}; extend the joint map with \
@@ -108,6 +127,11 @@ impl JointMap {
                 missing.join("; ")
             )));
         }
-        Ok(found)
+        Ok(found.into_iter().flatten().collect())
+    }
+
+    /// The names tried for t2m-22 joint `joint` (its index), in order.
+    pub fn names_for(&self, joint: usize) -> &[String] {
+        &self.candidates[joint]
     }
 }

@@ -13,7 +13,8 @@
 //! - [`stream`]: the same one frame at a time, for sessions;
 //! - [`resample`]: frame-rate conversion at the boundary;
 //! - [`bvh`]: BVH files in and out, and [`joint_map`]: which rig joint is which t2m-22 joint;
-//! - [`export`]: poses as JSON for robots and tools;
+//! - [`rig`]: a caller's character rig, and [`retarget`]: troupe's motion posed on it;
+//! - [`export`]: poses as JSON for robots and tools, and [`gltf`]: rigs and motion as `.glb`;
 //! - [`smplx145`]: MAGNet's SMPL-X frames, posed on the t2m-22 skeleton;
 //! - [`rotation`]: quaternions, matrices and both 6-D layouts, in f64 and (for MAGNet) f32;
 //! - [`vec3`]: the vector algebra beneath.
@@ -22,11 +23,14 @@ pub mod body;
 pub mod bvh;
 pub mod export;
 pub mod features;
+pub mod gltf;
 pub mod ik;
 pub mod joint_map;
 pub mod penetration;
 pub mod placement;
 pub mod resample;
+pub mod retarget;
+pub mod rig;
 pub mod rotation;
 pub mod skeleton;
 pub mod smplx145;
@@ -39,11 +43,14 @@ pub use features::{
     check_layout, decode_frame, encode_clip, joints_layout, EncodedClip, Pose, FEATURE_DIM,
     INTERHUMAN262,
 };
+pub use gltf::{write_glb, write_glb_file, GltfOptions, GltfPerson};
 pub use joint_map::JointMap;
 pub use penetration::{
     penetration_metrics, Hinge, Penetration, PenetrationLoss, PenetrationMetrics,
 };
 pub use placement::Placement;
+pub use retarget::{retarget_clip, RetargetOptions, Retargeter, RigPose, SourceFrame};
+pub use rig::{Rig, RigJoint};
 pub use skeleton::{Skeleton, T2M22, T2M22_JOINTS};
 pub use smplx145::{smplx145_positions, SMPLX145, SMPLX145_DIM};
 pub use stream::{FeatureStream, STREAM_LATENCY_FRAMES};

@@ -145,6 +145,22 @@ impl JointsFormat {
         }
         Quat::from_matrix(out)
     }
+
+    /// A rotation given in the caller's axes, expressed in troupe's: `M R M⁻¹`, the inverse of
+    /// [`JointsFormat::rotation_from_canonical_axes`].
+    pub fn rotation_to_canonical_axes(&self, q: Quat) -> Quat {
+        let (m, r) = (self.axes(), q.to_matrix());
+        let mut out = [[0.0; 3]; 3];
+        for (i, row) in out.iter_mut().enumerate() {
+            for (j, v) in row.iter_mut().enumerate() {
+                *v = (0..3)
+                    .flat_map(|a| (0..3).map(move |b| (a, b)))
+                    .map(|(a, b)| m[i][a] * r[a][b] * m[j][b])
+                    .sum();
+            }
+        }
+        Quat::from_matrix(out)
+    }
 }
 
 #[cfg(test)]
@@ -183,6 +199,12 @@ mod tests {
                 .rotation_from_canonical_axes(q)
                 .rotate(v.map(f64::from))
                 .map(|x| x as f32);
+            let back = f.rotation_to_canonical_axes(f.rotation_from_canonical_axes(q));
+            let (back, q) = (back.to_wxyz(), q.to_wxyz());
+            assert!(
+                (0..4).all(|i| (back[i] - q[i]).abs() < 1e-12),
+                "{back:?} vs {q:?}"
+            );
             for i in 0..3 {
                 assert!(
                     (a[i] - b[i]).abs() < 1e-6,

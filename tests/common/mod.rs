@@ -3,6 +3,7 @@
 
 pub mod c_programs;
 pub mod pictures;
+pub mod static_server;
 
 use std::path::{Path, PathBuf};
 use std::process::Command;

@@ -211,11 +211,38 @@ pub fn chromium() -> PathBuf {
 
 /// A screenshot of `html` with `query` in an 800 × 600 window.
 pub fn screenshot(html: &Path, query: &str, out: &Path) -> Image {
-    let profile = tempfile::tempdir().unwrap();
     let url = format!(
         "file://{}?{query}",
         html.display().to_string().replace(' ', "%20")
     );
+    let name = query.replace(['&', '='], "_");
+    screenshot_url(&url, &[], out, &name)
+}
+
+/// A screenshot of `url` in an 800 × 600 window (`flags` added to Chromium's); `name` is the
+/// file name `TROUPE_VIEWER_KEEP` keeps it under.
+pub fn screenshot_url(url: &str, flags: &[&str], out: &Path, name: &str) -> Image {
+    let screenshot = format!("--screenshot={}", out.display());
+    let mut args = flags.to_vec();
+    args.push(&screenshot);
+    run_chromium(url, &args);
+    assert!(out.is_file(), "chromium wrote no screenshot of {url}");
+    if let Some(keep) = std::env::var_os("TROUPE_VIEWER_KEEP") {
+        let _ = std::fs::copy(out, Path::new(&keep).join(format!("{name}.png")));
+    }
+    decode_png(out)
+}
+
+/// The DOM of `url` once its scripts have run (Chromium's `--dump-dom`).
+pub fn dump_dom(url: &str, flags: &[&str]) -> String {
+    let mut args = flags.to_vec();
+    args.push("--dump-dom");
+    run_chromium(url, &args)
+}
+
+/// Runs headless Chromium on `url` with troupe's flags and `extra`; its stdout.
+fn run_chromium(url: &str, extra: &[&str]) -> String {
+    let profile = tempfile::tempdir().unwrap();
     let mut child = Command::new(chromium())
         .args([
             "--headless=new",
@@ -230,13 +257,27 @@ pub fn screenshot(html: &Path, query: &str, out: &Path) -> Image {
             "--window-size=800,600",
             "--virtual-time-budget=3000",
         ])
+        .args(extra)
         .arg(format!("--user-data-dir={}", profile.path().display()))
-        .arg(format!("--screenshot={}", out.display()))
-        .arg(&url)
-        .stdout(Stdio::null())
+        .arg(url)
+        .stdout(Stdio::piped())
         .stderr(Stdio::piped())
         .spawn()
         .unwrap_or_else(|e| panic!("cannot run {:?}: {e}", chromium()));
+    // Read both pipes while it runs: a full pipe would stall it.
+    let mut stdout_pipe = child.stdout.take().unwrap();
+    let mut stderr_pipe = child.stderr.take().unwrap();
+    use std::io::Read;
+    let reader = std::thread::spawn(move || {
+        let mut text = String::new();
+        let _ = stdout_pipe.read_to_string(&mut text);
+        text
+    });
+    let errors = std::thread::spawn(move || {
+        let mut text = String::new();
+        let _ = stderr_pipe.read_to_string(&mut text);
+        text
+    });
     let start = Instant::now();
     let status = loop {
         if let Some(status) = child.try_wait().unwrap() {
@@ -248,16 +289,11 @@ pub fn screenshot(html: &Path, query: &str, out: &Path) -> Image {
         }
         std::thread::sleep(Duration::from_millis(50));
     };
-    let mut stderr = String::new();
-    use std::io::Read;
-    let _ = child.stderr.take().unwrap().read_to_string(&mut stderr);
+    let stdout = reader.join().unwrap();
+    let stderr = errors.join().unwrap();
     assert!(
-        status.success() && out.is_file(),
+        status.success(),
         "chromium failed on {url} ({status}):\n{stderr}"
     );
-    if let Some(keep) = std::env::var_os("TROUPE_VIEWER_KEEP") {
-        let name = query.replace(['&', '='], "_");
-        let _ = std::fs::copy(out, Path::new(&keep).join(format!("{name}.png")));
-    }
-    decode_png(out)
+    stdout
 }

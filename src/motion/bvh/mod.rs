@@ -1,5 +1,5 @@
 //! BVH (Biovision Hierarchy) files: read as motion-capture tools write them, and written for
-//! the t2m-22 skeleton.
+//! the t2m-22 skeleton or a caller's rig.
 //!
 //! Why troupe reads BVH itself: the one Rust BVH crate (`bvh_anim`) calls itself alpha quality
 //! and has not been released since 2020, and a runtime embedded in other programs needs what it
@@ -14,11 +14,13 @@
 
 mod parse;
 mod write;
+mod write_rig;
 
 pub use parse::{
     parse_bvh, read_bvh, MAX_BVH_BYTES, MAX_BVH_COORDINATE, MAX_BVH_JOINTS, MAX_BVH_NAME_BYTES,
 };
 pub use write::{write_bvh, write_bvh_file, BvhPerson, BvhWriteOptions};
+pub use write_rig::{write_rig_bvh, write_rig_bvh_file};
 
 use ndarray::{s, Array3};
 
@@ -221,7 +223,7 @@ impl Bvh {
 }
 
 /// A joint's translation and rotation relative to its parent from its channel values.
-fn local_transform(joint: &BvhJoint, values: &[f32]) -> (Vec3, Quat) {
+pub(crate) fn local_transform(joint: &BvhJoint, values: &[f32]) -> (Vec3, Quat) {
     let mut translation = joint.offset;
     let mut rotation = Quat::IDENTITY;
     for (c, v) in joint.channels.iter().zip(values) {

@@ -47,10 +47,10 @@ impl Default for BvhWriteOptions {
 }
 
 /// Channels of every non-root joint: intrinsic Z, then Y, then X.
-const ROTATION_CHANNELS: &str = "Zrotation Yrotation Xrotation";
+pub(super) const ROTATION_CHANNELS: &str = "Zrotation Yrotation Xrotation";
 
 /// Euler angles (degrees) with `R = Rz(z) · Ry(y) · Rx(x)`, as `[z, y, x]`.
-fn euler_zyx_degrees(q: Quat) -> [f64; 3] {
+pub(super) fn euler_zyx_degrees(q: Quat) -> [f64; 3] {
     let m = q.to_matrix();
     let sy = (-m[2][0]).clamp(-1.0, 1.0);
     let y = sy.asin();

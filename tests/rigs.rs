@@ -1,0 +1,620 @@
+//! Motion on rigs troupe did not make, checked by the clients people use.
+//!
+//! - Retargeting onto real rigs (Mixamo from `bvhtoolbox`, LAFAN1 from `bvhtools`, troupe's own
+//!   body, and a real rig turned into an A-pose in centimetres with Z up): the figures the
+//!   documentation quotes (mapped-joint error over rig height, foot skate, end-effector error
+//!   with and without the limbs' IK), printed with `--nocapture`, and bounds on them.
+//! - Every `.glb` troupe writes passes Khronos' `gltf-validator` (npm) with no error and no
+//!   warning.
+//!
+//! - three.js's `GLTFLoader` in headless Chromium loads each file, its `AnimationMixer` plays it,
+//!   every bone lands where troupe put it, and a screenshot shows each character in its colour
+//!   where its joints project.
+//!
+//! - Blender (PyPI's `bpy`, headless) imports the `.glb` and the BVH written on the rig, and every
+//!   bone's head is where troupe put the joint, within 1 mm.
+//!
+//! The npm packages live in `target/npm` (`scripts/test.sh` installs them; `TROUPE_NPM` names
+//! another `node_modules`); Blender's Python in `target/blender` (`TROUPE_BLENDER_PYTHON` names
+//! another interpreter with `bpy`).
+
+mod common;
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use ndarray::Array3;
+use ndarray_npy::read_npy;
+use troupe::motion::bvh::read_bvh;
+use troupe::motion::gltf::PERSON_COLORS;
+use troupe::motion::rotation::Quat;
+use troupe::motion::vec3::{norm, sub, Vec3};
+use troupe::motion::{
+    retarget_clip, write_glb_file, GltfOptions, GltfPerson, JointMap, JointsFormat,
+    RetargetOptions, Retargeter, Rig, RigJoint, RigPose, Skeleton, Units, UpAxis,
+};
+
+fn repo(path: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join(path)
+}
+
+/// `[frames][22]` canonical positions of a committed clip (metres, Z up in the file).
+fn clip(name: &str, every: usize) -> Vec<Vec<Vec3>> {
+    let raw: Array3<f32> = read_npy(repo(&format!("tests/data/mocap/{name}.npy"))).unwrap();
+    let z_up = JointsFormat {
+        up: UpAxis::Z,
+        ..Default::default()
+    };
+    raw.outer_iter()
+        .step_by(every)
+        .map(|f| {
+            f.outer_iter()
+                .map(|p| z_up.to_canonical_axes([p[0], p[1], p[2]]))
+                .collect()
+        })
+        .collect()
+}
+
+/// The CMU take (every 4th frame: 30 fps) and the demo's mirror partner for it.
+fn actor() -> Vec<Vec<Vec3>> {
+    clip("cmu-playground-120fps", 4)
+}
+
+fn partner() -> Vec<Vec<Vec3>> {
+    let mut p = clip("cmu-playground.mirror", 1);
+    p.truncate(actor().len());
+    p
+}
+
+fn rig_of_bvh(path: &Path, name: &str) -> Rig {
+    Rig::from_bvh(&read_bvh(path).unwrap(), Some(Units::Centimeters), name).unwrap()
+}
+
+/// A real rig made A-pose, centimetres and Z up: each upper arm turned 45° down about the
+/// body's forward axis at rest (its offsets below keep their place relative to it), and the
+/// whole rig measured in centimetres with Z up.
+fn a_pose_z_up(rig: &Rig) -> Rig {
+    let canonical = rig.with_format(JointsFormat::default());
+    let names = JointMap::builtin();
+    let found = names.resolve_partial(canonical.names());
+    let (left, right) = (found[16].unwrap(), found[17].unwrap());
+    let joints = (0..canonical.len())
+        .map(|j| {
+            let mut rotation = canonical.rest_rotations()[j];
+            if j == left || j == right {
+                let side = if j == left { -1.0 } else { 1.0 };
+                // Turned in the world (about +Z, forward), expressed locally.
+                let (_, world) = canonical.rest_world();
+                let parent = world[canonical.parents()[j].unwrap()];
+                let turn =
+                    Quat::from_axis_angle([0.0, 0.0, 1.0], side * std::f64::consts::FRAC_PI_4);
+                rotation = parent.conj() * turn * parent * rotation;
+            }
+            RigJoint {
+                name: canonical.names()[j].clone(),
+                parent: canonical.parents()[j],
+                offset: canonical.offsets()[j],
+                rotation,
+                end_site: canonical.end_sites()[j],
+            }
+        })
+        .collect();
+    let a_pose = Rig::new("A-pose", joints, JointsFormat::default()).unwrap();
+    a_pose.with_format(JointsFormat {
+        units: Units::Centimeters,
+        up: UpAxis::Z,
+        ..Default::default()
+    })
+}
+
+/// The rigs under test, each with its label.
+fn rigs() -> Vec<(&'static str, Rig)> {
+    let mixamo = rig_of_bvh(
+        &common::pypi_sdist("bvhtoolbox==0.1.3").join("tests/example_files/test_freebvh.bvh"),
+        "mixamo",
+    );
+    // LAFAN1's all-zero pose lies on its side: its first frame, standing, is the rest pose.
+    let lafan = Rig::from_bvh_frame(
+        &read_bvh(common::pypi_sdist("bvhtools==1.6.0").join("testBvhFiles/test2.bvh")).unwrap(),
+        0,
+        Some(Units::Centimeters),
+        "lafan1",
+    )
+    .unwrap();
+    let a_pose = a_pose_z_up(&mixamo);
+    vec![
+        ("troupe t2m-22", Rig::t2m22()),
+        ("Mixamo (bvhtoolbox)", mixamo),
+        ("LAFAN1 (bvhtools)", lafan),
+        ("Mixamo, A-pose, cm, Z up", a_pose),
+    ]
+}
+
+fn retarget(rig: &Rig, positions: &[Vec<Vec3>], options: RetargetOptions) -> Vec<RigPose> {
+    retarget_clip(rig, &JointMap::builtin(), positions, None, options).unwrap()
+}
+
+/// The npm packages' folder: `TROUPE_NPM`, else `target/npm/node_modules`.
+fn npm_modules() -> PathBuf {
+    let dir = std::env::var_os("TROUPE_NPM")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| common::target_dir().join("npm/node_modules"));
+    assert!(
+        dir.join("gltf-validator").is_dir() && dir.join("three").is_dir(),
+        "{} lacks gltf-validator and three: scripts/test.sh installs them (npm install --prefix \
+         target/npm gltf-validator three), or set TROUPE_NPM to a node_modules that has them",
+        dir.display()
+    );
+    dir
+}
+
+/// Khronos' validator's report on each file: `(errors, warnings, messages)`.
+fn validate(files: &[PathBuf]) -> Vec<(u64, u64, String)> {
+    let out = common::run_ok(
+        Command::new("node")
+            .arg(repo("tests/gltf/validate.mjs"))
+            .args(files)
+            .env("TROUPE_NPM_MODULES", npm_modules()),
+    );
+    String::from_utf8_lossy(&out.stdout)
+        .lines()
+        .map(|line| {
+            let v: serde_json::Value = serde_json::from_str(line).unwrap();
+            println!("{line}");
+            (
+                v["errors"].as_u64().unwrap(),
+                v["warnings"].as_u64().unwrap(),
+                v["messages"].to_string(),
+            )
+        })
+        .collect()
+}
+
+/// Two people retargeted onto `rig` and written as `.glb`.
+fn write_pair(rig: &Rig, path: &Path) -> [Vec<RigPose>; 2] {
+    let options = RetargetOptions::default();
+    let a = retarget(rig, &actor(), options);
+    let b = retarget(rig, &partner(), options);
+    write_glb_file(
+        path,
+        &[
+            GltfPerson {
+                name: "actor",
+                rig,
+                poses: &a,
+                color: PERSON_COLORS[0],
+            },
+            GltfPerson {
+                name: "reactor",
+                rig,
+                poses: &b,
+                color: PERSON_COLORS[1],
+            },
+        ],
+        &GltfOptions::default(),
+    )
+    .unwrap();
+    [a, b]
+}
+
+#[test]
+fn every_glb_passes_the_khronos_validator_without_warnings() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut files = Vec::new();
+    for (k, (_, rig)) in rigs().iter().enumerate() {
+        let path = dir.path().join(format!("rig{k}.glb"));
+        write_pair(rig, &path);
+        files.push(path);
+    }
+    // One person alone, without a body.
+    let rig = Rig::t2m22();
+    let poses = retarget(&rig, &actor()[..5], RetargetOptions::default());
+    let lone = dir.path().join("lone.glb");
+    write_glb_file(
+        &lone,
+        &[GltfPerson {
+            name: "actor",
+            rig: &rig,
+            poses: &poses,
+            color: PERSON_COLORS[0],
+        }],
+        &GltfOptions {
+            bodies: false,
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    files.push(lone);
+    for (file, (errors, warnings, messages)) in files.iter().zip(validate(&files)) {
+        assert_eq!((errors, warnings), (0, 0), "{}: {messages}", file.display());
+    }
+}
+
+/// Per-frame horizontal displacement of `joint` over frames where it is in contact in the
+/// source (InterGen's rule, causal), metres: the foot skate.
+fn skate(track: &[Vec3], contact: &[bool]) -> f64 {
+    let steps: Vec<f64> = (1..track.len())
+        .filter(|&t| contact[t] && contact[t - 1])
+        .map(|t| {
+            let d = sub(track[t], track[t - 1]);
+            (d[0] * d[0] + d[2] * d[2]).sqrt()
+        })
+        .collect();
+    steps.iter().sum::<f64>() / steps.len().max(1) as f64
+}
+
+/// The figures of docs/RIGS.md, on the CMU take, for every rig.
+#[test]
+fn figures_on_real_rigs() {
+    let source = actor();
+    let skeleton = Skeleton::t2m22().fitted_to(&source);
+    println!(
+        "| rig | height m | mapped-joint error / height, mean (max) | foot skate cm/frame: scaled source, rotations only, foot lock | end effectors cm: no IK, IK |"
+    );
+    for (label, rig) in rigs() {
+        let height = rig.height_metres();
+        let run = |options: RetargetOptions| {
+            let mut r = Retargeter::new(&rig, &JointMap::builtin(), &skeleton, options).unwrap();
+            let poses = retarget(&rig, &source, options);
+            let positions: Vec<Vec<Vec3>> =
+                poses.iter().map(|p| r.canonical_positions(p)).collect();
+            r.reset();
+            (r, positions)
+        };
+        let plain = RetargetOptions {
+            limb_ik: false,
+            foot_lock: false,
+            ..Default::default()
+        };
+        let (r, rotations_only) = run(plain);
+        let (_, ik_only) = run(RetargetOptions {
+            foot_lock: false,
+            ..Default::default()
+        });
+        let (_, full) = run(RetargetOptions::default());
+        let joints = *r.rig_joints();
+        let mut errors = Vec::new();
+        let mut end_plain = Vec::new();
+        let mut end_ik = Vec::new();
+        for (t, pose) in source.iter().enumerate() {
+            for (s, rj) in joints.iter().enumerate() {
+                let Some(rj) = rj else { continue };
+                let want = r.place(pose[s]);
+                errors.push(norm(sub(full[t][*rj], want)) / height);
+                if [20, 21, 7, 8].contains(&s) {
+                    end_plain.push(norm(sub(rotations_only[t][*rj], want)));
+                    end_ik.push(norm(sub(ik_only[t][*rj], want)));
+                }
+            }
+        }
+        let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len() as f64;
+        let max = |v: &[f64]| v.iter().cloned().fold(0.0, f64::max);
+        // Contacts of the source's left and right ankles (InterGen's thresholds, causal).
+        let mut skates = [0.0f64; 3];
+        for (ankle, k) in [(7usize, 0usize), (8, 1)] {
+            let contact: Vec<bool> = (0..source.len())
+                .map(|t| {
+                    let step = if t == 0 {
+                        0.0
+                    } else {
+                        norm(sub(source[t][ankle], source[t - 1][ankle]))
+                    };
+                    step * step < 0.001 && source[t][ankle][1] < 0.12
+                })
+                .collect();
+            let rj = joints[ankle].unwrap();
+            let scaled: Vec<Vec3> = source.iter().map(|p| r.place(p[ankle])).collect();
+            let plain: Vec<Vec3> = rotations_only.iter().map(|p| p[rj]).collect();
+            let locked: Vec<Vec3> = full.iter().map(|p| p[rj]).collect();
+            for (i, track) in [scaled, plain, locked].iter().enumerate() {
+                skates[i] += skate(track, &contact) / 2.0;
+            }
+            let _ = k;
+        }
+        println!(
+            "| {label} | {height:.3} | {:.4} ({:.4}) | {:.2}, {:.2}, {:.2} | {:.2}, {:.3} |",
+            mean(&errors),
+            max(&errors),
+            skates[0] * 100.0,
+            skates[1] * 100.0,
+            skates[2] * 100.0,
+            mean(&end_plain) * 100.0,
+            mean(&end_ik) * 100.0,
+        );
+        // What the retarget promises, on a real take: the IK brings hands and feet onto the
+        // scaled source's (to a few millimetres where a limb cannot reach), and the foot lock
+        // adds no skate over the source's own.
+        assert!(
+            mean(&end_ik) < 0.01,
+            "{label}: end effectors {} m off",
+            mean(&end_ik)
+        );
+        assert!(
+            skates[2] <= skates[0] + 1e-3,
+            "{label}: the foot lock skates {} m/frame, the source {}",
+            skates[2],
+            skates[0]
+        );
+        assert!(
+            mean(&errors) < 0.05,
+            "{label}: mapped joints {} of the height off",
+            mean(&errors)
+        );
+    }
+}
+
+/// three.js's name for a glTF node (`PropertyBinding.sanitizeNodeName`): whitespace to `_`,
+/// `[ ] . : /` dropped.
+fn three_name(name: &str) -> String {
+    name.chars()
+        .filter(|c| !"[].:/".contains(*c))
+        .map(|c| if c.is_whitespace() { '_' } else { c })
+        .collect()
+}
+
+/// Chromium's flags for WebGL without a GPU.
+const WEBGL: [&str; 3] = [
+    "--use-angle=swiftshader",
+    "--enable-unsafe-swiftshader",
+    "--virtual-time-budget=15000",
+];
+
+#[test]
+fn three_js_loads_plays_and_shows_each_character_where_its_joints_are() {
+    let dir = tempfile::tempdir().unwrap();
+    let three = npm_modules().join("three");
+    let base = common::static_server::serve(vec![
+        ("/three/".into(), three),
+        ("/page/".into(), repo("tests/gltf")),
+        ("/files/".into(), dir.path().to_path_buf()),
+    ]);
+    let all = rigs();
+    for (label, rig) in [&all[1], &all[3]] {
+        let file = dir.path().join("scene.glb");
+        let people = write_pair(rig, &file);
+        let frame = 60;
+        let time = frame as f64 / 30.0;
+        let posed: Vec<Vec<Vec3>> = people
+            .iter()
+            .map(|p| rig.posed_positions(&p[frame]))
+            .collect();
+        // The camera: looking across the line between the two, a little from above.
+        let pelvis = JointMap::builtin().resolve_partial(rig.names())[0].unwrap();
+        let (a, b) = (posed[0][pelvis], posed[1][pelvis]);
+        let centre: Vec3 = std::array::from_fn(|d| 0.5 * (a[d] + b[d]));
+        let yaw = (-(b[2] - a[2])).atan2(b[0] - a[0]);
+        let (pitch, distance) = (12f64.to_radians(), 4.5);
+        let camera = troupe::viewer::Camera {
+            target: centre.map(|v| v as f32),
+            yaw_deg: yaw.to_degrees() as f32,
+            pitch_deg: pitch.to_degrees() as f32,
+            distance: distance as f32,
+            fov_deg: 45.0,
+        };
+        let eye = [
+            centre[0] + distance * pitch.cos() * yaw.sin(),
+            centre[1] + distance * pitch.sin(),
+            centre[2] + distance * pitch.cos() * yaw.cos(),
+        ];
+        let list = |v: Vec3| format!("{},{},{}", v[0], v[1], v[2]);
+        let url = format!(
+            "{base}/page/three.html?file=/files/scene.glb&time={time}&eye={}&target={}&fov=45",
+            list(eye),
+            list(centre)
+        );
+        let dom = common::pictures::dump_dom(&url, &WEBGL);
+        let start = dom.find("<pre id=\"report\">").expect("the page's report") + 17;
+        let text = &dom[start..start + dom[start..].find("</pre>").unwrap()];
+        let report: serde_json::Value = serde_json::from_str(text)
+            .unwrap_or_else(|e| panic!("{label}: three.js did not load the file ({e}): {text}"));
+        assert_eq!(report["animations"], 1, "{label}");
+        assert_eq!(report["skinned"], 2, "{label}: one skinned body per person");
+        let mut worst: f64 = 0.0;
+        for (k, person) in ["actor", "reactor"].iter().enumerate() {
+            for (j, name) in rig.names().iter().enumerate() {
+                let key = three_name(&format!("{person}_{name}"));
+                let got = &report["bones"][&key];
+                let got: Vec3 = std::array::from_fn(|d| {
+                    got[d]
+                        .as_f64()
+                        .unwrap_or_else(|| panic!("{label}: no bone {key}"))
+                });
+                worst = worst.max(norm(sub(got, posed[k][j])));
+            }
+        }
+        println!("{label}: three.js bones vs troupe, worst {worst:.2e} m");
+        assert!(
+            worst < 1e-4,
+            "{label}: a bone {worst} m from where troupe put it"
+        );
+
+        let shot = dir.path().join("three.png");
+        let slug: String = label
+            .chars()
+            .map(|c| if c.is_ascii_alphanumeric() { c } else { '-' })
+            .collect();
+        let image = common::pictures::screenshot_url(&url, &WEBGL, &shot, &format!("three-{slug}"));
+        // Lit, the bodies are shades of their colours: blue has more blue than red, orange more
+        // red than blue; the background is white.
+        let blue = |c: [u8; 3]| i32::from(c[2]) > i32::from(c[0]) + 40;
+        let orange = |c: [u8; 3]| i32::from(c[0]) > i32::from(c[2]) + 60;
+        for (k, is_colour) in [(0usize, &blue as &dyn Fn([u8; 3]) -> bool), (1, &orange)] {
+            let joints: Vec<[f64; 2]> = JointMap::builtin()
+                .resolve_partial(rig.names())
+                .iter()
+                .flatten()
+                .map(|&j| {
+                    common::pictures::project(&camera, posed[k][j].map(|v| v as f32), 800.0, 600.0)
+                        .unwrap()
+                })
+                .collect();
+            let found = joints
+                .iter()
+                .filter(|p| {
+                    let (x, y) = (p[0] as i64, p[1] as i64);
+                    (-6..=6).any(|dy| {
+                        (-6..=6).any(|dx| image.at(x + dx, y + dy).is_some_and(is_colour))
+                    })
+                })
+                .count();
+            let pixels: Vec<[f64; 2]> = (0..image.height)
+                .flat_map(|y| (0..image.width).map(move |x| (x, y)))
+                .filter(|&(x, y)| is_colour(image.rgb[y * image.width + x]))
+                .map(|(x, y)| [x as f64, y as f64])
+                .collect();
+            let mean = |v: &[[f64; 2]], d: usize| {
+                v.iter().map(|p| p[d]).sum::<f64>() / v.len().max(1) as f64
+            };
+            let off = ((mean(&pixels, 0) - mean(&joints, 0)).powi(2)
+                + (mean(&pixels, 1) - mean(&joints, 1)).powi(2))
+            .sqrt();
+            println!(
+                "{label}, person {k}: {found}/{} joints on its colour, {} pixels, centroid {off:.1} px from the joints'",
+                joints.len(),
+                pixels.len()
+            );
+            assert!(
+                found * 10 >= joints.len() * 9,
+                "{label}, person {k}: {found}/{} joints shown",
+                joints.len()
+            );
+            // (Capsules reach past the end joints: the head, fingers and toes.)
+            assert!(
+                off < 40.0,
+                "{label}, person {k}: the body is {off} px from its joints"
+            );
+        }
+    }
+}
+
+/// The Python interpreter with Blender's `bpy`: `TROUPE_BLENDER_PYTHON`, else the environment
+/// `scripts/test.sh` makes in `target/blender`; `None` (a counted skip, a failure under CI)
+/// without one.
+fn blender_python(test: &str) -> Option<PathBuf> {
+    let python = std::env::var_os("TROUPE_BLENDER_PYTHON")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| common::target_dir().join("blender/bin/python3"));
+    let works = Command::new(&python)
+        .args(["-c", "import bpy"])
+        .output()
+        .is_ok_and(|o| o.status.success());
+    if works {
+        return Some(python);
+    }
+    assert!(
+        std::env::var_os("CI").is_none_or(|v| v.is_empty()),
+        "{} cannot import bpy and CI is set: {test} is required there (scripts/test.sh installs \
+         bpy into target/blender)",
+        python.display()
+    );
+    common::skip(test, &format!("{} cannot import bpy", python.display()));
+    None
+}
+
+/// Blender's report on a file: bone heads per frame.
+fn blender_heads(python: &Path, args: &[String]) -> serde_json::Value {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("report.json");
+    let mut all: Vec<String> = vec![repo("tests/gltf/blender_check.py").display().to_string()];
+    all.push(args[0].clone());
+    all.push(args[1].clone());
+    all.push(out.display().to_string());
+    all.extend(args[2..].iter().cloned());
+    common::run_ok(Command::new(python).args(&all));
+    serde_json::from_str(&std::fs::read_to_string(&out).unwrap()).unwrap()
+}
+
+/// The worst distance between Blender's bone heads and troupe's joints.
+fn worst_head(report: &serde_json::Value, frame: usize, expected: &[(String, Vec3)]) -> f64 {
+    expected
+        .iter()
+        .map(|(name, want)| {
+            let got = &report["frames"][frame.to_string()][name];
+            let got: Vec3 = std::array::from_fn(|d| {
+                got[d]
+                    .as_f64()
+                    .unwrap_or_else(|| panic!("Blender has no bone {name}"))
+            });
+            norm(sub(got, *want))
+        })
+        .fold(0.0, f64::max)
+}
+
+#[test]
+fn blender_imports_the_glb_and_the_bvh_and_puts_every_bone_where_troupe_did() {
+    let Some(python) =
+        blender_python("blender_imports_the_glb_and_the_bvh_and_puts_every_bone_where_troupe_did")
+    else {
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let all = rigs();
+    let frames = [0usize, 30, 60, 95];
+    for (label, rig) in [&all[1], &all[3]] {
+        let glb = dir.path().join("scene.glb");
+        let people = write_pair(rig, &glb);
+        let mut args = vec!["gltf".to_string(), glb.display().to_string(), "30".into()];
+        args.extend(frames.iter().map(|f| f.to_string()));
+        let report = blender_heads(&python, &args);
+        // (Blender's importer may gather both skeletons into one armature.)
+        assert!(
+            report["armatures"].as_u64() >= Some(1),
+            "{label}: no armature"
+        );
+        assert_eq!(
+            report["meshes"], 2,
+            "{label}: one body per person: {}",
+            report["objects"]
+        );
+        for &frame in &frames {
+            let expected: Vec<(String, Vec3)> = ["actor", "reactor"]
+                .iter()
+                .zip(&people)
+                .flat_map(|(person, poses)| {
+                    let posed = rig.posed_positions(&poses[frame]);
+                    rig.names()
+                        .iter()
+                        .zip(posed)
+                        .map(move |(n, p)| (format!("{person}_{n}"), p))
+                        .collect::<Vec<_>>()
+                })
+                .collect();
+            let worst = worst_head(&report, frame, &expected);
+            println!(
+                "{label}, glTF in Blender {}, frame {frame}: worst bone {:.2e} m",
+                report["blender"], worst
+            );
+            assert!(
+                worst < 1e-3,
+                "{label}, frame {frame}: a bone {worst} m from troupe's joint"
+            );
+        }
+
+        let bvh = dir.path().join("actor.bvh");
+        troupe::motion::bvh::write_rig_bvh_file(
+            &bvh,
+            rig,
+            &people[0],
+            &troupe::motion::bvh::BvhWriteOptions::default(),
+        )
+        .unwrap();
+        let mut args = vec![
+            "bvh".to_string(),
+            bvh.display().to_string(),
+            "30".into(),
+            "0.01".into(),
+        ];
+        args.extend(frames.iter().map(|f| f.to_string()));
+        let report = blender_heads(&python, &args);
+        for &frame in &frames {
+            let posed = rig.posed_positions(&people[0][frame]);
+            let expected: Vec<(String, Vec3)> = rig.names().iter().cloned().zip(posed).collect();
+            let worst = worst_head(&report, frame, &expected);
+            println!("{label}, BVH in Blender, frame {frame}: worst bone {worst:.2e} m");
+            assert!(
+                worst < 1e-3,
+                "{label}, frame {frame}: a bone {worst} m from troupe's joint"
+            );
+        }
+    }
+}
