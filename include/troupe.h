@@ -98,12 +98,13 @@ extern "C" {
  *    6. Session
  *    7. Text prompts
  *    8. Motion
- *    9. ARMFlow
- *   10. UMF
- *   11. MAGNet
- *   12. ARFlow
- *   13. Viewer
- *   14. Deprecated names
+ *    9. Rigs and glTF
+ *   10. ARMFlow
+ *   11. UMF
+ *   12. MAGNet
+ *   13. ARFlow
+ *   14. Viewer
+ *   15. Deprecated names
  */
 
 /* ============================================================================================
@@ -1498,7 +1499,184 @@ troupe_status troupe_bvh_write(const char *path, const float *positions, size_t 
 troupe_status troupe_motion_write_json(const char *path, const float *positions, size_t n_people, size_t n_frames, const struct troupe_joints_format *format, const char *const *names);
 
 /* ============================================================================================
- * 9. ARMFlow
+ * 9. Rigs and glTF
+ *
+ * A caller's character rig, troupe's motion retargeted onto it frame by frame or as a clip,
+ * and glTF (.glb) and BVH files of it.
+ * ============================================================================================ */
+
+/**
+ * `troupe_rig_from_bvh`: the rest pose is the file's all-zero pose (its offsets).
+ */
+#define TROUPE_RIG_ZERO_POSE 4294967295
+
+/**
+ * Retargeting flag: do not pin feet in contact.
+ */
+#define TROUPE_RETARGET_NO_FOOT_LOCK 1
+
+/**
+ * Retargeting flag: no two-bone IK for hands and feet (feet are then not pinned either).
+ */
+#define TROUPE_RETARGET_NO_LIMB_IK 2
+
+/**
+ * `troupe_gltf_write` flag: no capsule bodies, the skeletons only.
+ */
+#define TROUPE_GLTF_NO_BODIES 4
+
+/**
+ * A character rig with the joint map that says which of its joints is which t2m-22 joint.
+ * Immutable: any thread may use it. Free with `troupe_rig_free`.
+ */
+typedef struct troupe_rig troupe_rig;
+
+/**
+ * Retargeting one stream onto a rig, one frame at a time; used from one thread at a time (a
+ * call while another thread uses it fails with `TROUPE_ERR_BUSY`). Free with
+ * `troupe_rig_retargeter_free`; it does not need its rig afterwards.
+ */
+typedef struct troupe_rig_retargeter troupe_rig_retargeter;
+
+/**
+ * Reads the rig of the BVH file at `path` (UTF-8). `units`: the file's length unit
+ * (`TROUPE_UNITS_*`, or `TROUPE_UNITS_AUTO` to guess from the rest pose's height).
+ * `rest_frame`: the frame whose pose is the rig's rest pose (for files whose all-zero pose lies
+ * down, as LAFAN1's does), or `TROUPE_RIG_ZERO_POSE`. `joint_map_json`: which rig joint is
+ * which t2m-22 joint (JSON), or NULL for the built-in names (Mixamo, LAFAN1, CMU, HumanIK,
+ * SMPL, Rigify). `*out` is set to NULL on entry and to the rig on success.
+ *
+ * Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_IO`, `TROUPE_ERR_INVALID_ARG` (a
+ * malformed file, a frame past its end, a bad map or units), `TROUPE_ERR_PANIC`. Thread-safe.
+ *
+ * # Safety
+ * `path` and a non-NULL `joint_map_json` NUL-terminated; `out` writable.
+ */
+troupe_status troupe_rig_from_bvh(const char *path, uint32_t units, uint32_t rest_frame, const char *joint_map_json, struct troupe_rig **out);
+
+/**
+ * A rig from its JSON document (`rig_json`: name, units, up axis, handedness, and joints with
+ * parent, rest offset, optional rest rotation `[w, x, y, z]` and end site; see docs/RIGS.md),
+ * with `joint_map_json` as in `troupe_rig_from_bvh`. `*out` is set to NULL on entry and to the
+ * rig on success.
+ *
+ * Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (a malformed document or
+ * map, naming what is wrong), `TROUPE_ERR_PANIC`. Thread-safe.
+ *
+ * # Safety
+ * `rig_json` and a non-NULL `joint_map_json` NUL-terminated; `out` writable.
+ */
+troupe_status troupe_rig_from_json(const char *rig_json, const char *joint_map_json, struct troupe_rig **out);
+
+/**
+ * Joints of a rig; 0 for NULL. Thread-safe.
+ */
+size_t troupe_rig_joint_count(const struct troupe_rig *rig);
+
+/**
+ * The name of joint `joint` of a rig (UTF-8, owned by the rig, valid until it is freed), or
+ * NULL for NULL or a joint past the end. Thread-safe.
+ */
+const char *troupe_rig_joint_name(const struct troupe_rig *rig, size_t joint);
+
+/**
+ * Frees a rig. NULL is a no-op.
+ *
+ * # Safety
+ * `rig` NULL or a live handle from `troupe_rig_from_*`, not used afterwards.
+ */
+void troupe_rig_free(struct troupe_rig *rig);
+
+/**
+ * A retargeter of one stream onto `rig`: the stream's t2m-22 joint positions are in the
+ * caller's world as `format` says (its `fps` sets contact speeds); `flags` is 0 or
+ * `TROUPE_RETARGET_*` bits. `*out` is set to NULL on entry and to the retargeter on success.
+ *
+ * Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (a rig lacking a joint
+ * retargeting needs, naming it and the names tried; a bad format or flags), `TROUPE_ERR_PANIC`.
+ * Thread-safe.
+ *
+ * # Safety
+ * `format` readable; `out` writable.
+ */
+troupe_status troupe_rig_retargeter_new(const struct troupe_rig *rig, const struct troupe_joints_format *format, uint32_t flags, struct troupe_rig_retargeter **out);
+
+/**
+ * Poses the rig for the stream's next frame: `positions` holds its 22 t2m-22 joint positions
+ * (`positions_len` = 66) in the caller's world; writes every rig joint's local rotation as
+ * `[w, x, y, z]` in the rig's axes into `rotations` (`rotations_len` = joints × 4), the moving
+ * joint's local translation (rig units and axes) into `root_translation` (3 floats), and that
+ * joint's index into `*root_joint`. No latency: the pose is this frame's.
+ *
+ * Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_SHAPE` (other lengths),
+ * `TROUPE_ERR_INVALID_ARG` (NaN or infinite positions; the stream is then unchanged),
+ * `TROUPE_ERR_BUSY`, `TROUPE_ERR_PANIC`. One thread at a time per retargeter.
+ *
+ * # Safety
+ * `retargeter` a live handle; `positions` readable for `positions_len` floats; `rotations`
+ * writable for `rotations_len` floats; `root_translation` writable for 3 floats; `root_joint`
+ * writable.
+ */
+troupe_status troupe_rig_retarget_push(struct troupe_rig_retargeter *retargeter, const float *positions, size_t positions_len, float *rotations, size_t rotations_len, float *root_translation, size_t *root_joint);
+
+/**
+ * Forgets the stream (foot pins, the previous frame), as if new.
+ *
+ * Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_BUSY`. One thread at a time per
+ * retargeter.
+ *
+ * # Safety
+ * `retargeter` a live handle.
+ */
+troupe_status troupe_rig_retarget_reset(struct troupe_rig_retargeter *retargeter);
+
+/**
+ * Frees a retargeter. NULL is a no-op.
+ *
+ * # Safety
+ * `retargeter` NULL or a live handle from `troupe_rig_retargeter_new`, not used afterwards.
+ */
+void troupe_rig_retargeter_free(struct troupe_rig_retargeter *retargeter);
+
+/**
+ * Writes a glTF 2.0 binary file (`.glb`) at `path` (UTF-8; atomically): `n_people` people,
+ * each retargeted onto `rig` (NULL: troupe's own t2m-22 body) from t2m-22 joint positions
+ * `positions`, float32 `[n_people][n_frames][22][3]` in the caller's world as `format` says (its
+ * `fps` becomes the animation's rate). Each person is a skeleton of nodes with a skin, a skinned
+ * capsule body (unless `TROUPE_GLTF_NO_BODIES`) coloured per person, and channels of one
+ * animation; `names` (NULL, or NULL entries, for "person1", ...) prefix node names when there
+ * are several people (at most 64). `flags`: 0 or `TROUPE_RETARGET_*` and `TROUPE_GLTF_*` bits.
+ * The file is in glTF's axes: metres, +Y up.
+ *
+ * Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (NaN or infinite
+ * positions, no people or frames, a bad format or flags, a rig lacking a joint retargeting
+ * needs, something at `path` that is not a regular file), `TROUPE_ERR_IO`, `TROUPE_ERR_PANIC`.
+ * Thread-safe.
+ *
+ * # Safety
+ * `path` NUL-terminated; `positions` readable for `n_people * n_frames * 66` floats; `format`
+ * readable; a non-NULL `names` readable for `n_people` pointers, each NULL or NUL-terminated.
+ */
+troupe_status troupe_gltf_write(const char *path, const struct troupe_rig *rig, const float *positions, size_t n_people, size_t n_frames, const struct troupe_joints_format *format, const char *const *names, uint32_t flags);
+
+/**
+ * Writes a BVH file at `path` (UTF-8; atomically) of `rig` posed by one person's t2m-22 joint
+ * positions (`positions`, float32 `[n_frames][22][3]` in the caller's world as `format` says;
+ * its `fps` becomes the file's rate), retargeted with `flags` (0 or `TROUPE_RETARGET_*`). The
+ * file has the rig's hierarchy and rest offsets in `units` (`TROUPE_UNITS_*`), Y up; each
+ * joint's channels hold its whole local rotation.
+ *
+ * Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (as
+ * `troupe_gltf_write`; a joint name with spaces or braces), `TROUPE_ERR_IO`,
+ * `TROUPE_ERR_PANIC`. Thread-safe.
+ *
+ * # Safety
+ * `path` NUL-terminated; `positions` readable for `n_frames * 66` floats; `format` readable.
+ */
+troupe_status troupe_rig_bvh_write(const char *path, const struct troupe_rig *rig, const float *positions, size_t n_frames, const struct troupe_joints_format *format, uint32_t units, uint32_t flags);
+
+/* ============================================================================================
+ * 10. ARMFlow
  *
  * Online reaction: joint positions through a session, the penetration guard, the official
  * clip.
@@ -1724,7 +1902,7 @@ troupe_status troupe_session_joints_placement(struct troupe_session *session, st
 size_t troupe_model_joints_latency_frames(const struct troupe_model *model);
 
 /* ============================================================================================
- * 10. UMF
+ * 11. UMF
  *
  * Text to a group of any size.
  * ============================================================================================ */
@@ -1910,7 +2088,7 @@ troupe_status troupe_umf_noise_lengths(const struct troupe_model *model, uint32_
 troupe_status troupe_umf_generate(const struct troupe_model *model, const struct troupe_group_options *options, const float *condition, size_t condition_len, uint32_t people, const struct troupe_group_noise *noise, float *motion, size_t motion_capacity, float *latents, size_t latents_capacity);
 
 /* ============================================================================================
- * 11. MAGNet
+ * 12. MAGNet
  *
  * Multi-agent diffusion forcing: the released tasks, and the live partner's settings.
  * ============================================================================================ */
@@ -2155,7 +2333,7 @@ troupe_status troupe_magnet_session_set_early_emission(struct troupe_session *se
 troupe_status troupe_magnet_session_set_live_config(struct troupe_session *session, const char *config);
 
 /* ============================================================================================
- * 12. ARFlow
+ * 13. ARFlow
  *
  * Action to reaction with penetration guidance, offline and online.
  * ============================================================================================ */
@@ -2297,7 +2475,7 @@ troupe_status troupe_arflow_generate_with_draws(const struct troupe_model *model
 troupe_status troupe_arflow_session_set_options(struct troupe_session *session, const struct troupe_arflow_options *options);
 
 /* ============================================================================================
- * 13. Viewer
+ * 14. Viewer
  *
  * Pictures of motion: a self-contained HTML player and a GIF.
  * ============================================================================================ */
@@ -2334,7 +2512,7 @@ troupe_status troupe_arflow_session_set_options(struct troupe_session *session, 
 troupe_status troupe_viewer_write(const char *html_path, const char *gif_path, const float *positions, size_t n_people, size_t n_frames, const struct troupe_joints_format *format, const char *const *names, const char *title);
 
 /* ============================================================================================
- * 14. Deprecated names
+ * 15. Deprecated names
  *
  * The names before every family call had its family's prefix; each forwards to the function it
  * names. Kept until 2.0.

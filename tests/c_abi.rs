@@ -14,8 +14,8 @@ use std::process::Command;
 
 use common::c_libraries as libs;
 use common::c_programs::{
-    arflow_args, c_programs, clip_args, compile, group_args, magnet_args, motion_args, root, run,
-    scratch, slow_tests, smoke_args, threads_args,
+    arflow_args, c_programs, clip_args, compile, group_args, magnet_args, motion_args, rig_args,
+    root, run, scratch, slow_tests, smoke_args, threads_args,
 };
 
 fn shared_link() -> Vec<String> {
@@ -375,6 +375,25 @@ fn c_motion_as_c99_and_cpp17() {
         "motion_cpp",
     );
     run(&[], &cpp, &[&interhuman, &interx, &dir]);
+}
+
+/// Rigs from BVH and JSON, the streaming retargeter (bad input refused, state kept), glTF and
+/// BVH files on a rig, through the header, as C99 and C++17.
+#[test]
+fn c_rig_as_c99_and_cpp17() {
+    let src = root().join("tests/c/rig.c");
+    let args = rig_args();
+    let args: Vec<&Path> = args.iter().map(PathBuf::as_path).collect();
+    let c = compile("cc", &["-std=c99"], &[&src], &shared_link(), "rig_c");
+    println!("{}", run(&[], &c, &args));
+    let cpp = compile(
+        "c++",
+        &["-std=c++17", "-x", "c++"],
+        &[&src],
+        &shared_link(),
+        "rig_cpp",
+    );
+    run(&[], &cpp, &args);
 }
 
 /// Named conditions (the demo model's partner rules) and reduced-precision graphs through the

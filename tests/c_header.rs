@@ -56,6 +56,12 @@ const SECTIONS: &[(&str, &str, &[&str])] = &[
         &["motion/mod.rs", "motion/bvh.rs", "motion/export.rs"],
     ),
     (
+        "Rigs and glTF",
+        "A caller's character rig, troupe's motion retargeted onto it frame by frame or as a \
+         clip, and glTF (.glb) and BVH files of it.",
+        &["motion/rig.rs"],
+    ),
+    (
         "ARMFlow",
         "Online reaction: joint positions through a session, the penetration guard, the \
          official clip.",

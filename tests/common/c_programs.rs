@@ -136,6 +136,16 @@ pub fn c_programs() -> Vec<(&'static str, Vec<PathBuf>, &'static [&'static str])
             &[],
         ),
         ("viewer", vec![scratch().join("viewer-sanitized")], &[]),
+        ("rig", rig_args().to_vec(), &[]),
+    ]
+}
+
+/// The rig test's arguments: the Mixamo BVH of `bvhtoolbox` (fetched from PyPI), a scratch
+/// folder for the files it writes.
+pub fn rig_args() -> [PathBuf; 2] {
+    [
+        super::pypi_sdist("bvhtoolbox==0.1.3").join("tests/example_files/test_freebvh.bvh"),
+        scratch().to_path_buf(),
     ]
 }
 

@@ -29,7 +29,7 @@ pub struct troupe_bvh {
     format: JointsFormat,
 }
 
-fn units_from(code: u32, what: &str) -> FfiResult<Units> {
+pub(crate) fn units_from(code: u32, what: &str) -> FfiResult<Units> {
     Ok(match code {
         TROUPE_UNITS_METERS => Units::Meters,
         TROUPE_UNITS_CENTIMETERS => Units::Centimeters,

@@ -11,6 +11,7 @@ use ndarray::ArrayView2;
 
 pub mod bvh;
 pub mod export;
+pub mod rig;
 
 use crate::ffi::boundary::{
     self, check_struct_size, checked_mul, non_null, read_versioned, required, troupe_status,

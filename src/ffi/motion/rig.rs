@@ -1,0 +1,528 @@
+//! `troupe_rig_*` and `troupe_gltf_write`: a caller's character rig, troupe's motion retargeted
+//! onto it (one frame at a time or a whole clip), and glTF and BVH files of it.
+
+use std::ffi::{c_char, CString};
+use std::path::Path;
+
+use super::bvh::{units_from, TROUPE_UNITS_AUTO};
+use super::{read_format, read_people, troupe_joints_format};
+use crate::ffi::boundary::{
+    self, non_null, required, troupe_status, Exclusive, FfiError, FfiResult,
+    TROUPE_ERR_INVALID_ARG, TROUPE_ERR_SHAPE,
+};
+use crate::motion::bvh::{read_bvh, write_rig_bvh_file, BvhWriteOptions};
+use crate::motion::features::{read_frame, MAX_CLIP_FRAMES};
+use crate::motion::gltf::PERSON_COLORS;
+use crate::motion::retarget::{retarget_clip, RetargetOptions, Retargeter, SourceFrame};
+use crate::motion::{
+    write_glb_file, GltfOptions, GltfPerson, JointMap, JointsFormat, Rig, Skeleton, T2M22_JOINTS,
+};
+
+/// `troupe_rig_from_bvh`: the rest pose is the file's all-zero pose (its offsets).
+pub const TROUPE_RIG_ZERO_POSE: u32 = 0xFFFF_FFFF;
+/// Retargeting flag: do not pin feet in contact.
+pub const TROUPE_RETARGET_NO_FOOT_LOCK: u32 = 1;
+/// Retargeting flag: no two-bone IK for hands and feet (feet are then not pinned either).
+pub const TROUPE_RETARGET_NO_LIMB_IK: u32 = 2;
+/// `troupe_gltf_write` flag: no capsule bodies, the skeletons only.
+pub const TROUPE_GLTF_NO_BODIES: u32 = 4;
+const KNOWN_FLAGS: u32 =
+    TROUPE_RETARGET_NO_FOOT_LOCK | TROUPE_RETARGET_NO_LIMB_IK | TROUPE_GLTF_NO_BODIES;
+
+/// The most people one glTF file troupe writes may hold.
+const MAX_GLTF_PEOPLE: usize = 64;
+
+/// A character rig with the joint map that says which of its joints is which t2m-22 joint.
+/// Immutable: any thread may use it. Free with `troupe_rig_free`.
+pub struct troupe_rig {
+    rig: Rig,
+    map: JointMap,
+    names: Vec<CString>,
+}
+
+/// Retargeting one stream onto a rig, one frame at a time; used from one thread at a time (a
+/// call while another thread uses it fails with `TROUPE_ERR_BUSY`). Free with
+/// `troupe_rig_retargeter_free`; it does not need its rig afterwards.
+pub struct troupe_rig_retargeter {
+    state: Exclusive<(Retargeter, JointsFormat)>,
+    joints: usize,
+}
+
+fn joint_map(json: *const c_char) -> FfiResult<JointMap> {
+    if json.is_null() {
+        return Ok(JointMap::builtin());
+    }
+    // SAFETY: a non-NULL `joint_map_json` is NUL-terminated per every caller's contract.
+    Ok(JointMap::from_json(unsafe {
+        boundary::required_str(json, "joint_map_json")
+    }?)?)
+}
+
+fn options_from(flags: u32, fps: f32) -> FfiResult<RetargetOptions> {
+    if flags & !KNOWN_FLAGS != 0 {
+        return Err(FfiError::new(
+            TROUPE_ERR_INVALID_ARG,
+            format!("flags {flags:#x} has bits that are not TROUPE_RETARGET_* or TROUPE_GLTF_*"),
+        ));
+    }
+    Ok(RetargetOptions {
+        foot_lock: flags & TROUPE_RETARGET_NO_FOOT_LOCK == 0,
+        limb_ik: flags & TROUPE_RETARGET_NO_LIMB_IK == 0,
+        fps,
+        ..RetargetOptions::default()
+    })
+}
+
+fn new_rig(rig: Rig, map: JointMap) -> FfiResult<*mut troupe_rig> {
+    let names = rig
+        .names()
+        .iter()
+        .map(|n| {
+            CString::new(n.as_str()).map_err(|_| {
+                FfiError::new(
+                    TROUPE_ERR_INVALID_ARG,
+                    format!("joint name {n:?} holds a NUL"),
+                )
+            })
+        })
+        .collect::<FfiResult<_>>()?;
+    Ok(Box::into_raw(Box::new(troupe_rig { rig, map, names })))
+}
+
+/// Reads the rig of the BVH file at `path` (UTF-8). `units`: the file's length unit
+/// (`TROUPE_UNITS_*`, or `TROUPE_UNITS_AUTO` to guess from the rest pose's height).
+/// `rest_frame`: the frame whose pose is the rig's rest pose (for files whose all-zero pose lies
+/// down, as LAFAN1's does), or `TROUPE_RIG_ZERO_POSE`. `joint_map_json`: which rig joint is
+/// which t2m-22 joint (JSON), or NULL for the built-in names (Mixamo, LAFAN1, CMU, HumanIK,
+/// SMPL, Rigify). `*out` is set to NULL on entry and to the rig on success.
+///
+/// Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_IO`, `TROUPE_ERR_INVALID_ARG` (a
+/// malformed file, a frame past its end, a bad map or units), `TROUPE_ERR_PANIC`. Thread-safe.
+///
+/// # Safety
+/// `path` and a non-NULL `joint_map_json` NUL-terminated; `out` writable.
+#[no_mangle]
+pub unsafe extern "C" fn troupe_rig_from_bvh(
+    path: *const c_char,
+    units: u32,
+    rest_frame: u32,
+    joint_map_json: *const c_char,
+    out: *mut *mut troupe_rig,
+) -> troupe_status {
+    boundary::call(
+        "troupe_rig_from_bvh",
+        || {},
+        || {
+            non_null(out, "out")?;
+            // SAFETY: checked non-NULL, writable per the contract.
+            unsafe { *out = std::ptr::null_mut() };
+            // SAFETY: forwarded contract.
+            let path = unsafe { boundary::required_str(path, "path") }?;
+            let units = match units {
+                TROUPE_UNITS_AUTO => None,
+                code => Some(units_from(code, "units")?),
+            };
+            let map = joint_map(joint_map_json)?;
+            let bvh = read_bvh(path)?;
+            let rig = match rest_frame {
+                TROUPE_RIG_ZERO_POSE => Rig::from_bvh(&bvh, units, path)?,
+                frame => Rig::from_bvh_frame(&bvh, frame as usize, units, path)?,
+            };
+            let handle = new_rig(rig, map)?;
+            // SAFETY: as above.
+            unsafe { *out = handle };
+            Ok(())
+        },
+    )
+}
+
+/// A rig from its JSON document (`rig_json`: name, units, up axis, handedness, and joints with
+/// parent, rest offset, optional rest rotation `[w, x, y, z]` and end site; see docs/RIGS.md),
+/// with `joint_map_json` as in `troupe_rig_from_bvh`. `*out` is set to NULL on entry and to the
+/// rig on success.
+///
+/// Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (a malformed document or
+/// map, naming what is wrong), `TROUPE_ERR_PANIC`. Thread-safe.
+///
+/// # Safety
+/// `rig_json` and a non-NULL `joint_map_json` NUL-terminated; `out` writable.
+#[no_mangle]
+pub unsafe extern "C" fn troupe_rig_from_json(
+    rig_json: *const c_char,
+    joint_map_json: *const c_char,
+    out: *mut *mut troupe_rig,
+) -> troupe_status {
+    boundary::call(
+        "troupe_rig_from_json",
+        || {},
+        || {
+            non_null(out, "out")?;
+            // SAFETY: checked non-NULL, writable per the contract.
+            unsafe { *out = std::ptr::null_mut() };
+            // SAFETY: forwarded contract.
+            let text = unsafe { boundary::required_str(rig_json, "rig_json") }?;
+            let rig = Rig::from_json(text)?;
+            let handle = new_rig(rig, joint_map(joint_map_json)?)?;
+            // SAFETY: as above.
+            unsafe { *out = handle };
+            Ok(())
+        },
+    )
+}
+
+/// Joints of a rig; 0 for NULL. Thread-safe.
+#[no_mangle]
+pub extern "C" fn troupe_rig_joint_count(rig: Option<&troupe_rig>) -> usize {
+    boundary::get(0, || rig.map_or(0, |r| r.rig.len()))
+}
+
+/// The name of joint `joint` of a rig (UTF-8, owned by the rig, valid until it is freed), or
+/// NULL for NULL or a joint past the end. Thread-safe.
+#[no_mangle]
+pub extern "C" fn troupe_rig_joint_name(rig: Option<&troupe_rig>, joint: usize) -> *const c_char {
+    boundary::get(std::ptr::null(), || {
+        rig.and_then(|r| r.names.get(joint))
+            .map_or(std::ptr::null(), |n| n.as_ptr())
+    })
+}
+
+/// Frees a rig. NULL is a no-op.
+///
+/// # Safety
+/// `rig` NULL or a live handle from `troupe_rig_from_*`, not used afterwards.
+#[no_mangle]
+pub unsafe extern "C" fn troupe_rig_free(rig: *mut troupe_rig) {
+    if !rig.is_null() {
+        // SAFETY: a live handle from Box::into_raw per the contract.
+        boundary::get((), || drop(unsafe { Box::from_raw(rig) }));
+    }
+}
+
+/// A retargeter of one stream onto `rig`: the stream's t2m-22 joint positions are in the
+/// caller's world as `format` says (its `fps` sets contact speeds); `flags` is 0 or
+/// `TROUPE_RETARGET_*` bits. `*out` is set to NULL on entry and to the retargeter on success.
+///
+/// Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (a rig lacking a joint
+/// retargeting needs, naming it and the names tried; a bad format or flags), `TROUPE_ERR_PANIC`.
+/// Thread-safe.
+///
+/// # Safety
+/// `format` readable; `out` writable.
+#[no_mangle]
+pub unsafe extern "C" fn troupe_rig_retargeter_new(
+    rig: Option<&troupe_rig>,
+    format: *const troupe_joints_format,
+    flags: u32,
+    out: *mut *mut troupe_rig_retargeter,
+) -> troupe_status {
+    boundary::call(
+        "troupe_rig_retargeter_new",
+        || {},
+        || {
+            non_null(out, "out")?;
+            // SAFETY: checked non-NULL, writable per the contract.
+            unsafe { *out = std::ptr::null_mut() };
+            let rig = required(rig, "rig")?;
+            // SAFETY: forwarded contract.
+            let format = unsafe { read_format(format) }?;
+            let options = options_from(flags, format.fps)?;
+            if flags & TROUPE_GLTF_NO_BODIES != 0 {
+                return Err(FfiError::new(
+                    TROUPE_ERR_INVALID_ARG,
+                    "TROUPE_GLTF_NO_BODIES is a flag of troupe_gltf_write",
+                ));
+            }
+            let retargeter = Retargeter::new(&rig.rig, &rig.map, &Skeleton::t2m22(), options)?;
+            let handle = Box::new(troupe_rig_retargeter {
+                joints: rig.rig.len(),
+                state: Exclusive::new((retargeter, format)),
+            });
+            // SAFETY: as above.
+            unsafe { *out = Box::into_raw(handle) };
+            Ok(())
+        },
+    )
+}
+
+/// Poses the rig for the stream's next frame: `positions` holds its 22 t2m-22 joint positions
+/// (`positions_len` = 66) in the caller's world; writes every rig joint's local rotation as
+/// `[w, x, y, z]` in the rig's axes into `rotations` (`rotations_len` = joints × 4), the moving
+/// joint's local translation (rig units and axes) into `root_translation` (3 floats), and that
+/// joint's index into `*root_joint`. No latency: the pose is this frame's.
+///
+/// Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_SHAPE` (other lengths),
+/// `TROUPE_ERR_INVALID_ARG` (NaN or infinite positions; the stream is then unchanged),
+/// `TROUPE_ERR_BUSY`, `TROUPE_ERR_PANIC`. One thread at a time per retargeter.
+///
+/// # Safety
+/// `retargeter` a live handle; `positions` readable for `positions_len` floats; `rotations`
+/// writable for `rotations_len` floats; `root_translation` writable for 3 floats; `root_joint`
+/// writable.
+#[no_mangle]
+pub unsafe extern "C" fn troupe_rig_retarget_push(
+    retargeter: *mut troupe_rig_retargeter,
+    positions: *const f32,
+    positions_len: usize,
+    rotations: *mut f32,
+    rotations_len: usize,
+    root_translation: *mut f32,
+    root_joint: *mut usize,
+) -> troupe_status {
+    boundary::call(
+        "troupe_rig_retarget_push",
+        || {},
+        || {
+            // SAFETY: NULL or a live handle per the contract; shared access until claimed.
+            let handle = required(unsafe { retargeter.as_ref() }, "retargeter")?;
+            non_null(root_translation, "root_translation")?;
+            non_null(root_joint, "root_joint")?;
+            non_null(rotations, "rotations")?;
+            let mut state = handle.state.claim("the retargeter")?;
+            if positions_len != 3 * T2M22_JOINTS {
+                return Err(FfiError::new(
+                    TROUPE_ERR_SHAPE,
+                    format!("positions_len is {positions_len}, a t2m-22 frame has 66 floats"),
+                ));
+            }
+            if rotations_len != 4 * handle.joints {
+                return Err(FfiError::new(
+                    TROUPE_ERR_SHAPE,
+                    format!(
+                        "rotations_len is {rotations_len}, the rig's {} joints need {}",
+                        handle.joints,
+                        4 * handle.joints
+                    ),
+                ));
+            }
+            // SAFETY: forwarded contract.
+            let flat = unsafe { boundary::slice(positions, positions_len, "positions") }?;
+            let (retargeter, format) = &mut *state;
+            let view =
+                ndarray::ArrayView2::from_shape((T2M22_JOINTS, 3), flat).expect("length checked");
+            let frame = read_frame(format, view, "positions")?;
+            let pose = retargeter.push(&SourceFrame {
+                positions: &frame,
+                rotations: None,
+                contacts: None,
+            })?;
+            for (j, q) in pose.rotations.iter().enumerate() {
+                let v = [q.w, q.x, q.y, q.z].map(|x| x as f32);
+                // SAFETY: writable for 4 × joints floats, checked above.
+                unsafe { std::ptr::copy_nonoverlapping(v.as_ptr(), rotations.add(4 * j), 4) };
+            }
+            let t = pose.root_translation.map(|x| x as f32);
+            // SAFETY: writable for 3 floats and one index per the contract.
+            unsafe {
+                std::ptr::copy_nonoverlapping(t.as_ptr(), root_translation, 3);
+                *root_joint = pose.root;
+            }
+            Ok(())
+        },
+    )
+}
+
+/// Forgets the stream (foot pins, the previous frame), as if new.
+///
+/// Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_BUSY`. One thread at a time per
+/// retargeter.
+///
+/// # Safety
+/// `retargeter` a live handle.
+#[no_mangle]
+pub unsafe extern "C" fn troupe_rig_retarget_reset(
+    retargeter: *mut troupe_rig_retargeter,
+) -> troupe_status {
+    boundary::call(
+        "troupe_rig_retarget_reset",
+        || {},
+        || {
+            // SAFETY: NULL or a live handle per the contract; shared access until claimed.
+            let handle = required(unsafe { retargeter.as_ref() }, "retargeter")?;
+            handle.state.claim("the retargeter")?.0.reset();
+            Ok(())
+        },
+    )
+}
+
+/// Frees a retargeter. NULL is a no-op.
+///
+/// # Safety
+/// `retargeter` NULL or a live handle from `troupe_rig_retargeter_new`, not used afterwards.
+#[no_mangle]
+pub unsafe extern "C" fn troupe_rig_retargeter_free(retargeter: *mut troupe_rig_retargeter) {
+    // SAFETY: forwarded contract.
+    unsafe { boundary::free_unless_busy(retargeter, |h| &h.state, "troupe_rig_retargeter_free") }
+}
+
+/// One person's frames of t2m-22 positions in troupe's axes.
+type Clip = Vec<Vec<crate::motion::vec3::Vec3>>;
+
+/// Each person's clip in troupe's axes, checked (`[n_people][n_frames][22][3]` in `format`).
+///
+/// # Safety
+/// As `read_people`.
+unsafe fn canonical_people(
+    positions: *const f32,
+    n_people: usize,
+    n_frames: usize,
+    format: &JointsFormat,
+    names: *const *const c_char,
+    max_people: usize,
+) -> FfiResult<(Vec<String>, Vec<Clip>)> {
+    // SAFETY: forwarded contract.
+    let people = unsafe {
+        read_people(
+            positions,
+            n_people,
+            n_frames,
+            names,
+            max_people,
+            MAX_CLIP_FRAMES,
+        )
+    }?;
+    let clips = people
+        .positions
+        .iter()
+        .enumerate()
+        .map(|(i, person)| {
+            person
+                .outer_iter()
+                .enumerate()
+                .map(|(t, frame)| read_frame(format, frame, &format!("person {i}, frame {t}")))
+                .collect::<crate::Result<Vec<_>>>()
+        })
+        .collect::<crate::Result<Vec<_>>>()?;
+    Ok((people.names, clips))
+}
+
+/// Writes a glTF 2.0 binary file (`.glb`) at `path` (UTF-8; atomically): `n_people` people,
+/// each retargeted onto `rig` (NULL: troupe's own t2m-22 body) from t2m-22 joint positions
+/// `positions`, float32 `[n_people][n_frames][22][3]` in the caller's world as `format` says (its
+/// `fps` becomes the animation's rate). Each person is a skeleton of nodes with a skin, a skinned
+/// capsule body (unless `TROUPE_GLTF_NO_BODIES`) coloured per person, and channels of one
+/// animation; `names` (NULL, or NULL entries, for "person1", ...) prefix node names when there
+/// are several people (at most 64). `flags`: 0 or `TROUPE_RETARGET_*` and `TROUPE_GLTF_*` bits.
+/// The file is in glTF's axes: metres, +Y up.
+///
+/// Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (NaN or infinite
+/// positions, no people or frames, a bad format or flags, a rig lacking a joint retargeting
+/// needs, something at `path` that is not a regular file), `TROUPE_ERR_IO`, `TROUPE_ERR_PANIC`.
+/// Thread-safe.
+///
+/// # Safety
+/// `path` NUL-terminated; `positions` readable for `n_people * n_frames * 66` floats; `format`
+/// readable; a non-NULL `names` readable for `n_people` pointers, each NULL or NUL-terminated.
+#[no_mangle]
+#[allow(clippy::too_many_arguments)]
+pub unsafe extern "C" fn troupe_gltf_write(
+    path: *const c_char,
+    rig: Option<&troupe_rig>,
+    positions: *const f32,
+    n_people: usize,
+    n_frames: usize,
+    format: *const troupe_joints_format,
+    names: *const *const c_char,
+    flags: u32,
+) -> troupe_status {
+    boundary::call(
+        "troupe_gltf_write",
+        || {},
+        || {
+            // SAFETY (all): forwarded contract.
+            let path = unsafe { boundary::required_str(path, "path") }?;
+            let format = unsafe { read_format(format) }?;
+            let options = options_from(flags, format.fps)?;
+            let (names, clips) = unsafe {
+                canonical_people(
+                    positions,
+                    n_people,
+                    n_frames,
+                    &format,
+                    names,
+                    MAX_GLTF_PEOPLE,
+                )
+            }?;
+            let own;
+            let (rig, map) = match rig {
+                Some(r) => (&r.rig, &r.map),
+                None => {
+                    own = (Rig::t2m22(), JointMap::builtin());
+                    (&own.0, &own.1)
+                }
+            };
+            let poses = clips
+                .iter()
+                .map(|clip| retarget_clip(rig, map, clip, None, options))
+                .collect::<crate::Result<Vec<_>>>()?;
+            let people: Vec<GltfPerson> = names
+                .iter()
+                .zip(&poses)
+                .enumerate()
+                .map(|(k, (name, poses))| GltfPerson {
+                    name,
+                    rig,
+                    poses,
+                    color: PERSON_COLORS[k % PERSON_COLORS.len()],
+                })
+                .collect();
+            let gltf = GltfOptions {
+                fps: format.fps,
+                bodies: flags & TROUPE_GLTF_NO_BODIES == 0,
+            };
+            write_glb_file(Path::new(path), &people, &gltf)?;
+            Ok(())
+        },
+    )
+}
+
+/// Writes a BVH file at `path` (UTF-8; atomically) of `rig` posed by one person's t2m-22 joint
+/// positions (`positions`, float32 `[n_frames][22][3]` in the caller's world as `format` says;
+/// its `fps` becomes the file's rate), retargeted with `flags` (0 or `TROUPE_RETARGET_*`). The
+/// file has the rig's hierarchy and rest offsets in `units` (`TROUPE_UNITS_*`), Y up; each
+/// joint's channels hold its whole local rotation.
+///
+/// Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (as
+/// `troupe_gltf_write`; a joint name with spaces or braces), `TROUPE_ERR_IO`,
+/// `TROUPE_ERR_PANIC`. Thread-safe.
+///
+/// # Safety
+/// `path` NUL-terminated; `positions` readable for `n_frames * 66` floats; `format` readable.
+#[no_mangle]
+pub unsafe extern "C" fn troupe_rig_bvh_write(
+    path: *const c_char,
+    rig: Option<&troupe_rig>,
+    positions: *const f32,
+    n_frames: usize,
+    format: *const troupe_joints_format,
+    units: u32,
+    flags: u32,
+) -> troupe_status {
+    boundary::call(
+        "troupe_rig_bvh_write",
+        || {},
+        || {
+            // SAFETY (all): forwarded contract.
+            let path = unsafe { boundary::required_str(path, "path") }?;
+            let rig = required(rig, "rig")?;
+            let format = unsafe { read_format(format) }?;
+            let units = units_from(units, "units")?;
+            let options = options_from(flags, format.fps)?;
+            if flags & TROUPE_GLTF_NO_BODIES != 0 {
+                return Err(FfiError::new(
+                    TROUPE_ERR_INVALID_ARG,
+                    "TROUPE_GLTF_NO_BODIES is a flag of troupe_gltf_write",
+                ));
+            }
+            let (_, clips) =
+                unsafe { canonical_people(positions, 1, n_frames, &format, std::ptr::null(), 1) }?;
+            let poses = retarget_clip(&rig.rig, &rig.map, &clips[0], None, options)?;
+            let bvh = BvhWriteOptions {
+                units,
+                fps: format.fps,
+                fit_skeleton: false,
+            };
+            write_rig_bvh_file(Path::new(path), &rig.rig, &poses, &bvh)?;
+            Ok(())
+        },
+    )
+}
