@@ -1639,6 +1639,25 @@ troupe_status troupe_rig_retarget_reset(struct troupe_rig_retargeter *retargeter
 void troupe_rig_retargeter_free(struct troupe_rig_retargeter *retargeter);
 
 /**
+ * Retargets a whole clip onto `rig`: `positions`, float32 `[n_frames][22][3]` in the caller's
+ * world as `format` says, with `flags` (0 or `TROUPE_RETARGET_*`); the source's proportions are
+ * measured from the clip first (a stream uses troupe's neutral body). Writes each frame's local
+ * rotations `[n_frames][joints][4]` (`[w, x, y, z]`, the rig's axes) into `rotations`
+ * (`rotations_len` = frames × joints × 4), the moving joint's local translations `[n_frames][3]`
+ * (rig units and axes) into `root_translations` (`root_len` = frames × 3), and the moving
+ * joint's index into `*root_joint`.
+ *
+ * Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_SHAPE` (other lengths),
+ * `TROUPE_ERR_INVALID_ARG` (as `troupe_rig_retargeter_new`; NaN or infinite positions; no
+ * frames); on error nothing is written. `TROUPE_ERR_PANIC`. Thread-safe.
+ *
+ * # Safety
+ * `positions` readable for `n_frames * 66` floats; `format` readable; `rotations` and
+ * `root_translations` writable for their lengths; `root_joint` writable.
+ */
+troupe_status troupe_rig_retarget_clip(const struct troupe_rig *rig, const float *positions, size_t n_frames, const struct troupe_joints_format *format, uint32_t flags, float *rotations, size_t rotations_len, float *root_translations, size_t root_len, size_t *root_joint);
+
+/**
  * Writes a glTF 2.0 binary file (`.glb`) at `path` (UTF-8; atomically): `n_people` people,
  * each retargeted onto `rig` (NULL: troupe's own t2m-22 body) from t2m-22 joint positions
  * `positions`, float32 `[n_people][n_frames][22][3]` in the caller's world as `format` says (its

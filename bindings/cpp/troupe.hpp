@@ -9,6 +9,7 @@
 #ifndef TROUPE_HPP
 #define TROUPE_HPP
 
+#include <array>
 #include <cstddef>
 #include <cstdint>
 #include <string>
@@ -519,6 +520,111 @@ inline Status write_pictures(const std::string &html, const std::string &gif, co
     auto c = c_names(names);
     return Status::from(troupe_viewer_write(html.empty() ? nullptr : html.c_str(), gif.empty() ? nullptr : gif.c_str(),
                                             positions, names.size(), n_frames, &format, c.data(), title.c_str()));
+}
+
+/// A character rig with its joint map (docs/RIGS.md). Move-only; immutable, so any thread may
+/// use it.
+class Rig {
+  public:
+    Rig() = default;
+    Rig(Rig &&other) noexcept : handle_(std::exchange(other.handle_, nullptr)) {}
+    Rig &operator=(Rig &&other) noexcept {
+        if (this != &other) {
+            troupe_rig_free(handle_);
+            handle_ = std::exchange(other.handle_, nullptr);
+        }
+        return *this;
+    }
+    Rig(const Rig &) = delete;
+    Rig &operator=(const Rig &) = delete;
+    ~Rig() { troupe_rig_free(handle_); }
+
+    /// The rig of a BVH file (`rest_frame`: TROUPE_RIG_ZERO_POSE or the frame whose pose is the
+    /// rest pose; `joint_map_json`: null for the built-in names).
+    static Status from_bvh(const std::string &path, Rig &out, std::uint32_t units = TROUPE_UNITS_AUTO,
+                           std::uint32_t rest_frame = TROUPE_RIG_ZERO_POSE, const char *joint_map_json = nullptr) {
+        troupe_rig *h = nullptr;
+        Status s = Status::from(troupe_rig_from_bvh(path.c_str(), units, rest_frame, joint_map_json, &h));
+        if (s) out = Rig(h);
+        return s;
+    }
+    /// A rig from its JSON document.
+    static Status from_json(const std::string &json, Rig &out, const char *joint_map_json = nullptr) {
+        troupe_rig *h = nullptr;
+        Status s = Status::from(troupe_rig_from_json(json.c_str(), joint_map_json, &h));
+        if (s) out = Rig(h);
+        return s;
+    }
+    std::size_t joint_count() const { return troupe_rig_joint_count(handle_); }
+    /// Joint `joint`'s name ("" past the end).
+    std::string joint_name(std::size_t joint) const {
+        const char *n = troupe_rig_joint_name(handle_, joint);
+        return n ? n : "";
+    }
+    const troupe_rig *get() const { return handle_; }
+
+  private:
+    explicit Rig(troupe_rig *h) : handle_(h) {}
+    troupe_rig *handle_ = nullptr;
+};
+
+/// One pose of a rig: local rotations [joints][4] (wxyz, the rig's axes), the moving joint's
+/// local translation (rig units and axes) and its index.
+struct RigPose {
+    std::vector<float> rotations;
+    std::array<float, 3> root_translation{};
+    std::size_t root_joint = 0;
+};
+
+/// One stream retargeted onto a rig a frame at a time. Move-only; one thread at a time.
+class Retargeter {
+  public:
+    Retargeter() = default;
+    Retargeter(Retargeter &&other) noexcept
+        : handle_(std::exchange(other.handle_, nullptr)), joints_(other.joints_) {}
+    Retargeter &operator=(Retargeter &&other) noexcept {
+        if (this != &other) {
+            troupe_rig_retargeter_free(handle_);
+            handle_ = std::exchange(other.handle_, nullptr);
+            joints_ = other.joints_;
+        }
+        return *this;
+    }
+    Retargeter(const Retargeter &) = delete;
+    Retargeter &operator=(const Retargeter &) = delete;
+    ~Retargeter() { troupe_rig_retargeter_free(handle_); }
+
+    /// A retargeter onto `rig` of positions measured as `format` says (`flags`: TROUPE_RETARGET_*).
+    static Status create(const Rig &rig, const troupe_joints_format &format, Retargeter &out,
+                         std::uint32_t flags = 0) {
+        troupe_rig_retargeter *h = nullptr;
+        Status s = Status::from(troupe_rig_retargeter_new(rig.get(), &format, flags, &h));
+        if (s) out = Retargeter(h, rig.joint_count());
+        return s;
+    }
+    /// The rig's pose for the next frame (66 floats of t2m-22 positions).
+    Status push(const float *positions, RigPose &out) {
+        out.rotations.resize(4 * joints_);
+        return Status::from(troupe_rig_retarget_push(handle_, positions, 66, out.rotations.data(),
+                                                     out.rotations.size(), out.root_translation.data(),
+                                                     &out.root_joint));
+    }
+    Status reset() { return Status::from(troupe_rig_retarget_reset(handle_)); }
+
+  private:
+    Retargeter(troupe_rig_retargeter *h, std::size_t joints) : handle_(h), joints_(joints) {}
+    troupe_rig_retargeter *handle_ = nullptr;
+    std::size_t joints_ = 0;
+};
+
+/// Writes people ([people][frames][22][3] in `positions`) retargeted onto `rig` (null: troupe's
+/// own body) as a glTF binary file (`flags`: TROUPE_RETARGET_* and TROUPE_GLTF_*).
+inline Status write_gltf(const std::string &path, const std::vector<std::string> &names, const float *positions,
+                         std::size_t n_frames, const troupe_joints_format &format, const Rig *rig = nullptr,
+                         std::uint32_t flags = 0) {
+    auto c = c_names(names);
+    return Status::from(troupe_gltf_write(path.c_str(), rig ? rig->get() : nullptr, positions, names.size(), n_frames,
+                                          &format, c.data(), flags));
 }
 
 }  // namespace motion

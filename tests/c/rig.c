@@ -125,6 +125,20 @@ int main(int argc, char **argv) {
             CHECK(fabsf(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3] - 1.0f) < 1e-4f);
         }
     }
+    /* The whole clip at once: the same roots; wrong lengths refused. */
+    {
+        float *all = (float *)malloc(sizeof(float) * FRAMES * 4 * J), roots[3 * FRAMES];
+        float worst = 0.0f;
+        EXPECT(troupe_rig_retarget_clip(own, clip, FRAMES, &format, 0, all, FRAMES * 4 * J, roots, 3 * FRAMES, &root_joint), TROUPE_OK);
+        for (t = 0; t < FRAMES; t++)
+            for (i = 0; i < 3; i++) worst = fmaxf(worst, fabsf(roots[3 * t + i] - clip[t * J * 3 + i]));
+        CHECK(worst < 1e-3f);
+        CHECK(root_joint == 0);
+        EXPECT(troupe_rig_retarget_clip(own, clip, FRAMES, &format, 0, all, FRAMES * 4 * J - 1, roots, 3 * FRAMES, &root_joint), TROUPE_ERR_SHAPE);
+        EXPECT(troupe_rig_retarget_clip(own, clip, 0, &format, 0, all, 0, roots, 0, &root_joint), TROUPE_ERR_INVALID_ARG);
+        EXPECT(troupe_rig_retarget_clip(NULL, clip, FRAMES, &format, 0, all, FRAMES * 4 * J, roots, 3 * FRAMES, &root_joint), TROUPE_ERR_NULL_ARG);
+        free(all);
+    }
     /* Bad input is refused and leaves the stream as it was: the next push equals a fresh
      * retargeter's after the same frames. */
     memcpy(nan_frame, clip, sizeof nan_frame);

@@ -280,6 +280,19 @@ int main(int argc, char **argv) {
             CHECK(take.format.units == TROUPE_UNITS_CENTIMETERS);
             CHECK(std::fabs(take.positions[3 * 15 + 1] / 100.0f - clip[3 * 15 + 1]) < 1e-4f);
             CHECK(troupe::motion::read_bvh(base + "-missing.bvh", take).code() == TROUPE_ERR_IO);
+            // The file as a rig: the clip retargeted onto it a frame at a time, and a glTF file.
+            troupe::motion::Rig rig;
+            CHECK(troupe::motion::Rig::from_bvh(bvh, rig).ok() && rig.joint_count() == 22);
+            CHECK(rig.joint_name(0) == "pelvis" && rig.joint_name(22).empty());
+            troupe::motion::Retargeter retargeter;
+            CHECK(troupe::motion::Retargeter::create(rig, fmt, retargeter).ok());
+            troupe::motion::RigPose pose;
+            CHECK(retargeter.push(clip.data(), pose).ok() && pose.rotations.size() == 88 && pose.root_joint == 0);
+            CHECK(troupe::motion::Rig::from_bvh(base + "-missing.bvh", rig).code() == TROUPE_ERR_IO);
+            const std::string glb = base + ".glb";
+            CHECK(troupe::motion::write_gltf(glb, {"actor"}, clip.data(), frames, fmt, &rig).ok());
+            CHECK(troupe::motion::write_gltf(glb, {}, clip.data(), frames, fmt).code() == TROUPE_ERR_INVALID_ARG);
+            std::remove(glb.c_str());
             CHECK(troupe::motion::write_json(json, {"actor"}, clip.data(), frames, fmt).ok());
             CHECK(troupe::motion::write_pictures(html, "", {"actor"}, clip.data(), frames, fmt).ok());
             CHECK(troupe::motion::write_pictures("", "", {"actor"}, clip.data(), frames, fmt).code() ==

@@ -194,6 +194,8 @@ model_p = ctypes.c_void_p
 session_p = ctypes.c_void_p
 stream_p = ctypes.c_void_p
 bvh_p = ctypes.c_void_p
+rig_p = ctypes.c_void_p
+retargeter_p = ctypes.c_void_p
 fmt_p = ctypes.POINTER(JointsFormat)
 placement_p = ctypes.POINTER(Placement)
 
@@ -315,6 +317,21 @@ PROTOTYPES = {
     "troupe_bvh_free": (None, [bvh_p]),
     "troupe_bvh_write": (status, [ctypes.c_char_p, f32p, c_size, c_size, fmt_p, ctypes.POINTER(ctypes.c_char_p),
                                   ctypes.c_uint32, ctypes.c_uint32]),
+    "troupe_rig_from_bvh": (status, [ctypes.c_char_p, ctypes.c_uint32, ctypes.c_uint32, ctypes.c_char_p,
+                                     ctypes.POINTER(rig_p)]),
+    "troupe_rig_from_json": (status, [ctypes.c_char_p, ctypes.c_char_p, ctypes.POINTER(rig_p)]),
+    "troupe_rig_joint_count": (c_size, [rig_p]),
+    "troupe_rig_joint_name": (ctypes.c_char_p, [rig_p, c_size]),
+    "troupe_rig_free": (None, [rig_p]),
+    "troupe_rig_retargeter_new": (status, [rig_p, fmt_p, ctypes.c_uint32, ctypes.POINTER(retargeter_p)]),
+    "troupe_rig_retarget_push": (status, [retargeter_p, f32p, c_size, f32p, c_size, f32p, ctypes.POINTER(c_size)]),
+    "troupe_rig_retarget_reset": (status, [retargeter_p]),
+    "troupe_rig_retargeter_free": (None, [retargeter_p]),
+    "troupe_rig_retarget_clip": (status, [rig_p, f32p, c_size, fmt_p, ctypes.c_uint32, f32p, c_size, f32p, c_size,
+                                          ctypes.POINTER(c_size)]),
+    "troupe_gltf_write": (status, [ctypes.c_char_p, rig_p, f32p, c_size, c_size, fmt_p,
+                                   ctypes.POINTER(ctypes.c_char_p), ctypes.c_uint32]),
+    "troupe_rig_bvh_write": (status, [ctypes.c_char_p, rig_p, f32p, c_size, fmt_p, ctypes.c_uint32, ctypes.c_uint32]),
     "troupe_session_set_joints_format": (status, [session_p, fmt_p]),
     "troupe_session_step_joints": (status, [session_p, f32p, c_size, ctypes.POINTER(PoseBuffers), c_size,
                                             ctypes.POINTER(c_size)]),

@@ -11,6 +11,13 @@ back, streams, and BVH files. numpy in, numpy out.
 
 Rotations: joint 0's is the root's world orientation, every other joint's is local to its parent
 (as SMPL, BVH and engines use them). See docs/MOTION.md.
+
+Your character (docs/RIGS.md): a Rig from its BVH file or a rig JSON document, motion retargeted
+onto it a clip or a frame at a time, and glTF (.glb) and BVH files of it:
+
+    rig = motion.Rig.from_bvh("character.bvh")
+    rotations, roots, root_joint = motion.retarget(rig, positions, fmt)  # [T, J, 4] wxyz, [T, 3]
+    motion.write_gltf("scene.glb", {"actor": actor, "reactor": reactor}, fmt, rig=rig)
 """
 
 from __future__ import annotations
@@ -27,7 +34,8 @@ from . import Model, _check, _floats, _lib, _ptr
 from .errors import expect_type
 
 __all__ = ["JointsFormat", "Placement", "Poses", "Skeleton", "FeatureStream", "skeleton", "encode", "decode",
-           "read_bvh", "write_bvh", "write_json", "save_npz", "smplx145_positions", "penetration_metrics", "JOINTS"]
+           "read_bvh", "write_bvh", "write_json", "save_npz", "smplx145_positions", "penetration_metrics", "JOINTS",
+           "Rig", "RigPose", "Retargeter", "retarget", "write_gltf", "write_rig_bvh"]
 
 JOINTS = 22
 _UNITS = {"m": 0, "cm": 1, "mm": 2, "in": 3}
@@ -311,3 +319,162 @@ def save_npz(path: str | os.PathLike, poses: Poses, fmt: JointsFormat | None = N
     np.savez(path, positions=poses.positions, rotations_wxyz=poses.rotations, rotations_6d=poses.rotations_6d,
              contacts=poses.contacts, joint_names=np.array(s.names), parents=s.parents, units=fmt.units, up=fmt.up,
              handedness=fmt.handedness, fps=np.float32(fmt.fps))
+
+
+_RETARGET_NO_FOOT_LOCK = 1
+_RETARGET_NO_LIMB_IK = 2
+_GLTF_NO_BODIES = 4
+_RIG_ZERO_POSE = 0xFFFFFFFF
+
+
+def _retarget_flags(foot_lock: bool, limb_ik: bool) -> int:
+    return (0 if foot_lock else _RETARGET_NO_FOOT_LOCK) | (0 if limb_ik else _RETARGET_NO_LIMB_IK)
+
+
+class Rig:
+    """A character rig (its joints, rest pose, units and axes) with the joint map saying which of
+    its joints is which t2m-22 joint (`joint_map`: a joint-map JSON text, or None for the built-in
+    names: Mixamo, LAFAN1, CMU, HumanIK, SMPL, Rigify). Immutable; share it freely."""
+
+    def __init__(self, handle: Any):
+        self._handle = handle
+
+    @classmethod
+    def from_bvh(cls, path: str | os.PathLike, units: str | None = None, rest_frame: int | None = None,
+                 joint_map: str | None = None) -> "Rig":
+        """The rig of a BVH file. `units`: the file's, or None to guess; `rest_frame`: the frame
+        whose pose is the rest pose (for files whose all-zero pose lies down, as LAFAN1's), or
+        None for the all-zero pose."""
+        handle = _native.rig_p()
+        code = _UNITS_AUTO if units is None else _UNITS[units]
+        if rest_frame is not None and not 0 <= int(rest_frame) < _RIG_ZERO_POSE:
+            raise ValueError(f"rest_frame must be a frame index, got {rest_frame!r}")
+        frame = _RIG_ZERO_POSE if rest_frame is None else int(rest_frame)
+        jm = joint_map.encode() if joint_map is not None else None
+        _check(_lib.troupe_rig_from_bvh(os.fsencode(path), code, frame, jm, ctypes.byref(handle)))
+        return cls(handle)
+
+    @classmethod
+    def from_json(cls, text: str, joint_map: str | None = None) -> "Rig":
+        """A rig from its JSON document (docs/RIGS.md)."""
+        expect_type(text, str, "text")
+        handle = _native.rig_p()
+        jm = joint_map.encode() if joint_map is not None else None
+        _check(_lib.troupe_rig_from_json(text.encode(), jm, ctypes.byref(handle)))
+        return cls(handle)
+
+    @property
+    def joint_names(self) -> list[str]:
+        """The rig's joint names, in its order."""
+        n = _lib.troupe_rig_joint_count(self._live())
+        return [_lib.troupe_rig_joint_name(self._handle, j).decode() for j in range(n)]
+
+    def _live(self) -> Any:
+        if not self._handle:
+            raise ValueError("the rig is closed")
+        return self._handle
+
+    def close(self) -> None:
+        """Frees the rig (also done when it is collected)."""
+        if getattr(self, "_handle", None):
+            _lib.troupe_rig_free(self._handle)
+            self._handle = None  # type: ignore[assignment]
+
+    __del__ = close
+
+
+class RigPose(NamedTuple):
+    """One pose of a rig: local rotations [J, 4] (wxyz, the rig's axes), the moving joint's
+    local translation [3] (the rig's units and axes), and that joint's index."""
+    rotations: np.ndarray
+    root_translation: np.ndarray
+    root_joint: int
+
+
+class Retargeter:
+    """One stream retargeted onto a rig a frame at a time, with no latency: positions [22, 3] in
+    the world `fmt` describes in, a RigPose out. One thread at a time."""
+
+    def __init__(self, rig: Rig, fmt: JointsFormat | None = None, foot_lock: bool = True, limb_ik: bool = True):
+        expect_type(rig, Rig, "rig")
+        self._handle = _native.retargeter_p()
+        self._joints = _lib.troupe_rig_joint_count(rig._live())
+        c = _format(fmt)
+        _check(_lib.troupe_rig_retargeter_new(rig._handle, ctypes.byref(c), _retarget_flags(foot_lock, limb_ik),
+                                              ctypes.byref(self._handle)))
+
+    def push(self, frame: ArrayLike) -> RigPose:
+        """The rig's pose for the stream's next frame."""
+        f = np.ascontiguousarray(_floats(frame, "frame"))
+        rotations = np.empty((self._joints, 4), np.float32)
+        root = np.empty(3, np.float32)
+        joint = ctypes.c_size_t()
+        _check(_lib.troupe_rig_retarget_push(self._live(), _ptr(f), f.size, _ptr(rotations), rotations.size,
+                                             _ptr(root), ctypes.byref(joint)))
+        return RigPose(rotations, root, joint.value)
+
+    def reset(self) -> None:
+        """Forgets the stream (foot pins, the previous frame)."""
+        _check(_lib.troupe_rig_retarget_reset(self._live()))
+
+    def _live(self) -> Any:
+        if not self._handle:
+            raise ValueError("the retargeter is closed")
+        return self._handle
+
+    def close(self) -> None:
+        """Frees the retargeter (also done when it is collected)."""
+        if getattr(self, "_handle", None):
+            _lib.troupe_rig_retargeter_free(self._handle)
+            self._handle = None  # type: ignore[assignment]
+
+    __del__ = close
+
+    def __enter__(self) -> "Retargeter":
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+def retarget(rig: Rig, positions: ArrayLike, fmt: JointsFormat | None = None, foot_lock: bool = True,
+             limb_ik: bool = True) -> tuple[np.ndarray, np.ndarray, int]:
+    """A clip [T, 22, 3] (in the world `fmt` describes) retargeted onto `rig`: (local rotations
+    [T, J, 4] wxyz in the rig's axes, the moving joint's local translations [T, 3] in the rig's
+    units and axes, that joint's index). The source's proportions are measured from the clip."""
+    expect_type(rig, Rig, "rig")
+    p = _positions(positions, "positions")
+    joints = _lib.troupe_rig_joint_count(rig._live())
+    rotations = np.empty((p.shape[0], joints, 4), np.float32)
+    roots = np.empty((p.shape[0], 3), np.float32)
+    joint = ctypes.c_size_t()
+    c = _format(fmt)
+    _check(_lib.troupe_rig_retarget_clip(rig._handle, _ptr(p), p.shape[0], ctypes.byref(c),
+                                         _retarget_flags(foot_lock, limb_ik), _ptr(rotations), rotations.size,
+                                         _ptr(roots), roots.size, ctypes.byref(joint)))
+    return rotations, roots, joint.value
+
+
+def write_gltf(path: str | os.PathLike, people: ArrayLike | dict[str, ArrayLike], fmt: JointsFormat | None = None,
+               rig: Rig | None = None, bodies: bool = True, foot_lock: bool = True, limb_ik: bool = True) -> None:
+    """Writes people ({name: positions [T, 22, 3]} in the world `fmt` describes; its fps is the
+    animation's rate) as a glTF 2.0 binary file (.glb, atomically): each retargeted onto `rig`
+    (None: troupe's own body) as a skinned skeleton with, unless `bodies` is False, a capsule
+    body in its own colour, and one animation. glTF axes: metres, +Y up."""
+    if rig is not None:
+        expect_type(rig, Rig, "rig")
+    stacked, names, c = _people(people, fmt)
+    flags = _retarget_flags(foot_lock, limb_ik) | (0 if bodies else _GLTF_NO_BODIES)
+    _check(_lib.troupe_gltf_write(os.fsencode(path), rig._live() if rig is not None else None, _ptr(stacked),
+                                  stacked.shape[0], stacked.shape[1], ctypes.byref(c), names, flags))
+
+
+def write_rig_bvh(path: str | os.PathLike, rig: Rig, positions: ArrayLike, fmt: JointsFormat | None = None,
+                  units: str = "cm", foot_lock: bool = True, limb_ik: bool = True) -> None:
+    """Writes one person's clip [T, 22, 3] retargeted onto `rig` as a BVH file of the rig's
+    hierarchy (atomically), in `units`, Y up."""
+    expect_type(rig, Rig, "rig")
+    p = _positions(positions, "positions")
+    c = _format(fmt)
+    _check(_lib.troupe_rig_bvh_write(os.fsencode(path), rig._live(), _ptr(p), p.shape[0], ctypes.byref(c),
+                                     _UNITS[units], _retarget_flags(foot_lock, limb_ik)))

@@ -354,6 +354,93 @@ pub unsafe extern "C" fn troupe_rig_retargeter_free(retargeter: *mut troupe_rig_
     unsafe { boundary::free_unless_busy(retargeter, |h| &h.state, "troupe_rig_retargeter_free") }
 }
 
+/// Retargets a whole clip onto `rig`: `positions`, float32 `[n_frames][22][3]` in the caller's
+/// world as `format` says, with `flags` (0 or `TROUPE_RETARGET_*`); the source's proportions are
+/// measured from the clip first (a stream uses troupe's neutral body). Writes each frame's local
+/// rotations `[n_frames][joints][4]` (`[w, x, y, z]`, the rig's axes) into `rotations`
+/// (`rotations_len` = frames × joints × 4), the moving joint's local translations `[n_frames][3]`
+/// (rig units and axes) into `root_translations` (`root_len` = frames × 3), and the moving
+/// joint's index into `*root_joint`.
+///
+/// Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_SHAPE` (other lengths),
+/// `TROUPE_ERR_INVALID_ARG` (as `troupe_rig_retargeter_new`; NaN or infinite positions; no
+/// frames); on error nothing is written. `TROUPE_ERR_PANIC`. Thread-safe.
+///
+/// # Safety
+/// `positions` readable for `n_frames * 66` floats; `format` readable; `rotations` and
+/// `root_translations` writable for their lengths; `root_joint` writable.
+#[no_mangle]
+#[allow(clippy::too_many_arguments)]
+pub unsafe extern "C" fn troupe_rig_retarget_clip(
+    rig: Option<&troupe_rig>,
+    positions: *const f32,
+    n_frames: usize,
+    format: *const troupe_joints_format,
+    flags: u32,
+    rotations: *mut f32,
+    rotations_len: usize,
+    root_translations: *mut f32,
+    root_len: usize,
+    root_joint: *mut usize,
+) -> troupe_status {
+    boundary::call(
+        "troupe_rig_retarget_clip",
+        || {},
+        || {
+            let rig = required(rig, "rig")?;
+            non_null(rotations, "rotations")?;
+            non_null(root_translations, "root_translations")?;
+            non_null(root_joint, "root_joint")?;
+            // SAFETY (all): forwarded contract.
+            let format = unsafe { read_format(format) }?;
+            let options = options_from(flags, format.fps)?;
+            if flags & TROUPE_GLTF_NO_BODIES != 0 {
+                return Err(FfiError::new(
+                    TROUPE_ERR_INVALID_ARG,
+                    "TROUPE_GLTF_NO_BODIES is a flag of troupe_gltf_write",
+                ));
+            }
+            let joints = rig.rig.len();
+            let want_rotations =
+                boundary::checked_mul(n_frames, 4 * joints, "n_frames * joints * 4")?;
+            if rotations_len != want_rotations || root_len != 3 * n_frames {
+                return Err(FfiError::new(
+                    TROUPE_ERR_SHAPE,
+                    format!(
+                        "rotations_len is {rotations_len} and root_len {root_len}; {n_frames} \
+                         frames of {joints} joints need {want_rotations} and {}",
+                        3 * n_frames
+                    ),
+                ));
+            }
+            let (_, clips) =
+                unsafe { canonical_people(positions, 1, n_frames, &format, std::ptr::null(), 1) }?;
+            let poses = retarget_clip(&rig.rig, &rig.map, &clips[0], None, options)?;
+            for (t, pose) in poses.iter().enumerate() {
+                for (j, q) in pose.rotations.iter().enumerate() {
+                    let v = [q.w, q.x, q.y, q.z].map(|x| x as f32);
+                    // SAFETY: writable for frames × joints × 4 floats, checked above.
+                    unsafe {
+                        std::ptr::copy_nonoverlapping(
+                            v.as_ptr(),
+                            rotations.add(4 * (t * joints + j)),
+                            4,
+                        )
+                    };
+                }
+                let r = pose.root_translation.map(|x| x as f32);
+                // SAFETY: writable for frames × 3 floats, checked above.
+                unsafe {
+                    std::ptr::copy_nonoverlapping(r.as_ptr(), root_translations.add(3 * t), 3)
+                };
+            }
+            // SAFETY: writable per the contract.
+            unsafe { *root_joint = poses[0].root };
+            Ok(())
+        },
+    )
+}
+
 /// One person's frames of t2m-22 positions in troupe's axes.
 type Clip = Vec<Vec<crate::motion::vec3::Vec3>>;
 

@@ -1,0 +1,100 @@
+"""troupe.motion's rigs through the real shared library: a rig from BVH and from JSON, the CMU
+excerpt retargeted onto it a clip and a frame at a time, glTF and BVH files on it, and every bad
+input raising the library's message."""
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import troupe
+from troupe import motion
+
+REPO = Path(__file__).resolve().parents[3]
+CMU = REPO / "tests" / "data" / "mocap"
+FMT = motion.JointsFormat(units="m", up="z", fps=30)
+
+
+@pytest.fixture(scope="module")
+def clip():
+    return np.load(CMU / "cmu-playground-120fps.npy")[::4][:90]  # [90, 22, 3], metres, z up, 30 fps
+
+
+def own_rig_json() -> str:
+    """troupe's own body as a rig document in centimetres, Z up."""
+    s = motion.skeleton()
+    joints = []
+    for j, name in enumerate(s.names):
+        x, y, z = (float(v) for v in s.rest_offsets[j])
+        joints.append({"name": name, "parent": s.names[s.parents[j]] if s.parents[j] >= 0 else None,
+                       "offset": [100 * x, -100 * z, 100 * y]})
+    return json.dumps({"name": "own", "units": "cm", "up": "z", "joints": joints})
+
+
+def test_retargeting_onto_troupes_own_body_keeps_the_root(clip):
+    rig = motion.Rig.from_json(own_rig_json())
+    assert rig.joint_names == motion.skeleton().names
+    rotations, roots, root_joint = motion.retarget(rig, clip, FMT)
+    assert rotations.shape == (90, 22, 4) and roots.shape == (90, 3) and root_joint == 0
+    assert np.allclose(np.linalg.norm(rotations, axis=-1), 1, atol=1e-5)
+    # Centimetres, Z up, as the rig is: the root travels as the clip's does, scaled by the ratio
+    # of the legs (the CMU actor's to troupe's neutral body's). It is placed by the hip centre,
+    # which CMU's skeleton has 10 cm below its pelvis and troupe's body 8 cm: leaning into its
+    # jumps, the two pelvises part by up to their sum.
+    moved, source = (roots - roots[0]) / 100, clip[:, 0] - clip[0, 0]
+    scale = float((moved * source).sum() / (source * source).sum())
+    assert 0.8 < scale < 1.2
+    assert np.abs(moved - scale * source).max() < 0.2
+    assert np.abs(moved[-1] - scale * source[-1]).max() < np.abs(source[-1]).max()
+    with motion.Retargeter(rig, FMT) as stream:
+        pose = stream.push(clip[0])
+        assert pose.rotations.shape == (22, 4) and pose.root_joint == 0
+        assert np.abs(pose.root_translation / 100 - clip[0, 0]).max() < 0.2
+        bad = clip[1].copy()
+        bad[3, 1] = np.nan
+        with pytest.raises(troupe.TroupeError, match="finite"):
+            stream.push(bad)
+        with pytest.raises(troupe.TroupeError, match="66 floats"):
+            stream.push(clip[1][:21])
+        stream.reset()
+        again = stream.push(clip[0])
+        assert np.array_equal(again.rotations, pose.rotations)
+
+
+def test_a_bvh_rig_and_the_files_written_on_it(tmp_path, clip):
+    # A rig no one tuned for: the BVH troupe writes of the clip, read back as a rig.
+    source = tmp_path / "source.bvh"
+    motion.write_bvh(source, {"actor": clip}, FMT)
+    rig = motion.Rig.from_bvh(source)
+    assert rig.joint_names[0] == "pelvis"
+    glb = tmp_path / "pair.glb"
+    motion.write_gltf(glb, {"actor": clip, "partner": clip + np.float32([1.5, 0, 0])}, FMT, rig=rig)
+    data = glb.read_bytes()
+    assert data[:4] == b"glTF" and int.from_bytes(data[8:12], "little") == len(data)
+    assert b'"actor_pelvis"' in data and b'"partner_pelvis"' in data
+    motion.write_gltf(tmp_path / "own.glb", clip, FMT, bodies=False)
+    out = tmp_path / "rig.bvh"
+    motion.write_rig_bvh(out, rig, clip, FMT)
+    positions, fmt = motion.read_bvh(out)
+    assert positions.shape == (90, 22, 3) and fmt.units == "cm"
+    with pytest.raises(ValueError, match="every person needs the same number of frames"):
+        motion.write_gltf(tmp_path / "x.glb", {"a": clip, "b": clip[:10]}, FMT)
+
+
+def test_bad_rigs_are_refused_with_the_reason(tmp_path):
+    with pytest.raises(troupe.TroupeError, match="0 joints"):
+        motion.Rig.from_json('{"name": "x", "joints": []}')
+    with pytest.raises(troupe.TroupeError, match="not a rig document"):
+        motion.Rig.from_json("[]")
+    with pytest.raises(troupe.TroupeError, match="IO"):
+        motion.Rig.from_bvh(tmp_path / "missing.bvh")
+    legs = json.dumps({"name": "legs", "joints": [{"name": "Hips", "parent": None, "offset": [0, 1, 0]}]})
+    rig = motion.Rig.from_json(legs)
+    with pytest.raises(troupe.TroupeError, match="left_hip"):
+        motion.Retargeter(rig)
+    with pytest.raises(ValueError, match="rest_frame"):
+        motion.Rig.from_bvh(tmp_path / "missing.bvh", rest_frame=-1)
+    rig.close()
+    with pytest.raises(ValueError, match="closed"):
+        rig.joint_names
