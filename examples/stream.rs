@@ -24,6 +24,13 @@
 //!                       (features [T, frame_dim] for --actor/--synthetic); FILE.html and
 //!                       FILE.gif beside it (default: reactor.npy)
 //!   --no-pictures       skip the HTML player and GIF
+//!   --gltf FILE.glb     also write actor and reactor as glTF (skinned bodies, one animation),
+//!                       on --rig or on troupe's own body (docs/RIGS.md)
+//!   --rig FILE          your character: a .bvh (its hierarchy) or a rig .json; the reactor is
+//!                       retargeted onto it as it streams (the time it takes is reported)
+//!   --rig-rest-frame N  the rig .bvh's frame whose pose is its rest pose (default: all zeros)
+//!   --joint-map FILE    which joint of your rigs (the actor .bvh, --rig) is which t2m-22 joint
+//!                       (JSON; default: the built-in names)
 //!   --seed S --steps K --cfg X --capacity C     session options
 //!   --warmup-tokens H   tokens streamed before timing starts (to time at a given history)
 //!   --vae-windows       run the VAE over windows even when the bundle has per-token steps
@@ -38,7 +45,9 @@ use ndarray_npy::{read_npy, write_npy};
 use troupe::motion::bvh::read_bvh;
 use troupe::motion::resample::Resampler;
 use troupe::motion::{
-    decode_frame, JointMap, JointsFormat, Placement, Pose, Units, UpAxis, T2M22_JOINTS,
+    decode_frame, retarget_clip, write_glb_file, GltfOptions, GltfPerson, JointMap, JointsFormat,
+    Placement, Pose, RetargetOptions, Retargeter, Rig, RigPose, Skeleton, SourceFrame, Units,
+    UpAxis, T2M22_JOINTS,
 };
 use troupe::viewer::{GifOptions, Scene};
 use troupe::{Model, ReactorOptions};
@@ -66,6 +75,10 @@ struct Args {
     pictures: bool,
     options: ReactorOptions,
     warmup_tokens: u64,
+    gltf: Option<PathBuf>,
+    rig: Option<PathBuf>,
+    rig_rest_frame: Option<usize>,
+    joint_map: Option<PathBuf>,
 }
 
 const DEFAULT_CLIP: &str = concat!(
@@ -87,6 +100,10 @@ fn parse_args() -> Result<Args, String> {
         pictures: true,
         options: ReactorOptions::default(),
         warmup_tokens: 0,
+        gltf: None,
+        rig: None,
+        rig_rest_frame: None,
+        joint_map: None,
     };
     let mut it = std::env::args().skip(1);
     while let Some(flag) = it.next() {
@@ -119,6 +136,10 @@ fn parse_args() -> Result<Args, String> {
             "--tick" => a.tick = (num(value()?)? as usize).max(1),
             "--out" => a.out = value()?.into(),
             "--no-pictures" => a.pictures = false,
+            "--gltf" => a.gltf = Some(value()?.into()),
+            "--rig" => a.rig = Some(value()?.into()),
+            "--rig-rest-frame" => a.rig_rest_frame = Some(num(value()?)? as usize),
+            "--joint-map" => a.joint_map = Some(value()?.into()),
             "--seed" => a.options.seed = num(value()?)? as u64,
             "--steps" => a.options.steps = Some(num(value()?)? as u32),
             "--cfg" => a.options.cfg_scale = Some(num(value()?)? as f32),
@@ -142,7 +163,7 @@ fn parse_args() -> Result<Args, String> {
 fn load_joints(path: &Path, a: &Args) -> Result<(Array3<f32>, JointsFormat), troupe::Error> {
     let (positions, mut format) = if path.extension().is_some_and(|e| e == "bvh") {
         let label = path.display().to_string();
-        let joints = read_bvh(path)?.to_t2m22(&JointMap::builtin(), a.units, &label)?;
+        let joints = read_bvh(path)?.to_t2m22(&joint_map(a)?, a.units, &label)?;
         (joints.positions, joints.format)
     } else {
         let positions: Array3<f32> = read_npy(path)
@@ -163,6 +184,47 @@ fn load_joints(path: &Path, a: &Args) -> Result<(Array3<f32>, JointsFormat), tro
         format.up = up;
     }
     Ok((positions, format))
+}
+
+/// The joint map of `--joint-map`, or the built-in one.
+fn joint_map(a: &Args) -> Result<JointMap, troupe::Error> {
+    match &a.joint_map {
+        Some(path) => JointMap::from_json(&std::fs::read_to_string(path).map_err(|e| {
+            troupe::Error::InvalidInput(format!("--joint-map {}: {e}", path.display()))
+        })?),
+        None => Ok(JointMap::builtin()),
+    }
+}
+
+/// The character of `--rig` (a .bvh hierarchy or a rig .json), or troupe's own body.
+fn load_rig(a: &Args) -> Result<Rig, troupe::Error> {
+    let Some(path) = &a.rig else {
+        return Ok(Rig::t2m22());
+    };
+    let label = path.display().to_string();
+    if path.extension().is_some_and(|e| e == "bvh") {
+        let bvh = read_bvh(path)?;
+        match a.rig_rest_frame {
+            Some(frame) => Rig::from_bvh_frame(&bvh, frame, None, &label),
+            None => Rig::from_bvh(&bvh, None, &label),
+        }
+    } else {
+        Rig::from_json(
+            &std::fs::read_to_string(path)
+                .map_err(|e| troupe::Error::InvalidInput(format!("--rig {label}: {e}")))?,
+        )
+    }
+}
+
+/// A clip in the caller's world `[T, 22, 3]` in troupe's canonical axes.
+fn canonical_clip(clip: ArrayView3<f32>, format: &JointsFormat) -> Vec<Vec<[f64; 3]>> {
+    clip.outer_iter()
+        .map(|f| {
+            f.outer_iter()
+                .map(|p| format.to_canonical_axes([p[0], p[1], p[2]]))
+                .collect()
+        })
+        .collect()
 }
 
 /// Positions of poses `[T, 22, 3]`.
@@ -280,6 +342,19 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             let n = args.frames.unwrap_or(all.shape()[0]).min(all.shape()[0]);
             let actor = all.slice(s![..n, .., ..]);
             session.set_joints_format(format)?;
+            // The reactor retargeted onto the character as it streams (with --gltf or --rig).
+            let rig = load_rig(&args)?;
+            let map = joint_map(&args)?;
+            let mut retargeter = if args.gltf.is_some() || args.rig.is_some() {
+                let options = RetargetOptions {
+                    fps: model.fps() as f32,
+                    ..RetargetOptions::default()
+                };
+                Some(Retargeter::new(&rig, &map, &Skeleton::t2m22(), options)?)
+            } else {
+                None
+            };
+            let (mut rig_poses, mut retarget_ms): (Vec<RigPose>, f64) = (Vec::new(), 0.0);
             let mut reactor: Vec<Pose> = Vec::new();
             for chunk in actor.axis_chunks_iter(Axis(0), args.tick) {
                 let warm = session.tokens_generated() >= args.warmup_tokens;
@@ -289,9 +364,71 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 if warm {
                     timing.record(ms, chunk.shape()[0], !poses.is_empty());
                 }
+                if let Some(r) = retargeter.as_mut() {
+                    let t = Instant::now();
+                    for pose in &poses {
+                        let p: Vec<[f64; 3]> = pose
+                            .positions
+                            .iter()
+                            .map(|&p| format.to_canonical_axes(p))
+                            .collect();
+                        rig_poses.push(r.push(&SourceFrame {
+                            positions: &p,
+                            rotations: None,
+                            contacts: None,
+                        })?);
+                    }
+                    retarget_ms += t.elapsed().as_secs_f64() * 1e3;
+                }
                 reactor.extend(poses);
             }
+            if !rig_poses.is_empty() {
+                println!(
+                    "reactor retargeted onto {} ({} joints) as it streamed: {:.1} µs per frame",
+                    rig.name(),
+                    rig.len(),
+                    retarget_ms * 1e3 / rig_poses.len() as f64
+                );
+            }
             let reactor = pose_positions(&reactor);
+            if let Some(gltf) = &args.gltf {
+                if !rig_poses.is_empty() {
+                    let fps = model.fps() as f32;
+                    let actor_now = resampled(actor, format.fps, fps);
+                    let actor_canonical = canonical_clip(actor_now.view(), &format);
+                    let n = actor_canonical.len().min(rig_poses.len());
+                    let options = RetargetOptions {
+                        fps,
+                        ..RetargetOptions::default()
+                    };
+                    let actor_poses =
+                        retarget_clip(&rig, &map, &actor_canonical[..n], None, options)?;
+                    let people = [
+                        GltfPerson {
+                            name: "actor",
+                            rig: &rig,
+                            poses: &actor_poses,
+                            color: troupe::motion::gltf::PERSON_COLORS[0],
+                        },
+                        GltfPerson {
+                            name: "reactor",
+                            rig: &rig,
+                            poses: &rig_poses[..n],
+                            color: troupe::motion::gltf::PERSON_COLORS[1],
+                        },
+                    ];
+                    let options = GltfOptions {
+                        fps,
+                        ..GltfOptions::default()
+                    };
+                    write_glb_file(gltf, &people, &options)?;
+                    println!(
+                        "glTF: {} ({n} frames of actor and reactor on {}; opens in Blender, three.js, Unity, Godot)",
+                        gltf.display(),
+                        rig.name()
+                    );
+                }
+            }
             write_npy(&args.out, &reactor)?;
             println!(
                 "{} actor frames of joint positions ({}, {:?}, {:?} up, {} fps) -> {} reactor poses at {} fps -> {}",

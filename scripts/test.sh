@@ -208,7 +208,7 @@ else
 fi
 
 echo "== streaming demo smoke run"
-cargo run --example stream -- --frames 120 --tick 3 --out target/ci-reactor.npy
+cargo run --example stream -- --frames 120 --tick 3 --out target/ci-reactor.npy --gltf target/ci-reactor.glb
 cargo run --example magnet -- --steps 2 --samples 1 --seq-len 64 --no-x0-guidance --out target/ci-magnet.npy
 
 echo "== benchmark smoke run (each benchmark once, tiny bundle; speed is not checked here)"

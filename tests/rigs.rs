@@ -618,3 +618,82 @@ fn blender_imports_the_glb_and_the_bvh_and_puts_every_bone_where_troupe_did() {
         }
     }
 }
+
+/// An example built with the tests (`cargo test` builds them beside its own binaries).
+fn example(name: &str) -> PathBuf {
+    let deps = std::env::current_exe().unwrap();
+    let path = deps
+        .parent()
+        .and_then(Path::parent)
+        .unwrap()
+        .join("examples")
+        .join(name);
+    assert!(
+        path.is_file(),
+        "{} is not built (cargo test builds the examples)",
+        path.display()
+    );
+    path
+}
+
+/// The streaming demo with `--gltf` and `--rig`: the reactor retargeted as it streams, the file
+/// valid for Khronos' validator, loaded and played by three.js, imported by Blender.
+#[test]
+fn the_demo_writes_a_glb_that_the_clients_open() {
+    let dir = tempfile::tempdir().unwrap();
+    let glb = dir.path().join("demo.glb");
+    let mixamo =
+        common::pypi_sdist("bvhtoolbox==0.1.3").join("tests/example_files/test_freebvh.bvh");
+    let out = common::run_ok(
+        Command::new(example("stream"))
+            .current_dir(repo(""))
+            .args(["--frames", "240", "--no-pictures", "--gltf"])
+            .arg(&glb)
+            .arg("--rig")
+            .arg(&mixamo)
+            .arg("--out")
+            .arg(dir.path().join("reactor.npy")),
+    );
+    let text = common::output_text(&out);
+    println!("{text}");
+    assert!(
+        text.contains("as it streamed") && text.contains("glTF: "),
+        "{text}"
+    );
+    let (errors, warnings, messages) = validate(std::slice::from_ref(&glb)).remove(0);
+    assert_eq!((errors, warnings), (0, 0), "{messages}");
+
+    let base = common::static_server::serve(vec![
+        ("/three/".into(), npm_modules().join("three")),
+        ("/page/".into(), repo("tests/gltf")),
+        ("/files/".into(), dir.path().to_path_buf()),
+    ]);
+    let url = format!(
+        "{base}/page/three.html?file=/files/demo.glb&time=1&eye=0,1.5,6&target=0,1,0&fov=45"
+    );
+    let dom = common::pictures::dump_dom(&url, &WEBGL);
+    assert!(
+        dom.contains("\"skinned\":2")
+            && dom.contains("actor_mixamorigHips")
+            && dom.contains("reactor_mixamorigHips"),
+        "three.js did not load the demo's file: {dom}"
+    );
+
+    let Some(python) = blender_python("the_demo_writes_a_glb_that_the_clients_open") else {
+        return;
+    };
+    let report = blender_heads(
+        &python,
+        &[
+            "gltf".into(),
+            glb.display().to_string(),
+            "30".into(),
+            "10".into(),
+        ],
+    );
+    assert_eq!(report["meshes"], 2, "{}", report["objects"]);
+    assert!(
+        report["frames"]["10"]["reactor_mixamorig:Hips"].is_array(),
+        "{report}"
+    );
+}
