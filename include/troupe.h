@@ -1402,20 +1402,30 @@ void troupe_motion_stream_free(struct troupe_motion_stream *stream);
 /**
  * Reads the BVH file at `path` (UTF-8) as t2m-22 joint positions. `joint_map_json`: a joint
  * map (JSON, see the built-in `src/motion/rigs/t2m22-joint-names.json`) or NULL for the
- * built-in one (LAFAN1, Mixamo, CMU, HumanIK and SMPL names). `units`: the file's length unit
- * (`TROUPE_UNITS_*`), or `TROUPE_UNITS_AUTO` to guess from the figure's height. `*out` is set
- * to NULL on entry and to the take on success.
+ * built-in one (LAFAN1, Mixamo, CMU, HumanIK, SMPL and Rigify names). t2m-22 joints the rig
+ * lacks are placed from the others where they can be (`troupe_bvh_inferred` says which).
+ * `units`: the file's length unit (`TROUPE_UNITS_*`), or `TROUPE_UNITS_AUTO` to guess from the
+ * figure's height. `*out` is set to NULL on entry and to the take on success.
  *
  * Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_IO` (unreadable file),
  * `TROUPE_ERR_INVALID_ARG` (malformed file, naming line, joint and frame; a rig lacking a
- * t2m-22 joint, naming it and the names tried; a bad map or units), `TROUPE_ERR_CANCELLED`
- * (the progress callback stopped it: it reports every 4096 frames), `TROUPE_ERR_PANIC`.
+ * t2m-22 joint that cannot be placed from the others, naming it and the names tried; a bad
+ * map or units), `TROUPE_ERR_CANCELLED` (the progress callback stopped it: it reports every
+ * 4096 frames), `TROUPE_ERR_PANIC`.
  * Thread-safe.
  *
  * # Safety
  * `path` and a non-NULL `joint_map_json` NUL-terminated; `out` writable.
  */
 troupe_status troupe_bvh_read(const char *path, const char *joint_map_json, uint32_t units, struct troupe_bvh **out);
+
+/**
+ * The t2m-22 joints the take's rig lacks and how they were placed (spine joints along its
+ * spine, toes along its feet, collars, a hand at a forearm's end; see docs/RIGS.md), one line
+ * each (UTF-8, owned by the take, valid until it is freed; "" when the rig has every joint, NULL
+ * for NULL). Thread-safe.
+ */
+const char *troupe_bvh_inferred(const struct troupe_bvh *bvh);
 
 /**
  * Frames of a take; 0 for NULL. Thread-safe.

@@ -673,3 +673,41 @@ fn everything_written_reads_back_equal() {
         "{written} written, {refused} refused"
     );
 }
+
+/// A rig without some t2m-22 joints is read with them placed from the others, and says so: a
+/// Blender Rigify export (`bvhtools`' test3.bvh: two spine joints, no hands, no toes, the head
+/// a `face` bone below the neck), every inferred joint on the rig's own bones.
+#[test]
+fn joints_a_rig_lacks_are_inferred_and_reported() {
+    let path = common::pypi_sdist("bvhtools==1.6.0").join("testBvhFiles/test3.bvh");
+    let bvh = read_bvh(&path).unwrap();
+    let joints = bvh
+        .to_t2m22(&JointMap::builtin(), Some(Units::Meters), "test3.bvh")
+        .unwrap();
+    let said = joints.inferred.join("\n");
+    println!("{said}");
+    for expected in [
+        "spine3 at",
+        "left_wrist at the end of forearm.L (forearm.L's end site)",
+        "right_foot three quarters of the way from foot.R",
+        "head at the end of neck",
+    ] {
+        assert!(said.contains(expected), "{expected:?} not in:\n{said}");
+    }
+    assert_eq!(joints.inferred.len(), 6, "{said}");
+    // Each inferred point lies on the rig's own segment: spine3 between spine.001 and neck.
+    let all = bvh.positions();
+    let at = |name: &str, t: usize| -> Vec3 {
+        let i = bvh.joint(name).unwrap();
+        std::array::from_fn(|d| f64::from(all[[t, i, d]]))
+    };
+    for t in [0, bvh.frames() / 2, bvh.frames() - 1] {
+        let s3: Vec3 = std::array::from_fn(|d| f64::from(joints.positions[[t, 9, d]]));
+        let (a, b) = (at("spine.001", t), at("neck", t));
+        let d = |p: Vec3, q: Vec3| (0..3).map(|k| (p[k] - q[k]).powi(2)).sum::<f64>().sqrt();
+        assert!((d(a, s3) + d(s3, b) - d(a, b)).abs() < 1e-4, "frame {t}");
+        // Mapped joints are the rig's own.
+        let knee: Vec3 = std::array::from_fn(|k| f64::from(joints.positions[[t, 4, k]]));
+        assert!(d(knee, at("shin.L", t)) < 1e-6);
+    }
+}

@@ -12,7 +12,8 @@
 //! - [`features`]: the `interhuman262` layout, positions to features and features to a pose;
 //! - [`stream`]: the same one frame at a time, for sessions;
 //! - [`resample`]: frame-rate conversion at the boundary;
-//! - [`bvh`]: BVH files in and out, and [`joint_map`]: which rig joint is which t2m-22 joint;
+//! - [`bvh`]: BVH files in and out, [`joint_map`]: which rig joint is which t2m-22 joint, and
+//!   [`joint_inference`]: the t2m-22 joints a rig lacks, placed from those it has;
 //! - [`rig`]: a caller's character rig, and [`retarget`]: troupe's motion posed on it;
 //! - [`export`]: poses as JSON for robots and tools, and [`gltf`]: rigs and motion as `.glb`;
 //! - [`smplx145`]: MAGNet's SMPL-X frames, posed on the t2m-22 skeleton;
@@ -25,6 +26,7 @@ pub mod export;
 pub mod features;
 pub mod gltf;
 pub mod ik;
+pub mod joint_inference;
 pub mod joint_map;
 pub mod penetration;
 pub mod placement;

@@ -67,6 +67,51 @@ static char *own_rig_json(void) {
     return text;
 }
 
+/* Writes troupe's body as a BVH hierarchy without spine2 and without toes (the ankles end in
+ * end sites where the toes were), then two frames of zeros: a rig lacking three t2m-22 joints. */
+static void write_joint(FILE *f, const int parents[J], const float offsets[3 * J], int j, const float *extra) {
+    int c;
+    float o[3];
+    o[0] = offsets[3 * j] + (extra ? extra[0] : 0.0f);
+    o[1] = offsets[3 * j + 1] + (extra ? extra[1] : 0.0f);
+    o[2] = offsets[3 * j + 2] + (extra ? extra[2] : 0.0f);
+    fprintf(f, "%s %s\n{\nOFFSET %f %f %f\nCHANNELS %s\n", j ? "JOINT" : "ROOT", troupe_motion_joint_name((size_t)j),
+            100 * o[0], 100 * o[1], 100 * o[2],
+            j ? "3 Zrotation Yrotation Xrotation" : "6 Xposition Yposition Zposition Zrotation Yrotation Xrotation");
+    if (j == 7 || j == 8) {
+        const float *toe = &offsets[3 * (j + 3)];
+        fprintf(f, "End Site\n{\nOFFSET %f %f %f\n}\n", 100 * toe[0], 100 * toe[1], 100 * toe[2]);
+    }
+    for (c = 0; c < J; c++) {
+        if (parents[c] != j || c == 10 || c == 11) continue;
+        if (c == 6) { /* spine2 skipped: its child hangs from spine1 */
+            write_joint(f, parents, offsets, 9, &offsets[3 * 6]);
+            continue;
+        }
+        write_joint(f, parents, offsets, c, NULL);
+    }
+    if (j == 15 || j == 20 || j == 21) fprintf(f, "End Site\n{\nOFFSET 0 5 0\n}\n");
+    fprintf(f, "}\n");
+}
+
+static int write_rig_without_toes(const char *path) {
+    int parents[J], i;
+    float offsets[3 * J], rest[3 * J];
+    FILE *f = fopen(path, "w");
+    if (!f) return 0;
+    rest_pose(rest, parents, offsets);
+    fprintf(f, "HIERARCHY\n");
+    write_joint(f, parents, offsets, 0, NULL);
+    fprintf(f, "MOTION\nFrames: 2\nFrame Time: 0.0333333\n");
+    for (i = 0; i < 2; i++) {
+        int k;
+        for (k = 0; k < 6 + 3 * (J - 4); k++) fprintf(f, "0 ");
+        fprintf(f, "\n");
+    }
+    fclose(f);
+    return 1;
+}
+
 int main(int argc, char **argv) {
     troupe_rig *mixamo = NULL, *own = NULL, *bad = NULL;
     troupe_rig_retargeter *stream = NULL, *fresh = NULL;
@@ -203,6 +248,21 @@ int main(int argc, char **argv) {
         troupe_bvh_free(back);
         EXPECT(troupe_rig_bvh_write(path, NULL, clip, FRAMES, &format, TROUPE_UNITS_CENTIMETERS, 0), TROUPE_ERR_NULL_ARG);
         EXPECT(troupe_rig_bvh_write(path, mixamo, clip, FRAMES, &format, 9, 0), TROUPE_ERR_INVALID_ARG);
+    }
+    {
+        /* A rig lacking joints is read with them placed from the others, and says which. */
+        troupe_bvh *take = NULL;
+        snprintf(path, sizeof path, "%s/no_toes_c.bvh", argv[2]);
+        CHECK(write_rig_without_toes(path));
+        EXPECT(troupe_bvh_read(path, NULL, TROUPE_UNITS_CENTIMETERS, &take), TROUPE_OK);
+        CHECK(troupe_bvh_frames(take) == 2);
+        CHECK(strstr(troupe_bvh_inferred(take), "spine2 at") != NULL);
+        CHECK(strstr(troupe_bvh_inferred(take), "left_foot three quarters of the way from left_ankle") != NULL);
+        CHECK(troupe_bvh_inferred(NULL) == NULL);
+        troupe_bvh_free(take);
+        EXPECT(troupe_bvh_read(argv[1], NULL, TROUPE_UNITS_AUTO, &take), TROUPE_OK);
+        CHECK(strcmp(troupe_bvh_inferred(take), "") == 0);
+        troupe_bvh_free(take);
     }
     troupe_rig_free(mixamo);
     troupe_rig_free(own);

@@ -68,6 +68,8 @@ def test_a_bvh_rig_and_the_files_written_on_it(tmp_path, clip):
     motion.write_bvh(source, {"actor": clip}, FMT)
     rig = motion.Rig.from_bvh(source)
     assert rig.joint_names[0] == "pelvis"
+    take = motion.read_bvh_take(source)
+    assert take.positions.shape == (90, 22, 3) and take.inferred == []
     glb = tmp_path / "pair.glb"
     motion.write_gltf(glb, {"actor": clip, "partner": clip + np.float32([1.5, 0, 0])}, FMT, rig=rig)
     data = glb.read_bytes()

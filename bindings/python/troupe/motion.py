@@ -35,7 +35,7 @@ from .errors import expect_type
 
 __all__ = ["JointsFormat", "Placement", "Poses", "Skeleton", "FeatureStream", "skeleton", "encode", "decode",
            "read_bvh", "write_bvh", "write_json", "save_npz", "smplx145_positions", "penetration_metrics", "JOINTS",
-           "Rig", "RigPose", "Retargeter", "retarget", "write_gltf", "write_rig_bvh"]
+           "Rig", "RigPose", "Retargeter", "BvhTake", "read_bvh_take", "retarget", "write_gltf", "write_rig_bvh"]
 
 JOINTS = 22
 _UNITS = {"m": 0, "cm": 1, "mm": 2, "in": 3}
@@ -255,11 +255,26 @@ class FeatureStream:
         self.close()
 
 
+class BvhTake(NamedTuple):
+    """A BVH take as t2m-22 joint positions [T, 22, 3] (the file's units and axes), its
+    JointsFormat, and the t2m-22 joints its rig lacks with how each was placed (one line each)."""
+    positions: np.ndarray
+    format: JointsFormat
+    inferred: list[str]
+
+
 def read_bvh(path: str | os.PathLike, units: str | None = None,
              joint_map: str | None = None) -> tuple[np.ndarray, JointsFormat]:
     """A BVH take as t2m-22 joint positions: (positions [T, 22, 3] in the file's units and axes,
     its JointsFormat). `units`: the file's ("m", "cm", ...), or None to guess from the figure's
-    height; `joint_map`: a joint-map JSON text to use instead of the built-in one."""
+    height; `joint_map`: a joint-map JSON text to use instead of the built-in one. Joints the rig
+    lacks are placed from the others (`read_bvh_take` says which)."""
+    take = read_bvh_take(path, units, joint_map)
+    return take.positions, take.format
+
+
+def read_bvh_take(path: str | os.PathLike, units: str | None = None, joint_map: str | None = None) -> BvhTake:
+    """`read_bvh`, also saying which t2m-22 joints the rig lacks and how they were placed."""
     handle = _native.bvh_p()
     code = _UNITS_AUTO if units is None else _UNITS[units]
     jm = joint_map.encode() if joint_map is not None else None
@@ -270,7 +285,8 @@ def read_bvh(path: str | os.PathLike, units: str | None = None,
         _check(_lib.troupe_bvh_positions(handle, _ptr(out), out.size))
         c = _native.JointsFormat()
         _check(_lib.troupe_bvh_format(handle, ctypes.byref(c), ctypes.sizeof(c)))
-        return out, JointsFormat._from_c(c)
+        said = _lib.troupe_bvh_inferred(handle).decode()
+        return BvhTake(out, JointsFormat._from_c(c), said.splitlines())
     finally:
         _lib.troupe_bvh_free(handle)
 

@@ -27,6 +27,7 @@ pub const TROUPE_UNITS_AUTO: u32 = 0xFFFF_FFFF;
 pub struct troupe_bvh {
     positions: Array3<f32>,
     format: JointsFormat,
+    inferred: std::ffi::CString,
 }
 
 pub(crate) fn units_from(code: u32, what: &str) -> FfiResult<Units> {
@@ -46,14 +47,16 @@ pub(crate) fn units_from(code: u32, what: &str) -> FfiResult<Units> {
 
 /// Reads the BVH file at `path` (UTF-8) as t2m-22 joint positions. `joint_map_json`: a joint
 /// map (JSON, see the built-in `src/motion/rigs/t2m22-joint-names.json`) or NULL for the
-/// built-in one (LAFAN1, Mixamo, CMU, HumanIK and SMPL names). `units`: the file's length unit
-/// (`TROUPE_UNITS_*`), or `TROUPE_UNITS_AUTO` to guess from the figure's height. `*out` is set
-/// to NULL on entry and to the take on success.
+/// built-in one (LAFAN1, Mixamo, CMU, HumanIK, SMPL and Rigify names). t2m-22 joints the rig
+/// lacks are placed from the others where they can be (`troupe_bvh_inferred` says which).
+/// `units`: the file's length unit (`TROUPE_UNITS_*`), or `TROUPE_UNITS_AUTO` to guess from the
+/// figure's height. `*out` is set to NULL on entry and to the take on success.
 ///
 /// Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_IO` (unreadable file),
 /// `TROUPE_ERR_INVALID_ARG` (malformed file, naming line, joint and frame; a rig lacking a
-/// t2m-22 joint, naming it and the names tried; a bad map or units), `TROUPE_ERR_CANCELLED`
-/// (the progress callback stopped it: it reports every 4096 frames), `TROUPE_ERR_PANIC`.
+/// t2m-22 joint that cannot be placed from the others, naming it and the names tried; a bad
+/// map or units), `TROUPE_ERR_CANCELLED` (the progress callback stopped it: it reports every
+/// 4096 frames), `TROUPE_ERR_PANIC`.
 /// Thread-safe.
 ///
 /// # Safety
@@ -87,15 +90,29 @@ pub unsafe extern "C" fn troupe_bvh_read(
                 code => Some(units_from(code, "units")?),
             };
             let joints = read_bvh(path)?.to_t2m22(&map, units, path)?;
+            // Lines of text never hold a NUL: joint names are checked by the reader.
+            let inferred = std::ffi::CString::new(joints.inferred.join("\n")).unwrap_or_default();
             let handle = Box::new(troupe_bvh {
                 positions: joints.positions,
                 format: joints.format,
+                inferred,
             });
             // SAFETY: as above.
             unsafe { *out = Box::into_raw(handle) };
             Ok(())
         },
     )
+}
+
+/// The t2m-22 joints the take's rig lacks and how they were placed (spine joints along its
+/// spine, toes along its feet, collars, a hand at a forearm's end; see docs/RIGS.md), one line
+/// each (UTF-8, owned by the take, valid until it is freed; "" when the rig has every joint, NULL
+/// for NULL). Thread-safe.
+#[no_mangle]
+pub extern "C" fn troupe_bvh_inferred(bvh: Option<&troupe_bvh>) -> *const c_char {
+    boundary::get(std::ptr::null(), || {
+        bvh.map_or(std::ptr::null(), |b| b.inferred.as_ptr())
+    })
 }
 
 /// Frames of a take; 0 for NULL. Thread-safe.

@@ -24,6 +24,7 @@ pub use write_rig::{write_rig_bvh, write_rig_bvh_file};
 
 use ndarray::{s, Array3};
 
+use crate::motion::joint_inference::RigShape;
 use crate::motion::joint_map::JointMap;
 use crate::motion::rotation::Quat;
 use crate::motion::vec3::{add, Vec3};
@@ -135,29 +136,38 @@ impl Bvh {
     pub fn positions(&self) -> Array3<f32> {
         let (n, frames) = (self.joints.len(), self.frames());
         let mut out = Array3::<f32>::zeros((frames, n, 3));
-        let mut world_rot = vec![Quat::IDENTITY; n];
-        let mut world_pos = vec![[0.0f64; 3]; n];
         for t in 0..frames {
-            let row = &self.values[t * self.channels_per_frame..(t + 1) * self.channels_per_frame];
-            let mut at = 0;
-            for (j, joint) in self.joints.iter().enumerate() {
-                let (translation, rotation) = local_transform(joint, &row[at..]);
-                at += joint.channels.len();
-                let (pos, rot) = match joint.parent {
-                    Some(p) => (
-                        add(world_pos[p], world_rot[p].rotate(translation)),
-                        world_rot[p] * rotation,
-                    ),
-                    None => (translation, rotation),
-                };
-                world_pos[j] = pos;
-                world_rot[j] = rot;
+            let (pos, _) = self.pose(t);
+            for (j, p) in pos.iter().enumerate() {
                 for d in 0..3 {
-                    out[[t, j, d]] = pos[d] as f32;
+                    out[[t, j, d]] = p[d] as f32;
                 }
             }
         }
         out
+    }
+
+    /// World positions and rotations of every joint in frame `t` (file units and axes).
+    fn pose(&self, t: usize) -> (Vec<Vec3>, Vec<Quat>) {
+        let n = self.joints.len();
+        let mut world_rot = vec![Quat::IDENTITY; n];
+        let mut world_pos = vec![[0.0f64; 3]; n];
+        let row = &self.values[t * self.channels_per_frame..(t + 1) * self.channels_per_frame];
+        let mut at = 0;
+        for (j, joint) in self.joints.iter().enumerate() {
+            let (translation, rotation) = local_transform(joint, &row[at..]);
+            at += joint.channels.len();
+            let (pos, rot) = match joint.parent {
+                Some(p) => (
+                    add(world_pos[p], world_rot[p].rotate(translation)),
+                    world_rot[p] * rotation,
+                ),
+                None => (translation, rotation),
+            };
+            world_pos[j] = pos;
+            world_rot[j] = rot;
+        }
+        (world_pos, world_rot)
     }
 }
 
@@ -168,11 +178,15 @@ pub struct BvhJoints {
     pub positions: Array3<f32>,
     /// The file's units (declared or guessed), Y up, right-handed, and its frame rate.
     pub format: JointsFormat,
+    /// The t2m-22 joints the rig lacks and how they were placed, one line each (empty when the
+    /// rig has them all).
+    pub inferred: Vec<String>,
 }
 
 impl Bvh {
-    /// The t2m-22 joints of this clip: `map` says which rig joint each is (`label` names the
-    /// file in messages). `units`: the file's length unit, or `None` to guess it from the
+    /// The t2m-22 joints of this clip: `map` says which rig joint each is, and joints the rig
+    /// lacks are placed from the others ([`crate::motion::joint_inference`]; `inferred` says
+    /// which and how). `label` names the file in messages. `units`: the file's length unit, or `None` to guess it from the
     /// figure's height in the first frame (above 10 units: centimetres, else metres). BVH is Y
     /// up by convention.
     pub fn to_t2m22(&self, map: &JointMap, units: Option<Units>, label: &str) -> Result<BvhJoints> {
@@ -190,13 +204,39 @@ impl Bvh {
             )));
         }
         let names: Vec<String> = self.joints.iter().map(|j| j.name.clone()).collect();
-        let index = map.resolve(&names, label)?;
-        let all = self.positions();
-        let mut positions = Array3::<f32>::zeros((frames, index.len(), 3));
-        for (j, &i) in index.iter().enumerate() {
-            positions
-                .slice_mut(s![.., j, ..])
-                .assign(&all.slice(s![.., i, ..]));
+        let parents: Vec<Option<usize>> = self.joints.iter().map(|j| j.parent).collect();
+        let end_sites: Vec<bool> = self.joints.iter().map(|j| j.end_site.is_some()).collect();
+        let resolved = map.resolve_inferring(
+            RigShape {
+                names: &names,
+                parents: &parents,
+                end_sites: &end_sites,
+            },
+            label,
+        )?;
+        let mut positions = Array3::<f32>::zeros((frames, resolved.sources.len(), 3));
+        let mut all = Array3::<f32>::zeros((1, self.joints.len(), 3));
+        for t in 0..frames {
+            let (pos, rot) = self.pose(t);
+            let ends: Vec<Option<Vec3>> = self
+                .joints
+                .iter()
+                .enumerate()
+                .map(|(j, joint)| joint.end_site.map(|e| add(pos[j], rot[j].rotate(e))))
+                .collect();
+            for (k, source) in resolved.sources.iter().enumerate() {
+                let p = source.position(&pos, &ends);
+                for d in 0..3 {
+                    positions[[t, k, d]] = p[d] as f32;
+                }
+            }
+            if t == 0 {
+                for (j, p) in pos.iter().enumerate() {
+                    for d in 0..3 {
+                        all[[0, j, d]] = p[d] as f32;
+                    }
+                }
+            }
         }
         let units = units.unwrap_or_else(|| {
             let heights = all.slice(s![0, .., 1]);
@@ -213,6 +253,7 @@ impl Bvh {
         });
         Ok(BvhJoints {
             positions,
+            inferred: resolved.inferred,
             format: JointsFormat {
                 units,
                 fps: fps as f32,
