@@ -17,7 +17,7 @@ use gltf_json as json;
 use json::validation::{Checked, USize64};
 
 use crate::motion::retarget::RigPose;
-use crate::motion::rig::{canonical, Rig};
+use crate::motion::rig::Rig;
 use crate::motion::rotation::Quat;
 use crate::motion::vec3::{add, cross, norm, normalize, scale, sub, Vec3};
 use crate::motion::world::{JointsFormat, FPS_RANGE};
@@ -229,6 +229,20 @@ fn capsule_radius(length: f64) -> f64 {
     (0.14 * length).clamp(0.025, 0.06)
 }
 
+/// A linearly interpolated animation sampler of `output` keyed at the times `input`.
+fn linear(
+    input: json::Index<json::Accessor>,
+    output: json::Index<json::Accessor>,
+) -> json::animation::Sampler {
+    json::animation::Sampler {
+        input,
+        interpolation: Checked::Valid(json::animation::Interpolation::Linear),
+        output,
+        extensions: None,
+        extras: Default::default(),
+    }
+}
+
 fn f32s(v: Vec3) -> [f32; 3] {
     v.map(|x| x as f32)
 }
@@ -370,29 +384,17 @@ pub fn write_glb(people: &[GltfPerson], options: &GltfOptions) -> Result<Vec<u8>
                 values.extend([q.x, q.y, q.z, q.w].map(|v| v as f32));
             }
             let output = b.floats(&values, 4, None, false);
-            samplers.push(json::animation::Sampler {
-                input: time_accessor,
-                interpolation: Checked::Valid(json::animation::Interpolation::Linear),
-                output,
-                extensions: None,
-                extras: Default::default(),
-            });
+            samplers.push(linear(time_accessor, output));
             channels.push((joint_node(j), json::animation::Property::Rotation));
         }
         let root = person.poses[0].root;
         let translations: Vec<f32> = person
             .poses
             .iter()
-            .flat_map(|pose| f32s(canonical(format, pose.root_translation)))
+            .flat_map(|pose| f32s(format.point_to_canonical(pose.root_translation)))
             .collect();
         let output = b.floats(&translations, 3, None, false);
-        samplers.push(json::animation::Sampler {
-            input: time_accessor,
-            interpolation: Checked::Valid(json::animation::Interpolation::Linear),
-            output,
-            extensions: None,
-            extras: Default::default(),
-        });
+        samplers.push(linear(time_accessor, output));
         channels.push((joint_node(root), json::animation::Property::Translation));
 
         if options.bodies {

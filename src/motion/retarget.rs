@@ -29,7 +29,7 @@
 
 use crate::motion::features::{CONTACT_HEIGHTS, CONTACT_STEP2};
 use crate::motion::joint_map::JointMap;
-use crate::motion::rig::{from_canonical, Rig};
+use crate::motion::rig::Rig;
 use crate::motion::rotation::Quat;
 use crate::motion::skeleton::{Skeleton, T2M22_JOINTS};
 use crate::motion::vec3::{add, cross, dot, norm, normalize, scale, sub, Vec3};
@@ -678,7 +678,7 @@ impl Retargeter {
         RigPose {
             rotations,
             root,
-            root_translation: from_canonical(format, local_translation),
+            root_translation: format.point_from_canonical(local_translation),
         }
     }
 
@@ -931,7 +931,7 @@ mod tests {
                 RigJoint {
                     name: joint.name.clone(),
                     parent: joint.parent,
-                    offset: from_canonical(format, offset),
+                    offset: format.point_from_canonical(offset),
                     rotation: format.rotation_from_canonical_axes(rotation),
                     end_site: None,
                 }

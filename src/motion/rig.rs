@@ -384,7 +384,7 @@ impl Rig {
     /// This rig measured in other units and axes (the same body).
     pub fn with_format(&self, format: JointsFormat) -> Rig {
         // In f64 throughout (`JointsFormat`'s conversions take f32 caller positions).
-        let convert = |v: Vec3| from_canonical(format, canonical(self.format, v));
+        let convert = |v: Vec3| format.point_from_canonical(self.format.point_to_canonical(v));
         Rig {
             name: self.name.clone(),
             names: self.names.clone(),
@@ -445,7 +445,9 @@ impl Rig {
     pub fn posed_positions(&self, pose: &crate::motion::retarget::RigPose) -> Vec<Vec3> {
         let (pos, _) =
             self.forward_kinematics(&pose.rotations, Some((pose.root, pose.root_translation)));
-        pos.into_iter().map(|p| canonical(self.format, p)).collect()
+        pos.into_iter()
+            .map(|p| self.format.point_to_canonical(p))
+            .collect()
     }
 
     /// World positions and rotations of the rest pose, in the rig's units and axes.
@@ -477,42 +479,4 @@ impl Rig {
         let (pos, _) = self.rest_world();
         norm(crate::motion::vec3::sub(pos[a], pos[b])) * self.format.units.meters()
     }
-}
-
-/// A point in `format` as canonical axes, metres (f64 throughout).
-pub(crate) fn canonical(format: JointsFormat, v: Vec3) -> Vec3 {
-    let unit = JointsFormat {
-        units: Units::Meters,
-        ..format
-    };
-    // The axes matrix applied to unit vectors: exact, since its entries are 0 and ±1.
-    let e = |i: usize| {
-        let mut b = [0.0f32; 3];
-        b[i] = 1.0;
-        unit.to_canonical_axes(b)
-    };
-    let (ex, ey, ez) = (e(0), e(1), e(2));
-    let s = format.units.meters();
-    std::array::from_fn(|i| s * (ex[i] * v[0] + ey[i] * v[1] + ez[i] * v[2]))
-}
-
-/// A canonical point (metres) in `format`'s units and axes (f64 throughout).
-pub(crate) fn from_canonical(format: JointsFormat, c: Vec3) -> Vec3 {
-    let unit = JointsFormat {
-        units: Units::Meters,
-        ..format
-    };
-    let e = |i: usize| {
-        let mut b = [0.0f32; 3];
-        b[i] = 1.0;
-        unit.to_canonical_axes(b)
-    };
-    let (ex, ey, ez) = (e(0), e(1), e(2));
-    let s = format.units.meters();
-    // The transpose of an orthogonal matrix is its inverse.
-    [
-        crate::motion::vec3::dot(ex, c) / s,
-        crate::motion::vec3::dot(ey, c) / s,
-        crate::motion::vec3::dot(ez, c) / s,
-    ]
 }

@@ -117,16 +117,25 @@ impl JointsFormat {
 
     /// A caller position in troupe's canonical axes, metres.
     pub fn to_canonical_axes(&self, p: [f32; 3]) -> Vec3 {
-        let (m, s) = (self.axes(), self.units.meters());
-        let p = [f64::from(p[0]), f64::from(p[1]), f64::from(p[2])];
-        std::array::from_fn(|i| s * (m[i][0] * p[0] + m[i][1] * p[1] + m[i][2] * p[2]))
+        self.point_to_canonical(p.map(f64::from))
     }
 
     /// A canonical-axes position (metres) in the caller's axes and units.
     pub fn from_canonical_axes(&self, c: Vec3) -> [f32; 3] {
+        self.point_from_canonical(c).map(|v| v as f32)
+    }
+
+    /// [`JointsFormat::to_canonical_axes`] in double precision (rig offsets, poses).
+    pub fn point_to_canonical(&self, p: Vec3) -> Vec3 {
+        let (m, s) = (self.axes(), self.units.meters());
+        std::array::from_fn(|i| s * (m[i][0] * p[0] + m[i][1] * p[1] + m[i][2] * p[2]))
+    }
+
+    /// [`JointsFormat::from_canonical_axes`] in double precision.
+    pub fn point_from_canonical(&self, c: Vec3) -> Vec3 {
         let (m, s) = (self.axes(), self.units.meters());
         // The inverse of an orthogonal matrix is its transpose.
-        std::array::from_fn(|i| ((m[0][i] * c[0] + m[1][i] * c[1] + m[2][i] * c[2]) / s) as f32)
+        std::array::from_fn(|i| (m[0][i] * c[0] + m[1][i] * c[1] + m[2][i] * c[2]) / s)
     }
 
     /// A rotation given in troupe's axes, expressed in the caller's axes: `M⁻¹ R M` for the

@@ -5,7 +5,7 @@ use std::path::Path;
 
 use ndarray::Array3;
 
-use super::{read_format, read_people, troupe_joints_format};
+use super::{canonical_people, read_format, troupe_joints_format};
 use super::{TROUPE_UNITS_CENTIMETERS, TROUPE_UNITS_METERS};
 use super::{TROUPE_UNITS_INCHES, TROUPE_UNITS_MILLIMETERS};
 use crate::ffi::boundary::{
@@ -13,7 +13,6 @@ use crate::ffi::boundary::{
     TROUPE_ERR_INVALID_ARG, TROUPE_ERR_SHAPE,
 };
 use crate::motion::bvh::{read_bvh, write_bvh_file, BvhPerson, BvhWriteOptions};
-use crate::motion::features::{read_frame, MAX_CLIP_FRAMES};
 use crate::motion::{JointMap, JointsFormat, Units};
 
 /// The most people one BVH file troupe writes may hold.
@@ -246,34 +245,20 @@ pub unsafe extern "C" fn troupe_bvh_write(
             let path = unsafe { boundary::required_str(path, "path") }?;
             let format = unsafe { read_format(format) }?;
             let units = units_from(units, "units")?;
-            let people = unsafe {
-                read_people(
+            // Troupe's axes (metres, Y up): what the BVH writer takes.
+            let (names, clips) = unsafe {
+                canonical_people(
                     positions,
                     n_people,
                     n_frames,
+                    &format,
                     names,
                     MAX_BVH_PEOPLE,
-                    MAX_CLIP_FRAMES,
                 )
             }?;
-            // Troupe's axes (metres, Y up): what the BVH writer takes.
-            let clips = people
-                .positions
-                .iter()
-                .enumerate()
-                .map(|(i, person)| {
-                    person
-                        .outer_iter()
-                        .enumerate()
-                        .map(|(t, frame)| {
-                            read_frame(&format, frame, &format!("person {i}, frame {t}"))
-                        })
-                        .collect::<crate::Result<Vec<_>>>()
-                })
-                .collect::<crate::Result<Vec<_>>>()?;
             let people: Vec<BvhPerson> = clips
                 .iter()
-                .zip(&people.names)
+                .zip(&names)
                 .map(|(c, n)| BvhPerson {
                     name: n,
                     positions: c,

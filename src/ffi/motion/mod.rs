@@ -19,7 +19,7 @@ use crate::ffi::boundary::{
     TROUPE_ERR_INVALID_ARG, TROUPE_ERR_SHAPE,
 };
 use crate::ffi::model::troupe_model;
-use crate::motion::features::{encoded_frames, MAX_CLIP_FRAMES};
+use crate::motion::features::{encoded_frames, read_frame, MAX_CLIP_FRAMES};
 use crate::motion::rotation::Quat;
 use crate::motion::{
     decode_frame, encode_clip, joints_layout, FeatureStream, Handedness, JointsFormat, Placement,
@@ -271,6 +271,48 @@ pub(crate) unsafe fn read_people<'a>(
         names: labels,
         positions: views,
     })
+}
+
+/// One person's frames of t2m-22 positions in troupe's axes.
+type Clip = Vec<Vec<crate::motion::vec3::Vec3>>;
+
+/// People's positions (`[n_people][n_frames][22][3]` in `format`, as `read_people` takes them)
+/// in troupe's axes (metres, Y up), each frame checked, with their names.
+///
+/// # Safety
+/// As `read_people`.
+pub(crate) unsafe fn canonical_people(
+    positions: *const f32,
+    n_people: usize,
+    n_frames: usize,
+    format: &JointsFormat,
+    names: *const *const c_char,
+    max_people: usize,
+) -> FfiResult<(Vec<String>, Vec<Clip>)> {
+    // SAFETY: forwarded contract.
+    let people = unsafe {
+        read_people(
+            positions,
+            n_people,
+            n_frames,
+            names,
+            max_people,
+            MAX_CLIP_FRAMES,
+        )
+    }?;
+    let clips = people
+        .positions
+        .iter()
+        .enumerate()
+        .map(|(i, person)| {
+            person
+                .outer_iter()
+                .enumerate()
+                .map(|(t, frame)| read_frame(format, frame, &format!("person {i}, frame {t}")))
+                .collect::<crate::Result<Vec<_>>>()
+        })
+        .collect::<crate::Result<Vec<_>>>()?;
+    Ok((people.names, clips))
 }
 
 /// The caller's placement, checked, or `None` for NULL.

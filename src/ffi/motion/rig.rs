@@ -5,13 +5,13 @@ use std::ffi::{c_char, CString};
 use std::path::Path;
 
 use super::bvh::{units_from, TROUPE_UNITS_AUTO};
-use super::{read_format, read_people, troupe_joints_format};
+use super::{canonical_people, read_format, troupe_joints_format};
 use crate::ffi::boundary::{
     self, non_null, required, troupe_status, Exclusive, FfiError, FfiResult,
     TROUPE_ERR_INVALID_ARG, TROUPE_ERR_SHAPE,
 };
 use crate::motion::bvh::{read_bvh, write_rig_bvh_file, BvhWriteOptions};
-use crate::motion::features::{read_frame, MAX_CLIP_FRAMES};
+use crate::motion::features::read_frame;
 use crate::motion::gltf::PERSON_COLORS;
 use crate::motion::retarget::{retarget_clip, RetargetOptions, Retargeter, SourceFrame};
 use crate::motion::{
@@ -439,47 +439,6 @@ pub unsafe extern "C" fn troupe_rig_retarget_clip(
             Ok(())
         },
     )
-}
-
-/// One person's frames of t2m-22 positions in troupe's axes.
-type Clip = Vec<Vec<crate::motion::vec3::Vec3>>;
-
-/// Each person's clip in troupe's axes, checked (`[n_people][n_frames][22][3]` in `format`).
-///
-/// # Safety
-/// As `read_people`.
-unsafe fn canonical_people(
-    positions: *const f32,
-    n_people: usize,
-    n_frames: usize,
-    format: &JointsFormat,
-    names: *const *const c_char,
-    max_people: usize,
-) -> FfiResult<(Vec<String>, Vec<Clip>)> {
-    // SAFETY: forwarded contract.
-    let people = unsafe {
-        read_people(
-            positions,
-            n_people,
-            n_frames,
-            names,
-            max_people,
-            MAX_CLIP_FRAMES,
-        )
-    }?;
-    let clips = people
-        .positions
-        .iter()
-        .enumerate()
-        .map(|(i, person)| {
-            person
-                .outer_iter()
-                .enumerate()
-                .map(|(t, frame)| read_frame(format, frame, &format!("person {i}, frame {t}")))
-                .collect::<crate::Result<Vec<_>>>()
-        })
-        .collect::<crate::Result<Vec<_>>>()?;
-    Ok((people.names, clips))
 }
 
 /// Writes a glTF 2.0 binary file (`.glb`) at `path` (UTF-8; atomically): `n_people` people,

@@ -47,7 +47,7 @@ impl Default for BvhWriteOptions {
 }
 
 /// Channels of every non-root joint: intrinsic Z, then Y, then X.
-pub(super) const ROTATION_CHANNELS: &str = "Zrotation Yrotation Xrotation";
+const ROTATION_CHANNELS: &str = "Zrotation Yrotation Xrotation";
 
 /// Euler angles (degrees) with `R = Rz(z) · Ry(y) · Rx(x)`, as `[z, y, x]`.
 pub(super) fn euler_zyx_degrees(q: Quat) -> [f64; 3] {
@@ -249,21 +249,8 @@ fn write_joint(
     } else {
         scale(skeleton.offsets()[joint], per_metre)
     };
-    let _ = writeln!(out, "{tabs}{keyword} {prefix}{}", skeleton.names()[joint]);
-    let _ = writeln!(out, "{tabs}{{");
-    let _ = writeln!(
-        out,
-        "{tabs}\tOFFSET {:.6} {:.6} {:.6}",
-        offset[0], offset[1], offset[2]
-    );
-    if is_root {
-        let _ = writeln!(
-            out,
-            "{tabs}\tCHANNELS 6 Xposition Yposition Zposition {ROTATION_CHANNELS}"
-        );
-    } else {
-        let _ = writeln!(out, "{tabs}\tCHANNELS 3 {ROTATION_CHANNELS}");
-    }
+    let name = format!("{prefix}{}", skeleton.names()[joint]);
+    open_joint(out, &tabs, keyword, &name, offset, is_root);
     let children: Vec<usize> = skeleton.children(joint).collect();
     for &c in &children {
         write_joint(out, skeleton, c, depth + 1, prefix, nested_root, per_metre);
@@ -276,15 +263,47 @@ fn write_joint(
             normalize(own).unwrap_or([0.0, 1.0, 0.0]),
             length * per_metre,
         );
-        let _ = writeln!(out, "{tabs}\tEnd Site\n{tabs}\t{{");
-        let _ = writeln!(
-            out,
-            "{tabs}\t\tOFFSET {:.6} {:.6} {:.6}",
-            end[0], end[1], end[2]
-        );
-        let _ = writeln!(out, "{tabs}\t}}");
+        end_site(out, &tabs, end);
     }
     let _ = writeln!(out, "{tabs}}}");
+}
+
+/// A joint's opening lines: its keyword and name, `{`, its offset, and its channels (position
+/// channels too when it `moves`).
+pub(super) fn open_joint(
+    out: &mut String,
+    tabs: &str,
+    keyword: &str,
+    name: &str,
+    offset: Vec3,
+    moves: bool,
+) {
+    let _ = writeln!(out, "{tabs}{keyword} {name}");
+    let _ = writeln!(out, "{tabs}{{");
+    let _ = writeln!(
+        out,
+        "{tabs}\tOFFSET {:.6} {:.6} {:.6}",
+        offset[0], offset[1], offset[2]
+    );
+    if moves {
+        let _ = writeln!(
+            out,
+            "{tabs}\tCHANNELS 6 Xposition Yposition Zposition {ROTATION_CHANNELS}"
+        );
+    } else {
+        let _ = writeln!(out, "{tabs}\tCHANNELS 3 {ROTATION_CHANNELS}");
+    }
+}
+
+/// A joint's `End Site` block at `end` from it.
+pub(super) fn end_site(out: &mut String, tabs: &str, end: Vec3) {
+    let _ = writeln!(out, "{tabs}\tEnd Site\n{tabs}\t{{");
+    let _ = writeln!(
+        out,
+        "{tabs}\t\tOFFSET {:.6} {:.6} {:.6}",
+        end[0], end[1], end[2]
+    );
+    let _ = writeln!(out, "{tabs}\t}}");
 }
 
 #[cfg(test)]

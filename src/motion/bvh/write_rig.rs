@@ -10,9 +10,9 @@
 use std::fmt::Write as _;
 
 use super::parse::{MAX_BVH_COORDINATE, MAX_BVH_NAME_BYTES};
-use super::write::{euler_zyx_degrees, BvhWriteOptions, ROTATION_CHANNELS};
+use super::write::{end_site, euler_zyx_degrees, open_joint, BvhWriteOptions};
 use crate::motion::retarget::RigPose;
-use crate::motion::rig::{canonical, from_canonical, Rig};
+use crate::motion::rig::Rig;
 use crate::motion::vec3::Vec3;
 use crate::motion::world::{JointsFormat, FPS_RANGE};
 use crate::shared::error::{excerpt, Error, Result};
@@ -61,8 +61,9 @@ pub fn write_rig_bvh(rig: &Rig, poses: &[RigPose], options: &BvhWriteOptions) ->
     };
     let out_rig = rig.with_format(format);
     let far = |v: &Vec3| v.iter().any(|c| c.abs() > MAX_BVH_COORDINATE);
-    let translation =
-        |pose: &RigPose| from_canonical(format, canonical(rig.format(), pose.root_translation));
+    let translation = |pose: &RigPose| {
+        format.point_from_canonical(rig.format().point_to_canonical(pose.root_translation))
+    };
     if out_rig.offsets().iter().any(far) || poses.iter().any(|p| far(&translation(p))) {
         return Err(bad(format!(
             "a bone or the root beyond ±{MAX_BVH_COORDINATE} file units"
@@ -121,22 +122,15 @@ fn depth_first(rig: &Rig, joint: usize) -> Vec<usize> {
 fn write_joint(out: &mut String, rig: &Rig, joint: usize, depth: usize, moving: usize) {
     let tabs = "\t".repeat(depth);
     let keyword = if joint == 0 { "ROOT" } else { "JOINT" };
-    let offset = rig.offsets()[joint];
-    let _ = writeln!(out, "{tabs}{keyword} {}", rig.names()[joint]);
-    let _ = writeln!(out, "{tabs}{{");
-    let _ = writeln!(
+    let moves = joint == 0 || joint == moving;
+    open_joint(
         out,
-        "{tabs}\tOFFSET {:.6} {:.6} {:.6}",
-        offset[0], offset[1], offset[2]
+        &tabs,
+        keyword,
+        &rig.names()[joint],
+        rig.offsets()[joint],
+        moves,
     );
-    if joint == 0 || joint == moving {
-        let _ = writeln!(
-            out,
-            "{tabs}\tCHANNELS 6 Xposition Yposition Zposition {ROTATION_CHANNELS}"
-        );
-    } else {
-        let _ = writeln!(out, "{tabs}\tCHANNELS 3 {ROTATION_CHANNELS}");
-    }
     let children: Vec<usize> = rig.children(joint).collect();
     for &c in &children {
         write_joint(out, rig, c, depth + 1, moving);
@@ -144,13 +138,7 @@ fn write_joint(out: &mut String, rig: &Rig, joint: usize, depth: usize, moving: 
     if children.is_empty() {
         // The rig's end site, or one along the joint's own bone so tools draw it with a length.
         let end = rig.end_sites()[joint].unwrap_or(rig.offsets()[joint].map(|v| 0.5 * v));
-        let _ = writeln!(out, "{tabs}\tEnd Site\n{tabs}\t{{");
-        let _ = writeln!(
-            out,
-            "{tabs}\t\tOFFSET {:.6} {:.6} {:.6}",
-            end[0], end[1], end[2]
-        );
-        let _ = writeln!(out, "{tabs}\t}}");
+        end_site(out, &tabs, end);
     }
     let _ = writeln!(out, "{tabs}}}");
 }
