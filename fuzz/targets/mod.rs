@@ -397,7 +397,7 @@ pub fn c_api_sequence(data: &[u8]) {
 pub type Target = fn(&[u8]);
 
 /// Every target by name, for the replay and mutation test.
-pub const TARGETS: [(&str, Target); 11] = [
+pub const TARGETS: [(&str, Target); 12] = [
     ("tar_archive", tar_archive),
     ("manifest", manifest),
     ("onnx_graph", onnx_graph),
@@ -409,7 +409,70 @@ pub const TARGETS: [(&str, Target); 11] = [
     ("prompt_encoder", prompt_encoder),
     ("magnet_config", magnet_config),
     ("motion_encoder", motion_encoder),
+    ("rig_retarget", rig_retarget),
 ];
+
+/// Any bytes as a rig (a rig JSON document, or a BVH hierarchy): whatever is accepted retargets
+/// a few frames of troupe's body moving to finite rotations and translations, and writes a
+/// `.glb` and a BVH on the rig; anything else is an error.
+pub fn rig_retarget(data: &[u8]) {
+    use troupe::motion::bvh::{parse_bvh, write_rig_bvh, BvhWriteOptions};
+    use troupe::motion::{
+        write_glb, GltfOptions, GltfPerson, JointMap, RetargetOptions, Retargeter, Rig, Skeleton,
+        SourceFrame,
+    };
+    let rig = match std::str::from_utf8(data).ok().map(Rig::from_json) {
+        Some(Ok(rig)) => rig,
+        _ => match parse_bvh(data, "fuzz.bvh").and_then(|b| Rig::from_bvh(&b, None, "fuzz")) {
+            Ok(rig) => rig,
+            Err(_) => return,
+        },
+    };
+    let skeleton = Skeleton::t2m22();
+    let Ok(mut retargeter) = Retargeter::new(
+        &rig,
+        &JointMap::builtin(),
+        &skeleton,
+        RetargetOptions::default(),
+    ) else {
+        return;
+    };
+    let rest = skeleton.rest_positions();
+    let mut poses = Vec::new();
+    for t in 0..6 {
+        let wave = 0.05 * f64::from(t);
+        let frame: Vec<[f64; 3]> = rest
+            .iter()
+            .enumerate()
+            .map(|(j, p)| [p[0] + wave, p[1] + 0.02 * (wave * j as f64).sin(), p[2]])
+            .collect();
+        let pose = retargeter
+            .push(&SourceFrame {
+                positions: &frame,
+                rotations: None,
+                contacts: None,
+            })
+            .expect("a finite frame of 22 joints retargets");
+        assert!(
+            pose.rotations
+                .iter()
+                .all(|q| [q.w, q.x, q.y, q.z].iter().all(|v| v.is_finite()))
+                && pose.root_translation.iter().all(|v| v.is_finite()),
+            "a non-finite pose"
+        );
+        poses.push(pose);
+    }
+    let person = GltfPerson {
+        name: "fuzz",
+        rig: &rig,
+        poses: &poses,
+        color: [0.5, 0.5, 0.5],
+    };
+    if let Ok(bytes) = write_glb(&[person], &GltfOptions::default()) {
+        assert_eq!(&bytes[..4], b"glTF");
+    }
+    let _ = write_rig_bvh(&rig, &poses, &BvhWriteOptions::default());
+}
 
 /// BVH text: whatever the reader accepts gives finite positions (forward kinematics of every
 /// joint, and the t2m-22 joints through the built-in map), or an error.

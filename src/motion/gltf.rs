@@ -571,3 +571,92 @@ pub fn write_glb_file(path: &Path, people: &[GltfPerson], options: &GltfOptions)
     let bytes = write_glb(people, options)?;
     crate::shared::files::write_atomically(path, &bytes)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::motion::JointMap;
+
+    fn poses(rig: &Rig, frames: usize) -> Vec<RigPose> {
+        let rest = crate::motion::Skeleton::t2m22().rest_positions();
+        let clip: Vec<Vec<Vec3>> = (0..frames).map(|_| rest.clone()).collect();
+        crate::motion::retarget_clip(rig, &JointMap::builtin(), &clip, None, Default::default())
+            .unwrap()
+    }
+
+    #[test]
+    fn bad_people_are_refused_with_the_reason() {
+        let rig = Rig::t2m22();
+        let good = poses(&rig, 3);
+        let mut nan = good.clone();
+        nan[1].rotations[3].x = f64::NAN;
+        let mut short = good.clone();
+        short[2].rotations.pop();
+        let mut moved = good.clone();
+        moved[1].root = 4;
+        fn person<'a>(rig: &'a Rig, poses: &'a [RigPose]) -> GltfPerson<'a> {
+            GltfPerson {
+                name: "a",
+                rig,
+                poses,
+                color: [0.2, 0.4, 0.6],
+            }
+        }
+        let person = |poses| person(&rig, poses);
+        let slow = GltfOptions {
+            fps: 0.0,
+            ..Default::default()
+        };
+        let ok = GltfOptions::default();
+        let cases: Vec<(Vec<GltfPerson>, &GltfOptions, &str)> = vec![
+            (vec![], &ok, "no people"),
+            (vec![person(&[])], &ok, "0 frames"),
+            (vec![person(&good), person(&good[..2])], &ok, "has 2 frames"),
+            (vec![person(&good)], &slow, "fps"),
+            (vec![person(&nan)], &ok, "finite rotations"),
+            (vec![person(&short)], &ok, "finite rotations"),
+            (vec![person(&moved)], &ok, "same root joint"),
+            (
+                vec![GltfPerson {
+                    color: [2.0, 0.0, 0.0],
+                    ..person(&good)
+                }],
+                &ok,
+                "colour",
+            ),
+        ];
+        for (people, options, reason) in cases {
+            let err = write_glb(&people, options).unwrap_err().to_string();
+            assert!(err.contains(reason), "{reason}: {err}");
+        }
+        let bytes = write_glb(&[person(&good)], &ok).unwrap();
+        assert_eq!(&bytes[..4], b"glTF");
+        assert_eq!(
+            u32::from_le_bytes(bytes[8..12].try_into().unwrap()) as usize,
+            bytes.len()
+        );
+    }
+
+    #[test]
+    fn a_capsule_is_closed_and_faces_out() {
+        let (a, b, r) = ([0.0, 0.0, 0.0], [0.0, 1.0, 0.0], 0.1);
+        let (pos, nor, idx) = capsule(a, b, r, 0);
+        assert_eq!(idx.len() % 3, 0);
+        // Every triangle's winding agrees with the outward normals of its corners.
+        for t in idx.chunks(3) {
+            let [p, q, s] = [t[0], t[1], t[2]].map(|i| pos[i as usize]);
+            let n = cross(sub(q, p), sub(s, p));
+            let out = add(
+                add(nor[t[0] as usize], nor[t[1] as usize]),
+                nor[t[2] as usize],
+            );
+            assert!(crate::motion::vec3::dot(n, out) > 0.0, "{t:?} faces in");
+        }
+        // Every vertex is r from the segment.
+        for p in &pos {
+            let y = p[1].clamp(0.0, 1.0);
+            let d = norm(sub(*p, [0.0, y, 0.0]));
+            assert!((d - r).abs() < 1e-9, "{p:?}");
+        }
+    }
+}

@@ -480,3 +480,93 @@ impl Rig {
         norm(crate::motion::vec3::sub(pos[a], pos[b])) * self.format.units.meters()
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn bad_rig_documents_are_refused_with_the_reason() {
+        let joint = |name: &str, parent: &str, extra: &str| {
+            format!(r#"{{"name": "{name}", "parent": {parent}, "offset": [0, 1, 0]{extra}}}"#)
+        };
+        let doc = |joints: &[String], head: &str| {
+            format!(
+                r#"{{"name": "r"{head}, "joints": [{}]}}"#,
+                joints.join(", ")
+            )
+        };
+        let root = joint("a", "null", "");
+        let cases = [
+            ("[]".to_string(), "not a rig document"),
+            (doc(&[], ""), "0 joints"),
+            (
+                doc(&[root.clone(), joint("a", r#""a""#, "")], ""),
+                "used twice",
+            ),
+            (
+                doc(&[root.clone(), joint("b", r#""c""#, "")], ""),
+                "not a joint before",
+            ),
+            (
+                doc(&[root.clone(), joint("b", "null", "")], ""),
+                "only joint 0 is a root",
+            ),
+            (
+                doc(&[joint("a", "null", r#", "rotation": [2, 0, 0, 0]"#)], ""),
+                "not a unit quaternion",
+            ),
+            (
+                doc(
+                    &[r#"{"name": "a", "parent": null, "offset": [1e9, 0, 0]}"#.into()],
+                    "",
+                ),
+                "within 10000 m",
+            ),
+            (
+                doc(std::slice::from_ref(&root), r#", "units": "furlongs""#),
+                "units",
+            ),
+            (doc(std::slice::from_ref(&root), r#", "up": "x""#), "up"),
+            (
+                doc(std::slice::from_ref(&root), r#", "handedness": "both""#),
+                "handedness",
+            ),
+            (
+                doc(&[joint("a\\u0007b", "null", "")], ""),
+                "control characters",
+            ),
+        ];
+        for (text, reason) in cases {
+            let err = Rig::from_json(&text).unwrap_err().to_string();
+            assert!(err.contains(reason), "{text}: {err}");
+        }
+    }
+
+    #[test]
+    fn a_rig_keeps_its_shape_in_other_units_and_axes() {
+        let text = r#"{"name": "r", "units": "cm", "up": "z", "joints": [
+            {"name": "a", "parent": null, "offset": [10, 20, 90]},
+            {"name": "b", "parent": "a", "offset": [0, 0, 30], "rotation": [0.7071068, 0.7071068, 0, 0]},
+            {"name": "c", "parent": "b", "offset": [0, 25, 0], "end_site": [0, 5, 0]}]}"#;
+        let rig = Rig::from_json(text).unwrap();
+        let (pos, _) = rig.rest_world();
+        let metres = rig.with_format(JointsFormat::default());
+        let (again, _) = metres.rest_world();
+        for (p, q) in pos.iter().zip(&again) {
+            let c = rig.format().point_to_canonical(*p);
+            assert!(
+                (0..3).all(|d| (c[d] - q[d]).abs() < 1e-12),
+                "{c:?} vs {q:?}"
+            );
+        }
+        // Z up: from the root at 90 cm, b 30 above, c (turned up by b's rest rotation) 25 above
+        // that, its end site 5 more: 60 cm from lowest to highest.
+        assert!(
+            (rig.height_metres() - 0.6).abs() < 1e-9,
+            "{}",
+            rig.height_metres()
+        );
+        assert_eq!(metres.names(), rig.names());
+    }
+}
