@@ -816,6 +816,62 @@ mod tests {
     }
 
     #[test]
+    fn twist_comes_from_the_source_when_it_has_rotations() {
+        let skeleton = Skeleton::t2m22();
+        let mut r = Retargeter::new(
+            &Rig::t2m22(),
+            &JointMap::builtin(),
+            &skeleton,
+            RetargetOptions {
+                limb_ik: false,
+                ..Default::default()
+            },
+        )
+        .unwrap();
+        for k in 0..8 {
+            let t = f64::from(k) * 0.4;
+            // Every joint turned, forearms twisted about their own bone as well.
+            let mut local: Vec<Quat> = (0..skeleton.len())
+                .map(|j| {
+                    let a = t + j as f64;
+                    let axis = normalize([a.sin(), a.cos(), 0.5 * (2.0 * a).sin()]).unwrap();
+                    Quat::from_axis_angle(axis, 0.5 * (1.3 * a).sin())
+                })
+                .collect();
+            for elbow in [18, 19] {
+                let bone = normalize(skeleton.offsets()[elbow + 2]).unwrap();
+                local[elbow] = local[elbow] * Quat::from_axis_angle(bone, 0.9 + t);
+            }
+            let positions = forward_kinematics(&skeleton, [0.0, 1.9, 0.0], &local);
+            let with = r
+                .push(&SourceFrame {
+                    positions: &positions,
+                    rotations: Some(&local),
+                    contacts: Some([false; 4]),
+                })
+                .unwrap();
+            r.reset();
+            let without = push(&mut r, &positions);
+            r.reset();
+            // With rotations, every local rotation is the source's, twist included.
+            for (j, q) in with.rotations.iter().enumerate() {
+                assert!((dot4(*q, local[j]).abs() - 1.0).abs() < 1e-9, "joint {j}");
+            }
+            // From positions alone the forearms lose their twist, the positions stay.
+            for elbow in [18, 19] {
+                assert!((dot4(without.rotations[elbow], local[elbow]).abs() - 1.0).abs() > 1e-3);
+            }
+            let (a, b) = (
+                r.canonical_positions(&with),
+                r.canonical_positions(&without),
+            );
+            for (p, q) in a.iter().zip(&b) {
+                assert!(dist(*p, *q) < 1e-9);
+            }
+        }
+    }
+
+    #[test]
     fn onto_troupes_own_body_the_motion_is_reproduced() {
         let skeleton = Skeleton::t2m22();
         for limb_ik in [false, true] {
