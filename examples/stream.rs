@@ -205,8 +205,8 @@ fn load_rig(a: &Args) -> Result<Rig, troupe::Error> {
     if path.extension().is_some_and(|e| e == "bvh") {
         let bvh = read_bvh(path)?;
         match a.rig_rest_frame {
-            Some(frame) => Rig::from_bvh_frame(&bvh, frame, None, &label),
-            None => Rig::from_bvh(&bvh, None, &label),
+            Some(frame) => bvh.rig_at_frame(frame, None, &label),
+            None => bvh.rig(None, &label),
         }
     } else {
         Rig::from_json(

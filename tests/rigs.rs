@@ -68,7 +68,10 @@ fn partner() -> Vec<Vec<Vec3>> {
 }
 
 fn rig_of_bvh(path: &Path, name: &str) -> Rig {
-    Rig::from_bvh(&read_bvh(path).unwrap(), Some(Units::Centimeters), name).unwrap()
+    read_bvh(path)
+        .unwrap()
+        .rig(Some(Units::Centimeters), name)
+        .unwrap()
 }
 
 /// A real rig made A-pose, centimetres and Z up: each upper arm turned 45° down about the
@@ -140,13 +143,10 @@ fn rigs() -> Vec<TestRig> {
         "mixamo",
     );
     // LAFAN1's all-zero pose lies on its side: its first frame, standing, is the rest pose.
-    let lafan = Rig::from_bvh_frame(
-        &read_bvh(common::pypi_sdist("bvhtools==1.6.0").join("testBvhFiles/test2.bvh")).unwrap(),
-        0,
-        Some(Units::Centimeters),
-        "lafan1",
-    )
-    .unwrap();
+    let lafan = read_bvh(common::pypi_sdist("bvhtools==1.6.0").join("testBvhFiles/test2.bvh"))
+        .unwrap()
+        .rig_at_frame(0, Some(Units::Centimeters), "lafan1")
+        .unwrap();
     let a_pose = a_pose_z_up(&mixamo);
     let builtin = |label, rig| TestRig {
         label,

@@ -423,7 +423,7 @@ pub fn rig_retarget(data: &[u8]) {
     };
     let rig = match std::str::from_utf8(data).ok().map(Rig::from_json) {
         Some(Ok(rig)) => rig,
-        _ => match parse_bvh(data, "fuzz.bvh").and_then(|b| Rig::from_bvh(&b, None, "fuzz")) {
+        _ => match parse_bvh(data, "fuzz.bvh").and_then(|b| b.rig(None, "fuzz")) {
             Ok(rig) => rig,
             Err(_) => return,
         },

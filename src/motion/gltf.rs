@@ -16,8 +16,7 @@ use std::path::Path;
 use gltf_json as json;
 use json::validation::{Checked, USize64};
 
-use crate::motion::retarget::RigPose;
-use crate::motion::rig::Rig;
+use crate::motion::rig::{Rig, RigPose};
 use crate::motion::rotation::Quat;
 use crate::motion::vec3::{add, cross, norm, normalize, scale, sub, Vec3};
 use crate::motion::world::{JointsFormat, FPS_RANGE};

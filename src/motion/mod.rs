@@ -51,8 +51,8 @@ pub use penetration::{
     penetration_metrics, Hinge, Penetration, PenetrationLoss, PenetrationMetrics,
 };
 pub use placement::Placement;
-pub use retarget::{retarget_clip, RetargetOptions, Retargeter, RigPose, SourceFrame};
-pub use rig::{Rig, RigJoint};
+pub use retarget::{retarget_clip, RetargetOptions, Retargeter, SourceFrame};
+pub use rig::{Rig, RigJoint, RigPose};
 pub use skeleton::{Skeleton, T2M22, T2M22_JOINTS};
 pub use smplx145::{smplx145_positions, SMPLX145, SMPLX145_DIM};
 pub use stream::{FeatureStream, STREAM_LATENCY_FRAMES};

@@ -29,7 +29,7 @@
 
 use crate::motion::features::{CONTACT_HEIGHTS, CONTACT_STEP2};
 use crate::motion::joint_map::JointMap;
-use crate::motion::rig::Rig;
+use crate::motion::rig::{Rig, RigPose};
 use crate::motion::rotation::Quat;
 use crate::motion::skeleton::{Skeleton, T2M22_JOINTS};
 use crate::motion::vec3::{add, cross, dot, norm, normalize, scale, sub, Vec3};
@@ -87,19 +87,6 @@ pub struct SourceFrame<'a> {
     /// Contacts of left ankle, left foot, right ankle, right foot where the source has them;
     /// otherwise they are found from the ankles' steps and heights (InterGen's thresholds).
     pub contacts: Option<[bool; 4]>,
-}
-
-/// One pose of a rig: what an engine animates.
-#[derive(Debug, Clone, PartialEq)]
-pub struct RigPose {
-    /// Every joint's local rotation (relative to its parent), in the rig's axes; joints the map
-    /// does not name keep their rest rotation.
-    pub rotations: Vec<Quat>,
-    /// The joint whose translation moves (the one mapped to the pelvis).
-    pub root: usize,
-    /// Its local translation (relative to its parent, or the world for the rig's root joint), in
-    /// the rig's units and axes.
-    pub root_translation: Vec3,
 }
 
 /// How one rig joint is posed.

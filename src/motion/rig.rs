@@ -4,7 +4,8 @@
 //! rig is whatever a game engine or a DCC tool has: any joint names, extra joints (a root bone,
 //! twist bones, fingers), any rest pose (T-pose, A-pose), rest rotations on its joints (glTF and
 //! FBX rigs have them; BVH rigs do not), and its own units and axes. It comes from a BVH
-//! hierarchy ([`Rig::from_bvh`]) or a rig JSON document ([`Rig::from_json`]):
+//! hierarchy ([`Bvh::rig`](crate::motion::bvh::Bvh::rig)) or a rig JSON document
+//! ([`Rig::from_json`]):
 //!
 //! ```json
 //! {"name": "my_rig", "units": "centimeters", "up": "z", "handedness": "right",
@@ -20,7 +21,6 @@
 
 use serde::Deserialize;
 
-use crate::motion::bvh::Bvh;
 use crate::motion::rotation::Quat;
 use crate::motion::skeleton::Skeleton;
 use crate::motion::vec3::{add, norm, Vec3};
@@ -44,6 +44,19 @@ pub struct Rig {
     rotations: Vec<Quat>,
     end_sites: Vec<Option<Vec3>>,
     format: JointsFormat,
+}
+
+/// One pose of a rig: what an engine animates.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RigPose {
+    /// Every joint's local rotation (relative to its parent), in the rig's axes; joints the map
+    /// does not name keep their rest rotation.
+    pub rotations: Vec<Quat>,
+    /// The joint whose translation moves (the one mapped to the pelvis).
+    pub root: usize,
+    /// Its local translation (relative to its parent, or the world for the rig's root joint), in
+    /// the rig's units and axes.
+    pub root_translation: Vec3,
 }
 
 #[derive(Deserialize)]
@@ -238,83 +251,6 @@ impl Rig {
         )
     }
 
-    /// The rig of a BVH file's hierarchy: its offsets at rest (no channel applied), no rest
-    /// rotations, Y up. `units`: the file's unit, or `None` to guess it from the rest pose's
-    /// height (above 10 units: centimetres, else metres).
-    pub fn from_bvh(bvh: &Bvh, units: Option<Units>, name: &str) -> Result<Rig> {
-        let joints: Vec<RigJoint> = bvh
-            .joints
-            .iter()
-            .map(|j| RigJoint {
-                name: j.name.clone(),
-                parent: j.parent,
-                offset: j.offset,
-                rotation: Quat::IDENTITY,
-                end_site: j.end_site,
-            })
-            .collect();
-        let units = units.unwrap_or_else(|| {
-            let mut world: Vec<Vec3> = Vec::with_capacity(joints.len());
-            for j in &joints {
-                let p = j.parent.map_or([0.0; 3], |p| world[p]);
-                world.push(add(p, j.offset));
-            }
-            let (lo, hi) = world
-                .iter()
-                .fold((f64::INFINITY, f64::NEG_INFINITY), |a, p| {
-                    (a.0.min(p[1]), a.1.max(p[1]))
-                });
-            if hi - lo > 10.0 {
-                Units::Centimeters
-            } else {
-                Units::Meters
-            }
-        });
-        Rig::new(
-            name,
-            joints,
-            JointsFormat {
-                units,
-                ..JointsFormat::default()
-            },
-        )
-    }
-
-    /// The rig of a BVH file's hierarchy posed as in frame `frame`: for files whose all-zero
-    /// pose is no standing pose (LAFAN1's lies on its side), a frame where the figure stands
-    /// gives the rest pose retargeting measures from. Joints with position channels take those
-    /// positions as their offsets. `units` as in [`Rig::from_bvh`].
-    pub fn from_bvh_frame(
-        bvh: &Bvh,
-        frame: usize,
-        units: Option<Units>,
-        name: &str,
-    ) -> Result<Rig> {
-        if frame >= bvh.frames() {
-            return Err(Error::InvalidInput(format!(
-                "rig {}: frame {frame} of a file of {} frames",
-                excerpt(name),
-                bvh.frames()
-            )));
-        }
-        let row = &bvh.values[frame * bvh.channels_per_frame..(frame + 1) * bvh.channels_per_frame];
-        let zero = Rig::from_bvh(bvh, units, name)?;
-        let mut at = 0;
-        let mut joints = Vec::with_capacity(bvh.joints.len());
-        for (j, joint) in bvh.joints.iter().enumerate() {
-            let (offset, rotation) = crate::motion::bvh::local_transform(joint, &row[at..]);
-            at += joint.channels.len();
-            joints.push(RigJoint {
-                name: joint.name.clone(),
-                parent: joint.parent,
-                offset,
-                rotation: rotation.normalized(),
-                end_site: zero.end_sites[j],
-            });
-        }
-        Rig::new(name, joints, zero.format)
-    }
-
     /// troupe's own t2m-22 body as a rig (metres, Y up): retargeting onto it reproduces the
     /// motion, which is what the tests check first.
     pub fn t2m22() -> Rig {
@@ -442,7 +378,7 @@ impl Rig {
 
     /// World positions of every joint of `pose` in troupe's canonical axes (metres, Y up):
     /// where an engine showing the pose puts each joint.
-    pub fn posed_positions(&self, pose: &crate::motion::retarget::RigPose) -> Vec<Vec3> {
+    pub fn posed_positions(&self, pose: &RigPose) -> Vec<Vec3> {
         let (pos, _) =
             self.forward_kinematics(&pose.rotations, Some((pose.root, pose.root_translation)));
         pos.into_iter()

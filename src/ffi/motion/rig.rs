@@ -125,8 +125,8 @@ pub unsafe extern "C" fn troupe_rig_from_bvh(
             let map = joint_map(joint_map_json)?;
             let bvh = read_bvh(path)?;
             let rig = match rest_frame {
-                TROUPE_RIG_ZERO_POSE => Rig::from_bvh(&bvh, units, path)?,
-                frame => Rig::from_bvh_frame(&bvh, frame as usize, units, path)?,
+                TROUPE_RIG_ZERO_POSE => bvh.rig(units, path)?,
+                frame => bvh.rig_at_frame(frame as usize, units, path)?,
             };
             let handle = new_rig(rig, map)?;
             // SAFETY: as above.

@@ -13,6 +13,7 @@
 //! transform is its parent's times its own.
 
 mod parse;
+mod rig;
 mod write;
 mod write_rig;
 
@@ -264,7 +265,7 @@ impl Bvh {
 }
 
 /// A joint's translation and rotation relative to its parent from its channel values.
-pub(crate) fn local_transform(joint: &BvhJoint, values: &[f32]) -> (Vec3, Quat) {
+fn local_transform(joint: &BvhJoint, values: &[f32]) -> (Vec3, Quat) {
     let mut translation = joint.offset;
     let mut rotation = Quat::IDENTITY;
     for (c, v) in joint.channels.iter().zip(values) {

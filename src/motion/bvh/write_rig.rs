@@ -11,8 +11,7 @@ use std::fmt::Write as _;
 
 use super::parse::{MAX_BVH_COORDINATE, MAX_BVH_NAME_BYTES};
 use super::write::{end_site, euler_zyx_degrees, open_joint, BvhWriteOptions};
-use crate::motion::retarget::RigPose;
-use crate::motion::rig::Rig;
+use crate::motion::rig::{Rig, RigPose};
 use crate::motion::vec3::Vec3;
 use crate::motion::world::{JointsFormat, FPS_RANGE};
 use crate::shared::error::{excerpt, Error, Result};
