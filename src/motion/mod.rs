@@ -54,7 +54,7 @@ pub use placement::Placement;
 pub use retarget::{retarget_clip, RetargetOptions, Retargeter, SourceFrame};
 pub use rig::{Rig, RigJoint, RigPose};
 pub use skeleton::{Skeleton, T2M22, T2M22_JOINTS};
-pub use smplx145::{smplx145_positions, SMPLX145, SMPLX145_DIM};
+pub use smplx145::{smplx145_positions, smplx145_rotations, SMPLX145, SMPLX145_DIM};
 pub use stream::{FeatureStream, STREAM_LATENCY_FRAMES};
 pub use world::{Handedness, JointsFormat, Units, UpAxis};
 

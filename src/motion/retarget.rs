@@ -142,11 +142,17 @@ pub struct Retargeter {
     rest_rot: Vec<Quat>,
     aims: Vec<Aim>,
     rig_of: [Option<usize>; T2M22_JOINTS],
+    /// The rig joint mapped to the pelvis: the one whose translation moves.
     pelvis: usize,
+    /// Source lengths times this are the rig's (its legs over the source's).
     scale: f64,
-    lift: f64,
+    /// The height (canonical metres) of the rig's floor, where troupe's floor lands.
+    floor: f64,
+    /// The lowest each ankle may go: the floor plus the ankle's height above its sole.
     ankle_floor: [f64; 2],
+    /// The rig's leg length, metres (how far a pinned foot may be from the motion's).
     leg_length: f64,
+    /// Rig joints of the limbs' chains, as [`LIMBS`] lists them.
     limbs: [[usize; 3]; 4],
     /// Joints at or below the pelvis joint (the others stay at rest).
     moves: Vec<bool>,
@@ -414,7 +420,7 @@ impl Retargeter {
             rig_of,
             pelvis,
             scale: scale_factor,
-            lift: floor,
+            floor,
             ankle_floor: [floor + heights[0], floor + heights[1]],
             leg_length: rig_leg,
             limbs: LIMBS.map(|l| l.map(r)),
@@ -449,7 +455,7 @@ impl Retargeter {
     pub fn place(&self, p: Vec3) -> Vec3 {
         [
             self.scale * p[0],
-            self.scale * p[1] + self.lift,
+            self.scale * p[1] + self.floor,
             self.scale * p[2],
         ]
     }
@@ -856,6 +862,59 @@ mod tests {
                 assert!(dist(*p, *q) < 1e-9);
             }
         }
+    }
+
+    /// MAGNet's SMPL-X frames carry their joints' rotations: retargeted with them onto troupe's
+    /// body, every joint's local rotation is the frame's own.
+    #[test]
+    fn magnet_frames_keep_their_rotations() {
+        use crate::motion::rotation::SixD;
+        use crate::motion::{smplx145_positions, smplx145_rotations, SMPLX145_DIM};
+        let skeleton = Skeleton::t2m22();
+        let mut frames = Vec::new();
+        for k in 0..4 {
+            let mut f = vec![0f32; SMPLX145_DIM];
+            for j in 0..22 {
+                let a = f64::from(k) * 0.7 + j as f64;
+                let axis = normalize([a.cos(), 1.0, a.sin()]).unwrap();
+                let q = Quat::from_axis_angle(axis, 0.4 * a.sin());
+                let at = if j == 0 { 136 } else { 10 + (j - 1) * 6 };
+                for (i, v) in q.to_6d(SixD::ConcatenatedColumns).iter().enumerate() {
+                    f[at + i] = *v as f32;
+                }
+            }
+            f[142..145].copy_from_slice(&[0.2, 1.9, -0.4]);
+            frames.extend(f);
+        }
+        let positions = smplx145_positions(&frames, &skeleton).unwrap();
+        let rotations = smplx145_rotations(&frames).unwrap();
+        let mut r = Retargeter::new(
+            &Rig::t2m22(),
+            &JointMap::builtin(),
+            &skeleton,
+            RetargetOptions {
+                limb_ik: false,
+                ..Default::default()
+            },
+        )
+        .unwrap();
+        for (p, q) in positions.iter().zip(&rotations) {
+            let pose = r
+                .push(&SourceFrame {
+                    positions: p,
+                    rotations: Some(q),
+                    contacts: Some([false; 4]),
+                })
+                .unwrap();
+            for (j, got) in pose.rotations.iter().enumerate() {
+                // Single precision in the frames: agreement to their rounding.
+                assert!((dot4(*got, q[j]).abs() - 1.0).abs() < 1e-6, "joint {j}");
+            }
+        }
+        assert!(smplx145_rotations(&frames[..100]).is_err());
+        let mut nan = frames.clone();
+        nan[20] = f32::NAN;
+        assert!(smplx145_rotations(&nan).is_err());
     }
 
     #[test]

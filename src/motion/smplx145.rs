@@ -92,6 +92,40 @@ pub fn smplx145_positions(frames: &[f32], skeleton: &Skeleton) -> Result<Vec<Vec
     Ok(out)
 }
 
+/// The rotations of row-major `magnet-smplx145` frames of one person, per frame in t2m-22
+/// order: joint 0's world orientation, then the 21 body joints' local rotations (what
+/// [`crate::motion::SourceFrame::rotations`] takes, so that retargeting keeps the twist about
+/// each bone that positions cannot carry).
+pub fn smplx145_rotations(frames: &[f32]) -> Result<Vec<Vec<Quat>>> {
+    if !frames.len().is_multiple_of(SMPLX145_DIM) {
+        return Err(Error::InvalidInput(format!(
+            "{} floats is not a whole number of {SMPLX145_DIM}-float {SMPLX145} frames",
+            frames.len()
+        )));
+    }
+    frames
+        .chunks_exact(SMPLX145_DIM)
+        .enumerate()
+        .map(|(f, frame)| {
+            let bad = || {
+                Error::InvalidInput(format!(
+                    "frame {f}: a value is not finite or a 6-D rotation has parallel or zero \
+                     columns"
+                ))
+            };
+            if frame.iter().any(|v| !v.is_finite()) {
+                return Err(bad());
+            }
+            let mut out = Vec::with_capacity(T2M22_JOINTS);
+            out.push(rotation(&frame[SMPLX145_ROOT][..6]).ok_or_else(bad)?);
+            for j in 1..T2M22_JOINTS {
+                out.push(rotation(&frame[SMPLX145_BODY][(j - 1) * 6..j * 6]).ok_or_else(bad)?);
+            }
+            Ok(out)
+        })
+        .collect()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -58,6 +58,17 @@ fn joint_map(json: *const c_char) -> FfiResult<JointMap> {
     }?)?)
 }
 
+/// [`options_from`] for the functions that write no glTF (`TROUPE_GLTF_NO_BODIES` refused).
+fn retarget_options(flags: u32, fps: f32) -> FfiResult<RetargetOptions> {
+    if flags & TROUPE_GLTF_NO_BODIES != 0 {
+        return Err(FfiError::new(
+            TROUPE_ERR_INVALID_ARG,
+            "TROUPE_GLTF_NO_BODIES is a flag of troupe_gltf_write",
+        ));
+    }
+    options_from(flags, fps)
+}
+
 fn options_from(flags: u32, fps: f32) -> FfiResult<RetargetOptions> {
     if flags & !KNOWN_FLAGS != 0 {
         return Err(FfiError::new(
@@ -225,13 +236,7 @@ pub unsafe extern "C" fn troupe_rig_retargeter_new(
             let rig = required(rig, "rig")?;
             // SAFETY: forwarded contract.
             let format = unsafe { read_format(format) }?;
-            let options = options_from(flags, format.fps)?;
-            if flags & TROUPE_GLTF_NO_BODIES != 0 {
-                return Err(FfiError::new(
-                    TROUPE_ERR_INVALID_ARG,
-                    "TROUPE_GLTF_NO_BODIES is a flag of troupe_gltf_write",
-                ));
-            }
+            let options = retarget_options(flags, format.fps)?;
             let retargeter = Retargeter::new(&rig.rig, &rig.map, &Skeleton::t2m22(), options)?;
             let handle = Box::new(troupe_rig_retargeter {
                 joints: rig.rig.len(),
@@ -393,13 +398,7 @@ pub unsafe extern "C" fn troupe_rig_retarget_clip(
             non_null(root_joint, "root_joint")?;
             // SAFETY (all): forwarded contract.
             let format = unsafe { read_format(format) }?;
-            let options = options_from(flags, format.fps)?;
-            if flags & TROUPE_GLTF_NO_BODIES != 0 {
-                return Err(FfiError::new(
-                    TROUPE_ERR_INVALID_ARG,
-                    "TROUPE_GLTF_NO_BODIES is a flag of troupe_gltf_write",
-                ));
-            }
+            let options = retarget_options(flags, format.fps)?;
             let joints = rig.rig.len();
             let want_rotations =
                 boundary::checked_mul(n_frames, 4 * joints, "n_frames * joints * 4")?;
@@ -552,13 +551,7 @@ pub unsafe extern "C" fn troupe_rig_bvh_write(
             let rig = required(rig, "rig")?;
             let format = unsafe { read_format(format) }?;
             let units = units_from(units, "units")?;
-            let options = options_from(flags, format.fps)?;
-            if flags & TROUPE_GLTF_NO_BODIES != 0 {
-                return Err(FfiError::new(
-                    TROUPE_ERR_INVALID_ARG,
-                    "TROUPE_GLTF_NO_BODIES is a flag of troupe_gltf_write",
-                ));
-            }
+            let options = retarget_options(flags, format.fps)?;
             let (_, clips) =
                 unsafe { canonical_people(positions, 1, n_frames, &format, std::ptr::null(), 1) }?;
             let poses = retarget_clip(&rig.rig, &rig.map, &clips[0], None, options)?;
