@@ -26,7 +26,8 @@
 //!   --no-pictures       skip the HTML player and GIF
 //!   --gltf FILE.glb     also write actor and reactor as glTF (skinned bodies, one animation),
 //!                       on --rig or on troupe's own body (docs/RIGS.md)
-//!   --rig FILE          your character: a .bvh (its hierarchy) or a rig .json; the reactor is
+//!   --rig FILE          your character: a .bvh (its hierarchy), a .glb/.gltf (its first skin)
+//!                       or a rig .json; the reactor is
 //!                       retargeted onto it as it streams (the time it takes is reported)
 //!   --rig-rest-frame N  the rig .bvh's frame whose pose is its rest pose (default: all zeros)
 //!   --joint-map FILE    which joint of your rigs (the actor .bvh, --rig) is which t2m-22 joint
@@ -45,9 +46,9 @@ use ndarray_npy::{read_npy, write_npy};
 use troupe::motion::bvh::read_bvh;
 use troupe::motion::resample::Resampler;
 use troupe::motion::{
-    decode_frame, retarget_clip, write_glb_file, GltfOptions, GltfPerson, JointMap, JointsFormat,
-    Placement, Pose, RetargetOptions, Retargeter, Rig, RigPose, Skeleton, SourceFrame, Units,
-    UpAxis, T2M22_JOINTS,
+    decode_frame, read_gltf_rig_file, retarget_clip, write_glb_file, GltfOptions, GltfPerson,
+    JointMap, JointsFormat, Placement, Pose, RetargetOptions, Retargeter, Rig, RigPose, Skeleton,
+    SourceFrame, Units, UpAxis, T2M22_JOINTS,
 };
 use troupe::viewer::{GifOptions, Scene};
 use troupe::{Model, ReactorOptions};
@@ -196,13 +197,16 @@ fn joint_map(a: &Args) -> Result<JointMap, troupe::Error> {
     }
 }
 
-/// The character of `--rig` (a .bvh hierarchy or a rig .json), or troupe's own body.
+/// The character of `--rig` (a .bvh hierarchy, a glTF file's first skin or a rig .json), or
+/// troupe's own body.
 fn load_rig(a: &Args) -> Result<Rig, troupe::Error> {
     let Some(path) = &a.rig else {
         return Ok(Rig::t2m22());
     };
     let label = path.display().to_string();
-    if path.extension().is_some_and(|e| e == "bvh") {
+    if path.extension().is_some_and(|e| e == "glb" || e == "gltf") {
+        read_gltf_rig_file(path, 0)
+    } else if path.extension().is_some_and(|e| e == "bvh") {
         let bvh = read_bvh(path)?;
         match a.rig_rest_frame {
             Some(frame) => bvh.rig_at_frame(frame, None, &label),

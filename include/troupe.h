@@ -1565,6 +1565,21 @@ typedef struct troupe_rig_retargeter troupe_rig_retargeter;
 troupe_status troupe_rig_from_bvh(const char *path, uint32_t units, uint32_t rest_frame, const char *joint_map_json, struct troupe_rig **out);
 
 /**
+ * The rig of skin `skin` in the glTF file at `path` (UTF-8; `.glb`, or `.gltf` JSON): the
+ * skin's joints with their nodes' hierarchy and transforms as the rest pose (metres, Y up),
+ * with `joint_map_json` as in `troupe_rig_from_bvh`. `*out` is set to NULL on entry and to the
+ * rig on success.
+ *
+ * Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_IO`, `TROUPE_ERR_INVALID_ARG` (not
+ * glTF, no such skin, joints that are no tree, scaled joints, a bad map), `TROUPE_ERR_PANIC`.
+ * Thread-safe.
+ *
+ * # Safety
+ * `path` and a non-NULL `joint_map_json` NUL-terminated; `out` writable.
+ */
+troupe_status troupe_rig_from_gltf(const char *path, size_t skin, const char *joint_map_json, struct troupe_rig **out);
+
+/**
  * A rig from its JSON document (`rig_json`: name, units, up axis, handedness, and joints with
  * parent, rest offset, optional rest rotation `[w, x, y, z]` and end site; see docs/RIGS.md),
  * with `joint_map_json` as in `troupe_rig_from_bvh`. `*out` is set to NULL on entry and to the

@@ -744,3 +744,54 @@ fn the_demo_writes_a_glb_that_the_clients_open() {
         "{report}"
     );
 }
+
+/// A rig from a glTF file troupe did not write: Blender exports the Mixamo BVH's armature as
+/// `.glb`, troupe reads its skin as a rig (the same joints where the BVH puts them), retargets
+/// onto it, and Khronos' validator passes the result.
+#[test]
+fn a_rig_from_blenders_gltf_export_is_the_bvh_rig_and_takes_motion() {
+    let Some(python) =
+        blender_python("a_rig_from_blenders_gltf_export_is_the_bvh_rig_and_takes_motion")
+    else {
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let bvh = common::pypi_sdist("bvhtoolbox==0.1.3").join("tests/example_files/test_freebvh.bvh");
+    let exported = dir.path().join("blender.glb");
+    common::run_ok(
+        Command::new(&python)
+            .arg(repo("tests/gltf/blender_check.py"))
+            .args(["export"])
+            .arg(&bvh)
+            .arg(&exported)
+            .arg("0.01"),
+    );
+    let rig = troupe::motion::read_gltf_rig_file(&exported, 0).unwrap();
+    let original = rig_of_bvh(&bvh, "mixamo");
+    // Same joints (Blender keeps the names), each where the BVH's rest pose has it.
+    let (mine, _) = original.with_format(JointsFormat::default()).rest_world();
+    let (theirs, _) = rig.rest_world();
+    let mut worst: f64 = 0.0;
+    for (j, name) in original.names().iter().enumerate() {
+        let k = rig
+            .names()
+            .iter()
+            .position(|n| n == name)
+            .unwrap_or_else(|| panic!("Blender's glTF has no joint {name}: {:?}", rig.names()));
+        worst = worst.max(norm(sub(mine[j], theirs[k])));
+    }
+    println!(
+        "Blender's glTF rig vs the BVH's: worst joint {worst:.2e} m over {} joints",
+        rig.len()
+    );
+    assert!(worst < 1e-4, "a joint {worst} m from the BVH's");
+    let t = TestRig {
+        label: "Mixamo through Blender's glTF",
+        rig,
+        map: JointMap::builtin(),
+    };
+    let glb = dir.path().join("onto-blender.glb");
+    write_pair(&t, &glb);
+    let (errors, warnings, messages) = validate(&[glb]).remove(0);
+    assert_eq!((errors, warnings), (0, 0), "{messages}");
+}

@@ -1,11 +1,13 @@
 //! glTF 2.0 binary files (`.glb`): rigs posed by troupe, as engines and DCC tools import them.
 //!
 //! Each person is a skeleton of nodes (the rig's joints with their rest translations and
-//! rotations), a skin over it, and, so that a viewer shows a body, a capsule per bone skinned
-//! rigidly to the bone's joint; one animation holds every person's channels (each joint's
-//! rotation, the root joint's translation), sampled linearly at the clip's frame rate. The
-//! document is built with `gltf-json`'s types; this module only frames it as GLB (a 12-byte
-//! header and two chunks, glTF 2.0 §4.4).
+//! rotations), a skin over it (also without a body: importers make armatures of skins; the
+//! validator then notes the skin as possibly unused, an information, not a warning), and, so
+//! that a viewer shows a body, a capsule per bone skinned rigidly to the bone's joint; one
+//! animation holds every person's channels (each joint's rotation, the root joint's
+//! translation), sampled linearly at the clip's frame rate. The document is built with
+//! `gltf-json`'s types; this module only frames it as GLB (a 12-byte header and two chunks,
+//! glTF 2.0 §4.4). [`read_gltf_rig`] reads a rig back from any glTF file's skin.
 //!
 //! Axes are glTF's, which are troupe's canonical ones: metres, +Y up, right-handed; a rig in
 //! other units or axes is converted (its shape does not change).
@@ -396,20 +398,21 @@ pub fn write_glb(people: &[GltfPerson], options: &GltfOptions) -> Result<Vec<u8>
         samplers.push(linear(time_accessor, output));
         channels.push((joint_node(root), json::animation::Property::Translation));
 
+        // The skin, with or without a body: importers make an armature of a skin's joints.
+        let (rest_pos, rest_rot) = rig.rest_world();
+        let ibm: Vec<f32> = (0..rig.len())
+            .flat_map(|j| inverse_bind(rest_rot[j], rest_pos[j]))
+            .collect();
+        let ibm = b.floats(&ibm, 16, None, false);
+        let skin = b.root.push(json::Skin {
+            extensions: None,
+            extras: Default::default(),
+            inverse_bind_matrices: Some(ibm),
+            joints: (0..rig.len()).map(joint_node).collect(),
+            name: Some(format!("{}skin", prefix)),
+            skeleton: Some(joint_node(0)),
+        });
         if options.bodies {
-            let (rest_pos, rest_rot) = rig.rest_world();
-            let ibm: Vec<f32> = (0..rig.len())
-                .flat_map(|j| inverse_bind(rest_rot[j], rest_pos[j]))
-                .collect();
-            let ibm = b.floats(&ibm, 16, None, false);
-            let skin = b.root.push(json::Skin {
-                extensions: None,
-                extras: Default::default(),
-                inverse_bind_matrices: Some(ibm),
-                joints: (0..rig.len()).map(joint_node).collect(),
-                name: Some(format!("{}skin", prefix)),
-                skeleton: Some(joint_node(0)),
-            });
             // A capsule per bone (joint to child, or to its end site), on the bone's joint.
             let mut positions = Vec::new();
             let mut normals = Vec::new();
@@ -571,6 +574,214 @@ pub fn write_glb_file(path: &Path, people: &[GltfPerson], options: &GltfOptions)
     crate::shared::files::write_atomically(path, &bytes)
 }
 
+// -------------------------------------------------------------------------------------------
+// Reading a rig: the skeleton of a skin in a `.glb` (or `.gltf` JSON) file.
+
+/// The largest glTF file troupe reads a rig from: 256 MiB.
+pub const MAX_GLTF_BYTES: usize = 1 << 28;
+
+/// The JSON document of a `.glb` (its first chunk) or of a `.gltf` text.
+fn gltf_json<'a>(bytes: &'a [u8], label: &str) -> Result<&'a [u8]> {
+    let bad = |m: String| Error::InvalidInput(format!("{label}: {m}"));
+    if bytes.len() > MAX_GLTF_BYTES {
+        return Err(bad(format!(
+            "{} bytes; troupe reads rigs from files of at most {MAX_GLTF_BYTES}",
+            bytes.len()
+        )));
+    }
+    if !bytes.starts_with(b"glTF") {
+        return Ok(bytes);
+    }
+    let word = |at: usize| -> Option<usize> {
+        Some(u32::from_le_bytes(bytes.get(at..at + 4)?.try_into().ok()?) as usize)
+    };
+    let (version, length, chunk, kind) = (word(4), word(8), word(12), bytes.get(16..20));
+    if version != Some(2) {
+        return Err(bad("not a glTF 2.0 binary file".into()));
+    }
+    if length != Some(bytes.len()) || kind != Some(b"JSON") {
+        return Err(bad(
+            "the binary header's length or first chunk is not what the file holds".into(),
+        ));
+    }
+    let chunk = chunk.expect("the header's words were read");
+    bytes
+        .get(20..20usize.saturating_add(chunk))
+        .filter(|_| chunk <= bytes.len())
+        .ok_or_else(|| bad("the JSON chunk runs past the end of the file".into()))
+}
+
+/// A node's local transform (translation, rotation) from its TRS or matrix; its scale must be 1.
+fn node_transform(node: &json::Node, name: &str, label: &str) -> Result<(Vec3, Quat)> {
+    let bad = |m: &str| Error::InvalidInput(format!("{label}: node {name:?}: {m}"));
+    let unit_scale = |s: [f64; 3]| s.iter().all(|v| (v - 1.0).abs() < 1e-4);
+    if let Some(m) = node.matrix {
+        let m = m.map(f64::from);
+        let col = |c: usize| [m[4 * c], m[4 * c + 1], m[4 * c + 2]];
+        if m.iter().any(|v| !v.is_finite()) || !unit_scale([0, 1, 2].map(|c| norm(col(c)))) {
+            return Err(bad("its matrix is not a rotation and translation"));
+        }
+        let rows = [0, 1, 2].map(|r| [col(0)[r], col(1)[r], col(2)[r]]);
+        return Ok((col(3), Quat::from_matrix(rows)));
+    }
+    let t = node.translation.unwrap_or([0.0; 3]).map(f64::from);
+    let r = node
+        .rotation
+        .map_or([0.0, 0.0, 0.0, 1.0], |q| q.0)
+        .map(f64::from);
+    let s = node.scale.unwrap_or([1.0; 3]).map(f64::from);
+    if t.iter().chain(&r).chain(&s).any(|v| !v.is_finite()) {
+        return Err(bad("a transform value is not finite"));
+    }
+    if !unit_scale(s) {
+        return Err(bad(
+            "scaled joints are not supported (apply the scale in your tool)",
+        ));
+    }
+    let q = Quat::from_wxyz([r[3], r[0], r[1], r[2]]);
+    let len = (q.w * q.w + q.x * q.x + q.y * q.y + q.z * q.z).sqrt();
+    if (len - 1.0).abs() > 1e-3 {
+        return Err(bad("its rotation is not a unit quaternion"));
+    }
+    Ok((t, q.normalized()))
+}
+
+/// The rig of skin `skin` in a glTF file's bytes (`.glb`, or `.gltf` JSON): the skin's joints
+/// with the hierarchy their nodes form, their nodes' transforms as the rest pose (the transforms
+/// of nodes above the skeleton folded into its root), metres, Y up. Joints without a name are
+/// called `joint<N>`. `label` names the file in messages.
+pub fn read_gltf_rig(bytes: &[u8], skin: usize, label: &str) -> Result<Rig> {
+    let bad = |m: String| Error::InvalidInput(format!("{label}: {m}"));
+    let root: json::Root = serde_json::from_slice(gltf_json(bytes, label)?)
+        .map_err(|e| bad(format!("not a glTF document: {e}")))?;
+    let skins = root.skins.len();
+    let joints: Vec<usize> = root
+        .skins
+        .get(skin)
+        .ok_or_else(|| bad(format!("skin {skin}: the file has {skins} skins")))?
+        .joints
+        .iter()
+        .map(|j| j.value())
+        .collect();
+    let n = root.nodes.len();
+    if joints.is_empty() || joints.len() > crate::motion::rig::MAX_RIG_JOINTS {
+        return Err(bad(format!(
+            "skin {skin} has {} joints; 1 to {} are allowed",
+            joints.len(),
+            crate::motion::rig::MAX_RIG_JOINTS
+        )));
+    }
+    // Each node's parent; a node with two parents, or a cycle, is no tree.
+    let mut parent = vec![None; n];
+    for (p, node) in root.nodes.iter().enumerate() {
+        for c in node.children.iter().flatten() {
+            let c = c.value();
+            if c >= n || parent[c].is_some() || c == p {
+                return Err(bad(format!(
+                    "node {p}: child {c} is out of range or has two parents"
+                )));
+            }
+            parent[c] = Some(p);
+        }
+    }
+    let depth_ok = |mut at: usize| {
+        for _ in 0..=n {
+            match parent[at] {
+                Some(p) => at = p,
+                None => return true,
+            }
+        }
+        false
+    };
+    let mut seen = std::collections::HashSet::new();
+    if joints.iter().any(|&j| j >= n || !seen.insert(j)) || (0..n).any(|i| !depth_ok(i)) {
+        return Err(bad(
+            "a joint is not a node or is listed twice, or the nodes form a cycle".into(),
+        ));
+    }
+    let is_joint = |i: usize| joints.contains(&i);
+    let joint_parent = |j: usize| {
+        let mut at = parent[j];
+        while let Some(p) = at {
+            if is_joint(p) {
+                return Some(p);
+            }
+            at = parent[p];
+        }
+        None
+    };
+    let roots: Vec<usize> = joints
+        .iter()
+        .copied()
+        .filter(|&j| joint_parent(j).is_none())
+        .collect();
+    if roots.len() != 1 {
+        return Err(bad(format!(
+            "skin {skin}'s joints form {} trees; a rig is one",
+            roots.len()
+        )));
+    }
+    // The skin's order when parents come first in it, else depth first from the root.
+    let position = |j: usize| joints.iter().position(|&x| x == j);
+    let parents_first = joints
+        .iter()
+        .enumerate()
+        .all(|(k, &j)| joint_parent(j).is_none_or(|p| position(p) < Some(k)));
+    let mut order = Vec::with_capacity(joints.len());
+    let mut stack = if parents_first {
+        order.clone_from(&joints);
+        Vec::new()
+    } else {
+        vec![roots[0]]
+    };
+    while let Some(j) = stack.pop() {
+        order.push(j);
+        let mut children: Vec<usize> = joints
+            .iter()
+            .copied()
+            .filter(|&c| joint_parent(c) == Some(j))
+            .collect();
+        children.reverse();
+        stack.extend(children);
+    }
+    let mut names: Vec<String> = Vec::with_capacity(order.len());
+    let mut rig_joints = Vec::with_capacity(order.len());
+    for &j in &order {
+        let node = &root.nodes[j];
+        let mut name = node.name.clone().unwrap_or_else(|| format!("joint{j}"));
+        if names.contains(&name) {
+            name = format!("{name}_{j}");
+        }
+        let (mut offset, mut rotation) = node_transform(node, &name, label)?;
+        // Nodes between a joint and its joint parent (or above the root) are folded in.
+        let stop = joint_parent(j);
+        let mut at = parent[j];
+        while at.is_some() && at != stop {
+            let p = at.expect("checked");
+            let (t, q) = node_transform(&root.nodes[p], &format!("node {p}"), label)?;
+            offset = add(t, q.rotate(offset));
+            rotation = q * rotation;
+            at = parent[p];
+        }
+        rig_joints.push(crate::motion::rig::RigJoint {
+            name: name.clone(),
+            parent: stop.map(|p| order.iter().position(|&o| o == p).expect("parents first")),
+            offset,
+            rotation,
+            end_site: None,
+        });
+        names.push(name);
+    }
+    Rig::new(label, rig_joints, JointsFormat::default())
+}
+
+/// [`read_gltf_rig`] of the file at `path`.
+pub fn read_gltf_rig_file(path: &Path, skin: usize) -> Result<Rig> {
+    let label = path.display().to_string();
+    let bytes = crate::shared::files::read_bounded(path, MAX_GLTF_BYTES as u64, "glTF files")?;
+    read_gltf_rig(&bytes, skin, &label)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -634,6 +845,53 @@ mod tests {
             u32::from_le_bytes(bytes[8..12].try_into().unwrap()) as usize,
             bytes.len()
         );
+    }
+
+    #[test]
+    fn a_written_rig_reads_back_from_its_skin() {
+        let rig = Rig::t2m22();
+        let good = poses(&rig, 2);
+        let person = GltfPerson {
+            name: "a",
+            rig: &rig,
+            poses: &good,
+            color: [0.2, 0.4, 0.6],
+        };
+        let bytes = write_glb(&[person], &GltfOptions::default()).unwrap();
+        let back = read_gltf_rig(&bytes, 0, "a.glb").unwrap();
+        assert_eq!(back.names(), rig.names());
+        let ((a, _), (b, _)) = (rig.rest_world(), back.rest_world());
+        for (p, q) in a.iter().zip(&b) {
+            assert!(norm(sub(*p, *q)) < 1e-6, "{p:?} vs {q:?}");
+        }
+        // Hostile files are refused with the reason.
+        let cases: Vec<(Vec<u8>, &str)> = vec![
+            (b"glTF\x01\x00\x00\x00".to_vec(), "not a glTF 2.0"),
+            (bytes[..bytes.len() - 4].to_vec(), "length"),
+            (b"{}".to_vec(), "not a glTF document"),
+            (br#"{"asset": {"version": "2.0"}, "skins": []}"#.to_vec(), "has 0 skins"),
+            (
+                br#"{"asset": {"version": "2.0"}, "nodes": [{"children": [1]}, {"children": [0]}],
+                    "skins": [{"joints": [0, 1]}]}"#
+                    .to_vec(),
+                "cycle",
+            ),
+            (
+                br#"{"asset": {"version": "2.0"}, "nodes": [{"scale": [2, 2, 2]}],
+                    "skins": [{"joints": [0]}]}"#
+                    .to_vec(),
+                "scaled joints",
+            ),
+            (
+                br#"{"asset": {"version": "2.0"}, "nodes": [{}, {}], "skins": [{"joints": [0, 1]}]}"#
+                    .to_vec(),
+                "2 trees",
+            ),
+        ];
+        for (file, reason) in cases {
+            let err = read_gltf_rig(&file, 0, "x.glb").unwrap_err().to_string();
+            assert!(err.contains(reason), "{reason}: {err}");
+        }
     }
 
     #[test]

@@ -45,7 +45,9 @@ pub use features::{
     check_layout, decode_frame, encode_clip, joints_layout, EncodedClip, Pose, FEATURE_DIM,
     INTERHUMAN262,
 };
-pub use gltf::{write_glb, write_glb_file, GltfOptions, GltfPerson};
+pub use gltf::{
+    read_gltf_rig, read_gltf_rig_file, write_glb, write_glb_file, GltfOptions, GltfPerson,
+};
 pub use joint_map::JointMap;
 pub use penetration::{
     penetration_metrics, Hinge, Penetration, PenetrationLoss, PenetrationMetrics,

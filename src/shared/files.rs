@@ -134,3 +134,42 @@ impl Drop for Pending {
 pub(crate) fn write_atomically(path: &Path, bytes: &[u8]) -> Result<()> {
     Pending::write(path, bytes)?.commit()
 }
+
+/// The bytes of the regular file at `path`, refused before reading when it names a Windows
+/// device, is not a regular file, or holds more than `max` bytes (`what` names such files in the
+/// message, e.g. "BVH files"); what is read is bounded by `max` even if the file grows meanwhile.
+pub(crate) fn read_bounded(path: &Path, max: u64, what: &str) -> Result<Vec<u8>> {
+    use std::io::Read;
+    let io = |source| Error::Io {
+        path: path.to_path_buf(),
+        source,
+    };
+    if let Some(device) = crate::shared::paths::windows_device(path) {
+        return Err(Error::InvalidInput(format!(
+            "{}: {}",
+            path.display(),
+            crate::shared::paths::device_message(&device)
+        )));
+    }
+    let meta = std::fs::metadata(path).map_err(io)?;
+    if !meta.is_file() {
+        return Err(Error::InvalidInput(format!(
+            "{}: not a regular file",
+            path.display()
+        )));
+    }
+    if meta.len() > max {
+        return Err(Error::InvalidInput(format!(
+            "{}: {} bytes; troupe reads {what} of at most {max}",
+            path.display(),
+            meta.len()
+        )));
+    }
+    let mut bytes = Vec::with_capacity(meta.len() as usize);
+    std::fs::File::open(path)
+        .map_err(io)?
+        .take(max + 1)
+        .read_to_end(&mut bytes)
+        .map_err(io)?;
+    Ok(bytes)
+}

@@ -229,6 +229,18 @@ int main(int argc, char **argv) {
         f = fopen(path, "rb");
         CHECK(f != NULL && fread(magic, 1, 4, f) == 4 && memcmp(magic, "glTF", 4) == 0);
         if (f) fclose(f);
+        {
+            /* The file's first skin read back as a rig: the Mixamo rig's joints. */
+            troupe_rig *back = NULL;
+            EXPECT(troupe_rig_from_gltf(path, 0, NULL, &back), TROUPE_OK);
+            CHECK(troupe_rig_joint_count(back) == joints);
+            CHECK(strcmp(troupe_rig_joint_name(back, 0), "actor_mixamorig:Hips") == 0);
+            troupe_rig_free(back);
+            EXPECT(troupe_rig_from_gltf(path, 5, NULL, &back), TROUPE_ERR_INVALID_ARG);
+            CHECK(back == NULL);
+            EXPECT(troupe_rig_from_gltf("/nonexistent.glb", 0, NULL, &back), TROUPE_ERR_IO);
+            EXPECT(troupe_rig_from_gltf(argv[1], 0, NULL, &back), TROUPE_ERR_INVALID_ARG);
+        }
         snprintf(path, sizeof path, "%s/own_c.glb", argv[2]);
         EXPECT(troupe_gltf_write(path, NULL, two, 2, FRAMES, &format, NULL, TROUPE_GLTF_NO_BODIES), TROUPE_OK);
         EXPECT(troupe_gltf_write(path, mixamo, two, 0, FRAMES, &format, NULL, 0), TROUPE_ERR_INVALID_ARG);

@@ -3,6 +3,9 @@ head (its joint) is, in glTF's axes (metres, +Y up), at the frames asked for.
 
     python blender_check.py gltf FILE.glb OUT.json FPS FRAME [FRAME...]
     python blender_check.py bvh FILE.bvh OUT.json FPS SCALE FRAME [FRAME...]
+    python blender_check.py export FILE.bvh OUT.glb SCALE
+
+(`export`: Blender imports the BVH and exports its armature as glTF, a rig troupe did not write.)
 
 glTF: Blender's importer turns glTF's +Y up into its +Z up; BVH: the importer reads Y up
 (`axis_up='Y'`, `axis_forward='-Z'`) and scales lengths by SCALE (file units to metres). Both
@@ -28,7 +31,17 @@ def heads(frame, first):
     return out
 
 
+def export(path, out_path, scale):
+    """Blender's own glTF of a BVH file's armature (its rest pose and its motion)."""
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    bpy.ops.import_anim.bvh(filepath=path, axis_forward="-Z", axis_up="Y", global_scale=scale)
+    bpy.ops.export_scene.gltf(filepath=out_path, export_format="GLB")
+
+
 def main():
+    if sys.argv[1] == "export":
+        export(sys.argv[2], sys.argv[3], float(sys.argv[4]))
+        return
     kind, path, out_path, fps = sys.argv[1], sys.argv[2], sys.argv[3], int(sys.argv[4])
     rest = sys.argv[5:]
     bpy.ops.wm.read_factory_settings(use_empty=True)

@@ -76,6 +76,11 @@ def test_a_bvh_rig_and_the_files_written_on_it(tmp_path, clip):
     assert data[:4] == b"glTF" and int.from_bytes(data[8:12], "little") == len(data)
     assert b'"actor_pelvis"' in data and b'"partner_pelvis"' in data
     motion.write_gltf(tmp_path / "own.glb", clip, FMT, bodies=False)
+    # The file's skin as a rig: the same joints.
+    back = motion.Rig.from_gltf(tmp_path / "own.glb")
+    assert back.joint_names == motion.skeleton().names
+    with pytest.raises(troupe.TroupeError, match="skin 3"):
+        motion.Rig.from_gltf(tmp_path / "own.glb", skin=3)
     out = tmp_path / "rig.bvh"
     motion.write_rig_bvh(out, rig, clip, FMT)
     positions, fmt = motion.read_bvh(out)

@@ -321,6 +321,7 @@ PROTOTYPES = {
     "troupe_rig_from_bvh": (status, [ctypes.c_char_p, ctypes.c_uint32, ctypes.c_uint32, ctypes.c_char_p,
                                      ctypes.POINTER(rig_p)]),
     "troupe_rig_from_json": (status, [ctypes.c_char_p, ctypes.c_char_p, ctypes.POINTER(rig_p)]),
+    "troupe_rig_from_gltf": (status, [ctypes.c_char_p, c_size, ctypes.c_char_p, ctypes.POINTER(rig_p)]),
     "troupe_rig_joint_count": (c_size, [rig_p]),
     "troupe_rig_joint_name": (ctypes.c_char_p, [rig_p, c_size]),
     "troupe_rig_free": (None, [rig_p]),

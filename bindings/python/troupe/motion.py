@@ -371,6 +371,17 @@ class Rig:
         return cls(handle)
 
     @classmethod
+    def from_gltf(cls, path: str | os.PathLike, skin: int = 0, joint_map: str | None = None) -> "Rig":
+        """The rig of skin `skin` in a glTF file (.glb or .gltf): its joints, their hierarchy and
+        their nodes' transforms as the rest pose."""
+        handle = _native.rig_p()
+        if not 0 <= int(skin):
+            raise ValueError(f"skin must be an index, got {skin!r}")
+        jm = joint_map.encode() if joint_map is not None else None
+        _check(_lib.troupe_rig_from_gltf(os.fsencode(path), int(skin), jm, ctypes.byref(handle)))
+        return cls(handle)
+
+    @classmethod
     def from_json(cls, text: str, joint_map: str | None = None) -> "Rig":
         """A rig from its JSON document (docs/RIGS.md)."""
         expect_type(text, str, "text")

@@ -15,7 +15,8 @@ use crate::motion::features::read_frame;
 use crate::motion::gltf::PERSON_COLORS;
 use crate::motion::retarget::{retarget_clip, RetargetOptions, Retargeter, SourceFrame};
 use crate::motion::{
-    write_glb_file, GltfOptions, GltfPerson, JointMap, JointsFormat, Rig, Skeleton, T2M22_JOINTS,
+    read_gltf_rig_file, write_glb_file, GltfOptions, GltfPerson, JointMap, JointsFormat, Rig,
+    Skeleton, T2M22_JOINTS,
 };
 
 /// `troupe_rig_from_bvh`: the rest pose is the file's all-zero pose (its offsets).
@@ -140,6 +141,42 @@ pub unsafe extern "C" fn troupe_rig_from_bvh(
                 frame => bvh.rig_at_frame(frame as usize, units, path)?,
             };
             let handle = new_rig(rig, map)?;
+            // SAFETY: as above.
+            unsafe { *out = handle };
+            Ok(())
+        },
+    )
+}
+
+/// The rig of skin `skin` in the glTF file at `path` (UTF-8; `.glb`, or `.gltf` JSON): the
+/// skin's joints with their nodes' hierarchy and transforms as the rest pose (metres, Y up),
+/// with `joint_map_json` as in `troupe_rig_from_bvh`. `*out` is set to NULL on entry and to the
+/// rig on success.
+///
+/// Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_IO`, `TROUPE_ERR_INVALID_ARG` (not
+/// glTF, no such skin, joints that are no tree, scaled joints, a bad map), `TROUPE_ERR_PANIC`.
+/// Thread-safe.
+///
+/// # Safety
+/// `path` and a non-NULL `joint_map_json` NUL-terminated; `out` writable.
+#[no_mangle]
+pub unsafe extern "C" fn troupe_rig_from_gltf(
+    path: *const c_char,
+    skin: usize,
+    joint_map_json: *const c_char,
+    out: *mut *mut troupe_rig,
+) -> troupe_status {
+    boundary::call(
+        "troupe_rig_from_gltf",
+        || {},
+        || {
+            non_null(out, "out")?;
+            // SAFETY: checked non-NULL, writable per the contract.
+            unsafe { *out = std::ptr::null_mut() };
+            // SAFETY: forwarded contract.
+            let path = unsafe { boundary::required_str(path, "path") }?;
+            let map = joint_map(joint_map_json)?;
+            let handle = new_rig(read_gltf_rig_file(Path::new(path), skin)?, map)?;
             // SAFETY: as above.
             unsafe { *out = handle };
             Ok(())

@@ -1,7 +1,6 @@
 //! The BVH reader: a line-aware tokenizer, the hierarchy, and the motion block, with every size
 //! bounded before it is allocated.
 
-use std::io::Read;
 use std::path::Path;
 
 use super::{Bvh, BvhJoint, Channel};
@@ -157,37 +156,7 @@ impl<'a> Tokens<'a> {
 /// [`MAX_BVH_BYTES`] before reading it.
 pub fn read_bvh(path: impl AsRef<Path>) -> Result<Bvh> {
     let path = path.as_ref();
-    let io = |source| Error::Io {
-        path: path.to_path_buf(),
-        source,
-    };
-    if let Some(device) = crate::shared::paths::windows_device(path) {
-        return Err(Error::InvalidInput(format!(
-            "{}: {}",
-            path.display(),
-            crate::shared::paths::device_message(&device)
-        )));
-    }
-    let meta = std::fs::metadata(path).map_err(io)?;
-    if !meta.is_file() {
-        return Err(Error::InvalidInput(format!(
-            "{}: not a regular file",
-            path.display()
-        )));
-    }
-    if meta.len() > MAX_BVH_BYTES {
-        return Err(Error::InvalidInput(format!(
-            "{}: {} bytes; troupe reads BVH files of at most {MAX_BVH_BYTES}",
-            path.display(),
-            meta.len()
-        )));
-    }
-    let mut bytes = Vec::with_capacity(meta.len() as usize);
-    std::fs::File::open(path)
-        .map_err(io)?
-        .take(MAX_BVH_BYTES + 1)
-        .read_to_end(&mut bytes)
-        .map_err(io)?;
+    let bytes = crate::shared::files::read_bounded(path, MAX_BVH_BYTES, "BVH files")?;
     parse_bvh(&bytes, &path.display().to_string())
 }
 
