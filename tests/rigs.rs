@@ -743,6 +743,31 @@ fn the_demo_writes_a_glb_that_the_clients_open() {
         report["frames"]["10"]["reactor_mixamorig:Hips"].is_array(),
         "{report}"
     );
+    // What a person opening it in Blender sees: Blender's renderer shows both bodies.
+    let png = dir.path().join("blender.png");
+    common::run_ok(
+        Command::new(&python)
+            .arg(repo("tests/gltf/blender_check.py"))
+            .arg("render")
+            .arg(&glb)
+            .arg(&png)
+            .arg("30"),
+    );
+    let image = common::pictures::decode_png(&png);
+    let count = |f: &dyn Fn([u8; 3]) -> bool| image.rgb.iter().filter(|c| f(**c)).count();
+    let blue = count(&|c| i32::from(c[2]) > i32::from(c[0]) + 40);
+    let orange = count(&|c| i32::from(c[0]) > i32::from(c[2]) + 60);
+    println!("Blender's render of the demo's file: {blue} blue and {orange} orange pixels");
+    assert!(
+        blue > 1000 && orange > 1000,
+        "{blue} blue, {orange} orange pixels"
+    );
+    if let Some(keep) = std::env::var_os("TROUPE_VIEWER_KEEP") {
+        std::fs::copy(&png, Path::new(&keep).join("blender-demo.png")).unwrap();
+    }
+    if std::env::var_os("TROUPE_BLESS").is_some() {
+        std::fs::copy(&png, repo("docs/images/rigs-blender.png")).unwrap();
+    }
 }
 
 /// A rig from a glTF file troupe did not write: Blender exports the Mixamo BVH's armature as

@@ -4,8 +4,11 @@ head (its joint) is, in glTF's axes (metres, +Y up), at the frames asked for.
     python blender_check.py gltf FILE.glb OUT.json FPS FRAME [FRAME...]
     python blender_check.py bvh FILE.bvh OUT.json FPS SCALE FRAME [FRAME...]
     python blender_check.py export FILE.bvh OUT.glb SCALE
+    python blender_check.py render FILE.glb OUT.png FRAME
 
-(`export`: Blender imports the BVH and exports its armature as glTF, a rig troupe did not write.)
+(`export`: Blender imports the BVH and exports its armature as glTF, a rig troupe did not write;
+`render`: Blender's Workbench renders the imported file at a frame, 800 x 600, looking at the
+bones' centre from the front.)
 
 glTF: Blender's importer turns glTF's +Y up into its +Z up; BVH: the importer reads Y up
 (`axis_up='Y'`, `axis_forward='-Z'`) and scales lengths by SCALE (file units to metres). Both
@@ -38,7 +41,35 @@ def export(path, out_path, scale):
     bpy.ops.export_scene.gltf(filepath=out_path, export_format="GLB")
 
 
+def render(path, out_path, frame):
+    """A picture of the imported file at `frame`, as a person opening it in Blender sees it."""
+    import math
+
+    from mathutils import Vector
+
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    scene = bpy.context.scene
+    scene.render.fps = 30
+    bpy.ops.import_scene.gltf(filepath=path)
+    scene.frame_set(frame)
+    points = [o.matrix_world @ b.head for o in scene.objects if o.type == "ARMATURE" for b in o.pose.bones]
+    centre = sum(points, Vector()) / len(points)
+    scene.render.engine = "BLENDER_WORKBENCH"
+    scene.render.resolution_x, scene.render.resolution_y = 800, 600
+    scene.display.shading.color_type = "MATERIAL"
+    camera = bpy.data.objects.new("camera", bpy.data.cameras.new("camera"))
+    scene.collection.objects.link(camera)
+    camera.location = centre + Vector((0.0, -6.0, 0.8))
+    camera.rotation_euler = (math.radians(82), 0.0, 0.0)
+    scene.camera = camera
+    scene.render.filepath = out_path
+    bpy.ops.render.render(write_still=True)
+
+
 def main():
+    if sys.argv[1] == "render":
+        render(sys.argv[2], sys.argv[3], int(sys.argv[4]))
+        return
     if sys.argv[1] == "export":
         export(sys.argv[2], sys.argv[3], float(sys.argv[4]))
         return
