@@ -804,6 +804,19 @@ mod tests {
         .unwrap()
     }
 
+    /// A retargeter onto `rig` with the built-in map, from troupe's neutral body.
+    fn onto(rig: &Rig, options: RetargetOptions) -> Retargeter {
+        Retargeter::new(rig, &JointMap::builtin(), &Skeleton::t2m22(), options).unwrap()
+    }
+
+    /// Options without the limbs' IK.
+    fn no_ik() -> RetargetOptions {
+        RetargetOptions {
+            limb_ik: false,
+            ..Default::default()
+        }
+    }
+
     fn dist(a: Vec3, b: Vec3) -> f64 {
         norm(sub(a, b))
     }
@@ -811,16 +824,7 @@ mod tests {
     #[test]
     fn twist_comes_from_the_source_when_it_has_rotations() {
         let skeleton = Skeleton::t2m22();
-        let mut r = Retargeter::new(
-            &Rig::t2m22(),
-            &JointMap::builtin(),
-            &skeleton,
-            RetargetOptions {
-                limb_ik: false,
-                ..Default::default()
-            },
-        )
-        .unwrap();
+        let mut r = onto(&Rig::t2m22(), no_ik());
         for k in 0..8 {
             let t = f64::from(k) * 0.4;
             // Every joint turned, forearms twisted about their own bone as well.
@@ -888,16 +892,7 @@ mod tests {
         }
         let positions = smplx145_positions(&frames, &skeleton).unwrap();
         let rotations = smplx145_rotations(&frames).unwrap();
-        let mut r = Retargeter::new(
-            &Rig::t2m22(),
-            &JointMap::builtin(),
-            &skeleton,
-            RetargetOptions {
-                limb_ik: false,
-                ..Default::default()
-            },
-        )
-        .unwrap();
+        let mut r = onto(&Rig::t2m22(), no_ik());
         for (p, q) in positions.iter().zip(&rotations) {
             let pose = r
                 .push(&SourceFrame {
@@ -925,8 +920,7 @@ mod tests {
                 limb_ik,
                 ..Default::default()
             };
-            let mut r =
-                Retargeter::new(&Rig::t2m22(), &JointMap::builtin(), &skeleton, options).unwrap();
+            let mut r = onto(&Rig::t2m22(), options);
             assert!((r.scale() - 1.0).abs() < 1e-12);
             for k in 0..10 {
                 let source = posed(&skeleton, f64::from(k) * 0.3);
@@ -1051,7 +1045,7 @@ mod tests {
                 limb_ik,
                 ..Default::default()
             };
-            let mut r = Retargeter::new(&rig, &JointMap::builtin(), &skeleton, options).unwrap();
+            let mut r = onto(&rig, options);
             let joints = *r.rig_joints();
             for k in 0..10 {
                 let source = posed(&skeleton, f64::from(k) * 0.3);
@@ -1126,13 +1120,7 @@ mod tests {
     #[test]
     fn a_foot_in_contact_stays_where_it_landed_and_is_released_smoothly() {
         let skeleton = Skeleton::t2m22();
-        let mut r = Retargeter::new(
-            &foreign_rig(),
-            &JointMap::builtin(),
-            &skeleton,
-            RetargetOptions::default(),
-        )
-        .unwrap();
+        let mut r = onto(&foreign_rig(), RetargetOptions::default());
         let ankle = r.rig_joints()[7].unwrap();
         let rest = crouch(&skeleton);
         let mut track = Vec::new();
@@ -1173,13 +1161,7 @@ mod tests {
     #[test]
     fn contacts_are_found_from_the_ankles_when_not_given() {
         let skeleton = Skeleton::t2m22();
-        let mut r = Retargeter::new(
-            &Rig::t2m22(),
-            &JointMap::builtin(),
-            &skeleton,
-            RetargetOptions::default(),
-        )
-        .unwrap();
+        let mut r = onto(&Rig::t2m22(), RetargetOptions::default());
         let rest = crouch(&skeleton);
         let mut first = None;
         for t in 0..5 {
@@ -1204,13 +1186,7 @@ mod tests {
     #[test]
     fn bad_frames_and_rigs_are_refused_and_leave_the_stream_as_it_was() {
         let skeleton = Skeleton::t2m22();
-        let mut r = Retargeter::new(
-            &Rig::t2m22(),
-            &JointMap::builtin(),
-            &skeleton,
-            RetargetOptions::default(),
-        )
-        .unwrap();
+        let mut r = onto(&Rig::t2m22(), RetargetOptions::default());
         let good = skeleton.rest_positions();
         let mut nan = good.clone();
         nan[3][1] = f64::NAN;

@@ -23,7 +23,7 @@ use serde::Deserialize;
 
 use crate::motion::rotation::Quat;
 use crate::motion::skeleton::Skeleton;
-use crate::motion::vec3::{add, norm, Vec3};
+use crate::motion::vec3::{add, Vec3};
 use crate::motion::world::{Handedness, JointsFormat, Units, UpAxis};
 use crate::shared::error::{excerpt, Error, Result};
 
@@ -408,12 +408,6 @@ impl Rig {
                 (a.0.min(p[1]), a.1.max(p[1]))
             });
         hi - lo
-    }
-
-    /// The distance between two joints at rest, in metres.
-    pub fn rest_distance_metres(&self, a: usize, b: usize) -> f64 {
-        let (pos, _) = self.rest_world();
-        norm(crate::motion::vec3::sub(pos[a], pos[b])) * self.format.units.meters()
     }
 }
 

@@ -23,7 +23,7 @@ pub use parse::{
 pub use write::{write_bvh, write_bvh_file, BvhPerson, BvhWriteOptions};
 pub use write_rig::{write_rig_bvh, write_rig_bvh_file};
 
-use ndarray::{s, Array3};
+use ndarray::Array3;
 
 use crate::motion::joint_inference::RigShape;
 use crate::motion::joint_map::JointMap;
@@ -216,7 +216,6 @@ impl Bvh {
             label,
         )?;
         let mut positions = Array3::<f32>::zeros((frames, resolved.sources.len(), 3));
-        let mut all = Array3::<f32>::zeros((1, self.joints.len(), 3));
         for t in 0..frames {
             let (pos, rot) = self.pose(t);
             let ends: Vec<Option<Vec3>> = self
@@ -231,27 +230,8 @@ impl Bvh {
                     positions[[t, k, d]] = p[d] as f32;
                 }
             }
-            if t == 0 {
-                for (j, p) in pos.iter().enumerate() {
-                    for d in 0..3 {
-                        all[[0, j, d]] = p[d] as f32;
-                    }
-                }
-            }
         }
-        let units = units.unwrap_or_else(|| {
-            let heights = all.slice(s![0, .., 1]);
-            let (lo, hi) = heights
-                .iter()
-                .fold((f32::INFINITY, f32::NEG_INFINITY), |(a, b), &v| {
-                    (a.min(v), b.max(v))
-                });
-            if hi - lo > 10.0 {
-                Units::Centimeters
-            } else {
-                Units::Meters
-            }
-        });
+        let units = units.unwrap_or_else(|| units_from_height(self.pose(0).0.iter().map(|p| p[1])));
         Ok(BvhJoints {
             positions,
             inferred: resolved.inferred,
@@ -261,6 +241,19 @@ impl Bvh {
                 ..JointsFormat::default()
             },
         })
+    }
+}
+
+/// A file's units guessed from the heights of its joints (in one pose): a figure more than 10
+/// units tall is in centimetres, else in metres.
+fn units_from_height(heights: impl Iterator<Item = f64>) -> Units {
+    let (lo, hi) = heights.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
+        (a.min(v), b.max(v))
+    });
+    if hi - lo > 10.0 {
+        Units::Centimeters
+    } else {
+        Units::Meters
     }
 }
 

@@ -1,6 +1,6 @@
 //! A BVH file's hierarchy as a [`Rig`]: the character retargeting poses and writers write.
 
-use super::{local_transform, Bvh};
+use super::{local_transform, units_from_height, Bvh};
 use crate::motion::rig::{Rig, RigJoint};
 use crate::motion::rotation::Quat;
 use crate::motion::vec3::{add, Vec3};
@@ -29,16 +29,7 @@ impl Bvh {
                 let p = j.parent.map_or([0.0; 3], |p| world[p]);
                 world.push(add(p, j.offset));
             }
-            let (lo, hi) = world
-                .iter()
-                .fold((f64::INFINITY, f64::NEG_INFINITY), |a, p| {
-                    (a.0.min(p[1]), a.1.max(p[1]))
-                });
-            if hi - lo > 10.0 {
-                Units::Centimeters
-            } else {
-                Units::Meters
-            }
+            units_from_height(world.iter().map(|p| p[1]))
         });
         Rig::new(
             name,
