@@ -15,10 +15,23 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
-# A one-off build (CI) gains nothing from incremental compilation and its ~0.8 GB of state.
+# A one-off build (CI) gains nothing from incremental compilation and its ~0.8 GB of state, nor
+# from line tables (~15 MB in each of the ~45 test and example binaries): a CI machine's disk is
+# not always large (one ran out in the cross-platform step).
 if [ -n "${CI:-}" ]; then
     export CARGO_INCREMENTAL=0
+    export CARGO_PROFILE_DEV_DEBUG=false
 fi
+# Under CI, a step's build folders and tools are deleted once no later step needs them.
+ci_discard() {
+    [ -n "${CI:-}" ] || return 0
+    local path
+    for path in "$@"; do
+        [ -e "$path" ] || continue
+        echo "== CI: freeing $(du -sh "$path" | cut -f1) ($path, no later step uses it)"
+        rm -rf "$path"
+    done
+}
 
 venv=target/venv
 requirements=tests/requirements.txt
@@ -177,6 +190,7 @@ fi
 echo "== tests"
 start_tests
 cargo test
+ci_discard "$blender" target/release
 
 echo "== other platforms: the unit and golden parity tests under Wine and qemu (docs/PLATFORMS.md)"
 sysroot="$(rustc --print sysroot)"
@@ -186,6 +200,7 @@ for triple in $cross_targets; do
     if [ -d "$sysroot/lib/rustlib/$triple" ] && command -v "$runner_tool" >/dev/null 2>&1; then
         # Optimised: emulated unoptimised code is slow. The same build as tests/platforms.rs'.
         cargo test --release --target "$triple" --features testing --lib --test golden
+        ci_discard "target/$triple"
     elif [ -n "${CI:-}" ]; then
         echo "the Rust target $triple or $runner_tool is missing and CI is set" >&2
         exit 1
@@ -194,11 +209,13 @@ for triple in $cross_targets; do
             "the Rust target or $runner_tool is not installed" >>"$skips"
     fi
 done
+ci_discard target/wine
 # Android: no NDK can be had from the registries, so the library is not linked; every crate is
 # type-checked for it, tract's NEON assembly assembled by the Linux arm64 GNU assembler.
 if [ -d "$sysroot/lib/rustlib/$android" ] && command -v aarch64-linux-gnu-gcc >/dev/null 2>&1; then
     CC_aarch64_linux_android=aarch64-linux-gnu-gcc AR_aarch64_linux_android=aarch64-linux-gnu-ar \
         cargo check --lib --target "$android"
+    ci_discard "target/$android"
 elif [ -n "${CI:-}" ]; then
     echo "the Rust target $android or aarch64-linux-gnu-gcc is missing and CI is set" >&2
     exit 1
