@@ -32,6 +32,10 @@
 //!   --rig-rest-frame N  the rig .bvh's frame whose pose is its rest pose (default: all zeros)
 //!   --joint-map FILE    which joint of your rigs (the actor .bvh, --rig) is which t2m-22 joint
 //!                       (JSON; default: the built-in names)
+//!   --no-guard          turn off the penetration guard (on by default: the reactor is kept out
+//!                       of the actor's body, docs/DEMO.md)
+//!   --no-foot-lock      turn off the foot lock (on by default: a foot whose contact label is on
+//!                       stays put)
 //!   --seed S --steps K --cfg X --capacity C     session options
 //!   --warmup-tokens H   tokens streamed before timing starts (to time at a given history)
 //!   --vae-windows       run the VAE over windows even when the bundle has per-token steps
@@ -51,7 +55,7 @@ use troupe::motion::{
     SourceFrame, Units, UpAxis, T2M22_JOINTS,
 };
 use troupe::viewer::{GifOptions, Scene};
-use troupe::{Model, ReactorOptions};
+use troupe::{FootLockOptions, Model, PenetrationGuard, ReactorOptions};
 
 mod common;
 use common::{percentile, synthetic_actor};
@@ -99,7 +103,12 @@ fn parse_args() -> Result<Args, String> {
         tick: 1,
         out: "reactor.npy".into(),
         pictures: true,
-        options: ReactorOptions::default(),
+        // What a partner needs on screen: never through the actor, feet that stay put.
+        options: ReactorOptions {
+            penetration_guard: Some(PenetrationGuard::default()),
+            foot_lock: Some(FootLockOptions::default()),
+            ..ReactorOptions::default()
+        },
         warmup_tokens: 0,
         gltf: None,
         rig: None,
@@ -147,6 +156,8 @@ fn parse_args() -> Result<Args, String> {
             "--capacity" => a.options.context_capacity = Some(num(value()?)? as usize),
             "--warmup-tokens" => a.warmup_tokens = num(value()?)? as u64,
             "--vae-windows" => a.options.vae_windows = true,
+            "--no-guard" => a.options.penetration_guard = None,
+            "--no-foot-lock" => a.options.foot_lock = None,
             "--compute-threads" => {
                 troupe::set_compute_threads(num(value()?)? as usize).map_err(|e| e.to_string())?
             }
@@ -319,6 +330,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         model.joints_latency_frames(),
     );
     println!("attention kernel: {}", troupe::attention_kernel());
+    let on = |yes: bool| if yes { "on" } else { "off" };
+    println!(
+        "penetration guard {}, foot lock {}",
+        on(args.options.penetration_guard.is_some()),
+        on(args.options.foot_lock.is_some())
+    );
     let reduced = model.manifest().reduced_precision_graphs();
     if !reduced.is_empty() {
         let graphs: Vec<String> = reduced

@@ -1722,8 +1722,8 @@ troupe_status troupe_rig_bvh_write(const char *path, const struct troupe_rig *ri
 /* ============================================================================================
  * 10. ARMFlow
  *
- * Online reaction: joint positions through a session, the penetration guard, the official
- * clip.
+ * Online reaction: joint positions through a session, the penetration guard, the foot lock,
+ * the official clip.
  * ============================================================================================ */
 
 /**
@@ -1857,6 +1857,25 @@ troupe_status troupe_armflow_clip_generate(const struct troupe_model *model, con
  * As `troupe_armflow_clip_generate`; `options` NULL or readable for its `struct_size`.
  */
 troupe_status troupe_armflow_clip_generate_with_options(const struct troupe_model *model, const struct troupe_armflow_clip_options *options, const float *actor, size_t n_actor_frames, const float *condition, size_t condition_len, const struct troupe_clip_noise *noise, float *frames, size_t frames_capacity, float *reactor_latents, size_t latents_capacity);
+
+/**
+ * Turns an ARMFlow session's foot lock on (`enabled` nonzero) or off, from the next pose
+ * `troupe_session_step_joints` returns: while a foot's ankle contact label is at least
+ * `contact_threshold` (in (0, 1]) the ankle stays where the contact began, the leg bent by
+ * two-bone IK; when the label drops, or the motion's ankle is farther than `max_stretch` metres
+ * (in (0, 1]) from where it is held, it returns to the motion over `release_frames` frames (1
+ * to 60). No frame is held back. The defaults are 0.5, 4 frames and 0.25 m; the other values
+ * are ignored when turning it off. Turning it on starts with no foot held. Feature frames
+ * (`troupe_session_step`) are not changed.
+ *
+ * Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (a value out of range;
+ * the session keeps its foot lock), `TROUPE_ERR_UNSUPPORTED` (not an ARMFlow session),
+ * `TROUPE_ERR_POISONED`, `TROUPE_ERR_PANIC`. One thread at a time per session.
+ *
+ * # Safety
+ * `session` must be NULL or a live handle.
+ */
+troupe_status troupe_armflow_session_set_foot_lock(struct troupe_session *session, int32_t enabled, float contact_threshold, uint32_t release_frames, float max_stretch);
 
 /**
  * Turns an ARMFlow session's penetration guard on (`enabled` nonzero) or off, for the frames

@@ -64,6 +64,7 @@ pub use armflow::{
 pub use magnet::{LivePartner, Magnet, MagnetOptions, MagnetOutput, PartnerOptions};
 pub use manifest::{ActorLatent, ConditionLabel, Manifest, Weights};
 pub use model::Model;
+pub use motion::FootLockOptions;
 pub use shared::attention::kernel as attention_kernel;
 pub use shared::error::{Error, Result};
 pub use shared::family::{SessionOptions, StreamOptions};

@@ -63,9 +63,14 @@ const SECTIONS: &[(&str, &str, &[&str])] = &[
     ),
     (
         "ARMFlow",
-        "Online reaction: joint positions through a session, the penetration guard, the \
-         official clip.",
-        &["armflow/joints.rs", "armflow/guard.rs", "armflow/clip.rs"],
+        "Online reaction: joint positions through a session, the penetration guard, the foot \
+         lock, the official clip.",
+        &[
+            "armflow/joints.rs",
+            "armflow/guard.rs",
+            "armflow/foot_lock.rs",
+            "armflow/clip.rs",
+        ],
     ),
     ("UMF", "Text to a group of any size.", &["umf/group.rs"]),
     (

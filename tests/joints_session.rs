@@ -6,8 +6,8 @@ mod common;
 use ndarray::{s, Array2, Array3, Axis};
 use ndarray_npy::read_npy;
 use troupe::armflow::step_reactors_joints;
-use troupe::motion::{decode_frame, FeatureStream, JointsFormat, Units, UpAxis};
-use troupe::{Model, Reactor};
+use troupe::motion::{decode_frame, FeatureStream, FootLockOptions, JointsFormat, Units, UpAxis};
+use troupe::{Model, Reactor, ReactorOptions};
 
 fn cmu() -> Array3<f32> {
     read_npy(
@@ -156,4 +156,62 @@ fn bundles_without_joint_features_refuse_joints() {
         .unwrap_err()
         .to_string();
     assert!(err.contains("interhuman262"), "{err}");
+}
+
+#[test]
+fn the_foot_lock_holds_feet_moves_nothing_else_and_restarts_with_the_stream() {
+    let model = common::model();
+    let clip = cmu().slice(s![..400, .., ..]).to_owned();
+    let stream = |lock: Option<FootLockOptions>| {
+        let mut s = model
+            .armflow()
+            .unwrap()
+            .reactor(ReactorOptions {
+                foot_lock: lock,
+                ..common::default_options()
+            })
+            .unwrap();
+        s.set_joints_format(format()).unwrap();
+        (s.step_joints(clip.view()).unwrap(), s)
+    };
+    // A threshold the tiny model's labels cross, and a stretch that never lets go.
+    let lock = FootLockOptions {
+        contact_threshold: 0.05,
+        max_stretch: 1.0,
+        ..FootLockOptions::default()
+    };
+    let (free, _) = stream(None);
+    let (held, mut session) = stream(Some(lock));
+    assert_eq!(free.len(), held.len());
+    let (mut still, mut pairs) = (0, 0);
+    for t in 1..held.len() {
+        assert_eq!(free[t].contacts, held[t].contacts);
+        assert_eq!(
+            free[t].positions[0], held[t].positions[0],
+            "the root is untouched"
+        );
+        for (ankle, label) in [(7, 0), (8, 2)] {
+            let on = |p: &troupe::motion::Pose| p.contacts[label] >= lock.contact_threshold;
+            if on(&held[t]) && on(&held[t - 1]) {
+                pairs += 1;
+                let step: f32 = (0..3)
+                    .map(|d| {
+                        (held[t].positions[ankle][d] - held[t - 1].positions[ankle][d]).powi(2)
+                    })
+                    .sum();
+                still += usize::from(step.sqrt() < 1e-4);
+            }
+        }
+    }
+    assert!(pairs > 10 && still * 2 > pairs, "{still} of {pairs} held");
+    // Refused settings leave the lock as it was; a reset stream repeats itself exactly.
+    assert!(session
+        .set_foot_lock(Some(FootLockOptions {
+            release_frames: 0,
+            ..lock
+        }))
+        .is_err());
+    assert_eq!(session.foot_lock(), Some(lock));
+    session.reset();
+    assert_eq!(session.step_joints(clip.view()).unwrap(), held);
 }

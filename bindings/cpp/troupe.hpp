@@ -312,6 +312,14 @@ class Session {
     Status set_penetration_guard(bool enabled, float d_safe = 0.05f, float max_speed = 2.0f) {
         return Status::from(troupe_armflow_session_set_penetration_guard(handle_, enabled ? 1 : 0, d_safe, max_speed));
     }
+    /// An ARMFlow session's foot lock on the poses `step_joints` returns (`enabled` false: off):
+    /// a foot whose ankle contact label is at least `contact_threshold` stays put, released over
+    /// `release_frames` frames or when the motion is `max_stretch` metres away.
+    Status set_foot_lock(bool enabled, float contact_threshold = 0.5f, std::uint32_t release_frames = 4,
+                         float max_stretch = 0.25f) {
+        return Status::from(troupe_armflow_session_set_foot_lock(handle_, enabled ? 1 : 0, contact_threshold,
+                                                                 release_frames, max_stretch));
+    }
     // ---- a MAGNet live partner (before the first step or after a reset) ----
     /// The partner's opening frames, `n_frames` x 145 floats, row-major.
     Status set_partner_opening(const float *frames, std::size_t n_frames) {

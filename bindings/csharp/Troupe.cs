@@ -321,6 +321,21 @@ namespace Troupe
         /// <summary>Starts the stream again (same options).</summary>
         public void Reset() { Native.Check(Native.troupe_session_reset(Live())); }
 
+        /// <summary>An ARMFlow session's penetration guard (off with enabled false): each reactor
+        /// frame is shifted in the floor plane out of the actor's body, at most maxSpeed m/s.</summary>
+        public void SetPenetrationGuard(bool enabled, float dSafe = 0.05f, float maxSpeed = 2.0f)
+        {
+            Native.Check(Native.troupe_armflow_session_set_penetration_guard(Live(), enabled ? 1 : 0, dSafe, maxSpeed));
+        }
+
+        /// <summary>An ARMFlow session's foot lock on the poses StepJoints returns (off with enabled
+        /// false): a foot whose ankle contact label is at least contactThreshold stays put, released
+        /// over releaseFrames frames or when the motion is maxStretch metres away.</summary>
+        public void SetFootLock(bool enabled, float contactThreshold = 0.5f, uint releaseFrames = 4, float maxStretch = 0.25f)
+        {
+            Native.Check(Native.troupe_armflow_session_set_foot_lock(Live(), enabled ? 1 : 0, contactThreshold, releaseFrames, maxStretch));
+        }
+
         /// <summary>Frees the session.</summary>
         public void Dispose()
         {
@@ -440,6 +455,8 @@ namespace Troupe
         [DllImport(Lib, CallingConvention = CallingConvention.Cdecl)] internal static extern void troupe_session_free(IntPtr session);
         [DllImport(Lib, CallingConvention = CallingConvention.Cdecl)] internal static extern int troupe_session_step(SessionHandle session, [In] float[] actor, UIntPtr frames, [Out] float[] output, UIntPtr capacity, out UIntPtr written);
         [DllImport(Lib, CallingConvention = CallingConvention.Cdecl)] internal static extern int troupe_session_reset(SessionHandle session);
+        [DllImport(Lib, CallingConvention = CallingConvention.Cdecl)] internal static extern int troupe_armflow_session_set_penetration_guard(SessionHandle session, int enabled, float dSafe, float maxSpeed);
+        [DllImport(Lib, CallingConvention = CallingConvention.Cdecl)] internal static extern int troupe_armflow_session_set_foot_lock(SessionHandle session, int enabled, float contactThreshold, uint releaseFrames, float maxStretch);
         [DllImport(Lib, CallingConvention = CallingConvention.Cdecl)] internal static extern int troupe_session_set_seed(SessionHandle session, ulong seed);
         [DllImport(Lib, CallingConvention = CallingConvention.Cdecl)] internal static extern int troupe_session_set_condition(SessionHandle session, [In] float[] condition, UIntPtr len);
         [DllImport(Lib, CallingConvention = CallingConvention.Cdecl)] internal static extern int troupe_joints_format_init(ref JointsFormatC format, UIntPtr size);

@@ -254,13 +254,48 @@ impl Pose {
     }
 }
 
-/// The pose of one `interhuman262` feature frame, put back in the caller's world by
-/// `placement`.
+/// A decoded frame in the stream's canonical frame (metres, Y up, the floor at 0), before it
+/// is put back in the caller's world: what clean-ups such as the foot lock work on.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CanonicalPose {
+    /// The 22 joint positions.
+    pub positions: [Vec3; T2M22_JOINTS],
+    /// Joint 0's world orientation, then every other joint's local rotation.
+    pub rotations: [Quat; T2M22_JOINTS],
+    /// Contact of left ankle, left foot, right ankle, right foot, as the features hold them.
+    pub contacts: [f32; 4],
+}
+
+impl CanonicalPose {
+    /// The pose put back in the caller's world by `placement`.
+    pub fn placed(&self, placement: &Placement) -> Pose {
+        let mut pose = Pose {
+            positions: [[0.0; 3]; T2M22_JOINTS],
+            rotations: [[0.0; 4]; T2M22_JOINTS],
+            rotations_6d: [[0.0; 6]; T2M22_JOINTS],
+            contacts: self.contacts,
+        };
+        for j in 0..T2M22_JOINTS {
+            pose.positions[j] = placement.frame_to_world(self.positions[j]);
+            let q = if j == 0 {
+                placement.rotation_to_world(self.rotations[0])
+            } else {
+                placement.local_rotation_to_world(self.rotations[j])
+            };
+            pose.rotations[j] = q.to_wxyz().map(|v| v as f32);
+            pose.rotations_6d[j] = q.to_6d(SixD::InterleavedColumns).map(|v| v as f32);
+        }
+        pose
+    }
+}
+
+/// One `interhuman262` feature frame as a [`CanonicalPose`].
 ///
 /// Positions come from `[0:66]`; local rotations from the frame's own 6-D values (a degenerate
 /// 6-D vector, which no rotation produces, decodes to no rotation); the root's orientation,
 /// which the layout does not store, from the hips and spine as inverse kinematics finds it.
-pub fn decode_frame(frame: ArrayView1<f32>, placement: &Placement) -> Result<Pose> {
+/// Refused when the frame has the wrong length or a value that is not finite.
+pub fn decode_canonical(frame: ArrayView1<f32>) -> Result<CanonicalPose> {
     if frame.len() != FEATURE_DIM {
         return Err(Error::InvalidInput(format!(
             "an interhuman262 frame has {FEATURE_DIM} floats, got {}",
@@ -272,34 +307,29 @@ pub fn decode_frame(frame: ArrayView1<f32>, placement: &Placement) -> Result<Pos
             "feature {i} of the frame is {v}, not finite"
         )));
     }
-    let canonical: Vec<Vec3> = (0..T2M22_JOINTS)
-        .map(|j| std::array::from_fn(|d| f64::from(frame[POSITIONS + 3 * j + d])))
-        .collect();
-    let skeleton = Skeleton::t2m22();
-    let root = skeleton
-        .branch_world_rotation(0, &canonical)
+    let positions: [Vec3; T2M22_JOINTS] =
+        std::array::from_fn(|j| std::array::from_fn(|d| f64::from(frame[POSITIONS + 3 * j + d])));
+    let root = Skeleton::t2m22()
+        .branch_world_rotation(0, &positions)
         .unwrap_or(Quat::IDENTITY);
-    let mut pose = Pose {
-        positions: [[0.0; 3]; T2M22_JOINTS],
-        rotations: [[0.0; 4]; T2M22_JOINTS],
-        rotations_6d: [[0.0; 6]; T2M22_JOINTS],
+    let rotations = std::array::from_fn(|j| {
+        if j == 0 {
+            return root;
+        }
+        let six: [f64; 6] = std::array::from_fn(|d| f64::from(frame[ROTATIONS + 6 * (j - 1) + d]));
+        Quat::from_6d(six, SixD::InterleavedColumns).unwrap_or(Quat::IDENTITY)
+    });
+    Ok(CanonicalPose {
+        positions,
+        rotations,
         contacts: std::array::from_fn(|k| frame[CONTACTS + k]),
-    };
-    for j in 0..T2M22_JOINTS {
-        pose.positions[j] = placement.frame_to_world(canonical[j]);
-        let q = if j == 0 {
-            placement.rotation_to_world(root)
-        } else {
-            let six: [f64; 6] =
-                std::array::from_fn(|d| f64::from(frame[ROTATIONS + 6 * (j - 1) + d]));
-            placement.local_rotation_to_world(
-                Quat::from_6d(six, SixD::InterleavedColumns).unwrap_or(Quat::IDENTITY),
-            )
-        };
-        pose.rotations[j] = q.to_wxyz().map(|v| v as f32);
-        pose.rotations_6d[j] = q.to_6d(SixD::InterleavedColumns).map(|v| v as f32);
-    }
-    Ok(pose)
+    })
+}
+
+/// The pose of one `interhuman262` feature frame, put back in the caller's world by
+/// `placement` ([`decode_canonical`], then [`CanonicalPose::placed`]).
+pub fn decode_frame(frame: ArrayView1<f32>, placement: &Placement) -> Result<Pose> {
+    Ok(decode_canonical(frame)?.placed(placement))
 }
 
 #[cfg(test)]

@@ -22,7 +22,7 @@
 
 use crate::motion::rotation::Quat;
 use crate::motion::skeleton::Skeleton;
-use crate::motion::vec3::{add, sub, Vec3};
+use crate::motion::vec3::{add, cross, dot, norm, normalize, reject, sub, Vec3};
 
 /// Local rotations of every joint of one pose. Positions are canonical (y up, metres), indexed
 /// like the skeleton's joints.
@@ -71,6 +71,49 @@ pub fn forward_kinematics(skeleton: &Skeleton, root: Vec3, local: &[Quat]) -> Ve
         }
     }
     positions
+}
+
+/// The two world-space turns that bring a limb's end onto `target`, for a limb of three joints
+/// at `upper`, `middle` and `end` (a leg: hip, knee, ankle): `bend` turns the middle joint
+/// (about the limb's bend axis) so that the limb is as long as `target` is far (clamped to what
+/// the bones reach), then `swing` turns the whole limb about the upper joint to point at it.
+/// The middle joint's world rotation becomes `swing * bend * old`, the upper joint's
+/// `swing * old`. `bend_hint` is the bend axis to use when the limb is straight (the sense of
+/// `cross(end - middle, upper - middle)`). `None` for a degenerate limb (a bone of zero length).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TwoBoneTurns {
+    /// The turn of the whole limb about the upper joint.
+    pub swing: Quat,
+    /// The turn of the lower bone about the middle joint (before `swing`).
+    pub bend: Quat,
+}
+
+/// [`TwoBoneTurns`] for the limb `[upper, middle, end]` reaching for `target`.
+pub fn two_bone_turns([a, b, c]: [Vec3; 3], target: Vec3, bend_hint: Vec3) -> Option<TwoBoneTurns> {
+    let (l1, l2) = (norm(sub(b, a)), norm(sub(c, b)));
+    if l1 < 1e-9 || l2 < 1e-9 {
+        return None;
+    }
+    let reach = norm(sub(target, a)).clamp((l1 - l2).abs() + 1e-6, l1 + l2 - 1e-6);
+    let (ba, bc) = (sub(a, b), sub(c, b));
+    let angle = |x: Vec3, y: Vec3| {
+        (dot(x, y) / (norm(x) * norm(y)).max(1e-12))
+            .clamp(-1.0, 1.0)
+            .acos()
+    };
+    let now = angle(ba, bc);
+    let want = ((l1 * l1 + l2 * l2 - reach * reach) / (2.0 * l1 * l2))
+        .clamp(-1.0, 1.0)
+        .acos();
+    // The axis turning `bc` towards `ba`; when the limb is straight, the hint's.
+    let axis = normalize(cross(bc, ba)).or_else(|| {
+        let dir = normalize(sub(c, a))?;
+        normalize(reject(bend_hint, dir))
+    })?;
+    let bend = Quat::from_axis_angle(axis, now - want);
+    let c_bent = add(b, bend.rotate(bc));
+    let swing = Quat::between(sub(c_bent, a), sub(target, a))?;
+    Some(TwoBoneTurns { swing, bend })
 }
 
 #[cfg(test)]

@@ -10,7 +10,8 @@
 //! - [`placement`]: InterGen's canonical frame of a clip, kept to put output back;
 //! - [`ik`]: joint rotations from positions and back;
 //! - [`features`]: the `interhuman262` layout, positions to features and features to a pose;
-//! - [`stream`]: the same one frame at a time, for sessions;
+//! - [`stream`]: the same one frame at a time, for sessions, and [`foot_lock`]: generated feet
+//!   kept still while their contact labels are on;
 //! - [`resample`]: frame-rate conversion at the boundary;
 //! - [`bvh`]: BVH files in and out, [`joint_map`]: which rig joint is which t2m-22 joint, and
 //!   [`joint_inference`]: the t2m-22 joints a rig lacks, placed from those it has;
@@ -24,6 +25,7 @@ pub mod body;
 pub mod bvh;
 pub mod export;
 pub mod features;
+pub mod foot_lock;
 pub mod gltf;
 pub mod ik;
 pub mod joint_inference;
@@ -42,9 +44,10 @@ pub mod world;
 
 pub use body::{BodyModel, Capsule, SignedDistance};
 pub use features::{
-    check_layout, decode_frame, encode_clip, joints_layout, EncodedClip, Pose, FEATURE_DIM,
-    INTERHUMAN262,
+    check_layout, decode_canonical, decode_frame, encode_clip, joints_layout, CanonicalPose,
+    EncodedClip, Pose, FEATURE_DIM, INTERHUMAN262,
 };
+pub use foot_lock::{FootLock, FootLockOptions};
 pub use gltf::{
     read_gltf_rig, read_gltf_rig_file, write_glb, write_glb_file, GltfOptions, GltfPerson,
 };

@@ -28,11 +28,12 @@
 //! latency added, and [`retarget_clip`] runs the same over a whole clip.
 
 use crate::motion::features::{CONTACT_HEIGHTS, CONTACT_STEP2};
+use crate::motion::ik::{two_bone_turns, TwoBoneTurns};
 use crate::motion::joint_map::JointMap;
 use crate::motion::rig::{Rig, RigPose};
 use crate::motion::rotation::Quat;
 use crate::motion::skeleton::{Skeleton, T2M22_JOINTS};
-use crate::motion::vec3::{add, cross, dot, norm, normalize, scale, sub, Vec3};
+use crate::motion::vec3::{add, cross, norm, scale, sub, Vec3};
 use crate::motion::world::JointsFormat;
 use crate::shared::error::{Error, Result};
 
@@ -191,11 +192,6 @@ fn source_world(source: &Skeleton, frame: &SourceFrame) -> Vec<Quat> {
         };
     }
     world
-}
-
-/// `v` with its component along `axis` (a unit vector) removed.
-fn reject(v: Vec3, axis: Vec3) -> Vec3 {
-    sub(v, scale(axis, dot(v, axis)))
 }
 
 impl Retargeter {
@@ -693,9 +689,8 @@ fn is_below(rig: &Rig, joint: usize, ancestor: usize) -> bool {
     false
 }
 
-/// Two-bone IK on `[upper, middle, end]`: turns the middle joint to make the limb as long as
-/// `target` is far, then the upper joint to point the limb at it. The end joint keeps its world
-/// rotation. `bend_hint`: the bend axis to use when the limb is straight (the source's).
+/// Two-bone IK on `[upper, middle, end]` ([`two_bone_turns`]) applied to the rig's world
+/// deltas. The end joint keeps its world rotation.
 fn two_bone_ik(
     [u, m, e]: [usize; 3],
     pos: &[Vec3],
@@ -703,32 +698,9 @@ fn two_bone_ik(
     bend_hint: Vec3,
     own: &mut [Option<Quat>],
 ) {
-    let (a, b, c) = (pos[u], pos[m], pos[e]);
-    let (l1, l2) = (norm(sub(b, a)), norm(sub(c, b)));
-    if l1 < 1e-9 || l2 < 1e-9 {
-        return;
-    }
-    let reach = norm(sub(target, a)).clamp((l1 - l2).abs() + 1e-6, l1 + l2 - 1e-6);
-    let (ba, bc) = (sub(a, b), sub(c, b));
-    let angle = |x: Vec3, y: Vec3| {
-        (dot(x, y) / (norm(x) * norm(y)).max(1e-12))
-            .clamp(-1.0, 1.0)
-            .acos()
-    };
-    let now = angle(ba, bc);
-    let want = ((l1 * l1 + l2 * l2 - reach * reach) / (2.0 * l1 * l2))
-        .clamp(-1.0, 1.0)
-        .acos();
-    // The axis turning `bc` towards `ba`; when the limb is straight, the source's (the hint
-    // is its `cross(end - middle, upper - middle)`, the same sense).
-    let axis = normalize(cross(bc, ba)).or_else(|| {
-        let dir = normalize(sub(c, a))?;
-        normalize(reject(bend_hint, dir))
-    });
-    let Some(axis) = axis else { return };
-    let bend = Quat::from_axis_angle(axis, now - want);
-    let c_bent = add(b, bend.rotate(bc));
-    let Some(swing) = Quat::between(sub(c_bent, a), sub(target, a)) else {
+    let Some(TwoBoneTurns { swing, bend }) =
+        two_bone_turns([pos[u], pos[m], pos[e]], target, bend_hint)
+    else {
         return;
     };
     let end_world = own[e];
@@ -780,6 +752,7 @@ mod tests {
     use super::*;
     use crate::motion::ik::forward_kinematics;
     use crate::motion::rig::RigJoint;
+    use crate::motion::vec3::{dot, normalize};
     use crate::motion::world::{Units, UpAxis};
 
     /// A pose of `skeleton`: every joint turned a little, the body moved and turned.

@@ -43,3 +43,8 @@ pub fn normalize(a: Vec3) -> Option<Vec3> {
     let n = norm(a);
     (n > 1e-9 && n.is_finite()).then(|| scale(a, 1.0 / n))
 }
+
+/// `v` with its component along `axis` (a unit vector) removed.
+pub fn reject(v: Vec3, axis: Vec3) -> Vec3 {
+    sub(v, scale(axis, dot(v, axis)))
+}

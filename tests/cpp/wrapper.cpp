@@ -268,6 +268,10 @@ int main(int argc, char **argv) {
         CHECK(joints.step_joints(clip.data(), frames, poses).ok());
         CHECK(poses.size() == 36 * 22 * 3);  // 39 feature frames: 9 tokens of 4
         CHECK(joints.joints_placement(placement).ok());
+        // The foot lock and the guard: settings in range are taken, others refused.
+        CHECK(joints.set_foot_lock(true).ok() && joints.set_penetration_guard(true).ok());
+        CHECK(joints.set_foot_lock(true, 0.5f, 0).code() == TROUPE_ERR_INVALID_ARG);
+        CHECK(joints.set_foot_lock(false).ok());
 
         if (argc > 3) {
             // Named after this binary: the builds with and without exceptions share the directory.

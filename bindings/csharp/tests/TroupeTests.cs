@@ -165,6 +165,11 @@ internal static class TroupeTests
             nan[100] = float.NaN;
             Throws<InvalidArgumentException>(() => a.StepJoints(nan, 40, poses), "a NaN coordinate");
             Throws<BufferTooSmallException>(() => a.StepJoints(frames, 40, new float[66]), "an output array too small");
+            a.SetFootLock(true);
+            b.SetFootLock(true);
+            Throws<InvalidArgumentException>(() => a.SetFootLock(true, 0.5f, 0), "a foot lock releasing over zero frames");
+            Throws<InvalidArgumentException>(() => a.SetFootLock(true, float.NaN), "a NaN contact threshold");
+            Throws<InvalidArgumentException>(() => a.SetPenetrationGuard(true, -1f), "a negative guard margin");
             // The refused calls left `a` as it was: it streams exactly as `b`, which saw none of them.
             var pa = new float[16 * 66];
             var pb = new float[16 * 66];

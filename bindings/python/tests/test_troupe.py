@@ -707,6 +707,50 @@ def test_the_penetration_guard_on_the_demo():
             s.set_penetration_guard(True, d_safe=-1.0)
 
 
+def ankle_slides(positions, contacts, threshold):
+    """Horizontal slides (metres) of each ankle between frames its contact label is on in both
+    (z up: the floor plane is x, y)."""
+    slides = []
+    for ankle, label in ((7, 0), (8, 2)):
+        on = (contacts[1:, label] >= threshold) & (contacts[:-1, label] >= threshold)
+        step = positions[1:, ankle] - positions[:-1, ankle]
+        slides.append(np.hypot(step[:, 0], step[:, 1])[on])
+    return np.concatenate(slides)
+
+
+def test_the_foot_lock_keeps_the_demo_partners_feet_still():
+    from troupe import bundles, motion
+
+    clip = bundles.demo_clip()
+    fmt = motion.JointsFormat(units="m", up="z", fps=120)
+    # The demo model's contact labels stay low (0 to 0.06): a threshold the labels cross.
+    threshold = 0.03
+    runs = {}
+    with troupe.Model(bundles.demo()) as demo:
+        for lock in (False, True):
+            s = demo.session(seed=7, condition="mirror")
+            s.set_joints_format(fmt)
+            if lock:
+                s.set_foot_lock(True, contact_threshold=threshold)
+            runs[lock] = s.step_joints(clip)
+        free, locked = runs[False], runs[True]
+        # The same motion and labels, the feet held where the labels say: the model's partner
+        # moves its body ~10 cm a frame, so a held foot is often let go (max_stretch), but while
+        # held it does not move at all.
+        np.testing.assert_array_equal(free.contacts, locked.contacts)
+        np.testing.assert_array_equal(free.positions[:, 0], locked.positions[:, 0])
+        before = ankle_slides(free.positions, free.contacts, threshold)
+        after = ankle_slides(locked.positions, locked.contacts, threshold)
+        assert len(before) > 40 and (before < 1e-4).mean() == 0.0
+        assert (after < 1e-4).mean() > 0.15 and after.mean() < 0.9 * before.mean(), (before.mean(), after.mean())
+        s = demo.session(seed=7)
+        with pytest.raises(troupe.TroupeError, match="release_frames"):
+            s.set_foot_lock(True, release_frames=0)
+        with pytest.raises(troupe.TroupeError, match="contact_threshold"):
+            s.set_foot_lock(True, contact_threshold=float("nan"))
+        s.set_foot_lock(False)
+
+
 def test_the_online_arflow_variant_streams_frame_by_frame():
     online = REPO / "onnx" / "bundles" / "arflow-tiny-online"
     actor = np.load(online / "golden" / "actor.npy")

@@ -700,6 +700,26 @@ class Session:
         `max_speed` m/s (docs/ARFLOW.md). Off again with `enabled=False`."""
         self._call(_lib.troupe_armflow_session_set_penetration_guard, 1 if enabled else 0, d_safe, max_speed)
 
+    def set_foot_lock(
+        self,
+        enabled: bool = True,
+        contact_threshold: float = 0.5,
+        release_frames: int = 4,
+        max_stretch: float = 0.25,
+    ) -> None:
+        """An ARMFlow stream's foot lock, on the poses `step_joints` returns: while a foot's ankle
+        contact label is at least `contact_threshold` the ankle stays where the contact began (the
+        leg bent by two-bone IK); it returns to the motion over `release_frames` frames when the
+        label drops or the motion's ankle is more than `max_stretch` metres away. No frame is
+        held back. Off again with `enabled=False`."""
+        self._call(
+            _lib.troupe_armflow_session_set_foot_lock,
+            1 if enabled else 0,
+            contact_threshold,
+            release_frames,
+            max_stretch,
+        )
+
     def set_live_config(self, config: str) -> None:
         """The sampling configuration a magnet live partner runs (a released name or JSON);
         before the first step or after a reset."""

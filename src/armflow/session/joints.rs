@@ -2,13 +2,14 @@
 //!
 //! The actor's positions go through a [`FeatureStream`] (one frame of extra latency: velocities
 //! and contacts need the next frame), and the reactor's features come back as [`Pose`]s in the
-//! caller's world, placed by the actor's first frame.
+//! caller's world, placed by the actor's first frame, after the foot lock (when on) has kept
+//! their feet still in the stream's canonical frame.
 
 use ndarray::ArrayView3;
 
 use super::{step_reactors_bounded, Reactor};
 use crate::motion::{
-    decode_frame, joints_layout, FeatureStream, JointsFormat, Placement, Pose,
+    decode_canonical, joints_layout, FeatureStream, JointsFormat, Placement, Pose,
     STREAM_LATENCY_FRAMES, T2M22_JOINTS,
 };
 use crate::shared::error::{Error, Result};
@@ -121,7 +122,13 @@ pub fn step_reactors_joints(
             Some(placement) => output
                 .frames
                 .outer_iter()
-                .map(|row| decode_frame(row, placement))
+                .map(|row| {
+                    let mut pose = decode_canonical(row)?;
+                    if let Some(lock) = &mut session.foot_lock {
+                        lock.apply(&mut pose);
+                    }
+                    Ok(pose.placed(placement))
+                })
                 .collect::<Result<Vec<_>>>()?,
             None => Vec::new(),
         };

@@ -27,7 +27,7 @@ use crate::armflow::kv_cache::KvCache;
 use crate::armflow::meanflow::meanflow_grid;
 use crate::armflow::networks::{Conditioning, Networks, VaeState};
 use crate::armflow::spec::{ActorLatent, ArmFlowSpec};
-use crate::motion::FeatureStream;
+use crate::motion::{FeatureStream, FootLock, FootLockOptions};
 use crate::shared::checks::{check_frames, check_input};
 use crate::shared::error::{Error, Result};
 use crate::shared::limits::{at_most, check_cfg, check_steps, LIMITS};
@@ -68,6 +68,9 @@ pub struct ReactorOptions {
     /// Pull the reactor's frames out of the actor's body as they are sent (`guard.rs`); off
     /// when `None`.
     pub penetration_guard: Option<PenetrationGuard>,
+    /// Keep the reactor's feet still while their contact labels are on, in the poses
+    /// [`Reactor::step_joints`] returns (`crate::motion::foot_lock`); off when `None`.
+    pub foot_lock: Option<FootLockOptions>,
 }
 
 /// The noise of one token, for reproducing a run exactly.
@@ -133,6 +136,8 @@ pub struct Reactor {
     /// Actor joint positions to features, for [`Reactor::step_joints`] (`None` until used or
     /// configured).
     joints: Option<FeatureStream>,
+    /// The foot lock of the poses [`Reactor::step_joints`] returns, when on.
+    foot_lock: Option<FootLock>,
 }
 
 impl Reactor {
@@ -180,6 +185,7 @@ impl Reactor {
         } else {
             nets.vae_state()
         };
+        let foot_lock = options.foot_lock.map(FootLock::new).transpose()?;
         Ok(Self {
             conditioning: nets.conditioning(settings.condition.as_deref())?,
             grid: meanflow_grid(settings.steps),
@@ -188,6 +194,7 @@ impl Reactor {
             settings,
             nets,
             joints: None,
+            foot_lock,
         })
     }
 
@@ -268,6 +275,9 @@ impl Reactor {
         if let Some(joints) = &mut self.joints {
             joints.reset(None).expect("no placement to refuse");
         }
+        if let Some(lock) = &mut self.foot_lock {
+            lock.reset();
+        }
     }
 
     /// Algorithmic latency in frames (as [`crate::Model::latency_frames`]): how many actor
@@ -286,6 +296,18 @@ impl Reactor {
         self.settings.guard = guard;
         self.state.guard = GuardState::starting_at(self.state.frames_received);
         Ok(())
+    }
+
+    /// Turns the foot lock of the poses [`Reactor::step_joints`] returns on (with its settings)
+    /// or off (`None`), from the next pose on; turning it on starts with no foot pinned.
+    pub fn set_foot_lock(&mut self, options: Option<FootLockOptions>) -> Result<()> {
+        self.foot_lock = options.map(FootLock::new).transpose()?;
+        Ok(())
+    }
+
+    /// The foot lock's settings, when it is on.
+    pub fn foot_lock(&self) -> Option<FootLockOptions> {
+        self.foot_lock.as_ref().map(FootLock::options)
     }
 
     /// Sets the noise seed; applies to tokens generated from now on.

@@ -1,8 +1,9 @@
 //! The C entry points of the `armflow` family: joint positions in and out of a session, the
-//! penetration guard, and the official clip loop. Sessions themselves are family-neutral
+//! penetration guard, the foot lock, and the official clip loop. Sessions themselves are family-neutral
 //! (`ffi/session.rs`).
 
 pub mod clip;
+pub mod foot_lock;
 pub mod guard;
 pub mod joints;
 
