@@ -1722,8 +1722,8 @@ troupe_status troupe_rig_bvh_write(const char *path, const struct troupe_rig *ri
 /* ============================================================================================
  * 10. ARMFlow
  *
- * Online reaction: joint positions through a session, the penetration guard, the foot lock,
- * the official clip.
+ * Online reaction: joint positions through a session, the penetration guard, the root
+ * smoothing, the foot lock, the official clip.
  * ============================================================================================ */
 
 /**
@@ -1963,6 +1963,22 @@ troupe_status troupe_session_joints_placement(struct troupe_session *session, st
  * the one frame velocities and contacts wait for; 0 for NULL or a `umf` model. Thread-safe.
  */
 size_t troupe_model_joints_latency_frames(const struct troupe_model *model);
+
+/**
+ * Turns an ARMFlow session's root smoothing on (`enabled` nonzero) or off, for the frames sent
+ * from now on: the reactor's root path on the floor is filtered causally with time constant
+ * `time_constant` seconds (in (0, 2]; 0.1 is the demo's), the whole body moving with it, before
+ * the penetration guard. No frame is held back; the root lags by about the time constant.
+ * `time_constant` is ignored when turning it off.
+ *
+ * Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (a value out of range;
+ * the session keeps its setting), `TROUPE_ERR_UNSUPPORTED` (not an ARMFlow session),
+ * `TROUPE_ERR_POISONED`, `TROUPE_ERR_PANIC`. One thread at a time per session.
+ *
+ * # Safety
+ * `session` must be NULL or a live handle.
+ */
+troupe_status troupe_armflow_session_set_root_smoothing(struct troupe_session *session, int32_t enabled, float time_constant);
 
 /* ============================================================================================
  * 11. UMF

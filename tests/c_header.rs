@@ -63,11 +63,12 @@ const SECTIONS: &[(&str, &str, &[&str])] = &[
     ),
     (
         "ARMFlow",
-        "Online reaction: joint positions through a session, the penetration guard, the foot \
-         lock, the official clip.",
+        "Online reaction: joint positions through a session, the penetration guard, the root \
+         smoothing, the foot lock, the official clip.",
         &[
             "armflow/joints.rs",
             "armflow/guard.rs",
+            "armflow/smoothing.rs",
             "armflow/foot_lock.rs",
             "armflow/clip.rs",
         ],

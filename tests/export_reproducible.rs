@@ -166,6 +166,21 @@ fn the_context_layer_split_equals_the_whole_step() {
     }
 }
 
+/// The demo trainer's stages stop and go on (`onnx/tests/test_demo_training.py`): a stage
+/// stopped at a checkpoint and resumed in a fresh model trains bit for bit as one that never
+/// stopped.
+#[test]
+fn demo_training_resumes_exactly_where_it_stopped() {
+    if torch_available("demo_training_resumes_exactly_where_it_stopped") {
+        let (ok, text) = run_python(
+            &["-m", "pytest", "-q", "onnx/tests/test_demo_training.py"],
+            &AVX2_KERNELS,
+        );
+        assert!(ok, "{text}");
+        assert!(text.contains("1 passed"), "{text}");
+    }
+}
+
 /// The committed demo bundle is exactly what its exporter makes of the committed checkpoint
 /// (`onnx/checkpoints/armflow-demo.pt`, written by `onnx/cli.py demo train`), goldens included.
 #[test]

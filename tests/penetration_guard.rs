@@ -9,7 +9,7 @@ use ndarray::{s, Array2};
 use ndarray_npy::read_npy;
 use troupe::armflow::step_reactors;
 use troupe::motion::{penetration_metrics, BodyModel, PenetrationMetrics};
-use troupe::{Error, Model, PenetrationGuard, Reactor, ReactorOptions};
+use troupe::{Error, Model, PenetrationGuard, Reactor, ReactorOptions, RootSmoothing};
 
 fn repo(path: &str) -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join(path)
@@ -194,4 +194,64 @@ fn bad_settings_are_refused() {
         };
         assert!(model.armflow().unwrap().reactor(options).is_err());
     }
+}
+
+/// Mean size of the root's second difference on the floor (metres per frame²).
+fn root_jitter(frames: &Array2<f32>) -> f64 {
+    let r: Vec<[f64; 2]> = frames
+        .outer_iter()
+        .map(|f| [f64::from(f[0]), f64::from(f[2])])
+        .collect();
+    let n = r.len() - 2;
+    (0..n)
+        .map(|t| {
+            let a = [0, 1].map(|k| r[t + 2][k] - 2.0 * r[t + 1][k] + r[t][k]);
+            (a[0] * a[0] + a[1] * a[1]).sqrt()
+        })
+        .sum::<f64>()
+        / n as f64
+}
+
+#[test]
+fn root_smoothing_calms_the_root_moves_the_body_rigidly_and_keeps_the_guard() {
+    let model = demo();
+    let actor = actor();
+    let smoothed = |guard: Option<PenetrationGuard>, smoothing: Option<RootSmoothing>| {
+        let mut s = session(&model, "mirror", guard);
+        s.set_root_smoothing(smoothing).unwrap();
+        stream(&mut s, &actor)
+    };
+    let free = smoothed(None, None);
+    let calm = smoothed(None, Some(RootSmoothing::default()));
+    assert!(
+        root_jitter(&calm) < 0.7 * root_jitter(&free),
+        "{} vs {}",
+        root_jitter(&calm),
+        root_jitter(&free)
+    );
+    // A rigid shift on the floor: heights and every joint's offset from the root unchanged.
+    for (a, b) in free.outer_iter().zip(calm.outer_iter()) {
+        for j in 0..22 {
+            assert_eq!(a[3 * j + 1], b[3 * j + 1]);
+            for k in [0, 2] {
+                let (da, db) = (a[3 * j + k] - a[k], b[3 * j + k] - b[k]);
+                assert!((da - db).abs() < 1e-5);
+            }
+        }
+    }
+    // With the guard after it, the bodies stay apart as with the guard alone.
+    let guard = PenetrationGuard {
+        d_safe: 0.5,
+        max_speed: 10.0,
+    };
+    let both = smoothed(Some(guard), Some(RootSmoothing::default()));
+    assert_eq!(metrics(&actor, &both).frames_intersecting, 0);
+    // Refused settings leave the session as it was.
+    let mut s = session(&model, "mirror", None);
+    let bad = RootSmoothing { time_constant: 0.0 };
+    assert!(matches!(
+        s.set_root_smoothing(Some(bad)),
+        Err(Error::InvalidOption(_))
+    ));
+    assert_eq!(stream(&mut s, &actor), free);
 }

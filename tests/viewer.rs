@@ -156,6 +156,30 @@ fn check_people(
 // The HTML player.
 
 #[test]
+fn ui_0_shows_the_people_alone() {
+    let scene = scene();
+    let dir = tempfile::tempdir().unwrap();
+    let html = dir.path().join("scene.html");
+    scene.write_html(&html).unwrap();
+    let with = screenshot(&html, "frame=0&paused=1", &dir.path().join("ui.png"));
+    let bare = screenshot(&html, "frame=0&paused=1&ui=0", &dir.path().join("bare.png"));
+    // The legend (top left) and the bar (bottom) are near-white panels over the grey-beige
+    // background: gone with ui=0, and the people are still drawn where their joints project.
+    let white = |image: &Image, rows: std::ops::Range<usize>| {
+        rows.flat_map(|y| (0..image.width).map(move |x| (x, y)))
+            .filter(|&(x, y)| image.rgb[y * image.width + x].iter().all(|&c| c >= 250))
+            .count()
+    };
+    assert!(white(&with, 585..600) > 5000, "the bar is drawn by default");
+    assert_eq!(white(&bare, 585..600), 0, "no bar with ui=0");
+    assert!(
+        white(&with, 15..40) > white(&bare, 15..40) + 500,
+        "no legend with ui=0"
+    );
+    check_people("ui=0", &scene, &bare, 0, &scene.camera(), 4);
+}
+
+#[test]
 fn the_html_player_shows_each_person_where_their_joints_project() {
     let scene = scene();
     let dir = tempfile::tempdir().unwrap();

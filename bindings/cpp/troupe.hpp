@@ -312,6 +312,11 @@ class Session {
     Status set_penetration_guard(bool enabled, float d_safe = 0.05f, float max_speed = 2.0f) {
         return Status::from(troupe_armflow_session_set_penetration_guard(handle_, enabled ? 1 : 0, d_safe, max_speed));
     }
+    /// An ARMFlow session's root smoothing (`enabled` false: off): the root path filtered with
+    /// `time_constant` seconds before the guard.
+    Status set_root_smoothing(bool enabled, float time_constant = 0.1f) {
+        return Status::from(troupe_armflow_session_set_root_smoothing(handle_, enabled ? 1 : 0, time_constant));
+    }
     /// An ARMFlow session's foot lock on the poses `step_joints` returns (`enabled` false: off):
     /// a foot whose ankle contact label is at least `contact_threshold` stays put, released over
     /// `release_frames` frames or when the motion is `max_stretch` metres away.

@@ -328,6 +328,13 @@ namespace Troupe
             Native.Check(Native.troupe_armflow_session_set_penetration_guard(Live(), enabled ? 1 : 0, dSafe, maxSpeed));
         }
 
+        /// <summary>An ARMFlow session's root smoothing (off with enabled false): the reactor's root
+        /// path filtered with timeConstant seconds, before the guard.</summary>
+        public void SetRootSmoothing(bool enabled, float timeConstant = 0.1f)
+        {
+            Native.Check(Native.troupe_armflow_session_set_root_smoothing(Live(), enabled ? 1 : 0, timeConstant));
+        }
+
         /// <summary>An ARMFlow session's foot lock on the poses StepJoints returns (off with enabled
         /// false): a foot whose ankle contact label is at least contactThreshold stays put, released
         /// over releaseFrames frames or when the motion is maxStretch metres away.</summary>
@@ -456,6 +463,7 @@ namespace Troupe
         [DllImport(Lib, CallingConvention = CallingConvention.Cdecl)] internal static extern int troupe_session_step(SessionHandle session, [In] float[] actor, UIntPtr frames, [Out] float[] output, UIntPtr capacity, out UIntPtr written);
         [DllImport(Lib, CallingConvention = CallingConvention.Cdecl)] internal static extern int troupe_session_reset(SessionHandle session);
         [DllImport(Lib, CallingConvention = CallingConvention.Cdecl)] internal static extern int troupe_armflow_session_set_penetration_guard(SessionHandle session, int enabled, float dSafe, float maxSpeed);
+        [DllImport(Lib, CallingConvention = CallingConvention.Cdecl)] internal static extern int troupe_armflow_session_set_root_smoothing(SessionHandle session, int enabled, float timeConstant);
         [DllImport(Lib, CallingConvention = CallingConvention.Cdecl)] internal static extern int troupe_armflow_session_set_foot_lock(SessionHandle session, int enabled, float contactThreshold, uint releaseFrames, float maxStretch);
         [DllImport(Lib, CallingConvention = CallingConvention.Cdecl)] internal static extern int troupe_session_set_seed(SessionHandle session, ulong seed);
         [DllImport(Lib, CallingConvention = CallingConvention.Cdecl)] internal static extern int troupe_session_set_condition(SessionHandle session, [In] float[] condition, UIntPtr len);

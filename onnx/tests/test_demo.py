@@ -115,3 +115,56 @@ def test_mid_stream_windows_carry_history_and_a_later_position(actor):
     assert 1 <= position < dataset.MAX_POSITION
     root = a[prefix, [0, 2]]
     assert np.all(np.abs(root) <= dataset.MAX_OFFSET_M + 1e-5)
+
+
+def test_an_actor_with_pauses_holds_still_and_keeps_all_its_motion(actor):
+    rng = np.random.default_rng(3)
+    paused = dataset.with_pauses(actor, rng)
+    assert len(paused) > len(actor)
+    still = np.all(np.abs(np.diff(paused, axis=0)) == 0.0, axis=(1, 2))
+    assert still.sum() >= sources.FPS // 2  # at least one hold of 0.5 s
+    moving = paused[np.concatenate([[True], ~still])]
+    # Every frame of the clip is there, in order (holds only repeat frames).
+    assert len(moving) >= len(actor) - 1 and np.allclose(moving[-1], actor[-1])
+
+
+def test_chained_clips_continue_where_and_how_the_last_one_ended(actor):
+    rng = np.random.default_rng(4)
+    a, b = actor[:100], actor[150:]
+    long = dataset.chained([a, b], rng, blend=8)
+    assert len(long) == len(a) + 8 + len(b)
+    np.testing.assert_array_equal(long[:100], a)
+    # No jump anywhere: the largest root step is the clips' own.
+    steps = np.linalg.norm(np.diff(long[:, 0], axis=0), axis=-1)
+    assert steps.max() <= 1.5 * max(np.linalg.norm(np.diff(actor[:, 0], axis=0), axis=-1).max(), 0.05)
+    # The second clip is the same motion, turned and moved rigidly, on the floor.
+    second = long[108:]
+    np.testing.assert_allclose(np.linalg.norm(second[:, 4] - second[:, 7], axis=-1),
+                               np.linalg.norm(b[:, 4] - b[:, 7], axis=-1), atol=1e-9)
+    np.testing.assert_allclose(second[..., 1], b[..., 1], atol=1e-9)
+
+
+def test_more_augmentation_means_more_pairs_each_under_every_rule(actor):
+    clip = sources.Clip("cmu", "demo", actor, "train")
+    plain = dataset.build_pairs([clip], speeds=(1.0,), mirror=(False,))
+    more = dataset.build_pairs([clip, clip], speeds=(0.8, 1.25), mirror=(False,), pauses=1, chains=1, seed=1)
+    assert len(plain) == len(rules.RULES)
+    assert len(more) == len(rules.RULES) * (2 * 2 + 2 + 1)
+    assert sorted({p.rule for p in more}) == list(range(len(rules.RULES)))
+
+
+def test_evaluation_measures_say_what_they_measure(actor):
+    from troupe_onnx.demo import evaluate
+
+    truth = rules.partner(actor, "mirror")
+    assert evaluate.facing_error_deg(truth, truth) < 1e-6
+    turned = truth.copy()
+    turned[..., [0, 2]] *= -1  # turned 180 degrees about the origin's vertical
+    assert evaluate.facing_error_deg(turned, truth) > 179.0
+    assert evaluate.closest_m(actor, actor) == 0.0
+    assert abs(evaluate.closest_m(actor, actor + np.array([0.3, 0.0, 0.4])) - 0.5) < 1e-9
+    assert evaluate.jitter_cm(actor + np.array([1.0, 2.0, 3.0])) == pytest.approx(evaluate.jitter_cm(actor))
+    still = np.repeat(actor[:1], 10, axis=0)
+    assert evaluate.jitter_cm(still) == 0.0 and evaluate.foot_skate_cm(still) == 0.0
+    assert evaluate.resample(actor, 30.0) is actor
+    assert len(evaluate.resample(actor[:121], 60.0)) == 61

@@ -11,7 +11,8 @@
 //! Query parameters set its initial state, so that a test (or a link) shows one frame
 //! deterministically: `frame` (0-based, clamped), `paused` (`1` to start paused), `speed`
 //! (playback rate, e.g. `0.5`), `yaw`, `pitch` (degrees), `distance` (metres) and `fov`
-//! (degrees) override the camera. The page also exposes `window.troupeViewer` with
+//! (degrees) override the camera, and `ui=0` hides the legend and the bar (the people alone, for
+//! stills and contact sheets). The page also exposes `window.troupeViewer` with
 //! `frames`, `fps`, `frame()`, `setFrame(n)`, `play()`, `pause()`, `camera()` and
 //! `setCamera({yaw, pitch, distance, fov})`; `document.body.dataset.frame` is the frame shown.
 //!

@@ -139,6 +139,13 @@ int main(int argc, char **argv) {
         EXPECT(troupe_armflow_session_set_penetration_guard(session, 1, 0.05f, 0.0f), TROUPE_ERR_INVALID_ARG);
         EXPECT(troupe_armflow_session_set_penetration_guard(session, 0, NAN, NAN), TROUPE_OK);
         EXPECT(troupe_armflow_session_set_penetration_guard(NULL, 1, 0.05f, 2.0f), TROUPE_ERR_NULL_ARG);
+        /* its root smoothing */
+        EXPECT(troupe_armflow_session_set_root_smoothing(session, 1, 0.1f), TROUPE_OK);
+        EXPECT(troupe_armflow_session_set_root_smoothing(session, 1, 0.0f), TROUPE_ERR_INVALID_ARG);
+        EXPECT(troupe_armflow_session_set_root_smoothing(session, 1, NAN), TROUPE_ERR_INVALID_ARG);
+        EXPECT(troupe_armflow_session_set_root_smoothing(session, 1, 3.0f), TROUPE_ERR_INVALID_ARG);
+        EXPECT(troupe_armflow_session_set_root_smoothing(session, 0, NAN), TROUPE_OK);
+        EXPECT(troupe_armflow_session_set_root_smoothing(NULL, 1, 0.1f), TROUPE_ERR_NULL_ARG);
         /* and its foot lock */
         EXPECT(troupe_armflow_session_set_foot_lock(session, 1, 0.5f, 4, 0.25f), TROUPE_OK);
         EXPECT(troupe_armflow_session_set_foot_lock(session, 1, 0.0f, 4, 0.25f), TROUPE_ERR_INVALID_ARG);
@@ -152,6 +159,7 @@ int main(int argc, char **argv) {
             EXPECT(troupe_session_new(magnet, NULL, &partner), TROUPE_OK);
             EXPECT(troupe_armflow_session_set_penetration_guard(partner, 1, 0.05f, 2.0f), TROUPE_ERR_UNSUPPORTED);
             EXPECT(troupe_armflow_session_set_foot_lock(partner, 1, 0.5f, 4, 0.25f), TROUPE_ERR_UNSUPPORTED);
+            EXPECT(troupe_armflow_session_set_root_smoothing(partner, 1, 0.1f), TROUPE_ERR_UNSUPPORTED);
             troupe_session_free(partner);
             troupe_model_free(magnet);
         }

@@ -272,6 +272,7 @@ int main(int argc, char **argv) {
         CHECK(joints.set_foot_lock(true).ok() && joints.set_penetration_guard(true).ok());
         CHECK(joints.set_foot_lock(true, 0.5f, 0).code() == TROUPE_ERR_INVALID_ARG);
         CHECK(joints.set_foot_lock(false).ok());
+        CHECK(joints.set_root_smoothing(true).ok() && joints.set_root_smoothing(true, -1.0f).code() == TROUPE_ERR_INVALID_ARG);
 
         if (argc > 3) {
             // Named after this binary: the builds with and without exceptions share the directory.

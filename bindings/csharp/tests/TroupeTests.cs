@@ -167,6 +167,9 @@ internal static class TroupeTests
             Throws<BufferTooSmallException>(() => a.StepJoints(frames, 40, new float[66]), "an output array too small");
             a.SetFootLock(true);
             b.SetFootLock(true);
+            a.SetRootSmoothing(true);
+            b.SetRootSmoothing(true);
+            Throws<InvalidArgumentException>(() => a.SetRootSmoothing(true, 0f), "a zero smoothing time constant");
             Throws<InvalidArgumentException>(() => a.SetFootLock(true, 0.5f, 0), "a foot lock releasing over zero frames");
             Throws<InvalidArgumentException>(() => a.SetFootLock(true, float.NaN), "a NaN contact threshold");
             Throws<InvalidArgumentException>(() => a.SetPenetrationGuard(true, -1f), "a negative guard margin");

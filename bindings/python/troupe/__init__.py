@@ -700,6 +700,12 @@ class Session:
         `max_speed` m/s (docs/ARFLOW.md). Off again with `enabled=False`."""
         self._call(_lib.troupe_armflow_session_set_penetration_guard, 1 if enabled else 0, d_safe, max_speed)
 
+    def set_root_smoothing(self, enabled: bool = True, time_constant: float = 0.1) -> None:
+        """An ARMFlow stream's root smoothing: the reactor's root path on the floor filtered
+        causally with `time_constant` seconds, the body moving with it, before the guard (no
+        frame held back; the root lags by about the time constant). Off with `enabled=False`."""
+        self._call(_lib.troupe_armflow_session_set_root_smoothing, 1 if enabled else 0, time_constant)
+
     def set_foot_lock(
         self,
         enabled: bool = True,

@@ -2,8 +2,9 @@
 
 Augmentation, all applied to the actor *before* the rule (so the partner is always the rule's
 answer to what the model sees): left/right mirroring (InterGen's `swap_left_right` on joints),
-speed x0.9 / x1.0 / x1.1 (linear resampling in time; the rule's delays stay in seconds), and,
-per window, a heading rotation and floor translation of the pair. Features are computed once
+speed x0.9 / x1.0 / x1.1 (the v2 recipe: x0.8 to x1.25; linear resampling in time; the rule's
+delays stay in seconds), actors that stop and stand (`with_pauses`) and long takes chained from
+several clips (`chained`), and, per window, a heading rotation and floor translation of the pair. Features are computed once
 per (clip, mirror, speed, rule) in the clip's world frame; a window only rotates and translates
 their position and velocity columns (the rotation columns are local, contacts are invariant).
 
@@ -64,16 +65,60 @@ class Pair:
     partner: np.ndarray  # [T-1, 262]
 
 
-def build_pairs(clips: list[Clip], speeds=SPEEDS, mirror=(False, True)) -> list[Pair]:
-    out = []
+def build_pairs(clips: list[Clip], speeds=SPEEDS, mirror=(False, True), pauses: int = 0, chains: int = 0,
+                seed: int = 0) -> list[Pair]:
+    """Every (clip, mirror, speed, rule). `pauses` more actors per clip that stop and stand for
+    a while (`with_pauses`), and `chains` actors made of several clips walked one after another
+    (`chained`), each under every rule, drawn with `seed`."""
+    rng = np.random.default_rng(seed)
+    actors = []
     for clip in clips:
         for m in mirror:
             base = mirrored(clip.positions) if m else clip.positions
             for s in speeds:
-                actor = resampled(base, s) if s != 1.0 else base
-                fa = features(actor)
-                for k, rule in enumerate(rules.RULES):
-                    out.append(Pair(f"{clip.source}/{clip.name}", k, fa, features(rules.partner(actor, rule, FPS))))
+                actors.append((f"{clip.source}/{clip.name}", resampled(base, s) if s != 1.0 else base))
+        for i in range(pauses):
+            actors.append((f"{clip.source}/{clip.name}+pauses{i}", with_pauses(clip.positions, rng)))
+    for i in range(chains):
+        picked = rng.choice(len(clips), size=min(len(clips), 4), replace=False)
+        actors.append((f"chain{i}", chained([clips[j].positions for j in picked], rng)))
+    out = []
+    for name, actor in actors:
+        fa = features(actor)
+        for k, rule in enumerate(rules.RULES):
+            out.append(Pair(name, k, fa, features(rules.partner(actor, rule, FPS))))
+    return out
+
+
+def with_pauses(positions: np.ndarray, rng: np.random.Generator, every_s=(2.0, 5.0), hold_s=(0.5, 2.5)) -> np.ndarray:
+    """The clip with the actor stopping now and then: every 2-5 s the pose is held for 0.5-2.5 s
+    (an actor who wanders and stops; the partner must stop too)."""
+    out, t = [], 0
+    while t < len(positions):
+        run = int(rng.uniform(*every_s) * FPS)
+        out.append(positions[t : t + run])
+        t += run
+        if t < len(positions):
+            out.append(np.repeat(positions[t - 1 : t], int(rng.uniform(*hold_s) * FPS), axis=0))
+    return np.concatenate(out)
+
+
+def chained(clips: list[np.ndarray], rng: np.random.Generator, blend: int = 8) -> np.ndarray:
+    """Clips one after another as one long take: each next clip turned and moved so that it
+    starts where and facing how the last ended, on the floor, with `blend` frames of cross-fade
+    from the last pose (a minute of wandering across a wide floor, longer than any one clip)."""
+    out = np.asarray(clips[0], np.float64)
+    for nxt in clips[1:]:
+        nxt = np.asarray(nxt, np.float64)
+        f_end, f_start = rules.heading(out[-1:])[0], rules.heading(nxt[:1])[0]
+        yaw = np.arctan2(f_end[0], f_end[1]) - np.arctan2(f_start[0], f_start[1]) + rng.normal(0.0, 0.3)
+        c, s = np.cos(yaw), np.sin(yaw)
+        rot = np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
+        moved = (nxt - nxt[:1, :1] * np.array([1.0, 0.0, 1.0])) @ rot.T
+        moved += out[-1:, :1] * np.array([1.0, 0.0, 1.0])
+        w = np.linspace(0.0, 1.0, blend + 2)[1:-1, None, None]
+        bridge = (1 - w) * out[-1:] + w * moved[:1]
+        out = np.concatenate([out, bridge, moved])
     return out
 
 

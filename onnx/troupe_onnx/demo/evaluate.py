@@ -10,9 +10,11 @@ is compared with the rule's partner for the same actor (`rules.partner`), in the
 frame by frame. Three ways of running the model:
 
 - `model`: one MeanFlow step, nothing else (what the network alone does);
-- `demo`: one step with the penetration guard and the foot lock on (what `examples/stream.rs`
-  runs by default);
-- `demo-2`: the same with two MeanFlow steps.
+- `demo`: one step with the root smoothing, the penetration guard and the foot lock on (what
+  `examples/stream.rs` runs by default);
+- `demo-2`: the same with two MeanFlow steps;
+- `model + smoothing`, `model + guard`, `model + foot lock`: one of the three alone, for what
+  each does.
 
 Clips, none seen in training (`sources.py`, `DATA.md`): the CMU demo excerpt, the held-out
 climbing sequence, DeepMimic's punch and kick, and takes fetched at run time for evaluation only
@@ -56,9 +58,12 @@ sys.path.insert(0, str(REPO / "bindings" / "python"))
 
 SEEDS = (0, 1, 2)
 VARIANTS = {
-    "model": {"steps": 1, "guard": False, "foot_lock": False},
-    "demo": {"steps": 1, "guard": True, "foot_lock": True},
-    "demo-2": {"steps": 2, "guard": True, "foot_lock": True},
+    "model": {"steps": 1, "smoothing": False, "guard": False, "foot_lock": False},
+    "model + smoothing": {"steps": 1, "smoothing": True, "guard": False, "foot_lock": False},
+    "model + guard": {"steps": 1, "smoothing": False, "guard": True, "foot_lock": False},
+    "model + foot lock": {"steps": 1, "smoothing": False, "guard": False, "foot_lock": True},
+    "demo": {"steps": 1, "smoothing": True, "guard": True, "foot_lock": True},
+    "demo-2": {"steps": 2, "smoothing": True, "guard": True, "foot_lock": True},
 }
 # Takes fetched at run time for evaluation only: (requirement, sdist file, file in the sdist,
 # source name, clip name, seconds kept).
@@ -69,7 +74,22 @@ EVAL_ONLY = (
     ("bvhtoolbox==0.1.3", "bvhtoolbox-0.1.3.tar.gz", "bvhtoolbox-0.1.3/tests/example_files/test_mocapbank.bvh", "mocapbank",
      "test_mocapbank.bvh", 60),
 )
+# MocapBank's names: `LeftShoulder` is its upper arm (the built-in map reads it as Mixamo's
+# collar); `Chest`, `Chest2` are two of three spine joints; no toes (the missing joints are
+# inferred, `src/motion/joint_inference.rs`, from a name the rig does not have).
+MOCAPBANK_JOINTS = {
+    "pelvis": ["Hips"], "left_hip": ["LeftHip"], "right_hip": ["RightHip"], "spine1": ["Chest"], "spine2": ["(none)"],
+    "spine3": ["Chest2"], "left_knee": ["LeftKnee"], "right_knee": ["RightKnee"], "left_ankle": ["LeftAnkle"],
+    "right_ankle": ["RightAnkle"], "left_foot": ["(none)"], "right_foot": ["(none)"], "neck": ["Neck"], "head": ["Head"],
+    "left_collar": ["LeftCollar"], "right_collar": ["RightCollar"], "left_shoulder": ["LeftShoulder"],
+    "right_shoulder": ["RightShoulder"], "left_elbow": ["LeftElbow"], "right_elbow": ["RightElbow"],
+    "left_wrist": ["LeftWrist"], "right_wrist": ["RightWrist"],
+}
+JOINT_MAPS = {"mocapbank": json.dumps({"skeleton": "t2m22", "joints": MOCAPBANK_JOINTS})}
 DRIFT_SECONDS = 60
+# The guard's settings in the streaming demo (d_safe m, max_speed m/s; `DEMO_GUARD` of
+# examples/stream.rs), tuned with this evaluation (docs/DEMO.md).
+GUARD = (0.5, 10.0)
 FOOT_JOINTS = ("left_ankle", "right_ankle", "left_foot", "right_foot")
 FOOT_CONTACT_M = 0.05
 
@@ -94,7 +114,7 @@ def eval_only_clip(requirement: str, sdist_name: str, member: str, source: str, 
     if not (dest / member).exists():
         with tarfile.open(sdist) as tar:
             tar.extract(member, dest)
-    take = motion.read_bvh_take(dest / member)
+    take = motion.read_bvh_take(dest / member, joint_map=JOINT_MAPS.get(source))
     fmt = take.format
     scale = {"m": 1.0, "cm": 0.01, "mm": 0.001, "in": 0.0254}[fmt.units]
     p = take.positions.astype(np.float64) * scale
@@ -108,15 +128,18 @@ def eval_only_clip(requirement: str, sdist_name: str, member: str, source: str, 
     return sources.Clip(source, name, p, "held_out")
 
 
-def stream(model, actor: np.ndarray, rule: str, seed: int, steps: int, guard: bool, foot_lock: bool) -> np.ndarray:
+def stream(model, actor: np.ndarray, rule: str, seed: int, steps: int, smoothing: bool, guard: bool,
+           foot_lock: bool) -> np.ndarray:
     """The reactor troupe streams for `actor` [T, 22, 3] (metres, +Y up, 30 fps): [T', 22, 3]."""
     import troupe
     from troupe import motion
 
     with troupe.Session(model, seed=seed, steps=steps, condition=rule) as s:
         s.set_joints_format(motion.JointsFormat(units="m", up="y", fps=sources.FPS))
-        s.set_penetration_guard(guard)
+        if guard:
+            s.set_penetration_guard(True, *GUARD)
         s.set_foot_lock(foot_lock)
+        s.set_root_smoothing(smoothing)
         out = [s.step_joints(actor[i : i + 4].astype(np.float32)).positions for i in range(0, len(actor), 4)]
     return np.concatenate(out).astype(np.float64)
 
@@ -229,7 +252,7 @@ def summary(clips: dict) -> dict:
         for variant in (*VARIANTS, "still", "no_delay", "rule"):
             per[variant] = {k: float(np.average([r[variant][k] for r in rows.values()], weights=weights)) for k in SUMMED}
             per[variant]["closest_m"] = min(r[variant]["closest_m"] for r in rows.values())
-            drift = [r[variant]["drift_ratio"] for r in rows.values() if "drift_ratio" in r[variant]]
+            drift = [r[variant]["drift_ratio"] for r in rows.values() if np.isfinite(r[variant].get("drift_ratio", np.nan))]
             if drift:
                 per[variant]["drift_ratio_max"] = max(drift)
         beats = [r["demo"]["mpjpe_cm"] < r["still"]["mpjpe_cm"] for r in rows.values()]
@@ -244,7 +267,8 @@ def markdown(results: dict) -> str:
     s = results["summary"]
     lines = ["| rule | way | MPJPE | intersecting frames | closest approach | facing error | foot skate | jitter "
              "| worst drift ratio |", "|---|---|---|---|---|---|---|---|---|"]
-    names = {"model": "model alone, 1 step", "demo": "demo: guard + foot lock, 1 step", "demo-2": "demo, 2 steps",
+    names = {"model": "model alone, 1 step", "model + smoothing": "+ root smoothing only", "model + guard": "+ guard only",
+             "model + foot lock": "+ foot lock only", "demo": "demo: all three, 1 step", "demo-2": "demo, 2 steps",
              "still": "baseline: standing still", "no_delay": "baseline: rule without delay", "rule": "the rule's partner"}
     for rule, per in s.items():
         for variant, label in names.items():
@@ -289,7 +313,7 @@ def contact_sheet(streams: dict, clip: str, out: Path, times_s=(1.0, 2.5, 4.0, 5
         w, h = 320, 240
         rows = "".join(
             f"<tr><th>{rule}</th>" + "".join(
-                f'<td><iframe src="{page.name}?frame={f}&paused=1&yaw=30&pitch=25" width="{w}" height="{h}"></iframe>'
+                f'<td><iframe src="{page.name}?frame={f}&paused=1&ui=0" width="{w}" height="{h}"></iframe>'
                 f"<div>{f / sources.FPS:.1f} s</div></td>" for f in frames) + "</tr>"
             for rule, page, frames in cells)
         sheet = tmp / "sheet.html"

@@ -2,6 +2,7 @@
 
     python3 onnx/cli.py demo train --out target/demo-train          # both stages, ~25 min on 2 cores
     python3 onnx/cli.py demo train --out DIR --stage vae|flow         # one stage (flow needs DIR/vae.pt)
+    python3 onnx/cli.py demo train --recipe v2 --out DIR [--resume]   # issue 36's model; goes on where it stopped
     python3 onnx/cli.py demo export --checkpoint onnx/checkpoints/armflow-demo.pt --out onnx/bundles/armflow-demo --golden
 
 The recipe is `docs/spec/armflow-training.md` §6, scaled to this model (DATA.md, docs/DEMO.md):
@@ -46,27 +47,50 @@ from troupe_onnx.demo import dataset, rules, sources
 # --------------------------------------------------------------------------------------------
 
 
-def demo_config() -> ArmflowConfig:
-    """The demo model: 32-d latents, a 64-wide 3-layer context encoder, 3 MLP blocks, a 96-wide
-    causal VAE, the rules' one-hot as the condition. The context keeps 40 tokens: what training
-    windows attend over (<sos> + 8 history + 31 window pairs). Condition None means mirror: the
-    model was never trained without a rule."""
+def demo_config(recipe: dict | None = None) -> ArmflowConfig:
+    """The demo model of a recipe (`RECIPES`; v1: 32-d latents, a 64-wide 3-layer context
+    encoder, 3 MLP blocks, a 96-wide causal VAE), the rules' one-hot as the condition. The context
+    keeps 40 tokens: what training windows attend over (<sos> + 8 history + 31 window pairs).
+    Condition None means mirror: the model was never trained without a rule."""
+    m = (recipe or RECIPE)["model"]
     return ArmflowConfig(
-        latent_dim=32, latent_scale=1.0, cond_dim=len(rules.RULES), layers=3, heads=4, mlp_blocks=3,
-        context_capacity=40, null_condition=tuple(rules.condition("mirror").tolist()),
-        vae=VaeConfig(encoder_width=96, decoder_width=96, depth=2, kernel=3, norm_groups=8, causal=True),
+        latent_dim=m["latent_dim"], latent_scale=1.0, cond_dim=len(rules.RULES), layers=m["layers"], heads=4,
+        mlp_blocks=m["mlp_blocks"], context_capacity=40, null_condition=tuple(rules.condition("mirror").tolist()),
+        vae=VaeConfig(encoder_width=m["vae_width"], decoder_width=m["vae_width"], depth=2, kernel=3, norm_groups=8,
+                      causal=True),
     )
 
 
-RECIPE = {
-    "seed": 0,
-    "vae": {"steps": 6000, "batch": 32, "frames": 64, "lr": 3e-4, "lr_end": 2e-5, "kl_weight": 1e-3},
-    "flow": {
-        "steps": 10000, "batch": 16, "tokens": 32, "lr": 2e-3, "lr_end": 1e-4, "warmup": 200,
-        "weight_decay": 0.01, "clip": 1.0, "k_max": 6, "time_mu": -0.4, "time_sigma": 1.0,
-        "r_neq_t": 0.75, "label_dropout": 0.1, "scale_windows": 256,
+# v1: the committed demo model. v2 (issue 36): contact labels learnt (their own loss, so that
+# the foot lock has labels to go by), wider, much longer, and far more augmentation (speeds
+# x0.8-x1.25, actors that stop, chained takes).
+RECIPES = {
+    "v1": {
+        "seed": 0,
+        "model": {"latent_dim": 32, "layers": 3, "mlp_blocks": 3, "vae_width": 96},
+        "data": {"speeds": [0.9, 1.0, 1.1], "pauses": 0, "chains": 0},
+        "vae": {"steps": 6000, "batch": 32, "frames": 64, "lr": 3e-4, "lr_end": 2e-5, "kl_weight": 1e-3,
+                "contact_weight": 0.0},
+        "flow": {
+            "steps": 10000, "batch": 16, "tokens": 32, "lr": 2e-3, "lr_end": 1e-4, "warmup": 200,
+            "weight_decay": 0.01, "clip": 1.0, "k_max": 6, "time_mu": -0.4, "time_sigma": 1.0,
+            "r_neq_t": 0.75, "label_dropout": 0.1, "scale_windows": 256,
+        },
+    },
+    "v2": {
+        "seed": 0,
+        "model": {"latent_dim": 48, "layers": 5, "mlp_blocks": 4, "vae_width": 128},
+        "data": {"speeds": [0.8, 0.9, 1.0, 1.1, 1.25], "pauses": 2, "chains": 24},
+        "vae": {"steps": 20000, "batch": 32, "frames": 64, "lr": 3e-4, "lr_end": 1e-5, "kl_weight": 1e-3,
+                "contact_weight": 1.0},
+        "flow": {
+            "steps": 40000, "batch": 16, "tokens": 32, "lr": 1.5e-3, "lr_end": 5e-5, "warmup": 500,
+            "weight_decay": 0.01, "clip": 1.0, "k_max": 8, "time_mu": -0.4, "time_sigma": 1.0,
+            "r_neq_t": 0.75, "label_dropout": 0.1, "scale_windows": 256,
+        },
     },
 }
+RECIPE = RECIPES["v1"]
 
 
 def cosine_lr(step: int, steps: int, lr: float, lr_end: float, warmup: int = 0) -> float:
@@ -81,13 +105,16 @@ def recent(hist: list[dict]) -> dict:
     return {k: float(np.nanmean([h[k] for h in hist[-100:]])) for k in hist[-1]}
 
 
-def train_pairs() -> tuple[list[dataset.Pair], list[sources.Clip]]:
+def train_pairs(recipe: dict | None = None) -> tuple[list[dataset.Pair], list[sources.Clip]]:
+    d = (recipe or RECIPE)["data"]
     clips = [c for c in sources.load() if c.split == "train"]
     seconds = sum(c.seconds for c in clips)
     print(f"training clips: {len(clips)}, {seconds:.1f} s of distinct capture")
     t0 = time.time()
-    pairs = dataset.build_pairs(clips)
-    print(f"{len(pairs)} (clip, mirror, speed, rule) pairs in {time.time() - t0:.0f} s")
+    pairs = dataset.build_pairs(clips, speeds=tuple(d["speeds"]), pauses=d["pauses"], chains=d["chains"],
+                                seed=(recipe or RECIPE)["seed"])
+    frames = sum(len(p.actor) for p in pairs) // len(rules.RULES)
+    print(f"{len(pairs)} (actor, rule) pairs, {frames / sources.FPS:.0f} s of actor motion, in {time.time() - t0:.0f} s")
     return pairs, clips
 
 
@@ -115,28 +142,69 @@ def windows(pairs, frames, batch, rng, stream_start=None, prefix=None):
 # --------------------------------------------------------------------------------------------
 
 
-def vae_loss(model: Armflow, x: torch.Tensor, kl_weight: float):
+CONTACTS = slice(258, 262)
+
+
+def vae_loss(model: Armflow, x: torch.Tensor, kl_weight: float, contact_weight: float = 0.0):
+    """The official loss; with `contact_weight`, also the contact labels' squared error. L1 on
+    a 0/1 label learns its median (the labels of a walk are off more often than on, so they
+    came out near 0 everywhere); the squared error learns its probability, which a threshold of
+    0.5 can read."""
     mean, logvar = model.vae.encoder(x)
     z = mean + torch.exp(0.5 * logvar) * torch.randn_like(mean)
     y = model.vae.decoder(z)
     rec = (y - x).abs().mean()
     pos = (y[..., :66] - x[..., :66]).abs().mean()
     kl = -0.5 * (1 + logvar - mean.pow(2) - logvar.exp()).mean()
-    return rec + pos + kl_weight * kl, {"l1": rec.item(), "l1_positions": pos.item(), "kl": kl.item()}
+    contact = (y[..., CONTACTS] - x[..., CONTACTS]).pow(2).mean()
+    loss = rec + pos + kl_weight * kl + contact_weight * contact
+    return loss, {"l1": rec.item(), "l1_positions": pos.item(), "kl": kl.item(), "contact_mse": contact.item()}
 
 
-def train_vae(model: Armflow, pairs, recipe: dict, rng, log) -> dict:
+class Resumable:
+    """A stage that can stop and go on: every `every` steps its whole state (weights, optimiser,
+    step, the log's tail, the torch and numpy generators) goes to `path`; a stage started again
+    with that file continues from it exactly as if it had never stopped (same batches, same
+    noise), so hours of training can be spread over several runs."""
+
+    def __init__(self, path: Path | None, every: int, log):
+        self.path, self.every, self.log = path, every, log
+
+    def start(self, model: torch.nn.Module, opt, rng: np.random.Generator) -> tuple[int, list]:
+        if self.path is None or not self.path.exists():
+            return 0, []
+        state = torch.load(self.path, map_location="cpu", weights_only=True)
+        model.load_state_dict(state["model"])
+        opt.load_state_dict(state["optimizer"])
+        torch.set_rng_state(state["torch_rng"])
+        rng.bit_generator.state = json.loads(state["numpy_rng"])
+        self.log(f"resumed from {self.path} at step {state['step']}")
+        return state["step"], json.loads(state["hist"])
+
+    def step_done(self, step: int, model: torch.nn.Module, opt, rng: np.random.Generator, hist: list):
+        """After step `step` (0-based): saves when `step + 1` is a multiple of `every`."""
+        if self.path is None or (step + 1) % self.every:
+            return
+        tmp = self.path.with_suffix(".tmp")
+        torch.save({"model": model.state_dict(), "optimizer": opt.state_dict(), "step": step + 1,
+                    "torch_rng": torch.get_rng_state(), "numpy_rng": json.dumps(rng.bit_generator.state),
+                    "hist": json.dumps(hist[-100:])}, tmp)
+        tmp.replace(self.path)  # never a half-written checkpoint
+
+
+def train_vae(model: Armflow, pairs, recipe: dict, rng, log, resumable: Resumable | None = None) -> dict:
     r = recipe["vae"]
     opt = torch.optim.Adam(model.vae.parameters(), lr=r["lr"])
     model.vae.train()
-    hist = []
+    resumable = resumable or Resumable(None, 1, log)
+    first, hist = resumable.start(model, opt, rng)
     t0 = time.time()
-    for step in range(r["steps"]):
+    for step in range(first, r["steps"]):
         for g in opt.param_groups:
             g["lr"] = cosine_lr(step, r["steps"], r["lr"], r["lr_end"])
         a, b, _, _, _ = windows(pairs, r["frames"], r["batch"] // 2, rng, stream_start=False, prefix=0)
         x = torch.cat([a, b])  # actors and partners alike: one VAE for both people
-        loss, parts = vae_loss(model, x, r["kl_weight"])
+        loss, parts = vae_loss(model, x, r["kl_weight"], r.get("contact_weight", 0.0))
         opt.zero_grad()
         loss.backward()
         opt.step()
@@ -144,6 +212,7 @@ def train_vae(model: Armflow, pairs, recipe: dict, rng, log) -> dict:
         if step % 100 == 0 or step == r["steps"] - 1:
             m = recent(hist)
             log(f"vae step {step} ({time.time() - t0:.0f} s): " + " ".join(f"{k} {v:.4f}" for k, v in m.items()))
+        resumable.step_done(step, model, opt, rng, hist)
     model.vae.eval()
     return recent(hist)
 
@@ -245,7 +314,7 @@ def meanflow_loss(model: Armflow, actor_tok, target, context, r: dict):
     return err.mean(), {"mse": err.mean().item(), "mse_r_eq_t": err[same].mean().item(), "mse_r_lt_t": err[~same].mean().item()}
 
 
-def train_flow(model: Armflow, pairs, recipe: dict, rng, log) -> dict:
+def train_flow(model: Armflow, pairs, recipe: dict, rng, log, resumable: Resumable | None = None) -> dict:
     r = recipe["flow"]
     cfg, fpt = model.cfg, model.cfg.frames_per_token
     for p in model.vae.parameters():
@@ -254,9 +323,10 @@ def train_flow(model: Armflow, pairs, recipe: dict, rng, log) -> dict:
     opt = torch.optim.AdamW(params, lr=r["lr"], weight_decay=r["weight_decay"])
     model.armflow.train()
     ramp = int(0.7 * r["steps"])
-    hist = []
+    resumable = resumable or Resumable(None, 1, log)
+    first, hist = resumable.start(model, opt, rng)
     t0 = time.time()
-    for step in range(r["steps"]):
+    for step in range(first, r["steps"]):
         for g in opt.param_groups:
             g["lr"] = cosine_lr(step, r["steps"], r["lr"], r["lr_end"], r["warmup"])
         k = min(r["k_max"], 1 + step * r["k_max"] // max(1, ramp))
@@ -282,6 +352,7 @@ def train_flow(model: Armflow, pairs, recipe: dict, rng, log) -> dict:
         if step % 100 == 0 or step == r["steps"] - 1:
             m = recent(hist)
             log(f"flow step {step} ({time.time() - t0:.0f} s): " + " ".join(f"{key} {v:.4f}" for key, v in m.items()))
+        resumable.step_done(step, model, opt, rng, hist)
     model.armflow.eval()
     return recent(hist)
 
@@ -305,11 +376,16 @@ def main(argv: list[str] | None = None, prog: str | None = None):
     ap = argparse.ArgumentParser(prog=prog, description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--out", type=Path, required=True, help="directory for vae.pt, armflow.pt and train.log")
     ap.add_argument("--stage", choices=("vae", "flow", "all"), default="all")
+    ap.add_argument("--recipe", choices=tuple(RECIPES), default="v1", help="v1: the committed model's; v2: issue 36's")
+    ap.add_argument("--resume", action="store_true",
+                    help="go on from DIR/vae.resume.pt or DIR/flow.resume.pt where a run stopped (a finished "
+                         "DIR/vae.pt skips the VAE stage)")
+    ap.add_argument("--checkpoint-every", type=int, default=500, help="steps between resumable checkpoints")
     ap.add_argument("--vae-steps", type=int, help=f"default {RECIPE['vae']['steps']}")
     ap.add_argument("--flow-steps", type=int, help=f"default {RECIPE['flow']['steps']}")
     ap.add_argument("--threads", type=int, default=int(os.environ.get("TROUPE_TRAIN_THREADS", "2")))
     args = ap.parse_args(argv)
-    recipe = json.loads(json.dumps(RECIPE))
+    recipe = json.loads(json.dumps(RECIPES[args.recipe]))
     if args.vae_steps:
         recipe["vae"]["steps"] = args.vae_steps
     if args.flow_steps:
@@ -323,24 +399,31 @@ def main(argv: list[str] | None = None, prog: str | None = None):
         logfile.write(line + "\n")
         logfile.flush()
 
-    pairs, clips = train_pairs()
-    cfg = demo_config()
+    pairs, clips = train_pairs(recipe)
+    cfg = demo_config(recipe)
+
+    def resumable(stage: str) -> Resumable:
+        path = args.out / f"{stage}.resume.pt"
+        if not args.resume and path.exists():
+            path.unlink()  # a fresh run: forget an old run's state
+        return Resumable(path, args.checkpoint_every, log)
     fpt = cfg.frames_per_token
 
     def seconds_usable(frames: int) -> float:  # capture inside at least one window of `frames`
         return round(sum(c.seconds for c in clips if len(c.positions) - 1 >= frames), 1)
 
-    record = {"recipe": recipe, "config": {k: v for k, v in asdict(cfg).items() if k != "stream_windows"},
+    record = {"recipe_name": args.recipe, "recipe": recipe, "config": {k: v for k, v in asdict(cfg).items() if k != "stream_windows"},
               "train_seconds": round(sum(c.seconds for c in clips), 1),
               "seconds_seen_by_vae": seconds_usable(recipe["vae"]["frames"]),
               "seconds_seen_by_flow": seconds_usable(recipe["flow"]["tokens"] * fpt),
               "train_clips": [f"{c.source}/{c.name}" for c in clips], "torch": str(torch.__version__)}
-    if args.stage in ("vae", "all"):
+    vae_done = args.resume and args.stage == "all" and (args.out / "vae.pt").exists()
+    if args.stage in ("vae", "all") and not vae_done:
         torch.manual_seed(recipe["seed"])
         rng = np.random.default_rng(recipe["seed"])
         model = Armflow(cfg)
         t0 = time.time()
-        record["vae_final"] = train_vae(model, pairs, recipe, rng, log)
+        record["vae_final"] = train_vae(model, pairs, recipe, rng, log, resumable("vae"))
         cfg.latent_scale = model.cfg.latent_scale = latent_scale(model, pairs, recipe, rng)
         record["vae_seconds"] = round(time.time() - t0)
         record["latent_scale"] = cfg.latent_scale
@@ -359,7 +442,7 @@ def main(argv: list[str] | None = None, prog: str | None = None):
         record["vae_held_out_mpjpe_cm"] = vae_held_out_cm(model)
         log(f"VAE reconstruction of the held-out clips: {record['vae_held_out_mpjpe_cm']:.1f} cm per joint")
         t0 = time.time()
-        record["flow_final"] = train_flow(model, pairs, recipe, rng, log)
+        record["flow_final"] = train_flow(model, pairs, recipe, rng, log, resumable("flow"))
         record["flow_seconds"] = round(time.time() - t0)
         log(f"flow trained in {record['flow_seconds']} s")
         save(model, args.out / "armflow.pt", record)

@@ -38,10 +38,13 @@ use crate::shared::text::prompt::no_prompts;
 mod guard;
 mod joints;
 mod lanes;
+mod smoothing;
 use guard::GuardState;
 pub use guard::PenetrationGuard;
 pub use joints::step_reactors_joints;
 use lanes::Lane;
+pub use smoothing::RootSmoothing;
+use smoothing::SmoothingState;
 
 /// Options of a session. Fields left `None` take the bundle's defaults (`sampler` and
 /// `context` sections of the manifest).
@@ -68,6 +71,9 @@ pub struct ReactorOptions {
     /// Pull the reactor's frames out of the actor's body as they are sent (`guard.rs`); off
     /// when `None`.
     pub penetration_guard: Option<PenetrationGuard>,
+    /// Filter the reactor's root path against jitter before the guard (`smoothing.rs`); off
+    /// when `None`.
+    pub root_smoothing: Option<RootSmoothing>,
     /// Keep the reactor's feet still while their contact labels are on, in the poses
     /// [`Reactor::step_joints`] returns (`crate::motion::foot_lock`); off when `None`.
     pub foot_lock: Option<FootLockOptions>,
@@ -92,6 +98,7 @@ struct Settings {
     capacity: usize,
     actor_latent: ActorLatent,
     guard: Option<PenetrationGuard>,
+    smoothing: Option<RootSmoothing>,
 }
 
 /// Everything a stream accumulates; `reset()` returns it to `StreamState::new`.
@@ -118,6 +125,8 @@ struct StreamState {
     vae: Option<VaeState>,
     /// The penetration guard's offset and the actor's joints for frames not yet sent.
     guard: GuardState,
+    /// The root smoothing's filtered root.
+    smoothing: SmoothingState,
 }
 
 /// One actor/reactor stream over a loaded ARMFlow model (made by `Armflow::reactor`, or boxed
@@ -153,6 +162,7 @@ impl Reactor {
                 .unwrap_or(m.context.capacity_tokens),
             actor_latent: options.actor_latent.unwrap_or(m.sampler.actor_latent),
             guard: options.penetration_guard,
+            smoothing: options.root_smoothing,
             condition: match (options.condition, &options.prompt) {
                 (Some(_), Some(_)) => {
                     return Err(Error::InvalidOption(
@@ -167,6 +177,9 @@ impl Reactor {
         check_cfg(settings.cfg_scale)?;
         if let Some(guard) = &settings.guard {
             guard.check()?;
+        }
+        if let Some(smoothing) = &settings.smoothing {
+            smoothing.check()?;
         }
         if settings.capacity < 2 {
             return Err(Error::InvalidOption(format!(
@@ -295,6 +308,17 @@ impl Reactor {
         }
         self.settings.guard = guard;
         self.state.guard = GuardState::starting_at(self.state.frames_received);
+        Ok(())
+    }
+
+    /// Turns the root smoothing on (with its time constant) or off (`None`) for the frames sent
+    /// from now on; turning it on starts from the next frame's root.
+    pub fn set_root_smoothing(&mut self, smoothing: Option<RootSmoothing>) -> Result<()> {
+        if let Some(s) = &smoothing {
+            s.check()?;
+        }
+        self.settings.smoothing = smoothing;
+        self.state.smoothing = SmoothingState::default();
         Ok(())
     }
 
@@ -452,6 +476,7 @@ impl StreamState {
             frames_emitted: 0,
             injected: VecDeque::new(),
             guard: GuardState::default(),
+            smoothing: SmoothingState::default(),
         }
     }
 
@@ -564,7 +589,7 @@ fn advance_sessions(
         .try_for_each(|(i, (state, output))| {
             let max = max_frames.get(i).copied().unwrap_or(usize::MAX);
             check_output_room(output, max, indexed.then_some(i))?;
-            guard(sessions[i], nets, state, output, actor[i])
+            shape_output(sessions[i], nets, state, output, actor[i])
         });
     if let Err(e) = checked {
         for (session, (mut state, _)) in sessions.iter_mut().zip(finished) {
@@ -584,21 +609,24 @@ fn advance_sessions(
         .collect())
 }
 
-/// Runs the session's penetration guard, if it has one, on the frames a step sends (on the
-/// step's working state: `session` still holds the state before the step).
-fn guard(
+/// What is done to the frames a step sends: the root smoothing, then the penetration guard,
+/// each when on (on the step's working state: `session` still holds the state before the step).
+fn shape_output(
     session: &Reactor,
     nets: &Networks,
     state: &mut StreamState,
     output: &mut StepOutput,
     actor: &[f32],
 ) -> Result<()> {
+    let fps = nets.io.motion.fps as f64;
+    if let Some(smoothing) = &session.settings.smoothing {
+        state.smoothing.apply(smoothing, &mut output.frames, fps);
+    }
     let Some(settings) = &session.settings.guard else {
         return Ok(());
     };
     state.guard.push_actor(actor, nets.frame_dim());
     let first = session.state.frames_emitted;
-    let fps = nets.io.motion.fps as f64;
     state.guard.apply(settings, &mut output.frames, first, fps)
 }
 
