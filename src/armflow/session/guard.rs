@@ -93,6 +93,18 @@ fn shifted(pose: &[Vec3], o: [f64; 2]) -> Vec<Vec3> {
 }
 
 /// `to` moved toward `from` so that it is at most `limit` away from it.
+/// Moves a feature frame rigidly by `offset` on the floor (x, z): every joint position by it,
+/// every joint velocity by its change from the previous frame's `previous` (the guard's and
+/// the root smoothing's shift).
+pub(super) fn shift_on_floor(row: &mut [f32], offset: [f64; 2], previous: [f64; 2]) {
+    for j in 0..JOINTS {
+        row[POSITIONS + 3 * j] += offset[0] as f32;
+        row[POSITIONS + 3 * j + 2] += offset[1] as f32;
+        row[VELOCITIES + 3 * j] += (offset[0] - previous[0]) as f32;
+        row[VELOCITIES + 3 * j + 2] += (offset[1] - previous[1]) as f32;
+    }
+}
+
 fn clamp_move(from: [f64; 2], to: [f64; 2], limit: f64) -> [f64; 2] {
     let d = [to[0] - from[0], to[1] - from[1]];
     let n = (d[0] * d[0] + d[1] * d[1]).sqrt();
@@ -177,15 +189,13 @@ impl GuardState {
                 o
             };
             let o = clamp_move(previous, target, step);
-            let row = frame
-                .as_slice_mut()
-                .expect("rows of a standard-layout array");
-            for j in 0..JOINTS {
-                row[POSITIONS + 3 * j] += o[0] as f32;
-                row[POSITIONS + 3 * j + 2] += o[1] as f32;
-                row[VELOCITIES + 3 * j] += (o[0] - previous[0]) as f32;
-                row[VELOCITIES + 3 * j + 2] += (o[1] - previous[1]) as f32;
-            }
+            shift_on_floor(
+                frame
+                    .as_slice_mut()
+                    .expect("rows of a standard-layout array"),
+                o,
+                previous,
+            );
             self.offset = o;
         }
         let next = first + frames.nrows() as u64;

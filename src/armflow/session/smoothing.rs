@@ -10,10 +10,9 @@
 
 use ndarray::Array2;
 
-use crate::motion::features::{POSITIONS, VELOCITIES};
+use super::guard::shift_on_floor;
+use crate::motion::features::POSITIONS;
 use crate::shared::error::{Error, Result};
-
-const JOINTS: usize = 22;
 
 /// The root smoothing's setting.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -67,12 +66,7 @@ impl SmoothingState {
                 None => r,
             };
             let shift = [s[0] - r[0], s[1] - r[1]];
-            for j in 0..JOINTS {
-                row[POSITIONS + 3 * j] += shift[0] as f32;
-                row[POSITIONS + 3 * j + 2] += shift[1] as f32;
-                row[VELOCITIES + 3 * j] += (shift[0] - self.shift[0]) as f32;
-                row[VELOCITIES + 3 * j + 2] += (shift[1] - self.shift[1]) as f32;
-            }
+            shift_on_floor(row, shift, self.shift);
             self.root = Some(s);
             self.shift = shift;
         }
@@ -82,7 +76,8 @@ impl SmoothingState {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::motion::features::FEATURE_DIM;
+    use crate::motion::features::{FEATURE_DIM, VELOCITIES};
+    use crate::motion::T2M22_JOINTS as JOINTS;
 
     /// Frames whose every joint is at `(x, 0, 0)` for the given root x's.
     fn frames(xs: &[f32]) -> Array2<f32> {

@@ -1,6 +1,6 @@
 //! The C entry points of the `armflow` family: joint positions in and out of a session, the
-//! penetration guard, the root smoothing, the foot lock, and the official clip loop. Sessions themselves are family-neutral
-//! (`ffi/session.rs`).
+//! penetration guard, the root smoothing, the foot lock, and the official clip loop. Sessions
+//! themselves are family-neutral (`ffi/session.rs`).
 
 pub mod clip;
 pub mod foot_lock;
