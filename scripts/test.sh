@@ -3,7 +3,8 @@
 # python3, it installs what the suite needs (a project-local virtual environment for the Python
 # tests, Debian's chromium for the picture tests, valgrind for the C memory check, cmake for the
 # installed package's consumer, Mono for the C# binding, the Windows and arm64 cross toolchains
-# with Wine and qemu-user, Node.js with gltf-validator and three.js, Blender's bpy) and runs every
+# with Wine and qemu-user, Node.js with gltf-validator and three.js, Blender's bpy, the wasm32
+# target with wasm-bindgen-cli for the web page) and runs every
 # check CI runs. It ends with the count of checks the tests skipped, and why (torch-dependent
 # ones are optional; see tests/common/mod.rs, `skip`).
 #
@@ -114,11 +115,12 @@ if command -v rustup >/dev/null 2>&1; then
 fi
 
 # 5. The clients the rig and glTF tests run (tests/rigs.rs): Node.js with Khronos' gltf-validator
-#    and three.js from npm, pinned, in target/npm; Blender as PyPI's `bpy` (a build for this
+#    and three.js from npm, pinned, in target/npm (with playwright-core, which drives Chromium for
+#    the web page's tests, tests/web.rs); Blender as PyPI's `bpy` (a build for this
 #    Python, 3.11) in its own environment, target/blender (about 1 GB; its numpy pin differs
 #    from the suite's), with the X and GL libraries its module links.
-ensure_tool node "nodejs npm" "the glTF validator and three.js tests (tests/rigs.rs)"
-npm_packages="gltf-validator@2.0.0-dev.3.10 three@0.187.0"
+ensure_tool node "nodejs npm" "the glTF validator, three.js and web page tests (tests/rigs.rs, tests/web.rs)"
+npm_packages="gltf-validator@2.0.0-dev.3.10 three@0.187.0 playwright-core@1.65.1"
 npm_dir=target/npm
 if command -v npm >/dev/null 2>&1 && [ "$(cat "$npm_dir/.installed" 2>/dev/null)" != "$npm_packages" ]; then
     echo "== npm: installing $npm_packages into $npm_dir"
@@ -147,6 +149,14 @@ if [ -x "$blender/bin/python3" ] && ! "$blender/bin/python3" -c "import bpy" >/d
     echo "== blender: installing the libraries bpy links"
     apt_install libx11-6 libxrender1 libxfixes3 libxi6 libxkbcommon0 libxext6 libsm6 libice6 \
         libgl1 libvulkan1 libxxf86vm1
+fi
+
+# 6. The web page (docs/WEB.md, tests/web.rs): troupe-web built for wasm32 into web/pkg by
+#    scripts/web.sh, which installs the wasm32 target and the pinned wasm-bindgen-cli itself.
+echo "== web: building the page (scripts/web.sh)"
+if ! scripts/web.sh; then
+    [ -z "${CI:-}" ] || exit 1
+    echo "scripts/web.sh failed: tests/web.rs runs on an older web/pkg or skips" >&2
 fi
 
 # Tests that cannot run their check append `<test binary>::<test><TAB><reason>` here
@@ -182,6 +192,9 @@ cargo fmt --check
 
 echo "== lint"
 cargo clippy --all-targets -- -D warnings
+# The web bindings, for the only target they are built for (bindings/web/.cargo/config.toml).
+(cd bindings/web && cargo fmt --check &&
+    CARGO_TARGET_DIR=../../target/web-build cargo clippy --locked -- -D warnings)
 if [ -d "$(rustc --print sysroot)/lib/rustlib/x86_64-pc-windows-gnu" ]; then
     # The code only Windows compiles (src/shared/paths.rs, the bundle loader's file checks).
     cargo clippy --lib --target x86_64-pc-windows-gnu -- -D warnings
@@ -190,7 +203,7 @@ fi
 echo "== tests"
 start_tests
 cargo test
-ci_discard "$blender" target/release
+ci_discard "$blender" target/release target/web-build
 
 echo "== other platforms: the unit and golden parity tests under Wine and qemu (docs/PLATFORMS.md)"
 sysroot="$(rustc --print sysroot)"

@@ -17,6 +17,7 @@ use std::sync::{Arc, Mutex, OnceLock};
 use tract_onnx::prelude::*;
 
 use crate::shared::bundle::BundleFiles;
+use crate::shared::clock::Stopwatch;
 use crate::shared::error::{Error, Result};
 use crate::shared::graph_spec::{DType, Dim, GraphSpec, TensorSpec, Weights};
 use crate::shared::limits::LIMITS;
@@ -51,7 +52,7 @@ impl Graph {
         plan: PlanPolicy,
     ) -> Result<Self> {
         let file = files.path_of(&spec.file);
-        let started = std::time::Instant::now();
+        let started = Stopwatch::start();
         let mut phases = Phases::new();
         let bytes = files.read(&spec.file, LIMITS.max_bundle_bytes)?;
         phases.mark("read");
@@ -107,7 +108,7 @@ impl Graph {
                 } else {
                     " and optimised"
                 },
-                started.elapsed().as_secs_f64() * 1e3,
+                started.elapsed_ms(),
                 phases.summary()
             )
         });
@@ -169,23 +170,21 @@ impl Graph {
 
 /// Durations of a graph load's phases, for the debug log.
 struct Phases {
-    last: std::time::Instant,
+    last: Stopwatch,
     marks: Vec<(&'static str, f64)>,
 }
 
 impl Phases {
     fn new() -> Self {
         Self {
-            last: std::time::Instant::now(),
+            last: Stopwatch::start(),
             marks: Vec::new(),
         }
     }
 
     fn mark(&mut self, phase: &'static str) {
-        let now = std::time::Instant::now();
-        self.marks
-            .push((phase, (now - self.last).as_secs_f64() * 1e3));
-        self.last = now;
+        self.marks.push((phase, self.last.elapsed_ms()));
+        self.last = Stopwatch::start();
     }
 
     fn summary(&self) -> String {

@@ -5,6 +5,7 @@ pub(crate) mod attention;
 pub mod bundle;
 pub(crate) mod bundle_io;
 pub(crate) mod checks;
+pub(crate) mod clock;
 pub mod error;
 pub mod family;
 pub(crate) mod files;

@@ -32,8 +32,10 @@ use crate::shared::error::Result;
 use crate::shared::files::write_atomically;
 use crate::viewer::scene::Scene;
 
-/// The page, with `{{TITLE}}` and `{{DATA}}` to fill.
+/// The page, with `{{TITLE}}`, `{{DRAW}}` and `{{DATA}}` to fill.
 const TEMPLATE: &str = include_str!("player.html");
+/// The drawing the player shares with the web page (web/), inlined into it.
+const DRAW_JS: &str = include_str!("draw.js");
 
 /// Metres per unit of the positions embedded in the page.
 const POSITION_UNIT_M: f64 = 1e-4;
@@ -188,6 +190,7 @@ impl Scene {
             TEMPLATE,
             &[
                 ("TITLE", &escape_html(&title)),
+                ("DRAW", DRAW_JS),
                 ("DATA", &json_for_script(&json)),
             ],
         ))
