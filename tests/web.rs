@@ -348,6 +348,9 @@ fn the_page_reports_its_figures() {
     assert!(p50 > 0.0 && p99 >= p50 && rtf > 0.0);
 }
 
+/// A BVH dropped on the page becomes the actor and streams: Mixamo's rig, from bvhtoolbox's tests
+/// (not troupe's skeleton, not troupe's file), dropped as a file from the desktop would be, and
+/// the same file named by `?bvh=`.
 #[test]
 fn a_dropped_bvh_becomes_the_actor_and_streams() {
     let test = "a_dropped_bvh_becomes_the_actor_and_streams";
@@ -355,22 +358,34 @@ fn a_dropped_bvh_becomes_the_actor_and_streams() {
     let Some(modules) = npm_modules(test) else {
         return;
     };
-    // Mixamo's rig, from bvhtoolbox's tests: not troupe's skeleton, not troupe's file.
-    let mixamo = common::pypi_sdist("bvhtoolbox==0.1.3").join("tests/example_files");
-    let state = open_page(
+    let folder = common::pypi_sdist("bvhtoolbox==0.1.3").join("tests/example_files");
+    let file = folder.join("test_freebvh.bvh");
+    let dropped = open_page_with(
+        &modules,
+        "frames=200&rule=follow",
+        Vec::new(),
+        None,
+        &[("TROUPE_DROP", file.to_str().unwrap())],
+    );
+    let named = open_page(
         &modules,
         "bvh=/files/test_freebvh.bvh&frames=200&rule=follow",
-        vec![("/files/".into(), mixamo)],
+        vec![("/files/".into(), folder)],
         None,
     );
-    assert_eq!(text(&state, "actor"), "test_freebvh.bvh");
-    let tokens = number(&state, "tokens");
-    assert!(tokens >= 5.0, "{tokens} tokens");
-    let d = drawn(&state);
-    // The actor drawn is the file's figure: a standing person's height, metres.
-    let height = d.actor.iter().map(|p| p[1]).fold(f32::MIN, f32::max)
-        - d.actor.iter().map(|p| p[1]).fold(f32::MAX, f32::min);
-    assert!((1.0..2.2).contains(&height), "actor {height} m tall");
+    for (how, state) in [("dropped", &dropped), ("named", &named)] {
+        assert_eq!(text(state, "actor"), "test_freebvh.bvh", "{how}");
+        let tokens = number(state, "tokens");
+        assert!(tokens >= 5.0, "{how}: {tokens} tokens");
+        let d = drawn(state);
+        // The actor drawn is the file's figure: a standing person's height, metres.
+        let height = d.actor.iter().map(|p| p[1]).fold(f32::MIN, f32::max)
+            - d.actor.iter().map(|p| p[1]).fold(f32::MAX, f32::min);
+        println!("{how}: {tokens} tokens, the actor {height:.2} m tall");
+        assert!((1.0..2.2).contains(&height), "{how}: actor {height} m tall");
+    }
+    // The same file, the same stream: the drop goes through the same reader and session.
+    assert_eq!(text(&dropped, "drawn"), text(&named, "drawn"));
 }
 
 /// The steered actor goes where the arrow keys send it: live, 4 s of stream with ← held turn it

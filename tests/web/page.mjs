@@ -6,10 +6,13 @@
 //
 //   TROUPE_NPM_MODULES=DIR node tests/web/page.mjs URL [SHOT]
 //
-// TROUPE_HOLD=KEY holds a key down from when the page is ready (the steered actor's arrows), and
-// TROUPE_TOKENS=N waits for N tokens instead of the end of a fixed stream (live streaming).
+// TROUPE_HOLD=KEY holds a key down from when the page is ready (the steered actor's arrows);
+// TROUPE_TOKENS=N waits for N tokens instead of the end of a fixed stream (live streaming);
+// TROUPE_DROP=FILE drops that file on the page once it is ready, as a visitor dragging it from
+// their desktop would (a drop event carrying the file), and waits for it to stream.
 import { createRequire } from "node:module";
-import { join, resolve } from "node:path";
+import { readFileSync } from "node:fs";
+import { basename, join, resolve } from "node:path";
 
 const require = createRequire(join(resolve(process.env.TROUPE_NPM_MODULES), "noop.js"));
 const { chromium } = require("playwright-core");
@@ -25,10 +28,25 @@ try {
   page.on("console", (m) => console_.push(`${m.type()}: ${m.text()}`));
   page.on("pageerror", (e) => console_.push(`pageerror: ${e.message}`));
   await page.goto(url);
+  const ready = () => page.waitForFunction(
+    () => document.body.dataset.ready === "1" || document.body.dataset.error, null, { timeout: 120000 });
   if (process.env.TROUPE_HOLD) {
-    await page.waitForFunction(() => document.body.dataset.ready === "1" || document.body.dataset.error,
-      null, { timeout: 120000 });
+    await ready();
     await page.keyboard.down(process.env.TROUPE_HOLD);
+  }
+  if (process.env.TROUPE_DROP) {
+    await ready();
+    const name = basename(process.env.TROUPE_DROP);
+    const bytes = [...readFileSync(process.env.TROUPE_DROP)];
+    await page.evaluate(({ name, bytes }) => {
+      const files = new DataTransfer();
+      files.items.add(new File([new Uint8Array(bytes)], name));
+      for (const type of ["dragover", "drop"]) {
+        window.dispatchEvent(new DragEvent(type, { dataTransfer: files, bubbles: true, cancelable: true }));
+      }
+    }, { name, bytes });
+    await page.waitForFunction((name) => document.body.dataset.actor === name || document.body.dataset.error,
+      name, { timeout: 120000 });
   }
   const tokens = Number(process.env.TROUPE_TOKENS || 0);
   await page.waitForFunction(
