@@ -195,6 +195,7 @@ cargo clippy --all-targets -- -D warnings
 # The web bindings, for the only target they are built for (bindings/web/.cargo/config.toml).
 (cd bindings/web && cargo fmt --check &&
     CARGO_TARGET_DIR=../../target/web-build cargo clippy --locked -- -D warnings)
+ci_discard target/web-build
 if [ -d "$(rustc --print sysroot)/lib/rustlib/x86_64-pc-windows-gnu" ]; then
     # The code only Windows compiles (src/shared/paths.rs, the bundle loader's file checks).
     cargo clippy --lib --target x86_64-pc-windows-gnu -- -D warnings
@@ -203,7 +204,7 @@ fi
 echo "== tests"
 start_tests
 cargo test
-ci_discard "$blender" target/release target/web-build
+ci_discard "$blender" target/release
 
 echo "== other platforms: the unit and golden parity tests under Wine and qemu (docs/PLATFORMS.md)"
 sysroot="$(rustc --print sysroot)"

@@ -20,7 +20,7 @@ use std::process::Command;
 use ndarray::Array2;
 use ndarray_npy::read_npy;
 use troupe::viewer::Camera;
-use troupe::{Model, ReactorOptions, TokenNoise};
+use troupe::{Model, ReactorOptions};
 
 use common::pictures::*;
 
@@ -77,14 +77,7 @@ fn native_frames(model: &Model, bundle: &Path, case: &str) -> Vec<f32> {
         golden(&format!("{case}_xi")),
         golden(&format!("{case}_eps")),
     );
-    for (a, r) in xi.rows().into_iter().zip(eps.rows()) {
-        session
-            .queue_noise(TokenNoise {
-                actor: a.to_vec(),
-                reactor: r.to_vec(),
-            })
-            .unwrap();
-    }
+    common::queue_noise_rows(&mut session, &xi, &eps);
     common::run_chunked(&mut session, &golden("actor"), chunk).0
 }
 
@@ -165,6 +158,13 @@ fn npm_modules(test: &str) -> Option<PathBuf> {
         "playwright-core not installed (scripts/test.sh installs it)",
     );
     None
+}
+
+/// What the page's tests need: the built page and the npm packages (see [`web_pkg`],
+/// [`npm_modules`]).
+fn page_tools(test: &str) -> Option<PathBuf> {
+    web_pkg(test)?;
+    npm_modules(test)
 }
 
 /// The page at `query`, served from 127.0.0.1 (`web/`, plus `extra` mounts), opened in headless
@@ -268,8 +268,7 @@ fn drawn(state: &serde_json::Map<String, serde_json::Value>) -> Drawn {
 #[test]
 fn the_page_streams_the_partner_and_draws_it_where_its_joints_are() {
     let test = "the_page_streams_the_partner_and_draws_it_where_its_joints_are";
-    let Some(_pkg) = web_pkg(test) else { return };
-    let Some(modules) = npm_modules(test) else {
+    let Some(modules) = page_tools(test) else {
         return;
     };
     let dir = tempfile::tempdir().unwrap();
@@ -324,8 +323,7 @@ fn the_page_streams_the_partner_and_draws_it_where_its_joints_are() {
 #[test]
 fn the_page_reports_its_figures() {
     let test = "the_page_reports_its_figures";
-    let Some(_pkg) = web_pkg(test) else { return };
-    let Some(modules) = npm_modules(test) else {
+    let Some(modules) = page_tools(test) else {
         return;
     };
     // 8 s of the clip, as fast as the module goes.
@@ -354,8 +352,7 @@ fn the_page_reports_its_figures() {
 #[test]
 fn a_dropped_bvh_becomes_the_actor_and_streams() {
     let test = "a_dropped_bvh_becomes_the_actor_and_streams";
-    let Some(_pkg) = web_pkg(test) else { return };
-    let Some(modules) = npm_modules(test) else {
+    let Some(modules) = page_tools(test) else {
         return;
     };
     let folder = common::pypi_sdist("bvhtoolbox==0.1.3").join("tests/example_files");
@@ -393,8 +390,7 @@ fn a_dropped_bvh_becomes_the_actor_and_streams() {
 #[test]
 fn the_visitor_steers_the_actor_with_the_arrow_keys() {
     let test = "the_visitor_steers_the_actor_with_the_arrow_keys";
-    let Some(_pkg) = web_pkg(test) else { return };
-    let Some(modules) = npm_modules(test) else {
+    let Some(modules) = page_tools(test) else {
         return;
     };
     let root = |hold: Option<&str>| {

@@ -202,6 +202,7 @@ function advance(now) {
     timing.streamS += n / source.fps;
     timing.computeS += ms / 1000;
     if (out.length > 0) timing.calls.push(ms);
+    if (timing.calls.length > 2000) timing.calls.splice(0, 1000); // the recent ones
   }
   if (out.length > 0 && timing.firstReactionMs === null) {
     timing.firstReactionMs = performance.now();

@@ -86,10 +86,16 @@ pub fn max_abs_diff(a: &[f32], b: &[f32]) -> f32 {
 
 /// Queues the golden case's injected noise into a session.
 pub fn queue_golden_noise(session: &mut Reactor, case: &str) {
-    let (xi, eps) = (
-        golden2(&format!("{case}_xi")),
-        golden2(&format!("{case}_eps")),
+    queue_noise_rows(
+        session,
+        &golden2(&format!("{case}_xi")),
+        &golden2(&format!("{case}_eps")),
     );
+}
+
+/// Queues one token's noise per row: the actor's standard normals `xi`, the reactor's `eps`.
+#[allow(dead_code)] // not every test binary queues noise
+pub fn queue_noise_rows(session: &mut Reactor, xi: &Array2<f32>, eps: &Array2<f32>) {
     for (a, r) in xi.rows().into_iter().zip(eps.rows()) {
         session
             .queue_noise(TokenNoise {
