@@ -11,7 +11,7 @@ import init, { WebModel, WebClip, jointNames, jointParents } from "./pkg/troupe_
 const params = new URLSearchParams(window.location.search);
 const ACTOR_COLOUR = "#1f77b4"; // troupe's palette (src/viewer/scene.rs): person 0, person 1
 const PARTNER_COLOUR = "#ff7f0e";
-const KEEP_S = 20;              // seconds of history kept for drawing
+const KEEP_S = 20;              // seconds of the actor kept, to draw it as of the partner's frame
 const MAX_BATCH_S = 0.5;        // at most this much actor motion per step call
 const FIXED_FRAMES = Number.parseInt(params.get("frames") ?? "", 10);
 const $ = (id) => document.getElementById(id);
@@ -96,20 +96,21 @@ class SteeredClip {
   frame(i) {
     if (i !== this.next) throw new Error("a steered actor is played in order");
     const n = this.clip.frames, p = this.clip.positions, f = i % n;
+    const h = this.headingOf(f); // the clip's own heading at f
     if (i > 0 && f > 0) {
       const o0 = (f - 1) * 66, o1 = f * 66;
-      const h0 = this.headingOf(f - 1), h1 = this.headingOf(f);
+      const h0 = this.headingOf(f - 1);
       // The step in the body's frame at f - 1, turned to the actor's heading now.
       const dx = p[o1] - p[o0], dz = p[o1 + 2] - p[o0 + 2];
       const c = Math.cos(this.heading - h0), s = Math.sin(this.heading - h0);
       this.at[0] += this.pace * (c * dx + s * dz);
       this.at[1] += this.pace * (-s * dx + c * dz);
-      let dh = h1 - h0;
+      let dh = h - h0;
       dh = Math.atan2(Math.sin(dh), Math.cos(dh));
       this.heading += dh + this.turn / this.fps;
     }
     this.next = i + 1;
-    const o = f * 66, h = this.headingOf(f);
+    const o = f * 66;
     const c = Math.cos(this.heading - h), s = Math.sin(this.heading - h);
     const out = new Float32Array(66);
     for (let j = 0; j < 22; j++) {
@@ -129,8 +130,7 @@ let rule = null;
 let startedAt = null;        // performance.now() when the current actor began
 let fed = 0;                 // actor frames given to the session
 let actorFrames = [];        // { t: seconds, pos } of the frames fed, for drawing
-let partnerFrames = [];      // Float32Array(66) each, at the model's rate
-let partnerBase = 0;         // index of partnerFrames[0] in the stream
+let partner = null;          // the newest partner frame: { k: its index at the model's rate, pos }
 const timing = { calls: [], streamS: 0, computeS: 0, firstReactionMs: null };
 
 function newSession() {
@@ -146,8 +146,7 @@ function newSession() {
   startedAt = null;
   fed = 0;
   actorFrames = [];
-  partnerFrames = [];
-  partnerBase = 0;
+  partner = null;
   timing.calls = [];
   timing.streamS = 0;
   timing.computeS = 0;
@@ -195,8 +194,10 @@ function advance(now) {
   const out = session.stepJoints(batch);
   const ms = performance.now() - t0;
   fed += n;
-  const fps = model.fps;
-  for (let o = 0; o < out.length; o += 66) partnerFrames.push(out.subarray(o, o + 66));
+  if (out.length > 0) {
+    const k = (partner ? partner.k + 1 : 0) + out.length / 66 - 1;
+    partner = { k, pos: out.subarray(out.length - 66) };
+  }
   // Warm calls only: the first token pays for the caches' first use.
   if (session.tokensGenerated > 1) {
     timing.streamS += n / source.fps;
@@ -210,11 +211,6 @@ function advance(now) {
   // Forget what is too old to draw.
   const oldest = fed / source.fps - KEEP_S;
   while (actorFrames.length > 0 && actorFrames[0].t < oldest) actorFrames.shift();
-  const drop = Math.max(0, partnerFrames.length - KEEP_S * fps);
-  if (drop > 0) {
-    partnerFrames.splice(0, drop);
-    partnerBase += drop;
-  }
 }
 
 function showStats() {
@@ -254,10 +250,9 @@ function render() {
   // The partner's newest frame and the actor at the same instant (both drawn as of then).
   const bodies = [];
   let actorPos = null, partnerPos = null;
-  if (partnerFrames.length > 0) {
-    const k = partnerBase + partnerFrames.length - 1;
-    partnerPos = partnerFrames[partnerFrames.length - 1];
-    const t = k / model.fps;
+  if (partner) {
+    partnerPos = partner.pos;
+    const t = partner.k / model.fps;
     const i = actorFrames.findIndex((f) => f.t >= t - 0.5 / source.fps);
     actorPos = (i >= 0 ? actorFrames[i] : actorFrames[actorFrames.length - 1]).pos;
   } else if (actorFrames.length > 0) {

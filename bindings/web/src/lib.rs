@@ -14,7 +14,7 @@
 //! carrying troupe's message; a panic (none is expected) aborts the module, which JavaScript sees
 //! as a `RuntimeError`, since wasm32 cannot unwind.
 
-use ndarray::{ArrayView2, ArrayView3};
+use ndarray::ArrayView3;
 use troupe::motion::bvh::parse_bvh;
 use troupe::motion::{JointMap, JointsFormat, Skeleton, Units, UpAxis, T2M22_JOINTS};
 use troupe::{
@@ -176,8 +176,7 @@ impl WebModel {
             self.model.session(options)
         }
         .map_err(js_error)?;
-        let frame_dim = session.frame_dim();
-        Ok(WebSession { session, frame_dim })
+        Ok(WebSession { session })
     }
 }
 
@@ -185,7 +184,6 @@ impl WebModel {
 #[wasm_bindgen]
 pub struct WebSession {
     session: Session,
-    frame_dim: usize,
 }
 
 impl WebSession {
@@ -197,19 +195,11 @@ impl WebSession {
 #[wasm_bindgen]
 impl WebSession {
     /// Feeds actor feature frames (`n × frameDim` floats, row-major) and returns the reactor
-    /// frames ready (`m × frameDim`, possibly none). On error nothing changes.
+    /// frames ready (`m × frameDim`, possibly none). On error (troupe checks the length) nothing
+    /// changes.
     pub fn step(&mut self, frames: &[f32]) -> Result<Vec<f32>, JsError> {
-        if !frames.len().is_multiple_of(self.frame_dim) {
-            return Err(invalid(&format!(
-                "{} floats are not whole frames of {}",
-                frames.len(),
-                self.frame_dim
-            )));
-        }
-        let view = ArrayView2::from_shape((frames.len() / self.frame_dim, self.frame_dim), frames)
-            .map_err(|e| invalid(&e.to_string()))?;
-        let out = self.session.step(view).map_err(js_error)?;
-        Ok(out.into_iter().collect())
+        let out = self.session.step_flat(frames).map_err(js_error)?;
+        Ok(out.frames.into_iter().collect())
     }
 
     /// Feeds actor joint positions (`n × 22 × 3` floats, in the joints format set, by default
