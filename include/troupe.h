@@ -527,6 +527,18 @@ void troupe_model_free(struct troupe_model *model);
 size_t troupe_model_frame_dim(const struct troupe_model *model);
 
 /**
+ * Writes the model's identity to `out` (32 bytes): the SHA-256 of its bundle's files as the
+ * load read them, the same for a directory and a tar of it. Two processes hold the same model
+ * exactly when their identities are equal; session snapshots carry it.
+ *
+ * Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_PANIC`. Thread-safe.
+ *
+ * # Safety
+ * `model` must be a live handle; `out` writable for 32 bytes.
+ */
+troupe_status troupe_model_identity(const struct troupe_model *model, uint8_t *out);
+
+/**
  * Frames per second of the motion; 0 for NULL. Thread-safe.
  *
  * # Safety
@@ -851,6 +863,56 @@ troupe_status troupe_sessions_step(struct troupe_session *const *sessions, size_
  * `session` must be a live handle; `n_frames` writable.
  */
 troupe_status troupe_session_output_frames(struct troupe_session *session, size_t n_actor_frames, size_t *n_frames);
+
+/**
+ * Saves everything the stream needs to go on (its settings, caches, pending frames, noise
+ * position) as bytes: `troupe_session_restore` on the same model, in this process or another,
+ * gives a session whose steps are this one's bit for bit. The format is versioned, checksummed
+ * and bound to the model (`troupe_model_identity`). The session is unchanged.
+ *
+ * Writes the snapshot's size to `*needed`, and the snapshot to `buf` when `capacity` holds it.
+ * Call with `buf` NULL and `capacity` 0 to learn the size (it changes when the session steps
+ * or its settings change), then with a buffer that size.
+ *
+ * Returns `TROUPE_OK` (also for the size query), `TROUPE_ERR_NULL_ARG` (`needed` NULL, or `buf`
+ * NULL with a non-zero capacity), `TROUPE_ERR_BUFFER_TOO_SMALL` (nothing written but
+ * `*needed`), `TROUPE_ERR_UNSUPPORTED` (a family whose streams cannot be saved yet),
+ * `TROUPE_ERR_POISONED`, `TROUPE_ERR_PANIC`. One thread at a time per session.
+ *
+ * ```c
+ * size_t size = 0;
+ * troupe_session_snapshot(session, NULL, 0, &size);
+ * uint8_t *bytes = malloc(size);
+ * troupe_status st = troupe_session_snapshot(session, bytes, size, &size);
+ * ```
+ *
+ * # Safety
+ * `session` must be a live handle; `buf` writable for `capacity` bytes; `needed` writable.
+ */
+troupe_status troupe_session_snapshot(struct troupe_session *session, uint8_t *buf, size_t capacity, size_t *needed);
+
+/**
+ * Starts a session that goes on exactly where the session saved in `bytes` (`len` bytes, from
+ * `troupe_session_snapshot`; borrowed for the call) stopped. The snapshot must come from this
+ * model (the same bundle files); a truncated, altered, foreign or other-version snapshot is
+ * refused before anything it claims is allocated.
+ *
+ * On success `*out` receives a new handle owned by the caller (free with
+ * `troupe_session_free`); it keeps `model` alive. On failure `*out` is set to NULL.
+ *
+ * Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (the message says what
+ * is wrong with the snapshot), `TROUPE_ERR_UNSUPPORTED`, `TROUPE_ERR_INFERENCE`,
+ * `TROUPE_ERR_PANIC`. Thread-safe with respect to `model`.
+ *
+ * ```c
+ * troupe_session *again = NULL;
+ * troupe_status st = troupe_session_restore(model, bytes, size, &again);
+ * ```
+ *
+ * # Safety
+ * `model` must be a live handle; `bytes` readable for `len` bytes; `out` writable.
+ */
+troupe_status troupe_session_restore(const struct troupe_model *model, const uint8_t *bytes, size_t len, struct troupe_session **out);
 
 /**
  * Makes the session equal to a fresh one with its current settings (seed, steps, CFG,

@@ -209,6 +209,7 @@ impl Manifest {
             motion: self.motion.clone(),
             condition: self.condition.clone(),
             tokenizer: self.tokenizer.clone(),
+            identity: Default::default(),
         }
     }
 }

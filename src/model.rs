@@ -15,8 +15,10 @@ use crate::armflow::{self, Armflow};
 use crate::magnet::{self, Magnet};
 use crate::manifest::{self, ConditionLabel, Manifest};
 use crate::shared::bundle::BundleFiles;
+use crate::shared::bundle_io::BundleIo;
 use crate::shared::error::{Error, Result};
 use crate::shared::family::{wrong_family, Family, StreamOptions};
+use crate::shared::snapshot::SnapshotReader;
 use crate::shared::stream::Session;
 use crate::shared::text::branch::TextBranch;
 use crate::shared::text::prompt::{no_prompts, PromptEncoder};
@@ -34,13 +36,14 @@ pub struct Model {
 #[derive(Debug)]
 struct Inner {
     source: PathBuf,
+    /// SHA-256 of the bundle's files as the load read them.
+    identity: [u8; 32],
     manifest: Manifest,
     family: Box<dyn Family>,
 }
 
 /// Loads the family the manifest names: the one place that lists the families.
-fn load_family(manifest: &Manifest, files: &BundleFiles) -> Result<Box<dyn Family>> {
-    let io = manifest.bundle_io();
+fn load_family(manifest: &Manifest, io: BundleIo, files: &BundleFiles) -> Result<Box<dyn Family>> {
     Ok(match &manifest.family {
         manifest::Family::Armflow(spec) => Box::new(Armflow::new(armflow::Networks::load(
             files,
@@ -81,8 +84,12 @@ impl Model {
 
     fn from_files(files: BundleFiles, source: &Path) -> Result<Self> {
         let manifest = Manifest::load(&files)?;
-        let family = load_family(&manifest, &files)?;
+        let io = manifest.bundle_io();
+        let family = load_family(&manifest, io.clone(), &files)?;
+        let identity = files.identity();
+        io.identity.get_or_init(|| identity);
         let inner = Inner {
+            identity,
             manifest,
             family,
             source: source.to_path_buf(),
@@ -276,6 +283,26 @@ impl Model {
     /// ```
     pub fn session(&self, options: impl StreamOptions) -> Result<Session> {
         options.open(&*self.inner.family)
+    }
+
+    /// A session that goes on exactly where the session [`Session::snapshot`] saved in `snapshot`
+    /// stopped: its next step gives, bit for bit, what the saved session's next step would have
+    /// given. The snapshot may come from another process or machine, but only from this model
+    /// (the same bundle files, [`Model::identity`]); a snapshot that is truncated, altered, of
+    /// another model, family or format version is refused with [`Error::InvalidInput`] before
+    /// anything it claims is allocated. The format: `docs/SNAPSHOTS.md`.
+    pub fn restore(&self, snapshot: &[u8]) -> Result<Session> {
+        let family = &*self.inner.family;
+        let mut payload = SnapshotReader::open(snapshot, family.name(), &self.inner.identity)?;
+        let session = family.restore(&mut payload)?;
+        payload.finish()?;
+        Ok(session)
+    }
+
+    /// The model's identity: the SHA-256 of its bundle's files as the load read them (in name
+    /// order, each with its name), the same for a directory and a tar of it. Snapshots carry it.
+    pub fn identity(&self) -> [u8; 32] {
+        self.inner.identity
     }
 
     /// The common options the default stream starts with: the bundle's steps and context, seed

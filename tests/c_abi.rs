@@ -464,6 +464,41 @@ fn c_magnet_generation_as_c99_and_cpp17() {
     println!("{}", c_and_cpp("magnet", &magnet_args()));
 }
 
+/// Session snapshots across processes: a stream saved by one process (C99) is restored by
+/// another (C++17) and continues bit for bit, and the other way round; every bad input refused.
+#[test]
+fn c_snapshot_restored_in_another_process() {
+    let src = root().join("tests/c/snapshot.c");
+    let c = compile("cc", &["-std=c99"], &[&src], &shared_link(), "snapshot_c");
+    let cpp = compile(
+        "c++",
+        &["-std=c++17", "-x", "c++"],
+        &[&src],
+        &shared_link(),
+        "snapshot_cpp",
+    );
+    for (saver, resumer) in [(&c, &cpp), (&cpp, &c)] {
+        let args = |run: &str| common::c_programs::snapshot_args(run);
+        let save = args("save");
+        let resume = args("resume");
+        println!(
+            "{}",
+            run(
+                &[],
+                saver,
+                &save.iter().map(PathBuf::as_path).collect::<Vec<_>>()
+            )
+        );
+        let text = run(
+            &[],
+            resumer,
+            &resume.iter().map(PathBuf::as_path).collect::<Vec<_>>(),
+        );
+        assert!(text.contains("equal the uninterrupted stream's"), "{text}");
+        println!("{text}");
+    }
+}
+
 /// Compiles `tests/c/<name>.c` as C99 and as C++17 against the cdylib and runs both with `args`;
 /// the C run's output.
 fn c_and_cpp(name: &str, args: &[PathBuf]) -> String {

@@ -176,6 +176,8 @@ class Model {
         if (s) out = std::move(v);
         return s;
     }
+    /// The model's identity: the SHA-256 of its bundle's files (snapshots carry it).
+    Status identity(std::uint8_t (&out)[32]) const { return Status::from(troupe_model_identity(handle_, out)); }
     std::size_t max_output_frames(std::size_t n_actor_frames) const {
         return troupe_model_max_output_frames(handle_, n_actor_frames);
     }
@@ -337,6 +339,25 @@ class Session {
     /// The sampling configuration: a released name or JSON.
     Status set_live_config(const std::string &config) {
         return Status::from(troupe_magnet_session_set_live_config(handle_, config.c_str()));
+    }
+    /// Everything the stream needs to go on, as bytes (`out` replaced only on success): restore it
+    /// with `Session::restore` on the same model, in this process or another, and it continues
+    /// bit for bit.
+    Status snapshot(std::vector<std::uint8_t> &out) {
+        std::size_t size = 0;
+        Status st = Status::from(troupe_session_snapshot(handle_, nullptr, 0, &size));
+        if (!st) return st;
+        std::vector<std::uint8_t> v(size);
+        st = Status::from(troupe_session_snapshot(handle_, v.data(), v.size(), &size));
+        if (st) out.swap(v);
+        return st;
+    }
+    /// The stream a snapshot of `model`'s session saved; foreign or damaged bytes are refused.
+    static Status restore(const Model &model, const std::uint8_t *bytes, std::size_t len, Session &out) {
+        troupe_session *h = nullptr;
+        Status s = Status::from(troupe_session_restore(model.get(), bytes, len, &h));
+        if (s) out = Session(h, model.frame_dim());
+        return s;
     }
     /// Exactly how many frames a step with `n_actor_frames` frames would return now.
     Status output_frames(std::size_t n_actor_frames, std::size_t &n_frames) {

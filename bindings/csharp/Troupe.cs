@@ -203,6 +203,30 @@ namespace Troupe
             return new Session(session, FrameDim);
         }
 
+        /// <summary>A stream that goes on exactly where <see cref="Session.Snapshot"/> saved it,
+        /// bit for bit; the snapshot must come from this model (a damaged or foreign one throws
+        /// InvalidArgumentException).</summary>
+        public Session Restore(byte[] snapshot)
+        {
+            if (snapshot == null) throw new ArgumentNullException("snapshot");
+            var h = Live();
+            SessionHandle session;
+            Native.Check(Native.troupe_session_restore(h, snapshot, (UIntPtr)snapshot.Length, out session));
+            session.HoldModel(h);
+            return new Session(session, FrameDim);
+        }
+
+        /// <summary>The model's identity: the SHA-256 of its bundle's files (32 bytes).</summary>
+        public byte[] Identity
+        {
+            get
+            {
+                var id = new byte[32];
+                Native.Check(Native.troupe_model_identity(Live(), id));
+                return id;
+            }
+        }
+
         // Disposal is tracked here: a SafeHandle that sessions still reference is not yet closed.
         private bool disposed;
 
@@ -320,6 +344,17 @@ namespace Troupe
 
         /// <summary>Starts the stream again (same options).</summary>
         public void Reset() { Native.Check(Native.troupe_session_reset(Live())); }
+
+        /// <summary>Everything the stream needs to go on, as bytes: <see cref="Model.Restore"/>
+        /// on the same model, in this process or another, continues it bit for bit.</summary>
+        public byte[] Snapshot()
+        {
+            UIntPtr size;
+            Native.Check(Native.troupe_session_snapshot(Live(), null, UIntPtr.Zero, out size));
+            var bytes = new byte[(int)size];
+            Native.Check(Native.troupe_session_snapshot(Live(), bytes, size, out size));
+            return bytes;
+        }
 
         /// <summary>An ARMFlow session's penetration guard (off with enabled false): each reactor
         /// frame is shifted in the floor plane out of the actor's body, at most maxSpeed m/s.</summary>
@@ -462,6 +497,9 @@ namespace Troupe
         [DllImport(Lib, CallingConvention = CallingConvention.Cdecl)] internal static extern void troupe_session_free(IntPtr session);
         [DllImport(Lib, CallingConvention = CallingConvention.Cdecl)] internal static extern int troupe_session_step(SessionHandle session, [In] float[] actor, UIntPtr frames, [Out] float[] output, UIntPtr capacity, out UIntPtr written);
         [DllImport(Lib, CallingConvention = CallingConvention.Cdecl)] internal static extern int troupe_session_reset(SessionHandle session);
+        [DllImport(Lib, CallingConvention = CallingConvention.Cdecl)] internal static extern int troupe_session_snapshot(SessionHandle session, byte[] buf, UIntPtr capacity, out UIntPtr needed);
+        [DllImport(Lib, CallingConvention = CallingConvention.Cdecl)] internal static extern int troupe_session_restore(ModelHandle model, byte[] bytes, UIntPtr len, out SessionHandle session);
+        [DllImport(Lib, CallingConvention = CallingConvention.Cdecl)] internal static extern int troupe_model_identity(ModelHandle model, byte[] id);
         [DllImport(Lib, CallingConvention = CallingConvention.Cdecl)] internal static extern int troupe_armflow_session_set_penetration_guard(SessionHandle session, int enabled, float dSafe, float maxSpeed);
         [DllImport(Lib, CallingConvention = CallingConvention.Cdecl)] internal static extern int troupe_armflow_session_set_root_smoothing(SessionHandle session, int enabled, float timeConstant);
         [DllImport(Lib, CallingConvention = CallingConvention.Cdecl)] internal static extern int troupe_armflow_session_set_foot_lock(SessionHandle session, int enabled, float contactThreshold, uint releaseFrames, float maxStretch);

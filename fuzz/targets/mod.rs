@@ -397,7 +397,7 @@ pub fn c_api_sequence(data: &[u8]) {
 pub type Target = fn(&[u8]);
 
 /// Every target by name, for the replay and mutation test.
-pub const TARGETS: [(&str, Target); 12] = [
+pub const TARGETS: [(&str, Target); 13] = [
     ("tar_archive", tar_archive),
     ("manifest", manifest),
     ("onnx_graph", onnx_graph),
@@ -410,7 +410,74 @@ pub const TARGETS: [(&str, Target); 12] = [
     ("magnet_config", magnet_config),
     ("motion_encoder", motion_encoder),
     ("rig_retarget", rig_retarget),
+    ("session_snapshot", session_snapshot),
 ];
+
+/// Snapshots of streams: a real snapshot of a session stepped from the input (settings, the
+/// guard, frames), then edited by the rest of the input (bytes overwritten, the length cut) with
+/// its checksum made to agree one time in two, so the payload's checks are reached; or, when
+/// the first byte says so, the input itself as a snapshot. Whatever is restored steps to
+/// finite frames and snapshots again.
+pub fn session_snapshot(data: &[u8]) {
+    let model = model();
+    let mut bytes = Bytes(data);
+    let snapshot = if bytes.u8() % 8 == 0 {
+        bytes.0.to_vec()
+    } else {
+        let options = troupe::ReactorOptions {
+            seed: u64::from(bytes.u8()),
+            steps: Some(1 + u32::from(bytes.u8() % 3)),
+            context_capacity: Some(2 + usize::from(bytes.u8() % 6)),
+            vae_windows: bytes.u8() % 2 == 0,
+            penetration_guard: (bytes.u8() % 2 == 0).then(troupe::PenetrationGuard::default),
+            root_smoothing: (bytes.u8() % 2 == 0).then(troupe::RootSmoothing::default),
+            ..Default::default()
+        };
+        let Ok(mut session) = model.session(options) else {
+            return;
+        };
+        let frames = usize::from(bytes.u8() % 24);
+        let actor: Vec<f32> = (0..frames * session.frame_dim())
+            .map(|i| ((i as f32) * 0.37).sin())
+            .collect();
+        session.step_flat(&actor).expect("finite frames step");
+        let mut snapshot = session.snapshot().expect("an armflow session saves");
+        for _ in 0..1 + bytes.u8() % 8 {
+            let at = (bytes.u32() as usize) % snapshot.len();
+            snapshot[at] = bytes.u8();
+        }
+        if bytes.u8() % 4 == 0 {
+            let keep = (bytes.u32() as usize) % (snapshot.len() + 1);
+            snapshot.truncate(keep);
+        }
+        if bytes.u8() % 2 == 0 && snapshot.len() >= 4 {
+            let n = snapshot.len() - 4;
+            let crc = crc32(&snapshot[..n]);
+            snapshot[n..].copy_from_slice(&crc.to_le_bytes());
+        }
+        snapshot
+    };
+    if let Ok(mut restored) = model.restore(&snapshot) {
+        step_arbitrarily(&mut restored, &mut Bytes(&[4, 0, 9, 0]), 9);
+        restored.snapshot().expect("a restored session saves");
+    }
+}
+
+/// CRC-32 (IEEE), bit by bit, to make an edited snapshot's checksum agree.
+fn crc32(bytes: &[u8]) -> u32 {
+    let mut crc = !0u32;
+    for &b in bytes {
+        crc ^= u32::from(b);
+        for _ in 0..8 {
+            crc = if crc & 1 != 0 {
+                (crc >> 1) ^ 0xEDB8_8320
+            } else {
+                crc >> 1
+            };
+        }
+    }
+    !crc
+}
 
 /// Any bytes as a rig (a rig JSON document, or a BVH hierarchy): whatever is accepted retargets
 /// a few frames of troupe's body moving to finite rotations and translations, and writes a

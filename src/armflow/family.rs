@@ -13,6 +13,7 @@ use crate::armflow::spec::{ArmFlowSpec, ClipSpec};
 use crate::motion::STREAM_LATENCY_FRAMES;
 use crate::shared::error::Result;
 use crate::shared::family::{family_as, Family, SessionOptions, StreamOptions};
+use crate::shared::snapshot::SnapshotReader;
 use crate::shared::stream::Session;
 use crate::shared::text::branch::TextBranch;
 use crate::shared::text::prompt::PromptEncoder;
@@ -138,6 +139,13 @@ impl Family for Armflow {
             steps: Some(spec.sampler.steps),
             context_capacity: Some(spec.context.capacity_tokens),
         })
+    }
+
+    fn restore(&self, payload: &mut SnapshotReader) -> Result<Session> {
+        Ok(Session::new(Reactor::restore(
+            Arc::clone(&self.nets),
+            payload,
+        )?))
     }
 
     fn as_any(&self) -> &dyn Any {

@@ -22,6 +22,7 @@
 use super::spec::ContextSpec;
 use crate::shared::attention::{attend, KvBlock, COLUMNS};
 use crate::shared::error::{Error, Result};
+use crate::shared::snapshot::{SnapshotReader, SnapshotWriter};
 
 /// Slots per page: small enough that a short stream holds little (paper size: 1.8 MB a page),
 /// large enough that a page's block of one head (`64 * head_dim` floats, 16 KB) streams well. A
@@ -218,6 +219,70 @@ impl KvCache {
         self.committed = (self.len, self.written);
     }
 
+    /// Whether the cache holds what a stream of `tokens` tokens leaves in it: `<sos>` and a pair
+    /// for each token after the first, the oldest pairs dropped once full.
+    pub(crate) fn holds_tokens(&self, tokens: u64) -> bool {
+        self.written == tokens.saturating_sub(1)
+            && self.len as u64 == tokens.min(self.capacity as u64)
+    }
+
+    /// Writes the counts and every held entry to a snapshot. Only a committed cache is saved:
+    /// between steps, which is when a session can be snapshotted.
+    pub(crate) fn save(&self, w: &mut SnapshotWriter) {
+        debug_assert!(self.journal.is_empty(), "a cache mid-step is not saved");
+        w.u64(self.capacity as u64)
+            .u64(self.len as u64)
+            .u64(self.written);
+        for slot in 0..self.len {
+            w.f32s(&self.rows_of(slot));
+        }
+    }
+
+    /// The cache [`KvCache::save`] wrote, for `spec` and the session's `capacity`; every count
+    /// and length is checked before anything is allocated.
+    pub(crate) fn load(
+        spec: &ContextSpec,
+        capacity: usize,
+        r: &mut SnapshotReader,
+    ) -> Result<Self> {
+        let mut c = Self::empty(spec, capacity);
+        let saved = r.u64("the cache's capacity")?;
+        if saved != c.capacity as u64 {
+            return Err(cache_error(&format!(
+                "the snapshot's cache holds {saved} entries, the session {}",
+                c.capacity
+            )));
+        }
+        let (len, written) = (r.u64("the cache's entries")?, r.u64("the cache's writes")?);
+        let full = len == c.capacity as u64;
+        if len > c.capacity as u64 || (!full && written != len.saturating_sub(1)) {
+            return Err(cache_error(&format!(
+                "the snapshot's cache counts do not agree ({len} entries, {written} written)"
+            )));
+        }
+        let floats = 2 * c.layers * c.heads * c.head_dim;
+        for slot in 0..len as usize {
+            let rows = r.f32s("a cache entry", floats)?;
+            if rows.len() != floats {
+                return Err(cache_error(&format!(
+                    "a cache entry of {} floats, not {floats}",
+                    rows.len()
+                )));
+            }
+            if slot / PAGE_SLOTS >= c.pages.len() {
+                c.pages.push(vec![0f32; c.page_floats()].into_boxed_slice());
+            }
+            let positions: Vec<usize> = c.slot_floats(slot).collect();
+            let page = &mut c.pages[slot / PAGE_SLOTS];
+            for (at, x) in positions.into_iter().zip(rows) {
+                page[at] = x;
+            }
+        }
+        (c.len, c.written) = (len as usize, written);
+        c.committed = (c.len, c.written);
+        Ok(c)
+    }
+
     /// Restores the entries and counts of the last commit (allocated pages stay allocated).
     pub(crate) fn rollback(&mut self) {
         for undo in std::mem::take(&mut self.journal).into_iter().rev() {
@@ -247,15 +312,18 @@ mod tests {
     const DH: usize = 3;
     const LAYERS: usize = 2;
 
-    fn cache(capacity: usize) -> KvCache {
-        let spec = ContextSpec {
+    fn spec() -> ContextSpec {
+        ContextSpec {
             width: HEADS * DH,
             layers: LAYERS,
             heads: HEADS,
             head_dim: DH,
-            capacity_tokens: capacity,
-        };
-        KvCache::empty(&spec, capacity)
+            capacity_tokens: 3,
+        }
+    }
+
+    fn cache(capacity: usize) -> KvCache {
+        KvCache::empty(&spec(), capacity)
     }
 
     /// Appends one entry whose every float of layer `l` is `id + l / 10`.
@@ -351,5 +419,29 @@ mod tests {
             out[0]
         );
         assert!((out[HEADS * DH] - mean_second).abs() < 1e-4);
+    }
+
+    #[test]
+    fn a_saved_cache_loads_back_entry_for_entry() {
+        use crate::shared::snapshot::{SnapshotReader, SnapshotWriter, MODEL_ID_BYTES};
+        let id = [1; MODEL_ID_BYTES];
+        for n in [0, 1, 2, 3, 7] {
+            let mut c = cache(3);
+            for i in 0..n {
+                push(&mut c, i as f32);
+            }
+            c.commit();
+            let mut w = SnapshotWriter::new();
+            c.save(&mut w);
+            let bytes = w.finish("armflow", &id);
+            let mut r = SnapshotReader::open(&bytes, "armflow", &id).unwrap();
+            let spec = spec();
+            let back = KvCache::load(&spec, 3, &mut r).unwrap();
+            r.finish().unwrap();
+            assert_eq!(held(&back), held(&c), "{n} pushes");
+            assert_eq!((back.len, back.written), (c.len, c.written));
+            let mut r = SnapshotReader::open(&bytes, "armflow", &id).unwrap();
+            assert!(KvCache::load(&spec, 4, &mut r).is_err(), "another capacity");
+        }
     }
 }

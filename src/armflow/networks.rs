@@ -12,9 +12,10 @@ use crate::shared::bundle_io::BundleIo;
 use crate::shared::checks::check_input;
 use crate::shared::error::{Error, Result};
 use crate::shared::graph::{
-    f32_tensor, load_graphs, read_f32, split_rows, stack_rows, Graph, PlanPolicy,
+    f32_tensor, f32_tensor_owned, load_graphs, read_f32, split_rows, stack_rows, Graph, PlanPolicy,
 };
 use crate::shared::graph_spec::{Dim, GraphSpec};
+use crate::shared::snapshot::{SnapshotReader, SnapshotWriter};
 use crate::shared::text::branch::TextBranch;
 use crate::shared::text::prompt::{PromptEncoder, Prompts};
 use crate::shared::text::ONE_ROW_ROLES;
@@ -80,6 +81,41 @@ impl VaeState {
                     .sum::<usize>(),
                 total + values.len(),
             )
+        })
+    }
+}
+
+impl VaeState {
+    /// Writes every state tensor's values (their shapes are the bundle's).
+    pub(crate) fn save(&self, w: &mut SnapshotWriter) -> Result<()> {
+        for t in self.encoder.iter().chain(&self.decoder) {
+            let values = t
+                .try_as_plain_ram()
+                .and_then(|v| v.as_slice::<f32>())
+                .map_err(|e| Error::Inference {
+                    graph: "vae_encoder_step",
+                    message: format!("a VAE state tensor cannot be read: {e}"),
+                })?;
+            w.f32s(values);
+        }
+        Ok(())
+    }
+
+    /// The state [`VaeState::save`] wrote, shaped as `zero` (the bundle's zero state): each
+    /// tensor must hold exactly as many values as `zero`'s.
+    pub(crate) fn load(zero: &VaeState, r: &mut SnapshotReader) -> Result<Self> {
+        let read = |tensors: &[TValue], r: &mut SnapshotReader| -> Result<Vec<TValue>> {
+            tensors
+                .iter()
+                .map(|t| {
+                    let values = r.f32s_exact("a VAE state tensor", t.len())?;
+                    Ok(f32_tensor_owned(t.shape(), values))
+                })
+                .collect()
+        };
+        Ok(VaeState {
+            encoder: read(&zero.encoder, r)?,
+            decoder: read(&zero.decoder, r)?,
         })
     }
 }

@@ -191,6 +191,32 @@ pub unsafe extern "C" fn troupe_model_frame_dim(model: Option<&troupe_model>) ->
     property(model, Model::frame_dim)
 }
 
+/// Writes the model's identity to `out` (32 bytes): the SHA-256 of its bundle's files as the
+/// load read them, the same for a directory and a tar of it. Two processes hold the same model
+/// exactly when their identities are equal; session snapshots carry it.
+///
+/// Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_PANIC`. Thread-safe.
+///
+/// # Safety
+/// `model` must be a live handle; `out` writable for 32 bytes.
+#[no_mangle]
+pub unsafe extern "C" fn troupe_model_identity(
+    model: Option<&troupe_model>,
+    out: *mut u8,
+) -> troupe_status {
+    boundary::call(
+        "troupe_model_identity",
+        || {},
+        || {
+            non_null(out, "out")?;
+            let identity = boundary::required(model, "model")?.model.identity();
+            // SAFETY: checked non-NULL; writable for 32 bytes per the contract.
+            unsafe { std::ptr::copy_nonoverlapping(identity.as_ptr(), out, identity.len()) };
+            Ok(())
+        },
+    )
+}
+
 /// Frames per second of the motion; 0 for NULL. Thread-safe.
 ///
 /// # Safety

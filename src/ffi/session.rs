@@ -559,6 +559,111 @@ pub unsafe extern "C" fn troupe_session_output_frames(
     }
 }
 
+/// Saves everything the stream needs to go on (its settings, caches, pending frames, noise
+/// position) as bytes: `troupe_session_restore` on the same model, in this process or another,
+/// gives a session whose steps are this one's bit for bit. The format is versioned, checksummed
+/// and bound to the model (`troupe_model_identity`). The session is unchanged.
+///
+/// Writes the snapshot's size to `*needed`, and the snapshot to `buf` when `capacity` holds it.
+/// Call with `buf` NULL and `capacity` 0 to learn the size (it changes when the session steps
+/// or its settings change), then with a buffer that size.
+///
+/// Returns `TROUPE_OK` (also for the size query), `TROUPE_ERR_NULL_ARG` (`needed` NULL, or `buf`
+/// NULL with a non-zero capacity), `TROUPE_ERR_BUFFER_TOO_SMALL` (nothing written but
+/// `*needed`), `TROUPE_ERR_UNSUPPORTED` (a family whose streams cannot be saved yet),
+/// `TROUPE_ERR_POISONED`, `TROUPE_ERR_PANIC`. One thread at a time per session.
+///
+/// ```c
+/// size_t size = 0;
+/// troupe_session_snapshot(session, NULL, 0, &size);
+/// uint8_t *bytes = malloc(size);
+/// troupe_status st = troupe_session_snapshot(session, bytes, size, &size);
+/// ```
+///
+/// # Safety
+/// `session` must be a live handle; `buf` writable for `capacity` bytes; `needed` writable.
+#[no_mangle]
+pub unsafe extern "C" fn troupe_session_snapshot(
+    session: *mut troupe_session,
+    buf: *mut u8,
+    capacity: usize,
+    needed: *mut usize,
+) -> troupe_status {
+    // SAFETY: forwarded contract.
+    unsafe {
+        with_session(session, "troupe_session_snapshot", |s| {
+            non_null(needed, "needed")?;
+            if capacity > 0 {
+                non_null(buf, "buf")?;
+            }
+            let bytes = s.snapshot()?;
+            *needed = bytes.len();
+            if buf.is_null() && capacity == 0 {
+                return Ok(());
+            }
+            if capacity < bytes.len() {
+                return Err(FfiError::new(
+                    TROUPE_ERR_BUFFER_TOO_SMALL,
+                    format!(
+                        "the snapshot needs {} bytes, the buffer holds {capacity}",
+                        bytes.len()
+                    ),
+                ));
+            }
+            // SAFETY: `buf` holds `capacity >= bytes.len()` bytes, per the contract.
+            std::ptr::copy_nonoverlapping(bytes.as_ptr(), buf, bytes.len());
+            Ok(())
+        })
+    }
+}
+
+/// Starts a session that goes on exactly where the session saved in `bytes` (`len` bytes, from
+/// `troupe_session_snapshot`; borrowed for the call) stopped. The snapshot must come from this
+/// model (the same bundle files); a truncated, altered, foreign or other-version snapshot is
+/// refused before anything it claims is allocated.
+///
+/// On success `*out` receives a new handle owned by the caller (free with
+/// `troupe_session_free`); it keeps `model` alive. On failure `*out` is set to NULL.
+///
+/// Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (the message says what
+/// is wrong with the snapshot), `TROUPE_ERR_UNSUPPORTED`, `TROUPE_ERR_INFERENCE`,
+/// `TROUPE_ERR_PANIC`. Thread-safe with respect to `model`.
+///
+/// ```c
+/// troupe_session *again = NULL;
+/// troupe_status st = troupe_session_restore(model, bytes, size, &again);
+/// ```
+///
+/// # Safety
+/// `model` must be a live handle; `bytes` readable for `len` bytes; `out` writable.
+#[no_mangle]
+pub unsafe extern "C" fn troupe_session_restore(
+    model: Option<&troupe_model>,
+    bytes: *const u8,
+    len: usize,
+    out: *mut *mut troupe_session,
+) -> troupe_status {
+    boundary::call(
+        "troupe_session_restore",
+        || {},
+        || {
+            non_null(out, "out")?;
+            // SAFETY: checked non-NULL; writable per the contract.
+            unsafe { *out = std::ptr::null_mut() };
+            let model = &boundary::required(model, "model")?.model;
+            // SAFETY: readable for `len` bytes per the contract.
+            let bytes = unsafe { boundary::slice(bytes, len, "bytes") }?;
+            let handle = troupe_session {
+                session: Exclusive::new(model.restore(bytes)?),
+                poisoned: AtomicBool::new(false),
+            };
+            // SAFETY: checked non-NULL above.
+            unsafe { *out = Box::into_raw(Box::new(handle)) };
+            Ok(())
+        },
+    )
+}
+
 /// Makes the session equal to a fresh one with its current settings (seed, steps, CFG,
 /// condition, capacity); queued noise is dropped. Clears the poison left by a panic.
 ///

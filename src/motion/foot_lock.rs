@@ -20,8 +20,9 @@
 use crate::motion::features::CanonicalPose;
 use crate::motion::ik::{two_bone_turns, TwoBoneTurns};
 use crate::motion::rotation::Quat;
-use crate::motion::vec3::{add, cross, norm, scale, sub, Vec3};
+use crate::motion::vec3::{add, cross, load_points, norm, save_points, scale, sub, Vec3};
 use crate::shared::error::{Error, Result};
+use crate::shared::snapshot::{SnapshotReader, SnapshotWriter};
 
 /// t2m-22 legs: hip, knee, ankle, toe (left, right), and the index of the ankle's contact label.
 const LEGS: [([usize; 4], usize); 2] = [([1, 4, 7, 10], 0), ([2, 5, 8, 11], 2)];
@@ -105,6 +106,42 @@ impl FootLock {
     /// Its settings.
     pub fn options(&self) -> FootLockOptions {
         self.options
+    }
+
+    /// Writes the settings and the two feet's pins to a snapshot.
+    pub(crate) fn save(&self, w: &mut SnapshotWriter) {
+        let o = self.options;
+        w.f32(o.contact_threshold)
+            .u32(o.release_frames)
+            .f64(o.max_stretch);
+        for foot in &self.feet {
+            save_points(w, foot.pin.as_ref().map(std::slice::from_ref));
+            save_points(
+                w,
+                foot.release.as_ref().map(|(p, _)| std::slice::from_ref(p)),
+            );
+            w.u32(foot.release.map_or(0, |(_, done)| done));
+        }
+    }
+
+    /// The foot lock [`FootLock::save`] wrote (its settings checked as [`FootLock::new`] does).
+    pub(crate) fn load(r: &mut SnapshotReader) -> Result<Self> {
+        let options = FootLockOptions {
+            contact_threshold: r.f32("the foot lock's threshold")?,
+            release_frames: r.u32("the foot lock's release")?,
+            max_stretch: r.f64("the foot lock's stretch")?,
+        };
+        let mut lock = FootLock::new(options)?;
+        for foot in &mut lock.feet {
+            let one = |r: &mut SnapshotReader, what| -> Result<Option<Vec3>> {
+                Ok(load_points(r, what, 1)?.map(|p| p[0]))
+            };
+            foot.pin = one(r, "a foot's pin")?;
+            let release = one(r, "a foot's release")?;
+            let done = r.u32("a foot's release frames")?;
+            foot.release = release.map(|p| (p, done));
+        }
+        Ok(lock)
     }
 
     /// Forgets the pins (a new stream).

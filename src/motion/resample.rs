@@ -1,7 +1,10 @@
 //! Linear resampling of joint positions to the bundle's frame rate, one frame at a time, so the
 //! batch and streaming paths give the same frames.
 
-use crate::motion::vec3::Vec3;
+use crate::motion::skeleton::T2M22_JOINTS;
+use crate::motion::vec3::{load_points, save_points, Vec3};
+use crate::shared::error::Result;
+use crate::shared::snapshot::{SnapshotReader, SnapshotWriter};
 
 /// Turns frames at `fps_in` into frames at `fps_out` by linear interpolation: output frame `k`
 /// is the caller's motion at time `k / fps_out`, emitted as soon as the input frame at or after
@@ -25,6 +28,20 @@ impl Resampler {
             emitted: 0,
             last: None,
         }
+    }
+
+    /// Writes how far the resampler is (its rates are its owner's to write).
+    pub(crate) fn save_progress(&self, w: &mut SnapshotWriter) {
+        w.u64(self.received).u64(self.emitted);
+        save_points(w, self.last.as_deref());
+    }
+
+    /// Takes back the progress [`Resampler::save_progress`] wrote.
+    pub(crate) fn load_progress(&mut self, r: &mut SnapshotReader) -> Result<()> {
+        self.received = r.u64("the resampler's frames in")?;
+        self.emitted = r.u64("the resampler's frames out")?;
+        self.last = load_points(r, "the resampler's last frame", T2M22_JOINTS)?;
+        Ok(())
     }
 
     /// The output frame rate.

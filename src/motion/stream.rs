@@ -5,10 +5,13 @@ use ndarray::ArrayView2;
 use crate::motion::features::{feature_frame, read_frame, FEATURE_DIM};
 use crate::motion::placement::Placement;
 use crate::motion::resample::Resampler;
+use crate::motion::rotation::Quat;
 use crate::motion::skeleton::Skeleton;
-use crate::motion::vec3::Vec3;
-use crate::motion::world::JointsFormat;
+use crate::motion::skeleton::T2M22_JOINTS;
+use crate::motion::vec3::{load_points, save_points, Vec3};
+use crate::motion::world::{Handedness, JointsFormat, Units, UpAxis};
 use crate::shared::error::Result;
+use crate::shared::snapshot::{bad, SnapshotReader, SnapshotWriter};
 
 /// Frames of latency the conversion adds: feature frame `t` needs position frame `t + 1` for
 /// its velocities and contacts.
@@ -110,5 +113,77 @@ impl FeatureStream {
             previous: None,
         };
         Ok(())
+    }
+
+    /// Writes the stream to a snapshot: its format and rate, its placement, how far its
+    /// resampler is and the last frame it placed.
+    pub(crate) fn save(&self, w: &mut SnapshotWriter) {
+        let f = self.format;
+        w.u32(f.units as u32)
+            .u32(f.up as u32)
+            .u32(f.handedness as u32)
+            .f32(f.fps)
+            .f64(self.resampler.fps_out());
+        w.bool(self.placement.is_some());
+        if let Some(p) = &self.placement {
+            let q = p.heading;
+            w.f64(p.floor).f64(p.origin[0]).f64(p.origin[1]);
+            w.f64(q.w).f64(q.x).f64(q.y).f64(q.z);
+        }
+        self.resampler.save_progress(w);
+        save_points(w, self.previous.as_deref());
+    }
+
+    /// The stream [`FeatureStream::save`] wrote; its format and placement are checked as
+    /// [`FeatureStream::new`] checks them.
+    pub(crate) fn load(r: &mut SnapshotReader) -> Result<Self> {
+        let units = match r.u32("the joints' units")? {
+            0 => Units::Meters,
+            1 => Units::Centimeters,
+            2 => Units::Millimeters,
+            3 => Units::Inches,
+            v => return Err(bad(format!("joints' units {v}"))),
+        };
+        let up = match r.u32("the joints' up axis")? {
+            0 => UpAxis::Y,
+            1 => UpAxis::Z,
+            v => return Err(bad(format!("joints' up axis {v}"))),
+        };
+        let handedness = match r.u32("the joints' handedness")? {
+            0 => Handedness::Right,
+            1 => Handedness::Left,
+            v => return Err(bad(format!("joints' handedness {v}"))),
+        };
+        let fps = r.f32("the joints' frame rate")?;
+        let fps_out = r.f64("the features' frame rate")? as f32;
+        let format = JointsFormat {
+            units,
+            up,
+            handedness,
+            fps,
+        };
+        let placement = if r.bool("whether the joints are placed")? {
+            let mut v = [0.0; 7];
+            for x in &mut v {
+                *x = r.finite("the joints' placement")?;
+            }
+            Some(Placement {
+                format,
+                floor: v[0],
+                origin: [v[1], v[2]],
+                heading: Quat {
+                    w: v[3],
+                    x: v[4],
+                    y: v[5],
+                    z: v[6],
+                },
+            })
+        } else {
+            None
+        };
+        let mut stream = FeatureStream::new(format, fps_out, placement)?;
+        stream.resampler.load_progress(r)?;
+        stream.previous = load_points(r, "the joints' last frame", T2M22_JOINTS)?;
+        Ok(stream)
     }
 }

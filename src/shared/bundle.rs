@@ -7,11 +7,14 @@
 //! resolve inside the directory, names must be plain relative paths, and every size (a tar
 //! member's declared size included) is checked against [`LIMITS`] before anything is allocated.
 
-use std::collections::HashMap;
+use std::collections::{BTreeMap, HashMap};
 use std::fs::File;
 use std::io::Read;
 use std::path::{Component, Path, PathBuf};
 use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::Mutex;
+
+use sha2::{Digest, Sha256};
 
 use crate::shared::error::{excerpt, excerpt_of, Error, Result, EXCERPT_BYTES};
 use crate::shared::limits::LIMITS;
@@ -26,13 +29,22 @@ pub(crate) enum BundleFiles {
         dir: PathBuf,
         /// Bytes read from it so far, bounded by `LIMITS.max_bundle_bytes`.
         read: AtomicU64,
+        /// What each file read held (`BundleFiles::identity`).
+        digests: FileDigests,
     },
     /// The regular files of an uncompressed tar archive, by name (leading `./` stripped).
     Archive {
         label: PathBuf,
         files: HashMap<String, Vec<u8>>,
+        /// What each file read held (`BundleFiles::identity`).
+        digests: FileDigests,
     },
 }
+
+/// The SHA-256 of each file a load read, by name: the model's identity is made of them, so that
+/// a snapshot of a stream goes back only onto the bundle it was taken from, whether that bundle
+/// is a directory or a tar of it (files the load never read do not count).
+pub(crate) type FileDigests = Mutex<BTreeMap<String, [u8; 32]>>;
 
 fn io_error(path: &Path, kind: std::io::ErrorKind, message: impl Into<String>) -> Error {
     Error::Io {
@@ -204,6 +216,7 @@ impl BundleFiles {
             return Ok(Self::Dir {
                 dir,
                 read: AtomicU64::new(0),
+                digests: FileDigests::default(),
             });
         }
         let (file, len) = open_regular(path, LIMITS.max_bundle_bytes, "bundle archive")?;
@@ -302,6 +315,7 @@ impl BundleFiles {
         Ok(Self::Archive {
             label: label.to_path_buf(),
             files,
+            digests: FileDigests::default(),
         })
     }
 
@@ -324,9 +338,37 @@ impl BundleFiles {
         }
     }
 
+    /// The identity of the model loaded from these files: the SHA-256 of every file read so far,
+    /// by name, in name order (call it once the load has read them all).
+    pub(crate) fn identity(&self) -> [u8; 32] {
+        let (Self::Dir { digests, .. } | Self::Archive { digests, .. }) = self;
+        let digests = digests.lock().unwrap_or_else(|e| e.into_inner());
+        let mut all = Sha256::new();
+        for (name, digest) in digests.iter() {
+            all.update((name.len() as u64).to_le_bytes());
+            all.update(name.as_bytes());
+            all.update(digest);
+        }
+        all.finalize().into()
+    }
+
     /// The contents of one file of the bundle (borrowed from an archive; from a directory, mapped
-    /// when it is large, read otherwise), at most `limit` bytes.
+    /// when it is large, read otherwise), at most `limit` bytes; its digest is kept for
+    /// [`BundleFiles::identity`].
     pub(crate) fn read(&self, name: &str, limit: u64) -> Result<FileBytes<'_>> {
+        let bytes = self.read_unrecorded(name, limit)?;
+        let (Self::Dir { digests, .. } | Self::Archive { digests, .. }) = self;
+        if let Some(plain) = plain_name(name) {
+            let digest: [u8; 32] = Sha256::digest(&*bytes).into();
+            digests
+                .lock()
+                .unwrap_or_else(|e| e.into_inner())
+                .insert(plain, digest);
+        }
+        Ok(bytes)
+    }
+
+    fn read_unrecorded(&self, name: &str, limit: u64) -> Result<FileBytes<'_>> {
         let path = self.path_of(name);
         let plain = plain_name(name).ok_or_else(|| {
             invalid(
@@ -336,7 +378,7 @@ impl BundleFiles {
             )
         })?;
         match self {
-            Self::Dir { dir, read } => {
+            Self::Dir { dir, read, .. } => {
                 let resolved = dir
                     .join(&plain)
                     .canonicalize()

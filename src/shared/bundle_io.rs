@@ -2,6 +2,8 @@
 //! conditioning vector (the manifest's `motion` and `condition` sections), and [`BundleIo`], the
 //! copy of them, with the bundle's name, that a family keeps beside its graphs.
 
+use std::sync::{Arc, OnceLock};
+
 use serde::{Deserialize, Serialize};
 
 use crate::shared::text::prompt::TokenizerSpec;
@@ -168,9 +170,18 @@ pub(crate) struct BundleIo {
     pub condition: ConditionSpec,
     /// The manifest's `tokenizer` section, for bundles with a text encoder.
     pub tokenizer: Option<TokenizerSpec>,
+    /// The model's identity (`BundleFiles::identity`), known once the load has read every file:
+    /// shared by every clone, set by `Model` when the family has loaded.
+    pub identity: Arc<OnceLock<[u8; 32]>>,
 }
 
 impl BundleIo {
+    /// The model's identity, which snapshots of its streams carry.
+    pub fn identity(&self) -> [u8; 32] {
+        // Networks are reachable only through a loaded model, which set it.
+        self.identity.get().copied().unwrap_or_default()
+    }
+
     /// Floats per motion frame.
     pub fn frame_dim(&self) -> usize {
         self.motion.frame_dim

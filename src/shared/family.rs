@@ -9,6 +9,7 @@ use std::any::Any;
 use std::fmt::Debug;
 
 use crate::shared::error::{a_or_an, Error, Result};
+use crate::shared::snapshot::{cannot_snapshot, SnapshotReader};
 use crate::shared::stream::Session;
 use crate::shared::text::branch::TextBranch;
 use crate::shared::text::prompt::PromptEncoder;
@@ -51,6 +52,15 @@ pub(crate) trait Family: Send + Sync + Debug + Any {
     /// context, seed 0), for callers that show or edit them before opening it.
     fn session_defaults(&self) -> Result<SessionOptions> {
         Err(does_not_stream(self.name()))
+    }
+    /// The stream whose snapshot payload `payload` holds (its frame already checked by
+    /// [`crate::Model::restore`]).
+    fn restore(&self, payload: &mut SnapshotReader) -> Result<Session> {
+        let _ = payload;
+        Err(match self.session_defaults() {
+            Err(does_not_stream) => does_not_stream,
+            Ok(_) => cannot_snapshot(self.name()),
+        })
     }
     /// For the typed access of [`crate::Model`].
     fn as_any(&self) -> &dyn Any;

@@ -214,6 +214,7 @@ pub fn load_graph_for_fuzzing(onnx: &[u8]) -> Result<()> {
     let files = BundleFiles::Archive {
         label: std::path::PathBuf::from("fuzz.troupe"),
         files: std::collections::HashMap::from([("velocity.onnx".to_string(), onnx.to_vec())]),
+        digests: Default::default(),
     };
     let quiet = panics::is_quiet();
     let graph = panics::catch(quiet, || {

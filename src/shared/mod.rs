@@ -18,6 +18,7 @@ pub(crate) mod onnx_guard;
 pub(crate) mod panics;
 pub(crate) mod paths;
 pub mod progress;
+pub(crate) mod snapshot;
 pub mod solver;
 pub mod stream;
 pub(crate) mod text;

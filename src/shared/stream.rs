@@ -13,6 +13,7 @@ use std::fmt::Debug;
 use ndarray::{Array2, ArrayView2};
 
 use crate::shared::error::{a_or_an, Error, Result};
+use crate::shared::snapshot::cannot_snapshot;
 
 /// What a stream computed for one token.
 #[derive(Debug, Clone, PartialEq)]
@@ -104,6 +105,10 @@ pub(crate) trait Stream: Send + Debug + Any {
     fn memory_bytes(&self) -> usize;
     /// Context held for the next step (tokens, or frames for a frame-wise stream).
     fn context_len(&self) -> usize;
+    /// The stream's snapshot ([`Session::snapshot`]).
+    fn snapshot(&self) -> Result<Vec<u8>> {
+        Err(cannot_snapshot(self.family()))
+    }
     /// For [`Session::family_ref`].
     fn as_any(&self) -> &dyn Any;
     /// For [`Session::family_mut`] and the families' batched steps.
@@ -195,6 +200,15 @@ impl Session {
     /// `max_frames` frames would come out (the C ABI's caller-sized buffer).
     pub(crate) fn step_bounded(&mut self, frames: &[f32], max_frames: usize) -> Result<StepOutput> {
         self.stream.step_bounded(frames, max_frames)
+    }
+
+    /// Everything the stream needs to go on, as bytes: [`crate::Model::restore`] on the same
+    /// model (in this process or another) gives a session whose steps are, bit for bit, this
+    /// one's. Taken between steps, so it never holds half a step; the session is unchanged. A
+    /// versioned, checksummed format (`docs/SNAPSHOTS.md`); [`Error::Unsupported`] for a family
+    /// whose streams cannot be saved yet.
+    pub fn snapshot(&self) -> Result<Vec<u8>> {
+        self.stream.snapshot()
     }
 
     /// Returns the session to the state of a fresh session with the current settings.

@@ -137,6 +137,18 @@ pub fn c_programs() -> Vec<(&'static str, Vec<PathBuf>, &'static [&'static str])
         ),
         ("viewer", vec![scratch().join("viewer-sanitized")], &[]),
         ("rig", rig_args().to_vec(), &[]),
+        ("snapshot", snapshot_args("save").to_vec(), &[]),
+    ]
+}
+
+/// The snapshot test's arguments: the tiny bundle, another model (the demo's), the folder its
+/// two runs share, and the run (`save` or `resume`).
+pub fn snapshot_args(run: &str) -> [PathBuf; 4] {
+    [
+        root().join("onnx/bundles/armflow-tiny"),
+        root().join("onnx/bundles/armflow-demo"),
+        scratch().to_path_buf(),
+        PathBuf::from(run),
     ]
 }
 

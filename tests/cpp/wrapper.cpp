@@ -13,11 +13,13 @@
 #include <vector>
 
 static std::vector<float> run(troupe::Session &s, const std::vector<float> &actor, std::size_t frames) {
-    std::vector<float> out(frames * s.frame_dim());
+    // Room for a token more than the frames fed: a restored stream sends the frames it held.
+    const std::size_t room = frames + 4;
+    std::vector<float> out(room * s.frame_dim());
     std::size_t written = 0;
     for (std::size_t t = 0; t < frames; t++) {
         std::size_t n = 0;
-        troupe::Status st = s.step(&actor[t * s.frame_dim()], 1, &out[written * s.frame_dim()], frames - written, n);
+        troupe::Status st = s.step(&actor[t * s.frame_dim()], 1, &out[written * s.frame_dim()], room - written, n);
         if (!st) {
             std::fprintf(stderr, "step: %s\n", st.message().c_str());
             return {};
@@ -95,6 +97,29 @@ int main(int argc, char **argv) {
     CHECK(moved.valid() && !b.valid());
     CHECK(run(moved, actor, frames) == ra);
     CHECK(!b.reset() && b.reset().code() == TROUPE_ERR_NULL_ARG);
+
+    // A snapshot at frame 10 restored into a new session continues as the whole stream.
+    {
+        troupe::Session half, resumed;
+        CHECK(troupe::Session::create(model, &opt, half).ok());
+        std::vector<float> head = run(half, actor, 10);
+        std::vector<std::uint8_t> bytes;
+        CHECK(half.snapshot(bytes).ok() && bytes.size() > 64);
+        std::uint8_t id[32];
+        CHECK(model.identity(id).ok() && std::memcmp(id, bytes.data() + 23, 32) == 0);
+        CHECK(troupe::Session::restore(model, bytes.data(), bytes.size(), resumed).ok());
+        std::vector<float> rest_in(actor.begin() + 10 * dim, actor.end());
+        std::vector<float> rest = run(resumed, rest_in, frames - 10);
+        head.insert(head.end(), rest.begin(), rest.end());
+        CHECK(head == ra);
+        bytes[bytes.size() / 2] ^= 1;
+        troupe::Session refused;
+        troupe::Status st = troupe::Session::restore(model, bytes.data(), bytes.size(), refused);
+        CHECK(!st && st.code() == TROUPE_ERR_INVALID_ARG && !refused.valid());
+        CHECK(st.message().find("checksum") != std::string::npos);
+        std::vector<std::uint8_t> none;
+        CHECK(!b.snapshot(none) && none.empty());
+    }
 
     // Many sessions in one call: each equals the session stepped alone.
     {

@@ -204,6 +204,25 @@ internal static class TroupeTests
             Check(n > 0 && n <= 32, "features in, " + n + " reactor frames out");
             s.Reset();
             Check(s.Step(actor, 32, output) == n, "after Reset the stream starts again");
+
+            // A snapshot after 28 frames, restored: the rest of the stream is the same, bit for bit.
+            s.Reset();
+            var head = new float[32 * dim];
+            int h = s.Step(actor, 28, head);
+            byte[] snapshot = s.Snapshot();
+            Check(snapshot.Length > 64 && tiny.Identity.Length == 32, "a " + snapshot.Length + "-byte snapshot");
+            var rest = new float[36 * dim];
+            var tail = new float[4 * dim];
+            Array.Copy(actor, 28 * dim, tail, 0, tail.Length);
+            int r;
+            using (var restored = tiny.Restore(snapshot))
+                r = restored.Step(tail, 4, rest);
+            bool equal = h + r == n;
+            for (int i = 0; equal && i < n * dim; i++)
+                equal = (i < h * dim ? head[i] : rest[i - h * dim]) == output[i];
+            Check(equal, "the restored stream continues bit for bit (" + h + " + " + r + " frames)");
+            snapshot[snapshot.Length / 2] ^= 1;
+            Throws<InvalidArgumentException>(() => tiny.Restore(snapshot), "an altered snapshot");
         }
 
         // A group model (UMF) streams nothing: its family does not offer sessions.

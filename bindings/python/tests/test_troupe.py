@@ -786,3 +786,54 @@ def test_an_online_arflow_stream_replays_queued_normals():
             s.queue_normals([float("nan")])
     with troupe.Model(BUNDLE) as armflow, pytest.raises(troupe.TroupeError, match="per token"):
         troupe.Session(armflow).queue_normals([0.0])
+
+
+def test_a_snapshot_continues_bit_for_bit_in_another_process(model, tmp_path):
+    frames = actor(96)
+    whole = stream(model.session(seed=4, capacity=5), frames, 7)
+    first = model.session(seed=4, capacity=5)
+    head = stream(first, frames[:45], 7)
+    snapshot = first.snapshot()
+    assert snapshot[:8] == b"TRPSNAP\0" and model.identity in snapshot
+    assert len(model.identity) == 32
+    # The same process: the rest of the stream, bit for bit.
+    again = model.restore(snapshot)
+    assert again.snapshot() == snapshot
+    rest = stream(again, frames[45:], 5)
+    assert np.concatenate([head, rest]).tobytes() == whole.tobytes()
+    # Another process, which loads the model itself.
+    import subprocess
+    import sys
+    (tmp_path / "snapshot.bin").write_bytes(snapshot)
+    np.save(tmp_path / "rest.npy", frames[45:])
+    code = (
+        "import sys, numpy as np, troupe\n"
+        f"m = troupe.Model({str(BUNDLE)!r})\n"
+        f"s = m.restore(open({str(tmp_path / 'snapshot.bin')!r}, 'rb').read())\n"
+        f"out = s.step(np.load({str(tmp_path / 'rest.npy')!r}))\n"
+        f"np.save({str(tmp_path / 'out.npy')!r}, out)\n"
+    )
+    subprocess.run([sys.executable, "-c", code], check=True)
+    other = np.load(tmp_path / "out.npy")
+    assert np.concatenate([head, other]).tobytes() == whole.tobytes()
+
+
+def test_hostile_snapshots_raise(model):
+    s = model.session(seed=1)
+    s.step(actor(9))
+    good = s.snapshot()
+    with pytest.raises(troupe.InvalidArgument, match="truncated"):
+        model.restore(good[:-5])
+    bad = bytearray(good)
+    bad[len(bad) // 2] ^= 1
+    with pytest.raises(troupe.InvalidArgument, match="checksum"):
+        model.restore(bad)
+    with pytest.raises(troupe.InvalidArgument, match="not a troupe snapshot"):
+        model.restore(b"\0" * 200)
+    with troupe.Model(REPO / "onnx" / "bundles" / "armflow-demo") as demo:
+        assert demo.identity != model.identity
+        with pytest.raises(troupe.InvalidArgument, match="another model"):
+            demo.restore(good)
+    with troupe.Model(REPO / "onnx" / "bundles" / "magnet-tiny") as magnet:
+        with pytest.raises(troupe.Unsupported, match="cannot be saved"):
+            magnet.session().snapshot()

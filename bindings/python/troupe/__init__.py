@@ -179,6 +179,23 @@ class Model:
         """The most reactor frames one step with `n_actor_frames` frames can return."""
         return _lib.troupe_model_max_output_frames(self._h(), n_actor_frames)
 
+    @property
+    def identity(self) -> bytes:
+        """The model's identity (32 bytes): the SHA-256 of its bundle's files as the load read
+        them. Two processes hold the same model exactly when their identities are equal."""
+        out = ctypes.create_string_buffer(32)
+        _check(_lib.troupe_model_identity(self._h(), out))
+        return out.raw
+
+    def restore(self, snapshot: bytes | bytearray | memoryview) -> "Session":
+        """A session that goes on exactly where `Session.snapshot()` saved it, bit for bit. The
+        snapshot may come from another process or machine, but only from this model (the same
+        bundle files); a truncated, altered or foreign one raises InvalidArgument."""
+        data = bytes(snapshot)
+        handle = _native.session_p()
+        _check(_lib.troupe_session_restore(self._h(), data, len(data), ctypes.byref(handle)))
+        return Session._adopting(self, handle)
+
     group_stages = property(lambda self: _lib.troupe_umf_stages(self._h()),
                             doc="pyramid stages of a umf bundle (0 otherwise)")
     group_tokens = property(lambda self: _lib.troupe_umf_tokens(self._h()),
@@ -548,15 +565,7 @@ class Session:
             opt.actor_latent = actor_latent
         handle = _native.session_p()
         _check(_lib.troupe_session_new(model._h(), ctypes.byref(opt), ctypes.byref(handle)))
-        self._handle = handle
-        self._lock = threading.Lock()  # a session is single-threaded; fail loudly, not racily
-        self.frame_dim = model.frame_dim
-        self.condition_dim = model.condition_dim
-        self.latent_dim = model.latent_dim
-        self._frames_per_token = model.frames_per_token
-        # Frames a stream may hold back and send with a later step (a magnet window; 0 for armflow).
-        self._held_back = _lib.troupe_model_max_output_frames(model._h(), 0)
-        self._model = model
+        self._adopt(model, handle)
         if condition is not None:
             self.set_condition(condition)
         if prompt is not None:
@@ -567,6 +576,34 @@ class Session:
             self.set_partner_opening(partner_opening)
         if early:
             self.set_early_emission(True)
+
+    def _adopt(self, model: Model, handle: _native.session_p) -> None:
+        self._handle = handle
+        self._lock = threading.Lock()  # a session is single-threaded; fail loudly, not racily
+        self.frame_dim = model.frame_dim
+        self.condition_dim = model.condition_dim
+        self.latent_dim = model.latent_dim
+        self._frames_per_token = model.frames_per_token
+        # Frames a stream may hold back and send with a later step (a magnet window; 0 for armflow).
+        self._held_back = _lib.troupe_model_max_output_frames(model._h(), 0)
+        self._model = model
+
+    @classmethod
+    def _adopting(cls, model: Model, handle: _native.session_p) -> "Session":
+        """A Session around a handle the library made (a restored stream)."""
+        self = cls.__new__(cls)
+        self._adopt(model, handle)
+        return self
+
+    def snapshot(self) -> bytes:
+        """Everything the stream needs to go on, as bytes (versioned, checksummed, bound to the
+        model): `model.restore(snapshot)`, in this process or another, continues it bit for bit.
+        The session is unchanged."""
+        size = ctypes.c_size_t()
+        self._call(_lib.troupe_session_snapshot, None, 0, ctypes.byref(size))
+        buf = ctypes.create_string_buffer(size.value)
+        self._call(_lib.troupe_session_snapshot, buf, size.value, ctypes.byref(size))
+        return buf.raw[:size.value]
 
     def _call(self, fn: Any, *args: Any) -> None:
         if not self._handle:

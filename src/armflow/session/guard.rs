@@ -26,6 +26,7 @@ use crate::motion::features::{POSITIONS, VELOCITIES};
 use crate::motion::penetration::{Hinge, PenetrationLoss};
 use crate::motion::vec3::Vec3;
 use crate::shared::error::{Error, Result};
+use crate::shared::snapshot::{self, SnapshotReader, SnapshotWriter};
 
 const JOINTS: usize = 22;
 const SEARCH_STEPS: usize = 16;
@@ -209,5 +210,38 @@ impl GuardState {
     /// Bytes held.
     pub(super) fn bytes(&self) -> usize {
         self.actor.iter().map(Vec::capacity).sum::<usize>() * std::mem::size_of::<f32>()
+    }
+
+    /// Writes the offset and the actor's kept joints.
+    pub(super) fn save(&self, w: &mut SnapshotWriter) {
+        w.f64(self.offset[0]).f64(self.offset[1]).u64(self.base);
+        w.u64(self.actor.len() as u64);
+        for joints in &self.actor {
+            w.f32s(joints);
+        }
+    }
+
+    /// The state [`GuardState::save`] wrote, of a stream that has received `received` frames
+    /// (the kept joints are of frames it received: at most `received - base` of them).
+    pub(super) fn load(r: &mut SnapshotReader, received: u64) -> Result<Self> {
+        let offset = [
+            r.finite("the guard's offset")?,
+            r.finite("the guard's offset")?,
+        ];
+        let base = r.u64("the guard's first frame")?;
+        let kept = received.checked_sub(base).ok_or_else(|| {
+            snapshot::bad(format!(
+                "the guard keeps frames from {base} on, the stream received {received}"
+            ))
+        })?;
+        let n = r.count("the guard's frames", kept.min(usize::MAX as u64) as usize)?;
+        let actor = (0..n)
+            .map(|_| r.f32s_exact("the guard's actor joints", 3 * JOINTS))
+            .collect::<Result<_>>()?;
+        Ok(GuardState {
+            offset,
+            actor,
+            base,
+        })
     }
 }

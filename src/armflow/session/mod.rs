@@ -39,6 +39,7 @@ mod guard;
 mod joints;
 mod lanes;
 mod smoothing;
+mod snapshot;
 use guard::GuardState;
 pub use guard::PenetrationGuard;
 pub use joints::step_reactors_joints;
@@ -709,6 +710,9 @@ impl Stream for Reactor {
     }
     fn context_len(&self) -> usize {
         Reactor::context_len(self)
+    }
+    fn snapshot(&self) -> Result<Vec<u8>> {
+        Reactor::snapshot(self)
     }
     fn as_any(&self) -> &dyn std::any::Any {
         self

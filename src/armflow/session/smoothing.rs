@@ -13,6 +13,7 @@ use ndarray::Array2;
 use super::guard::shift_on_floor;
 use crate::motion::features::POSITIONS;
 use crate::shared::error::{Error, Result};
+use crate::shared::snapshot::{SnapshotReader, SnapshotWriter};
 
 /// The root smoothing's setting.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -70,6 +71,33 @@ impl SmoothingState {
             self.root = Some(s);
             self.shift = shift;
         }
+    }
+
+    /// Writes the filtered root and the last shift.
+    pub(super) fn save(&self, w: &mut SnapshotWriter) {
+        w.bool(self.root.is_some());
+        let root = self.root.unwrap_or_default();
+        w.f64(root[0])
+            .f64(root[1])
+            .f64(self.shift[0])
+            .f64(self.shift[1]);
+    }
+
+    /// The state [`SmoothingState::save`] wrote.
+    pub(super) fn load(r: &mut SnapshotReader) -> Result<Self> {
+        let started = r.bool("whether the smoothing started")?;
+        let root = [
+            r.finite("the smoothed root")?,
+            r.finite("the smoothed root")?,
+        ];
+        let shift = [
+            r.finite("the smoothing's shift")?,
+            r.finite("the smoothing's shift")?,
+        ];
+        Ok(SmoothingState {
+            root: started.then_some(root),
+            shift,
+        })
     }
 }
 

@@ -1,0 +1,255 @@
+//! A reactor's snapshot: its settings and everything its stream has accumulated, written field
+//! by field (`shared/snapshot.rs` frames and checks the bytes), and read back into a reactor
+//! that continues bit for bit.
+//!
+//! Restoring builds a fresh reactor from the saved settings, so every setting is checked as a
+//! new session checks it (and the conditioning is recomputed from the saved condition, exactly
+//! as the saved session computed it), then puts the stream back. The stream's counts are checked
+//! against each other (tokens against frames received, latents against frames sent, the cache
+//! against tokens) before anything sized by them is read: a snapshot that passes its checksum
+//! but lies cannot drive the token loop out of its invariants.
+
+use std::collections::VecDeque;
+use std::sync::Arc;
+
+use super::guard::GuardState;
+use super::smoothing::SmoothingState;
+use super::{PenetrationGuard, Reactor, ReactorOptions, RootSmoothing, StreamState, TokenNoise};
+use crate::armflow::kv_cache::KvCache;
+use crate::armflow::networks::{Networks, VaeState};
+use crate::armflow::spec::ActorLatent;
+use crate::motion::{FeatureStream, FootLock};
+use crate::shared::error::Result;
+use crate::shared::limits::LIMITS;
+use crate::shared::snapshot::{bad, SnapshotReader, SnapshotWriter};
+
+/// The family name snapshots of reactors carry.
+pub(crate) const FAMILY: &str = "armflow";
+
+impl Reactor {
+    /// The reactor's snapshot (`Session::snapshot`).
+    pub(crate) fn snapshot(&self) -> Result<Vec<u8>> {
+        let mut w = SnapshotWriter::new();
+        let s = &self.settings;
+        w.u64(s.seed).u32(s.steps).f32(s.cfg_scale);
+        w.bool(s.condition.is_some());
+        if let Some(c) = &s.condition {
+            w.f32s(c);
+        }
+        w.u64(s.capacity as u64).u32(match s.actor_latent {
+            ActorLatent::Sample => 0,
+            ActorLatent::Mean => 1,
+        });
+        w.bool(s.guard.is_some());
+        if let Some(g) = &s.guard {
+            w.f64(g.d_safe).f64(g.max_speed);
+        }
+        w.bool(s.smoothing.is_some());
+        if let Some(sm) = &s.smoothing {
+            w.f64(sm.time_constant);
+        }
+        w.bool(self.uses_vae_steps());
+        w.bool(self.foot_lock.is_some());
+        if let Some(lock) = &self.foot_lock {
+            lock.save(&mut w);
+        }
+        w.bool(self.joints.is_some());
+        if let Some(joints) = &self.joints {
+            joints.save(&mut w);
+        }
+        self.state.save(&mut w)?;
+        Ok(w.finish(FAMILY, &self.nets.io.identity()))
+    }
+
+    /// The reactor a snapshot's payload holds, over `nets` (the model the snapshot was checked
+    /// to come from).
+    pub(crate) fn restore(nets: Arc<Networks>, r: &mut SnapshotReader) -> Result<Self> {
+        let seed = r.u64("the seed")?;
+        let steps = r.u32("the steps")?;
+        let cfg_scale = r.f32("the CFG scale")?;
+        let condition = if r.bool("whether a condition is set")? {
+            Some(r.f32s("the condition", nets.io.condition.dim)?)
+        } else {
+            None
+        };
+        let capacity = r.count("the context capacity", LIMITS.max_context_capacity as usize)?;
+        let actor_latent = match r.u32("the actor latent")? {
+            0 => ActorLatent::Sample,
+            1 => ActorLatent::Mean,
+            v => return Err(bad(format!("actor latent {v}"))),
+        };
+        let penetration_guard = if r.bool("whether the guard is on")? {
+            Some(PenetrationGuard {
+                d_safe: r.f64("the guard's margin")?,
+                max_speed: r.f64("the guard's speed")?,
+            })
+        } else {
+            None
+        };
+        let root_smoothing = if r.bool("whether the smoothing is on")? {
+            Some(RootSmoothing {
+                time_constant: r.f64("the smoothing's time constant")?,
+            })
+        } else {
+            None
+        };
+        let vae_steps = r.bool("whether the VAE runs in steps")?;
+        if vae_steps && nets.vae_state().is_none() {
+            return Err(bad("VAE steps, which this bundle does not have"));
+        }
+        let foot_lock = if r.bool("whether the foot lock is on")? {
+            Some(FootLock::load(r)?)
+        } else {
+            None
+        };
+        let joints = if r.bool("whether positions were streamed")? {
+            Some(FeatureStream::load(r)?)
+        } else {
+            None
+        };
+        let options = ReactorOptions {
+            seed,
+            steps: Some(steps),
+            cfg_scale: Some(cfg_scale),
+            condition,
+            context_capacity: Some(capacity),
+            actor_latent: Some(actor_latent),
+            vae_windows: !vae_steps,
+            penetration_guard,
+            root_smoothing,
+            ..ReactorOptions::default()
+        };
+        let mut reactor = Reactor::new(nets, options)?;
+        reactor.foot_lock = foot_lock;
+        reactor.joints = joints;
+        reactor.state = StreamState::load(&reactor, r)?;
+        Ok(reactor)
+    }
+}
+
+impl StreamState {
+    /// Writes the stream (between steps: the cache is committed).
+    fn save(&self, w: &mut SnapshotWriter) -> Result<()> {
+        w.u64(self.frames_received).u64(self.actor_base);
+        w.f32s(&self.actor_frames);
+        w.u64(self.tokens);
+        self.cache.save(w);
+        w.f32s(&self.last_pair);
+        w.u64(self.reactor_base)
+            .u64(self.reactor_latents.len() as u64);
+        for latent in &self.reactor_latents {
+            w.f32s(latent);
+        }
+        w.u64(self.frames_emitted);
+        w.u64(self.injected.len() as u64);
+        for noise in &self.injected {
+            w.f32s(&noise.actor).f32s(&noise.reactor);
+        }
+        w.bool(self.vae.is_some());
+        if let Some(vae) = &self.vae {
+            vae.save(w)?;
+        }
+        self.guard.save(w);
+        self.smoothing.save(w);
+        Ok(())
+    }
+
+    /// The stream [`StreamState::save`] wrote, for `reactor` (restored with the saved settings).
+    fn load(reactor: &Reactor, r: &mut SnapshotReader) -> Result<Self> {
+        let m = reactor.spec();
+        let (dim, lat) = (reactor.frame_dim(), reactor.latent_dim());
+        let fpt = m.latent.frames_per_token as u64;
+        let steps = reactor.uses_vae_steps();
+        // What the token loop and `trim` leave after every step, from the frames received.
+        let received = r.u64("the frames received")?;
+        let tokens_due = received.saturating_sub(m.vae.encoder.lookahead_frames as u64) / fpt;
+        let decoded = tokens_due.saturating_sub(m.vae.decoder.lookahead_tokens as u64);
+        let (context_frames, context_tokens) = if steps {
+            (0, 0)
+        } else {
+            (
+                m.vae.encoder.context_frames as u64,
+                m.vae.decoder.context_tokens as u64,
+            )
+        };
+        let actor_base = r.u64("the first actor frame held")?;
+        if actor_base != (tokens_due * fpt).saturating_sub(context_frames) {
+            return Err(bad(format!(
+                "actor frames held from {actor_base}, after {received} frames received"
+            )));
+        }
+        let held = ((received - actor_base) as usize)
+            .checked_mul(dim)
+            .ok_or_else(|| bad("actor frames held"))?;
+        let actor_frames = r.f32s_exact("the actor frames held", held)?;
+        let tokens = r.u64("the tokens generated")?;
+        if tokens != tokens_due {
+            return Err(bad(format!(
+                "{tokens} tokens generated after {received} frames received (not {tokens_due})"
+            )));
+        }
+        let cache = KvCache::load(&m.context, reactor.settings.capacity, r)?;
+        if !cache.holds_tokens(tokens) {
+            return Err(bad(format!(
+                "the context cache does not hold what {tokens} tokens leave"
+            )));
+        }
+        let last_pair = r.f32s_exact(
+            "the last pair of tokens",
+            if tokens == 0 { 0 } else { 2 * lat },
+        )?;
+        let reactor_base = r.u64("the first reactor latent held")?;
+        if reactor_base != decoded.saturating_sub(context_tokens) {
+            return Err(bad(format!(
+                "reactor latents held from {reactor_base}, after {tokens} tokens"
+            )));
+        }
+        let n = r.count("the reactor latents held", (tokens - reactor_base) as usize)?;
+        if n as u64 != tokens - reactor_base {
+            return Err(bad(format!(
+                "{n} reactor latents held, not {}",
+                tokens - reactor_base
+            )));
+        }
+        let reactor_latents = (0..n)
+            .map(|_| r.f32s_exact("a reactor latent", lat))
+            .collect::<Result<VecDeque<_>>>()?;
+        let frames_emitted = r.u64("the frames sent")?;
+        if frames_emitted != decoded * fpt {
+            return Err(bad(format!(
+                "{frames_emitted} frames sent after {tokens} tokens"
+            )));
+        }
+        let queued = r.count("the queued noise", LIMITS.max_queued_noise_tokens as usize)?;
+        let injected = (0..queued)
+            .map(|_| {
+                Ok(TokenNoise {
+                    actor: r.f32s_exact("queued actor noise", lat)?,
+                    reactor: r.f32s_exact("queued reactor noise", lat)?,
+                })
+            })
+            .collect::<Result<VecDeque<_>>>()?;
+        let vae = match (r.bool("whether a VAE state is held")?, &reactor.vae_start) {
+            (true, Some(zero)) => Some(VaeState::load(zero, r)?),
+            (false, None) => None,
+            _ => return Err(bad("a VAE state that disagrees with the VAE's mode")),
+        };
+        let guard = GuardState::load(r, received)?;
+        let smoothing = SmoothingState::load(r)?;
+        Ok(StreamState {
+            frames_received: received,
+            actor_frames,
+            actor_base,
+            tokens,
+            cache,
+            last_pair,
+            reactor_latents,
+            reactor_base,
+            frames_emitted,
+            injected,
+            vae,
+            guard,
+            smoothing,
+        })
+    }
+}

@@ -1,0 +1,365 @@
+//! Snapshots of streams (`Session::snapshot`, `Model::restore`): a stream saved at any token
+//! and restored on another load of the model continues bit for bit, alone and batched, with
+//! every setting and every piece of state it carries; hostile snapshots are refused by name.
+
+mod common;
+
+use std::path::Path;
+
+use ndarray::{s, Array2, Array3, Axis};
+use ndarray_npy::read_npy;
+use troupe::motion::{FootLockOptions, JointsFormat, UpAxis};
+use troupe::{
+    step_sessions, Error, Model, PenetrationGuard, Reactor, ReactorOptions, RootSmoothing, Session,
+    TokenNoise,
+};
+
+fn load(name: &str) -> Model {
+    Model::load(
+        Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("onnx/bundles")
+            .join(name),
+    )
+    .unwrap()
+}
+
+/// Everything a reactor can carry: a small ring (it wraps), CFG, a condition, the guard, the
+/// smoothing, queued noise. `windows`: the VAE over windows rather than per-token steps.
+fn busy_options(model: &Model, windows: bool) -> ReactorOptions {
+    ReactorOptions {
+        seed: 5,
+        steps: Some(2),
+        cfg_scale: Some(1.5),
+        condition: Some(
+            (0..model.condition_dim())
+                .map(|i| (i as f32 * 0.7).cos())
+                .collect(),
+        ),
+        context_capacity: Some(5),
+        vae_windows: windows,
+        penetration_guard: Some(PenetrationGuard::default()),
+        root_smoothing: Some(RootSmoothing::default()),
+        ..ReactorOptions::default()
+    }
+}
+
+fn bits(frames: &Array2<f32>) -> Vec<u32> {
+    frames.iter().map(|v| v.to_bits()).collect()
+}
+
+/// Feeds `actor` in chunks of `sizes` (cycled), returning each step's frames as bits.
+fn run(session: &mut Session, actor: &Array2<f32>, from: usize, sizes: &[usize]) -> Vec<u32> {
+    let mut out = Vec::new();
+    let mut at = from;
+    for &n in sizes.iter().cycle() {
+        if at >= actor.nrows() {
+            break;
+        }
+        let end = (at + n).min(actor.nrows());
+        out.extend(bits(&session.step(actor.slice(s![at..end, ..])).unwrap()));
+        at = end;
+    }
+    out
+}
+
+/// Streams `actor` whole, then again cut at every frame of `cuts`: saved there, restored on
+/// `other` (a second load of the model), the saved session dropped, and continued. The frames
+/// out must be the uninterrupted stream's, bit for bit.
+fn check_cuts(model: &Model, other: &Model, options: &ReactorOptions, cuts: &[usize]) {
+    let actor = common::actor();
+    let open = || {
+        let mut s: Reactor = model.armflow().unwrap().reactor(options.clone()).unwrap();
+        // Two tokens of queued noise, the rest seeded: the queue is part of the state.
+        for k in 0..2 {
+            let v = |o: f32| {
+                (0..model.latent_dim())
+                    .map(|i| ((i + k) as f32 * o).sin())
+                    .collect()
+            };
+            s.queue_noise(TokenNoise {
+                actor: v(0.3),
+                reactor: v(0.9),
+            })
+            .unwrap();
+        }
+        Session::from(s)
+    };
+    let sizes = [3, 1, 4, 9];
+    let whole = run(&mut open(), &actor, 0, &sizes);
+    for &cut in cuts {
+        let mut first = open();
+        let mut got = run(
+            &mut first,
+            &actor.slice(s![..cut, ..]).to_owned(),
+            0,
+            &sizes,
+        );
+        let snapshot = first.snapshot().unwrap();
+        drop(first);
+        let mut second = other.restore(&snapshot).unwrap();
+        assert_eq!(second.frames_received(), cut as u64);
+        // The restored session saves to the same bytes.
+        assert_eq!(second.snapshot().unwrap(), snapshot, "cut at frame {cut}");
+        got.extend(run(&mut second, &actor, cut, &[5, 2]));
+        assert!(
+            got == whole,
+            "cut at frame {cut}: the continued stream differs"
+        );
+    }
+}
+
+#[test]
+fn a_stream_restored_at_any_token_continues_bit_for_bit() {
+    let (model, other) = (common::model(), load("armflow-tiny"));
+    assert_eq!(model.identity(), other.identity());
+    let cuts = [0, 1, 3, 4, 5, 8, 13, 20, 21, 47, 64, 101, 160, 191];
+    for windows in [false, true] {
+        check_cuts(model, &other, &busy_options(model, windows), &cuts);
+    }
+    check_cuts(model, &other, &common::default_options(), &cuts);
+}
+
+#[test]
+fn the_demo_model_restores_bit_for_bit() {
+    // Its own graphs (prompts-free, with contact labels) and a larger cache.
+    let (model, other) = (load("armflow-demo"), load("armflow-demo"));
+    check_cuts(
+        &model,
+        &other,
+        &busy_options(&model, false),
+        &[0, 6, 33, 100, 190],
+    );
+}
+
+#[test]
+fn restored_sessions_step_together_as_the_uninterrupted_ones() {
+    let model = common::model();
+    let other = load("armflow-tiny");
+    let actor = common::actor();
+    let options = [
+        busy_options(model, false),
+        busy_options(model, true),
+        common::default_options(),
+    ];
+    let open = |m: &Model| -> Vec<Session> {
+        options
+            .iter()
+            .map(|o| m.session(o.clone()).unwrap())
+            .collect()
+    };
+    let step_all = |sessions: &mut Vec<Session>, from: usize, to: usize| -> Vec<Vec<u32>> {
+        // Session i gets a chunk shifted by i, so their histories differ.
+        let chunks: Vec<Vec<f32>> = (0..sessions.len())
+            .map(|i| {
+                let (a, b) = ((from + i).min(to), to);
+                actor.slice(s![a..b, ..]).iter().copied().collect()
+            })
+            .collect();
+        let refs: Vec<&[f32]> = chunks.iter().map(Vec::as_slice).collect();
+        let mut views: Vec<&mut Session> = sessions.iter_mut().collect();
+        step_sessions(&mut views, &refs)
+            .unwrap()
+            .iter()
+            .map(|o| bits(&o.frames))
+            .collect()
+    };
+    let steps = [(0, 30), (30, 31), (31, 77), (77, 120), (120, 192)];
+    let mut whole = open(model);
+    let expected: Vec<_> = steps
+        .iter()
+        .map(|&(a, b)| step_all(&mut whole, a, b))
+        .collect();
+    for cut in 1..steps.len() {
+        let mut sessions = open(model);
+        for &(a, b) in &steps[..cut] {
+            step_all(&mut sessions, a, b);
+        }
+        let mut restored: Vec<Session> = sessions
+            .iter()
+            .map(|s| other.restore(&s.snapshot().unwrap()).unwrap())
+            .collect();
+        for (k, &(a, b)) in steps.iter().enumerate().skip(cut) {
+            assert_eq!(
+                step_all(&mut restored, a, b),
+                expected[k],
+                "cut after step {cut}"
+            );
+        }
+    }
+}
+
+#[test]
+fn a_joint_stream_with_its_foot_lock_restores_bit_for_bit() {
+    let model = common::model();
+    let clip: Array3<f32> = read_npy(
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/mocap/cmu-playground-120fps.npy"),
+    )
+    .unwrap();
+    let clip = clip.slice(s![..240, .., ..]).to_owned();
+    let open = || {
+        let mut r = model
+            .armflow()
+            .unwrap()
+            .reactor(busy_options(model, false))
+            .unwrap();
+        r.set_joints_format(JointsFormat {
+            up: UpAxis::Z,
+            fps: 120.0,
+            ..Default::default()
+        })
+        .unwrap();
+        r.set_foot_lock(Some(FootLockOptions::default())).unwrap();
+        r
+    };
+    let poses = |r: &mut Reactor, from: usize, to: usize| -> Vec<u32> {
+        clip.slice(s![from..to, .., ..])
+            .axis_chunks_iter(Axis(0), 7)
+            .flat_map(|c| r.step_joints(c).unwrap())
+            .flat_map(|p| {
+                let mut v: Vec<u32> = p.positions.iter().flatten().map(|x| x.to_bits()).collect();
+                v.extend(p.rotations.iter().flatten().map(|x| x.to_bits()));
+                v
+            })
+            .collect()
+    };
+    let whole = poses(&mut open(), 0, 240);
+    for cut in [1, 2, 50, 121, 239] {
+        let mut first = open();
+        let mut got = poses(&mut first, 0, cut);
+        let mut restored = model
+            .restore(&Session::from(first).snapshot().unwrap())
+            .unwrap();
+        got.extend(poses(restored.family_mut::<Reactor>().unwrap(), cut, 240));
+        assert!(got == whole, "cut at frame {cut}");
+    }
+}
+
+/// Rewrites a snapshot's checksum after an edit, so the edit reaches the payload's checks.
+fn reframed(mut bytes: Vec<u8>) -> Vec<u8> {
+    let n = bytes.len() - 4;
+    let crc = crc32(&bytes[..n]);
+    bytes[n..].copy_from_slice(&crc.to_le_bytes());
+    bytes
+}
+
+/// CRC-32 (IEEE), bit by bit: the test's own, independent of the library's.
+fn crc32(bytes: &[u8]) -> u32 {
+    let mut crc = !0u32;
+    for &b in bytes {
+        crc ^= u32::from(b);
+        for _ in 0..8 {
+            crc = if crc & 1 != 0 {
+                (crc >> 1) ^ 0xEDB8_8320
+            } else {
+                crc >> 1
+            };
+        }
+    }
+    !crc
+}
+
+fn refused(model: &Model, bytes: &[u8]) -> String {
+    match model.restore(bytes) {
+        Err(e @ Error::InvalidInput(_)) => e.to_string(),
+        Err(other) => panic!("refused with the wrong kind of error: {other}"),
+        Ok(_) => panic!("a hostile snapshot was restored"),
+    }
+}
+
+#[test]
+fn hostile_snapshots_are_refused_with_a_clear_error() {
+    let model = common::model();
+    let mut session = model.session(busy_options(model, false)).unwrap();
+    session.step(common::actor().slice(s![..37, ..])).unwrap();
+    let good = session.snapshot().unwrap();
+    assert!(model.restore(&good).is_ok());
+    assert_eq!(
+        crc32(&good[..good.len() - 4]).to_le_bytes(),
+        good[good.len() - 4..]
+    );
+
+    // Every truncation, and a flipped bit anywhere (sampled: every 7th byte).
+    for n in 0..good.len() {
+        refused(model, &good[..n]);
+    }
+    for i in (0..good.len()).step_by(7) {
+        let mut b = good.clone();
+        b[i] ^= 0x10;
+        refused(model, &b);
+    }
+    // Another model: the same family, other weights.
+    let other = load("armflow-demo");
+    let e = refused(&other, &good);
+    assert!(e.contains("another model"), "{e}");
+    // Another family.
+    let e = match load("magnet-tiny").restore(&good) {
+        Err(e) => e.to_string(),
+        Ok(_) => panic!("restored onto another family"),
+    };
+    assert!(e.contains("`armflow` stream"), "{e}");
+    // Another version of the format.
+    let mut b = good.clone();
+    b[8] = 2;
+    let e = refused(model, &reframed(b));
+    assert!(e.contains("version 2"), "{e}");
+    // Checksummed lies in the payload: every byte changed in turn, the checksum made to
+    // agree. Each is refused or, where the byte is a free value (a float, the seed), restores
+    // to a session that steps without panicking.
+    let payload = 8 + 4 + 4 + 7 + 32 + 8;
+    let sampled = (payload..good.len() - 4).filter(|i| *i < payload + 400 || i % 61 == 0);
+    for i in sampled {
+        for v in [0x00, 0xff, good[i] ^ 0x01, 0x7f] {
+            let mut b = good.clone();
+            b[i] = v;
+            if let Ok(mut s) = model.restore(&reframed(b)) {
+                let _ = s.step(common::actor().slice(s![37..45, ..]));
+            }
+        }
+    }
+    // Absurd lengths: the held actor frames' count set to 2^60, then to u64::MAX.
+    let count_at = actor_frames_count_at(&good);
+    for claim in [1u64 << 60, u64::MAX] {
+        let mut b = good.clone();
+        b[count_at..count_at + 8].copy_from_slice(&claim.to_le_bytes());
+        let e = refused(model, &reframed(b));
+        assert!(e.contains("actor frames held"), "{e}");
+    }
+    // Nothing else is a snapshot.
+    for junk in [
+        &b""[..],
+        b"TRPSNAP",
+        &[0u8; 100],
+        b"{\"not\": \"a snapshot\"}",
+    ] {
+        refused(model, junk);
+    }
+}
+
+/// Where the count of held actor floats lies: after the frames received (37) and the first
+/// frame held (36: with VAE steps only the unfinished token's frame is kept).
+fn actor_frames_count_at(snapshot: &[u8]) -> usize {
+    let counts: Vec<u8> = [37u64, 36].iter().flat_map(|v| v.to_le_bytes()).collect();
+    let at = snapshot
+        .windows(16)
+        .position(|w| w == counts)
+        .expect("the stream's counts");
+    assert_eq!(snapshot[at + 16..at + 24], 262u64.to_le_bytes());
+    at + 16
+}
+
+#[test]
+fn families_without_snapshots_say_so() {
+    for name in ["magnet-tiny", "arflow-tiny-online"] {
+        let model = load(name);
+        let session = model.session(troupe::SessionOptions::default()).unwrap();
+        match session.snapshot() {
+            Err(Error::Unsupported(m)) => assert!(m.contains("cannot be saved"), "{m}"),
+            other => panic!("{name}: {other:?}"),
+        }
+    }
+    let umf = load("umf-tiny");
+    match umf.restore(b"anything") {
+        Err(Error::InvalidInput(_)) => {}
+        other => panic!("{other:?}"),
+    }
+}
