@@ -11,13 +11,15 @@
 //!   tokens in the context cache (capacity `H + 1`, so the cache stays at H as the stream runs).
 //! - `sessions_step/N`: one round of `step_reactors` over N sessions at history 10, one token
 //!   each; compare with N times `step/history_10`.
+//! - `snapshot/history_H`, `restore/history_H`: `Session::snapshot` and `Model::restore` of a
+//!   session whose cache is full at `H` tokens (its size in bytes is printed).
 
 use std::hint::black_box;
 use std::path::PathBuf;
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
 use troupe::armflow::step_reactors;
-use troupe::{Model, Reactor, ReactorOptions};
+use troupe::{Model, Reactor, ReactorOptions, Session};
 
 #[path = "../examples/common/mod.rs"]
 mod common;
@@ -31,16 +33,21 @@ fn bundle() -> PathBuf {
 
 /// A session warmed to `history` tokens with capacity `history + 1`.
 fn warm_session(model: &Model, history: usize, seed: u64) -> Reactor {
+    warm_with_capacity(model, history, history + 1, seed)
+}
+
+/// A session warmed to `tokens` tokens with capacity `capacity`.
+fn warm_with_capacity(model: &Model, tokens: usize, capacity: usize, seed: u64) -> Reactor {
     let mut session = model
         .armflow()
         .unwrap()
         .reactor(ReactorOptions {
             seed,
-            context_capacity: Some(history + 1),
+            context_capacity: Some(capacity),
             ..Default::default()
         })
         .expect("session");
-    let frames = synthetic_actor(history * model.frames_per_token(), model.frame_dim());
+    let frames = synthetic_actor(tokens * model.frames_per_token(), model.frame_dim());
     session.step(frames.view()).expect("warm-up");
     session
 }
@@ -87,6 +94,29 @@ fn benches(c: &mut Criterion) {
         });
     }
     group.finish();
+
+    let mut saves = c.benchmark_group("snapshot");
+    let mut snapshots = Vec::new();
+    for history in [10, 100, 1000, 2000] {
+        // One token past the capacity: the cache is full and has wrapped.
+        let session = Session::from(warm_with_capacity(&model, history + 1, history, 2));
+        let bytes = session.snapshot().expect("snapshot");
+        println!("snapshot at history {history}: {} bytes", bytes.len());
+        saves.bench_function(
+            BenchmarkId::from_parameter(format!("history_{history}")),
+            |b| b.iter(|| black_box(session.snapshot().expect("snapshot"))),
+        );
+        snapshots.push((history, bytes));
+    }
+    saves.finish();
+    let mut restores = c.benchmark_group("restore");
+    for (history, bytes) in &snapshots {
+        restores.bench_function(
+            BenchmarkId::from_parameter(format!("history_{history}")),
+            |b| b.iter(|| black_box(model.restore(bytes).expect("restore"))),
+        );
+    }
+    restores.finish();
 }
 
 criterion_group! {

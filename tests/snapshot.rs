@@ -10,8 +10,8 @@ use ndarray::{s, Array2, Array3, Axis};
 use ndarray_npy::read_npy;
 use troupe::motion::{FootLockOptions, JointsFormat, UpAxis};
 use troupe::{
-    step_sessions, Error, Model, PenetrationGuard, Reactor, ReactorOptions, RootSmoothing, Session,
-    TokenNoise,
+    step_sessions, ArflowOptions, Error, Model, PenetrationGuard, Reactor, ReactorOptions,
+    RootSmoothing, Session, TokenNoise,
 };
 
 fn load(name: &str) -> Model {
@@ -349,17 +349,80 @@ fn actor_frames_count_at(snapshot: &[u8]) -> usize {
 
 #[test]
 fn families_without_snapshots_say_so() {
-    for name in ["magnet-tiny", "arflow-tiny-online"] {
-        let model = load(name);
-        let session = model.session(troupe::SessionOptions::default()).unwrap();
-        match session.snapshot() {
-            Err(Error::Unsupported(m)) => assert!(m.contains("cannot be saved"), "{m}"),
-            other => panic!("{name}: {other:?}"),
-        }
+    let model = load("magnet-tiny");
+    let session = model.session(troupe::SessionOptions::default()).unwrap();
+    match session.snapshot() {
+        Err(Error::Unsupported(m)) => assert!(m.contains("cannot be saved"), "{m}"),
+        other => panic!("magnet: {other:?}"),
     }
     let umf = load("umf-tiny");
     match umf.restore(b"anything") {
         Err(Error::InvalidInput(_)) => {}
         other => panic!("{other:?}"),
     }
+}
+
+/// An ARFlow online stream with every draw on (start noise, stochastic steps, guidance), part
+/// of its draws queued: saved at many frames, restored, continued alone and in a crowd.
+#[test]
+fn an_arflow_online_stream_restores_bit_for_bit() {
+    let (model, other) = (load("arflow-tiny-online"), load("arflow-tiny-online"));
+    let actor: Array2<f32> = read_npy(
+        Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("onnx/bundles/arflow-tiny-online/golden/actor.npy"),
+    )
+    .unwrap();
+    let open = |seed: u64| {
+        let mut s = model
+            .session(ArflowOptions {
+                seed,
+                steps: Some(3),
+                eta: Some(0.3),
+                sigma: Some(0.5),
+                guidance: Some(1.0),
+                ..ArflowOptions::default()
+            })
+            .unwrap();
+        // Two and a half frames' draws queued: the restored stream must take the rest in order.
+        let normals: Vec<f32> = (0..262 * 10).map(|i| (i as f32 * 0.11).sin()).collect();
+        s.queue_normals(&normals).unwrap();
+        s
+    };
+    let frames = actor.nrows();
+    let whole = run(&mut open(1), &actor, 0, &[3, 1, 5]);
+    for cut in [0, 1, 2, 3, 9, frames / 2, frames - 1] {
+        let mut first = open(1);
+        let mut got = run(
+            &mut first,
+            &actor.slice(s![..cut, ..]).to_owned(),
+            0,
+            &[3, 1, 5],
+        );
+        let snapshot = first.snapshot().unwrap();
+        let mut second = other.restore(&snapshot).unwrap();
+        assert_eq!(second.snapshot().unwrap(), snapshot);
+        got.extend(run(&mut second, &actor, cut, &[2]));
+        assert!(got == whole, "cut at frame {cut}");
+    }
+    // A crowd of restored streams stepped together equals the crowd never stopped.
+    let mut crowd: Vec<Session> = (0..3).map(open).collect();
+    let step_all = |crowd: &mut Vec<Session>, a: usize, b: usize| -> Vec<Vec<u32>> {
+        let chunk: Vec<f32> = actor.slice(s![a..b, ..]).iter().copied().collect();
+        let chunks = vec![chunk.as_slice(); crowd.len()];
+        let mut refs: Vec<&mut Session> = crowd.iter_mut().collect();
+        step_sessions(&mut refs, &chunks)
+            .unwrap()
+            .iter()
+            .map(|o| bits(&o.frames))
+            .collect()
+    };
+    step_all(&mut crowd, 0, 5);
+    let mut restored: Vec<Session> = crowd
+        .iter()
+        .map(|s| other.restore(&s.snapshot().unwrap()).unwrap())
+        .collect();
+    assert_eq!(step_all(&mut restored, 5, 12), step_all(&mut crowd, 5, 12));
+    // Not onto another family, nor another family's snapshot onto it.
+    let e = refused(common::model(), &crowd[0].snapshot().unwrap());
+    assert!(e.contains("`arflow` stream"), "{e}");
 }

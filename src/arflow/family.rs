@@ -14,6 +14,7 @@ use crate::arflow::stream::OnlineStream;
 use crate::shared::error::Result;
 use crate::shared::family::{family_as, Family, SessionOptions, StreamOptions};
 use crate::shared::noise::NormalSource;
+use crate::shared::snapshot::SnapshotReader;
 use crate::shared::stream::Session;
 
 /// A loaded `arflow` bundle. Cheap to clone; clones and streams share its graphs.
@@ -118,6 +119,13 @@ impl Family for Arflow {
     }
 
     /// The sampler's steps; the context is the whole history the position encoding covers.
+    fn restore(&self, payload: &mut SnapshotReader) -> Result<Session> {
+        Ok(Session::new(OnlineStream::restore(
+            Arc::clone(&self.nets),
+            payload,
+        )?))
+    }
+
     fn session_defaults(&self) -> Result<SessionOptions> {
         let spec = &self.nets.spec;
         Ok(SessionOptions {

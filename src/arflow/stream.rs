@@ -21,12 +21,16 @@ use ndarray::Array2;
 
 use super::networks::Networks;
 use super::sampler::{euler_step, loss_of, times};
-use super::spec::{ArflowSampling, FRAME_DIM};
+use super::spec::{ArflowSampling, Mixing, FRAME_DIM};
 use crate::shared::checks::check_frames;
 use crate::shared::error::{Error, Result};
 use crate::shared::limits::{at_most, LIMITS};
 use crate::shared::noise::{fill_normals, NormalSource};
+use crate::shared::snapshot::{self, SnapshotReader, SnapshotWriter};
 use crate::shared::stream::{downcast_all, Session, StepOutput, StepTogether, Stream};
+
+/// The family name snapshots of online streams carry.
+pub(crate) const SNAPSHOT_FAMILY: &str = "arflow";
 
 /// One actor/reactor stream over an online `arflow` model (made by `Arflow::online`, or boxed
 /// in a [`crate::Session`] by `Model::session`). `Send`, not `Sync`.
@@ -133,6 +137,68 @@ impl OnlineStream {
 
     pub(crate) fn frames(&self) -> u64 {
         self.frames
+    }
+
+    /// The stream's snapshot (`Session::snapshot`): its settings, seed, frame count, every
+    /// step's cache and the queued normals not yet taken.
+    pub(crate) fn snapshot(&self) -> Vec<u8> {
+        let mut w = SnapshotWriter::new();
+        let s = &self.sampling;
+        w.u64(s.steps as u64)
+            .f32(s.guidance)
+            .f32(s.weight)
+            .f32(s.eta)
+            .f32(s.d_safe)
+            .bool(s.squared)
+            .bool(s.guided_backprojection)
+            .bool(s.mixing == Mixing::VariancePreserving)
+            .f32(s.sigma)
+            .u32(s.stream);
+        w.u64(self.seed).u64(self.frames);
+        for (k, v) in self.keys.iter().zip(&self.values) {
+            w.f32s(k).f32s(v);
+        }
+        w.f32s(&self.queued[self.queued_used..]);
+        w.finish(SNAPSHOT_FAMILY, &self.nets.io.identity())
+    }
+
+    /// The stream a snapshot's payload holds, over `nets` (the model it was checked to come
+    /// from): the settings checked as a new stream's, each cache of exactly the frames' size.
+    pub(crate) fn restore(nets: Arc<Networks>, r: &mut SnapshotReader) -> Result<Self> {
+        let steps = r.count("the steps", LIMITS.max_steps as usize)?;
+        let sampling = ArflowSampling {
+            steps,
+            guidance: r.f32("the guidance")?,
+            weight: r.f32("the weight")?,
+            eta: r.f32("the eta")?,
+            d_safe: r.f32("the safe distance")?,
+            squared: r.bool("the hinge")?,
+            guided_backprojection: r.bool("the back-projection")?,
+            mixing: if r.bool("the mixing")? {
+                Mixing::VariancePreserving
+            } else {
+                Mixing::Linear
+            },
+            sigma: r.f32("the start noise")?,
+            stream: r.u32("the noise stream")?,
+        };
+        let seed = r.u64("the seed")?;
+        let mut stream = Self::new(nets, sampling, seed)?;
+        let frames = r.u64("the frames")?;
+        let end = stream.nets.spec.model.max_frames as u64;
+        if frames > end {
+            return Err(snapshot::bad(format!(
+                "{frames} frames, beyond the stream's end at {end}"
+            )));
+        }
+        stream.frames = frames;
+        let floats = frames as usize * stream.kv_floats();
+        for m in 0..steps {
+            stream.keys[m] = r.f32s_exact("a step's keys", floats)?;
+            stream.values[m] = r.f32s_exact("a step's values", floats)?;
+        }
+        stream.queued = r.f32s("the queued normals", LIMITS.max_tensor_elements as usize)?;
+        Ok(stream)
     }
 
     /// Checks one call's actor frames against the stream's end.
@@ -422,6 +488,9 @@ impl Stream for OnlineStream {
     }
     fn frames_received(&self) -> u64 {
         self.frames()
+    }
+    fn snapshot(&self) -> Result<Vec<u8>> {
+        Ok(OnlineStream::snapshot(self))
     }
     fn frames_emitted(&self) -> u64 {
         self.frames()

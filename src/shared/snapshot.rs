@@ -38,7 +38,8 @@ pub(crate) fn bad(message: impl Into<String>) -> Error {
 /// The error of a family whose streams have no snapshot yet.
 pub(crate) fn cannot_snapshot(family: &str) -> Error {
     Error::Unsupported(format!(
-        "snapshots: `{family}` streams cannot be saved and restored yet (armflow streams can)"
+        "snapshots: `{family}` streams cannot be saved and restored yet (armflow and online \
+         arflow streams can)"
     ))
 }
 
