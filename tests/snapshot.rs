@@ -10,8 +10,8 @@ use ndarray::{s, Array2, Array3, Axis};
 use ndarray_npy::read_npy;
 use troupe::motion::{FootLockOptions, JointsFormat, UpAxis};
 use troupe::{
-    step_sessions, ArflowOptions, Error, Model, PenetrationGuard, Reactor, ReactorOptions,
-    RootSmoothing, Session, TokenNoise,
+    step_sessions, ArflowOptions, Error, Model, PartnerOptions, PenetrationGuard, Reactor,
+    ReactorOptions, RootSmoothing, Session, TokenNoise,
 };
 
 fn load(name: &str) -> Model {
@@ -302,20 +302,12 @@ fn hostile_snapshots_are_refused_with_a_clear_error() {
     b[8] = 2;
     let e = refused(model, &reframed(b));
     assert!(e.contains("version 2"), "{e}");
-    // Checksummed lies in the payload: every byte changed in turn, the checksum made to
-    // agree. Each is refused or, where the byte is a free value (a float, the seed), restores
-    // to a session that steps without panicking.
-    let payload = 8 + 4 + 4 + 7 + 32 + 8;
-    let sampled = (payload..good.len() - 4).filter(|i| *i < payload + 400 || i % 61 == 0);
-    for i in sampled {
-        for v in [0x00, 0xff, good[i] ^ 0x01, 0x7f] {
-            let mut b = good.clone();
-            b[i] = v;
-            if let Ok(mut s) = model.restore(&reframed(b)) {
-                let _ = s.step(common::actor().slice(s![37..45, ..]));
-            }
-        }
-    }
+    // Checksummed lies in the payload.
+    survives_lies(
+        model,
+        &good,
+        &common::actor().slice(s![37..45, ..]).to_owned(),
+    );
     // Absurd lengths: the held actor frames' count set to 2^60, then to u64::MAX.
     let count_at = actor_frames_count_at(&good);
     for claim in [1u64 << 60, u64::MAX] {
@@ -335,6 +327,24 @@ fn hostile_snapshots_are_refused_with_a_clear_error() {
     }
 }
 
+/// Each payload byte of `good` rewritten in turn (the first 400, then every 61st), the checksum
+/// made to agree: each is refused or, where the byte is a free value (a float, the seed),
+/// restores to a session that steps without panicking.
+fn survives_lies(model: &Model, good: &[u8], frames: &Array2<f32>) {
+    let family = u32::from_le_bytes(good[12..16].try_into().unwrap()) as usize;
+    let payload = 8 + 4 + 4 + family + 32 + 8;
+    let sampled = (payload..good.len() - 4).filter(|i| *i < payload + 400 || i % 61 == 0);
+    for i in sampled {
+        for v in [0x00, 0xff, good[i] ^ 0x01, 0x7f] {
+            let mut b = good.to_vec();
+            b[i] = v;
+            if let Ok(mut s) = model.restore(&reframed(b)) {
+                let _ = s.step(frames.view());
+            }
+        }
+    }
+}
+
 /// Where the count of held actor floats lies: after the frames received (37) and the first
 /// frame held (36: with VAE steps only the unfinished token's frame is kept).
 fn actor_frames_count_at(snapshot: &[u8]) -> usize {
@@ -348,18 +358,10 @@ fn actor_frames_count_at(snapshot: &[u8]) -> usize {
 }
 
 #[test]
-fn families_without_snapshots_say_so() {
-    let model = load("magnet-tiny");
-    let session = model.session(troupe::SessionOptions::default()).unwrap();
-    match session.snapshot() {
-        Err(Error::Unsupported(m)) => assert!(m.contains("cannot be saved"), "{m}"),
-        other => panic!("magnet: {other:?}"),
-    }
-    let umf = load("umf-tiny");
-    match umf.restore(b"anything") {
-        Err(Error::InvalidInput(_)) => {}
-        other => panic!("{other:?}"),
-    }
+fn a_family_without_streams_restores_none() {
+    let armflow = common::model().session(common::default_options()).unwrap();
+    let e = refused(&load("umf-tiny"), &armflow.snapshot().unwrap());
+    assert!(e.contains("not a `umf` stream's"), "{e}");
 }
 
 /// An ARFlow online stream with every draw on (start noise, stochastic steps, guidance), part
@@ -422,7 +424,86 @@ fn an_arflow_online_stream_restores_bit_for_bit() {
         .map(|s| other.restore(&s.snapshot().unwrap()).unwrap())
         .collect();
     assert_eq!(step_all(&mut restored, 5, 12), step_all(&mut crowd, 5, 12));
+    survives_lies(
+        &model,
+        &crowd[0].snapshot().unwrap(),
+        &actor.slice(s![12..14, ..]).to_owned(),
+    );
     // Not onto another family, nor another family's snapshot onto it.
     let e = refused(common::model(), &crowd[0].snapshot().unwrap());
     assert!(e.contains("`arflow` stream"), "{e}");
+}
+
+/// MAGNet's live partner in both emission modes, part of its draws queued: saved before its
+/// first chunk, between chunks and mid-chunk, restored, continued alone and in a crowd.
+#[test]
+fn a_magnet_live_partner_restores_bit_for_bit() {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("onnx/bundles/magnet-tiny");
+    let (model, other) = (load("magnet-tiny"), load("magnet-tiny"));
+    let frames: Array3<f32> = read_npy(dir.join("golden/frames.npy")).unwrap();
+    let cases: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("golden/cases.json")).unwrap())
+            .unwrap();
+    let user = frames.slice(s![.., 0, ..]).to_owned();
+    for case in ["live_stream", "live_stream_early"] {
+        let spec = &cases[case];
+        let sampling = &spec["sampling"];
+        let context = sampling["context_len"].as_u64().unwrap() as usize;
+        let open = |seed: u64| {
+            let mut s = model
+                .session(PartnerOptions {
+                    seed,
+                    live_config: Some(sampling.to_string()),
+                    early_emission: spec["early"].as_bool().unwrap(),
+                    opening: Some(frames.slice(s![..context, 1, ..]).iter().copied().collect()),
+                    ..Default::default()
+                })
+                .unwrap();
+            // The first chunk's draw (window x 2 people x token floats), the rest seeded.
+            let normals: Vec<f32> = (0..3328).map(|i| (i as f32 * 0.13).cos()).collect();
+            s.queue_normals(&normals).unwrap();
+            s
+        };
+        let n = user.nrows();
+        let whole = run(&mut open(3), &user, 0, &[7, 2]);
+        assert!(!whole.is_empty());
+        for cut in [0, 1, 30, 64, 65, 99, n - 1] {
+            let mut first = open(3);
+            let mut got = run(
+                &mut first,
+                &user.slice(s![..cut, ..]).to_owned(),
+                0,
+                &[7, 2],
+            );
+            let snapshot = first.snapshot().unwrap();
+            let mut second = other.restore(&snapshot).unwrap();
+            assert_eq!(second.snapshot().unwrap(), snapshot, "{case} at {cut}");
+            got.extend(run(&mut second, &user, cut, &[5]));
+            assert!(got == whole, "{case}: cut at frame {cut}");
+        }
+        // A crowd restored mid-stream steps together as the crowd never stopped.
+        let mut crowd: Vec<Session> = (0..3).map(open).collect();
+        let step_all = |crowd: &mut Vec<Session>, a: usize, b: usize| -> Vec<Vec<u32>> {
+            let chunk: Vec<f32> = user.slice(s![a..b, ..]).iter().copied().collect();
+            let chunks = vec![chunk.as_slice(); crowd.len()];
+            let mut refs: Vec<&mut Session> = crowd.iter_mut().collect();
+            step_sessions(&mut refs, &chunks)
+                .unwrap()
+                .iter()
+                .map(|o| bits(&o.frames))
+                .collect()
+        };
+        step_all(&mut crowd, 0, 70);
+        let mut restored: Vec<Session> = crowd
+            .iter()
+            .map(|s| other.restore(&s.snapshot().unwrap()).unwrap())
+            .collect();
+        assert_eq!(step_all(&mut restored, 70, n), step_all(&mut crowd, 70, n));
+        // Checksummed lies in its payload (the configuration's JSON among them).
+        survives_lies(
+            &model,
+            &crowd[0].snapshot().unwrap(),
+            &user.slice(s![..9, ..]).to_owned(),
+        );
+    }
 }

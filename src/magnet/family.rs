@@ -18,6 +18,7 @@ use crate::magnet::networks::Networks;
 use crate::magnet::spec::{MagnetSpec, SamplingSpec};
 use crate::shared::error::Result;
 use crate::shared::family::{family_as, Family, SessionOptions, StreamOptions};
+use crate::shared::snapshot::SnapshotReader;
 use crate::shared::stream::Session;
 
 /// Options of a live partner stream. Fields left `None` take the configuration's defaults.
@@ -185,6 +186,13 @@ impl Family for Magnet {
 
     fn session(&self, options: &SessionOptions) -> Result<Session> {
         Ok(Session::new(self.partner(options.clone().into())?))
+    }
+
+    fn restore(&self, payload: &mut SnapshotReader) -> Result<Session> {
+        Ok(Session::new(LivePartner::restore(
+            Arc::clone(&self.nets),
+            payload,
+        )?))
     }
 
     /// The default live configuration's steps and context tokens.

@@ -26,6 +26,7 @@ use super::tasks::{live_matrix, rolling_chunk, Run};
 use super::transforms::{canonical_frame, compose, from_9d, inverse, to_9d, Mat4};
 use crate::shared::checks::{check_frames, check_input};
 use crate::shared::error::{Error, Result};
+use crate::shared::snapshot::{self, SnapshotReader, SnapshotWriter};
 use crate::shared::stream::{downcast_all, Session, StepOutput, StepTogether, Stream, TokenTrace};
 
 /// Tokens of the user's past frames the encoder sees before a window (its receptive field
@@ -390,6 +391,217 @@ impl LivePartner {
             state.user_base = keep;
         }
     }
+}
+
+/// The family name snapshots of live partners carry.
+const SNAPSHOT_FAMILY: &str = "magnet";
+/// The longest configuration (JSON) a snapshot may carry.
+const MAX_CONFIG_BYTES: usize = 1 << 16;
+
+impl LivePartner {
+    /// The stream's snapshot (`Session::snapshot`): its settings (the configuration as JSON, the
+    /// seed, the emission, the opening frames) and everything its chunks carry forward.
+    pub(crate) fn snapshot(&self) -> Result<Vec<u8>> {
+        let mut w = SnapshotWriter::new();
+        let config = serde_json::to_string(&self.settings.sampling)
+            .map_err(|e| Error::InvalidInput(format!("snapshot: the configuration: {e}")))?;
+        w.str(&config)
+            .u64(self.settings.seed)
+            .bool(self.settings.early);
+        w.bool(self.settings.opening.is_some());
+        if let Some(opening) = &self.settings.opening {
+            w.f32s(opening);
+        }
+        let st = &self.state;
+        w.u64(st.received).u64(st.user_base).f32s(&st.user);
+        w.f32s(&st.user_betas).u64(st.chunks);
+        w.bool(st.window.is_some());
+        if let Some(window) = &st.window {
+            w.f32s(&window.iter().copied().collect::<Vec<_>>());
+        }
+        w.bool(st.opening_tokens.is_some());
+        if let Some(tokens) = &st.opening_tokens {
+            w.f32s(&tokens.iter().copied().collect::<Vec<_>>());
+        }
+        w.u64(st.sent.len() as u64);
+        for token in &st.sent {
+            w.f32s(token);
+        }
+        w.u64(st.frames_out).u64(st.tokens_out);
+        w.bool(st.world.is_some());
+        if let Some(world) = &st.world {
+            w.f32s(world.as_flattened());
+        }
+        save_draws(&mut w, &st.draws)?;
+        Ok(w.finish(SNAPSHOT_FAMILY, &self.nets.io.identity()))
+    }
+
+    /// The stream a snapshot's payload holds, over `nets` (the model it was checked to come
+    /// from): the settings checked as a new stream's, the state's counts against each other.
+    pub(crate) fn restore(nets: Arc<Networks>, r: &mut SnapshotReader) -> Result<Self> {
+        let config = r.str("the configuration", MAX_CONFIG_BYTES)?;
+        let sampling: SamplingSpec = serde_json::from_str(&config)
+            .map_err(|e| snapshot::bad(format!("the configuration: {e}")))?;
+        let seed = r.u64("the seed")?;
+        let early = r.bool("the emission")?;
+        let opening = if r.bool("whether opening frames are set")? {
+            Some(r.f32s(
+                "the opening frames",
+                sampling.context_len.saturating_mul(FRAME_DIM),
+            )?)
+        } else {
+            None
+        };
+        let settings = LiveSettings {
+            sampling,
+            seed,
+            early,
+            opening,
+        };
+        let mut live = LivePartner::new(nets, settings)?;
+        let (tm, tc, st) = live.geometry();
+        let d = live.token_dim();
+        let received = r.u64("the frames received")?;
+        let chunks_due = live.chunks_for(received);
+        let user_base = r.u64("the first user frame held")?;
+        let keep = (FRAMES_PER_TOKEN as u64
+            * (chunks_due * st as u64).saturating_sub(ENCODER_CONTEXT_TOKENS as u64))
+        .saturating_sub(1);
+        if user_base != keep || user_base > received {
+            return Err(snapshot::bad(format!(
+                "user frames held from {user_base}, after {received} frames received"
+            )));
+        }
+        if received > 0 && live.settings.opening.is_none() {
+            return Err(snapshot::bad(
+                "user frames without the partner's opening frames",
+            ));
+        }
+        let held = ((received - user_base) as usize)
+            .checked_mul(FRAME_DIM)
+            .ok_or_else(|| snapshot::bad("user frames held"))?;
+        let user = r.f32s_exact("the user frames held", held)?;
+        let user_betas = r.f32s_exact(
+            "the user's betas",
+            if received == 0 { 0 } else { FRAME_BETAS.len() },
+        )?;
+        let chunks = r.u64("the chunks run")?;
+        if chunks != chunks_due {
+            return Err(snapshot::bad(format!(
+                "{chunks} chunks run after {received} frames received (not {chunks_due})"
+            )));
+        }
+        let ran = chunks > 0;
+        let window = match (r.bool("whether a window is held")?, ran) {
+            (true, true) => Some(
+                Array4::from_shape_vec((1, tm, 2, d), r.f32s_exact("the last window", tm * 2 * d)?)
+                    .map_err(|e| snapshot::bad(format!("the last window: {e}")))?,
+            ),
+            (false, false) => None,
+            _ => return Err(snapshot::bad("a window that disagrees with the chunks run")),
+        };
+        let opening_tokens = match (r.bool("whether opening tokens are held")?, ran) {
+            (true, true) => Some(
+                Array2::from_shape_vec((tc, d), r.f32s_exact("the opening tokens", tc * d)?)
+                    .map_err(|e| snapshot::bad(format!("the opening tokens: {e}")))?,
+            ),
+            (false, false) => None,
+            _ => {
+                return Err(snapshot::bad(
+                    "opening tokens that disagree with the chunks run",
+                ))
+            }
+        };
+        let n = r.count("the tokens sent held", DECODER_CONTEXT_TOKENS)?;
+        let sent = (0..n)
+            .map(|_| r.f32s_exact("a token sent", d))
+            .collect::<Result<VecDeque<_>>>()?;
+        let frames_out = r.u64("the frames sent")?;
+        let tokens_out = r.u64("the tokens sent")?;
+        if frames_out != live.frames_after(chunks)
+            || tokens_out * FRAMES_PER_TOKEN as u64 != frames_out
+            || n as u64 != tokens_out.min(DECODER_CONTEXT_TOKENS as u64)
+        {
+            return Err(snapshot::bad(format!(
+                "{frames_out} frames and {tokens_out} tokens sent after {chunks} chunks"
+            )));
+        }
+        let world = if r.bool("whether the partner is placed")? {
+            let v = r.f32s_exact("the partner's frame", 16)?;
+            let mut m: Mat4 = [[0.0; 4]; 4];
+            for (i, x) in v.into_iter().enumerate() {
+                m[i / 4][i % 4] = x;
+            }
+            Some(m)
+        } else {
+            None
+        };
+        let draws = load_draws(r, seed)?;
+        live.state = LiveState {
+            user,
+            user_base,
+            received,
+            user_betas,
+            chunks,
+            window,
+            opening_tokens,
+            sent,
+            frames_out,
+            tokens_out,
+            world,
+            draws,
+        };
+        Ok(live)
+    }
+}
+
+/// Writes a live stream's draws: seeded, with queued normals in front or not.
+fn save_draws(w: &mut SnapshotWriter, draws: &Draws) -> Result<()> {
+    match draws {
+        Draws::Seeded { seed, count } => {
+            w.bool(false).u64(*seed).u64(*count);
+        }
+        Draws::Queued { queue, used, then } => {
+            let Draws::Seeded { seed, count } = **then else {
+                return Err(Error::Unsupported(
+                    "snapshot: draws other than seeded behind a queue".into(),
+                ));
+            };
+            w.bool(true).f32s(&queue[*used..]).u64(seed).u64(count);
+        }
+        _ => {
+            return Err(Error::Unsupported(
+                "snapshot: a live stream's draws are seeded or queued".into(),
+            ))
+        }
+    }
+    Ok(())
+}
+
+/// The draws [`save_draws`] wrote; their seed must be the stream's.
+fn load_draws(r: &mut SnapshotReader, stream_seed: u64) -> Result<Draws> {
+    let queued = r.bool("whether normals are queued")?;
+    let queue = if queued {
+        Some(r.f32s(
+            "the queued normals",
+            crate::shared::limits::LIMITS.max_tensor_elements as usize,
+        )?)
+    } else {
+        None
+    };
+    let (seed, count) = (r.u64("the draws' seed")?, r.u64("the draws made")?);
+    if seed != stream_seed {
+        return Err(snapshot::bad("draws of another seed than the stream's"));
+    }
+    let seeded = Draws::Seeded { seed, count };
+    Ok(match queue {
+        Some(queue) => Draws::Queued {
+            queue,
+            used: 0,
+            then: Box::new(seeded),
+        },
+        None => seeded,
+    })
 }
 
 /// Checks settings against the model: a two-person `motion_control_live` configuration the
@@ -765,6 +977,9 @@ impl Stream for LivePartner {
     }
     fn frames_received(&self) -> u64 {
         self.state.received
+    }
+    fn snapshot(&self) -> Result<Vec<u8>> {
+        LivePartner::snapshot(self)
     }
     fn frames_emitted(&self) -> u64 {
         self.state.frames_out

@@ -38,8 +38,7 @@ pub(crate) fn bad(message: impl Into<String>) -> Error {
 /// The error of a family whose streams have no snapshot yet.
 pub(crate) fn cannot_snapshot(family: &str) -> Error {
     Error::Unsupported(format!(
-        "snapshots: `{family}` streams cannot be saved and restored yet (armflow and online \
-         arflow streams can)"
+        "snapshots: `{family}` streams cannot be saved and restored"
     ))
 }
 
@@ -100,6 +99,13 @@ impl SnapshotWriter {
         for x in v {
             self.f64(*x);
         }
+        self
+    }
+
+    /// Appends a length-prefixed UTF-8 string.
+    pub fn str(&mut self, v: &str) -> &mut Self {
+        self.u64(v.len() as u64);
+        self.payload.extend_from_slice(v.as_bytes());
         self
     }
 
@@ -280,6 +286,12 @@ impl<'a> SnapshotReader<'a> {
         Ok(v)
     }
 
+    /// Reads a UTF-8 string of at most `max` bytes.
+    pub fn str(&mut self, what: &str, max: usize) -> Result<String> {
+        let bytes = self.run(what, max, 1)?;
+        String::from_utf8(bytes.to_vec()).map_err(|_| bad(format!("{what}: not UTF-8")))
+    }
+
     /// Ends the read: every byte must have been taken.
     pub fn finish(self) -> Result<()> {
         if self.rest.is_empty() {
@@ -307,7 +319,8 @@ mod tests {
             .f64(f64::NAN)
             .bool(true)
             .f32s(&[1.5, f32::INFINITY, -2.0])
-            .f64s(&[0.25]);
+            .f64s(&[0.25])
+            .str("mirror");
         w.finish("armflow", &MODEL)
     }
 
@@ -324,6 +337,7 @@ mod tests {
         assert_eq!(v[0], 1.5);
         assert_eq!(v[1], f32::INFINITY);
         assert_eq!(r.f64s("g", 1).unwrap(), [0.25]);
+        assert_eq!(r.str("h", 6).unwrap(), "mirror");
         r.finish().unwrap();
     }
 

@@ -835,5 +835,5 @@ def test_hostile_snapshots_raise(model):
         with pytest.raises(troupe.InvalidArgument, match="another model"):
             demo.restore(good)
     with troupe.Model(REPO / "onnx" / "bundles" / "magnet-tiny") as magnet:
-        with pytest.raises(troupe.Unsupported, match="cannot be saved"):
-            magnet.session().snapshot()
+        with pytest.raises(troupe.InvalidArgument, match="`armflow` stream's, not a `magnet`"):
+            magnet.restore(good)
