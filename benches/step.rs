@@ -97,7 +97,8 @@ fn benches(c: &mut Criterion) {
 
     let mut saves = c.benchmark_group("snapshot");
     let mut snapshots = Vec::new();
-    for history in [10, 100, 1000, 2000] {
+    // 128: the paper bundle's default capacity.
+    for history in [10, 128, 1000, 2000] {
         // One token past the capacity: the cache is full and has wrapped.
         let session = Session::from(warm_with_capacity(&model, history + 1, history, 2));
         let bytes = session.snapshot().expect("snapshot");

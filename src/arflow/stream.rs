@@ -142,7 +142,8 @@ impl OnlineStream {
     /// The stream's snapshot (`Session::snapshot`): its settings, seed, frame count, every
     /// step's cache and the queued normals not yet taken.
     pub(crate) fn snapshot(&self) -> Vec<u8> {
-        let mut w = SnapshotWriter::new();
+        let floats: usize = self.keys.iter().chain(&self.values).map(Vec::len).sum();
+        let mut w = SnapshotWriter::new(SNAPSHOT_FAMILY, &self.nets.io.identity(), 4 * floats);
         let s = &self.sampling;
         w.u64(s.steps as u64)
             .f32(s.guidance)
@@ -159,7 +160,7 @@ impl OnlineStream {
             w.f32s(k).f32s(v);
         }
         w.f32s(&self.queued[self.queued_used..]);
-        w.finish(SNAPSHOT_FAMILY, &self.nets.io.identity())
+        w.finish()
     }
 
     /// The stream a snapshot's payload holds, over `nets` (the model it was checked to come

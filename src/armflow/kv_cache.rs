@@ -226,20 +226,43 @@ impl KvCache {
             && self.len as u64 == tokens.min(self.capacity as u64)
     }
 
-    /// Writes the counts and every held entry to a snapshot. Only a committed cache is saved:
-    /// between steps, which is when a session can be snapshotted.
+    /// The runs of page floats that hold the first `used` slots of a page, in a fixed order
+    /// (layer, key then value, head): a value block's first `used` rows are contiguous, a key
+    /// block (transposed) holds a run of `used` floats per dimension.
+    fn held_runs(&self, used: usize) -> impl Iterator<Item = std::ops::Range<usize>> + '_ {
+        let dh = self.head_dim;
+        (0..self.layers).flat_map(move |layer| {
+            (0..self.heads).flat_map(move |head| {
+                let k = self.block(layer, 0, head);
+                let v = self.block(layer, 1, head);
+                (0..dh)
+                    .map(move |d| k + d * PAGE_SLOTS..k + d * PAGE_SLOTS + used)
+                    .chain(std::iter::once(v..v + used * dh))
+            })
+        })
+    }
+
+    /// Writes the counts and every held entry to a snapshot, page by page as held (a memory
+    /// copy, not a gather per entry). Only a committed cache is saved: between steps, which is
+    /// when a session can be snapshotted.
     pub(crate) fn save(&self, w: &mut SnapshotWriter) {
         debug_assert!(self.journal.is_empty(), "a cache mid-step is not saved");
         w.u64(self.capacity as u64)
             .u64(self.len as u64)
             .u64(self.written);
-        for slot in 0..self.len {
-            w.f32s(&self.rows_of(slot));
+        for (p, page) in self.pages.iter().enumerate() {
+            let used = self.len.saturating_sub(p * PAGE_SLOTS).min(PAGE_SLOTS);
+            if used == 0 {
+                break;
+            }
+            for run in self.held_runs(used) {
+                w.f32s_raw(&page[run]);
+            }
         }
     }
 
-    /// The cache [`KvCache::save`] wrote, for `spec` and the session's `capacity`; every count
-    /// and length is checked before anything is allocated.
+    /// The cache [`KvCache::save`] wrote, for `spec` and the session's `capacity`; the counts are
+    /// checked before anything is allocated, each page only once the bytes for it are there.
     pub(crate) fn load(
         spec: &ContextSpec,
         capacity: usize,
@@ -260,25 +283,18 @@ impl KvCache {
                 "the snapshot's cache counts do not agree ({len} entries, {written} written)"
             )));
         }
-        let floats = 2 * c.layers * c.heads * c.head_dim;
-        for slot in 0..len as usize {
-            let rows = r.f32s("a cache entry", floats)?;
-            if rows.len() != floats {
-                return Err(cache_error(&format!(
-                    "a cache entry of {} floats, not {floats}",
-                    rows.len()
-                )));
+        let len = len as usize;
+        let entry = 2 * c.layers * c.heads * c.head_dim;
+        for p in 0..len.div_ceil(PAGE_SLOTS) {
+            let used = (len - p * PAGE_SLOTS).min(PAGE_SLOTS);
+            r.expect_bytes("the cache's entries", used * entry * 4)?;
+            let mut page = vec![0f32; c.page_floats()].into_boxed_slice();
+            for run in c.held_runs(used) {
+                r.f32s_into("the cache's entries", &mut page[run])?;
             }
-            if slot / PAGE_SLOTS >= c.pages.len() {
-                c.pages.push(vec![0f32; c.page_floats()].into_boxed_slice());
-            }
-            let positions: Vec<usize> = c.slot_floats(slot).collect();
-            let page = &mut c.pages[slot / PAGE_SLOTS];
-            for (at, x) in positions.into_iter().zip(rows) {
-                page[at] = x;
-            }
+            c.pages.push(page);
         }
-        (c.len, c.written) = (len as usize, written);
+        (c.len, c.written) = (len, written);
         c.committed = (c.len, c.written);
         Ok(c)
     }
@@ -431,9 +447,9 @@ mod tests {
                 push(&mut c, i as f32);
             }
             c.commit();
-            let mut w = SnapshotWriter::new();
+            let mut w = SnapshotWriter::new("armflow", &id, 0);
             c.save(&mut w);
-            let bytes = w.finish("armflow", &id);
+            let bytes = w.finish();
             let mut r = SnapshotReader::open(&bytes, "armflow", &id).unwrap();
             let spec = spec();
             let back = KvCache::load(&spec, 3, &mut r).unwrap();

@@ -402,7 +402,7 @@ impl LivePartner {
     /// The stream's snapshot (`Session::snapshot`): its settings (the configuration as JSON, the
     /// seed, the emission, the opening frames) and everything its chunks carry forward.
     pub(crate) fn snapshot(&self) -> Result<Vec<u8>> {
-        let mut w = SnapshotWriter::new();
+        let mut w = SnapshotWriter::new(SNAPSHOT_FAMILY, &self.nets.io.identity(), 1 << 16);
         let config = serde_json::to_string(&self.settings.sampling)
             .map_err(|e| Error::InvalidInput(format!("snapshot: the configuration: {e}")))?;
         w.str(&config)
@@ -433,7 +433,7 @@ impl LivePartner {
             w.f32s(world.as_flattened());
         }
         save_draws(&mut w, &st.draws)?;
-        Ok(w.finish(SNAPSHOT_FAMILY, &self.nets.io.identity()))
+        Ok(w.finish())
     }
 
     /// The stream a snapshot's payload holds, over `nets` (the model it was checked to come

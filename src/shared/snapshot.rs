@@ -42,28 +42,41 @@ pub(crate) fn cannot_snapshot(family: &str) -> Error {
     ))
 }
 
-/// A snapshot being written: the family appends its fields, then [`SnapshotWriter::finish`]
-/// frames them.
-#[derive(Default)]
+/// A snapshot being written: the header first, then the family's fields as it appends them;
+/// [`SnapshotWriter::finish`] fills in the payload's length and appends the checksum (one buffer,
+/// never copied).
 pub struct SnapshotWriter {
-    payload: Vec<u8>,
+    bytes: Vec<u8>,
+    /// Where the payload's length goes, and where the payload starts.
+    length_at: usize,
 }
 
 impl SnapshotWriter {
-    /// An empty payload.
-    pub fn new() -> Self {
-        Self::default()
+    /// A snapshot of a `family` stream of the model `model`, its buffer sized for about
+    /// `payload_hint` bytes of fields.
+    pub fn new(family: &str, model: &[u8; MODEL_ID_BYTES], payload_hint: usize) -> Self {
+        // Family names are the crate's own constants.
+        debug_assert!(family.len() <= MAX_FAMILY_BYTES, "family name too long");
+        let mut bytes = Vec::with_capacity(64 + family.len() + payload_hint);
+        bytes.extend_from_slice(&MAGIC);
+        bytes.extend_from_slice(&FORMAT_VERSION.to_le_bytes());
+        bytes.extend_from_slice(&(family.len() as u32).to_le_bytes());
+        bytes.extend_from_slice(family.as_bytes());
+        bytes.extend_from_slice(model);
+        let length_at = bytes.len();
+        bytes.extend_from_slice(&0u64.to_le_bytes());
+        Self { bytes, length_at }
     }
 
     /// Appends a `u32`.
     pub fn u32(&mut self, v: u32) -> &mut Self {
-        self.payload.extend_from_slice(&v.to_le_bytes());
+        self.bytes.extend_from_slice(&v.to_le_bytes());
         self
     }
 
     /// Appends a `u64`.
     pub fn u64(&mut self, v: u64) -> &mut Self {
-        self.payload.extend_from_slice(&v.to_le_bytes());
+        self.bytes.extend_from_slice(&v.to_le_bytes());
         self
     }
 
@@ -79,16 +92,30 @@ impl SnapshotWriter {
 
     /// Appends a flag.
     pub fn bool(&mut self, v: bool) -> &mut Self {
-        self.payload.push(u8::from(v));
+        self.bytes.push(u8::from(v));
         self
     }
 
     /// Appends a length-prefixed run of `f32`s, bit for bit.
     pub fn f32s(&mut self, v: &[f32]) -> &mut Self {
         self.u64(v.len() as u64);
-        self.payload.reserve(v.len() * 4);
+        self.f32s_raw(v)
+    }
+
+    /// Appends `f32`s bit for bit, without a length (the reader knows it).
+    pub fn f32s_raw(&mut self, v: &[f32]) -> &mut Self {
+        #[cfg(target_endian = "little")]
+        {
+            // SAFETY: an f32 is 4 initialised bytes without padding; on a little-endian target
+            // its bytes in memory are its little-endian encoding. A memory copy, not a loop.
+            let bytes = unsafe {
+                std::slice::from_raw_parts(v.as_ptr().cast::<u8>(), std::mem::size_of_val(v))
+            };
+            self.bytes.extend_from_slice(bytes);
+        }
+        #[cfg(not(target_endian = "little"))]
         for x in v {
-            self.payload.extend_from_slice(&x.to_bits().to_le_bytes());
+            self.bytes.extend_from_slice(&x.to_bits().to_le_bytes());
         }
         self
     }
@@ -105,24 +132,17 @@ impl SnapshotWriter {
     /// Appends a length-prefixed UTF-8 string.
     pub fn str(&mut self, v: &str) -> &mut Self {
         self.u64(v.len() as u64);
-        self.payload.extend_from_slice(v.as_bytes());
+        self.bytes.extend_from_slice(v.as_bytes());
         self
     }
 
     /// The snapshot: header, payload, checksum.
-    pub fn finish(&self, family: &str, model: &[u8; MODEL_ID_BYTES]) -> Vec<u8> {
-        assert!(family.len() <= MAX_FAMILY_BYTES, "family name too long");
-        let mut out = Vec::with_capacity(64 + family.len() + self.payload.len());
-        out.extend_from_slice(&MAGIC);
-        out.extend_from_slice(&FORMAT_VERSION.to_le_bytes());
-        out.extend_from_slice(&(family.len() as u32).to_le_bytes());
-        out.extend_from_slice(family.as_bytes());
-        out.extend_from_slice(model);
-        out.extend_from_slice(&(self.payload.len() as u64).to_le_bytes());
-        out.extend_from_slice(&self.payload);
-        let crc = crc32fast::hash(&out);
-        out.extend_from_slice(&crc.to_le_bytes());
-        out
+    pub fn finish(mut self) -> Vec<u8> {
+        let payload = (self.bytes.len() - self.length_at - 8) as u64;
+        self.bytes[self.length_at..self.length_at + 8].copy_from_slice(&payload.to_le_bytes());
+        let crc = crc32fast::hash(&self.bytes);
+        self.bytes.extend_from_slice(&crc.to_le_bytes());
+        self.bytes
     }
 }
 
@@ -142,6 +162,21 @@ fn take<'a>(bytes: &mut &'a [u8], n: usize, what: &str) -> Result<&'a [u8]> {
     let (head, tail) = bytes.split_at(n);
     *bytes = tail;
     Ok(head)
+}
+
+/// Decodes little-endian `f32`s from `bytes` (`4 * dst.len()` of them) into `dst`.
+fn floats_from(bytes: &[u8], dst: &mut [f32]) {
+    #[cfg(target_endian = "little")]
+    {
+        let n = bytes.len().min(std::mem::size_of_val(dst));
+        // SAFETY: `n` bytes fit in both, any 4 bytes are a valid f32, and the two do not overlap
+        // (one is the snapshot, the other a buffer of the caller's). A memory copy, not a loop.
+        unsafe { std::ptr::copy_nonoverlapping(bytes.as_ptr(), dst.as_mut_ptr().cast::<u8>(), n) };
+    }
+    #[cfg(not(target_endian = "little"))]
+    for (x, c) in dst.iter_mut().zip(bytes.chunks_exact(4)) {
+        *x = f32::from_bits(u32_of(c));
+    }
 }
 
 fn u32_of(b: &[u8]) -> u32 {
@@ -243,11 +278,28 @@ impl<'a> SnapshotReader<'a> {
 
     /// Reads a run of `f32`s of at most `max` values (checked before anything is allocated).
     pub fn f32s(&mut self, what: &str, max: usize) -> Result<Vec<f32>> {
-        Ok(self
-            .run(what, max, 4)?
-            .chunks_exact(4)
-            .map(|c| f32::from_bits(u32_of(c)))
-            .collect())
+        let bytes = self.run(what, max, 4)?;
+        let mut v = vec![0f32; bytes.len() / 4];
+        floats_from(bytes, &mut v);
+        Ok(v)
+    }
+
+    /// Fails unless at least `n` bytes are left (before allocating what they will fill).
+    pub fn expect_bytes(&self, what: &str, n: usize) -> Result<()> {
+        if self.rest.len() < n {
+            return Err(bad(format!(
+                "truncated: {what} needs {n} bytes, {} left",
+                self.rest.len()
+            )));
+        }
+        Ok(())
+    }
+
+    /// Reads exactly `dst.len()` `f32`s written by [`SnapshotWriter::f32s_raw`] into `dst`.
+    pub fn f32s_into(&mut self, what: &str, dst: &mut [f32]) -> Result<()> {
+        let bytes = take(&mut self.rest, dst.len() * 4, what)?;
+        floats_from(bytes, dst);
+        Ok(())
     }
 
     /// Reads a run of exactly `n` `f32`s ([`SnapshotReader::f32s`] then the count checked).
@@ -312,7 +364,7 @@ mod tests {
     const MODEL: [u8; MODEL_ID_BYTES] = [7; MODEL_ID_BYTES];
 
     fn sample() -> Vec<u8> {
-        let mut w = SnapshotWriter::new();
+        let mut w = SnapshotWriter::new("armflow", &MODEL, 0);
         w.u32(3)
             .u64(u64::MAX)
             .f32(-0.0)
@@ -321,7 +373,7 @@ mod tests {
             .f32s(&[1.5, f32::INFINITY, -2.0])
             .f64s(&[0.25])
             .str("mirror");
-        w.finish("armflow", &MODEL)
+        w.finish()
     }
 
     #[test]
@@ -379,9 +431,9 @@ mod tests {
     #[test]
     fn absurd_lengths_are_refused_before_allocating() {
         // A well-framed snapshot whose one field claims 2^61 floats.
-        let mut w = SnapshotWriter::new();
+        let mut w = SnapshotWriter::new("armflow", &MODEL, 8);
         w.u64(1 << 61);
-        let bytes = w.finish("armflow", &MODEL);
+        let bytes = w.finish();
         let mut r = SnapshotReader::open(&bytes, "armflow", &MODEL).unwrap();
         let e = r.f32s("cache", usize::MAX).err().unwrap();
         assert!(e.to_string().contains("truncated"), "{e}");

@@ -29,7 +29,7 @@ pub(crate) const FAMILY: &str = "armflow";
 impl Reactor {
     /// The reactor's snapshot (`Session::snapshot`).
     pub(crate) fn snapshot(&self) -> Result<Vec<u8>> {
-        let mut w = SnapshotWriter::new();
+        let mut w = SnapshotWriter::new(FAMILY, &self.nets.io.identity(), self.memory_bytes());
         let s = &self.settings;
         w.u64(s.seed).u32(s.steps).f32(s.cfg_scale);
         w.bool(s.condition.is_some());
@@ -58,7 +58,7 @@ impl Reactor {
             joints.save(&mut w);
         }
         self.state.save(&mut w)?;
-        Ok(w.finish(FAMILY, &self.nets.io.identity()))
+        Ok(w.finish())
     }
 
     /// The reactor a snapshot's payload holds, over `nets` (the model the snapshot was checked
