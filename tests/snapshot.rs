@@ -62,45 +62,24 @@ fn run(session: &mut Session, actor: &Array2<f32>, from: usize, sizes: &[usize])
     out
 }
 
-/// Streams `actor` whole, then again cut at every frame of `cuts`: saved there, restored on
-/// `other` (a second load of the model), the saved session dropped, and continued. The frames
-/// out must be the uninterrupted stream's, bit for bit.
-fn check_cuts(model: &Model, other: &Model, options: &ReactorOptions, cuts: &[usize]) {
-    let actor = common::actor();
-    let open = || {
-        let mut s: Reactor = model.armflow().unwrap().reactor(options.clone()).unwrap();
-        // Two tokens of queued noise, the rest seeded: the queue is part of the state.
-        for k in 0..2 {
-            let v = |o: f32| {
-                (0..model.latent_dim())
-                    .map(|i| ((i + k) as f32 * o).sin())
-                    .collect()
-            };
-            s.queue_noise(TokenNoise {
-                actor: v(0.3),
-                reactor: v(0.9),
-            })
-            .unwrap();
-        }
-        Session::from(s)
-    };
+/// Streams `frames` whole (chunks of `sizes`, cycled), then again cut at every frame of `cuts`:
+/// saved there, restored on `other` (a second load of the model), the saved session dropped,
+/// and continued. The frames out must be the uninterrupted stream's, bit for bit, and the
+/// restored session must save to the same bytes.
+fn check_cuts(open: impl Fn() -> Session, other: &Model, frames: &Array2<f32>, cuts: &[usize]) {
     let sizes = [3, 1, 4, 9];
-    let whole = run(&mut open(), &actor, 0, &sizes);
+    let whole = run(&mut open(), frames, 0, &sizes);
+    assert!(!whole.is_empty());
     for &cut in cuts {
         let mut first = open();
-        let mut got = run(
-            &mut first,
-            &actor.slice(s![..cut, ..]).to_owned(),
-            0,
-            &sizes,
-        );
+        let head = frames.slice(s![..cut, ..]).to_owned();
+        let mut got = run(&mut first, &head, 0, &sizes);
         let snapshot = first.snapshot().unwrap();
         drop(first);
         let mut second = other.restore(&snapshot).unwrap();
         assert_eq!(second.frames_received(), cut as u64);
-        // The restored session saves to the same bytes.
         assert_eq!(second.snapshot().unwrap(), snapshot, "cut at frame {cut}");
-        got.extend(run(&mut second, &actor, cut, &[5, 2]));
+        got.extend(run(&mut second, frames, cut, &[5, 2]));
         assert!(
             got == whole,
             "cut at frame {cut}: the continued stream differs"
@@ -108,26 +87,84 @@ fn check_cuts(model: &Model, other: &Model, options: &ReactorOptions, cuts: &[us
     }
 }
 
+/// A crowd of three streams (`open(seed)`) stepped together to frame `split`, saved, restored on
+/// `other`, and stepped together to the end: the same frames as the crowd never stopped.
+/// Returns a snapshot of the first stream, for further checks.
+fn check_crowd(
+    open: impl Fn(u64) -> Session,
+    other: &Model,
+    frames: &Array2<f32>,
+    split: usize,
+) -> Vec<u8> {
+    let step_all = |crowd: &mut Vec<Session>, a: usize, b: usize| -> Vec<Vec<u32>> {
+        let chunk: Vec<f32> = frames.slice(s![a..b, ..]).iter().copied().collect();
+        let chunks = vec![chunk.as_slice(); crowd.len()];
+        let mut refs: Vec<&mut Session> = crowd.iter_mut().collect();
+        step_sessions(&mut refs, &chunks)
+            .unwrap()
+            .iter()
+            .map(|o| bits(&o.frames))
+            .collect()
+    };
+    let mut crowd: Vec<Session> = (0..3).map(open).collect();
+    step_all(&mut crowd, 0, split);
+    let mut restored: Vec<Session> = crowd
+        .iter()
+        .map(|s| other.restore(&s.snapshot().unwrap()).unwrap())
+        .collect();
+    let n = frames.nrows();
+    assert_eq!(
+        step_all(&mut restored, split, n),
+        step_all(&mut crowd, split, n)
+    );
+    crowd[0].snapshot().unwrap()
+}
+
+/// A reactor with `options` and two tokens of queued noise (the rest seeded: the queue is
+/// part of the state).
+fn reactor(model: &Model, options: &ReactorOptions) -> Session {
+    let mut s: Reactor = model.armflow().unwrap().reactor(options.clone()).unwrap();
+    for k in 0..2 {
+        let v = |o: f32| {
+            (0..model.latent_dim())
+                .map(|i| ((i + k) as f32 * o).sin())
+                .collect()
+        };
+        s.queue_noise(TokenNoise {
+            actor: v(0.3),
+            reactor: v(0.9),
+        })
+        .unwrap();
+    }
+    Session::from(s)
+}
+
 #[test]
 fn a_stream_restored_at_any_token_continues_bit_for_bit() {
     let (model, other) = (common::model(), load("armflow-tiny"));
     assert_eq!(model.identity(), other.identity());
     let cuts = [0, 1, 3, 4, 5, 8, 13, 20, 21, 47, 64, 101, 160, 191];
-    for windows in [false, true] {
-        check_cuts(model, &other, &busy_options(model, windows), &cuts);
+    let actor = common::actor();
+    for options in [
+        busy_options(model, false),
+        busy_options(model, true),
+        common::default_options(),
+    ] {
+        check_cuts(|| reactor(model, &options), &other, &actor, &cuts);
     }
-    check_cuts(model, &other, &common::default_options(), &cuts);
 }
 
 #[test]
 fn the_demo_model_restores_bit_for_bit() {
     // Its own graphs (prompts-free, with contact labels) and a larger cache.
     let (model, other) = (load("armflow-demo"), load("armflow-demo"));
+    let options = busy_options(&model, false);
+    let cuts = [0, 6, 33, 100, 190];
     check_cuts(
-        &model,
+        || reactor(&model, &options),
         &other,
-        &busy_options(&model, false),
-        &[0, 6, 33, 100, 190],
+        &common::actor(),
+        &cuts,
     );
 }
 
@@ -237,25 +274,9 @@ fn a_joint_stream_with_its_foot_lock_restores_bit_for_bit() {
 /// Rewrites a snapshot's checksum after an edit, so the edit reaches the payload's checks.
 fn reframed(mut bytes: Vec<u8>) -> Vec<u8> {
     let n = bytes.len() - 4;
-    let crc = crc32(&bytes[..n]);
+    let crc = crc32fast::hash(&bytes[..n]);
     bytes[n..].copy_from_slice(&crc.to_le_bytes());
     bytes
-}
-
-/// CRC-32 (IEEE), bit by bit: the test's own, independent of the library's.
-fn crc32(bytes: &[u8]) -> u32 {
-    let mut crc = !0u32;
-    for &b in bytes {
-        crc ^= u32::from(b);
-        for _ in 0..8 {
-            crc = if crc & 1 != 0 {
-                (crc >> 1) ^ 0xEDB8_8320
-            } else {
-                crc >> 1
-            };
-        }
-    }
-    !crc
 }
 
 fn refused(model: &Model, bytes: &[u8]) -> String {
@@ -274,7 +295,7 @@ fn hostile_snapshots_are_refused_with_a_clear_error() {
     let good = session.snapshot().unwrap();
     assert!(model.restore(&good).is_ok());
     assert_eq!(
-        crc32(&good[..good.len() - 4]).to_le_bytes(),
+        crc32fast::hash(&good[..good.len() - 4]).to_le_bytes(),
         good[good.len() - 4..]
     );
 
@@ -391,46 +412,16 @@ fn an_arflow_online_stream_restores_bit_for_bit() {
         s
     };
     let frames = actor.nrows();
-    let whole = run(&mut open(1), &actor, 0, &[3, 1, 5]);
-    for cut in [0, 1, 2, 3, 9, frames / 2, frames - 1] {
-        let mut first = open(1);
-        let mut got = run(
-            &mut first,
-            &actor.slice(s![..cut, ..]).to_owned(),
-            0,
-            &[3, 1, 5],
-        );
-        let snapshot = first.snapshot().unwrap();
-        let mut second = other.restore(&snapshot).unwrap();
-        assert_eq!(second.snapshot().unwrap(), snapshot);
-        got.extend(run(&mut second, &actor, cut, &[2]));
-        assert!(got == whole, "cut at frame {cut}");
-    }
-    // A crowd of restored streams stepped together equals the crowd never stopped.
-    let mut crowd: Vec<Session> = (0..3).map(open).collect();
-    let step_all = |crowd: &mut Vec<Session>, a: usize, b: usize| -> Vec<Vec<u32>> {
-        let chunk: Vec<f32> = actor.slice(s![a..b, ..]).iter().copied().collect();
-        let chunks = vec![chunk.as_slice(); crowd.len()];
-        let mut refs: Vec<&mut Session> = crowd.iter_mut().collect();
-        step_sessions(&mut refs, &chunks)
-            .unwrap()
-            .iter()
-            .map(|o| bits(&o.frames))
-            .collect()
-    };
-    step_all(&mut crowd, 0, 5);
-    let mut restored: Vec<Session> = crowd
-        .iter()
-        .map(|s| other.restore(&s.snapshot().unwrap()).unwrap())
-        .collect();
-    assert_eq!(step_all(&mut restored, 5, 12), step_all(&mut crowd, 5, 12));
-    survives_lies(
-        &model,
-        &crowd[0].snapshot().unwrap(),
-        &actor.slice(s![12..14, ..]).to_owned(),
+    check_cuts(
+        || open(1),
+        &other,
+        &actor,
+        &[0, 1, 2, 3, 9, frames / 2, frames - 1],
     );
+    let saved = check_crowd(open, &other, &actor, 5);
+    survives_lies(&model, &saved, &actor.slice(s![12..14, ..]).to_owned());
     // Not onto another family, nor another family's snapshot onto it.
-    let e = refused(common::model(), &crowd[0].snapshot().unwrap());
+    let e = refused(common::model(), &saved);
     assert!(e.contains("`arflow` stream"), "{e}");
 }
 
@@ -465,45 +456,9 @@ fn a_magnet_live_partner_restores_bit_for_bit() {
             s
         };
         let n = user.nrows();
-        let whole = run(&mut open(3), &user, 0, &[7, 2]);
-        assert!(!whole.is_empty());
-        for cut in [0, 1, 30, 64, 65, 99, n - 1] {
-            let mut first = open(3);
-            let mut got = run(
-                &mut first,
-                &user.slice(s![..cut, ..]).to_owned(),
-                0,
-                &[7, 2],
-            );
-            let snapshot = first.snapshot().unwrap();
-            let mut second = other.restore(&snapshot).unwrap();
-            assert_eq!(second.snapshot().unwrap(), snapshot, "{case} at {cut}");
-            got.extend(run(&mut second, &user, cut, &[5]));
-            assert!(got == whole, "{case}: cut at frame {cut}");
-        }
-        // A crowd restored mid-stream steps together as the crowd never stopped.
-        let mut crowd: Vec<Session> = (0..3).map(open).collect();
-        let step_all = |crowd: &mut Vec<Session>, a: usize, b: usize| -> Vec<Vec<u32>> {
-            let chunk: Vec<f32> = user.slice(s![a..b, ..]).iter().copied().collect();
-            let chunks = vec![chunk.as_slice(); crowd.len()];
-            let mut refs: Vec<&mut Session> = crowd.iter_mut().collect();
-            step_sessions(&mut refs, &chunks)
-                .unwrap()
-                .iter()
-                .map(|o| bits(&o.frames))
-                .collect()
-        };
-        step_all(&mut crowd, 0, 70);
-        let mut restored: Vec<Session> = crowd
-            .iter()
-            .map(|s| other.restore(&s.snapshot().unwrap()).unwrap())
-            .collect();
-        assert_eq!(step_all(&mut restored, 70, n), step_all(&mut crowd, 70, n));
+        check_cuts(|| open(3), &other, &user, &[0, 1, 30, 64, 65, 99, n - 1]);
+        let saved = check_crowd(open, &other, &user, 70);
         // Checksummed lies in its payload (the configuration's JSON among them).
-        survives_lies(
-            &model,
-            &crowd[0].snapshot().unwrap(),
-            &user.slice(s![..9, ..]).to_owned(),
-        );
+        survives_lies(&model, &saved, &user.slice(s![..9, ..]).to_owned());
     }
 }

@@ -452,7 +452,7 @@ pub fn session_snapshot(data: &[u8]) {
         }
         if bytes.u8() % 2 == 0 && snapshot.len() >= 4 {
             let n = snapshot.len() - 4;
-            let crc = crc32(&snapshot[..n]);
+            let crc = crc32fast::hash(&snapshot[..n]);
             snapshot[n..].copy_from_slice(&crc.to_le_bytes());
         }
         snapshot
@@ -461,22 +461,6 @@ pub fn session_snapshot(data: &[u8]) {
         step_arbitrarily(&mut restored, &mut Bytes(&[4, 0, 9, 0]), 9);
         restored.snapshot().expect("a restored session saves");
     }
-}
-
-/// CRC-32 (IEEE), bit by bit, to make an edited snapshot's checksum agree.
-fn crc32(bytes: &[u8]) -> u32 {
-    let mut crc = !0u32;
-    for &b in bytes {
-        crc ^= u32::from(b);
-        for _ in 0..8 {
-            crc = if crc & 1 != 0 {
-                (crc >> 1) ^ 0xEDB8_8320
-            } else {
-                crc >> 1
-            };
-        }
-    }
-    !crc
 }
 
 /// Any bytes as a rig (a rig JSON document, or a BVH hierarchy): whatever is accepted retargets
