@@ -1,10 +1,11 @@
 #!/usr/bin/env bash
 # The project's test command: on a machine with only the Rust toolchain, a C compiler and a bare
 # python3, it installs what the suite needs (a project-local virtual environment for the Python
-# tests, Debian's chromium for the picture tests, valgrind for the C memory check, cmake for the
-# installed package's consumer, Mono for the C# binding, the Windows and arm64 cross toolchains
-# with Wine and qemu-user, Node.js with gltf-validator and three.js, Blender's bpy, the wasm32
-# target with wasm-bindgen-cli for the web page) and runs every
+# tests, Ray and websockets for the serving tests among them; Debian's chromium for the picture
+# tests, valgrind for the C memory check, cmake for the installed package's consumer, Mono for
+# the C# binding, the Windows and arm64 cross toolchains with Wine and qemu-user, Node.js with
+# gltf-validator and three.js, Blender's bpy, the wasm32 target with wasm-bindgen-cli for the web
+# page) and runs every
 # check CI runs. It ends with the count of checks the tests skipped, and why (torch-dependent
 # ones are optional; see tests/common/mod.rs, `skip`).
 #

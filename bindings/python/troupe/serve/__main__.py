@@ -1,0 +1,51 @@
+"""`python -m troupe.serve`: the gateway of a Ray cluster's troupe service (docs/SERVING.md).
+
+    ray start --head                                   # on the head node
+    ray start --address HEAD:6379                      # on each worker node
+    python -m troupe.serve --bundle /models/armflow-demo --address auto --workers 8 --port 8765
+
+Every node needs troupe installed and the bundle at the same path (or `--bundle` on a shared
+file system).
+"""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import logging
+
+
+def main(argv: list[str] | None = None) -> None:
+    ap = argparse.ArgumentParser(prog="python -m troupe.serve", description=__doc__,
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--bundle", required=True, help="the model's bundle folder, at this path on every node")
+    ap.add_argument("--address", default="auto", help="the Ray cluster (ray.init's address)")
+    ap.add_argument("--workers", type=int, default=2, help="worker actors (one model and one crowd each)")
+    ap.add_argument("--cpus-per-worker", type=float, default=1.0)
+    ap.add_argument("--max-streams-per-worker", type=int, help="refuse new streams beyond this many per worker")
+    ap.add_argument("--snapshot-every", type=int, default=8, help="tokens between a stream's snapshots")
+    ap.add_argument("--snapshot-dir", help="keep snapshots in this folder instead of Ray's object store")
+    ap.add_argument("--host", default="127.0.0.1")
+    ap.add_argument("--port", type=int, default=8765)
+    args = ap.parse_args(argv)
+    logging.basicConfig(level=logging.INFO, format="%(asctime)s %(name)s %(levelname)s %(message)s")
+
+    import ray
+
+    from .gateway import Gateway
+
+    ray.init(address=args.address)
+    gateway = Gateway(args.bundle, workers=args.workers, snapshot_every=args.snapshot_every,
+                      snapshot_dir=args.snapshot_dir, worker_options={"num_cpus": args.cpus_per_worker},
+                      max_streams_per_worker=args.max_streams_per_worker)
+
+    async def run() -> None:
+        await gateway.start()
+        logging.getLogger("troupe.serve").info("serving %s on ws://%s:%d", args.bundle, args.host, args.port)
+        await gateway.serve(args.host, args.port)
+
+    asyncio.run(run())
+
+
+if __name__ == "__main__":
+    main()

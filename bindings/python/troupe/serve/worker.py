@@ -1,0 +1,197 @@
+"""A stream worker: one Ray actor holding one loaded model and a crowd of sessions.
+
+Calls to `step` from many streams are gathered for a moment and advanced together with one
+`troupe.step_sessions` call (the weights are read once per token for the whole crowd), on a
+thread so that the actor keeps taking calls meanwhile. Every `snapshot_every` tokens a stream's
+result carries its snapshot, which the gateway keeps where a dead worker cannot take it along.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import os
+import time
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+import troupe
+
+# What a client may set on its stream; everything else is refused.
+SESSION_OPTIONS = ("seed", "steps", "cfg", "capacity", "condition")
+SETTERS = {"penetration_guard": "set_penetration_guard", "root_smoothing": "set_root_smoothing"}
+
+
+def check_options(options: Any) -> dict:
+    """The stream options a client sent, checked for shape (the session checks the values)."""
+    if not isinstance(options, dict):
+        raise ValueError("options are a JSON object")
+    unknown = set(options) - set(SESSION_OPTIONS) - set(SETTERS)
+    if unknown:
+        raise ValueError(f"unknown stream options {sorted(unknown)}; known: {sorted(SESSION_OPTIONS + tuple(SETTERS))}")
+    for name in ("seed", "steps", "capacity"):
+        if name in options and (not isinstance(options[name], int) or isinstance(options[name], bool)):
+            raise ValueError(f"{name} is an integer")
+    if "cfg" in options and not isinstance(options["cfg"], (int, float)):
+        raise ValueError("cfg is a number")
+    if "condition" in options and not isinstance(options["condition"], (str, list)):
+        raise ValueError("condition is a label or a list of numbers")
+    for name in SETTERS:
+        if name in options and not isinstance(options[name], (bool, dict)):
+            raise ValueError(f"{name} is true, false or an object of its settings")
+    return options
+
+
+def new_session(model: troupe.Model, options: dict) -> troupe.Session:
+    session = model.session(**{k: options[k] for k in SESSION_OPTIONS if k in options})
+    try:
+        for name, setter in SETTERS.items():
+            value = options.get(name)
+            if value:
+                getattr(session, setter)(**(value if isinstance(value, dict) else {}))
+    except BaseException:
+        session.close()
+        raise
+    return session
+
+
+@dataclass
+class _Stream:
+    session: troupe.Session
+    tokens: int  # tokens stepped so far: the index the next step must carry
+
+
+@dataclass
+class _Pending:
+    stream: str
+    token: int
+    frames: np.ndarray
+    done: asyncio.Future = field(repr=False)
+
+
+class StreamWorker:
+    """The actor class (wrap it with `ray.remote`, as `Gateway` does). Its methods are
+    coroutines: Ray runs them on one event loop, so the crowd's state needs no lock."""
+
+    def __init__(self, bundle: str, snapshot_every: int = 8, gather_s: float = 0.002,
+                 compute_threads: int | None = None):
+        if snapshot_every < 1:
+            raise ValueError("snapshot_every is at least 1")
+        if compute_threads:
+            troupe.set_compute_threads(compute_threads)
+        self.model = troupe.Model(bundle)
+        self.snapshot_every = snapshot_every
+        self.gather_s = gather_s
+        self.streams: dict[str, _Stream] = {}
+        self.pending: list[_Pending] = []
+        self.wake = asyncio.Event()
+        self.runner: asyncio.Task | None = None
+        # One thread: steps are serialised (a crowd step already uses the compute threads).
+        self.pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="troupe-crowd")
+        self.ticks = 0
+        self.stepped = 0
+
+    async def describe(self) -> dict:
+        """Where the worker runs and what it holds (the gateway's health check and placement)."""
+        import ray
+
+        return {
+            "pid": os.getpid(),
+            "node": ray.get_runtime_context().get_node_id(),
+            "streams": len(self.streams),
+            "identity": self.model.identity.hex(),
+            "frame_dim": self.model.frame_dim,
+            "frames_per_token": self.model.frames_per_token,
+            "ticks": self.ticks,
+            "tokens": self.stepped,
+        }
+
+    async def open(self, stream: str, options: dict) -> bytes:
+        """Starts a stream; returns its snapshot at token 0 (the first recovery point)."""
+        if stream in self.streams:
+            raise ValueError(f"stream {stream} is already open here")
+        session = new_session(self.model, check_options(options))
+        self.streams[stream] = _Stream(session, 0)
+        return session.snapshot()
+
+    async def restore(self, stream: str, snapshot: bytes, tokens: int) -> None:
+        """Takes over a stream from its snapshot, saved after `tokens` tokens."""
+        old = self.streams.pop(stream, None)
+        if old is not None:
+            old.session.close()
+        self.streams[stream] = _Stream(self.model.restore(snapshot), tokens)
+
+    async def close(self, stream: str) -> None:
+        entry = self.streams.pop(stream, None)
+        if entry is not None:
+            entry.session.close()
+
+    async def step(self, stream: str, token: int, frames: np.ndarray) -> tuple[np.ndarray, bytes | None, float]:
+        """Token `token` of `stream`: its reactor frames, the stream's snapshot after it when a
+        snapshot is due (else None), and the seconds the crowd step took."""
+        entry = self.streams.get(stream)
+        if entry is None:
+            raise KeyError(f"stream {stream} is not open on this worker")
+        if token != entry.tokens + sum(p.stream == stream for p in self.pending):
+            raise ValueError(f"stream {stream}: token {token} out of order (next is {entry.tokens})")
+        frames = np.asarray(frames, np.float32)
+        if frames.ndim != 2 or frames.shape[1] != self.model.frame_dim or not np.isfinite(frames).all():
+            raise ValueError(f"a token's frames are finite float32 [n, {self.model.frame_dim}]")
+        done = asyncio.get_running_loop().create_future()
+        self.pending.append(_Pending(stream, token, frames, done))
+        self.wake.set()
+        if self.runner is None or self.runner.done():
+            self.runner = asyncio.create_task(self._run())
+        return await done
+
+    async def _run(self) -> None:
+        loop = asyncio.get_running_loop()
+        while True:
+            await self.wake.wait()
+            self.wake.clear()
+            await asyncio.sleep(self.gather_s)  # let the other streams of this tick arrive
+            while self.pending:
+                batch: list[_Pending] = []
+                rest: list[_Pending] = []
+                seen: set[str] = set()
+                for p in self.pending:  # one token per stream per crowd step, in order
+                    (rest if p.stream in seen else batch).append(p)
+                    seen.add(p.stream)
+                self.pending = rest
+                batch = [p for p in batch if p.stream in self.streams and not p.done.cancelled()]
+                if not batch:
+                    continue
+                try:
+                    results = await loop.run_in_executor(self.pool, self._step, batch)
+                except Exception:
+                    # The crowd step changed no session; one stream's fault must not fail the
+                    # others, so each steps alone and hears only its own error.
+                    for p in batch:
+                        try:
+                            result = await loop.run_in_executor(self.pool, self._step, [p])
+                        except Exception as e:
+                            if not p.done.done():
+                                p.done.set_exception(e)
+                        else:
+                            if not p.done.done():
+                                p.done.set_result(result[0])
+                    continue
+                for p, result in zip(batch, results):
+                    if not p.done.done():
+                        p.done.set_result(result)
+
+    def _step(self, batch: list[_Pending]) -> list[tuple[np.ndarray, bytes | None, float]]:
+        entries = [self.streams[p.stream] for p in batch]
+        start = time.perf_counter()
+        outs = troupe.step_sessions([e.session for e in entries], [p.frames for p in batch])
+        seconds = time.perf_counter() - start
+        self.ticks += 1
+        self.stepped += len(batch)
+        results = []
+        for entry, out in zip(entries, outs):
+            entry.tokens += 1
+            due = entry.tokens % self.snapshot_every == 0
+            results.append((out.copy(), entry.session.snapshot() if due else None, seconds))
+        return results
