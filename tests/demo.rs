@@ -8,8 +8,10 @@
 //! standing still is, the condition must select the rule (the reactor is far nearer its own
 //! rule's partner than the other rules'), and in the HTML player rendered by headless Chromium
 //! the reactor's pixels must be where the rule's partner stands. Mirror and follow are held to
-//! it; keep-away is not: the committed model has not learnt that rule (it stands about 1 m from
-//! the actor instead of 2 m; `docs/DEMO.md`), and it is only checked to be drawn as streamed.
+//! it (the committed model, recipe v2, is 20-24 cm from their partners on this clip against
+//! 141-286 cm standing still); keep-away is not: the committed model has not learnt that rule
+//! (on this clip it is further from the rule's partner than standing still is; `docs/DEMO.md`),
+//! and it is only checked to be drawn as streamed.
 
 mod common;
 
@@ -139,14 +141,14 @@ fn each_learnt_rule_is_what_the_reactor_does() {
             continue;
         }
         assert!(
-            error < 0.65 * baseline,
+            error < 0.3 * baseline,
             "{rule}: the reactor is {error:.1} cm from the rule's partner, a partner standing still {baseline:.1} cm"
         );
         for other in RULES.iter().filter(|o| **o != rule) {
             let off = mpjpe_cm(out.view(), partner(other).view());
             println!("{rule}: {off:.1} cm from the {other} partner");
             assert!(
-                error < 0.6 * off,
+                error < 0.35 * off,
                 "{rule}: the reactor is {off:.1} cm from the {other} partner, {error:.1} cm from its own: \
                  the condition does not select the rule"
             );
@@ -223,7 +225,7 @@ fn the_player_shows_the_partner_where_the_rule_puts_it() {
             "{rule}: the reactor's pixels are {off:.0} px from where the rule's partner projects"
         );
         assert!(
-            off < 60.0,
+            off < 45.0,
             "{rule}: the reactor is drawn {off:.0} px from where the rule's partner stands"
         );
     }

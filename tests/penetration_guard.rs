@@ -1,7 +1,9 @@
 //! The penetration guard of ARMFlow streams on the trained demo model and real motion capture
 //! (`tests/data/mocap/cmu-playground.features.npy`): with the guard the reactor passes through
-//! the actor less often and less deep, never moves faster than the guard's speed limit, keeps
-//! its body's shape; off, nothing changes; a crowd with the guard equals each stream alone.
+//! the actor less often and less deep (keep-away, the rule whose partner still walks into the
+//! actor here; the mirror partner keeps out by itself and the guard keeps it so), never moves
+//! faster than the guard's speed limit, keeps its body's shape; off, nothing changes; a crowd
+//! with the guard equals each stream alone.
 
 use std::path::PathBuf;
 
@@ -77,15 +79,22 @@ fn the_guard_pulls_the_reactor_out_without_jumps() {
             before.depth_sum,
             after.depth_sum
         );
-        assert!(
-            before.frames_intersecting > 0,
-            "{rule}: the demo should collide here"
-        );
-        assert!(
-            after.frames_intersecting < before.frames_intersecting,
-            "{rule}"
-        );
-        assert!(after.depth_sum < 0.5 * before.depth_sum, "{rule}");
+        if rule == "mirror" {
+            // The committed model's mirror partner (recipe v2) keeps out of the actor on this
+            // clip by itself; the guard must not push it in.
+            assert_eq!(before.frames_intersecting, 0, "{rule}: the model alone");
+            assert_eq!(after.frames_intersecting, 0, "{rule}: with the guard");
+        } else {
+            assert!(
+                before.frames_intersecting > 0,
+                "{rule}: the demo should collide here"
+            );
+            assert!(
+                after.frames_intersecting < before.frames_intersecting,
+                "{rule}"
+            );
+            assert!(after.depth_sum < 0.5 * before.depth_sum, "{rule}");
+        }
         // A rigid shift in the floor plane, at most `step` per frame: heights, rotations and
         // contacts as decoded; every joint shifted by the same offset.
         let mut previous = [0f64; 2];

@@ -15,17 +15,21 @@ use troupe::{Model, Reactor, ReactorOptions, TokenNoise, Weights};
 
 /// Largest differences the int8 demo may show against the float32 demo over the golden
 /// stream's 48 tokens, relative to the float32 values' largest magnitude. Measured on
-/// 2026-11-23: reactor latents 5.1e-2, frames 4.8e-2 (docs/PERFORMANCE.md, "Weights in int8");
-/// one token alone differs by about 0.7 %, and the stream feeds each token's error into the
-/// next one's context. The bounds leave about twice the measured values.
-const LATENT_TOL: f32 = 0.1;
-const FRAME_TOL: f32 = 0.1;
+/// 2026-11-28 with the recipe-v2 demo: reactor latents 2.0e-2, frames 1.8e-2 (the v1 demo:
+/// 5.1e-2 and 4.8e-2, docs/PERFORMANCE.md, "Weights in int8"); the stream feeds each token's
+/// error into the next one's context. The bounds leave about twice the measured values.
+const LATENT_TOL: f32 = 0.04;
+const FRAME_TOL: f32 = 0.04;
+
+/// An int8 session batched with others against itself alone (the activation scale is shared by
+/// the batch): frames 4.5e-2 measured on 2026-11-28 (recipe-v2 demo); about twice that.
+const BATCH_TOL: f32 = 0.1;
 
 /// The same for the float16 demo (every streaming graph's matrix-product weights in 16 bits,
-/// activations float32). Measured on 2026-11-26: actor latents 1.5e-4, reactor latents 5.1e-4,
-/// frames 7.9e-4 (docs/PERFORMANCE.md, "Weights in float16"). The bound leaves about
-/// twice the measured values.
-const FLOAT16_TOL: f32 = 2e-3;
+/// activations float32). Measured on 2026-11-28 with the recipe-v2 demo: actor latents 1.9e-4,
+/// reactor latents 4.1e-4, frames 5.8e-4 (the v1 demo: 1.5e-4, 5.1e-4, 7.9e-4;
+/// docs/PERFORMANCE.md, "Weights in float16"). The bound leaves about twice the measured values.
+const FLOAT16_TOL: f32 = 1.2e-3;
 
 fn bundle(name: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))
@@ -143,7 +147,7 @@ fn batched_against_alone(model: &Model) -> f32 {
 fn an_int8_session_in_a_batch_stays_within_the_int8_error_of_itself_alone() {
     let diff = batched_against_alone(&Model::load(bundle("armflow-demo-int8")).unwrap());
     println!("int8 demo, session 0 batched with 2 others vs alone: frames {diff:.2e}");
-    assert!(diff <= FRAME_TOL, "{diff}");
+    assert!(diff <= BATCH_TOL, "{diff}");
 }
 
 #[test]

@@ -723,8 +723,9 @@ def test_the_foot_lock_keeps_the_demo_partners_feet_still():
 
     clip = bundles.demo_clip()
     fmt = motion.JointsFormat(units="m", up="z", fps=120)
-    # The demo model's contact labels stay low (0 to 0.06): a threshold the labels cross.
-    threshold = 0.03
+    # The demo model (recipe v2) learnt its contact labels: the default threshold, as the demo
+    # runs it.
+    threshold = 0.5
     runs = {}
     with troupe.Model(bundles.demo()) as demo:
         for lock in (False, True):
@@ -734,15 +735,16 @@ def test_the_foot_lock_keeps_the_demo_partners_feet_still():
                 s.set_foot_lock(True, contact_threshold=threshold)
             runs[lock] = s.step_joints(clip)
         free, locked = runs[False], runs[True]
-        # The same motion and labels, the feet held where the labels say: the model's partner
-        # moves its body ~10 cm a frame, so a held foot is often let go (max_stretch), but while
-        # held it does not move at all.
+        # The same motion and labels, the feet held where the labels say: a held foot is let go
+        # when the body moves away from it (max_stretch), but while held it does not move at all.
+        # Measured on the committed model: 285 labelled ankle moves, 79 % of them held still,
+        # the mean slide 2.2 cm -> 0.7 cm.
         np.testing.assert_array_equal(free.contacts, locked.contacts)
         np.testing.assert_array_equal(free.positions[:, 0], locked.positions[:, 0])
         before = ankle_slides(free.positions, free.contacts, threshold)
         after = ankle_slides(locked.positions, locked.contacts, threshold)
-        assert len(before) > 40 and (before < 1e-4).mean() == 0.0
-        assert (after < 1e-4).mean() > 0.15 and after.mean() < 0.9 * before.mean(), (before.mean(), after.mean())
+        assert len(before) > 200 and (before < 1e-4).mean() == 0.0
+        assert (after < 1e-4).mean() > 0.6 and after.mean() < 0.5 * before.mean(), (before.mean(), after.mean())
         s = demo.session(seed=7)
         with pytest.raises(troupe.TroupeError, match="release_frames"):
             s.set_foot_lock(True, release_frames=0)

@@ -39,7 +39,7 @@ def path(name: str) -> Path:
 
 
 def demo() -> Path:
-    """The trained demo model (ARMFlow, 0.96 M parameters): a partner that answers an actor under
+    """The trained demo model (ARMFlow, 2.1 M parameters): a partner that answers an actor under
     the rules `mirror`, `follow` and `keep-away` (its condition labels)."""
     return path("armflow-demo")
 

@@ -23,7 +23,7 @@ import torch
 
 from troupe_onnx.armflow import export as armflow_export
 from troupe_onnx.demo import rules
-from troupe_onnx.demo.train import demo_config
+from troupe_onnx.demo.train import RECIPES, demo_config
 from troupe_onnx.motion.skeleton import REPO
 from troupe_onnx.shared.export import check_reexport
 
@@ -47,7 +47,8 @@ def manifest_extra(record: dict) -> dict:
 
 def export(checkpoint: Path, out: Path, golden: bool):
     record = torch.load(checkpoint, map_location="cpu", weights_only=True)["troupe_training"]
-    cfg = demo_config()
+    # The checkpoint's own recipe sizes the model; the first checkpoints (v1) did not record it.
+    cfg = demo_config(record["recipe"] if "model" in record["recipe"] else RECIPES["v1"])
     cfg.latent_scale = record["latent_scale"]
     extra = manifest_extra(record)
     model = armflow_export.export_bundle(NAME, out, checkpoint=checkpoint, config=cfg, manifest_extra=extra)
