@@ -126,6 +126,7 @@ fn wheel_installs_into_a_fresh_environment_and_passes_the_suite() {
     for file in [
         "troupe/libtroupe.so",
         "troupe/py.typed",
+        "troupe/serve/gateway.py",
         "troupe/data/bundles/armflow-demo/troupe.json",
         "troupe/data/cmu-playground-120fps.npy",
     ] {

@@ -14,6 +14,7 @@ from __future__ import annotations
 import asyncio
 import itertools
 import logging
+import os
 import time
 import uuid
 from dataclasses import dataclass, field
@@ -47,6 +48,9 @@ class WorkerSlot:
     pid: int = 0
     streams: set[str] = field(default_factory=set)
     alive: bool = True
+    # Tokens for this worker gathered during one window, sent as one call (`Gateway._submit`).
+    outbox: list[tuple[str, int, np.ndarray, asyncio.Future]] = field(default_factory=list)
+    flushing: bool = False
 
 
 @dataclass(eq=False)
@@ -88,7 +92,9 @@ class Gateway:
     def __init__(self, bundle: str, workers: int = 2, snapshot_every: int = 8, snapshot_dir: str | None = None,
                  worker_options: dict | None = None, step_timeout_s: float = 10.0,
                  max_streams_per_worker: int | None = None, detached_ttl_s: float = 30.0, gather_s: float = 0.002):
-        self.bundle = str(bundle)
+        # Absolute: workers run in Ray's own folders. On a real cluster the bundle must lie at
+        # this path on every node (a shared file system, or the same image everywhere).
+        self.bundle = os.path.abspath(bundle)
         self.initial_workers = workers
         self.snapshot_every = snapshot_every
         self.snapshots = DirectorySnapshots(snapshot_dir) if snapshot_dir else ObjectStoreSnapshots()
@@ -117,7 +123,8 @@ class Gateway:
         import ray
 
         remote: Any = ray.remote(StreamWorker).options(**(self.worker_options | options))
-        handle = remote.remote(self.bundle, self.snapshot_every, self.gather_s)
+        # The gateway already gathers a window per call: the worker only merges calls that meet.
+        handle = remote.remote(self.bundle, self.snapshot_every, self.gather_s / 4)
         about = await handle.describe.remote()
         if self.identity and about["identity"] != self.identity:
             ray.kill(handle, no_restart=True)
@@ -171,7 +178,7 @@ class Gateway:
                 await self._call(target, target.handle.restore.remote(st.id, self.snapshots.get(st.id),
                                                                       st.snapshot_tokens))
                 for i, frames in enumerate(st.log):
-                    await self._call(target, target.handle.step.remote(st.id, st.snapshot_tokens + i, frames))
+                    await self._submit(target, st.id, st.snapshot_tokens + i, frames)
                 break
             except self._failures as e:
                 self._worker_died(target, e)
@@ -186,6 +193,35 @@ class Gateway:
 
     async def _call(self, slot: WorkerSlot, ref: Any) -> Any:
         return await asyncio.wait_for(asyncio.wrap_future(ref.future()), self.step_timeout_s)
+
+    async def _submit(self, slot: WorkerSlot, stream: str, token: int, frames: np.ndarray) -> tuple:
+        """One token for `slot`, sent with the others that reach it within `gather_s` as one
+        call: a Ray call costs the gateway far more than a token's bytes, so a busy gateway
+        makes one per worker per window, not one per token."""
+        done = asyncio.get_running_loop().create_future()
+        slot.outbox.append((stream, token, frames, done))
+        if not slot.flushing:
+            slot.flushing = True
+            asyncio.get_running_loop().create_task(self._flush(slot))
+        return await done
+
+    async def _flush(self, slot: WorkerSlot) -> None:
+        await asyncio.sleep(self.gather_s)
+        batch, slot.outbox, slot.flushing = slot.outbox, [], False
+        try:
+            results = await self._call(slot, slot.handle.step_many.remote([b[:3] for b in batch]))
+        except BaseException as e:  # the worker failed (or the call did): every token hears it
+            for *_, done in batch:
+                if not done.done():
+                    done.set_exception(e)
+            return
+        for (*_, done), result in zip(batch, results):
+            if done.done():
+                continue
+            if isinstance(result, BaseException):
+                done.set_exception(result)
+            else:
+                done.set_result(result)
 
     # Streams ------------------------------------------------------------------------------
 
@@ -229,7 +265,7 @@ class Gateway:
                 await self._move(st, since)
             slot = st.worker
             try:
-                out, snapshot, _ = await self._call(slot, slot.handle.step.remote(st.id, token, frames))
+                out, snapshot, _ = await self._submit(slot, st.id, token, frames)
             except self._failures as e:
                 self._worker_died(slot, e)
                 await self._move(st, since)

@@ -146,6 +146,11 @@ class StreamWorker:
             self.runner = asyncio.create_task(self._run())
         return await done
 
+    async def step_many(self, tokens: list[tuple[str, int, np.ndarray]]) -> list:
+        """`step` for each (stream, token, frames), in one call; each entry of the result is what
+        `step` returns or the exception it raised for that token alone."""
+        return await asyncio.gather(*(self.step(*t) for t in tokens), return_exceptions=True)
+
     async def _run(self) -> None:
         loop = asyncio.get_running_loop()
         while True:
