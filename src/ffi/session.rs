@@ -51,6 +51,16 @@ pub struct troupe_session {
     poisoned: AtomicBool,
 }
 
+impl troupe_session {
+    /// A new handle owning `session`, for the caller to free with `troupe_session_free`.
+    fn into_raw(session: Session) -> *mut troupe_session {
+        Box::into_raw(Box::new(troupe_session {
+            session: Exclusive::new(session),
+            poisoned: AtomicBool::new(false),
+        }))
+    }
+}
+
 /// The family's own stream behind a session, or `TROUPE_ERR_UNSUPPORTED` saying that `what` is
 /// for `needed` streams only.
 pub(crate) fn family_stream<'a, S: 'static>(
@@ -271,12 +281,8 @@ pub unsafe extern "C" fn troupe_session_new(
                 // SAFETY: readable per the contract.
                 unsafe { read_options(model, options) }?.open(model)?
             };
-            let handle = troupe_session {
-                session: Exclusive::new(session),
-                poisoned: AtomicBool::new(false),
-            };
             // SAFETY: checked non-NULL above.
-            unsafe { *out = Box::into_raw(Box::new(handle)) };
+            unsafe { *out = troupe_session::into_raw(session) };
             Ok(())
         },
     )
@@ -653,12 +659,9 @@ pub unsafe extern "C" fn troupe_session_restore(
             let model = &boundary::required(model, "model")?.model;
             // SAFETY: readable for `len` bytes per the contract.
             let bytes = unsafe { boundary::slice(bytes, len, "bytes") }?;
-            let handle = troupe_session {
-                session: Exclusive::new(model.restore(bytes)?),
-                poisoned: AtomicBool::new(false),
-            };
+            let session = model.restore(bytes)?;
             // SAFETY: checked non-NULL above.
-            unsafe { *out = Box::into_raw(Box::new(handle)) };
+            unsafe { *out = troupe_session::into_raw(session) };
             Ok(())
         },
     )

@@ -175,13 +175,13 @@ class StreamWorker:
                     # others, so each steps alone and hears only its own error.
                     for p in batch:
                         try:
-                            result = await loop.run_in_executor(self.pool, self._step, [p])
+                            alone = await loop.run_in_executor(self.pool, self._step, [p])
                         except Exception as e:
                             if not p.done.done():
                                 p.done.set_exception(e)
                         else:
                             if not p.done.done():
-                                p.done.set_result(result[0])
+                                p.done.set_result(alone[0])
                     continue
                 for p, result in zip(batch, results):
                     if not p.done.done():
