@@ -19,7 +19,6 @@
 mod common;
 
 use std::path::Path;
-use std::process::Command;
 
 use common::c_libraries;
 
@@ -30,21 +29,21 @@ fn root() -> &'static Path {
 /// Runs a Python command with the built library and the repository's package.
 fn python(args: &[&str]) -> String {
     let lib = c_libraries().join("libtroupe.so");
-    common::output_text(&common::run_ok(
-        Command::new(common::python_command())
-            .current_dir(root())
-            .args(args)
-            .env("TROUPE_LIBRARY_PATH", &lib)
-            .env("PYTHONPATH", root().join("bindings/python")),
-    ))
+    let package = root().join("bindings/python");
+    let (ok, text) = common::run_python(
+        args,
+        &[
+            ("TROUPE_LIBRARY_PATH", lib.to_str().unwrap()),
+            ("PYTHONPATH", package.to_str().unwrap()),
+        ],
+    );
+    assert!(ok, "python3 {args:?} failed:\n{text}");
+    text
 }
 
 /// Whether Ray and websockets import; under CI their absence fails, elsewhere it is a skip.
 fn ray_or_skip(test: &str) -> bool {
-    let probe = Command::new(common::python_command())
-        .args(["-c", "import ray, websockets"])
-        .output();
-    if matches!(probe, Ok(ref o) if o.status.success()) {
+    if common::run_python(&["-c", "import ray, websockets"], &[]).0 {
         return true;
     }
     assert!(

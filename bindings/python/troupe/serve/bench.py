@@ -52,7 +52,6 @@ class ClientRecord:
     frames: dict[int, np.ndarray] = field(default_factory=dict)
     duplicates: int = 0
     resumes: int = 0
-    stream: str = ""
     error: str = ""
 
 
@@ -94,8 +93,6 @@ async def run_client(url: str, rec: ClientRecord, start_at: float, period: float
     loop = asyncio.get_running_loop()
     try:
         async with StreamClient(url, rec.options) as client:
-            rec.stream = client.stream or ""
-
             async def sender() -> None:
                 for i, frames in enumerate(rec.tokens):
                     await asyncio.sleep(max(0.0, start_at + i * period - loop.time()))

@@ -24,7 +24,7 @@ import numpy as np
 
 from . import protocol
 from .snapshots import DirectorySnapshots, ObjectStoreSnapshots
-from .worker import StreamWorker, check_options
+from .worker import StreamWorker, check_options, settle
 
 log = logging.getLogger("troupe.serve")
 
@@ -58,7 +58,6 @@ class StreamState:
     """One stream as the gateway holds it."""
 
     id: str
-    options: dict
     worker: WorkerSlot
     acked: int = 0  # tokens acknowledged: the index the next token must carry
     snapshot_tokens: int = 0  # tokens the last snapshot holds
@@ -67,7 +66,6 @@ class StreamState:
     awaiting_resend: bool = False
     attached: bool = True
     closed: bool = False
-    moves: int = 0
 
 
 def _actor_failure_types() -> tuple[type[BaseException], ...]:
@@ -175,7 +173,7 @@ class Gateway:
         while True:
             target = self._least_loaded(exclude=dead)
             try:
-                await self._call(target, target.handle.restore.remote(st.id, self.snapshots.get(st.id),
+                await self._call(target.handle.restore.remote(st.id, self.snapshots.get(st.id),
                                                                       st.snapshot_tokens))
                 for i, frames in enumerate(st.log):
                     await self._submit(target, st.id, st.snapshot_tokens + i, frames)
@@ -185,13 +183,13 @@ class Gateway:
         dead.streams.discard(st.id)
         target.streams.add(st.id)
         st.worker = target
-        st.moves += 1
         self.recoveries.append({"stream": st.id, "from": dead.name, "to": target.name,
                                 "replayed_tokens": len(st.log), "restore_s": time.monotonic() - began,
                                 "outage_s": time.monotonic() - since})
         log.info("stream %s moved %s -> %s (%d tokens stepped again)", st.id, dead.name, target.name, len(st.log))
 
-    async def _call(self, slot: WorkerSlot, ref: Any) -> Any:
+    async def _call(self, ref: Any) -> Any:
+        """A worker's answer, or the failure that says the worker is gone (a timeout included)."""
         return await asyncio.wait_for(asyncio.wrap_future(ref.future()), self.step_timeout_s)
 
     async def _submit(self, slot: WorkerSlot, stream: str, token: int, frames: np.ndarray) -> tuple:
@@ -209,19 +207,11 @@ class Gateway:
         await asyncio.sleep(self.gather_s)
         batch, slot.outbox, slot.flushing = slot.outbox, [], False
         try:
-            results = await self._call(slot, slot.handle.step_many.remote([b[:3] for b in batch]))
+            results = await self._call(slot.handle.step_many.remote([b[:3] for b in batch]))
         except BaseException as e:  # the worker failed (or the call did): every token hears it
-            for *_, done in batch:
-                if not done.done():
-                    done.set_exception(e)
-            return
+            results = [e] * len(batch)
         for (*_, done), result in zip(batch, results):
-            if done.done():
-                continue
-            if isinstance(result, BaseException):
-                done.set_exception(result)
-            else:
-                done.set_result(result)
+            settle(done, result)  # each token's frames, or its own error
 
     # Streams ------------------------------------------------------------------------------
 
@@ -233,7 +223,7 @@ class Gateway:
             stream_id = uuid.uuid4().hex
             slot.streams.add(stream_id)  # counted at once, so concurrent opens spread
             try:
-                snapshot = await self._call(slot, slot.handle.open.remote(stream_id, options))
+                snapshot = await self._call(slot.handle.open.remote(stream_id, options))
                 break
             except self._failures as e:
                 slot.streams.discard(stream_id)
@@ -242,7 +232,7 @@ class Gateway:
                 slot.streams.discard(stream_id)
                 raise
         self.snapshots.put(stream_id, snapshot)
-        st = StreamState(stream_id, options, slot)
+        st = StreamState(stream_id, slot)
         self.streams[stream_id] = st
         return st
 
@@ -290,7 +280,7 @@ class Gateway:
             st.worker.streams.discard(st.id)
             if st.worker.alive:
                 try:
-                    await self._call(st.worker, st.worker.handle.close.remote(st.id))
+                    await self._call(st.worker.handle.close.remote(st.id))
                 except self._failures as e:
                     self._worker_died(st.worker, e)
 

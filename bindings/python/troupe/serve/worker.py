@@ -71,6 +71,17 @@ class _Pending:
     done: asyncio.Future = field(repr=False)
 
 
+def settle(done: asyncio.Future, outcome: Any) -> None:
+    """Answers a waiting call with its result, or raises `outcome` in it if it is an exception
+    (unless the caller is gone)."""
+    if done.done():
+        return
+    if isinstance(outcome, BaseException):
+        done.set_exception(outcome)
+    else:
+        done.set_result(outcome)
+
+
 class StreamWorker:
     """The actor class (wrap it with `ray.remote`, as `Gateway` does). Its methods are
     coroutines: Ray runs them on one event loop, so the crowd's state needs no lock."""
@@ -175,17 +186,12 @@ class StreamWorker:
                     # others, so each steps alone and hears only its own error.
                     for p in batch:
                         try:
-                            alone = await loop.run_in_executor(self.pool, self._step, [p])
+                            settle(p.done, (await loop.run_in_executor(self.pool, self._step, [p]))[0])
                         except Exception as e:
-                            if not p.done.done():
-                                p.done.set_exception(e)
-                        else:
-                            if not p.done.done():
-                                p.done.set_result(alone[0])
+                            settle(p.done, e)
                     continue
                 for p, result in zip(batch, results):
-                    if not p.done.done():
-                        p.done.set_result(result)
+                    settle(p.done, result)
 
     def _step(self, batch: list[_Pending]) -> list[tuple[np.ndarray, bytes | None, float]]:
         entries = [self.streams[p.stream] for p in batch]
@@ -198,5 +204,5 @@ class StreamWorker:
         for entry, out in zip(entries, outs):
             entry.tokens += 1
             due = entry.tokens % self.snapshot_every == 0
-            results.append((out.copy(), entry.session.snapshot() if due else None, seconds))
+            results.append((out, entry.session.snapshot() if due else None, seconds))
         return results
