@@ -139,7 +139,7 @@ function newSession() {
   s.setJointsFormat("m", "y", source.fps);
   // The streaming demo's clean-ups (examples/stream.rs): root smoothing, the guard, foot lock.
   s.setRootSmoothing(true, 0.1);
-  s.setPenetrationGuard(true, 0.5, 10.0);
+  s.setPenetrationGuard(true, 0.25, 10.0);
   s.setFootLock(true);
   if (session) session.free();
   session = s;

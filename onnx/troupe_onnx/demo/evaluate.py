@@ -32,7 +32,11 @@ Measures (per rule and clip, averaged over `SEEDS`; per rule averaged over clips
 - facing error: mean angle between the reactor's facing and the rule partner's, degrees;
 - foot skate: mean horizontal slide of foot joints within 5 cm of the floor, cm/frame;
 - jitter: mean size of the joints' second difference (acceleration), cm/frame^2;
-- drift: MPJPE over 50-60 s divided by MPJPE over the first 10 s, on the 60 s streams.
+- drift: MPJPE over 50-60 s divided by MPJPE over the first 10 s, on the 60 s streams; beside
+  it, for the demo, how far the actor is from where the stream started (its root over 50-60 s,
+  m) and the 50-60 s error of a *restarted* stream: a fresh session started at 40 s, placed by
+  the actor there. Error that grows with the distance while the restarted stream's does not is
+  the model leaving the floor area it was trained on, not the stream's length.
 """
 
 from __future__ import annotations
@@ -87,9 +91,10 @@ MOCAPBANK_JOINTS = {
 }
 JOINT_MAPS = {"mocapbank": json.dumps({"skeleton": "t2m22", "joints": MOCAPBANK_JOINTS})}
 DRIFT_SECONDS = 60
+RESTART_S = 40  # where the restarted stream of the drift probe starts
 # The guard's settings in the streaming demo (d_safe m, max_speed m/s; `DEMO_GUARD` of
 # examples/stream.rs), tuned with this evaluation (docs/DEMO.md).
-GUARD = (0.5, 10.0)
+GUARD = (0.25, 10.0)
 FOOT_JOINTS = ("left_ankle", "right_ankle", "left_foot", "right_foot")
 FOOT_CONTACT_M = 0.05
 
@@ -129,15 +134,16 @@ def eval_only_clip(requirement: str, sdist_name: str, member: str, source: str, 
 
 
 def stream(model, actor: np.ndarray, rule: str, seed: int, steps: int, smoothing: bool, guard: bool,
-           foot_lock: bool) -> np.ndarray:
-    """The reactor troupe streams for `actor` [T, 22, 3] (metres, +Y up, 30 fps): [T', 22, 3]."""
+           foot_lock: bool, guard_setting: tuple[float, float] = GUARD) -> np.ndarray:
+    """The reactor troupe streams for `actor` [T, 22, 3] (metres, +Y up, 30 fps): [T', 22, 3];
+    `guard_setting` is the guard's (d_safe, max_speed) when `guard` is on."""
     import troupe
     from troupe import motion
 
     with troupe.Session(model, seed=seed, steps=steps, condition=rule) as s:
         s.set_joints_format(motion.JointsFormat(units="m", up="y", fps=sources.FPS))
         if guard:
-            s.set_penetration_guard(True, *GUARD)
+            s.set_penetration_guard(True, *guard_setting)
         s.set_foot_lock(foot_lock)
         s.set_root_smoothing(smoothing)
         out = [s.step_joints(actor[i : i + 4].astype(np.float32)).positions for i in range(0, len(actor), 4)]
@@ -223,6 +229,8 @@ def evaluate(bundle: Path, clips: list[sources.Clip], keep: dict | None = None) 
                     if keep is not None and variant == "demo" and seed == SEEDS[0]:
                         keep.setdefault(rule, {})[key] = (actor[: len(out)], out)
                 row[variant] = mean_rows(runs)
+            if len(actor) >= DRIFT_SECONDS * sources.FPS:
+                row["drift_probe"] = drift_probe(model, actor, truth, rule)
             still = np.repeat(truth[:1], len(truth), axis=0)
             row["still"] = measures(actor, still, truth)
             row["no_delay"] = measures(actor, rules.partner(actor, rule, sources.FPS, delay_s=0.0), truth)
@@ -237,6 +245,20 @@ def evaluate(bundle: Path, clips: list[sources.Clip], keep: dict | None = None) 
     results["summary"] = summary(results["clips"])
     model.close()
     return results
+
+
+def drift_probe(model, actor: np.ndarray, truth: np.ndarray, rule: str) -> dict:
+    """The demo over 50-60 s of a 60 s clip, continuous and restarted at `RESTART_S`, with the
+    actor's distance from the stream's first root then (seeds averaged)."""
+    fps, start = sources.FPS, RESTART_S * sources.FPS
+    late = slice(50 * fps - start, 60 * fps - start)
+    restarted = []
+    for seed in SEEDS:
+        out = stream(model, actor[start : DRIFT_SECONDS * fps], rule, seed, **VARIANTS["demo"])
+        restarted.append(mpjpe_cm(out, truth[start : start + len(out)])[late].mean())
+    root = actor[:, 0, [0, 2]]
+    distance = np.linalg.norm(root[50 * fps : 60 * fps] - root[0], axis=-1).mean()
+    return {"actor_distance_50_60_m": float(distance), "restarted_50_60_cm": float(np.mean(restarted))}
 
 
 SUMMED = ("mpjpe_cm", "intersecting", "facing_error_deg", "foot_skate_cm", "jitter_cm")
@@ -289,6 +311,14 @@ def markdown(results: dict) -> str:
                          f"| {row['no_delay']['mpjpe_cm']:.1f} cm | {100 * d['intersecting']:.1f} % | {d['closest_m']:.2f} m "
                          f"| {d['foot_skate_cm']:.2f} ({row['model']['foot_skate_cm']:.2f}, {row['rule']['foot_skate_cm']:.2f}) "
                          f"| {drift} |")
+    lines += ["", "| rule | clip | demo: 0-10 s | demo: 50-60 s | actor from its start, 50-60 s "
+              "| restarted at 40 s: 50-60 s |", "|---|---|---|---|---|---|"]
+    for rule, rows in results["clips"].items():
+        for clip, row in rows.items():
+            if "drift_probe" in row:
+                d, p = row["demo"], row["drift_probe"]
+                lines.append(f"| {rule} | {clip} | {d['drift_first10_cm']:.1f} cm | {d['drift_50_60_cm']:.1f} cm "
+                             f"| {p['actor_distance_50_60_m']:.2f} m | {p['restarted_50_60_cm']:.1f} cm |")
     return "\n".join(lines)
 
 
@@ -331,6 +361,36 @@ def contact_sheet(streams: dict, clip: str, out: Path, times_s=(1.0, 2.5, 4.0, 5
                        check=True, capture_output=True, timeout=120)
 
 
+def sweep_guard(bundle: Path, clips: list[sources.Clip], settings: list[tuple[float, float]]) -> None:
+    """The demo (all three clean-ups, 1 step, every seed) under each guard setting (d_safe m,
+    max_speed m/s): per rule its MPJPE, intersecting frames, closest approach and the clips on
+    which it beats standing still, to choose `GUARD` by."""
+    import troupe
+
+    model = troupe.Model(bundle)
+    try:
+        for guard in settings:
+            for rule in rules.RULES:
+                rows, frames = [], []
+                for clip in clips:
+                    actor = clip.positions
+                    truth = rules.partner(actor, rule, sources.FPS)
+                    runs = [measures(actor, stream(model, actor, rule, seed, **VARIANTS["demo"], guard_setting=guard), truth)
+                            for seed in SEEDS]
+                    still = measures(actor, np.repeat(truth[:1], len(truth), axis=0), truth)["mpjpe_cm"]
+                    row = mean_rows(runs)
+                    rows.append(row | {"beats_still": row["mpjpe_cm"] < still})
+                    frames.append(len(actor))
+                w = np.array(frames, np.float64)
+                print(f"guard {guard[0]:.2f} m {guard[1]:4.1f} m/s {rule:9s} "
+                      f"MPJPE {np.average([r['mpjpe_cm'] for r in rows], weights=w):6.1f} cm "
+                      f"intersecting {100 * np.average([r['intersecting'] for r in rows], weights=w):5.2f} % "
+                      f"closest {min(r['closest_m'] for r in rows):.2f} m "
+                      f"beats standing still on {sum(r['beats_still'] for r in rows)} of {len(rows)}", flush=True)
+    finally:
+        model.close()
+
+
 def held_out_clips(with_fetched: bool = True) -> list[sources.Clip]:
     clips = [c for c in sources.load() if c.split == "held_out"]
     return clips + ([eval_only_clip(*spec) for spec in EVAL_ONLY] if with_fetched else [])
@@ -344,8 +404,14 @@ def main(argv: list[str] | None = None, prog: str | None = None):
     ap.add_argument("--sheet", type=Path, help="write a contact sheet (PNG) of the partner per rule")
     ap.add_argument("--sheet-clip", default="cmu/playground-demo", help="the clip the contact sheet shows")
     ap.add_argument("--no-fetch", action="store_true", help="only the held-out clips of the training sources")
+    ap.add_argument("--sweep-guard", nargs="+", metavar="D_SAFE,MAX_SPEED",
+                    help="only compare the demo under these guard settings (how GUARD was chosen)")
     args = ap.parse_args(argv)
     t0 = time.time()
+    if args.sweep_guard:
+        settings = [tuple(float(v) for v in s.split(",")) for s in args.sweep_guard]
+        sweep_guard(args.bundle, held_out_clips(not args.no_fetch), settings)  # type: ignore[arg-type]
+        return
     streams: dict = {}
     results = evaluate(args.bundle, held_out_clips(not args.no_fetch), streams)
     results["seconds"] = round(time.time() - t0)
