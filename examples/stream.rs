@@ -37,9 +37,13 @@
 //!   --no-foot-lock      turn off the foot lock (on by default: a foot whose contact label is on
 //!                       stays put)
 //!   --no-smoothing      turn off the root smoothing (on by default: 0.1 s, against jitter)
+//!   --no-recentring     turn off recentring (on by default: the networks' frame follows the
+//!                       actor once it is 1 m from its centre, so a long walk stays near where
+//!                       the model was trained)
 //!   --seed S --steps K --cfg X --capacity C     session options
 //!   --warmup-tokens H   tokens streamed before timing starts (to time at a given history)
 //!   --vae-windows       run the VAE over windows even when the bundle has per-token steps
+//!                       (recentring, which needs the steps, is then off)
 //!   --compute-threads N threads the matrix products may split over (default 1: this thread)
 //! ```
 
@@ -56,7 +60,7 @@ use troupe::motion::{
     SourceFrame, Units, UpAxis, T2M22_JOINTS,
 };
 use troupe::viewer::{GifOptions, Scene};
-use troupe::{FootLockOptions, Model, PenetrationGuard, ReactorOptions, RootSmoothing};
+use troupe::{FootLockOptions, Model, PenetrationGuard, ReactorOptions, Recentring, RootSmoothing};
 
 mod common;
 use common::{percentile, synthetic_actor};
@@ -118,6 +122,7 @@ fn parse_args() -> Result<Args, String> {
             penetration_guard: Some(DEMO_GUARD),
             root_smoothing: Some(RootSmoothing::default()),
             foot_lock: Some(FootLockOptions::default()),
+            recentring: Some(Recentring::default()),
             ..ReactorOptions::default()
         },
         warmup_tokens: 0,
@@ -166,10 +171,14 @@ fn parse_args() -> Result<Args, String> {
             "--cfg" => a.options.cfg_scale = Some(num(value()?)? as f32),
             "--capacity" => a.options.context_capacity = Some(num(value()?)? as usize),
             "--warmup-tokens" => a.warmup_tokens = num(value()?)? as u64,
-            "--vae-windows" => a.options.vae_windows = true,
+            "--vae-windows" => {
+                a.options.vae_windows = true;
+                a.options.recentring = None;
+            }
             "--no-guard" => a.options.penetration_guard = None,
             "--no-foot-lock" => a.options.foot_lock = None,
             "--no-smoothing" => a.options.root_smoothing = None,
+            "--no-recentring" => a.options.recentring = None,
             "--compute-threads" => {
                 troupe::set_compute_threads(num(value()?)? as usize).map_err(|e| e.to_string())?
             }
@@ -344,10 +353,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     println!("attention kernel: {}", troupe::attention_kernel());
     let on = |yes: bool| if yes { "on" } else { "off" };
     println!(
-        "root smoothing {}, penetration guard {}, foot lock {}",
+        "root smoothing {}, penetration guard {}, foot lock {}, recentring {}",
         on(args.options.root_smoothing.is_some()),
         on(args.options.penetration_guard.is_some()),
-        on(args.options.foot_lock.is_some())
+        on(args.options.foot_lock.is_some()),
+        on(args.options.recentring.is_some())
     );
     let reduced = model.manifest().reduced_precision_graphs();
     if !reduced.is_empty() {

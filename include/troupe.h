@@ -1785,7 +1785,7 @@ troupe_status troupe_rig_bvh_write(const char *path, const struct troupe_rig *ri
  * 10. ARMFlow
  *
  * Online reaction: joint positions through a session, the penetration guard, the root
- * smoothing, the foot lock, the official clip.
+ * smoothing, the foot lock, recentring, the official clip.
  * ============================================================================================ */
 
 /**
@@ -2025,6 +2025,26 @@ troupe_status troupe_session_joints_placement(struct troupe_session *session, st
  * the one frame velocities and contacts wait for; 0 for NULL or a `umf` model. Thread-safe.
  */
 size_t troupe_model_joints_latency_frames(const struct troupe_model *model);
+
+/**
+ * Turns an ARMFlow session's recentring on (`enabled` nonzero) or off: before each
+ * `troupe_session_step_joints` call, when the actor's root is farther than `distance` metres
+ * (in [0.1, 100]; 1 is the demo's) from the stream's origin on the floor, the stream's frame
+ * moves under the actor and the networks' state is rebuilt in it from the last 16 tokens of
+ * both people's motion, which the session keeps while recentring is on (about 134 KB at the
+ * demo model's size). The poses returned stay in the caller's world. A model trained near the
+ * origin then keeps its quality however far the actor walks. `distance` is ignored when turning
+ * it off. Feature frames (`troupe_session_step`) are never recentred.
+ *
+ * Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (a distance out of
+ * range; the session keeps its setting), `TROUPE_ERR_UNSUPPORTED` (not an ARMFlow session, or
+ * one that runs the VAE over windows or whose VAE looks ahead), `TROUPE_ERR_POISONED`,
+ * `TROUPE_ERR_PANIC`. One thread at a time per session.
+ *
+ * # Safety
+ * `session` must be NULL or a live handle.
+ */
+troupe_status troupe_armflow_session_set_recentring(struct troupe_session *session, int32_t enabled, float distance);
 
 /**
  * Turns an ARMFlow session's root smoothing on (`enabled` nonzero) or off, for the frames sent

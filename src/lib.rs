@@ -59,7 +59,7 @@ pub use arflow::{Arflow, ArflowOptions};
 pub use armflow::clip;
 pub use armflow::{
     meanflow_grid, Armflow, Clip, ClipNoise, ClipOptions, PenetrationGuard, Reactor,
-    ReactorOptions, RootSmoothing, TokenNoise,
+    ReactorOptions, Recentring, RootSmoothing, TokenNoise, HISTORY_TOKENS,
 };
 pub use magnet::{LivePartner, Magnet, MagnetOptions, MagnetOutput, PartnerOptions};
 pub use manifest::{ActorLatent, ConditionLabel, Manifest, Weights};

@@ -64,12 +64,13 @@ const SECTIONS: &[(&str, &str, &[&str])] = &[
     (
         "ARMFlow",
         "Online reaction: joint positions through a session, the penetration guard, the root \
-         smoothing, the foot lock, the official clip.",
+         smoothing, the foot lock, recentring, the official clip.",
         &[
             "armflow/joints.rs",
             "armflow/guard.rs",
             "armflow/smoothing.rs",
             "armflow/foot_lock.rs",
+            "armflow/recentring.rs",
             "armflow/clip.rs",
         ],
     ),

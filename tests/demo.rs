@@ -23,7 +23,7 @@ use ndarray::{s, Array3, ArrayView3};
 use ndarray_npy::read_npy;
 use troupe::motion::{JointsFormat, Units, UpAxis};
 use troupe::viewer::Scene;
-use troupe::{Model, ReactorOptions};
+use troupe::{Model, ReactorOptions, Recentring};
 
 const RULES: [&str; 3] = ["mirror", "follow", "keep-away"];
 /// The rules the committed model has learnt (`docs/DEMO.md`).
@@ -154,6 +154,67 @@ fn each_learnt_rule_is_what_the_reactor_does() {
             );
         }
     }
+}
+
+/// The walk (`cmu-playground-walk.npy`: the clip four times over, each time from where the last
+/// ended) takes the actor 11.5 m from where the stream started, far beyond the floor area the
+/// model was trained on. Without recentring the mirror partner's error grows as it walks (about
+/// 180 cm over the last quarter); with it, it stays as it was at the start (the poses measured in
+/// the caller's world, against the rule's partner there).
+#[test]
+fn recentring_keeps_the_partner_as_the_actor_walks_away() {
+    let actor: Array3<f32> = read_npy(repo("tests/data/mocap/cmu-playground-walk.npy")).unwrap();
+    let truth: Array3<f32> =
+        read_npy(repo("tests/data/mocap/cmu-playground-walk.mirror.npy")).unwrap();
+    let model = demo();
+    let run = |recentring: Option<Recentring>| {
+        let options = ReactorOptions {
+            seed: 7,
+            condition: Some(model.condition_for("mirror").unwrap()),
+            recentring,
+            ..Default::default()
+        };
+        let mut session = model.armflow().unwrap().reactor(options).unwrap();
+        session
+            .set_joints_format(JointsFormat {
+                fps: 30.0,
+                ..clip_format()
+            })
+            .unwrap();
+        let mut poses = Vec::new();
+        for chunk in actor.axis_chunks_iter(ndarray::Axis(0), 4) {
+            poses.extend(session.step_joints(chunk).unwrap());
+        }
+        Array3::from_shape_fn((poses.len(), 22, 3), |(t, j, d)| poses[t].positions[j][d])
+    };
+    let late = |out: &Array3<f32>| {
+        let n = out.shape()[0];
+        mpjpe_cm(
+            out.slice(s![3 * n / 4.., .., ..]),
+            truth.slice(s![3 * n / 4..n, .., ..]),
+        )
+    };
+    let free = run(None);
+    let recentred = run(Some(Recentring::default()));
+    let n = recentred.shape()[0];
+    let start = mpjpe_cm(
+        recentred.slice(s![..n / 4, .., ..]),
+        truth.slice(s![..n / 4, .., ..]),
+    );
+    let (free_late, recentred_late) = (late(&free), late(&recentred));
+    println!(
+        "walk, mirror, last quarter: {free_late:.1} cm without recentring, {recentred_late:.1} cm \
+         with it (first quarter {start:.1} cm)"
+    );
+    assert!(
+        recentred_late < 1.6 * start && recentred_late < 40.0,
+        "recentred: {recentred_late:.1} cm over the last quarter, {start:.1} cm over the first"
+    );
+    assert!(
+        free_late > 3.0 * recentred_late,
+        "without recentring {free_late:.1} cm, with it {recentred_late:.1} cm: the walk no longer \
+         shows what recentring mends"
+    );
 }
 
 #[test]

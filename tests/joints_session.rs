@@ -3,11 +3,13 @@
 
 mod common;
 
-use ndarray::{s, Array2, Array3, Axis};
+use ndarray::{s, Array2, Array3, ArrayView3, Axis};
 use ndarray_npy::read_npy;
 use troupe::armflow::step_reactors_joints;
-use troupe::motion::{decode_frame, FeatureStream, FootLockOptions, JointsFormat, Units, UpAxis};
-use troupe::{Model, Reactor, ReactorOptions};
+use troupe::motion::{
+    decode_frame, FeatureStream, FootLockOptions, JointsFormat, Pose, Units, UpAxis,
+};
+use troupe::{Model, Reactor, ReactorOptions, Recentring, HISTORY_TOKENS};
 
 fn cmu() -> Array3<f32> {
     read_npy(
@@ -214,4 +216,175 @@ fn the_foot_lock_holds_feet_moves_nothing_else_and_restarts_with_the_stream() {
     assert_eq!(session.foot_lock(), Some(lock));
     session.reset();
     assert_eq!(session.step_joints(clip.view()).unwrap(), held);
+}
+
+fn recentring_session(model: &Model, seed: u64, distance: Option<f64>) -> Reactor {
+    let mut s = model
+        .armflow()
+        .unwrap()
+        .reactor(ReactorOptions {
+            seed,
+            recentring: distance.map(|distance| Recentring { distance }),
+            ..Default::default()
+        })
+        .unwrap();
+    s.set_joints_format(format()).unwrap();
+    s
+}
+
+fn stream_in_chunks(session: &mut Reactor, clip: ArrayView3<f32>, chunk: usize) -> Vec<Pose> {
+    clip.axis_chunks_iter(Axis(0), chunk)
+        .flat_map(|c| session.step_joints(c).unwrap())
+        .collect()
+}
+
+#[test]
+fn recentring_does_not_depend_on_how_frames_are_split_and_a_refused_call_undoes_it() {
+    let model = common::model();
+    let clip = cmu();
+    let clip = clip.slice(s![..720, .., ..]);
+    let whole = stream_in_chunks(&mut recentring_session(model, 3, Some(0.25)), clip, 8);
+    // It recentred: the networks saw other positions than without it (the actor travels 1.7 m).
+    let plain = stream_in_chunks(&mut recentring_session(model, 3, None), clip, 8);
+    assert_eq!(
+        whole[..8],
+        plain[..8],
+        "nothing moves before the actor does"
+    );
+    assert_ne!(whole, plain);
+    // Calls of 13 frames, with a refused call in the middle of each fourth: the same stream.
+    let mut session = recentring_session(model, 3, Some(0.25));
+    let mut got = Vec::new();
+    for (k, chunk) in clip.axis_chunks_iter(Axis(0), 13).enumerate() {
+        if k % 4 == 3 {
+            let memory = session.memory_bytes();
+            let mut bad = chunk.to_owned();
+            let last = bad.shape()[0] - 1;
+            bad[[last, 3, 1]] = f32::NAN;
+            assert!(session.step_joints(bad.view()).is_err());
+            assert_eq!(session.memory_bytes(), memory);
+        }
+        got.extend(session.step_joints(chunk).unwrap());
+    }
+    assert_eq!(got, whole);
+}
+
+/// Feature frames (the CMU clip's, its first root at the origin) moved 5 m along x and 3 m along
+/// z: a recentring session moves its centre to the first root at once, so the networks see what
+/// they see of the clip where it was, and the reactor comes back moved by the same 5 and 3 m.
+#[test]
+fn a_recentring_session_answers_motion_far_from_the_origin_as_at_it() {
+    let model = common::model();
+    let actor: Array2<f32> = read_npy(
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("tests/data/mocap/cmu-playground.features.npy"),
+    )
+    .unwrap();
+    let moved_by = |frames: &Array2<f32>, by: [f32; 2]| {
+        let mut out = frames.clone();
+        for mut row in out.outer_iter_mut() {
+            for j in 0..22 {
+                row[3 * j] += by[0];
+                row[3 * j + 2] += by[1];
+            }
+        }
+        out
+    };
+    let stream = |frames: &Array2<f32>, recentring: bool| {
+        let mut session = model
+            .armflow()
+            .unwrap()
+            .reactor(ReactorOptions {
+                recentring: recentring.then_some(Recentring { distance: 0.5 }),
+                ..Default::default()
+            })
+            .unwrap();
+        let rows: Vec<Array2<f32>> = frames
+            .axis_chunks_iter(Axis(0), 12)
+            .map(|c| session.step(c).unwrap())
+            .collect();
+        ndarray::concatenate(Axis(0), &rows.iter().map(|r| r.view()).collect::<Vec<_>>()).unwrap()
+    };
+    let near = stream(&actor, true);
+    let far = stream(&moved_by(&actor, [5.0, 3.0]), true);
+    let back = moved_by(&far, [-5.0, -3.0]);
+    let diff = common::max_abs_diff(back.as_slice().unwrap(), near.as_slice().unwrap());
+    assert!(diff < 1e-3, "{diff}");
+    // Without recentring the networks see the moved motion, and answer otherwise.
+    let far = moved_by(&stream(&moved_by(&actor, [5.0, 3.0]), false), [-5.0, -3.0]);
+    let diff = common::max_abs_diff(far.as_slice().unwrap(), near.as_slice().unwrap());
+    assert!(diff > 0.05, "{diff}");
+}
+
+#[test]
+fn recentring_sessions_stepped_together_equal_each_alone() {
+    let model = common::model();
+    let clip = cmu();
+    let make = || -> Vec<Reactor> {
+        (0..2)
+            .map(|i| recentring_session(model, 5 + i, Some(0.25)))
+            .collect()
+    };
+    let (mut together, mut alone) = (make(), make());
+    for start in (0..600).step_by(12) {
+        let chunks = [
+            clip.slice(s![start..start + 12, .., ..]),
+            clip.slice(s![start + 300..start + 312, .., ..]),
+        ];
+        let mut refs: Vec<_> = together.iter_mut().collect();
+        let batched = step_reactors_joints(&mut refs, &chunks).unwrap();
+        for (i, s) in alone.iter_mut().enumerate() {
+            assert_eq!(
+                batched[i],
+                s.step_joints(chunks[i]).unwrap(),
+                "session {i}, {start}"
+            );
+        }
+    }
+}
+
+#[test]
+fn recentring_is_refused_where_it_cannot_run_and_out_of_range() {
+    let model = common::model();
+    let windows = ReactorOptions {
+        vae_windows: true,
+        ..Default::default()
+    };
+    let mut session = model.armflow().unwrap().reactor(windows.clone()).unwrap();
+    let on = Some(Recentring::default());
+    assert!(matches!(
+        session.set_recentring(on),
+        Err(troupe::Error::Unsupported(_))
+    ));
+    assert_eq!(session.recentring(), None);
+    let refused = model.armflow().unwrap().reactor(ReactorOptions {
+        recentring: on,
+        ..windows
+    });
+    assert!(matches!(refused, Err(troupe::Error::Unsupported(_))));
+
+    let mut session = recentring_session(model, 0, Some(1.0));
+    for distance in [0.0, -1.0, f64::NAN, f64::INFINITY, 1e3] {
+        let err = session.set_recentring(Some(Recentring { distance }));
+        assert!(
+            matches!(err, Err(troupe::Error::InvalidOption(_))),
+            "{distance}"
+        );
+        assert_eq!(session.recentring(), Some(Recentring { distance: 1.0 }));
+    }
+    // The history it keeps is bounded (the last HISTORY_TOKENS tokens of both people), and
+    // dropped when it is turned off.
+    let clip = cmu();
+    let mut plain = recentring_session(model, 0, None);
+    let token_bytes = 2 * model.frames_per_token() * 262 * 4;
+    let history = HISTORY_TOKENS * token_bytes;
+    for chunk in clip.axis_chunks_iter(Axis(0), 40) {
+        session.step_joints(chunk).unwrap();
+        plain.step_joints(chunk).unwrap();
+        // Room for one token more than it keeps, made once.
+        assert!(session.memory_bytes() <= plain.memory_bytes() + history + token_bytes);
+    }
+    let held = session.memory_bytes();
+    session.set_recentring(None).unwrap();
+    assert!(held - session.memory_bytes() >= history);
 }

@@ -11,7 +11,7 @@ use ndarray_npy::read_npy;
 use troupe::motion::{FootLockOptions, JointsFormat, UpAxis};
 use troupe::{
     step_sessions, ArflowOptions, Error, Model, PartnerOptions, PenetrationGuard, Reactor,
-    ReactorOptions, RootSmoothing, Session, TokenNoise,
+    ReactorOptions, Recentring, RootSmoothing, Session, TokenNoise,
 };
 
 fn load(name: &str) -> Model {
@@ -226,14 +226,16 @@ fn restored_sessions_step_together_as_the_uninterrupted_ones() {
 }
 
 #[test]
-fn a_joint_stream_with_its_foot_lock_restores_bit_for_bit() {
+fn a_joint_stream_with_its_foot_lock_and_recentring_restores_bit_for_bit() {
     let model = common::model();
     let clip: Array3<f32> = read_npy(
         Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/mocap/cmu-playground-120fps.npy"),
     )
     .unwrap();
-    let clip = clip.slice(s![..240, .., ..]).to_owned();
-    let open = || {
+    // The second half: the actor jumps forward, so the stream recentres (at 0.1 m) again and again.
+    let clip = clip.slice(s![480.., .., ..]).to_owned();
+    let n = clip.shape()[0];
+    let open = |recentring: bool| {
         let mut r = model
             .armflow()
             .unwrap()
@@ -246,6 +248,8 @@ fn a_joint_stream_with_its_foot_lock_restores_bit_for_bit() {
         })
         .unwrap();
         r.set_foot_lock(Some(FootLockOptions::default())).unwrap();
+        r.set_recentring(recentring.then_some(Recentring { distance: 0.1 }))
+            .unwrap();
         r
     };
     let poses = |r: &mut Reactor, from: usize, to: usize| -> Vec<u32> {
@@ -259,14 +263,18 @@ fn a_joint_stream_with_its_foot_lock_restores_bit_for_bit() {
             })
             .collect()
     };
-    let whole = poses(&mut open(), 0, 240);
-    for cut in [1, 2, 50, 121, 239] {
-        let mut first = open();
+    let whole = poses(&mut open(true), 0, n);
+    assert!(
+        whole != poses(&mut open(false), 0, n),
+        "the stream recentred"
+    );
+    for cut in [1, 2, 50, 121, 239, 350, 479] {
+        let mut first = open(true);
         let mut got = poses(&mut first, 0, cut);
         let mut restored = model
             .restore(&Session::from(first).snapshot().unwrap())
             .unwrap();
-        got.extend(poses(restored.family_mut::<Reactor>().unwrap(), cut, 240));
+        got.extend(poses(restored.family_mut::<Reactor>().unwrap(), cut, n));
         assert!(got == whole, "cut at frame {cut}");
     }
 }
@@ -299,14 +307,31 @@ fn hostile_snapshots_are_refused_with_a_clear_error() {
         good[good.len() - 4..]
     );
 
-    // Every truncation, and a flipped bit anywhere (sampled: every 7th byte).
-    for n in 0..good.len() {
-        refused(model, &good[..n]);
-    }
-    for i in (0..good.len()).step_by(7) {
-        let mut b = good.clone();
-        b[i] ^= 0x10;
-        refused(model, &b);
+    // Every truncation, and a flipped bit anywhere (sampled: every 7th byte); a recentring
+    // stream's too, which has recentred (its actor's root strays up to 1.4 m from the origin:
+    // it answers otherwise than the same stream without recentring).
+    let sine: Vec<f32> = (0..37 * 262).map(|i| (i as f32 * 0.37).sin()).collect();
+    let mut recentring = model
+        .session(ReactorOptions {
+            recentring: Some(Recentring::default()),
+            ..busy_options(model, false)
+        })
+        .unwrap();
+    let mut plain = model.session(busy_options(model, false)).unwrap();
+    assert_ne!(
+        recentring.step_flat(&sine).unwrap().frames,
+        plain.step_flat(&sine).unwrap().frames
+    );
+    let recentred = recentring.snapshot().unwrap();
+    for good in [&good, &recentred] {
+        for n in 0..good.len() {
+            refused(model, &good[..n]);
+        }
+        for i in (0..good.len()).step_by(7) {
+            let mut b = good.clone();
+            b[i] ^= 0x10;
+            refused(model, &b);
+        }
     }
     // Another model: the same family, other weights.
     let other = load("armflow-demo");
@@ -320,9 +345,9 @@ fn hostile_snapshots_are_refused_with_a_clear_error() {
     assert!(e.contains("`armflow` stream"), "{e}");
     // Another version of the format.
     let mut b = good.clone();
-    b[8] = 2;
+    b[8] = 3;
     let e = refused(model, &reframed(b));
-    assert!(e.contains("version 2"), "{e}");
+    assert!(e.contains("version 3"), "{e}");
     // Checksummed lies in the payload.
     survives_lies(
         model,

@@ -137,10 +137,12 @@ function newSession() {
   const seed = BigInt(Number.parseInt(params.get("seed") ?? "0", 10) || 0);
   const s = model.session(seed, rule);
   s.setJointsFormat("m", "y", source.fps);
-  // The streaming demo's clean-ups (examples/stream.rs): root smoothing, the guard, foot lock.
+  // The streaming demo's clean-ups (examples/stream.rs): root smoothing, the guard, foot lock,
+  // recentring.
   s.setRootSmoothing(true, 0.1);
   s.setPenetrationGuard(true, 0.25, 10.0);
   s.setFootLock(true);
+  s.setRecentring(true, 1.0);
   if (session) session.free();
   session = s;
   startedAt = null;

@@ -327,6 +327,13 @@ class Session {
         return Status::from(troupe_armflow_session_set_foot_lock(handle_, enabled ? 1 : 0, contact_threshold,
                                                                  release_frames, max_stretch));
     }
+    /// An ARMFlow session's recentring (`enabled` false: off): before each token, when the
+    /// actor's root is more than `distance` metres from the networks' centre, the centre moves to
+    /// it and the networks' state is rebuilt from the last 8 tokens; output stays in the stream's
+    /// frame.
+    Status set_recentring(bool enabled, float distance = 1.0f) {
+        return Status::from(troupe_armflow_session_set_recentring(handle_, enabled ? 1 : 0, distance));
+    }
     // ---- a MAGNet live partner (before the first step or after a reset) ----
     /// The partner's opening frames, `n_frames` x 145 floats, row-major.
     Status set_partner_opening(const float *frames, std::size_t n_frames) {

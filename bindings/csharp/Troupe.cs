@@ -378,6 +378,15 @@ namespace Troupe
             Native.Check(Native.troupe_armflow_session_set_foot_lock(Live(), enabled ? 1 : 0, contactThreshold, releaseFrames, maxStretch));
         }
 
+        /// <summary>An ARMFlow session's recentring (off with enabled false): before each token, when
+        /// the actor's root is more than distance metres from the networks' centre, the centre moves
+        /// to it and the networks' state is rebuilt from the last 8 tokens; output stays in the
+        /// stream's frame.</summary>
+        public void SetRecentring(bool enabled, float distance = 1.0f)
+        {
+            Native.Check(Native.troupe_armflow_session_set_recentring(Live(), enabled ? 1 : 0, distance));
+        }
+
         /// <summary>Frees the session.</summary>
         public void Dispose()
         {
@@ -502,6 +511,7 @@ namespace Troupe
         [DllImport(Lib, CallingConvention = CallingConvention.Cdecl)] internal static extern int troupe_model_identity(ModelHandle model, byte[] id);
         [DllImport(Lib, CallingConvention = CallingConvention.Cdecl)] internal static extern int troupe_armflow_session_set_penetration_guard(SessionHandle session, int enabled, float dSafe, float maxSpeed);
         [DllImport(Lib, CallingConvention = CallingConvention.Cdecl)] internal static extern int troupe_armflow_session_set_root_smoothing(SessionHandle session, int enabled, float timeConstant);
+        [DllImport(Lib, CallingConvention = CallingConvention.Cdecl)] internal static extern int troupe_armflow_session_set_recentring(SessionHandle session, int enabled, float distance);
         [DllImport(Lib, CallingConvention = CallingConvention.Cdecl)] internal static extern int troupe_armflow_session_set_foot_lock(SessionHandle session, int enabled, float contactThreshold, uint releaseFrames, float maxStretch);
         [DllImport(Lib, CallingConvention = CallingConvention.Cdecl)] internal static extern int troupe_session_set_seed(SessionHandle session, ulong seed);
         [DllImport(Lib, CallingConvention = CallingConvention.Cdecl)] internal static extern int troupe_session_set_condition(SessionHandle session, [In] float[] condition, UIntPtr len);

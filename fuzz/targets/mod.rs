@@ -431,6 +431,7 @@ pub fn session_snapshot(data: &[u8]) {
             vae_windows: bytes.u8() % 2 == 0,
             penetration_guard: (bytes.u8() % 2 == 0).then(troupe::PenetrationGuard::default),
             root_smoothing: (bytes.u8() % 2 == 0).then(troupe::RootSmoothing::default),
+            recentring: (bytes.u8() % 2 == 0).then(troupe::Recentring::default),
             ..Default::default()
         };
         let Ok(mut session) = model.session(options) else {

@@ -25,6 +25,17 @@ def test_committed_partners_are_what_the_rules_give():
         np.testing.assert_allclose(committed, made[rule], atol=1e-6, err_msg=rule)
 
 
+def test_committed_walk_and_its_partner_are_what_the_script_gives():
+    walk = partners.walk(np.load(partners.CLIP))
+    committed = np.load(partners.CLIP.parent / "cmu-playground-walk.npy")
+    assert committed.dtype == np.float32 and committed.shape == (984, 22, 3)
+    np.testing.assert_array_equal(committed, walk)
+    np.testing.assert_allclose(np.load(partners.CLIP.parent / "cmu-playground-walk.mirror.npy"),
+                               partners.partners(walk, stride=1)["mirror"], atol=1e-6)
+    floor = walk[:, 0, :2]
+    assert np.linalg.norm(floor - floor[0], axis=-1).max() > 10.0  # it walks far from its start
+
+
 @pytest.mark.parametrize("rule", rules.RULES)
 def test_rules_are_causal(actor, rule):
     base = rules.partner(actor, rule)

@@ -226,6 +226,16 @@ impl KvCache {
             && self.len as u64 == tokens.min(self.capacity as u64)
     }
 
+    /// Whether the cache holds what a recentring stream of `tokens` tokens may leave in it:
+    /// `<sos>` and at most a pair for each token after the first (a rebuild around a new centre
+    /// keeps only the last few, `armflow/session/recentre.rs`).
+    pub(crate) fn holds_at_most_tokens(&self, tokens: u64) -> bool {
+        match tokens {
+            0 => self.len == 0 && self.written == 0,
+            _ => self.len >= 1 && self.written < tokens,
+        }
+    }
+
     /// The runs of page floats that hold the first `used` slots of a page, in a fixed order
     /// (layer, key then value, head): a value block's first `used` rows are contiguous, a key
     /// block (transposed) holds a run of `used` floats per dimension.

@@ -29,6 +29,6 @@ pub use family::Armflow;
 pub use meanflow::meanflow_grid;
 pub(crate) use networks::Networks;
 pub use session::{
-    step_reactors, step_reactors_joints, PenetrationGuard, Reactor, ReactorOptions, RootSmoothing,
-    TokenNoise,
+    step_reactors, step_reactors_joints, PenetrationGuard, Reactor, ReactorOptions, Recentring,
+    RootSmoothing, TokenNoise, HISTORY_TOKENS,
 };

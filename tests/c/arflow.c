@@ -154,12 +154,20 @@ int main(int argc, char **argv) {
         EXPECT(troupe_armflow_session_set_foot_lock(session, 1, 0.5f, 4, INFINITY), TROUPE_ERR_INVALID_ARG);
         EXPECT(troupe_armflow_session_set_foot_lock(session, 0, NAN, 0, NAN), TROUPE_OK);
         EXPECT(troupe_armflow_session_set_foot_lock(NULL, 1, 0.5f, 4, 0.25f), TROUPE_ERR_NULL_ARG);
+        /* and its recentring */
+        EXPECT(troupe_armflow_session_set_recentring(session, 1, 0.5f), TROUPE_OK);
+        EXPECT(troupe_armflow_session_set_recentring(session, 1, 0.0f), TROUPE_ERR_INVALID_ARG);
+        EXPECT(troupe_armflow_session_set_recentring(session, 1, NAN), TROUPE_ERR_INVALID_ARG);
+        EXPECT(troupe_armflow_session_set_recentring(session, 1, 1000.0f), TROUPE_ERR_INVALID_ARG);
+        EXPECT(troupe_armflow_session_set_recentring(session, 0, NAN), TROUPE_OK);
+        EXPECT(troupe_armflow_session_set_recentring(NULL, 1, 0.5f), TROUPE_ERR_NULL_ARG);
         if (argc > 3) {
             EXPECT(troupe_model_load_file(argv[3], &magnet), TROUPE_OK);
             EXPECT(troupe_session_new(magnet, NULL, &partner), TROUPE_OK);
             EXPECT(troupe_armflow_session_set_penetration_guard(partner, 1, 0.05f, 2.0f), TROUPE_ERR_UNSUPPORTED);
             EXPECT(troupe_armflow_session_set_foot_lock(partner, 1, 0.5f, 4, 0.25f), TROUPE_ERR_UNSUPPORTED);
             EXPECT(troupe_armflow_session_set_root_smoothing(partner, 1, 0.1f), TROUPE_ERR_UNSUPPORTED);
+            EXPECT(troupe_armflow_session_set_recentring(partner, 1, 0.5f), TROUPE_ERR_UNSUPPORTED);
             troupe_session_free(partner);
             troupe_model_free(magnet);
         }

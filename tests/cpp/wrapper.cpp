@@ -298,6 +298,10 @@ int main(int argc, char **argv) {
         CHECK(joints.set_foot_lock(true, 0.5f, 0).code() == TROUPE_ERR_INVALID_ARG);
         CHECK(joints.set_foot_lock(false).ok());
         CHECK(joints.set_root_smoothing(true).ok() && joints.set_root_smoothing(true, -1.0f).code() == TROUPE_ERR_INVALID_ARG);
+        // Recentring: a distance in range is taken, others refused; the stream goes on with it.
+        CHECK(joints.set_recentring(true).ok() && joints.set_recentring(true, 0.0f).code() == TROUPE_ERR_INVALID_ARG);
+        CHECK(joints.step_joints(clip.data(), frames, poses).ok() && !poses.empty());
+        CHECK(joints.set_recentring(false).ok());
 
         if (argc > 3) {
             // Named after this binary: the builds with and without exceptions share the directory.

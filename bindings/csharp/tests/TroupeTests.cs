@@ -169,6 +169,9 @@ internal static class TroupeTests
             b.SetFootLock(true);
             a.SetRootSmoothing(true);
             b.SetRootSmoothing(true);
+            a.SetRecentring(true);
+            b.SetRecentring(true);
+            Throws<InvalidArgumentException>(() => a.SetRecentring(true, 0f), "a zero recentring distance");
             Throws<InvalidArgumentException>(() => a.SetRootSmoothing(true, 0f), "a zero smoothing time constant");
             Throws<InvalidArgumentException>(() => a.SetFootLock(true, 0.5f, 0), "a foot lock releasing over zero frames");
             Throws<InvalidArgumentException>(() => a.SetFootLock(true, float.NaN), "a NaN contact threshold");

@@ -763,6 +763,15 @@ class Session:
             max_stretch,
         )
 
+    def set_recentring(self, enabled: bool = True, distance: float = 1.0) -> None:
+        """An ARMFlow stream's recentring: before each token, when the actor's root is more than
+        `distance` metres on the floor from where the networks' frame is centred, the centre
+        moves to the actor and the networks' state is rebuilt around it from the last 8 tokens
+        of both people's motion (kept while it is on). Frames and poses stay in the stream's
+        frame; a model trained near the origin keeps its quality however far the actor walks.
+        Off again with `enabled=False`; `Unsupported` for a session that cannot recentre."""
+        self._call(_lib.troupe_armflow_session_set_recentring, 1 if enabled else 0, distance)
+
     def set_live_config(self, config: str) -> None:
         """The sampling configuration a magnet live partner runs (a released name or JSON);
         before the first step or after a reset."""

@@ -296,6 +296,7 @@ PROTOTYPES = {
     "troupe_magnet_session_set_early_emission": (status, [session_p, ctypes.c_int32]),
     "troupe_armflow_session_set_penetration_guard": (status, [session_p, ctypes.c_int32, ctypes.c_float, ctypes.c_float]),
     "troupe_armflow_session_set_root_smoothing": (status, [session_p, ctypes.c_int32, ctypes.c_float]),
+    "troupe_armflow_session_set_recentring": (status, [session_p, ctypes.c_int32, ctypes.c_float]),
     "troupe_armflow_session_set_foot_lock": (status, [session_p, ctypes.c_int32, ctypes.c_float, ctypes.c_uint32, ctypes.c_float]),
     "troupe_arflow_session_set_options": (status, [session_p, ctypes.POINTER(ArflowOptions)]),
     "troupe_magnet_session_set_live_config": (status, [session_p, ctypes.c_char_p]),

@@ -18,8 +18,8 @@ use ndarray::ArrayView3;
 use troupe::motion::bvh::parse_bvh;
 use troupe::motion::{JointMap, JointsFormat, Skeleton, Units, UpAxis, T2M22_JOINTS};
 use troupe::{
-    FootLockOptions, Model, PenetrationGuard, Reactor, ReactorOptions, RootSmoothing, Session,
-    TokenNoise,
+    FootLockOptions, Model, PenetrationGuard, Reactor, ReactorOptions, Recentring, RootSmoothing,
+    Session, TokenNoise,
 };
 use wasm_bindgen::prelude::*;
 
@@ -329,6 +329,15 @@ impl WebSession {
         self.reactor()?
             .set_root_smoothing(smoothing)
             .map_err(js_error)
+    }
+
+    /// Recentring: before each token, when the actor is more than `distance` metres from the
+    /// networks' centre, the centre moves to it and their state is rebuilt from the last 8
+    /// tokens; `enabled = false` turns it off (ARMFlow).
+    #[wasm_bindgen(js_name = setRecentring)]
+    pub fn set_recentring(&mut self, enabled: bool, distance: f64) -> Result<(), JsError> {
+        let recentring = enabled.then_some(Recentring { distance });
+        self.reactor()?.set_recentring(recentring).map_err(js_error)
     }
 
     /// The foot lock with troupe's defaults; `enabled = false` turns it off (ARMFlow).

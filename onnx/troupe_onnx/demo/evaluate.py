@@ -3,6 +3,7 @@
     cargo build --release
     python3 onnx/cli.py demo evaluate [--bundle onnx/bundles/armflow-demo] [--out docs/demo-results.json]
                                       [--sheet docs/images/demo-contact-sheet.png]
+    python3 onnx/cli.py demo evaluate --sweep-guard 0.5,10 0.25,10 ...   # the demo under each guard setting
 
 Numpy and troupe's Python binding only (no torch): every actor clip is streamed as joint
 positions (metres, +Y up, 30 fps) through `Session.step_joints`, and the reactor troupe returns
@@ -10,11 +11,11 @@ is compared with the rule's partner for the same actor (`rules.partner`), in the
 frame by frame. Three ways of running the model:
 
 - `model`: one MeanFlow step, nothing else (what the network alone does);
-- `demo`: one step with the root smoothing, the penetration guard and the foot lock on (what
-  `examples/stream.rs` runs by default);
+- `demo`: one step with the root smoothing, the penetration guard, the foot lock and recentring
+  on (what `examples/stream.rs` runs by default);
 - `demo-2`: the same with two MeanFlow steps;
-- `model + smoothing`, `model + guard`, `model + foot lock`: one of the three alone, for what
-  each does.
+- `model + smoothing`, `model + guard`, `model + foot lock`, `model + recentring`: one of the
+  four alone, for what each does.
 
 Clips, none seen in training (`sources.py`, `DATA.md`): the CMU demo excerpt, the held-out
 climbing sequence, DeepMimic's punch and kick, and takes fetched at run time for evaluation only
@@ -62,12 +63,13 @@ sys.path.insert(0, str(REPO / "bindings" / "python"))
 
 SEEDS = (0, 1, 2)
 VARIANTS = {
-    "model": {"steps": 1, "smoothing": False, "guard": False, "foot_lock": False},
-    "model + smoothing": {"steps": 1, "smoothing": True, "guard": False, "foot_lock": False},
-    "model + guard": {"steps": 1, "smoothing": False, "guard": True, "foot_lock": False},
-    "model + foot lock": {"steps": 1, "smoothing": False, "guard": False, "foot_lock": True},
-    "demo": {"steps": 1, "smoothing": True, "guard": True, "foot_lock": True},
-    "demo-2": {"steps": 2, "smoothing": True, "guard": True, "foot_lock": True},
+    "model": {"steps": 1, "smoothing": False, "guard": False, "foot_lock": False, "recentring": False},
+    "model + smoothing": {"steps": 1, "smoothing": True, "guard": False, "foot_lock": False, "recentring": False},
+    "model + guard": {"steps": 1, "smoothing": False, "guard": True, "foot_lock": False, "recentring": False},
+    "model + foot lock": {"steps": 1, "smoothing": False, "guard": False, "foot_lock": True, "recentring": False},
+    "model + recentring": {"steps": 1, "smoothing": False, "guard": False, "foot_lock": False, "recentring": True},
+    "demo": {"steps": 1, "smoothing": True, "guard": True, "foot_lock": True, "recentring": True},
+    "demo-2": {"steps": 2, "smoothing": True, "guard": True, "foot_lock": True, "recentring": True},
 }
 # Takes fetched at run time for evaluation only: (requirement, sdist file, file in the sdist,
 # source name, clip name, seconds kept).
@@ -95,6 +97,8 @@ RESTART_S = 40  # where the restarted stream of the drift probe starts
 # The guard's settings in the streaming demo (d_safe m, max_speed m/s; `DEMO_GUARD` of
 # examples/stream.rs), tuned with this evaluation (docs/DEMO.md).
 GUARD = (0.25, 10.0)
+# Recentring's distance in the streaming demo (`DEMO_RECENTRING` of examples/stream.rs), m.
+RECENTRE_M = 1.0
 FOOT_JOINTS = ("left_ankle", "right_ankle", "left_foot", "right_foot")
 FOOT_CONTACT_M = 0.05
 
@@ -134,7 +138,7 @@ def eval_only_clip(requirement: str, sdist_name: str, member: str, source: str, 
 
 
 def stream(model, actor: np.ndarray, rule: str, seed: int, steps: int, smoothing: bool, guard: bool,
-           foot_lock: bool, guard_setting: tuple[float, float] = GUARD) -> np.ndarray:
+           foot_lock: bool, recentring: bool, guard_setting: tuple[float, float] = GUARD) -> np.ndarray:
     """The reactor troupe streams for `actor` [T, 22, 3] (metres, +Y up, 30 fps): [T', 22, 3];
     `guard_setting` is the guard's (d_safe, max_speed) when `guard` is on."""
     import troupe
@@ -146,6 +150,8 @@ def stream(model, actor: np.ndarray, rule: str, seed: int, steps: int, smoothing
             s.set_penetration_guard(True, *guard_setting)
         s.set_foot_lock(foot_lock)
         s.set_root_smoothing(smoothing)
+        if recentring:
+            s.set_recentring(True, RECENTRE_M)
         out = [s.step_joints(actor[i : i + 4].astype(np.float32)).positions for i in range(0, len(actor), 4)]
     return np.concatenate(out).astype(np.float64)
 
@@ -194,7 +200,8 @@ def measures(actor: np.ndarray, out: np.ndarray, truth: np.ndarray) -> dict:
     if n >= DRIFT_SECONDS * sources.FPS - 8:
         ten = 10 * sources.FPS
         first, last = e[:ten].mean(), e[50 * sources.FPS : 60 * sources.FPS].mean()
-        row |= {"drift_first10_cm": float(first), "drift_50_60_cm": float(last), "drift_ratio": float(last / first)}
+        ratio = last / first if first > 0 else float("nan")  # the rule's own partner: 0 / 0
+        row |= {"drift_first10_cm": float(first), "drift_50_60_cm": float(last), "drift_ratio": float(ratio)}
     return row
 
 
@@ -290,7 +297,8 @@ def markdown(results: dict) -> str:
     lines = ["| rule | way | MPJPE | intersecting frames | closest approach | facing error | foot skate | jitter "
              "| worst drift ratio |", "|---|---|---|---|---|---|---|---|---|"]
     names = {"model": "model alone, 1 step", "model + smoothing": "+ root smoothing only", "model + guard": "+ guard only",
-             "model + foot lock": "+ foot lock only", "demo": "demo: all three, 1 step", "demo-2": "demo, 2 steps",
+             "model + foot lock": "+ foot lock only", "model + recentring": "+ recentring only",
+             "demo": "demo: all four, 1 step", "demo-2": "demo, 2 steps",
              "still": "baseline: standing still", "no_delay": "baseline: rule without delay", "rule": "the rule's partner"}
     for rule, per in s.items():
         for variant, label in names.items():
@@ -362,7 +370,7 @@ def contact_sheet(streams: dict, clip: str, out: Path, times_s=(1.0, 2.5, 4.0, 5
 
 
 def sweep_guard(bundle: Path, clips: list[sources.Clip], settings: list[tuple[float, float]]) -> None:
-    """The demo (all three clean-ups, 1 step, every seed) under each guard setting (d_safe m,
+    """The demo (all four clean-ups, 1 step, every seed) under each guard setting (d_safe m,
     max_speed m/s): per rule its MPJPE, intersecting frames, closest approach and the clips on
     which it beats standing still, to choose `GUARD` by."""
     import troupe

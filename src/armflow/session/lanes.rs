@@ -11,6 +11,7 @@
 //! a non-finite value must fail the step (leaving the session as it was) rather than be returned
 //! or carried into the next token.
 
+use super::recentre::{self, negated, shift_rows};
 use super::{Reactor, StepOutput, StreamState, TokenNoise, TokenTrace};
 use crate::armflow::kv_cache::KvCache;
 use crate::armflow::networks::{Networks, VaeState};
@@ -28,6 +29,9 @@ pub(super) struct Lane<'s> {
     /// Reactor frames produced so far in this step, row-major.
     pub(super) frames: Vec<f32>,
     pub(super) tokens: Vec<TokenTrace>,
+    /// The session's cache, when recentring replaced the lane's during the step: what a failed
+    /// step gives back (rolled back), since the replacement never was the session's.
+    set_aside: Option<KvCache>,
 }
 
 impl<'s> Lane<'s> {
@@ -42,20 +46,29 @@ impl<'s> Lane<'s> {
             state,
             frames: Vec::new(),
             tokens: Vec::new(),
+            set_aside: None,
         }
+    }
+
+    /// Replaces the lane's cache by `cache` (recentring), keeping the session's own for a
+    /// rollback.
+    pub(super) fn set_aside_cache(&mut self, cache: KvCache) {
+        let old = std::mem::replace(&mut self.state.cache, cache);
+        self.set_aside.get_or_insert(old);
     }
 
     /// The lane's cache with this step's writes undone, to give back to a session whose step
     /// failed.
     pub(super) fn rolled_back_cache(self) -> KvCache {
-        let mut cache = self.state.cache;
+        let mut cache = self.set_aside.unwrap_or(self.state.cache);
         cache.rollback();
         cache
     }
 
-    /// Splits the lane into the state to commit (its cache's writes not yet committed) and
-    /// what the step returns.
-    pub(super) fn finish(self, frame_dim: usize) -> (StreamState, StepOutput) {
+    /// Splits the lane into the state to commit (its cache's writes not yet committed), what
+    /// the step returns, and the session's cache if recentring set it aside (what to give back,
+    /// rolled back, if the step fails after all).
+    pub(super) fn finish(self, frame_dim: usize) -> (StreamState, StepOutput, Option<KvCache>) {
         let n = self.frames.len() / frame_dim;
         let frames =
             ndarray::Array2::from_shape_vec((n, frame_dim), self.frames).expect("whole frames");
@@ -63,10 +76,10 @@ impl<'s> Lane<'s> {
             frames,
             tokens: self.tokens,
         };
-        (self.state, output)
+        (self.state, output, self.set_aside)
     }
 
-    fn spec(&self) -> &'s ArmFlowSpec {
+    pub(super) fn spec(&self) -> &'s ArmFlowSpec {
         self.session.spec()
     }
 
@@ -87,7 +100,7 @@ impl<'s> Lane<'s> {
     }
 
     /// A failed output check of this lane's current token, with the session and token named.
-    fn in_token(&self, checked: Result<()>) -> Result<()> {
+    pub(super) fn in_token(&self, checked: Result<()>) -> Result<()> {
         checked.map_err(|e| match e {
             Error::Inference { graph, message } => {
                 let whose = self
@@ -106,7 +119,7 @@ impl<'s> Lane<'s> {
     }
 
     /// Actor frames `[start, end)` (absolute indices), row-major.
-    fn actor_frames(&self, start: u64, end: u64, dim: usize) -> &[f32] {
+    pub(super) fn actor_frames(&self, start: u64, end: u64, dim: usize) -> &[f32] {
         let base = self.state.actor_base;
         &self.state.actor_frames[(start - base) as usize * dim..(end - base) as usize * dim]
     }
@@ -124,6 +137,11 @@ pub(super) fn advance(nets: &Networks, lanes: &mut [Lane], chunks: &[&[f32]]) ->
         let mut ready: Vec<&mut Lane> = lanes.iter_mut().filter(|l| l.token_ready()).collect();
         if ready.is_empty() {
             break;
+        }
+        for lane in ready.iter_mut() {
+            if let Some(centre) = recentre::due(lane, dim) {
+                recentre::recentre(nets, lane, centre)?;
+            }
         }
         generate_tokens(nets, &mut ready)?;
         loop {
@@ -225,12 +243,18 @@ fn generate_tokens(nets: &Networks, lanes: &mut [&mut Lane]) -> Result<()> {
         lane.in_token(check_output("context_layers", "context", ci))?;
         lane.in_token(check_output("velocity", "reactor latent", bi))?;
     }
+    let (dim, fpt) = (nets.frame_dim(), nets.spec.latent.frames_per_token as u64);
     for (i, lane) in lanes.iter_mut().enumerate() {
         let (a, b) = (
             &actor[i * lat..(i + 1) * lat],
             &reactor[i * lat..(i + 1) * lat],
         );
         let st = &mut lane.state;
+        if let Some(history) = &mut st.history {
+            // The token's actor frames, as received (`Lane::actor_frames`, borrowed apart).
+            let from = (st.tokens * fpt - st.actor_base) as usize * dim;
+            history.push_actor(&st.actor_frames[from..from + fpt as usize * dim]);
+        }
         st.last_pair = [a, b].concat();
         st.reactor_latents.push_back(b.to_vec());
         lane.tokens.push(TokenTrace {
@@ -257,16 +281,14 @@ fn posteriors(nets: &Networks, lanes: &mut [&mut Lane]) -> Result<(Vec<f32>, Vec
         .filter(|&i| lanes[i].state.vae.is_some())
         .collect();
     if !stepping.is_empty() {
-        let frames: Vec<f32> = stepping
-            .iter()
-            .flat_map(|&i| {
-                let first = token_start(lanes[i]);
-                lanes[i]
-                    .actor_frames(first, first + fpt, dim)
-                    .iter()
-                    .copied()
-            })
-            .collect();
+        let mut frames = Vec::with_capacity(stepping.len() * fpt as usize * dim);
+        for &i in &stepping {
+            let first = token_start(lanes[i]);
+            let from = frames.len();
+            frames.extend_from_slice(lanes[i].actor_frames(first, first + fpt, dim));
+            // The networks see positions less the centre (recentring; zero otherwise).
+            shift_rows(&mut frames[from..], dim, negated(lanes[i].state.centre));
+        }
         let mut states: Vec<&mut VaeState> = lanes
             .iter_mut()
             .filter_map(|l| l.state.vae.as_mut())
@@ -387,7 +409,13 @@ fn decode_tokens(nets: &Networks, lanes: &mut [&mut Lane]) -> Result<()> {
                     total,
                 ))?;
             }
+            // Back from the networks' frame to the stream's (recentring; zero otherwise).
+            let from = lane.frames.len();
             lane.frames.extend_from_slice(mine);
+            shift_rows(&mut lane.frames[from..], dim, lane.state.centre);
+            if let Some(history) = &mut lane.state.history {
+                history.push_reactor(&lane.frames[from..]);
+            }
         }
     }
     for lane in lanes.iter_mut() {

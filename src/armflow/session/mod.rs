@@ -38,12 +38,15 @@ use crate::shared::text::prompt::no_prompts;
 mod guard;
 mod joints;
 mod lanes;
+mod recentre;
 mod smoothing;
 mod snapshot;
 use guard::GuardState;
 pub use guard::PenetrationGuard;
 pub use joints::step_reactors_joints;
 use lanes::Lane;
+use recentre::History;
+pub use recentre::{Recentring, HISTORY_TOKENS};
 pub use smoothing::RootSmoothing;
 use smoothing::SmoothingState;
 
@@ -78,6 +81,9 @@ pub struct ReactorOptions {
     /// Keep the reactor's feet still while their contact labels are on, in the poses
     /// [`Reactor::step_joints`] returns (`crate::motion::foot_lock`); off when `None`.
     pub foot_lock: Option<FootLockOptions>,
+    /// Move the networks' frame under the actor when it wanders from where the stream began
+    /// (`recentre.rs`); off when `None`.
+    pub recentring: Option<Recentring>,
 }
 
 /// The noise of one token, for reproducing a run exactly.
@@ -100,6 +106,7 @@ struct Settings {
     actor_latent: ActorLatent,
     guard: Option<PenetrationGuard>,
     smoothing: Option<RootSmoothing>,
+    recentring: Option<Recentring>,
 }
 
 /// Everything a stream accumulates; `reset()` returns it to `StreamState::new`.
@@ -128,6 +135,11 @@ struct StreamState {
     guard: GuardState,
     /// The root smoothing's filtered root.
     smoothing: SmoothingState,
+    /// Both people's last tokens of motion, in the stream's frame, while recentring is on.
+    history: Option<History>,
+    /// Where the networks' frame is centred on the stream's floor: they see positions less
+    /// this (`recentre.rs`; zero unless recentring moved it).
+    centre: [f64; 2],
 }
 
 /// One actor/reactor stream over a loaded ARMFlow model (made by `Armflow::reactor`, or boxed
@@ -164,6 +176,7 @@ impl Reactor {
             actor_latent: options.actor_latent.unwrap_or(m.sampler.actor_latent),
             guard: options.penetration_guard,
             smoothing: options.root_smoothing,
+            recentring: options.recentring,
             condition: match (options.condition, &options.prompt) {
                 (Some(_), Some(_)) => {
                     return Err(Error::InvalidOption(
@@ -200,7 +213,7 @@ impl Reactor {
             nets.vae_state()
         };
         let foot_lock = options.foot_lock.map(FootLock::new).transpose()?;
-        Ok(Self {
+        let mut reactor = Self {
             conditioning: nets.conditioning(settings.condition.as_deref())?,
             grid: meanflow_grid(settings.steps),
             state: StreamState::new(m, settings.capacity, vae_start.clone()),
@@ -209,7 +222,11 @@ impl Reactor {
             nets,
             joints: None,
             foot_lock,
-        })
+        };
+        if let Some(recentring) = options.recentring {
+            reactor.set_recentring(Some(recentring))?;
+        }
+        Ok(reactor)
     }
 
     /// The bundle's `armflow` fields.
@@ -286,6 +303,9 @@ impl Reactor {
     /// steps, CFG, condition, capacity). Queued noise is dropped.
     pub fn reset(&mut self) {
         self.state = StreamState::new(self.spec(), self.settings.capacity, self.vae_start.clone());
+        if self.settings.recentring.is_some() {
+            self.state.history = Some(History::starting_at(0));
+        }
         if let Some(joints) = &mut self.joints {
             joints.reset(None).expect("no placement to refuse");
         }
@@ -328,6 +348,32 @@ impl Reactor {
     pub fn set_foot_lock(&mut self, options: Option<FootLockOptions>) -> Result<()> {
         self.foot_lock = options.map(FootLock::new).transpose()?;
         Ok(())
+    }
+
+    /// Turns recentring on (with its distance) or off (`None`): before each token, when the
+    /// actor's root is farther than the distance from the networks' centre, the centre moves to
+    /// it and the networks' state is rebuilt around it from the last [`HISTORY_TOKENS`] tokens
+    /// of both people's motion (`recentre.rs`); what the session returns stays in the stream's
+    /// frame. The history starts when it is turned on; turning it off keeps the centre where it
+    /// is. [`Error::Unsupported`] for a session that runs the VAE over windows or a bundle whose
+    /// VAE looks ahead.
+    pub fn set_recentring(&mut self, recentring: Option<Recentring>) -> Result<()> {
+        if let Some(r) = &recentring {
+            r.check()?;
+            self.can_recentre()?;
+        }
+        if recentring.is_none() {
+            self.state.history = None;
+        } else if self.state.history.is_none() {
+            self.state.history = Some(History::starting_at(self.state.tokens));
+        }
+        self.settings.recentring = recentring;
+        Ok(())
+    }
+
+    /// The recentring's setting, when it is on.
+    pub fn recentring(&self) -> Option<Recentring> {
+        self.settings.recentring
     }
 
     /// The foot lock's settings, when it is on.
@@ -453,6 +499,7 @@ impl Reactor {
             + st.cache.bytes()
             + st.vae.as_ref().map_or(0, VaeState::bytes)
             + st.guard.bytes()
+            + st.history.as_ref().map_or(0, History::bytes)
             + floats * std::mem::size_of::<f32>()
     }
 
@@ -478,6 +525,8 @@ impl StreamState {
             injected: VecDeque::new(),
             guard: GuardState::default(),
             smoothing: SmoothingState::default(),
+            history: None,
+            centre: [0.0, 0.0],
         }
     }
 
@@ -587,22 +636,23 @@ fn advance_sessions(
     let checked = finished
         .iter_mut()
         .enumerate()
-        .try_for_each(|(i, (state, output))| {
+        .try_for_each(|(i, (state, output, _))| {
             let max = max_frames.get(i).copied().unwrap_or(usize::MAX);
             check_output_room(output, max, indexed.then_some(i))?;
             shape_output(sessions[i], nets, state, output, actor[i])
         });
     if let Err(e) = checked {
-        for (session, (mut state, _)) in sessions.iter_mut().zip(finished) {
-            state.cache.rollback();
-            session.state.cache = state.cache;
+        for (session, (state, _, set_aside)) in sessions.iter_mut().zip(finished) {
+            let mut cache = set_aside.unwrap_or(state.cache);
+            cache.rollback();
+            session.state.cache = cache;
         }
         return Err(e);
     }
     Ok(sessions
         .iter_mut()
         .zip(finished)
-        .map(|(session, (mut state, output))| {
+        .map(|(session, (mut state, output, _))| {
             state.cache.commit();
             session.state = state;
             output

@@ -13,11 +13,15 @@ use std::collections::VecDeque;
 use std::sync::Arc;
 
 use super::guard::GuardState;
+use super::recentre::History;
 use super::smoothing::SmoothingState;
-use super::{PenetrationGuard, Reactor, ReactorOptions, RootSmoothing, StreamState, TokenNoise};
+use super::{
+    PenetrationGuard, Reactor, ReactorOptions, Recentring, RootSmoothing, StreamState, TokenNoise,
+};
 use crate::armflow::kv_cache::KvCache;
 use crate::armflow::networks::{Networks, VaeState};
 use crate::armflow::spec::ActorLatent;
+use crate::motion::world::MAX_WORLD_METRES;
 use crate::motion::{FeatureStream, FootLock};
 use crate::shared::error::Result;
 use crate::shared::limits::LIMITS;
@@ -47,6 +51,10 @@ impl Reactor {
         w.bool(s.smoothing.is_some());
         if let Some(sm) = &s.smoothing {
             w.f64(sm.time_constant);
+        }
+        w.bool(s.recentring.is_some());
+        if let Some(r) = &s.recentring {
+            w.f64(r.distance);
         }
         w.bool(self.uses_vae_steps());
         w.bool(self.foot_lock.is_some());
@@ -93,6 +101,13 @@ impl Reactor {
         } else {
             None
         };
+        let recentring = if r.bool("whether recentring is on")? {
+            Some(Recentring {
+                distance: r.f64("the recentring distance")?,
+            })
+        } else {
+            None
+        };
         let vae_steps = r.bool("whether the VAE runs in steps")?;
         if vae_steps && nets.vae_state().is_none() {
             return Err(bad("VAE steps, which this bundle does not have"));
@@ -117,6 +132,7 @@ impl Reactor {
             vae_windows: !vae_steps,
             penetration_guard,
             root_smoothing,
+            recentring,
             ..ReactorOptions::default()
         };
         let mut reactor = Reactor::new(nets, options)?;
@@ -151,6 +167,10 @@ impl StreamState {
         }
         self.guard.save(w);
         self.smoothing.save(w);
+        w.f64(self.centre[0]).f64(self.centre[1]);
+        if let Some(history) = &self.history {
+            history.save(w);
+        }
         Ok(())
     }
 
@@ -189,7 +209,11 @@ impl StreamState {
             )));
         }
         let cache = KvCache::load(&m.context, reactor.settings.capacity, r)?;
-        if !cache.holds_tokens(tokens) {
+        let holds = match reactor.settings.recentring {
+            Some(_) => cache.holds_at_most_tokens(tokens),
+            None => cache.holds_tokens(tokens),
+        };
+        if !holds {
             return Err(bad(format!(
                 "the context cache does not hold what {tokens} tokens leave"
             )));
@@ -236,7 +260,20 @@ impl StreamState {
         };
         let guard = GuardState::load(r, received)?;
         let smoothing = SmoothingState::load(r)?;
+        let centre = [r.finite("the centre")?, r.finite("the centre")?];
+        if centre.iter().any(|c| c.abs() > MAX_WORLD_METRES) {
+            return Err(bad(format!(
+                "a centre {centre:?} beyond {MAX_WORLD_METRES} m"
+            )));
+        }
+        // Recentring (checked on when the settings were restored) keeps a history; nothing else.
+        let history = match reactor.settings.recentring {
+            Some(_) => Some(History::load(r, tokens, fpt as usize * dim)?),
+            None => None,
+        };
         Ok(StreamState {
+            history,
+            centre,
             frames_received: received,
             actor_frames,
             actor_base,
