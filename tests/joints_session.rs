@@ -307,6 +307,18 @@ fn a_recentring_session_answers_motion_far_from_the_origin_as_at_it() {
     };
     let near = stream(&actor, true);
     let far = stream(&moved_by(&actor, [5.0, 3.0]), true);
+    // Turned on mid-stream, far from the centre, it waits for a token of history, then moves.
+    let mut late = model
+        .armflow()
+        .unwrap()
+        .reactor(Default::default())
+        .unwrap();
+    let moved = moved_by(&actor, [5.0, 3.0]);
+    late.step(moved.slice(s![..40, ..])).unwrap();
+    late.set_recentring(Some(Recentring::default())).unwrap();
+    for chunk in moved.slice(s![40.., ..]).axis_chunks_iter(Axis(0), 1) {
+        assert!(late.step(chunk).unwrap().iter().all(|v| v.is_finite()));
+    }
     let back = moved_by(&far, [-5.0, -3.0]);
     let diff = common::max_abs_diff(back.as_slice().unwrap(), near.as_slice().unwrap());
     assert!(diff < 1e-3, "{diff}");

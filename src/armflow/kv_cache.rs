@@ -219,17 +219,12 @@ impl KvCache {
         self.committed = (self.len, self.written);
     }
 
-    /// Whether the cache holds what a stream of `tokens` tokens leaves in it: `<sos>` and a pair
-    /// for each token after the first, the oldest pairs dropped once full.
+    /// Whether the cache can be what a stream of `tokens` tokens leaves in it: empty before the
+    /// first token, else `<sos>` and at most a pair for each token after the first (all of them
+    /// while the ring has room, the newest once full; fewer after recentring rebuilt it around a
+    /// new centre, `armflow/session/recentre.rs`). With the counts' own agreement, checked by
+    /// [`KvCache::load`], this is all the token loop relies on.
     pub(crate) fn holds_tokens(&self, tokens: u64) -> bool {
-        self.written == tokens.saturating_sub(1)
-            && self.len as u64 == tokens.min(self.capacity as u64)
-    }
-
-    /// Whether the cache holds what a recentring stream of `tokens` tokens may leave in it:
-    /// `<sos>` and at most a pair for each token after the first (a rebuild around a new centre
-    /// keeps only the last few, `armflow/session/recentre.rs`).
-    pub(crate) fn holds_at_most_tokens(&self, tokens: u64) -> bool {
         match tokens {
             0 => self.len == 0 && self.written == 0,
             _ => self.len >= 1 && self.written < tokens,

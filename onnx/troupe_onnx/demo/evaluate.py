@@ -8,7 +8,7 @@
 Numpy and troupe's Python binding only (no torch): every actor clip is streamed as joint
 positions (metres, +Y up, 30 fps) through `Session.step_joints`, and the reactor troupe returns
 is compared with the rule's partner for the same actor (`rules.partner`), in the caller's world,
-frame by frame. Three ways of running the model:
+frame by frame. The ways of running the model:
 
 - `model`: one MeanFlow step, nothing else (what the network alone does);
 - `demo`: one step with the root smoothing, the penetration guard, the foot lock and recentring
@@ -97,7 +97,8 @@ RESTART_S = 40  # where the restarted stream of the drift probe starts
 # The guard's settings in the streaming demo (d_safe m, max_speed m/s; `DEMO_GUARD` of
 # examples/stream.rs), tuned with this evaluation (docs/DEMO.md).
 GUARD = (0.25, 10.0)
-# Recentring's distance in the streaming demo (`DEMO_RECENTRING` of examples/stream.rs), m.
+# Recentring's distance in the streaming demo (`Recentring::default()`, which examples/stream.rs
+# runs), m.
 RECENTRE_M = 1.0
 FOOT_JOINTS = ("left_ankle", "right_ankle", "left_foot", "right_foot")
 FOOT_CONTACT_M = 0.05

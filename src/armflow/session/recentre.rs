@@ -192,14 +192,18 @@ impl Reactor {
 }
 
 /// Where the lane's centre should move before its next token: the actor's root (x, z) at the
-/// token's first frame, when recentring is on, the history covers the tokens generated, and the
+/// token's first frame, when recentring is on, the history covers the tokens generated (at
+/// least one of them, once there are any: turned on mid-stream, it waits for a token), and the
 /// root is farther than the distance from the centre.
 pub(super) fn due(lane: &Lane, frame_dim: usize) -> Option<[f64; 2]> {
     let setting = lane.session.settings.recentring?;
     let st = &lane.state;
     let fpt = lane.session.spec().latent.frames_per_token;
     let history = st.history.as_ref()?;
-    history.whole_tokens(st.tokens, fpt * frame_dim)?;
+    let held = history.whole_tokens(st.tokens, fpt * frame_dim)?;
+    if held == 0 && st.tokens > 0 {
+        return None;
+    }
     let first = st.tokens * fpt as u64;
     let row = lane.actor_frames(first, first + 1, frame_dim);
     let root = [f64::from(row[POSITIONS]), f64::from(row[POSITIONS + 2])];

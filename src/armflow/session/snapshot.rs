@@ -209,11 +209,7 @@ impl StreamState {
             )));
         }
         let cache = KvCache::load(&m.context, reactor.settings.capacity, r)?;
-        let holds = match reactor.settings.recentring {
-            Some(_) => cache.holds_at_most_tokens(tokens),
-            None => cache.holds_tokens(tokens),
-        };
-        if !holds {
+        if !cache.holds_tokens(tokens) {
             return Err(bad(format!(
                 "the context cache does not hold what {tokens} tokens leave"
             )));

@@ -82,7 +82,8 @@ def client_plan(bundle: str, clients: int, tokens: int) -> list[ClientRecord]:
             frames = np.random.default_rng(i).standard_normal((tokens * fpt, dim)).astype(np.float32)
         options: dict = {"seed": i}
         if labels:  # a trained model: the rules in turn, with the demo's clean-ups
-            options |= {"condition": labels[i % len(labels)], "penetration_guard": True, "root_smoothing": True}
+            options |= {"condition": labels[i % len(labels)], "penetration_guard": True, "root_smoothing": True,
+                        "recentring": True}
         plans.append(ClientRecord(options, [frames[t * fpt:(t + 1) * fpt] for t in range(tokens)]))
     return plans
 

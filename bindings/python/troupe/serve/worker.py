@@ -21,7 +21,11 @@ import troupe
 
 # What a client may set on its stream; everything else is refused.
 SESSION_OPTIONS = ("seed", "steps", "cfg", "capacity", "condition")
-SETTERS = {"penetration_guard": "set_penetration_guard", "root_smoothing": "set_root_smoothing"}
+SETTERS = {
+    "penetration_guard": "set_penetration_guard",
+    "root_smoothing": "set_root_smoothing",
+    "recentring": "set_recentring",
+}
 
 
 def check_options(options: Any) -> dict:
