@@ -2027,14 +2027,14 @@ troupe_status troupe_session_joints_placement(struct troupe_session *session, st
 size_t troupe_model_joints_latency_frames(const struct troupe_model *model);
 
 /**
- * Turns an ARMFlow session's recentring on (`enabled` nonzero) or off: before each
- * `troupe_session_step_joints` call, when the actor's root is farther than `distance` metres
- * (in [0.1, 100]; 1 is the demo's) from the stream's origin on the floor, the stream's frame
- * moves under the actor and the networks' state is rebuilt in it from the last 16 tokens of
- * both people's motion, which the session keeps while recentring is on (about 134 KB at the
- * demo model's size). The poses returned stay in the caller's world. A model trained near the
- * origin then keeps its quality however far the actor walks. `distance` is ignored when turning
- * it off. Feature frames (`troupe_session_step`) are never recentred.
+ * Turns an ARMFlow session's recentring on (`enabled` nonzero) or off: before each token, when
+ * the actor's root is farther than `distance` metres (in [0.1, 100]; 1 is the demo's) on the
+ * floor from where the networks' frame is centred, the centre moves to the actor and the
+ * networks' state is rebuilt around it from the last 8 tokens of both people's motion, which
+ * the session keeps while recentring is on (67 KB at the demo model's size). What the session
+ * returns (frames and poses) stays in the stream's frame; a model trained near the origin then
+ * keeps its quality however far the actor walks. The result does not depend on how frames are
+ * split into calls. Turning it off keeps the centre where it is; `distance` is then ignored.
  *
  * Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (a distance out of
  * range; the session keeps its setting), `TROUPE_ERR_UNSUPPORTED` (not an ARMFlow session, or
