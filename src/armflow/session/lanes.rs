@@ -176,19 +176,14 @@ fn generate_tokens(nets: &Networks, lanes: &mut [&mut Lane]) -> Result<()> {
     let (mean, logvar) = posteriors(nets, lanes)?;
     let mut actor = vec![0f32; lanes.len() * lat];
     for (i, lane) in lanes.iter().enumerate() {
-        let scale = lane.spec().latent.scale;
         let row = i * lat..(i + 1) * lat;
-        for (((a, m), lv), xi) in actor[row.clone()]
-            .iter_mut()
-            .zip(&mean[row.clone()])
-            .zip(&logvar[row])
-            .zip(&noise[i].actor)
-        {
-            *a = match lane.session.settings.actor_latent {
-                ActorLatent::Sample => (m + lv.exp().sqrt() * xi) * scale,
-                ActorLatent::Mean => m * scale,
-            };
-        }
+        actor_token(
+            lane.session,
+            &mean[row.clone()],
+            &logvar[row.clone()],
+            &noise[i].actor,
+            &mut actor[row],
+        );
     }
 
     for (i, lane) in lanes.iter().enumerate() {
@@ -266,6 +261,24 @@ fn generate_tokens(nets: &Networks, lanes: &mut [&mut Lane]) -> Result<()> {
         st.tokens += 1;
     }
     Ok(())
+}
+
+/// An actor token from its posterior, as the session's setting says: the sample
+/// `(mean + sqrt(exp(logvar)) * xi) * scale`, or `mean * scale`.
+pub(super) fn actor_token(
+    session: &Reactor,
+    mean: &[f32],
+    logvar: &[f32],
+    xi: &[f32],
+    out: &mut [f32],
+) {
+    let scale = session.spec().latent.scale;
+    for (((a, m), lv), x) in out.iter_mut().zip(mean).zip(logvar).zip(xi) {
+        *a = match session.settings.actor_latent {
+            ActorLatent::Sample => (m + lv.exp().sqrt() * x) * scale,
+            ActorLatent::Mean => m * scale,
+        };
+    }
 }
 
 /// The posterior `(mean, logvar)` of each lane's next actor token, `[lanes, latent_dim]` each:

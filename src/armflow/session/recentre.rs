@@ -27,20 +27,18 @@
 //!
 //! The check falls on token boundaries of the stream, so how a caller splits its frames into
 //! calls does not change the result. Recentring needs the bundle's per-token VAE graphs with no
-//! lookahead (every token decoded as soon as it is generated); each time it costs
-//! `3 × HISTORY_TOKENS` VAE steps and one context pass.
-
-use super::lanes::Lane;
-use crate::armflow::kv_cache::KvCache;
-use crate::armflow::networks::{Networks, VaeState};
-use crate::armflow::spec::ActorLatent;
-use crate::motion::features::POSITIONS;
-use crate::shared::checks::check_output;
-use crate::shared::error::{Error, Result};
-use crate::shared::snapshot::{bad, SnapshotReader, SnapshotWriter};
+//! lookahead (every token decoded as soon as it is generated); each time it costs `HISTORY_TOKENS`
+//! encoder steps (both people batched), as many decoder steps, and one context pass.
 
 use super::guard::shift_on_floor;
+use super::lanes::{actor_token, Lane};
 use super::Reactor;
+use crate::armflow::kv_cache::KvCache;
+use crate::armflow::networks::{Networks, VaeState};
+use crate::motion::features::POSITIONS;
+use crate::shared::checks::{check_output, check_output_counted};
+use crate::shared::error::{Error, Result};
+use crate::shared::snapshot::{bad, SnapshotReader, SnapshotWriter};
 
 /// Tokens of both people's motion a recentring stream keeps to rebuild its state from (1.1 s at
 /// 4 frames per token and 30 fps): as many as the demo model's training windows that stand for
@@ -243,17 +241,9 @@ pub(super) fn recentre(nets: &Networks, lane: &mut Lane, centre: [f64; 2]) -> Re
         both.extend_from_slice(&reactor[rows]);
         let (means, logvars) = nets.encode_step(&both, &mut [&mut vae, &mut reactor_vae])?;
         let (mean, logvar, b_mean) = (&means[..lat], &logvars[..lat], &means[lat..]);
-        let a: Vec<f32> = match session.settings.actor_latent {
-            ActorLatent::Sample => {
-                let xi = session.seeded_noise(first + k as u64).actor;
-                mean.iter()
-                    .zip(logvar)
-                    .zip(&xi)
-                    .map(|((m, lv), x)| (m + lv.exp().sqrt() * x) * scale)
-                    .collect()
-            }
-            ActorLatent::Mean => mean.iter().map(|m| m * scale).collect(),
-        };
+        let mut a = vec![0f32; lat];
+        let xi = session.seeded_noise(first + k as u64).actor;
+        actor_token(session, mean, logvar, &xi, &mut a);
         nets.decode_step(b_mean, &mut [&mut vae])?;
         let b: Vec<f32> = b_mean.iter().map(|m| m * scale).collect();
         lane.in_token(check_output("vae_encoder", "recentred actor latent", &a))?;
@@ -299,9 +289,7 @@ fn check_vae(lane: &Lane, vae: &VaeState) -> Result<()> {
         (false, "vae_decoder", "recentred decoder state"),
     ] {
         let (bad, total) = vae.non_finite(encoder);
-        lane.in_token(crate::shared::checks::check_output_counted(
-            graph, what, bad, total,
-        ))?;
+        lane.in_token(check_output_counted(graph, what, bad, total))?;
     }
     Ok(())
 }
