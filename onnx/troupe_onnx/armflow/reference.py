@@ -405,11 +405,14 @@ class AdaLNSelfAttn(nn.Module):
         self.ffn = FFN(width)
         self.ada_lin = nn.Sequential(nn.SiLU(), nn.Linear(cond_dim, 6 * width))
 
-    def modulation(self, cond):  # [B, cond] -> [B, 6, C]
+    def modulation(self, cond):  # [B, cond] -> [B, 6, C]; per token: [B, S, cond] -> [B, 6, S, C]
+        if cond.dim() == 3:
+            return self.ada_lin(cond).view(*cond.shape[:2], 6, self.width).transpose(1, 2)
         return self.ada_lin(cond).view(-1, 6, self.width)
 
     def forward(self, x, mod, past_k, past_v, past_mask, new_mask):
-        g1, g2, s1, s2, sh1, sh2 = mod[:, :, None, :].unbind(1)  # each [B, 1, C]
+        per_token = mod if mod.dim() == 4 else mod[:, :, None, :]  # [B, 6, S or 1, C]
+        g1, g2, s1, s2, sh1, sh2 = per_token.unbind(1)  # each [B, S or 1, C]
         ln = lambda t: F.layer_norm(t, (self.width,), eps=1e-6)  # noqa: E731
         a, k, v = self.attn(ln(x) * (1 + s1) + sh1, past_k, past_v, past_mask, new_mask)
         x = x + g1 * a
@@ -448,7 +451,7 @@ class SkipAdaLNTransformer(nn.Module):
     def blocks(self) -> list[AdaLNSelfAttn]:
         return [*self.in_layers, self.mid_layer, *self.out_layers]
 
-    def modulation(self, cond):  # [B, cond] -> [B, L, 6, C]
+    def modulation(self, cond):  # [B, cond] -> [B, L, 6, C]; per token [B, S, cond] -> [B, L, 6, S, C]
         return torch.stack([blk.modulation(cond) for blk in self.blocks()], dim=1)
 
     def run(self, x, modulation, past, past_mask, new_mask):

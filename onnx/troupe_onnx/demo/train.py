@@ -3,6 +3,8 @@
     python3 onnx/cli.py demo train --out target/demo-train [--resume]  # recipe v2, the committed model: ~3 h on 2 cores
     python3 onnx/cli.py demo train --out DIR --stage vae|flow         # one stage (flow needs DIR/vae.pt)
     python3 onnx/cli.py demo train --recipe v1 --out DIR              # the first demo model, ~25 min on 2 cores
+    python3 onnx/cli.py demo train --recipe v3 --stage flow --init onnx/checkpoints/armflow-demo.pt --out DIR
+                                                                      # v2 + its placement fed back, ~50 min
     python3 onnx/cli.py demo export --checkpoint onnx/checkpoints/armflow-demo.pt --out onnx/bundles/armflow-demo --golden
 
 The recipe is `docs/spec/armflow-training.md` §6, scaled to this model (DATA.md, docs/DEMO.md):
@@ -40,7 +42,7 @@ import torch
 import torch.nn.functional as F
 
 from troupe_onnx.armflow.reference import Armflow, ArmflowConfig, VaeConfig, sinusoid_positions
-from troupe_onnx.demo import dataset, rules, sources
+from troupe_onnx.demo import dataset, feedback, rules, sources
 
 # --------------------------------------------------------------------------------------------
 # The model and the recipe
@@ -53,9 +55,11 @@ def demo_config(recipe: dict | None = None) -> ArmflowConfig:
     keeps 40 tokens: what training windows attend over (<sos> + 8 history + 31 window pairs).
     Condition None means mirror: the model was never trained without a rule."""
     m = (recipe or RECIPE)["model"]
+    fed = feedback.DIMS if m.get("feedback") else 0  # v3: the partner's placement after the one-hot
+    null = tuple(rules.condition("mirror").tolist()) + (0.0,) * fed
     return ArmflowConfig(
-        latent_dim=m["latent_dim"], latent_scale=1.0, cond_dim=len(rules.RULES), layers=m["layers"], heads=4,
-        mlp_blocks=m["mlp_blocks"], context_capacity=40, null_condition=tuple(rules.condition("mirror").tolist()),
+        latent_dim=m["latent_dim"], latent_scale=1.0, cond_dim=len(rules.RULES) + fed, layers=m["layers"], heads=4,
+        mlp_blocks=m["mlp_blocks"], context_capacity=40, null_condition=null,
         vae=VaeConfig(encoder_width=m["vae_width"], decoder_width=m["vae_width"], depth=2, kernel=3, norm_groups=8,
                       causal=True),
     )
@@ -91,6 +95,15 @@ RECIPES = {
         },
     },
 }
+# v3 (issue 36, in progress): v2 fine-tuned with the partner's own placement fed back into each
+# token's condition (`feedback.py`), so that keep-away's leash is something the model sees. Its
+# flow stage starts from v2's weights (`--init`; the condition's new inputs start at zero weight,
+# so step 0 is v2) with the full BSCE depth from the first step. A stream's first token weighs 8
+# in the loss: it alone decides where keep-away's partner stands for the rest of the stream.
+RECIPES["v3"] = json.loads(json.dumps(RECIPES["v2"]))
+RECIPES["v3"]["model"]["feedback"] = True
+RECIPES["v3"]["flow"].update({"steps": 6000, "lr": 5e-4, "lr_end": 2e-5, "warmup": 200, "k_ramp": 0.0,
+                              "feedback_truth_rules": ["keep-away"], "opening_weight": 8.0})
 RECIPE = RECIPES["v2"]
 
 
@@ -272,14 +285,15 @@ def causal_context(model: Armflow, actor, partner, positions, modulation):
 @torch.no_grad()
 def regenerate(model: Armflow, actor, partner, positions, modulation, k: int):
     """BSCE: the partner history after K parallel one-step sweeps from the ground truth, all
-    with one noise draw (the exact one-step sampler, cfg 1)."""
+    with one noise draw (the exact one-step sampler, cfg 1). `modulation` is the stream's, or
+    a function of the partner history giving the per-token one (v3's feedback)."""
     core = model.armflow
     eps = torch.randn_like(partner)
     h = partner
     b, n, d = partner.shape
     one, zero = torch.ones(b * n), torch.zeros(b * n)
     for _ in range(k):
-        c = causal_context(model, actor, h, positions, modulation)
+        c = causal_context(model, actor, h, positions, modulation(h) if callable(modulation) else modulation)
         u = core.velocity(actor.reshape(-1, d), eps.reshape(-1, d), c.reshape(b * n, -1), zero, one)
         h = (eps.reshape(-1, d) - u).reshape(b, n, d)
     return h
@@ -293,8 +307,9 @@ def sample_times(n: int, r: dict):
     return torch.where(equal, hi, lo), hi
 
 
-def meanflow_loss(model: Armflow, actor_tok, target, context, r: dict):
-    """MeanFlow on flat tokens: actor_tok, target [N, D], context [N, W]."""
+def meanflow_loss(model: Armflow, actor_tok, target, context, r: dict, weight=None):
+    """MeanFlow on flat tokens: actor_tok, target [N, D], context [N, W]; `weight` [N] weighs
+    the tokens' errors (equal when None)."""
     core = model.armflow
     n = target.shape[0]
     keep = (torch.rand(n) >= r["label_dropout"]).float()[:, None]
@@ -312,7 +327,8 @@ def meanflow_loss(model: Armflow, actor_tok, target, context, r: dict):
     u_tgt = (v - (tt - rr)[:, None] * du_dt).detach()
     err = (u - u_tgt).pow(2)
     same = rr == tt
-    return err.mean(), {"mse": err.mean().item(), "mse_r_eq_t": err[same].mean().item(), "mse_r_lt_t": err[~same].mean().item()}
+    loss = err.mean() if weight is None else (err.mean(-1) * weight).sum() / weight.sum()
+    return loss, {"mse": err.mean().item(), "mse_r_eq_t": err[same].mean().item(), "mse_r_lt_t": err[~same].mean().item()}
 
 
 def train_flow(model: Armflow, pairs, recipe: dict, rng, log, resumable: Resumable | None = None) -> dict:
@@ -323,7 +339,7 @@ def train_flow(model: Armflow, pairs, recipe: dict, rng, log, resumable: Resumab
     params = [p for n, p in model.named_parameters() if n.startswith("armflow.")]
     opt = torch.optim.AdamW(params, lr=r["lr"], weight_decay=r["weight_decay"])
     model.armflow.train()
-    ramp = int(0.7 * r["steps"])
+    ramp = int(r.get("k_ramp", 0.7) * r["steps"])
     resumable = resumable or Resumable(None, 1, log)
     first, hist = resumable.start(model, opt, rng)
     t0 = time.time()
@@ -337,12 +353,33 @@ def train_flow(model: Armflow, pairs, recipe: dict, rng, log, resumable: Resumab
             zb = encode(model, b)
         skip = prefix // fpt  # history tokens before the window: context only, no loss
         cond = F.one_hot(rule, len(rules.RULES)).float()
-        modulation = model.armflow.arnet.modulation(cond)
+        if recipe["model"].get("feedback"):
+            actor_frames = a[..., :66].reshape(*a.shape[:2], 22, 3)
+            true_frames = b[..., :66].reshape(*b.shape[:2], 22, 3)
+            # Keep-away's partner stands where its own path has taken it: fed BSCE's regenerated
+            # history, the feedback would report a place the target does not follow from, so
+            # that rule is fed the true placement. The others are fed their own, so that they
+            # keep anchoring to the actor rather than to where they last stood.
+            truth = torch.tensor([rules.RULES[i] in r["feedback_truth_rules"] for i in rule.tolist()])
+
+            def modulation(history, onehot=cond, actor_frames=actor_frames, true_frames=true_frames, truth=truth):
+                with torch.no_grad():  # the feedback is an input, read from decoded frames
+                    frames = model.vae.decoder(history / cfg.latent_scale)[..., :66]
+                frames = frames.reshape(*frames.shape[:2], 22, 3)
+                frames = torch.where(truth[:, None, None, None], true_frames[:, : frames.shape[1]], frames)
+                conds = feedback.token_conditions(onehot, frames, actor_frames, fpt)
+                return model.armflow.arnet.modulation(conds)
+        else:
+            modulation = model.armflow.arnet.modulation(cond)
         hist_b = regenerate(model, za, zb, positions, modulation, k)
-        c = causal_context(model, za, hist_b, positions, modulation)
+        c = causal_context(model, za, hist_b, positions, modulation(hist_b) if callable(modulation) else modulation)
         d = cfg.latent_dim
+        weight = torch.ones(za.shape[0], za.shape[1] - skip)
+        if skip == 0:  # a stream start: its first token places the partner for the whole stream
+            weight[positions == 0, 0] = r.get("opening_weight", 1.0)
         loss, parts = meanflow_loss(
-            model, za[:, skip:].reshape(-1, d), zb[:, skip:].reshape(-1, d), c[:, skip:].reshape(-1, c.shape[-1]), r
+            model, za[:, skip:].reshape(-1, d), zb[:, skip:].reshape(-1, d), c[:, skip:].reshape(-1, c.shape[-1]), r,
+            weight.reshape(-1),
         )
         opt.zero_grad()
         loss.backward()
@@ -368,6 +405,19 @@ def encode(model: Armflow, x):
 # --------------------------------------------------------------------------------------------
 
 
+def widened(trained: dict, fresh: dict) -> dict:
+    """`trained` weights for a model whose condition may have more inputs: a linear layer that
+    reads the condition keeps its trained columns and gets zero ones for the new inputs (the
+    model starts out ignoring them)."""
+    out = dict(trained)
+    for name, w in trained.items():
+        want = fresh[name].shape
+        if w.shape != want:
+            assert w.dim() == 2 and w.shape[0] == want[0] and w.shape[1] < want[1], (name, w.shape, want)
+            out[name] = torch.cat([w, torch.zeros(want[0], want[1] - w.shape[1])], dim=1)
+    return out
+
+
 def save(model: Armflow, path: Path, record: dict):
     torch.save({"state_dict": model.state_dict(), "troupe_training": record}, path)
 
@@ -377,13 +427,17 @@ def main(argv: list[str] | None = None, prog: str | None = None):
     ap = argparse.ArgumentParser(prog=prog, description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--out", type=Path, required=True, help="directory for vae.pt, armflow.pt and train.log")
     ap.add_argument("--stage", choices=("vae", "flow", "all"), default="all")
-    ap.add_argument("--recipe", choices=tuple(RECIPES), default="v2", help="v2: the committed model's (issue 36); v1: the first demo model's")
+    ap.add_argument("--recipe", choices=tuple(RECIPES), default="v2", help="v2: the committed model's (issue 36); v1: the first demo model's; v3: v2 with the "
+                         "partner's placement fed back into each token's condition (needs --init)")
     ap.add_argument("--resume", action="store_true",
                     help="go on from DIR/vae.resume.pt or DIR/flow.resume.pt where a run stopped (a finished "
                          "DIR/vae.pt skips the VAE stage)")
     ap.add_argument("--checkpoint-every", type=int, default=500, help="steps between resumable checkpoints")
     ap.add_argument("--vae-steps", type=int, help=f"default {RECIPE['vae']['steps']}")
     ap.add_argument("--flow-steps", type=int, help=f"default {RECIPE['flow']['steps']}")
+    ap.add_argument("--init", type=Path,
+                    help="start the flow stage from this trained checkpoint (its VAE, latent scale and ARMFlow "
+                         "weights; condition inputs it lacks start at zero weight) instead of DIR/vae.pt")
     ap.add_argument("--threads", type=int, default=int(os.environ.get("TROUPE_TRAIN_THREADS", "2")))
     args = ap.parse_args(argv)
     recipe = json.loads(json.dumps(RECIPES[args.recipe]))
@@ -431,15 +485,17 @@ def main(argv: list[str] | None = None, prog: str | None = None):
         log(f"latent scale {cfg.latent_scale:.4f}; VAE trained in {record['vae_seconds']} s")
         save(model, args.out / "vae.pt", record)
     if args.stage in ("flow", "all"):
-        state = torch.load(args.out / "vae.pt", map_location="cpu", weights_only=True)
-        record = state["troupe_training"] | {k: v for k, v in record.items() if k in ("recipe", "seconds_seen_by_vae", "seconds_seen_by_flow")}
+        state = torch.load(args.init or args.out / "vae.pt", map_location="cpu", weights_only=True)
+        record = state["troupe_training"] | {k: v for k, v in record.items() if k in ("recipe_name", "recipe", "seconds_seen_by_vae", "seconds_seen_by_flow")}
         record["recipe"]["vae"] = state["troupe_training"]["recipe"]["vae"]
         cfg.latent_scale = record["latent_scale"]
         record["config"] = {k: v for k, v in asdict(cfg).items() if k != "stream_windows"}
         torch.manual_seed(recipe["seed"] + 1)
         rng = np.random.default_rng(recipe["seed"] + 1)
         model = Armflow(cfg)
-        model.load_state_dict(state["state_dict"])
+        model.load_state_dict(widened(state["state_dict"], model.state_dict()))
+        if args.init:
+            record["initialised_from"] = {"checkpoint": str(args.init), "recipe": state["troupe_training"].get("recipe_name")}
         record["vae_held_out_mpjpe_cm"] = vae_held_out_cm(model)
         log(f"VAE reconstruction of the held-out clips: {record['vae_held_out_mpjpe_cm']:.1f} cm per joint")
         t0 = time.time()
