@@ -110,13 +110,27 @@ def test_a_stream_start_window_is_placed_as_troupe_places_a_stream(actor):
     assert np.hypot(p[0, 0], p[0, 2]) < 1e-5  # root over the origin
     across = p[NAMES.index("right_hip")] - p[NAMES.index("left_hip")]
     assert across[0] < 0 and abs(across[2]) < 1e-5  # hips across X: facing +Z, left at +X
-    # the partner moved with the actor: their distance is unchanged by the placement
+    # the partner is the rule started afresh at the window's first frame, moved with the actor:
+    # their distance is unchanged by the placement
     d_window = np.linalg.norm(a[:, :3] - b[:, :3], axis=-1)
     starts = [s for s in range(len(pair.actor) - 63) if np.allclose(pair.actor[s, 132:258], a[0, 132:258])]
     assert starts, "the window's rotations are the pair's"
     s = starts[0]
-    d_pair = np.linalg.norm(pair.actor[s : s + 64, :3] - pair.partner[s : s + 64, :3], axis=-1)
-    np.testing.assert_allclose(d_window, d_pair, atol=1e-5)
+    fresh = rules.partner(actor[s : s + 65], "mirror")
+    d_fresh = np.linalg.norm(actor[s : s + 64, 0] - fresh[:64, 0], axis=-1)
+    np.testing.assert_allclose(d_window, d_fresh, atol=1e-5)
+
+
+def test_a_stream_start_window_starts_keep_away_on_its_leash_in_front(actor):
+    # Mid-clip, the clip-long partner stands wherever the leash has taken it; a stream that
+    # starts there starts its partner 2 m in front of the actor, as evaluation and the runtime do.
+    pair = dataset.Pair("cmu/test", 2, dataset.features(actor), dataset.features(rules.partner(actor, "keep-away")))
+    rng = np.random.default_rng(5)
+    for _ in range(4):
+        a, b, _, _ = dataset.draw_window(pair, 32, rng, stream_start=True)
+        offset = b[0, [0, 2]] - a[0, [0, 2]]
+        assert abs(np.hypot(*offset) - 2.0) < 1e-4
+        assert offset[1] > 1.8, offset  # in front: the placed actor faces +Z
 
 
 def test_mid_stream_windows_carry_history_and_a_later_position(actor):

@@ -152,10 +152,26 @@ def placement_at(actor_row: np.ndarray) -> tuple[float, np.ndarray]:
     return yaw, -turned_xz(p[0], yaw)
 
 
+def positions_of(rows: np.ndarray) -> np.ndarray:
+    """The joint positions [T + 1, 22, 3] that feature rows [T, 262] were computed from (the
+    last frame from the last row's velocity)."""
+    p = rows[:, :66].reshape(-1, 22, 3).astype(np.float64)
+    last = p[-1] + rows[-1, 66:132].reshape(22, 3)
+    return np.concatenate([p, last[None]])
+
+
+def restarted_partner(actor_rows: np.ndarray, rule: int) -> np.ndarray:
+    """The partner features of a stream that starts at `actor_rows`' first frame: the rule run
+    afresh there (keep-away's leash in front of the actor, follow's heading the actor's)."""
+    return features(rules.partner(positions_of(actor_rows), rules.RULES[rule], FPS))
+
+
 def draw_window(pair: Pair, frames: int, rng: np.random.Generator, stream_start: bool | None = None,
                 prefix: int | None = None):
     """(actor [prefix + frames, 262], partner [...], prefix, first position) of one window.
-    `prefix` overrides the history frames of a mid-stream window (the VAE needs none)."""
+    `prefix` overrides the history frames of a mid-stream window (the VAE needs none). A stream
+    start's partner is the rule started afresh at the window (as a stream starts it); a
+    mid-stream window's continues the one that began with the clip."""
     if stream_start is None:
         stream_start = rng.random() < P_STREAM_START
     if prefix is None:
@@ -165,7 +181,7 @@ def draw_window(pair: Pair, frames: int, rng: np.random.Generator, stream_start:
         return None
     s = int(rng.integers(0, hi + 1))
     a = pair.actor[s : s + prefix + frames]
-    b = pair.partner[s : s + prefix + frames]
+    b = restarted_partner(a, pair.rule) if stream_start else pair.partner[s : s + prefix + frames]
     yaw, shift = placement_at(a[prefix])
     if not stream_start:
         yaw += rng.uniform(-np.pi, np.pi)
