@@ -27,7 +27,7 @@ pub use crate::armflow::spec::{
     LatentSpec, SamplerSpec, VaeSpec,
 };
 pub use crate::magnet::spec::MagnetSpec;
-pub use crate::shared::bundle_io::{ConditionLabel, ConditionSpec, MotionSpec};
+pub use crate::shared::bundle_io::{ConditionFeedback, ConditionLabel, ConditionSpec, MotionSpec};
 pub use crate::shared::graph_spec::{DType, Dim, GraphSpec, TensorSpec, Weights};
 pub use crate::shared::text::prompt::TokenizerSpec;
 pub use crate::umf::spec::{
@@ -131,6 +131,17 @@ impl Manifest {
             Family::Umf(spec) => spec.validate(&self.condition)?,
             Family::Magnet(spec) => spec.validate(m, &self.condition)?,
             Family::Arflow(spec) => spec.validate(m, &self.condition)?,
+        }
+        if let Some(feedback) = &self.condition.feedback {
+            match &self.family {
+                Family::Armflow(spec) => spec.validate_feedback(m)?,
+                _ => {
+                    return Err(format!(
+                        "condition.feedback `{}` is for armflow bundles only",
+                        feedback.kind
+                    ))
+                }
+            }
         }
         let (encoder, branch) = self.text_graphs();
         ensure(encoder.is_some() == self.tokenizer.is_some(), || {

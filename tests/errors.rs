@@ -218,6 +218,37 @@ fn manifest_inconsistent_with_the_runtime_contract_names_tensor_and_shape() {
 }
 
 #[test]
+fn condition_feedback_is_checked_at_load() {
+    let feedback = |kind: &str| serde_json::json!({"kind": kind, "dim": 5});
+    let dir = bundle_copy();
+    edit_manifest(dir.path(), |v| {
+        v["condition"]["feedback"] = feedback("gaze")
+    });
+    let text = load_error(dir.path());
+    assert!(
+        text.contains("condition.feedback `gaze` of 5 floats is unknown"),
+        "{text}"
+    );
+    // Declared, but the conditioning graph reads only the caller's 32 floats, not 32 + 5.
+    let dir = bundle_copy();
+    edit_manifest(dir.path(), |v| {
+        v["condition"]["feedback"] = feedback("partner_placement")
+    });
+    let text = load_error(dir.path());
+    assert!(text.contains("`condition` float32 [1, 37]"), "{text}");
+    // Only an ARMFlow stream reads its reactor's placement.
+    let dir = copy_of_bundle("umf-tiny");
+    edit_manifest(dir.path(), |v| {
+        v["condition"]["feedback"] = feedback("partner_placement")
+    });
+    let text = load_error(dir.path());
+    assert!(
+        text.contains("condition.feedback `partner_placement` is for armflow bundles only"),
+        "{text}"
+    );
+}
+
+#[test]
 fn missing_graph_file_names_it() {
     let dir = bundle_copy();
     std::fs::remove_file(dir.path().join("velocity.onnx")).unwrap();

@@ -2,7 +2,9 @@
 where it is installed, or `python3 -m pytest onnx/tests/test_demo_training.py`): a stage stopped
 at a checkpoint and started again trains exactly as one that never stopped; recipe v3's
 per-token conditions (the partner's placement fed back) in one causal pass are what a stream of
-cached steps computes; a model widened for them starts as the one it came from."""
+cached steps computes; a model widened for them starts as the one it came from; the reference's
+stream loop (the goldens') feeds back what training feeds back, and a bundle of such a model
+states its feedback in the manifest."""
 
 from __future__ import annotations
 
@@ -13,8 +15,9 @@ import pytest
 
 torch = pytest.importorskip("torch")
 
-from troupe_onnx.armflow.reference import Armflow  # noqa: E402
-from troupe_onnx.demo import dataset, feedback, partners, rules, sources, train  # noqa: E402
+from troupe_onnx.armflow import feedback  # noqa: E402
+from troupe_onnx.armflow.reference import Armflow, StreamOptions, VaeWindows, clip_reference, stream_reference  # noqa: E402
+from troupe_onnx.demo import dataset, partners, rules, sources, train  # noqa: E402
 
 
 class Stop(Exception):
@@ -136,3 +139,107 @@ def test_a_model_widened_for_feedback_starts_as_the_one_it_came_from():
     fed = torch.cat([onehot, torch.randn(3, feedback.DIMS)], -1)
     with torch.no_grad():
         torch.testing.assert_close(wide.armflow.arnet.modulation(fed), narrow.armflow.arnet.modulation(onehot))
+
+
+def feedback_model(seed: int = 0) -> Armflow:
+    """Recipe v3's conditioning at v1's size, with trained-looking weights (every condition column,
+    the fed-back ones included, matters)."""
+    torch.manual_seed(seed)
+    cfg = train.demo_config(tiny("v3"))
+    cfg.latent_scale = 0.7
+    model = Armflow(cfg).eval()
+    for p in model.parameters():
+        p.data.normal_(0.0, 0.05)
+    return model
+
+
+def test_the_stream_loop_feeds_back_what_training_feeds_back(actor):
+    """`stream_reference` with feedback against the training's one causal pass over its own
+    outputs: the reactor latents decoded in one pass give the frames; `token_conditions` of those
+    frames and the input actor frames give each token's condition (token j: frame 4j - 1); the
+    causal context under those conditions and one MeanFlow step from the noise give the contexts
+    and the reactor latents the loop produced."""
+    model = feedback_model()
+    cfg, core, fpt = model.cfg, model.armflow, model.cfg.frames_per_token
+    assert (cfg.cond_dim, cfg.caller_cond_dim, cfg.null_condition) == (8, 3, (1.0, 0.0, 0.0))
+    f = dataset.features(actor)
+    f = dataset.rigid(f, *dataset.placement_at(f[0]))
+    n = 12
+    frames_in = np.ascontiguousarray(f[: n * fpt + 2], np.float32)
+    rng = np.random.default_rng(0)
+    xi, eps = (rng.standard_normal((n, cfg.latent_dim)).astype(np.float32) for _ in range(2))
+    onehot = rules.condition("keep-away")
+    out = stream_reference(model, frames_in, xi, eps, StreamOptions(condition=onehot))
+    a, b = torch.from_numpy(out["actor_latents"]), torch.from_numpy(out["reactor_latents"])
+    with torch.no_grad():
+        decoded = model.vae.decoder(b[None] / torch.tensor(cfg.latent_scale))[0]
+        torch.testing.assert_close(torch.from_numpy(out["frames"]), decoded, atol=1e-5, rtol=1e-5)
+        joints = lambda x: x[: n * fpt, :66].reshape(1, n * fpt, 22, 3).double()  # noqa: E731
+        conds = feedback.token_conditions(torch.from_numpy(onehot)[None].double(), joints(decoded),
+                                          joints(torch.from_numpy(frames_in)), fpt).float()
+        assert out["feedback"].shape == (n, feedback.DIMS)
+        np.testing.assert_array_equal(out["feedback"][0], 0.0)  # token 0: no frame yet
+        np.testing.assert_array_equal(out["feedback"][1:, 0], 1.0)
+        torch.testing.assert_close(torch.from_numpy(out["feedback"]), conds[0, :, 3:], atol=1e-5, rtol=1e-5)
+        for j in (1, n - 1):  # the last frame of the token before, both people's
+            last = j * fpt - 1
+            want = feedback.of(decoded[last, :66].reshape(22, 3).double(),
+                               torch.from_numpy(frames_in[last, :66]).reshape(22, 3).double())
+            torch.testing.assert_close(torch.from_numpy(out["feedback"][j]), want.float(), atol=1e-5, rtol=1e-5)
+        zero = torch.zeros(1, dtype=torch.long)
+        contexts = train.causal_context(model, a[None], b[None], zero, core.arnet.modulation(conds))[0]
+        torch.testing.assert_close(torch.from_numpy(out["contexts"]), contexts, atol=1e-5, rtol=1e-5)
+        step = core.velocity(a, torch.from_numpy(eps), contexts, torch.zeros(n), torch.ones(n))
+        torch.testing.assert_close(b, torch.from_numpy(eps) - step, atol=1e-5, rtol=1e-5)
+        # Not vacuous: without the feedback the contexts would differ.
+        blind = torch.cat([conds[..., :3], torch.zeros_like(conds[..., 3:])], dim=-1)
+        unfed = train.causal_context(model, a[None], b[None], zero, core.arnet.modulation(blind))[0]
+        assert (unfed[1:] - contexts[1:]).abs().max() > 1e-3
+    # What the feedback loop cannot run: a decoder lookahead, the clip loop.
+    with pytest.raises(ValueError, match="lookahead"):
+        stream_reference(model, frames_in, xi, eps, StreamOptions(), VaeWindows(64, 0, 17, 1))
+    with pytest.raises(ValueError, match="feedback"):
+        clip_reference(model, frames_in, xi, eps[0], onehot)
+
+
+def test_a_feedback_bundle_states_its_feedback_in_the_manifest(tmp_path):
+    """The manifest's `condition` of a v3 bundle: the caller's 3 floats (labels, null) and the
+    5 fed back; the conditioning graph reads all 8. The goldens carry each token's feedback.
+    A bundle without feedback keeps its condition section as it was."""
+    pytest.importorskip("onnx")
+    from troupe_onnx.armflow import export as armflow_export
+    from troupe_onnx.demo import export as demo_export
+
+    model = feedback_model()
+    record = {"recipe_name": "v3", "recipe": tiny("v3"), "latent_scale": model.cfg.latent_scale}
+    ckpt = tmp_path / "armflow.pt"
+    train.save(model, ckpt, record)
+    out = tmp_path / "bundle"
+    demo_export.export(ckpt, out, golden=True)
+    manifest = json.loads((out / "troupe.json").read_text())
+    labels = [{"name": r, "vector": rules.condition(r).tolist(), "about": demo_export.ABOUT[r]} for r in rules.RULES]
+    assert manifest["condition"] == {
+        "dim": 3, "feedback": {"kind": "partner_placement", "dim": 5}, "null": [1.0, 0.0, 0.0],
+        "null_source": "label:mirror", "labels": labels,
+    }
+    assert manifest["graphs"]["conditioning"]["inputs"] == [{"name": "condition", "dtype": "float32", "shape": [1, 8]}]
+    assert manifest["vae"]["decoder"]["lookahead_tokens"] == 0
+    assert manifest["producer"]["training"] == record
+    golden = out / "golden"
+    assert np.load(golden / "default_condition.npy").shape == (3,)
+    fed = np.load(golden / "default_feedback.npy")
+    assert fed.shape == (armflow_export.GOLDEN_TOKENS, feedback.DIMS)
+    np.testing.assert_array_equal(fed[0], 0.0)
+    np.testing.assert_array_equal(fed[1:, 0], 1.0)
+    plain = Armflow(train.demo_config(tiny("v2")))
+    assert armflow_export.condition_manifest(plain) == {"dim": 3, "null": [1.0, 0.0, 0.0], "null_source": "vector"}
+
+
+def test_feedback_reads_t2m22s_hips_and_shoulders():
+    from troupe_onnx.armflow import feedback as fb
+    from troupe_onnx.motion.skeleton import t2m22
+
+    names = t2m22().names
+    assert [fb._L_HIP, fb._R_HIP, fb._L_SHOULDER, fb._R_SHOULDER] == [
+        names.index(n) for n in ("left_hip", "right_hip", "left_shoulder", "right_shoulder")
+    ]

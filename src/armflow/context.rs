@@ -36,7 +36,8 @@ impl ContextEncoder {
 
     /// One step for a batch of streams. Stream `b` appends its `S` tokens (`width` floats each,
     /// at `positions[b * S..]`) to `caches[b]`, under `modulations[b]` (`[1, layers, 6,
-    /// width]`). Returns the contexts at each stream's last token, `[B, width]` row-major. The
+    /// width]`), or, with `B * S` modulations, each token under its own (a feedback bundle's
+    /// tokens each have their condition). Returns the contexts at each stream's last token, `[B, width]` row-major. The
     /// caches are written in place and not committed: the caller commits or rolls them back
     /// with the rest of the step.
     pub(crate) fn step(
@@ -60,6 +61,13 @@ impl ContextEncoder {
                 positions.len()
             )));
         }
+        if modulations.len() != b && modulations.len() != rows {
+            return Err(Error::InvalidInput(format!(
+                "{} modulations for {b} streams of {s} tokens",
+                modulations.len()
+            )));
+        }
+        let per_row = modulations.len() == rows && s > 1;
         let modulations = modulations
             .iter()
             .map(|m| read_f32(ROLE, "modulation", m, &[1, layers, 6, c]))
@@ -73,7 +81,7 @@ impl ContextEncoder {
                 for k in 0..6 {
                     let at = (i * 6 + k) * c;
                     for m in &modulations {
-                        for _ in 0..s {
+                        for _ in 0..if per_row { 1 } else { s } {
                             data.extend_from_slice(&m[at..at + c]);
                         }
                     }

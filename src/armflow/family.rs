@@ -54,7 +54,9 @@ impl Armflow {
     /// The context `c` the encoder gives after `[<sos>, pairs...]`, computed from scratch in one
     /// causal pass (no cache). `pairs` holds `(actor || reactor)` tokens, row-major
     /// `[n, 2 * latent_dim]`; positions are `0..=n`. A reactor's cached stream gives the same
-    /// context while its history fits in the context capacity.
+    /// context while its history fits in the context capacity. [`crate::Error::Unsupported`] for a
+    /// bundle that feeds each token the reactor's placement (`condition.feedback`): pairs alone
+    /// do not carry it.
     pub fn recompute_context(&self, condition: Option<&[f32]>, pairs: &[f32]) -> Result<Vec<f32>> {
         self.nets.recompute_context(condition, pairs)
     }

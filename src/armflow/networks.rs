@@ -127,6 +127,9 @@ pub(crate) struct Conditioning {
     pub modulation: TValue,
     /// The `<sos>` token, `[width]`.
     pub start_token: Vec<f32>,
+    /// The caller's condition it was computed from (the null condition resolved), without the
+    /// fed-back floats: what every token's conditioning starts from in a feedback bundle.
+    pub condition: Vec<f32>,
 }
 
 impl Networks {
@@ -246,6 +249,13 @@ impl Networks {
             )));
         }
         check_input("history", pairs)?;
+        if let Some(feedback) = &self.io.condition.feedback {
+            return Err(Error::Unsupported(format!(
+                "bundle `{}` feeds each token the reactor's placement (condition.feedback `{}`), \
+                 which a bare history of pairs does not carry",
+                self.io.name, feedback.kind
+            )));
+        }
         let cond = self.conditioning(condition)?;
         let mut tokens = cond.start_token.clone();
         tokens.extend_from_slice(pairs);
@@ -257,11 +267,10 @@ impl Networks {
 
     // ---- typed network calls ------------------------------------------------------------------
 
-    /// Runs the conditioning graph; `None` is the null condition.
+    /// Runs the conditioning graph; `None` is the null condition. A feedback bundle's fed-back
+    /// floats are zeros: what its first token sees.
     pub(crate) fn conditioning(&self, condition: Option<&[f32]>) -> Result<Conditioning> {
-        let a = &self.spec;
         let dim = self.io.condition.dim;
-        let zeros;
         let condition = match condition {
             Some(c) => {
                 if c.len() != dim {
@@ -271,16 +280,27 @@ impl Networks {
                     )));
                 }
                 check_input("condition", c)?;
-                c
+                c.to_vec()
             }
-            None => {
-                zeros = self.io.condition.null_or_zeros();
-                &zeros
-            }
+            None => self.io.condition.null_or_zeros(),
         };
+        let fed = vec![0f32; self.io.condition.feedback_dim()];
+        self.conditioning_fed(condition, &fed)
+    }
+
+    /// Runs the conditioning graph on the caller's `condition` (checked) followed by the
+    /// fed-back floats `fed` (`condition.feedback.dim` of them).
+    pub(crate) fn conditioning_fed(
+        &self,
+        condition: Vec<f32>,
+        fed: &[f32],
+    ) -> Result<Conditioning> {
+        let a = &self.spec;
+        debug_assert_eq!(fed.len(), self.io.condition.feedback_dim());
+        let input = [condition.as_slice(), fed].concat();
         let out = self
             .conditioning
-            .run(vec![f32_tensor(&[1, dim], condition)])?;
+            .run(vec![f32_tensor(&[1, input.len()], &input)])?;
         let c = a.context.width;
         read_f32(
             "conditioning",
@@ -292,6 +312,7 @@ impl Networks {
         Ok(Conditioning {
             modulation: out[0].clone(),
             start_token,
+            condition,
         })
     }
 

@@ -170,6 +170,32 @@ impl ArmFlowSpec {
         fpt - 1 + self.vae.encoder.lookahead_frames + fpt * self.vae.decoder.lookahead_tokens
     }
 
+    /// What `condition.feedback` (the reactor's placement, read from its decoded frames before
+    /// every token) needs: joint positions where the runtime reads them, and each token decoded
+    /// before the next is generated.
+    pub(crate) fn validate_feedback(&self, motion: &MotionSpec) -> std::result::Result<(), String> {
+        ensure(motion.layout == "interhuman262", || {
+            format!(
+                "condition.feedback reads t2m22 joint positions: motion.layout must be \
+                 interhuman262, not `{}`",
+                motion.layout
+            )
+        })?;
+        ensure(self.vae.decoder.lookahead_tokens == 0, || {
+            "condition.feedback needs a decoder without lookahead (each token decoded before \
+             the next)"
+                .into()
+        })?;
+        ensure(
+            self.clip.is_none() && self.graphs.text_branch.is_none(),
+            || {
+                "condition.feedback is for streams: a bundle with it has no `clip` section and no \
+             text branch"
+                    .into()
+            },
+        )
+    }
+
     pub(crate) fn validate(&self, frame_dim: usize) -> std::result::Result<(), String> {
         let check = |ok: bool, msg: &dyn Fn() -> String| ensure(ok, msg);
         let (l, c) = (&self.latent, &self.context);
@@ -355,7 +381,7 @@ impl ArmFlowSpec {
                 &g.conditioning,
                 spec(
                     &g.conditioning,
-                    vec![f("condition", vec![n(1), n(condition.dim)])],
+                    vec![f("condition", vec![n(1), n(condition.graph_dim())])],
                     vec![
                         f("modulation", vec![n(1), n(self.context.layers), n(6), n(c)]),
                         f("start_token", vec![n(1), n(1), n(c)]),

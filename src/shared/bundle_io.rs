@@ -55,6 +55,27 @@ pub struct ConditionSpec {
     /// the bundle lists them. Empty for bundles conditioned on free vectors (text features).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub labels: Vec<ConditionLabel>,
+    /// Floats the runtime appends to the caller's `dim` before every token, when the model
+    /// was trained to see its own state in its condition (ARMFlow only). The conditioning graph
+    /// then reads `dim + feedback.dim` floats; callers still pass `dim`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub feedback: Option<ConditionFeedback>,
+}
+
+/// What the runtime feeds back into the condition (the manifest's `condition.feedback`).
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+pub struct ConditionFeedback {
+    /// `partner_placement`: `[valid, dx, dz, fx, fz]`, where the reactor stood at the last
+    /// frame of the previous token relative to the actor (root offset on the floor, metres)
+    /// and its unit facing on the floor; all zeros before the first token.
+    pub kind: String,
+    /// Floats fed back (5 for `partner_placement`).
+    pub dim: usize,
+}
+
+impl ConditionFeedback {
+    /// The only kind there is.
+    pub const PARTNER_PLACEMENT: &'static str = "partner_placement";
 }
 
 /// A named condition: what to pass for a behaviour the bundle knows by name.
@@ -70,6 +91,16 @@ pub struct ConditionLabel {
 }
 
 impl ConditionSpec {
+    /// Floats the runtime feeds back after the caller's (0 without `feedback`).
+    pub fn feedback_dim(&self) -> usize {
+        self.feedback.as_ref().map_or(0, |f| f.dim)
+    }
+
+    /// Floats the conditioning graph reads: the caller's and the fed-back ones.
+    pub fn graph_dim(&self) -> usize {
+        self.dim + self.feedback_dim()
+    }
+
     /// The condition that stands for "none": `null`, or zeros.
     pub fn null_or_zeros(&self) -> Vec<f32> {
         self.null.clone().unwrap_or_else(|| vec![0f32; self.dim])
@@ -138,6 +169,14 @@ impl ConditionSpec {
                     ))
                 }
             },
+        }
+        if let Some(feedback) = &self.feedback {
+            if (feedback.kind.as_str(), feedback.dim) != (ConditionFeedback::PARTNER_PLACEMENT, 5) {
+                return Err(format!(
+                    "condition.feedback `{}` of {} floats is unknown (partner_placement, 5)",
+                    feedback.kind, feedback.dim
+                ));
+            }
         }
         for (i, label) in self.labels.iter().enumerate() {
             if label.name.is_empty() || label.name.contains('\0') {

@@ -247,7 +247,7 @@ def graph_specs(model: Armflow) -> dict:
     specs = {
         "conditioning": {
             "file": "conditioning.onnx",
-            "inputs": [t("condition", dims(1, cfg.cond_dim))],
+            "inputs": [t("condition", dims(1, cfg.cond_dim))],  # with feedback: the caller's, then the fed back
             "outputs": [t("modulation", dims(1, L, 6, c)), t("start_token", dims(1, 1, c))],
         },
         "context_layers": layers,
@@ -422,16 +422,21 @@ def export_bundle(
 
 
 def condition_manifest(model: Armflow) -> dict:
-    """The manifest's `condition`: its width, and what "no condition" is and where it comes
-    from (`null_source`): the empty prompt through the checkpoint's CLIP and text branch (the
-    official meaning), a vector the configuration gives, or zeros."""
+    """The manifest's `condition`: the width a caller passes, and what "no condition" is and
+    where it comes from (`null_source`): the empty prompt through the checkpoint's CLIP and text
+    branch (the official meaning), a vector the configuration gives, or zeros. A model with
+    condition feedback adds `feedback` (its kind and width): the conditioning graph reads the
+    caller's `dim` floats followed by those."""
     cfg = model.cfg
+    dim = {"dim": cfg.caller_cond_dim}
+    if cfg.condition_feedback is not None:
+        dim["feedback"] = {"kind": cfg.condition_feedback, "dim": cfg.feedback_dim}
     if cfg.text_branch:
         null = null_condition(model)[0].tolist()
-        return {"dim": cfg.cond_dim, "null": [float(v) for v in null], "null_source": "empty_prompt"}
+        return dim | {"null": [float(v) for v in null], "null_source": "empty_prompt"}
     if cfg.null_condition is not None:
-        return {"dim": cfg.cond_dim, "null": list(cfg.null_condition), "null_source": "vector"}
-    return {"dim": cfg.cond_dim, "null_source": "zeros"}
+        return dim | {"null": list(cfg.null_condition), "null_source": "vector"}
+    return dim | {"null_source": "zeros"}
 
 
 # --------------------------------------------------------------------------------------------
@@ -454,7 +459,9 @@ def synthetic_actor(frames: int, dim: int, seed: int = 1) -> np.ndarray:
 
 def write_golden(model: Armflow, out_dir: Path, actor: np.ndarray | None = None):
     """Goldens of the stream loop; `actor` (features, at least 194 frames) replaces the synthetic
-    actor (a trained model is better held to real motion)."""
+    actor (a trained model is better held to real motion). A model with condition feedback gets
+    its feedback loop's goldens (`stream_reference`), and `{case}_feedback.npy` [N, 5]: what each
+    token's condition was given after the caller's."""
     if model.cfg.clip_frames:
         return write_clip_golden(model, out_dir)
     cfg = model.cfg
@@ -467,7 +474,7 @@ def write_golden(model: Armflow, out_dir: Path, actor: np.ndarray | None = None)
     np.save(g / "actor.npy", actor)
     cases = {
         "default": dict(steps=1, cfg_scale=1.0, capacity=None,
-                        condition=rng.standard_normal(cfg.cond_dim).astype(np.float32)),
+                        condition=rng.standard_normal(cfg.caller_cond_dim).astype(np.float32)),
         "cfg_steps_window": dict(steps=2, cfg_scale=2.5, capacity=16, condition=None),
     }
     index = {}

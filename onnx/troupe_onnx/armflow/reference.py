@@ -17,6 +17,7 @@ import numpy as np
 import torch
 import torch.nn as nn
 import torch.nn.functional as F
+from troupe_onnx.armflow import feedback
 from troupe_onnx.shared.clip import CONTEXT, FULL_MERGES, ClipTransformer, clip_features, empty_prompt, vocab_size
 from troupe_onnx.shared.transformer import EncoderStack, pick_token
 
@@ -59,10 +60,38 @@ class ArmflowConfig:
     clip_heads: int = 12
     clip_merges: int = FULL_MERGES  # the tokenizer's byte-pair merges
     stream_windows: VaeWindows | None = None  # stream-mode windows of a non-causal VAE
-    null_condition: tuple[float, ...] | None = None  # what condition None means (zeros if unset)
+    null_condition: tuple[float, ...] | None = None  # what condition None means (zeros if unset), caller's part
     vae: VaeConfig = field(
         default_factory=lambda: VaeConfig(512, 256, 3, 3, 32, True)
     )
+    # What the loop feeds back after the caller's condition before every token (`feedback.py`):
+    # "partner_placement" or None. With it, `cond_dim` is the conditioning's whole input (the
+    # caller's `caller_cond_dim` floats, then `feedback.DIMS`).
+    condition_feedback: str | None = None
+
+    def __post_init__(self):
+        if self.condition_feedback not in (None, feedback.KIND):
+            raise ValueError(f"condition_feedback {self.condition_feedback!r} is unknown (None or {feedback.KIND!r})")
+        if self.condition_feedback is not None:
+            if self.text_branch or self.clip_frames:
+                raise ValueError("condition feedback is for streams: no text branch, no clip mode")
+            if self.frame_dim != 262:
+                raise ValueError("condition feedback reads t2m22 joint positions: interhuman262 frames (262)")
+            if self.cond_dim <= feedback.DIMS:
+                raise ValueError(f"cond_dim {self.cond_dim} leaves no room for the caller's condition")
+        if self.null_condition is not None and len(self.null_condition) != self.caller_cond_dim:
+            raise ValueError(f"null_condition has {len(self.null_condition)} floats, the caller's condition "
+                             f"{self.caller_cond_dim}")
+
+    @property
+    def feedback_dim(self) -> int:
+        """Floats fed back after the caller's condition (0 without feedback)."""
+        return feedback.DIMS if self.condition_feedback else 0
+
+    @property
+    def caller_cond_dim(self) -> int:
+        """Floats of the condition a caller passes (the manifest's `condition.dim`)."""
+        return self.cond_dim - self.feedback_dim
 
     @property
     def width(self) -> int:
@@ -693,20 +722,24 @@ class VaeWindows:
 
 
 def null_condition(model: Armflow) -> torch.Tensor:
-    """[1, cond_dim]: what "no condition" means: the empty prompt through the text encoder
-    when the model has one (the official meaning), else the configuration's null condition,
-    else zeros."""
+    """[1, caller_cond_dim]: what "no condition" means: the empty prompt through the text
+    encoder when the model has one (the official meaning), else the configuration's null
+    condition, else zeros. The caller's part only: feedback is the loop's to append."""
     cfg = model.cfg
     if cfg.text_branch:
         return model.text_encoder.empty_prompt()
     if cfg.null_condition is not None:
         return torch.tensor([cfg.null_condition], dtype=torch.float32)
-    return torch.zeros(1, cfg.cond_dim)
+    return torch.zeros(1, cfg.caller_cond_dim)
 
 
 def condition_or_null(model: Armflow, condition: np.ndarray | None) -> torch.Tensor:
-    """[1, cond_dim]: the condition, or the model's null condition."""
-    return null_condition(model) if condition is None else torch.from_numpy(condition)[None]
+    """[1, caller_cond_dim]: the caller's condition, or the model's null condition."""
+    if condition is None:
+        return null_condition(model)
+    if condition.shape[-1] != model.cfg.caller_cond_dim:
+        raise ValueError(f"a condition of {condition.shape[-1]} floats: the model takes {model.cfg.caller_cond_dim}")
+    return torch.from_numpy(condition)[None]
 
 
 @torch.no_grad()
@@ -716,14 +749,25 @@ def stream_reference(
 ):
     """Run the streaming ARMFlow loop over a whole actor clip with injected noise.
 
+    With `condition_feedback` the modulation is recomputed before every token j from the
+    caller's condition followed by the feedback (`feedback.py`): zeros for token 0, else
+    `feedback.of_features` of the reactor's frame j * fpt - 1 as the decoder produced it for
+    token j - 1 and the actor's input frame j * fpt - 1 (needs a decoder without lookahead).
+
     Returns a dict of float32 arrays: actor_latents, reactor_latents, contexts [N, *] and
-    frames (reactor frames of every token whose decoder lookahead exists)."""
+    frames (reactor frames of every token whose decoder lookahead exists); with feedback also
+    feedback [N, 5], what each token's condition was given after the caller's."""
     cfg, core = model.cfg, model.armflow
     fpt = cfg.frames_per_token
     w = windows or VaeWindows.of(model)
     capacity = opt.capacity or cfg.context_capacity
     n_tokens = (actor.shape[0] - w.lookahead_frames) // fpt
-    modulation = core.arnet.modulation(condition_or_null(model, opt.condition))
+    condition = condition_or_null(model, opt.condition)
+    fed = cfg.condition_feedback is not None
+    if fed and w.lookahead_tokens:
+        raise ValueError("condition feedback needs a decoder without lookahead: token j - 1 decoded before token j")
+    modulation = None if fed else core.arnet.modulation(condition)
+    fed_hist = []
     h, dh = cfg.heads, cfg.head_dim
     past = [(torch.zeros(1, h, 0, dh), torch.zeros(1, h, 0, dh)) for _ in range(cfg.layers)]
     grid = meanflow_grid(opt.steps)
@@ -742,6 +786,11 @@ def stream_reference(
         if held + 1 > capacity:  # slide: keep <sos> and the newest capacity - 2 pairs
             drop_to = held - (capacity - 2)
             past = [tuple(torch.cat([x[:, :, :1], x[:, :, drop_to:]], 2) for x in kv) for kv in past]
+        if fed:  # the reactor's placement at the last frame of token j - 1, decoded in step 4
+            last = j * fpt - 1
+            fb = torch.zeros(feedback.DIMS) if j == 0 else feedback.of_features(frames[-1][-1], motion[0, last])
+            fed_hist.append(fb)
+            modulation = core.arnet.modulation(torch.cat([condition, fb[None]], dim=-1))
         c, new = core.arnet.step(token, torch.tensor([[j]]), modulation, past)
         past = [tuple(torch.cat([old, n], 2) for old, n in zip(kv, new_kv)) for kv, new_kv in zip(past, new)]
         # 3. MeanFlow: z <- z - (tau_k - tau_{k+1}) u(z, r=tau_{k+1}, t=tau_k)
@@ -764,12 +813,15 @@ def stream_reference(
             window = torch.stack(b_hist[first:])[None] / torch.tensor(cfg.latent_scale, dtype=torch.float32)
             frames.append(model.vae.decoder(window)[0, (k - first) * fpt : (k - first + 1) * fpt])
     as_np = lambda xs: torch.stack(xs).numpy().astype(np.float32)  # noqa: E731
-    return {
+    out = {
         "actor_latents": as_np(a_hist),
         "reactor_latents": as_np(b_hist),
         "contexts": as_np(c_hist),
         "frames": torch.cat(frames).numpy().astype(np.float32),
     }
+    if fed:
+        out["feedback"] = as_np(fed_hist)
+    return out
 
 
 # --------------------------------------------------------------------------------------------
@@ -805,6 +857,9 @@ def clip_reference(model: Armflow, actor: np.ndarray, xi: np.ndarray, eps: np.nd
 
     Returns actor_latents, reactor_latents, contexts [N, *] and frames [clip_frames, D]."""
     cfg, core = model.cfg, model.armflow
+    if cfg.condition_feedback is not None:
+        raise ValueError(f"the clip loop does not support condition feedback ({cfg.condition_feedback}): "
+                         "a model with it runs the stream loop only")
     frames_in, d = actor.shape
     assert frames_in <= cfg.clip_frames
     padded = np.zeros((cfg.clip_frames, d), np.float32)

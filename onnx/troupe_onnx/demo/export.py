@@ -10,6 +10,9 @@ The bundle is ARMFlow's (`onnx/cli.py armflow export` writes it, on the demo con
 the manifest's `producer.training` (recipe, data, final losses, training time, from the
 checkpoint) and `condition.labels`, the partner rules by name. Goldens are the armflow
 exporter's (stream loop with injected noise, both through the reference and through troupe).
+A checkpoint of a recipe with feedback (v3) gives a bundle whose `condition` is the rule's
+one-hot (`dim` 3) plus `feedback` (`partner_placement`, 5 floats the runtime appends before every
+token; `armflow/feedback.py`), and goldens of the feedback loop.
 """
 
 from __future__ import annotations

@@ -41,8 +41,9 @@ import numpy as np
 import torch
 import torch.nn.functional as F
 
+from troupe_onnx.armflow import feedback
 from troupe_onnx.armflow.reference import Armflow, ArmflowConfig, VaeConfig, sinusoid_positions
-from troupe_onnx.demo import dataset, feedback, rules, sources
+from troupe_onnx.demo import dataset, rules, sources
 
 # --------------------------------------------------------------------------------------------
 # The model and the recipe
@@ -53,13 +54,16 @@ def demo_config(recipe: dict | None = None) -> ArmflowConfig:
     """The demo model of a recipe (`RECIPES`; v1: 32-d latents, a 64-wide 3-layer context
     encoder, 3 MLP blocks, a 96-wide causal VAE), the rules' one-hot as the condition. The context
     keeps 40 tokens: what training windows attend over (<sos> + 8 history + 31 window pairs).
-    Condition None means mirror: the model was never trained without a rule."""
+    Condition None means mirror: the model was never trained without a rule. With the recipe's
+    `feedback` (v3), the conditioning reads the one-hot followed by the partner's placement
+    (`armflow/feedback.py`): `cond_dim` is that whole width, the null condition the one-hot only
+    (the caller's part)."""
     m = (recipe or RECIPE)["model"]
     fed = feedback.DIMS if m.get("feedback") else 0  # v3: the partner's placement after the one-hot
-    null = tuple(rules.condition("mirror").tolist()) + (0.0,) * fed
     return ArmflowConfig(
         latent_dim=m["latent_dim"], latent_scale=1.0, cond_dim=len(rules.RULES) + fed, layers=m["layers"], heads=4,
-        mlp_blocks=m["mlp_blocks"], context_capacity=40, null_condition=null,
+        mlp_blocks=m["mlp_blocks"], context_capacity=40, null_condition=tuple(rules.condition("mirror").tolist()),
+        condition_feedback=feedback.KIND if fed else None,
         vae=VaeConfig(encoder_width=m["vae_width"], decoder_width=m["vae_width"], depth=2, kernel=3, norm_groups=8,
                       causal=True),
     )
@@ -96,7 +100,7 @@ RECIPES = {
     },
 }
 # v3 (issue 36, in progress): v2 fine-tuned with the partner's own placement fed back into each
-# token's condition (`feedback.py`), so that keep-away's leash is something the model sees. Its
+# token's condition (`armflow/feedback.py`), so that keep-away's leash is something the model sees. Its
 # flow stage starts from v2's weights (`--init`; the condition's new inputs start at zero weight,
 # so step 0 is v2) with the full BSCE depth from the first step. A stream's first token weighs 8
 # in the loss: it alone decides where keep-away's partner stands for the rest of the stream.

@@ -11,6 +11,7 @@
 //! a non-finite value must fail the step (leaving the session as it was) rather than be returned
 //! or carried into the next token.
 
+use super::feedback;
 use super::recentre::{self, negated, shift_rows};
 use super::{Reactor, StepOutput, StreamState, TokenNoise, TokenTrace};
 use crate::armflow::kv_cache::KvCache;
@@ -213,9 +214,22 @@ fn generate_tokens(nets: &Networks, lanes: &mut [&mut Lane]) -> Result<()> {
         });
         positions.push(j as i64);
     }
+    // A feedback bundle's token after the first is conditioned on where the reactor stands.
+    let fed = lanes
+        .iter()
+        .map(|l| {
+            let fed = nets.io.condition.feedback.is_some() && l.state.tokens > 0;
+            fed.then(|| {
+                let c = &l.session.conditioning;
+                nets.conditioning_fed(c.condition.clone(), &l.state.feedback)
+            })
+            .transpose()
+        })
+        .collect::<Result<Vec<_>>>()?;
     let modulations: Vec<_> = sessions
         .iter()
-        .map(|s| &s.conditioning.modulation)
+        .zip(&fed)
+        .map(|(s, f)| &f.as_ref().unwrap_or(&s.conditioning).modulation)
         .collect();
     let mut caches: Vec<_> = lanes.iter_mut().map(|l| &mut l.state.cache).collect();
     let context = nets
@@ -443,6 +457,13 @@ fn decode_tokens(nets: &Networks, lanes: &mut [&mut Lane]) -> Result<()> {
             let mine = &motion[row..row + fpt * dim];
             lane.in_token(check_output("vae_decoder", "decoded frames", mine))?;
             lane.frames.extend_from_slice(mine);
+        }
+        if nets.io.condition.feedback.is_some() {
+            // The token's last frame, both people in the stream's frame.
+            let last = lane.state.frames_emitted + fpt as u64 - 1;
+            let reactor = &lane.frames[lane.frames.len() - dim..];
+            let fed = feedback::partner_placement(reactor, lane.actor_frames(last, last + 1, dim));
+            lane.state.feedback = fed;
         }
         lane.state.frames_emitted += fpt as u64;
     }

@@ -35,6 +35,7 @@ use crate::shared::noise::{fill_normals, STREAM_ACTOR_POSTERIOR, STREAM_REACTOR_
 use crate::shared::stream::{downcast_all, StepOutput, StepTogether, Stream, TokenTrace};
 use crate::shared::text::prompt::no_prompts;
 
+mod feedback;
 mod guard;
 mod joints;
 mod lanes;
@@ -140,6 +141,9 @@ struct StreamState {
     /// Where the networks' frame is centred on the stream's floor: they see positions less
     /// this (`recentre.rs`; zero unless recentring moved it).
     centre: [f64; 2],
+    /// In a feedback bundle, the reactor's placement at the last frame decoded
+    /// (`feedback.rs`): what the next token's condition carries. Zeros before any.
+    feedback: [f32; feedback::DIM],
 }
 
 /// One actor/reactor stream over a loaded ARMFlow model (made by `Armflow::reactor`, or boxed
@@ -527,6 +531,7 @@ impl StreamState {
             smoothing: SmoothingState::default(),
             history: None,
             centre: [0.0, 0.0],
+            feedback: [0.0; feedback::DIM],
         }
     }
 

@@ -23,13 +23,16 @@
 //! 2. the decoder runs over those reactor tokens from the zero state (its frames, already sent,
 //!    are dropped): the encoder's and decoder's state are now the new centre's;
 //! 3. the context cache is rebuilt from `<sos>` and the new pairs in one causal pass, at the
-//!    positions the old pairs had (at most the capacity's worth, as the cache would hold).
+//!    positions the old pairs had (at most the capacity's worth, as the cache would hold), each
+//!    under the condition it had (a feedback bundle's placements are read again from the kept
+//!    frames: they are relative, so the move does not change them).
 //!
 //! The check falls on token boundaries of the stream, so how a caller splits its frames into
 //! calls does not change the result. Recentring needs the bundle's per-token VAE graphs with no
 //! lookahead (every token decoded as soon as it is generated); each time it costs `HISTORY_TOKENS`
 //! encoder steps (both people batched), as many decoder steps, and one context pass.
 
+use super::feedback;
 use super::guard::shift_on_floor;
 use super::lanes::{actor_token, Lane};
 use super::Reactor;
@@ -259,17 +262,28 @@ pub(super) fn recentre(nets: &Networks, lane: &mut Lane, centre: [f64; 2]) -> Re
     if lane.state.tokens > 0 {
         let mut feed = session.conditioning.start_token.clone();
         let mut positions = vec![0i64];
+        let mut fed = Vec::new();
         let newest = tokens - 1;
         for k in newest - newest.min(session.settings.capacity - 1)..newest {
             feed.extend_from_slice(&pairs[k * 2 * lat..(k + 1) * 2 * lat]);
             positions.push((first + k as u64 + 1) as i64);
+            if nets.io.condition.feedback.is_some() {
+                // The pair of token k went in with the placement at token k's last frame.
+                let last = ((k + 1) * fpt - 1) * dim..(k + 1) * fpt * dim;
+                let placement = feedback::partner_placement(
+                    &history.reactor[last.clone()],
+                    &history.actor[last],
+                );
+                let c = &session.conditioning;
+                fed.push(nets.conditioning_fed(c.condition.clone(), &placement)?);
+            }
         }
-        nets.context.step(
-            &mut [&mut cache],
-            &feed,
-            &positions,
-            &[&session.conditioning.modulation],
-        )?;
+        let mut modulations = vec![&session.conditioning.modulation];
+        if !fed.is_empty() {
+            modulations.extend(fed.iter().map(|c| &c.modulation));
+        }
+        nets.context
+            .step(&mut [&mut cache], &feed, &positions, &modulations)?;
     }
     cache.commit();
     lane.set_aside_cache(cache);

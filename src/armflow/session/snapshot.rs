@@ -65,7 +65,8 @@ impl Reactor {
         if let Some(joints) = &self.joints {
             joints.save(&mut w);
         }
-        self.state.save(&mut w)?;
+        self.state
+            .save(&mut w, self.nets.io.condition.feedback.is_some())?;
         Ok(w.finish())
     }
 
@@ -144,8 +145,9 @@ impl Reactor {
 }
 
 impl StreamState {
-    /// Writes the stream (between steps: the cache is committed).
-    fn save(&self, w: &mut SnapshotWriter) -> Result<()> {
+    /// Writes the stream (between steps: the cache is committed); `fed`: the bundle feeds the
+    /// reactor's placement back.
+    fn save(&self, w: &mut SnapshotWriter, fed: bool) -> Result<()> {
         w.u64(self.frames_received).u64(self.actor_base);
         w.f32s(&self.actor_frames);
         w.u64(self.tokens);
@@ -170,6 +172,9 @@ impl StreamState {
         w.f64(self.centre[0]).f64(self.centre[1]);
         if let Some(history) = &self.history {
             history.save(w);
+        }
+        if fed {
+            w.f32s(&self.feedback);
         }
         Ok(())
     }
@@ -267,7 +272,28 @@ impl StreamState {
             Some(_) => Some(History::load(r, tokens, fpt as usize * dim)?),
             None => None,
         };
+        // A feedback bundle's placement (only its streams write one): a relative offset on the
+        // floor and a unit facing, zeros before the first token is decoded.
+        let mut feedback = [0f32; super::feedback::DIM];
+        if reactor.nets.io.condition.feedback.is_some() {
+            let read = r.f32s_exact("the fed-back placement", feedback.len())?;
+            feedback.copy_from_slice(&read);
+            let offset = f64::from(read[1]).hypot(f64::from(read[2]));
+            let facing = f64::from(read[3]).hypot(f64::from(read[4]));
+            let plausible = if decoded == 0 {
+                read.iter().all(|&v| v == 0.0)
+            } else {
+                // (a degenerate decoded body has no facing: zero)
+                read[0] == 1.0 && offset <= 2.0 * MAX_WORLD_METRES && facing <= 1.0 + 1e-3
+            };
+            if !plausible {
+                return Err(bad(format!(
+                    "a fed-back placement {read:?} after {decoded} tokens decoded"
+                )));
+            }
+        }
         Ok(StreamState {
+            feedback,
             history,
             centre,
             frames_received: received,
