@@ -243,3 +243,31 @@ def test_feedback_reads_t2m22s_hips_and_shoulders():
     assert [fb._L_HIP, fb._R_HIP, fb._L_SHOULDER, fb._R_SHOULDER] == [
         names.index(n) for n in ("left_hip", "right_hip", "left_shoulder", "right_shoulder")
     ]
+
+
+def test_diagnose_measures_a_checkpoint_against_its_vae(tmp_path, actor):
+    from troupe_onnx.demo import diagnose
+
+    torch.manual_seed(0)
+    recipe = tiny("v3")
+    cfg = train.demo_config(recipe)
+    cfg.latent_scale = 0.8
+    model = Armflow(cfg)
+    path = tmp_path / "armflow.pt"
+    train.save(model, path, {"recipe": recipe, "latent_scale": 0.8})
+    loaded = diagnose.load(path)
+    assert loaded.cfg.condition_feedback == "partner_placement"
+    frames = diagnose.TOKENS * cfg.frames_per_token + 1
+    window = actor[:frames]
+    # The true partner tokens, as diagnose encodes them (placed as a stream starts).
+    fa = dataset.features(window)
+    fb = dataset.features(rules.partner(window, "keep-away", sources.FPS))
+    placed = torch.from_numpy(dataset.rigid(fb, *dataset.placement_at(fa[0]))[None])
+    with torch.no_grad():
+        truth = loaded.vae.encoder(placed)[0][0] * cfg.latent_scale
+    # A flow that lands on the true tokens has no error; one beside them has.
+    loaded.armflow.velocity = lambda a, z, c, r, t: z - truth
+    forced, vae = diagnose.window_errors(loaded, window, "keep-away")
+    assert forced == 0.0 and np.isfinite(vae) and vae > 0.0
+    loaded.armflow.velocity = lambda a, z, c, r, t: z - truth - 0.5
+    assert diagnose.window_errors(loaded, window, "keep-away")[0] > 0.0

@@ -2,7 +2,8 @@
 
 `sources.py` fetches the motion capture, `rules.py` defines the partners, `dataset.py` turns them
 into training windows, `train.py` trains the VAE and then ARMFlow, `evaluate.py` streams held-out
-clips through troupe and measures the reactor against the rule. `DATA.md` records the data.
+clips through troupe and measures the reactor against the rule, `diagnose.py` measures a
+checkpoint's next token given the true past. `DATA.md` records the data.
 """
 
 # `onnx/cli.py demo COMMAND`: COMMAND -> (module of this package, what it does).
@@ -11,4 +12,5 @@ COMMANDS = {
     "export": ("export", "the trained checkpoint as the armflow-demo bundle, with goldens (torch)"),
     "partners": ("partners", "the rules' partners of the default actor clip, for the demo and tests (numpy)"),
     "evaluate": ("evaluate", "stream held-out mocap through troupe; error against the rules and baselines (numpy)"),
+    "diagnose": ("diagnose", "a checkpoint's next-token error given the true past, per rule (torch)"),
 }
