@@ -37,9 +37,9 @@ impl ContextEncoder {
     /// One step for a batch of streams. Stream `b` appends its `S` tokens (`width` floats each,
     /// at `positions[b * S..]`) to `caches[b]`, under `modulations[b]` (`[1, layers, 6,
     /// width]`), or, with `B * S` modulations, each token under its own (a feedback bundle's
-    /// tokens each have their condition). Returns the contexts at each stream's last token, `[B, width]` row-major. The
-    /// caches are written in place and not committed: the caller commits or rolls them back
-    /// with the rest of the step.
+    /// tokens each have their condition). Returns the contexts at each stream's last token,
+    /// `[B, width]` row-major. The caches are written in place and not committed: the caller
+    /// commits or rolls them back with the rest of the step.
     pub(crate) fn step(
         &self,
         caches: &mut [&mut KvCache],
