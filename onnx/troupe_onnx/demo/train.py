@@ -4,7 +4,7 @@
     python3 onnx/cli.py demo train --out DIR --stage vae|flow         # one stage (flow needs DIR/vae.pt)
     python3 onnx/cli.py demo train --recipe v1 --out DIR              # the first demo model, ~25 min on 2 cores
     python3 onnx/cli.py demo train --recipe v3 --stage flow --init onnx/checkpoints/armflow-demo.pt --out DIR
-                                                                      # v2 + its placement fed back, ~50 min
+                                                                      # v2 + its placement fed back, ~30 min
     python3 onnx/cli.py demo export --checkpoint onnx/checkpoints/armflow-demo.pt --out onnx/bundles/armflow-demo --golden
 
 The recipe is `docs/spec/armflow-training.md` §6, scaled to this model (DATA.md, docs/DEMO.md):
@@ -106,7 +106,7 @@ RECIPES = {
 # in the loss: it alone decides where keep-away's partner stands for the rest of the stream.
 RECIPES["v3"] = json.loads(json.dumps(RECIPES["v2"]))
 RECIPES["v3"]["model"]["feedback"] = True
-RECIPES["v3"]["flow"].update({"steps": 6000, "lr": 5e-4, "lr_end": 2e-5, "warmup": 200, "k_ramp": 0.0,
+RECIPES["v3"]["flow"].update({"steps": 5000, "lr": 5e-4, "lr_end": 2e-5, "warmup": 200, "k_ramp": 0.0,
                               "feedback_truth_rules": ["keep-away"], "opening_weight": 8.0})
 RECIPE = RECIPES["v2"]
 
