@@ -11,7 +11,10 @@
 //! differences and directions are read, so where the stream or the networks' frame sits on the
 //! floor (placement, recentring) does not change the vector.
 
+use super::Reactor;
+use crate::armflow::networks::{Conditioning, Networks};
 use crate::motion::features::POSITIONS;
+use crate::shared::error::Result;
 
 /// Floats of a `partner_placement` feedback.
 pub(crate) const DIM: usize = 5;
@@ -40,6 +43,16 @@ pub(crate) fn partner_placement(reactor: &[f32], actor: &[f32]) -> [f32; DIM] {
     let (fx, fz) = (across(2), -across(0));
     let norm = fx.hypot(fz).max(1e-9);
     [1.0, r[0] - a[0], r[2] - a[2], fx / norm, fz / norm].map(|v| v as f32)
+}
+
+/// The conditioning of a token after the first: the session's condition followed by the
+/// reactor's `placement` (what the token loop and recentring's rebuild both run).
+pub(super) fn conditioning(
+    nets: &Networks,
+    session: &Reactor,
+    placement: &[f32; DIM],
+) -> Result<Conditioning> {
+    nets.conditioning_fed(session.conditioning.condition.clone(), placement)
 }
 
 #[cfg(test)]

@@ -219,11 +219,8 @@ fn generate_tokens(nets: &Networks, lanes: &mut [&mut Lane]) -> Result<()> {
         .iter()
         .map(|l| {
             let fed = nets.io.condition.feedback.is_some() && l.state.tokens > 0;
-            fed.then(|| {
-                let c = &l.session.conditioning;
-                nets.conditioning_fed(c.condition.clone(), &l.state.feedback)
-            })
-            .transpose()
+            fed.then(|| feedback::conditioning(nets, l.session, &l.state.feedback))
+                .transpose()
         })
         .collect::<Result<Vec<_>>>()?;
     let modulations: Vec<_> = sessions

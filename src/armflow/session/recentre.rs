@@ -274,8 +274,7 @@ pub(super) fn recentre(nets: &Networks, lane: &mut Lane, centre: [f64; 2]) -> Re
                     &history.reactor[last.clone()],
                     &history.actor[last],
                 );
-                let c = &session.conditioning;
-                fed.push(nets.conditioning_fed(c.condition.clone(), &placement)?);
+                fed.push(feedback::conditioning(nets, session, &placement)?);
             }
         }
         let mut modulations = vec![&session.conditioning.modulation];
