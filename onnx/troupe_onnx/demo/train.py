@@ -289,15 +289,15 @@ def causal_context(model: Armflow, actor, partner, positions, modulation):
 @torch.no_grad()
 def regenerate(model: Armflow, actor, partner, positions, modulation, k: int):
     """BSCE: the partner history after K parallel one-step sweeps from the ground truth, all
-    with one noise draw (the exact one-step sampler, cfg 1). `modulation` is the stream's, or
-    a function of the partner history giving the per-token one (v3's feedback)."""
+    with one noise draw (the exact one-step sampler, cfg 1). `modulation` maps a partner
+    history to the modulation its context runs under (per token with v3's feedback)."""
     core = model.armflow
     eps = torch.randn_like(partner)
     h = partner
     b, n, d = partner.shape
     one, zero = torch.ones(b * n), torch.zeros(b * n)
     for _ in range(k):
-        c = causal_context(model, actor, h, positions, modulation(h) if callable(modulation) else modulation)
+        c = causal_context(model, actor, h, positions, modulation(h))
         u = core.velocity(actor.reshape(-1, d), eps.reshape(-1, d), c.reshape(b * n, -1), zero, one)
         h = (eps.reshape(-1, d) - u).reshape(b, n, d)
     return h
@@ -374,9 +374,12 @@ def train_flow(model: Armflow, pairs, recipe: dict, rng, log, resumable: Resumab
                 conds = feedback.token_conditions(onehot, frames, actor_frames, fpt)
                 return model.armflow.arnet.modulation(conds)
         else:
-            modulation = model.armflow.arnet.modulation(cond)
+            stream_modulation = model.armflow.arnet.modulation(cond)
+
+            def modulation(history, fixed=stream_modulation):
+                return fixed
         hist_b = regenerate(model, za, zb, positions, modulation, k)
-        c = causal_context(model, za, hist_b, positions, modulation(hist_b) if callable(modulation) else modulation)
+        c = causal_context(model, za, hist_b, positions, modulation(hist_b))
         d = cfg.latent_dim
         weight = torch.ones(za.shape[0], za.shape[1] - skip)
         if skip == 0:  # a stream start: its first token places the partner for the whole stream
