@@ -7,11 +7,9 @@
 //! the PyTorch reference): the reactor must be far closer to its rule's partner than a partner
 //! standing still is, the condition must select the rule (the reactor is far nearer its own
 //! rule's partner than the other rules'), and in the HTML player rendered by headless Chromium
-//! the reactor's pixels must be where the rule's partner stands. Mirror and follow are held to
-//! it (the committed model, recipe v2, is 20-24 cm from their partners on this clip against
-//! 141-286 cm standing still); keep-away is not: the committed model has not learnt that rule
-//! (on this clip it is further from the rule's partner than standing still is; `docs/DEMO.md`),
-//! and it is only checked to be drawn as streamed.
+//! the reactor's pixels must be where the rule's partner stands. Every rule is held to it (the
+//! committed model, recipe v3, is 20-22 cm from the mirror and follow partners on this clip
+//! against 141-286 cm standing still, and 46 cm from keep-away's against 109 cm).
 
 mod common;
 
@@ -26,8 +24,9 @@ use troupe::viewer::Scene;
 use troupe::{Model, ReactorOptions, Recentring};
 
 const RULES: [&str; 3] = ["mirror", "follow", "keep-away"];
-/// The rules the committed model has learnt (`docs/DEMO.md`).
-const LEARNT: [&str; 2] = ["mirror", "follow"];
+/// Each rule's largest error, as a share of a partner standing still's, on this clip. Keep-away's
+/// partner depends on the whole stream (where the actor has pushed it), so its bound is looser.
+const BOUND: [(&str, f64); 3] = [("mirror", 0.3), ("follow", 0.3), ("keep-away", 0.5)];
 const CLIP_FPS: f32 = 120.0;
 const STRIDE: usize = 4; // 120 fps -> the model's 30
 
@@ -137,11 +136,9 @@ fn each_learnt_rule_is_what_the_reactor_does() {
             .to_owned();
         let baseline = mpjpe_cm(still.view(), truth.view());
         println!("{rule}: {error:.1} cm from the rule's partner; standing still: {baseline:.1} cm");
-        if !LEARNT.contains(&rule) {
-            continue;
-        }
+        let bound = BOUND.iter().find(|(r, _)| *r == rule).unwrap().1;
         assert!(
-            error < 0.3 * baseline,
+            error < bound * baseline,
             "{rule}: the reactor is {error:.1} cm from the rule's partner, a partner standing still {baseline:.1} cm"
         );
         for other in RULES.iter().filter(|o| **o != rule) {
@@ -159,7 +156,7 @@ fn each_learnt_rule_is_what_the_reactor_does() {
 /// The walk (`cmu-playground-walk.npy`: the clip four times over, each time from where the last
 /// ended) takes the actor 11.5 m from where the stream started, far beyond the floor area the
 /// model was trained on. Without recentring the mirror partner's error grows as it walks (about
-/// 180 cm over the last quarter); with it, it stays as it was at the start (the poses measured in
+/// 240 cm over the last quarter); with it, it stays as it was at the start (the poses measured in
 /// the caller's world, against the rule's partner there).
 #[test]
 fn recentring_keeps_the_partner_as_the_actor_walks_away() {
@@ -261,9 +258,6 @@ fn the_player_shows_the_partner_where_the_rule_puts_it() {
                 seen.joints_found,
                 seen.stray
             );
-        }
-        if !LEARNT.contains(&rule) {
-            continue;
         }
         // The reactor's pixels are where the rule's partner stands, as far as a picture can say.
         let reactor_pixels = see(

@@ -235,18 +235,18 @@ fn committed_reduced_precision_demos_are_reproducible_from_the_float32_demo() {
     }
 }
 
-/// Re-running the demo's training (recipe v2, the default) reproduces the committed model's
-/// quality: each rule's error of the network alone on the held-out clips of the training sources
-/// (`demo evaluate --no-fetch`: CMU, DeepMimic, climbing; averaged by frames) within 10 % of the
-/// same clips in `docs/demo-results.json`. Training takes about 3 hours on 2 cores, so this runs
-/// only with torch and `TROUPE_SLOW_TESTS=1`.
+/// Re-running the demo's training (recipe v2, the default, then recipe v3's fine-tuning of it)
+/// reproduces the committed model's quality: each rule's error of the network alone on the
+/// held-out clips of the training sources (`demo evaluate --no-fetch`: CMU, DeepMimic, climbing;
+/// averaged by frames) within 10 % of the same clips in `docs/demo-results.json`. Training takes
+/// about 3.5 hours on 2 cores, so this runs only with torch and `TROUPE_SLOW_TESTS=1`.
 #[test]
 fn demo_training_reproduces_the_committed_metrics() {
     let test = "demo_training_reproduces_the_committed_metrics";
     if std::env::var_os("TROUPE_SLOW_TESTS").is_none() {
         skip(
             test,
-            "long form only (retraining takes about 3 hours): set TROUPE_SLOW_TESTS=1",
+            "long form only (retraining takes about 3.5 hours): set TROUPE_SLOW_TESTS=1",
         );
         return;
     }
@@ -254,8 +254,9 @@ fn demo_training_reproduces_the_committed_metrics() {
         return;
     }
     let dir = tempfile::tempdir().unwrap();
-    let (train, bundle, results) = (
+    let (train, fine_tuned, bundle, results) = (
         dir.path().join("train"),
+        dir.path().join("train-v3"),
         dir.path().join("bundle"),
         dir.path().join("results.json"),
     );
@@ -265,9 +266,22 @@ fn demo_training_reproduces_the_committed_metrics() {
         vec![
             "onnx/cli.py",
             "demo",
+            "train",
+            "--recipe",
+            "v3",
+            "--stage",
+            "flow",
+            "--init",
+            &path(&train.join("armflow.pt")),
+            "--out",
+            &path(&fine_tuned),
+        ],
+        vec![
+            "onnx/cli.py",
+            "demo",
             "export",
             "--checkpoint",
-            &path(&train.join("armflow.pt")),
+            &path(&fine_tuned.join("armflow.pt")),
             "--out",
             &path(&bundle),
         ],

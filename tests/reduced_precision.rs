@@ -15,21 +15,25 @@ use troupe::{Model, Reactor, ReactorOptions, TokenNoise, Weights};
 
 /// Largest differences the int8 demo may show against the float32 demo over the golden
 /// stream's 48 tokens, relative to the float32 values' largest magnitude. Measured on
-/// 2026-11-28 with the recipe-v2 demo: reactor latents 2.0e-2, frames 1.8e-2 (the v1 demo:
-/// 5.1e-2 and 4.8e-2, docs/PERFORMANCE.md, "Weights in int8"); the stream feeds each token's
-/// error into the next one's context. The bounds leave about twice the measured values.
-const LATENT_TOL: f32 = 0.04;
-const FRAME_TOL: f32 = 0.04;
+/// 2026-11-28 with the recipe-v3 demo: reactor latents 3.8e-2, frames 5.3e-2 (recipe v2: 2.0e-2
+/// and 1.8e-2; the v1 demo: 5.1e-2 and 4.8e-2, docs/PERFORMANCE.md, "Weights in int8"); the
+/// stream feeds each token's error into the next one's context and, in v3, into the next one's
+/// condition (the partner's placement). The bounds leave about twice the measured values.
+const LATENT_TOL: f32 = 0.08;
+const FRAME_TOL: f32 = 0.1;
 
 /// An int8 session batched with others against itself alone (the activation scale is shared by
-/// the batch): frames 4.5e-2 measured on 2026-11-28 (recipe-v2 demo); about twice that.
+/// the batch): frames 2.9e-2 measured on 2026-11-28 (recipe-v3 demo; v2: 4.5e-2); the bound is
+/// about twice v2's.
 const BATCH_TOL: f32 = 0.1;
 
 /// The same for the float16 demo (every streaming graph's matrix-product weights in 16 bits,
-/// activations float32). Measured on 2026-11-28 with the recipe-v2 demo: actor latents 1.9e-4,
-/// reactor latents 4.1e-4, frames 5.8e-4 (the v1 demo: 1.5e-4, 5.1e-4, 7.9e-4;
-/// docs/PERFORMANCE.md, "Weights in float16"). The bound leaves about twice the measured values.
-const FLOAT16_TOL: f32 = 1.2e-3;
+/// activations float32). Measured on 2026-11-28 with the recipe-v3 demo: actor latents 1.9e-4,
+/// reactor latents 2.3e-3, frames 2.9e-3, the largest around token 16, where the fed-back
+/// placement amplifies a difference for a few tokens before it settles back to 5e-4 (recipe v2:
+/// 1.9e-4, 4.1e-4, 5.8e-4; the v1 demo: 1.5e-4, 5.1e-4, 7.9e-4; docs/PERFORMANCE.md, "Weights
+/// in float16"). The bound leaves about twice the measured values.
+const FLOAT16_TOL: f32 = 6e-3;
 
 fn bundle(name: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))

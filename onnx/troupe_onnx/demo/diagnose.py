@@ -9,9 +9,9 @@ one, the rule started afresh there), the context built from the true pairs (and,
 condition feedback, the true partner's placement), and every next partner token sampled in one
 MeanFlow step at zero noise. It prints, per rule, the root error of those tokens decoded against
 the decoded true tokens (cm, on the floor), beside the VAE's own round trip of the true partner,
-the floor any model of these latents has. The committed v2 model: 16.1 cm (mirror), 19.1
-(follow), 122.5 (keep-away): it did not know where its keep-away partner stood; recipe v3 at
-1500 flow steps, with its placement fed back: 21.7, 19.8, 29.8 (docs/DEMO.md).
+the floor any model of these latents has. The v2 model: 16.1 cm (mirror), 19.1 (follow), 122.5
+(keep-away): it did not know where its keep-away partner stood; the committed model, recipe v3,
+with its placement fed back: 14.6, 17.1, 17.3 (docs/DEMO.md).
 """
 
 from __future__ import annotations

@@ -1,10 +1,11 @@
 """Train the demo ARMFlow from scratch: the streaming VAE, then the context encoder and MeanFlow MLP.
 
-    python3 onnx/cli.py demo train --out target/demo-train [--resume]  # recipe v2, the committed model: ~3 h on 2 cores
+    python3 onnx/cli.py demo train --out target/demo-train [--resume]  # recipe v2: ~3 h on 2 cores
     python3 onnx/cli.py demo train --out DIR --stage vae|flow         # one stage (flow needs DIR/vae.pt)
     python3 onnx/cli.py demo train --recipe v1 --out DIR              # the first demo model, ~25 min on 2 cores
-    python3 onnx/cli.py demo train --recipe v3 --stage flow --init onnx/checkpoints/armflow-demo.pt --out DIR
-                                                                      # v2 + its placement fed back, ~30 min
+    python3 onnx/cli.py demo train --recipe v3 --stage flow --init target/demo-train/armflow.pt --out DIR
+                                                                      # v2 + its placement fed back, ~30 min:
+                                                                      # the committed model
     python3 onnx/cli.py demo export --checkpoint onnx/checkpoints/armflow-demo.pt --out onnx/bundles/armflow-demo --golden
 
 The recipe is `docs/spec/armflow-training.md` §6, scaled to this model (DATA.md, docs/DEMO.md):
@@ -99,7 +100,7 @@ RECIPES = {
         },
     },
 }
-# v3 (issue 36, in progress): v2 fine-tuned with the partner's own placement fed back into each
+# v3 (issue 36, the committed model): v2 fine-tuned with the partner's own placement fed back into each
 # token's condition (`armflow/feedback.py`), so that keep-away's leash is something the model sees. Its
 # flow stage starts from v2's weights (`--init`; the condition's new inputs start at zero weight,
 # so step 0 is v2) with the full BSCE depth from the first step. A stream's first token weighs 8
@@ -434,8 +435,9 @@ def main(argv: list[str] | None = None, prog: str | None = None):
     ap = argparse.ArgumentParser(prog=prog, description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--out", type=Path, required=True, help="directory for vae.pt, armflow.pt and train.log")
     ap.add_argument("--stage", choices=("vae", "flow", "all"), default="all")
-    ap.add_argument("--recipe", choices=tuple(RECIPES), default="v2", help="v2: the committed model's (issue 36); v1: the first demo model's; v3: v2 with the "
-                         "partner's placement fed back into each token's condition (needs --init)")
+    ap.add_argument("--recipe", choices=tuple(RECIPES), default="v2", help="v2: the committed model's first stage (issue 36); v1: the first demo model's; v3: v2 with "
+                         "the partner's placement fed back into each token's condition (needs --init): the "
+                         "committed model")
     ap.add_argument("--resume", action="store_true",
                     help="go on from DIR/vae.resume.pt or DIR/flow.resume.pt where a run stopped (a finished "
                          "DIR/vae.pt skips the VAE stage)")
