@@ -119,7 +119,7 @@ fn the_demo_names_its_partner_rules() {
 }
 
 #[test]
-fn each_learnt_rule_is_what_the_reactor_does() {
+fn each_rule_is_what_the_reactor_does() {
     for rule in RULES {
         let (out, truth) = (reactor(rule), partner(rule));
         assert!(
