@@ -35,6 +35,10 @@ ci_discard() {
     done
 }
 
+# Every step's wall time, printed when the script ends (scripts/phases.sh).
+. scripts/phases.sh
+trap phase_summary EXIT
+
 venv=target/venv
 requirements=tests/requirements.txt
 
@@ -52,6 +56,7 @@ apt_install() {
 
 # 1. Python: a virtual environment under target/ (never the system's site-packages), refreshed
 #    when tests/requirements.txt changes.
+phase "install: python environment"
 if [ ! -x "$venv/bin/python3" ]; then
     echo "== python: creating $venv"
     if ! python3 -m venv "$venv" 2>/dev/null; then
@@ -72,6 +77,7 @@ PATH="$PWD/$venv/bin:$PATH"
 export PATH
 
 # 2. Chromium: the viewer and demo tests screenshot the HTML player.
+phase "install: chromium"
 if [ -z "${TROUPE_CHROMIUM:-}" ] && ! command -v chromium >/dev/null 2>&1; then
     echo "== chromium: installing Debian's package"
     apt_install chromium
@@ -95,6 +101,7 @@ ensure_tool() {
             "and is skipped elsewhere" >&2
     fi
 }
+phase "install: debian tools"
 ensure_tool valgrind valgrind "the C tests under valgrind (tests/c_abi.rs)"
 ensure_tool cmake cmake "the installed package's CMake consumer (tests/install.rs)"
 ensure_tool mcs "mono-mcs mono-runtime" "the C# binding's test under Mono (tests/csharp.rs)"
@@ -109,6 +116,7 @@ ensure_tool wine "wine wine64" "the Windows x64 tests under Wine (tests/platform
 ensure_tool aarch64-linux-gnu-g++ "gcc-aarch64-linux-gnu g++-aarch64-linux-gnu libc6-dev-arm64-cross" \
     "the Linux arm64 build (tests/platforms.rs)"
 ensure_tool qemu-aarch64 qemu-user "the Linux arm64 tests under qemu (tests/platforms.rs)"
+phase "install: rust cross targets"
 if command -v rustup >/dev/null 2>&1; then
     # shellcheck disable=SC2086  (the targets are a list)
     rustup target add $cross_targets $android >/dev/null 2>&1 ||
@@ -120,6 +128,7 @@ fi
 #    the web page's tests, tests/web.rs); Blender as PyPI's `bpy` (a build for this
 #    Python, 3.11) in its own environment, target/blender (about 1 GB; its numpy pin differs
 #    from the suite's), with the X and GL libraries its module links.
+phase "install: node and npm packages"
 ensure_tool node "nodejs npm" "the glTF validator, three.js and web page tests (tests/rigs.rs, tests/web.rs)"
 npm_packages="gltf-validator@2.0.0-dev.3.10 three@0.187.0 playwright-core@1.65.1"
 npm_dir=target/npm
@@ -134,6 +143,7 @@ if command -v npm >/dev/null 2>&1 && [ "$(cat "$npm_dir/.installed" 2>/dev/null)
         echo "npm install $npm_packages failed: tests/rigs.rs fails" >&2
     fi
 fi
+phase "install: blender (bpy)"
 blender_requirement="bpy==4.5.15"
 blender=target/blender
 if [ "$(cat "$blender/.installed" 2>/dev/null)" != "$blender_requirement" ]; then
@@ -154,7 +164,7 @@ fi
 
 # 6. The web page (docs/WEB.md, tests/web.rs): troupe-web built for wasm32 into web/pkg by
 #    scripts/web.sh, which installs the wasm32 target and the pinned wasm-bindgen-cli itself.
-echo "== web: building the page (scripts/web.sh)"
+phase "web: building the page (scripts/web.sh)"
 if ! scripts/web.sh; then
     [ -z "${CI:-}" ] || exit 1
     echo "scripts/web.sh failed: tests/web.rs runs on an older web/pkg or skips" >&2
@@ -175,12 +185,13 @@ skip_summary() {
 start_tests() {
     mkdir -p "$(dirname "$skips")"
     : >"$skips"
-    trap skip_summary EXIT
+    trap 'phase_summary; skip_summary' EXIT
 }
 
 if [ "$#" -gt 0 ]; then
     start_tests
-    cargo test "$@"
+    phase "cargo test $*"
+    cargo_test_timed "$@"
     exit
 fi
 
@@ -188,30 +199,36 @@ if command -v rustup >/dev/null 2>&1; then
     rustup component add rustfmt clippy >/dev/null 2>&1 || true
 fi
 
-echo "== format"
+phase "format"
 cargo fmt --check
 
-echo "== lint"
+phase "lint: clippy (host, all targets)"
 cargo clippy --all-targets -- -D warnings
+phase "lint: clippy (web, wasm32)"
 # The web bindings, for the only target they are built for (bindings/web/.cargo/config.toml).
 (cd bindings/web && cargo fmt --check &&
     CARGO_TARGET_DIR=../../target/web-build cargo clippy --locked -- -D warnings)
 ci_discard target/web-build
+phase "lint: clippy (windows)"
 if [ -d "$(rustc --print sysroot)/lib/rustlib/x86_64-pc-windows-gnu" ]; then
     # The code only Windows compiles (src/shared/paths.rs, the bundle loader's file checks).
     cargo clippy --lib --target x86_64-pc-windows-gnu -- -D warnings
 fi
 
-echo "== tests"
 start_tests
-cargo test
+phase "tests: build (cargo test --no-run)"
+cargo test --no-run
+phase "tests: run (cargo test)"
+cargo_test_timed
 ci_discard "$blender" target/release
 
 echo "== other platforms: the unit and golden parity tests under Wine and qemu (docs/PLATFORMS.md)"
+phase_end
 sysroot="$(rustc --print sysroot)"
 for triple in $cross_targets; do
     runner_tool=wine
     [ "$triple" = aarch64-unknown-linux-gnu ] && runner_tool=qemu-aarch64
+    phase "other platforms: cargo test --target $triple"
     if [ -d "$sysroot/lib/rustlib/$triple" ] && command -v "$runner_tool" >/dev/null 2>&1; then
         # Optimised: emulated unoptimised code is slow. The same build as tests/platforms.rs'.
         cargo test --release --target "$triple" --features testing --lib --test golden
@@ -227,6 +244,7 @@ done
 ci_discard target/wine
 # Android: no NDK can be had from the registries, so the library is not linked; every crate is
 # type-checked for it, tract's NEON assembly assembled by the Linux arm64 GNU assembler.
+phase "other platforms: cargo check --target $android"
 if [ -d "$sysroot/lib/rustlib/$android" ] && command -v aarch64-linux-gnu-gcc >/dev/null 2>&1; then
     CC_aarch64_linux_android=aarch64-linux-gnu-gcc AR_aarch64_linux_android=aarch64-linux-gnu-ar \
         cargo check --lib --target "$android"
@@ -239,11 +257,11 @@ else
         "the Rust target or aarch64-linux-gnu-gcc is not installed" >>"$skips"
 fi
 
-echo "== streaming demo smoke run"
+phase "smoke: streaming and magnet demos"
 cargo run --example stream -- --frames 120 --tick 3 --out target/ci-reactor.npy --gltf target/ci-reactor.glb
 cargo run --example magnet -- --steps 2 --samples 1 --seq-len 64 --no-x0-guidance --out target/ci-magnet.npy
 
-echo "== benchmark smoke run (each benchmark once, tiny bundle; speed is not checked here)"
+phase "smoke: benchmarks (each once, tiny bundle; speed is not checked here)"
 # `cargo test` runs a criterion benchmark once, in the test profile the suite already built
 # (`cargo bench` would build everything again, optimised, for no check it adds).
 cargo test --bench step
