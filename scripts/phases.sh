@@ -14,6 +14,8 @@ phase_file="$phase_dir/test-timings.tsv"
 phase_binaries="$phase_dir/test-binaries.tsv"
 phase_name=
 phase_started=
+# Prepended to the names of the phases that follow: a background job's ("background: ").
+phase_prefix=
 phase_run_started=$(date +%s)
 mkdir -p "$phase_dir"
 : >"$phase_file"
@@ -27,7 +29,7 @@ phase_end() {
 
 phase() {
     phase_end
-    phase_name=$1
+    phase_name="$phase_prefix$1"
     phase_started=$(date +%s)
     echo "== $1"
 }

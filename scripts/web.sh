@@ -26,11 +26,20 @@ tools=$root/target/tools
 bindgen=$tools/bin/wasm-bindgen
 if [ ! -x "$bindgen" ] || [ "$("$bindgen" --version | awk '{print $2}')" != "$version" ]; then
     echo "== web: cargo install wasm-bindgen-cli $version (a few minutes, once)" >&2
-    cargo install --quiet wasm-bindgen-cli --version "=$version" --root "$tools" >&2
+    started=$SECONDS
+    # Only the `wasm-bindgen` program, without the TLS stack its test runner downloads browser
+    # drivers with (rustls and ring); and not through clippy, should the caller lint its own
+    # builds with it (scripts/test.sh).
+    env -u RUSTC_WORKSPACE_WRAPPER -u CLIPPY_ARGS \
+        cargo install --quiet wasm-bindgen-cli --version "=$version" --root "$tools" \
+        --no-default-features --bin wasm-bindgen >&2
+    echo "== web: wasm-bindgen-cli installed in $((SECONDS - started)) s" >&2
 fi
 
 echo "== web: building troupe-web (wasm32, simd128)" >&2
+started=$SECONDS
 (cd bindings/web && CARGO_TARGET_DIR=$root/target/web-build cargo build --release --locked >&2)
+echo "== web: troupe-web built in $((SECONDS - started)) s" >&2
 wasm=$root/target/web-build/wasm32-unknown-unknown/release/troupe_web.wasm
 
 out=web/pkg

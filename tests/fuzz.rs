@@ -2,7 +2,8 @@
 //! and every regression input (a crash once found) is replayed, then the corpus is mutated for a
 //! bounded time per target (`TROUPE_FUZZ_SECONDS`, default 6; `TROUPE_SLOW_TESTS=1`: 120) with a
 //! seeded generator (`TROUPE_FUZZ_SEED`, default 1, so that CI is repeatable; any other seed
-//! explores new inputs, and a failure is replayed from its seed).
+//! explores new inputs, and a failure is replayed from its seed). The targets run side by side,
+//! one per core.
 //! A target may return errors; a panic (or an abort, which ends the process) fails the test, and
 //! the input is written to `target/fuzz-failures/` to be added to `fuzz/regressions/`.
 //!
@@ -152,32 +153,52 @@ fn fuzz_targets_replay_their_corpus_and_survive_mutation() {
         .and_then(|s| s.parse().ok())
         .unwrap_or(1);
     println!("mutation seed {seed} (TROUPE_FUZZ_SEED={seed} replays this run)");
-    for (target, run) in targets::TARGETS {
-        let corpus = inputs("corpus", target);
-        let regressions = inputs("regressions", target);
-        assert!(!corpus.is_empty(), "fuzz/corpus/{target} is empty");
-        for (path, bytes) in corpus.iter().chain(&regressions) {
-            run_one(target, run, bytes, &path.display().to_string());
+    // The targets are independent: one worker per core takes the next target until none is
+    // left, so the bounded run takes its seconds per target divided by the cores. A panic in
+    // one worker fails the test when the scope ends, after the message naming its input.
+    let next = std::sync::atomic::AtomicUsize::new(0);
+    let workers = std::thread::available_parallelism()
+        .map_or(1, usize::from)
+        .min(targets::TARGETS.len());
+    std::thread::scope(|scope| {
+        for _ in 0..workers {
+            scope.spawn(|| loop {
+                let i = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                let Some(&(target, run)) = targets::TARGETS.get(i) else {
+                    break;
+                };
+                fuzz_one(target, run, seed, seconds);
+            });
         }
-        let mut rng = Rng(seed ^ target.len() as u64);
-        let deadline = Instant::now() + Duration::from_secs(seconds);
-        let mut executions = 0u64;
-        while Instant::now() < deadline {
-            let a = &corpus[rng.below(corpus.len())].1;
-            let b = &corpus[rng.below(corpus.len())].1;
-            let mutant = mutate(&mut rng, a, b);
-            run_one(
-                target,
-                run,
-                &mutant,
-                &format!("mutant {executions} of seed {seed}"),
-            );
-            executions += 1;
-        }
-        println!(
-            "{target}: {} corpus and {} regression inputs replayed, {executions} mutants in {seconds} s",
-            corpus.len(),
-            regressions.len()
-        );
+    });
+}
+
+/// Replays `target`'s corpus and regressions, then mutates its corpus for `seconds`.
+fn fuzz_one(target: &str, run: fn(&[u8]), seed: u64, seconds: u64) {
+    let corpus = inputs("corpus", target);
+    let regressions = inputs("regressions", target);
+    assert!(!corpus.is_empty(), "fuzz/corpus/{target} is empty");
+    for (path, bytes) in corpus.iter().chain(&regressions) {
+        run_one(target, run, bytes, &path.display().to_string());
     }
+    let mut rng = Rng(seed ^ target.len() as u64);
+    let deadline = Instant::now() + Duration::from_secs(seconds);
+    let mut executions = 0u64;
+    while Instant::now() < deadline {
+        let a = &corpus[rng.below(corpus.len())].1;
+        let b = &corpus[rng.below(corpus.len())].1;
+        let mutant = mutate(&mut rng, a, b);
+        run_one(
+            target,
+            run,
+            &mutant,
+            &format!("mutant {executions} of seed {seed}"),
+        );
+        executions += 1;
+    }
+    println!(
+        "{target}: {} corpus and {} regression inputs replayed, {executions} mutants in {seconds} s",
+        corpus.len(),
+        regressions.len()
+    );
 }

@@ -3,7 +3,8 @@
 //! (cross-built with Debian's aarch64 toolchain, run under qemu-user). For each target:
 //!
 //! - the library is cross-built (`cargo build --release --lib --features testing --target
-//!   TRIPLE`: optimised, because emulated unoptimised code is slow), and
+//!   TRIPLE`: optimised, because emulated unoptimised code is slow; `scripts/test.sh` has
+//!   built it already, with the target's unit and golden tests, so here it is fresh), and
 //!   every C test program of `tests/c` is compiled with the target's C compiler against it and
 //!   run there with the same golden parity and bad-input checks as on the host (the smoke test
 //!   also as C++17);

@@ -137,9 +137,10 @@ pub fn c_libraries() -> &'static Path {
         let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
         let status = Command::new(cargo)
             .current_dir(root)
-            // `--tests` keeps dev-dependencies in the feature resolution, as under `cargo test`,
-            // so the dependencies already built for the tests are reused, not rebuilt.
-            .args(["build", "--lib", "--tests", "--features", "testing"])
+            // The library alone: the dependencies are those the tests were built with (the
+            // manifest's resolver 1 resolves dev-dependencies' features into every build), and
+            // under `cargo test --features testing` (scripts/test.sh) the library too.
+            .args(["build", "--lib", "--features", "testing"])
             .status()
             .expect("run cargo build");
         assert!(status.success(), "building the C libraries failed");
