@@ -12,7 +12,8 @@
 #   TROUPE_SLOW_TESTS=1 ...      also the long forms (training reproduction, soak, long fuzz)
 #
 # Extra arguments go to `cargo test` (e.g. `scripts/test.sh --test streaming`), which then runs
-# alone, without the format, lint, web, cross-platform and smoke steps.
+# after the installs and the web page's build, without the format, lint, cross-platform and
+# smoke steps.
 #
 # Each build is made once (docs/TESTING.md): clippy lints the workspace's crates while they are
 # compiled for the tests (clippy-driver as cargo's workspace wrapper), so the lint is not a
