@@ -124,6 +124,19 @@ fi
 export RUSTC_WORKSPACE_WRAPPER="$clippy_driver"
 # `cargo clippy -- -D warnings` passes its arguments to the driver this way.
 export CLIPPY_ARGS="-D__CLIPPY_HACKERY__warnings__CLIPPY_HACKERY__"
+# That convention is clippy's own: should a release change it, the builds would lint without
+# denying. So first, a lint warning must stop a compilation through the wrapper.
+lint_probe=$(mktemp -d)
+printf 'pub fn f(x: &Vec<i32>) -> usize {\n    x.len()\n}\n' >"$lint_probe/lib.rs"
+if "$clippy_driver" rustc --edition 2021 --crate-type lib --emit=metadata \
+    --out-dir "$lint_probe" "$lint_probe/lib.rs" >"$lint_probe/out" 2>&1 ||
+    ! grep -q 'implied by `-D warnings`' "$lint_probe/out"; then
+    cat "$lint_probe/out" >&2
+    echo "clippy-driver with CLIPPY_ARGS=$CLIPPY_ARGS does not deny a warning: the lint would" \
+        "pass anything" >&2
+    exit 1
+fi
+rm -rf "$lint_probe"
 
 start_tests
 phase "build: host, every target, linted (cargo test --no-run --all-targets)"
