@@ -104,7 +104,7 @@ tools=(
     "qemu-aarch64|qemu-user|the Linux arm64 tests under qemu (tests/platforms.rs)"
     "node|nodejs npm|the glTF validator, three.js and web page tests (tests/rigs.rs, tests/web.rs)"
 )
-# The libraries bpy links (libX11, libGL, ...): present if the dynamic linker knows them.
+# The libraries bpy links (libX11, libGL, ...), each checked with dpkg-query where there is one.
 blender_libraries="libx11-6 libxrender1 libxfixes3 libxi6 libxkbcommon0 libxext6 libsm6 libice6 libgl1 libvulkan1 libxxf86vm1"
 missing=()
 for line in "${tools[@]}"; do
