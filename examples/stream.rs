@@ -93,6 +93,10 @@ struct Args {
     out: PathBuf,
     pictures: bool,
     options: ReactorOptions,
+    /// The session's clean-ups (every streaming family's).
+    guard: Option<PenetrationGuard>,
+    smoothing: Option<RootSmoothing>,
+    foot_lock: Option<FootLockOptions>,
     warmup_tokens: u64,
     gltf: Option<PathBuf>,
     rig: Option<PathBuf>,
@@ -119,12 +123,12 @@ fn parse_args() -> Result<Args, String> {
         pictures: true,
         // What a partner needs on screen: never through the actor, feet that stay put.
         options: ReactorOptions {
-            penetration_guard: Some(DEMO_GUARD),
-            root_smoothing: Some(RootSmoothing::default()),
-            foot_lock: Some(FootLockOptions::default()),
             recentring: Some(Recentring::default()),
             ..ReactorOptions::default()
         },
+        guard: Some(DEMO_GUARD),
+        smoothing: Some(RootSmoothing::default()),
+        foot_lock: Some(FootLockOptions::default()),
         warmup_tokens: 0,
         gltf: None,
         rig: None,
@@ -175,9 +179,9 @@ fn parse_args() -> Result<Args, String> {
                 a.options.vae_windows = true;
                 a.options.recentring = None;
             }
-            "--no-guard" => a.options.penetration_guard = None,
-            "--no-foot-lock" => a.options.foot_lock = None,
-            "--no-smoothing" => a.options.root_smoothing = None,
+            "--no-guard" => a.guard = None,
+            "--no-foot-lock" => a.foot_lock = None,
+            "--no-smoothing" => a.smoothing = None,
             "--no-recentring" => a.options.recentring = None,
             "--compute-threads" => {
                 troupe::set_compute_threads(num(value()?)? as usize).map_err(|e| e.to_string())?
@@ -338,7 +342,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     if let Some(rule) = &rule {
         args.options.condition = Some(model.condition_for(rule)?);
     }
-    let mut session = model.armflow()?.reactor(args.options.clone())?;
+    let mut session = model.session(args.options.clone())?;
+    session.set_penetration_guard(args.guard)?;
+    session.set_root_smoothing(args.smoothing)?;
+    session.set_foot_lock(args.foot_lock)?;
     let load_ms = t0.elapsed().as_secs_f64() * 1e3;
     println!(
         "bundle {} ({}): {} features at {} fps, {} frames per token, latency {} frames ({} from joint positions); loaded in {load_ms:.0} ms",
@@ -354,9 +361,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let on = |yes: bool| if yes { "on" } else { "off" };
     println!(
         "root smoothing {}, penetration guard {}, foot lock {}, recentring {}",
-        on(args.options.root_smoothing.is_some()),
-        on(args.options.penetration_guard.is_some()),
-        on(args.options.foot_lock.is_some()),
+        on(args.smoothing.is_some()),
+        on(args.guard.is_some()),
+        on(args.foot_lock.is_some()),
         on(args.options.recentring.is_some())
     );
     let reduced = model.manifest().reduced_precision_graphs();

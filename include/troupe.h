@@ -96,15 +96,16 @@ extern "C" {
  *    4. Threads, logging and progress
  *    5. Model
  *    6. Session
- *    7. Text prompts
- *    8. Motion
- *    9. Rigs and glTF
- *   10. ARMFlow
- *   11. UMF
- *   12. MAGNet
- *   13. ARFlow
- *   14. Viewer
- *   15. Deprecated names
+ *    7. Session motion
+ *    8. Text prompts
+ *    9. Motion
+ *   10. Rigs and glTF
+ *   11. ARMFlow
+ *   12. UMF
+ *   13. MAGNet
+ *   14. ARFlow
+ *   15. Viewer
+ *   16. Deprecated names
  */
 
 /* ============================================================================================
@@ -671,7 +672,7 @@ size_t troupe_model_clip_frames(const struct troupe_model *model);
  * 6. Session
  *
  * One stream (ARMFlow reaction, MAGNet live partner, ARFlow online): options, stepping one or
- * many, reset and the settings every stream takes.
+ * many, reset, the settings every stream takes and those a stream reports as capabilities.
  * ============================================================================================ */
 
 /**
@@ -683,6 +684,26 @@ size_t troupe_model_clip_frames(const struct troupe_model *model);
  * Actor tokens are the posterior mean: no actor noise is drawn.
  */
 #define TROUPE_ACTOR_LATENT_MEAN 1
+
+/**
+ * The session takes a conditioning vector (`troupe_session_set_condition`).
+ */
+#define TROUPE_CAP_CONDITION (1 << 0)
+
+/**
+ * The session takes a text prompt (`troupe_session_set_prompt`).
+ */
+#define TROUPE_CAP_PROMPT (1 << 1)
+
+/**
+ * The session takes a CFG scale other than 1 (`troupe_session_set_cfg_scale`).
+ */
+#define TROUPE_CAP_CFG_SCALE (1 << 2)
+
+/**
+ * The session takes queued standard normals (`troupe_session_queue_normals`).
+ */
+#define TROUPE_CAP_QUEUED_NORMALS (1 << 3)
 
 /**
  * One stream. A session is used from one thread at a time (it may move between threads);
@@ -950,12 +971,14 @@ troupe_status troupe_session_set_seed(struct troupe_session *session, uint64_t s
 troupe_status troupe_session_set_steps(struct troupe_session *session, uint32_t steps);
 
 /**
- * Sets the classifier-free guidance scale (finite; 1 disables it) for tokens generated from
- * now on. The null branch zeroes the actor token and the context.
+ * Sets the classifier-free guidance scale (finite) for what is generated from now on, on a
+ * stream with the capability (`troupe_session_capabilities`, `TROUPE_CAP_CFG_SCALE`: ARMFlow's),
+ * applied as the family's official sampler applies it (ARMFlow: guided only above 1; the null
+ * branch zeroes the actor token and the context). A stream without guidance accepts 1.
  *
  * Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (NaN or infinite),
- * `TROUPE_ERR_UNSUPPORTED` (a scale other than 1 on a stream without guidance: any but
- * ARMFlow's), `TROUPE_ERR_POISONED`, `TROUPE_ERR_PANIC`. One thread at a time per session.
+ * `TROUPE_ERR_UNSUPPORTED` (a scale other than 1 on a stream without the capability),
+ * `TROUPE_ERR_POISONED`, `TROUPE_ERR_PANIC`. One thread at a time per session.
  *
  * # Safety
  * `session` must be NULL or a live handle.
@@ -964,14 +987,14 @@ troupe_status troupe_session_set_cfg_scale(struct troupe_session *session, float
 
 /**
  * Sets the conditioning vector (`len` must equal `troupe_model_condition_dim`; borrowed for the
- * call) for tokens generated from now on. `condition` NULL with `len` 0 selects the null
- * condition (zeros).
+ * call) for what is generated from now on, on a stream with the capability
+ * (`TROUPE_CAP_CONDITION`). `condition` NULL with `len` 0 selects the null condition, which
+ * every stream accepts.
  *
  * Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_SHAPE` (wrong `len`),
  * `TROUPE_ERR_INVALID_ARG` (NaN or infinite value), `TROUPE_ERR_UNSUPPORTED` (a condition other
- * than the null one on a stream without conditioning: any but ARMFlow's),
- * `TROUPE_ERR_INFERENCE`, `TROUPE_ERR_POISONED`, `TROUPE_ERR_PANIC`. One thread at a time per
- * session.
+ * than the null one on a stream without the capability), `TROUPE_ERR_INFERENCE`,
+ * `TROUPE_ERR_POISONED`, `TROUPE_ERR_PANIC`. One thread at a time per session.
  *
  * # Safety
  * `session` must be a live handle; `condition` readable for `len` floats.
@@ -979,15 +1002,15 @@ troupe_status troupe_session_set_cfg_scale(struct troupe_session *session, float
 troupe_status troupe_session_set_condition(struct troupe_session *session, const float *condition, size_t len);
 
 /**
- * Conditions the tokens generated from now on on a text prompt (a NUL-terminated UTF-8
- * string, borrowed for the call): the condition `troupe_text_prompt_encode` gives, for bundles
- * with `troupe_model_takes_prompts`. The model caches the last 64 prompts it encoded.
+ * Conditions what is generated from now on on a text prompt (a NUL-terminated UTF-8 string,
+ * borrowed for the call): the condition `troupe_text_prompt_encode` gives, on a stream with
+ * the capability (`TROUPE_CAP_PROMPT`: bundles with `troupe_model_takes_prompts`). The model
+ * caches the last 64 prompts it encoded.
  *
- * Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (a bundle that takes no
- * prompts, text that is not UTF-8 or longer than 64 KiB), `TROUPE_ERR_UNSUPPORTED` (a stream
- * without conditioning: any but ARMFlow's), `TROUPE_ERR_INFERENCE`,
- * `TROUPE_ERR_POISONED`, `TROUPE_ERR_BUSY`, `TROUPE_ERR_PANIC`. One thread at a time per
- * session.
+ * Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (text that is not UTF-8
+ * or longer than 64 KiB), `TROUPE_ERR_UNSUPPORTED` (a stream without the capability),
+ * `TROUPE_ERR_INFERENCE`, `TROUPE_ERR_POISONED`, `TROUPE_ERR_BUSY`, `TROUPE_ERR_PANIC`. One
+ * thread at a time per session.
  *
  * # Safety
  * `session` must be a live handle; `prompt` NUL-terminated and readable for the call.
@@ -995,34 +1018,32 @@ troupe_status troupe_session_set_condition(struct troupe_session *session, const
 troupe_status troupe_session_set_prompt(struct troupe_session *session, const char *prompt);
 
 /**
- * Queues the noise of the next token not yet generated, to reproduce a run exactly:
- * `actor_noise` (the posterior sample's standard normals) and `reactor_noise` (the starting
- * noise), `len` floats each (`troupe_model_latent_dim`), borrowed for the call. Queued noise is
- * used in order before the seeded generator; `troupe_session_reset` drops it.
+ * Writes to `*out` the session's capabilities: the `TROUPE_CAP_*` bits of what it takes beyond
+ * frames, seed and steps. A call for a capability it lacks returns `TROUPE_ERR_UNSUPPORTED`
+ * naming it.
  *
- * Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_SHAPE`, `TROUPE_ERR_INVALID_ARG`
- * (non-finite value), `TROUPE_ERR_UNSUPPORTED` (any stream but ARMFlow's), `TROUPE_ERR_POISONED`,
- * `TROUPE_ERR_PANIC`. One thread at a time per session.
+ * Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_POISONED`, `TROUPE_ERR_PANIC`. One
+ * thread at a time per session.
  *
  * # Safety
- * `session` must be a live handle; both noise pointers readable for `len` floats.
+ * `session` must be NULL or a live handle; `out` writable.
  */
-troupe_status troupe_session_queue_noise(struct troupe_session *session, const float *actor_noise, const float *reactor_noise, size_t len);
+troupe_status troupe_session_capabilities(struct troupe_session *session, uint32_t *out);
 
 /**
- * Queues standard normals for the draws a MAGNet live partner or an ARFlow online stream makes
- * next, to replay another implementation's stream exactly: `normals` holds `len` floats
- * (borrowed for the call), appended to any still queued. Each draw (in the order
- * `docs/MAGNET.md` and `docs/ARFLOW.md` give: ARFlow per frame the start noise when σ > 0,
- * then one ε per step when η > 0, 262 each) takes the next ones it needs while any are
- * queued; then the seeded generator goes on as if the queued draws had been its. A step whose
- * draw needs more than are left fails with `TROUPE_ERR_INVALID_ARG`, the session as it was.
- * `troupe_session_reset` drops them.
+ * Queues standard normals for the draws the stream makes next, to replay another
+ * implementation's stream exactly (`TROUPE_CAP_QUEUED_NORMALS`: every streaming family):
+ * `normals` holds `len` floats (borrowed for the call), appended to any still queued. Each
+ * draw takes the next ones it needs while any are queued, in the sampler's order (ARMFlow per
+ * token the actor's posterior noise then the reactor's start noise, `troupe_model_latent_dim`
+ * each, whole tokens only; MAGNet as `docs/MAGNET.md` gives; ARFlow per frame the start noise
+ * when σ > 0, then one ε per step when η > 0, 262 each); then the seeded generator goes on as
+ * if the queued draws had been its. A step whose draw needs more than are left fails with
+ * `TROUPE_ERR_INVALID_ARG`, the session as it was. `troupe_session_reset` drops them.
  *
- * Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (a non-finite value),
- * `TROUPE_ERR_UNSUPPORTED` (an ARMFlow stream: its noise is queued per token,
- * `troupe_session_queue_noise`), `TROUPE_ERR_POISONED`, `TROUPE_ERR_PANIC`. One thread at a
- * time per session.
+ * Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (a non-finite value;
+ * ARMFlow: not whole tokens), `TROUPE_ERR_UNSUPPORTED` (a stream without the capability),
+ * `TROUPE_ERR_POISONED`, `TROUPE_ERR_PANIC`. One thread at a time per session.
  *
  * # Safety
  * `session` must be a live handle; `normals` readable for `len` floats.
@@ -1030,7 +1051,141 @@ troupe_status troupe_session_queue_noise(struct troupe_session *session, const f
 troupe_status troupe_session_queue_normals(struct troupe_session *session, const float *normals, size_t len);
 
 /* ============================================================================================
- * 7. Text prompts
+ * 7. Session motion
+ *
+ * Every streaming family's motion stages, chosen by its frame layout: joint positions in and
+ * poses out, the penetration guard, the root smoothing, the foot lock.
+ * ============================================================================================ */
+
+/**
+ * Turns a session's foot lock on (`enabled` nonzero) or off (`interhuman262` streams: ARMFlow,
+ * ARFlow; MAGNet's frames carry no contact labels), from the next pose
+ * `troupe_session_step_joints` returns: while a foot's ankle contact label is at least
+ * `contact_threshold` (in (0, 1]) the ankle stays where the contact began, the leg bent by
+ * two-bone IK; when the label drops, or the motion's ankle is farther than `max_stretch` metres
+ * (in (0, 1]) from where it is held, it returns to the motion over `release_frames` frames (1
+ * to 60). No frame is held back. The defaults are 0.5, 4 frames and 0.25 m; the other values
+ * are ignored when turning it off. Turning it on starts with no foot held. Feature frames
+ * (`troupe_session_step`) are not changed.
+ *
+ * Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (a value out of range;
+ * the session keeps its foot lock), `TROUPE_ERR_UNSUPPORTED` (a stream whose frames the stage does not know),
+ * `TROUPE_ERR_POISONED`, `TROUPE_ERR_PANIC`. One thread at a time per session.
+ *
+ * # Safety
+ * `session` must be NULL or a live handle.
+ */
+troupe_status troupe_session_set_foot_lock(struct troupe_session *session, int32_t enabled, float contact_threshold, uint32_t release_frames, float max_stretch);
+
+/**
+ * Turns a session's penetration guard on (`enabled` nonzero) or off, for the frames sent from
+ * now on (every streaming family: ARMFlow, ARFlow, MAGNet): each sent frame is shifted in the
+ * floor plane out of the input person's body (joints nearer than `d_safe` metres, in [0, 0.5]), never faster than `max_speed` metres
+ * per second (in (0, 10]); `docs/ARFLOW.md` states the rule and what it measured. The defaults
+ * are 0.05 m and 2 m/s. `d_safe` and `max_speed` are ignored when turning it off.
+ *
+ * Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (a value out of range),
+ * `TROUPE_ERR_UNSUPPORTED` (a stream whose frames the stage does not know), `TROUPE_ERR_POISONED`, `TROUPE_ERR_PANIC`.
+ * One thread at a time per session.
+ *
+ * # Safety
+ * `session` must be NULL or a live handle.
+ */
+troupe_status troupe_session_set_penetration_guard(struct troupe_session *session, int32_t enabled, float d_safe, float max_speed);
+
+/**
+ * Sets how `troupe_session_step_joints` reads the input person's positions (units, up axis,
+ * handedness, frame rate; resampled to the bundle's rate) and forgets the joint stream's
+ * frames and placement. Without it, positions are metres, Y up, right-handed, at the bundle's
+ * rate. Every streaming family takes joint positions: `interhuman262` streams (ARMFlow, ARFlow)
+ * as features, `magnet-smplx145` streams (MAGNet) by inverse kinematics (`docs/MOTION.md`).
+ *
+ * Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (a bad format; the
+ * session is then unchanged),
+ * `TROUPE_ERR_UNSUPPORTED` (a stream whose frames carry no joints), `TROUPE_ERR_POISONED`, `TROUPE_ERR_PANIC`.
+ * One thread at a time per session.
+ *
+ * # Safety
+ * `session` a live handle; `format` readable for its `struct_size` bytes.
+ */
+troupe_status troupe_session_set_joints_format(struct troupe_session *session, const struct troupe_joints_format *format);
+
+/**
+ * Feeds `n_frames` frames of the input person's joint positions (`actor`: float32
+ * `[n_frames][22][3]`, measured as `troupe_session_set_joints_format` said; may be NULL when
+ * `n_frames` is 0) and writes the other person's poses that became ready, in the caller's
+ * world, into the buffers of `*out` (each non-NULL buffer must hold `out_capacity_frames`
+ * frames of its part), their count into `*n_written`. `troupe_session_joints_ready_after`
+ * gives the exact count; `troupe_model_joints_latency_frames` the latency.
+ *
+ * On any error nothing is written and the session is exactly as before the call, except after
+ * `TROUPE_ERR_PANIC`, which poisons it.
+ *
+ * Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_SHAPE` (a buffer smaller than its
+ * capacity says), `TROUPE_ERR_INVALID_ARG` (a NaN or infinite position, naming frame and
+ * joint), `TROUPE_ERR_UNSUPPORTED` (a stream whose frames carry no joints),
+ * `TROUPE_ERR_BUFFER_TOO_SMALL`,
+ * `TROUPE_ERR_INFERENCE`, `TROUPE_ERR_POISONED`, `TROUPE_ERR_PANIC`. One thread at a time per
+ * session.
+ *
+ * # Safety
+ * `session` a live handle; `actor` readable for `n_frames * 66` floats; `out` readable and its
+ * buffers writable for their lengths, overlapping nothing else; `n_written` writable.
+ */
+troupe_status troupe_session_step_joints(struct troupe_session *session, const float *actor, size_t n_frames, const struct troupe_pose_buffers *out, size_t out_capacity_frames, size_t *n_written);
+
+/**
+ * Writes to `*n_out` how many poses `troupe_session_step_joints` returns for the next
+ * `n_frames` joint frames.
+ *
+ * Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_UNSUPPORTED` (a stream whose frames
+ * carry no joints),
+ * `TROUPE_ERR_POISONED`, `TROUPE_ERR_PANIC`. One thread at a time per session.
+ *
+ * # Safety
+ * `session` a live handle; `n_out` writable.
+ */
+troupe_status troupe_session_joints_ready_after(struct troupe_session *session, size_t n_frames, size_t *n_out);
+
+/**
+ * Writes the joint stream's placement (where the poses are put: fixed by the first joint
+ * frame for `interhuman262` streams, the caller's own world for `magnet-smplx145` ones) to
+ * `*out`.
+ *
+ * Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (no joint frame yet),
+ * `TROUPE_ERR_UNSUPPORTED` (a stream whose frames carry no joints), `TROUPE_ERR_POISONED`, `TROUPE_ERR_PANIC`.
+ * One thread at a time per session.
+ *
+ * # Safety
+ * `session` a live handle; `out` writable.
+ */
+troupe_status troupe_session_joints_placement(struct troupe_session *session, struct troupe_placement *out);
+
+/**
+ * Latency in frames when the input person streams joint positions: `troupe_model_latency_frames`
+ * plus what the conversion waits for (one frame for `interhuman262` velocities and contacts,
+ * none for `magnet-smplx145`); 0 for NULL or a `umf` model. Thread-safe.
+ */
+size_t troupe_model_joints_latency_frames(const struct troupe_model *model);
+
+/**
+ * Turns a session's root smoothing on (`enabled` nonzero) or off, for the frames sent from now
+ * on (every streaming family): the generated person's root path on the floor is filtered causally with time constant
+ * `time_constant` seconds (in (0, 2]; 0.1 is the demo's), the whole body moving with it, before
+ * the penetration guard. No frame is held back; the root lags by about the time constant.
+ * `time_constant` is ignored when turning it off.
+ *
+ * Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (a value out of range;
+ * the session keeps its setting), `TROUPE_ERR_UNSUPPORTED` (a stream whose frames the stage does not know),
+ * `TROUPE_ERR_POISONED`, `TROUPE_ERR_PANIC`. One thread at a time per session.
+ *
+ * # Safety
+ * `session` must be NULL or a live handle.
+ */
+troupe_status troupe_session_set_root_smoothing(struct troupe_session *session, int32_t enabled, float time_constant);
+
+/* ============================================================================================
+ * 8. Text prompts
  *
  * Conditions from text, for bundles with a text encoder or text branch.
  * ============================================================================================ */
@@ -1093,7 +1248,7 @@ size_t troupe_model_text_token_dim(const struct troupe_model *model);
 troupe_status troupe_text_encode(const struct troupe_model *model, const float *clip_tokens, size_t n_tokens, size_t eot_index, float *condition, size_t condition_capacity);
 
 /* ============================================================================================
- * 8. Motion
+ * 9. Motion
  *
  * Joint positions of the t2m-22 skeleton in the caller's units and axes, feature encoding, BVH
  * and JSON files, the penetration metrics.
@@ -1571,7 +1726,7 @@ troupe_status troupe_bvh_write(const char *path, const float *positions, size_t 
 troupe_status troupe_motion_write_json(const char *path, const float *positions, size_t n_people, size_t n_frames, const struct troupe_joints_format *format, const char *const *names);
 
 /* ============================================================================================
- * 9. Rigs and glTF
+ * 10. Rigs and glTF
  *
  * A caller's character rig, troupe's motion retargeted onto it frame by frame or as a clip,
  * and glTF (.glb) and BVH files of it.
@@ -1782,10 +1937,9 @@ troupe_status troupe_gltf_write(const char *path, const struct troupe_rig *rig, 
 troupe_status troupe_rig_bvh_write(const char *path, const struct troupe_rig *rig, const float *positions, size_t n_frames, const struct troupe_joints_format *format, uint32_t units, uint32_t flags);
 
 /* ============================================================================================
- * 10. ARMFlow
+ * 11. ARMFlow
  *
- * Online reaction: joint positions through a session, the penetration guard, the root
- * smoothing, the foot lock, recentring, the official clip.
+ * Online reaction: recentring, noise queued per token, the official clip.
  * ============================================================================================ */
 
 /**
@@ -1921,110 +2075,20 @@ troupe_status troupe_armflow_clip_generate(const struct troupe_model *model, con
 troupe_status troupe_armflow_clip_generate_with_options(const struct troupe_model *model, const struct troupe_armflow_clip_options *options, const float *actor, size_t n_actor_frames, const float *condition, size_t condition_len, const struct troupe_clip_noise *noise, float *frames, size_t frames_capacity, float *reactor_latents, size_t latents_capacity);
 
 /**
- * Turns an ARMFlow session's foot lock on (`enabled` nonzero) or off, from the next pose
- * `troupe_session_step_joints` returns: while a foot's ankle contact label is at least
- * `contact_threshold` (in (0, 1]) the ankle stays where the contact began, the leg bent by
- * two-bone IK; when the label drops, or the motion's ankle is farther than `max_stretch` metres
- * (in (0, 1]) from where it is held, it returns to the motion over `release_frames` frames (1
- * to 60). No frame is held back. The defaults are 0.5, 4 frames and 0.25 m; the other values
- * are ignored when turning it off. Turning it on starts with no foot held. Feature frames
- * (`troupe_session_step`) are not changed.
+ * Queues the noise of the next token an ARMFlow stream has not yet generated, to reproduce a
+ * run exactly: `actor_noise` (the posterior sample's standard normals) and `reactor_noise` (the
+ * starting noise), `len` floats each (`troupe_model_latent_dim`), borrowed for the call. Queued
+ * noise is used in order before the seeded generator; `troupe_session_reset` drops it.
+ * `troupe_session_queue_normals` queues the same draws as one run of floats, on any family.
  *
- * Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (a value out of range;
- * the session keeps its foot lock), `TROUPE_ERR_UNSUPPORTED` (not an ARMFlow session),
- * `TROUPE_ERR_POISONED`, `TROUPE_ERR_PANIC`. One thread at a time per session.
+ * Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_SHAPE`, `TROUPE_ERR_INVALID_ARG`
+ * (non-finite value), `TROUPE_ERR_UNSUPPORTED` (not an ARMFlow stream), `TROUPE_ERR_POISONED`,
+ * `TROUPE_ERR_PANIC`. One thread at a time per session.
  *
  * # Safety
- * `session` must be NULL or a live handle.
+ * `session` must be a live handle; both noise pointers readable for `len` floats.
  */
-troupe_status troupe_armflow_session_set_foot_lock(struct troupe_session *session, int32_t enabled, float contact_threshold, uint32_t release_frames, float max_stretch);
-
-/**
- * Turns an ARMFlow session's penetration guard on (`enabled` nonzero) or off, for the frames
- * sent from now on: each sent reactor frame is shifted in the floor plane out of the actor's
- * body (joints nearer than `d_safe` metres, in [0, 0.5]), never faster than `max_speed` metres
- * per second (in (0, 10]); `docs/ARFLOW.md` states the rule and what it measured. The defaults
- * are 0.05 m and 2 m/s. `d_safe` and `max_speed` are ignored when turning it off.
- *
- * Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (a value out of range),
- * `TROUPE_ERR_UNSUPPORTED` (not an ARMFlow session), `TROUPE_ERR_POISONED`, `TROUPE_ERR_PANIC`.
- * One thread at a time per session.
- *
- * # Safety
- * `session` must be NULL or a live handle.
- */
-troupe_status troupe_armflow_session_set_penetration_guard(struct troupe_session *session, int32_t enabled, float d_safe, float max_speed);
-
-/**
- * Sets how `troupe_session_step_joints` reads actor positions (units, up axis, handedness,
- * frame rate; resampled to the bundle's rate) and forgets the joint stream's frames and
- * placement. Without it, positions are metres, Y up, right-handed, at the bundle's rate.
- *
- * Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (a bad format, or a
- * bundle whose features are not `interhuman262`; the session is then unchanged),
- * `TROUPE_ERR_UNSUPPORTED` (not an ARMFlow session), `TROUPE_ERR_POISONED`, `TROUPE_ERR_PANIC`.
- * One thread at a time per session.
- *
- * # Safety
- * `session` a live handle; `format` readable for its `struct_size` bytes.
- */
-troupe_status troupe_session_set_joints_format(struct troupe_session *session, const struct troupe_joints_format *format);
-
-/**
- * Feeds `n_frames` actor frames of joint positions (`actor`: float32 `[n_frames][22][3]`,
- * measured as `troupe_session_set_joints_format` said; may be NULL when `n_frames` is 0) and
- * writes the reactor poses that became ready, in the caller's world, into the buffers of
- * `*out` (each non-NULL buffer must hold `out_capacity_frames` frames of its part), their count
- * into `*n_written`. `troupe_session_joints_ready_after` gives the exact count. The joint
- * stream adds one frame of latency (`troupe_model_joints_latency_frames`).
- *
- * On any error nothing is written and the session is exactly as before the call, except after
- * `TROUPE_ERR_PANIC`, which poisons it.
- *
- * Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_SHAPE` (a buffer smaller than its
- * capacity says), `TROUPE_ERR_INVALID_ARG` (a NaN or infinite position, naming frame and
- * joint; a bundle whose features are not `interhuman262`), `TROUPE_ERR_UNSUPPORTED` (not an
- * ARMFlow session), `TROUPE_ERR_BUFFER_TOO_SMALL`,
- * `TROUPE_ERR_INFERENCE`, `TROUPE_ERR_POISONED`, `TROUPE_ERR_PANIC`. One thread at a time per
- * session.
- *
- * # Safety
- * `session` a live handle; `actor` readable for `n_frames * 66` floats; `out` readable and its
- * buffers writable for their lengths, overlapping nothing else; `n_written` writable.
- */
-troupe_status troupe_session_step_joints(struct troupe_session *session, const float *actor, size_t n_frames, const struct troupe_pose_buffers *out, size_t out_capacity_frames, size_t *n_written);
-
-/**
- * Writes to `*n_out` how many reactor poses `troupe_session_step_joints` returns for the next
- * `n_frames` actor joint frames.
- *
- * Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (a bundle whose
- * features are not `interhuman262`), `TROUPE_ERR_UNSUPPORTED` (not an ARMFlow session),
- * `TROUPE_ERR_POISONED`, `TROUPE_ERR_PANIC`. One thread at a time per session.
- *
- * # Safety
- * `session` a live handle; `n_out` writable.
- */
-troupe_status troupe_session_joints_ready_after(struct troupe_session *session, size_t n_frames, size_t *n_out);
-
-/**
- * Writes the joint stream's placement (fixed by the first actor joint frame: where the
- * reactor's poses are put) to `*out`.
- *
- * Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (no joint frame yet),
- * `TROUPE_ERR_UNSUPPORTED` (not an ARMFlow session), `TROUPE_ERR_POISONED`, `TROUPE_ERR_PANIC`.
- * One thread at a time per session.
- *
- * # Safety
- * `session` a live handle; `out` writable.
- */
-troupe_status troupe_session_joints_placement(struct troupe_session *session, struct troupe_placement *out);
-
-/**
- * Latency in frames when the actor streams joint positions: `troupe_model_latency_frames` plus
- * the one frame velocities and contacts wait for; 0 for NULL or a `umf` model. Thread-safe.
- */
-size_t troupe_model_joints_latency_frames(const struct troupe_model *model);
+troupe_status troupe_armflow_session_queue_noise(struct troupe_session *session, const float *actor_noise, const float *reactor_noise, size_t len);
 
 /**
  * Turns an ARMFlow session's recentring on (`enabled` nonzero) or off: before each token, when
@@ -2046,24 +2110,8 @@ size_t troupe_model_joints_latency_frames(const struct troupe_model *model);
  */
 troupe_status troupe_armflow_session_set_recentring(struct troupe_session *session, int32_t enabled, float distance);
 
-/**
- * Turns an ARMFlow session's root smoothing on (`enabled` nonzero) or off, for the frames sent
- * from now on: the reactor's root path on the floor is filtered causally with time constant
- * `time_constant` seconds (in (0, 2]; 0.1 is the demo's), the whole body moving with it, before
- * the penetration guard. No frame is held back; the root lags by about the time constant.
- * `time_constant` is ignored when turning it off.
- *
- * Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (a value out of range;
- * the session keeps its setting), `TROUPE_ERR_UNSUPPORTED` (not an ARMFlow session),
- * `TROUPE_ERR_POISONED`, `TROUPE_ERR_PANIC`. One thread at a time per session.
- *
- * # Safety
- * `session` must be NULL or a live handle.
- */
-troupe_status troupe_armflow_session_set_root_smoothing(struct troupe_session *session, int32_t enabled, float time_constant);
-
 /* ============================================================================================
- * 11. UMF
+ * 12. UMF
  *
  * Text to a group of any size.
  * ============================================================================================ */
@@ -2249,7 +2297,7 @@ troupe_status troupe_umf_noise_lengths(const struct troupe_model *model, uint32_
 troupe_status troupe_umf_generate(const struct troupe_model *model, const struct troupe_group_options *options, const float *condition, size_t condition_len, uint32_t people, const struct troupe_group_noise *noise, float *motion, size_t motion_capacity, float *latents, size_t latents_capacity);
 
 /* ============================================================================================
- * 12. MAGNet
+ * 13. MAGNet
  *
  * Multi-agent diffusion forcing: the released tasks, and the live partner's settings.
  * ============================================================================================ */
@@ -2494,7 +2542,7 @@ troupe_status troupe_magnet_session_set_early_emission(struct troupe_session *se
 troupe_status troupe_magnet_session_set_live_config(struct troupe_session *session, const char *config);
 
 /* ============================================================================================
- * 13. ARFlow
+ * 14. ARFlow
  *
  * Action to reaction with penetration guidance, offline and online.
  * ============================================================================================ */
@@ -2636,7 +2684,7 @@ troupe_status troupe_arflow_generate_with_draws(const struct troupe_model *model
 troupe_status troupe_arflow_session_set_options(struct troupe_session *session, const struct troupe_arflow_options *options);
 
 /* ============================================================================================
- * 14. Viewer
+ * 15. Viewer
  *
  * Pictures of motion: a self-contained HTML player and a GIF.
  * ============================================================================================ */
@@ -2673,7 +2721,7 @@ troupe_status troupe_arflow_session_set_options(struct troupe_session *session, 
 troupe_status troupe_viewer_write(const char *html_path, const char *gif_path, const float *positions, size_t n_people, size_t n_frames, const struct troupe_joints_format *format, const char *const *names, const char *title);
 
 /* ============================================================================================
- * 15. Deprecated names
+ * 16. Deprecated names
  *
  * The names before every family call had its family's prefix; each forwards to the function it
  * names. Kept until 2.0.
@@ -2696,12 +2744,40 @@ TROUPE_DEPRECATED("use troupe_armflow_clip_tokens") size_t troupe_model_clip_tok
 TROUPE_DEPRECATED("use troupe_armflow_clip_generate") troupe_status troupe_clip_generate(const struct troupe_model *model, const float *actor, size_t n_actor_frames, const float *condition, size_t condition_len, uint64_t seed, uint32_t steps, const struct troupe_clip_noise *noise, float *frames, size_t frames_capacity, float *reactor_latents, size_t latents_capacity);
 
 /**
- * Deprecated name of `troupe_armflow_session_set_penetration_guard`, kept until 2.0.
+ * Deprecated name of `troupe_session_set_penetration_guard` (0.2: the guard serves every
+ * streaming family), kept until 2.0.
  *
  * # Safety
- * As `troupe_armflow_session_set_penetration_guard`.
+ * As `troupe_session_set_penetration_guard`.
  */
-TROUPE_DEPRECATED("use troupe_armflow_session_set_penetration_guard") troupe_status troupe_session_set_penetration_guard(struct troupe_session *session, int32_t enabled, float d_safe, float max_speed);
+TROUPE_DEPRECATED("use troupe_session_set_penetration_guard") troupe_status troupe_armflow_session_set_penetration_guard(struct troupe_session *session, int32_t enabled, float d_safe, float max_speed);
+
+/**
+ * Deprecated name of `troupe_session_set_root_smoothing` (0.2: the smoothing serves every
+ * streaming family), kept until 2.0.
+ *
+ * # Safety
+ * As `troupe_session_set_root_smoothing`.
+ */
+TROUPE_DEPRECATED("use troupe_session_set_root_smoothing") troupe_status troupe_armflow_session_set_root_smoothing(struct troupe_session *session, int32_t enabled, float time_constant);
+
+/**
+ * Deprecated name of `troupe_session_set_foot_lock` (0.2: the foot lock serves every stream
+ * whose frames carry contact labels), kept until 2.0.
+ *
+ * # Safety
+ * As `troupe_session_set_foot_lock`.
+ */
+TROUPE_DEPRECATED("use troupe_session_set_foot_lock") troupe_status troupe_armflow_session_set_foot_lock(struct troupe_session *session, int32_t enabled, float contact_threshold, uint32_t release_frames, float max_stretch);
+
+/**
+ * Deprecated name of `troupe_armflow_session_queue_noise` (0.2: ARMFlow's own calls are named
+ * for it), kept until 2.0.
+ *
+ * # Safety
+ * As `troupe_armflow_session_queue_noise`.
+ */
+TROUPE_DEPRECATED("use troupe_armflow_session_queue_noise") troupe_status troupe_session_queue_noise(struct troupe_session *session, const float *actor_noise, const float *reactor_noise, size_t len);
 
 /**
  * Deprecated name of `troupe_umf_options_size`, kept until 2.0.

@@ -40,6 +40,7 @@
 
 pub mod arflow;
 pub mod armflow;
+mod family;
 // The C API (`include/troupe.h`). Its items are public only so that the fuzz targets and tests
 // can call the C entry points in-process; Rust programs use the API above, which has the
 // stability promise (`docs/ABI.md` is the C API's).
@@ -58,23 +59,25 @@ pub mod viewer;
 pub use arflow::{Arflow, ArflowOptions};
 pub use armflow::clip;
 pub use armflow::{
-    meanflow_grid, Armflow, Clip, ClipNoise, ClipOptions, PenetrationGuard, Reactor,
-    ReactorOptions, Recentring, RootSmoothing, TokenNoise, HISTORY_TOKENS,
+    meanflow_grid, Armflow, Clip, ClipNoise, ClipOptions, Reactor, ReactorOptions, Recentring,
+    TokenNoise, HISTORY_TOKENS,
 };
+pub use family::motion::{PenetrationGuard, RootSmoothing};
+pub use family::session::{step_sessions, step_sessions_joints, Session};
+pub use family::stream::{Capabilities, Capability, StepOutput, TokenTrace};
+pub use family::{SessionOptions, StreamOptions};
 pub use magnet::{LivePartner, Magnet, MagnetOptions, MagnetOutput, PartnerOptions};
 pub use manifest::{ActorLatent, ConditionLabel, Manifest, Weights};
 pub use model::Model;
 pub use motion::FootLockOptions;
 pub use shared::attention::kernel as attention_kernel;
 pub use shared::error::{Error, Result};
-pub use shared::family::{SessionOptions, StreamOptions};
 #[doc(hidden)]
 pub use shared::graph::load_graph_for_fuzzing;
 pub use shared::limits::{Limits, LIMITS};
 pub use shared::noise;
 pub use shared::progress::with_progress;
 pub use shared::solver::{self, Method, Solver};
-pub use shared::stream::{step_sessions, Session, StepOutput, TokenTrace};
 pub use shared::text::tokenizer::ClipTokenizer;
 pub use shared::threads::{compute_threads, load_threads, set_compute_threads, set_load_threads};
 pub use umf::pyramid;

@@ -12,14 +12,14 @@ use ndarray::ArrayView2;
 
 use crate::arflow::{self, Arflow};
 use crate::armflow::{self, Armflow};
+use crate::family::session::Session;
+use crate::family::{wrong_family, Family, StreamOptions};
 use crate::magnet::{self, Magnet};
 use crate::manifest::{self, ConditionLabel, Manifest};
 use crate::shared::bundle::BundleFiles;
 use crate::shared::bundle_io::BundleIo;
 use crate::shared::error::{Error, Result};
-use crate::shared::family::{wrong_family, Family, StreamOptions};
 use crate::shared::snapshot::SnapshotReader;
-use crate::shared::stream::Session;
 use crate::shared::text::branch::TextBranch;
 use crate::shared::text::prompt::{no_prompts, PromptEncoder};
 use crate::umf::{self, Umf};
@@ -294,7 +294,8 @@ impl Model {
     pub fn restore(&self, snapshot: &[u8]) -> Result<Session> {
         let family = &*self.inner.family;
         let mut payload = SnapshotReader::open(snapshot, family.name(), &self.inner.identity)?;
-        let session = family.restore(&mut payload)?;
+        let mut session = family.restore(&mut payload)?;
+        session.load_motion(&mut payload)?;
         payload.finish()?;
         Ok(session)
     }

@@ -525,6 +525,32 @@ fn an_online_stream_replays_queued_normals() {
         .unwrap()
         .session(SessionOptions::default())
         .unwrap();
+    // An ARMFlow stream takes whole tokens of normals: the actor's posterior noise, then the
+    // reactor's start noise, as `Reactor::queue_noise` takes one token.
     let e = armflow.queue_normals(&[0.0]).unwrap_err();
-    assert!(matches!(e, Error::Unsupported(_)), "{e}");
+    assert!(
+        matches!(e, Error::InvalidInput(_)) && e.to_string().contains("whole tokens"),
+        "{e}"
+    );
+    let lat = armflow.latent_dim();
+    let token: Vec<f32> = (0..2 * lat).map(|i| (i as f32 * 0.3).sin()).collect();
+    let mut by_token = Model::load(bundle("armflow-tiny"))
+        .unwrap()
+        .session(SessionOptions::default())
+        .unwrap();
+    armflow.queue_normals(&token).unwrap();
+    by_token
+        .family_mut::<troupe::Reactor>()
+        .unwrap()
+        .queue_noise(troupe::TokenNoise {
+            actor: token[..lat].to_vec(),
+            reactor: token[lat..].to_vec(),
+        })
+        .unwrap();
+    let frames: Vec<f32> = (0..8 * armflow.frame_dim())
+        .map(|i| (i as f32 * 0.11).cos())
+        .collect();
+    let a = armflow.step_flat(&frames).unwrap().frames;
+    assert_eq!(a, by_token.step_flat(&frames).unwrap().frames);
+    assert!(a.nrows() > 0);
 }

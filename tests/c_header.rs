@@ -41,8 +41,20 @@ const SECTIONS: &[(&str, &str, &[&str])] = &[
     (
         "Session",
         "One stream (ARMFlow reaction, MAGNet live partner, ARFlow online): options, stepping \
-         one or many, reset and the settings every stream takes.",
+         one or many, reset, the settings every stream takes and those a stream reports as \
+         capabilities.",
         &["session.rs"],
+    ),
+    (
+        "Session motion",
+        "Every streaming family's motion stages, chosen by its frame layout: joint positions \
+         in and poses out, the penetration guard, the root smoothing, the foot lock.",
+        &[
+            "session_motion/joints.rs",
+            "session_motion/guard.rs",
+            "session_motion/smoothing.rs",
+            "session_motion/foot_lock.rs",
+        ],
     ),
     (
         "Text prompts",
@@ -63,14 +75,10 @@ const SECTIONS: &[(&str, &str, &[&str])] = &[
     ),
     (
         "ARMFlow",
-        "Online reaction: joint positions through a session, the penetration guard, the root \
-         smoothing, the foot lock, recentring, the official clip.",
+        "Online reaction: recentring, noise queued per token, the official clip.",
         &[
-            "armflow/joints.rs",
-            "armflow/guard.rs",
-            "armflow/smoothing.rs",
-            "armflow/foot_lock.rs",
             "armflow/recentring.rs",
+            "armflow/noise.rs",
             "armflow/clip.rs",
         ],
     ),

@@ -25,9 +25,7 @@ fn root() -> &'static Path {
 fn rust_stream(clip: &Array3<f32>) -> Vec<f32> {
     let model = Model::load(root().join("onnx/bundles/armflow-demo")).unwrap();
     let mut session = model
-        .armflow()
-        .unwrap()
-        .reactor(ReactorOptions {
+        .session(ReactorOptions {
             seed: 7,
             condition: Some(model.condition_for("mirror").unwrap()),
             ..Default::default()

@@ -69,7 +69,7 @@ fn reactor(rule: &str) -> Array3<f32> {
                     condition: Some(model.condition_for(rule).unwrap()),
                     ..Default::default()
                 };
-                let mut session = model.armflow().unwrap().reactor(options).unwrap();
+                let mut session = model.session(options).unwrap();
                 session.set_joints_format(clip_format()).unwrap();
                 let actor = clip();
                 let mut poses = Vec::new();
@@ -171,7 +171,7 @@ fn recentring_keeps_the_partner_as_the_actor_walks_away() {
             recentring,
             ..Default::default()
         };
-        let mut session = model.armflow().unwrap().reactor(options).unwrap();
+        let mut session = model.session(options).unwrap();
         session
             .set_joints_format(JointsFormat {
                 fps: 30.0,

@@ -1,15 +1,16 @@
-//! Sessions that speak joint positions: `Reactor::step_joints` and `step_reactors_joints` on
+//! Sessions that speak joint positions: `Session::step_joints` and `step_sessions_joints` on
 //! real motion capture (the committed CMU excerpt, 120 fps, Z up), against the feature path.
 
 mod common;
 
 use ndarray::{s, Array2, Array3, ArrayView3, Axis};
 use ndarray_npy::read_npy;
-use troupe::armflow::step_reactors_joints;
 use troupe::motion::{
     decode_frame, FeatureStream, FootLockOptions, JointsFormat, Pose, Units, UpAxis,
 };
-use troupe::{Model, Reactor, ReactorOptions, Recentring, HISTORY_TOKENS};
+use troupe::{
+    step_sessions_joints, Model, Reactor, ReactorOptions, Recentring, Session, HISTORY_TOKENS,
+};
 
 fn cmu() -> Array3<f32> {
     read_npy(
@@ -32,20 +33,15 @@ fn format() -> JointsFormat {
 fn joints_in_poses_out_equal_the_feature_path() {
     let model = common::model();
     let clip = cmu().slice(s![..200, .., ..]).to_owned();
-    let mut joints = model
-        .armflow()
-        .unwrap()
-        .reactor(common::default_options())
-        .unwrap();
+    let mut joints = model.session(common::default_options()).unwrap();
     joints.set_joints_format(format()).unwrap();
-    assert_eq!(joints.joints_latency_frames(), model.latency_frames() + 1);
+    assert_eq!(
+        joints.joints_latency_frames().unwrap(),
+        model.latency_frames() + 1
+    );
     assert_eq!(model.joints_latency_frames(), model.latency_frames() + 1);
     // The same motion through an explicit feature stream and the feature session.
-    let mut features = model
-        .armflow()
-        .unwrap()
-        .reactor(common::default_options())
-        .unwrap();
+    let mut features = model.session(common::default_options()).unwrap();
     let mut stream = FeatureStream::new(format(), model.fps() as f32, None).unwrap();
     let (mut poses, mut expected) = (Vec::new(), Vec::new());
     for chunk in clip.axis_chunks_iter(Axis(0), 7) {
@@ -66,7 +62,7 @@ fn joints_in_poses_out_equal_the_feature_path() {
     // 200 frames at 120 fps are 50 at 30 fps, 49 feature frames, 12 whole tokens of 4 frames.
     assert_eq!(poses.len(), 48);
     assert_eq!(poses, expected);
-    assert_eq!(joints.joints_placement(), stream.placement());
+    assert_eq!(joints.joints_placement(), stream.placement().copied());
     // Poses are in the caller's world: z up, near where the actor is.
     let root = poses[0].root_translation();
     let actor_root = [clip[[0, 0, 0]], clip[[0, 0, 1]]];
@@ -81,16 +77,8 @@ fn joints_in_poses_out_equal_the_feature_path() {
 fn a_refused_chunk_leaves_the_session_and_its_joint_stream_unchanged() {
     let model = common::model();
     let clip = cmu().slice(s![..80, .., ..]).to_owned();
-    let mut a = model
-        .armflow()
-        .unwrap()
-        .reactor(common::default_options())
-        .unwrap();
-    let mut b = model
-        .armflow()
-        .unwrap()
-        .reactor(common::default_options())
-        .unwrap();
+    let mut a = model.session(common::default_options()).unwrap();
+    let mut b = model.session(common::default_options()).unwrap();
     for session in [&mut a, &mut b] {
         session.set_joints_format(format()).unwrap();
         session.step_joints(clip.slice(s![..40, .., ..])).unwrap();
@@ -116,13 +104,11 @@ fn many_sessions_at_once_equal_each_alone() {
         clip.slice(s![..64, .., ..]),
         clip.slice(s![300..340, .., ..]),
     ];
-    let make = || -> Vec<Reactor> {
+    let make = || -> Vec<Session> {
         (0..2)
             .map(|i| {
                 let mut s = model
-                    .armflow()
-                    .unwrap()
-                    .reactor(troupe::ReactorOptions {
+                    .session(troupe::ReactorOptions {
                         seed: 5 + i,
                         ..Default::default()
                     })
@@ -134,7 +120,7 @@ fn many_sessions_at_once_equal_each_alone() {
     };
     let (mut together, mut alone) = (make(), make());
     let mut refs: Vec<_> = together.iter_mut().collect();
-    let batched = step_reactors_joints(&mut refs, &chunks).unwrap();
+    let batched = step_sessions_joints(&mut refs, &chunks).unwrap();
     for (i, s) in alone.iter_mut().enumerate() {
         assert_eq!(batched[i], s.step_joints(chunks[i]).unwrap(), "session {i}");
     }
@@ -146,11 +132,7 @@ fn bundles_without_joint_features_refuse_joints() {
         std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("onnx/bundles/armflow-tiny-interx"),
     )
     .unwrap();
-    let mut session = interx
-        .armflow()
-        .unwrap()
-        .reactor(common::default_options())
-        .unwrap();
+    let mut session = interx.session(common::default_options()).unwrap();
     let err = session.set_joints_format(format()).unwrap_err().to_string();
     assert!(err.contains("interhuman262"), "{err}");
     let err = session
@@ -165,14 +147,8 @@ fn the_foot_lock_holds_feet_moves_nothing_else_and_restarts_with_the_stream() {
     let model = common::model();
     let clip = cmu().slice(s![..400, .., ..]).to_owned();
     let stream = |lock: Option<FootLockOptions>| {
-        let mut s = model
-            .armflow()
-            .unwrap()
-            .reactor(ReactorOptions {
-                foot_lock: lock,
-                ..common::default_options()
-            })
-            .unwrap();
+        let mut s = model.session(common::default_options()).unwrap();
+        s.set_foot_lock(lock).unwrap();
         s.set_joints_format(format()).unwrap();
         (s.step_joints(clip.view()).unwrap(), s)
     };
@@ -218,11 +194,9 @@ fn the_foot_lock_holds_feet_moves_nothing_else_and_restarts_with_the_stream() {
     assert_eq!(session.step_joints(clip.view()).unwrap(), held);
 }
 
-fn recentring_session(model: &Model, seed: u64, distance: Option<f64>) -> Reactor {
+fn recentring_session(model: &Model, seed: u64, distance: Option<f64>) -> Session {
     let mut s = model
-        .armflow()
-        .unwrap()
-        .reactor(ReactorOptions {
+        .session(ReactorOptions {
             seed,
             recentring: distance.map(|distance| Recentring { distance }),
             ..Default::default()
@@ -232,7 +206,7 @@ fn recentring_session(model: &Model, seed: u64, distance: Option<f64>) -> Reacto
     s
 }
 
-fn stream_in_chunks(session: &mut Reactor, clip: ArrayView3<f32>, chunk: usize) -> Vec<Pose> {
+fn stream_in_chunks(session: &mut Session, clip: ArrayView3<f32>, chunk: usize) -> Vec<Pose> {
     clip.axis_chunks_iter(Axis(0), chunk)
         .flat_map(|c| session.step_joints(c).unwrap())
         .collect()
@@ -292,9 +266,7 @@ fn a_recentring_session_answers_motion_far_from_the_origin_as_at_it() {
     };
     let stream = |frames: &Array2<f32>, recentring: bool| {
         let mut session = model
-            .armflow()
-            .unwrap()
-            .reactor(ReactorOptions {
+            .session(ReactorOptions {
                 recentring: recentring.then_some(Recentring { distance: 0.5 }),
                 ..Default::default()
             })
@@ -308,14 +280,13 @@ fn a_recentring_session_answers_motion_far_from_the_origin_as_at_it() {
     let near = stream(&actor, true);
     let far = stream(&moved_by(&actor, [5.0, 3.0]), true);
     // Turned on mid-stream, far from the centre, it waits for a token of history, then moves.
-    let mut late = model
-        .armflow()
-        .unwrap()
-        .reactor(Default::default())
-        .unwrap();
+    let mut late = model.session(ReactorOptions::default()).unwrap();
     let moved = moved_by(&actor, [5.0, 3.0]);
     late.step(moved.slice(s![..40, ..])).unwrap();
-    late.set_recentring(Some(Recentring::default())).unwrap();
+    late.family_mut::<Reactor>()
+        .unwrap()
+        .set_recentring(Some(Recentring::default()))
+        .unwrap();
     for chunk in moved.slice(s![40.., ..]).axis_chunks_iter(Axis(0), 1) {
         assert!(late.step(chunk).unwrap().iter().all(|v| v.is_finite()));
     }
@@ -332,7 +303,7 @@ fn a_recentring_session_answers_motion_far_from_the_origin_as_at_it() {
 fn recentring_sessions_stepped_together_equal_each_alone() {
     let model = common::model();
     let clip = cmu();
-    let make = || -> Vec<Reactor> {
+    let make = || -> Vec<Session> {
         (0..2)
             .map(|i| recentring_session(model, 5 + i, Some(0.25)))
             .collect()
@@ -344,7 +315,7 @@ fn recentring_sessions_stepped_together_equal_each_alone() {
             clip.slice(s![start + 300..start + 312, .., ..]),
         ];
         let mut refs: Vec<_> = together.iter_mut().collect();
-        let batched = step_reactors_joints(&mut refs, &chunks).unwrap();
+        let batched = step_sessions_joints(&mut refs, &chunks).unwrap();
         for (i, s) in alone.iter_mut().enumerate() {
             assert_eq!(
                 batched[i],
@@ -362,14 +333,14 @@ fn recentring_is_refused_where_it_cannot_run_and_out_of_range() {
         vae_windows: true,
         ..Default::default()
     };
-    let mut session = model.armflow().unwrap().reactor(windows.clone()).unwrap();
+    let mut session = model.session(windows.clone()).unwrap();
     let on = Some(Recentring::default());
     assert!(matches!(
-        session.set_recentring(on),
+        session.family_mut::<Reactor>().unwrap().set_recentring(on),
         Err(troupe::Error::Unsupported(_))
     ));
-    assert_eq!(session.recentring(), None);
-    let refused = model.armflow().unwrap().reactor(ReactorOptions {
+    assert_eq!(session.family_ref::<Reactor>().unwrap().recentring(), None);
+    let refused = model.session(ReactorOptions {
         recentring: on,
         ..windows
     });
@@ -377,12 +348,18 @@ fn recentring_is_refused_where_it_cannot_run_and_out_of_range() {
 
     let mut session = recentring_session(model, 0, Some(1.0));
     for distance in [0.0, -1.0, f64::NAN, f64::INFINITY, 1e3] {
-        let err = session.set_recentring(Some(Recentring { distance }));
+        let err = session
+            .family_mut::<Reactor>()
+            .unwrap()
+            .set_recentring(Some(Recentring { distance }));
         assert!(
             matches!(err, Err(troupe::Error::InvalidOption(_))),
             "{distance}"
         );
-        assert_eq!(session.recentring(), Some(Recentring { distance: 1.0 }));
+        assert_eq!(
+            session.family_ref::<Reactor>().unwrap().recentring(),
+            Some(Recentring { distance: 1.0 })
+        );
     }
     // The history it keeps is bounded (the last HISTORY_TOKENS tokens of both people), and
     // dropped when it is turned off.
@@ -397,6 +374,90 @@ fn recentring_is_refused_where_it_cannot_run_and_out_of_range() {
         assert!(session.memory_bytes() <= plain.memory_bytes() + history + token_bytes);
     }
     let held = session.memory_bytes();
-    session.set_recentring(None).unwrap();
+    session
+        .family_mut::<Reactor>()
+        .unwrap()
+        .set_recentring(None)
+        .unwrap();
     assert!(held - session.memory_bytes() >= history);
+}
+
+/// Every streaming family takes the same joint positions and gives poses back: ARFlow's online
+/// stream (its `interhuman262` frames, as ARMFlow's) and MAGNet's live partner (its SMPL-X
+/// frames found by inverse kinematics), through the same `Session` calls as ARMFlow's reactor.
+#[test]
+fn every_streaming_family_streams_joint_positions() {
+    let bundles = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("onnx/bundles");
+    let clip = cmu().slice(s![..360, .., ..]).to_owned();
+    let magnet = Model::load(bundles.join("magnet-tiny")).unwrap();
+    // A partner opening from the bundle's golden pair (frames of the model's own world).
+    let golden: Array3<f32> = read_npy(bundles.join("magnet-tiny/golden/frames.npy")).unwrap();
+    let opening = |frames: usize| -> Vec<f32> {
+        golden
+            .slice(s![..frames, 1, ..])
+            .as_standard_layout()
+            .iter()
+            .copied()
+            .collect()
+    };
+    let arflow = Model::load(bundles.join("arflow-tiny-online")).unwrap();
+    let armflow = common::model();
+    for (model, latency) in [(armflow, 1), (&arflow, 1), (&magnet, 0)] {
+        let mut session = model.session(troupe::SessionOptions::default()).unwrap();
+        if let Ok(partner) = session.family_mut::<troupe::LivePartner>() {
+            partner.set_opening(&opening(32)).unwrap();
+        }
+        session.set_joints_format(format()).unwrap();
+        assert_eq!(
+            session.joints_latency_frames().unwrap(),
+            model.latency_frames() + latency,
+            "{}",
+            model.family()
+        );
+        let mut poses = Vec::new();
+        for chunk in clip.axis_chunks_iter(Axis(0), 12) {
+            let want = session.joints_ready_after(chunk.shape()[0]).unwrap();
+            let got = session.step_joints(chunk).unwrap();
+            assert_eq!(got.len(), want, "{}", model.family());
+            poses.extend(got);
+        }
+        // 360 frames at 120 fps are 90 at 30: all but the latency come back, finite, with unit
+        // root rotations (the tiny models are untrained: where their bodies stand is not checked).
+        let family = model.family();
+        assert!(
+            poses.len() + model.latency_frames() + latency >= 90 && poses.len() <= 90,
+            "{family}: {} poses",
+            poses.len()
+        );
+        for pose in &poses {
+            assert!(
+                pose.positions.iter().flatten().all(|v| v.is_finite()),
+                "{family}"
+            );
+            let q = pose.rotations[0];
+            let n = q.iter().map(|v| v * v).sum::<f32>().sqrt();
+            assert!((n - 1.0).abs() < 1e-3, "{family}: {q:?}");
+        }
+        // The guard and the smoothing take every family's joints; the foot lock needs contacts.
+        session
+            .set_penetration_guard(Some(troupe::PenetrationGuard::default()))
+            .unwrap();
+        session
+            .set_root_smoothing(Some(troupe::RootSmoothing::default()))
+            .unwrap();
+        let lock = session.set_foot_lock(Some(FootLockOptions::default()));
+        assert_eq!(lock.is_ok(), family != "magnet", "{family}: {lock:?}");
+        let more = session
+            .step_joints(cmu().slice(s![360..480, .., ..]))
+            .unwrap();
+        assert!(!more.is_empty(), "{family}");
+        // A snapshot keeps the stages and the conversion: the restored session goes on alike.
+        let mut restored = model.restore(&session.snapshot().unwrap()).unwrap();
+        let next = cmu().slice(s![480..560, .., ..]).to_owned();
+        assert_eq!(
+            restored.step_joints(next.view()).unwrap(),
+            session.step_joints(next.view()).unwrap(),
+            "{family}"
+        );
+    }
 }

@@ -23,8 +23,9 @@ fn load(name: &str) -> Model {
     .unwrap()
 }
 
-/// Everything a reactor can carry: a small ring (it wraps), CFG, a condition, the guard, the
-/// smoothing, queued noise. `windows`: the VAE over windows rather than per-token steps.
+/// Everything a reactor can carry: a small ring (it wraps), CFG, a condition, queued noise (and,
+/// through [`busy`], the session's guard and smoothing). `windows`: the VAE over windows rather
+/// than per-token steps.
 fn busy_options(model: &Model, windows: bool) -> ReactorOptions {
     ReactorOptions {
         seed: 5,
@@ -37,10 +38,23 @@ fn busy_options(model: &Model, windows: bool) -> ReactorOptions {
         ),
         context_capacity: Some(5),
         vae_windows: windows,
-        penetration_guard: Some(PenetrationGuard::default()),
-        root_smoothing: Some(RootSmoothing::default()),
         ..ReactorOptions::default()
     }
+}
+
+/// `options`' session with the penetration guard and the root smoothing on (all but the
+/// plain default options'), so snapshots carry the session's motion stages too.
+fn busy(model: &Model, options: &ReactorOptions) -> Session {
+    let mut session = model.session(options.clone()).unwrap();
+    if options.condition.is_some() {
+        session
+            .set_penetration_guard(Some(PenetrationGuard::default()))
+            .unwrap();
+        session
+            .set_root_smoothing(Some(RootSmoothing::default()))
+            .unwrap();
+    }
+    session
 }
 
 fn bits(frames: &Array2<f32>) -> Vec<u32> {
@@ -123,7 +137,8 @@ fn check_crowd(
 /// A reactor with `options` and two tokens of queued noise (the rest seeded: the queue is
 /// part of the state).
 fn reactor(model: &Model, options: &ReactorOptions) -> Session {
-    let mut s: Reactor = model.armflow().unwrap().reactor(options.clone()).unwrap();
+    let mut session = busy(model, options);
+    let s = session.family_mut::<Reactor>().unwrap();
     for k in 0..2 {
         let v = |o: f32| {
             (0..model.latent_dim())
@@ -136,7 +151,7 @@ fn reactor(model: &Model, options: &ReactorOptions) -> Session {
         })
         .unwrap();
     }
-    Session::from(s)
+    session
 }
 
 #[test]
@@ -178,12 +193,7 @@ fn restored_sessions_step_together_as_the_uninterrupted_ones() {
         busy_options(model, true),
         common::default_options(),
     ];
-    let open = |m: &Model| -> Vec<Session> {
-        options
-            .iter()
-            .map(|o| m.session(o.clone()).unwrap())
-            .collect()
-    };
+    let open = |m: &Model| -> Vec<Session> { options.iter().map(|o| busy(m, o)).collect() };
     let step_all = |sessions: &mut Vec<Session>, from: usize, to: usize| -> Vec<Vec<u32>> {
         // Session i gets a chunk shifted by i, so their histories differ.
         let chunks: Vec<Vec<f32>> = (0..sessions.len())
@@ -236,11 +246,7 @@ fn a_joint_stream_with_its_foot_lock_and_recentring_restores_bit_for_bit() {
     let clip = clip.slice(s![480.., .., ..]).to_owned();
     let n = clip.shape()[0];
     let open = |recentring: bool| {
-        let mut r = model
-            .armflow()
-            .unwrap()
-            .reactor(busy_options(model, false))
-            .unwrap();
+        let mut r = busy(model, &busy_options(model, false));
         r.set_joints_format(JointsFormat {
             up: UpAxis::Z,
             fps: 120.0,
@@ -248,11 +254,13 @@ fn a_joint_stream_with_its_foot_lock_and_recentring_restores_bit_for_bit() {
         })
         .unwrap();
         r.set_foot_lock(Some(FootLockOptions::default())).unwrap();
-        r.set_recentring(recentring.then_some(Recentring { distance: 0.1 }))
+        r.family_mut::<Reactor>()
+            .unwrap()
+            .set_recentring(recentring.then_some(Recentring { distance: 0.1 }))
             .unwrap();
         r
     };
-    let poses = |r: &mut Reactor, from: usize, to: usize| -> Vec<u32> {
+    let poses = |r: &mut Session, from: usize, to: usize| -> Vec<u32> {
         clip.slice(s![from..to, .., ..])
             .axis_chunks_iter(Axis(0), 7)
             .flat_map(|c| r.step_joints(c).unwrap())
@@ -271,10 +279,8 @@ fn a_joint_stream_with_its_foot_lock_and_recentring_restores_bit_for_bit() {
     for cut in [1, 2, 50, 121, 239, 350, 479] {
         let mut first = open(true);
         let mut got = poses(&mut first, 0, cut);
-        let mut restored = model
-            .restore(&Session::from(first).snapshot().unwrap())
-            .unwrap();
-        got.extend(poses(restored.family_mut::<Reactor>().unwrap(), cut, n));
+        let mut restored = model.restore(&first.snapshot().unwrap()).unwrap();
+        got.extend(poses(&mut restored, cut, n));
         assert!(got == whole, "cut at frame {cut}");
     }
 }
@@ -298,7 +304,7 @@ fn refused(model: &Model, bytes: &[u8]) -> String {
 #[test]
 fn hostile_snapshots_are_refused_with_a_clear_error() {
     let model = common::model();
-    let mut session = model.session(busy_options(model, false)).unwrap();
+    let mut session = busy(model, &busy_options(model, false));
     session.step(common::actor().slice(s![..37, ..])).unwrap();
     let good = session.snapshot().unwrap();
     assert!(model.restore(&good).is_ok());
@@ -311,13 +317,14 @@ fn hostile_snapshots_are_refused_with_a_clear_error() {
     // stream's too, which has recentred (its actor's root strays up to 1.4 m from the origin:
     // it answers otherwise than the same stream without recentring).
     let sine: Vec<f32> = (0..37 * 262).map(|i| (i as f32 * 0.37).sin()).collect();
-    let mut recentring = model
-        .session(ReactorOptions {
+    let mut recentring = busy(
+        model,
+        &ReactorOptions {
             recentring: Some(Recentring::default()),
             ..busy_options(model, false)
-        })
-        .unwrap();
-    let mut plain = model.session(busy_options(model, false)).unwrap();
+        },
+    );
+    let mut plain = busy(model, &busy_options(model, false));
     assert_ne!(
         recentring.step_flat(&sine).unwrap().frames,
         plain.step_flat(&sine).unwrap().frames
@@ -351,9 +358,9 @@ fn hostile_snapshots_are_refused_with_a_clear_error() {
     assert!(e.contains("`armflow` stream"), "{e}");
     // Another version of the format.
     let mut b = good.clone();
-    b[8] = 3;
+    b[8] = 4;
     let e = refused(model, &reframed(b));
-    assert!(e.contains("version 3"), "{e}");
+    assert!(e.contains("version 4"), "{e}");
     // Checksummed lies in the payload.
     survives_lies(
         model,

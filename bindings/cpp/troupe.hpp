@@ -303,29 +303,39 @@ class Session {
     Status set_condition(const float *condition, std::size_t len) {
         return Status::from(troupe_session_set_condition(handle_, condition, len));
     }
+    /// An ARMFlow stream's noise for its next token (`queue_normals` queues any family's draws).
     Status queue_noise(const float *actor_noise, const float *reactor_noise, std::size_t len) {
-        return Status::from(troupe_session_queue_noise(handle_, actor_noise, reactor_noise, len));
+        return Status::from(troupe_armflow_session_queue_noise(handle_, actor_noise, reactor_noise, len));
     }
+    /// Standard normals for the stream's next draws, in its sampler's order (every family).
+    Status queue_normals(const float *normals, std::size_t len) {
+        return Status::from(troupe_session_queue_normals(handle_, normals, len));
+    }
+    /// The `TROUPE_CAP_*` bits of what the stream takes beyond frames, seed and steps.
+    Status capabilities(std::uint32_t &out) const { return Status::from(troupe_session_capabilities(handle_, &out)); }
     /// An ARFlow stream's sampler settings (from `troupe_arflow_options_init`).
     Status set_arflow_options(const troupe_arflow_options &options) {
         return Status::from(troupe_arflow_session_set_options(handle_, &options));
     }
-    /// An ARMFlow session's penetration guard (`enabled` false: off); see docs/ARFLOW.md.
+    /// The session's penetration guard (every streaming family; `enabled` false: off); see
+    /// docs/MOTION.md.
     Status set_penetration_guard(bool enabled, float d_safe = 0.05f, float max_speed = 2.0f) {
-        return Status::from(troupe_armflow_session_set_penetration_guard(handle_, enabled ? 1 : 0, d_safe, max_speed));
+        return Status::from(troupe_session_set_penetration_guard(handle_, enabled ? 1 : 0, d_safe, max_speed));
     }
-    /// An ARMFlow session's root smoothing (`enabled` false: off): the root path filtered with
+    /// The session's root smoothing (every streaming family; `enabled` false: off): the root
+    /// path filtered with
     /// `time_constant` seconds before the guard.
     Status set_root_smoothing(bool enabled, float time_constant = 0.1f) {
-        return Status::from(troupe_armflow_session_set_root_smoothing(handle_, enabled ? 1 : 0, time_constant));
+        return Status::from(troupe_session_set_root_smoothing(handle_, enabled ? 1 : 0, time_constant));
     }
-    /// An ARMFlow session's foot lock on the poses `step_joints` returns (`enabled` false: off):
+    /// The session's foot lock on the poses `step_joints` returns (ARMFlow, ARFlow; `enabled`
+    /// false: off):
     /// a foot whose ankle contact label is at least `contact_threshold` stays put, released over
     /// `release_frames` frames or when the motion is `max_stretch` metres away.
     Status set_foot_lock(bool enabled, float contact_threshold = 0.5f, std::uint32_t release_frames = 4,
                          float max_stretch = 0.25f) {
-        return Status::from(troupe_armflow_session_set_foot_lock(handle_, enabled ? 1 : 0, contact_threshold,
-                                                                 release_frames, max_stretch));
+        return Status::from(
+            troupe_session_set_foot_lock(handle_, enabled ? 1 : 0, contact_threshold, release_frames, max_stretch));
     }
     /// An ARMFlow session's recentring (`enabled` false: off): before each token, when the
     /// actor's root is more than `distance` metres from the networks' centre, the centre moves to

@@ -356,26 +356,28 @@ namespace Troupe
             return bytes;
         }
 
-        /// <summary>An ARMFlow session's penetration guard (off with enabled false): each reactor
-        /// frame is shifted in the floor plane out of the actor's body, at most maxSpeed m/s.</summary>
+        /// <summary>The session's penetration guard (every streaming family; off with enabled
+        /// false): each frame sent is shifted in the floor plane out of the input person's body,
+        /// at most maxSpeed m/s.</summary>
         public void SetPenetrationGuard(bool enabled, float dSafe = 0.05f, float maxSpeed = 2.0f)
         {
-            Native.Check(Native.troupe_armflow_session_set_penetration_guard(Live(), enabled ? 1 : 0, dSafe, maxSpeed));
+            Native.Check(Native.troupe_session_set_penetration_guard(Live(), enabled ? 1 : 0, dSafe, maxSpeed));
         }
 
-        /// <summary>An ARMFlow session's root smoothing (off with enabled false): the reactor's root
-        /// path filtered with timeConstant seconds, before the guard.</summary>
+        /// <summary>The session's root smoothing (every streaming family; off with enabled false):
+        /// the generated person's root path filtered with timeConstant seconds, before the
+        /// guard.</summary>
         public void SetRootSmoothing(bool enabled, float timeConstant = 0.1f)
         {
-            Native.Check(Native.troupe_armflow_session_set_root_smoothing(Live(), enabled ? 1 : 0, timeConstant));
+            Native.Check(Native.troupe_session_set_root_smoothing(Live(), enabled ? 1 : 0, timeConstant));
         }
 
-        /// <summary>An ARMFlow session's foot lock on the poses StepJoints returns (off with enabled
-        /// false): a foot whose ankle contact label is at least contactThreshold stays put, released
+        /// <summary>The session's foot lock on the poses StepJoints returns (ARMFlow, ARFlow; off
+        /// with enabled false): a foot whose ankle contact label is at least contactThreshold stays put, released
         /// over releaseFrames frames or when the motion is maxStretch metres away.</summary>
         public void SetFootLock(bool enabled, float contactThreshold = 0.5f, uint releaseFrames = 4, float maxStretch = 0.25f)
         {
-            Native.Check(Native.troupe_armflow_session_set_foot_lock(Live(), enabled ? 1 : 0, contactThreshold, releaseFrames, maxStretch));
+            Native.Check(Native.troupe_session_set_foot_lock(Live(), enabled ? 1 : 0, contactThreshold, releaseFrames, maxStretch));
         }
 
         /// <summary>An ARMFlow session's recentring (off with enabled false): before each token, when
@@ -509,10 +511,10 @@ namespace Troupe
         [DllImport(Lib, CallingConvention = CallingConvention.Cdecl)] internal static extern int troupe_session_snapshot(SessionHandle session, byte[] buf, UIntPtr capacity, out UIntPtr needed);
         [DllImport(Lib, CallingConvention = CallingConvention.Cdecl)] internal static extern int troupe_session_restore(ModelHandle model, byte[] bytes, UIntPtr len, out SessionHandle session);
         [DllImport(Lib, CallingConvention = CallingConvention.Cdecl)] internal static extern int troupe_model_identity(ModelHandle model, byte[] id);
-        [DllImport(Lib, CallingConvention = CallingConvention.Cdecl)] internal static extern int troupe_armflow_session_set_penetration_guard(SessionHandle session, int enabled, float dSafe, float maxSpeed);
-        [DllImport(Lib, CallingConvention = CallingConvention.Cdecl)] internal static extern int troupe_armflow_session_set_root_smoothing(SessionHandle session, int enabled, float timeConstant);
+        [DllImport(Lib, CallingConvention = CallingConvention.Cdecl)] internal static extern int troupe_session_set_penetration_guard(SessionHandle session, int enabled, float dSafe, float maxSpeed);
+        [DllImport(Lib, CallingConvention = CallingConvention.Cdecl)] internal static extern int troupe_session_set_root_smoothing(SessionHandle session, int enabled, float timeConstant);
         [DllImport(Lib, CallingConvention = CallingConvention.Cdecl)] internal static extern int troupe_armflow_session_set_recentring(SessionHandle session, int enabled, float distance);
-        [DllImport(Lib, CallingConvention = CallingConvention.Cdecl)] internal static extern int troupe_armflow_session_set_foot_lock(SessionHandle session, int enabled, float contactThreshold, uint releaseFrames, float maxStretch);
+        [DllImport(Lib, CallingConvention = CallingConvention.Cdecl)] internal static extern int troupe_session_set_foot_lock(SessionHandle session, int enabled, float contactThreshold, uint releaseFrames, float maxStretch);
         [DllImport(Lib, CallingConvention = CallingConvention.Cdecl)] internal static extern int troupe_session_set_seed(SessionHandle session, ulong seed);
         [DllImport(Lib, CallingConvention = CallingConvention.Cdecl)] internal static extern int troupe_session_set_condition(SessionHandle session, [In] float[] condition, UIntPtr len);
         [DllImport(Lib, CallingConvention = CallingConvention.Cdecl)] internal static extern int troupe_joints_format_init(ref JointsFormatC format, UIntPtr size);

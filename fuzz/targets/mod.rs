@@ -350,7 +350,12 @@ pub fn c_api_sequence(data: &[u8]) {
                 }
                 6 => {
                     let len = usize::from(bytes.u8());
-                    troupe_session_queue_noise(session, frames.as_ptr(), frames.as_ptr(), len);
+                    troupe::ffi::armflow::noise::troupe_armflow_session_queue_noise(
+                        session,
+                        frames.as_ptr(),
+                        frames.as_ptr(),
+                        len,
+                    );
                 }
                 7 if !session.is_null() => {
                     troupe_session_free(session);
@@ -429,14 +434,20 @@ pub fn session_snapshot(data: &[u8]) {
             steps: Some(1 + u32::from(bytes.u8() % 3)),
             context_capacity: Some(2 + usize::from(bytes.u8() % 6)),
             vae_windows: bytes.u8() % 2 == 0,
-            penetration_guard: (bytes.u8() % 2 == 0).then(troupe::PenetrationGuard::default),
-            root_smoothing: (bytes.u8() % 2 == 0).then(troupe::RootSmoothing::default),
             recentring: (bytes.u8() % 2 == 0).then(troupe::Recentring::default),
             ..Default::default()
         };
         let Ok(mut session) = model.session(options) else {
             return;
         };
+        let guard = (bytes.u8() % 2 == 0).then(troupe::PenetrationGuard::default);
+        let smoothing = (bytes.u8() % 2 == 0).then(troupe::RootSmoothing::default);
+        session
+            .set_penetration_guard(guard)
+            .expect("an armflow session is guarded");
+        session
+            .set_root_smoothing(smoothing)
+            .expect("an armflow session is smoothed");
         let frames = usize::from(bytes.u8() % 24);
         let actor: Vec<f32> = (0..frames * session.frame_dim())
             .map(|i| ((i as f32) * 0.37).sin())

@@ -11,11 +11,11 @@ use crate::arflow::networks::Networks;
 use crate::arflow::sampler::{self, ArflowOptions};
 use crate::arflow::spec::ArflowSpec;
 use crate::arflow::stream::OnlineStream;
+use crate::family::session::Session;
+use crate::family::{family_as, Family, SessionOptions, StreamOptions};
 use crate::shared::error::Result;
-use crate::shared::family::{family_as, Family, SessionOptions, StreamOptions};
 use crate::shared::noise::NormalSource;
 use crate::shared::snapshot::SnapshotReader;
-use crate::shared::stream::Session;
 
 /// A loaded `arflow` bundle. Cheap to clone; clones and streams share its graphs.
 #[derive(Debug, Clone)]
@@ -95,6 +95,14 @@ impl Family for Arflow {
         0
     }
 
+    /// Joint positions become features one frame late (velocities and contacts look ahead).
+    fn joints_latency_frames(&self) -> usize {
+        match self.session_defaults() {
+            Ok(_) => crate::motion::STREAM_LATENCY_FRAMES,
+            Err(_) => 0,
+        }
+    }
+
     fn max_output_frames(&self, n: usize) -> usize {
         n
     }
@@ -140,7 +148,7 @@ impl Family for Arflow {
     }
 }
 
-impl crate::shared::family::sealed::Sealed for ArflowOptions {}
+impl crate::family::sealed::Sealed for ArflowOptions {}
 
 impl StreamOptions for ArflowOptions {
     #[allow(private_interfaces)]

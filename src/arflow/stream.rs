@@ -22,15 +22,15 @@ use ndarray::Array2;
 use super::networks::Networks;
 use super::sampler::{euler_step, loss_of, times};
 use super::spec::{ArflowSampling, Mixing, FRAME_DIM};
+use crate::family::session::Session;
+use crate::family::stream::{
+    downcast_all, Capabilities, Capability, Finish, StepOutput, StepTogether, Stream,
+};
 use crate::shared::checks::check_frames;
 use crate::shared::error::{Error, Result};
 use crate::shared::limits::{at_most, LIMITS};
 use crate::shared::noise::{fill_normals, NormalSource};
 use crate::shared::snapshot::{self, SnapshotReader, SnapshotWriter};
-use crate::shared::stream::{downcast_all, Session, StepOutput, StepTogether, Stream};
-
-/// The family name snapshots of online streams carry.
-pub(crate) const SNAPSHOT_FAMILY: &str = "arflow";
 
 /// One actor/reactor stream over an online `arflow` model (made by `Arflow::online`, or boxed
 /// in a [`crate::Session`] by `Model::session`). `Send`, not `Sync`.
@@ -141,9 +141,7 @@ impl OnlineStream {
 
     /// The stream's snapshot (`Session::snapshot`): its settings, seed, frame count, every
     /// step's cache and the queued normals not yet taken.
-    pub(crate) fn snapshot(&self) -> Vec<u8> {
-        let floats: usize = self.keys.iter().chain(&self.values).map(Vec::len).sum();
-        let mut w = SnapshotWriter::new(SNAPSHOT_FAMILY, &self.nets.io.identity(), 4 * floats);
+    pub(crate) fn save(&self, w: &mut SnapshotWriter) {
         let s = &self.sampling;
         w.u64(s.steps as u64)
             .f32(s.guidance)
@@ -160,7 +158,6 @@ impl OnlineStream {
             w.f32s(k).f32s(v);
         }
         w.f32s(&self.queued[self.queued_used..]);
-        w.finish()
     }
 
     /// The stream a snapshot's payload holds, over `nets` (the model it was checked to come
@@ -224,31 +221,28 @@ impl OnlineStream {
 pub(crate) fn advance(
     streams: &mut [&mut OnlineStream],
     actor: &[&[f32]],
-    max_frames: &[usize],
+    finish: Finish<'_>,
     indexed: bool,
-) -> Result<Vec<Array2<f32>>> {
+) -> Result<Vec<StepOutput>> {
     let whose = |i: usize, e: Error| match (e, indexed) {
         (Error::InvalidInput(m), true) => Error::InvalidInput(format!("session {i}: {m}")),
         (e, _) => e,
     };
     for (i, (s, chunk)) in streams.iter().zip(actor).enumerate() {
         s.check(chunk).map_err(|e| whose(i, e))?;
-        let n = chunk.len() / FRAME_DIM;
-        let max = max_frames.get(i).copied().unwrap_or(usize::MAX);
-        if n > max {
-            return Err(whose(
-                i,
-                Error::InvalidInput(format!(
-                    "this call returns {n} frames, the output holds {max}"
-                )),
-            ));
-        }
     }
     let before: Vec<(u64, usize, usize)> = streams
         .iter()
         .map(|s| (s.frames, s.keys.first().map_or(0, Vec::len), s.queued_used))
         .collect();
-    let result = run(streams, actor);
+    let result = run(streams, actor).and_then(|frames| {
+        let mut outputs: Vec<StepOutput> =
+            frames.into_iter().map(StepOutput::frames_only).collect();
+        for (i, output) in outputs.iter_mut().enumerate() {
+            finish(i, output)?;
+        }
+        Ok(outputs)
+    });
     if result.is_err() {
         for (s, &(frames, kept, queued_used)) in streams.iter_mut().zip(&before) {
             s.frames = frames;
@@ -434,19 +428,30 @@ impl Stream for OnlineStream {
     fn latent_dim(&self) -> usize {
         FRAME_DIM
     }
-    fn step_bounded(&mut self, frames: &[f32], max_frames: usize) -> Result<StepOutput> {
-        let mut out = advance(&mut [self], &[frames], &[max_frames], false)?;
-        Ok(StepOutput::frames_only(
-            out.pop().expect("one stream, one output"),
-        ))
+    fn frame_layout(&self) -> &str {
+        &self.nets.io.motion.layout
+    }
+    fn fps(&self) -> f32 {
+        self.nets.io.motion.fps as f32
+    }
+    fn capabilities(&self) -> Capabilities {
+        Capabilities::of(&[Capability::QueuedNormals])
+    }
+    fn model_identity(&self) -> [u8; 32] {
+        self.nets.io.identity()
+    }
+    fn save(&self, w: &mut SnapshotWriter) -> Result<()> {
+        OnlineStream::save(self, w);
+        Ok(())
+    }
+    fn step(&mut self, frames: &[f32], finish: Finish<'_>) -> Result<StepOutput> {
+        let mut out = advance(&mut [self], &[frames], finish, false)?;
+        Ok(out.pop().expect("one stream, one output"))
     }
     fn step_together(&self) -> StepTogether {
-        |streams, frames, max_frames| {
+        |streams, frames, finish| {
             let mut online = downcast_all::<OnlineStream>(streams);
-            Ok(advance(&mut online, frames, max_frames, true)?
-                .into_iter()
-                .map(StepOutput::frames_only)
-                .collect())
+            advance(&mut online, frames, finish, true)
         }
     }
     fn same_model(&self, other: &dyn Stream) -> bool {
@@ -489,9 +494,6 @@ impl Stream for OnlineStream {
     }
     fn frames_received(&self) -> u64 {
         self.frames()
-    }
-    fn snapshot(&self) -> Result<Vec<u8>> {
-        Ok(OnlineStream::snapshot(self))
     }
     fn frames_emitted(&self) -> u64 {
         self.frames()

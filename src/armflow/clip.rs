@@ -21,7 +21,7 @@
 
 use ndarray::{Array2, ArrayView2};
 
-use super::meanflow::meanflow_grid;
+use super::meanflow::{guided, meanflow_grid};
 use super::networks::Networks;
 use super::spec::ClipSpec;
 use crate::shared::checks::{check_input, check_output};
@@ -199,7 +199,7 @@ impl Networks {
         t: f32,
         scale: f32,
     ) -> Result<Vec<f32>> {
-        if scale == 1.0 {
+        if !guided(scale) {
             return self.velocity(actor, z, context, &[r], &[t]);
         }
         let (lat, c) = (actor.len(), context.len());

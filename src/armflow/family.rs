@@ -10,11 +10,11 @@ use crate::armflow::clip::{Clip, ClipNoise, ClipOptions};
 use crate::armflow::networks::Networks;
 use crate::armflow::session::{Reactor, ReactorOptions};
 use crate::armflow::spec::{ArmFlowSpec, ClipSpec};
+use crate::family::session::Session;
+use crate::family::{family_as, Family, SessionOptions, StreamOptions};
 use crate::motion::STREAM_LATENCY_FRAMES;
 use crate::shared::error::Result;
-use crate::shared::family::{family_as, Family, SessionOptions, StreamOptions};
 use crate::shared::snapshot::SnapshotReader;
-use crate::shared::stream::Session;
 use crate::shared::text::branch::TextBranch;
 use crate::shared::text::prompt::PromptEncoder;
 
@@ -167,7 +167,7 @@ impl From<SessionOptions> for ReactorOptions {
     }
 }
 
-impl crate::shared::family::sealed::Sealed for ReactorOptions {}
+impl crate::family::sealed::Sealed for ReactorOptions {}
 
 impl StreamOptions for ReactorOptions {
     #[allow(private_interfaces)]

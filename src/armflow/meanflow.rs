@@ -25,6 +25,12 @@ pub fn meanflow_grid(steps: u32) -> Vec<f32> {
         .collect()
 }
 
+/// Whether a CFG scale guides the velocity: as in the official sampler, only a scale above 1
+/// runs the null branch (`u = u_null + s (u_cond - u_null)`); 1 and below use `u_cond` alone.
+pub(crate) fn guided(scale: f32) -> bool {
+    scale > 1.0
+}
+
 #[cfg(test)]
 mod tests {
     use super::meanflow_grid;

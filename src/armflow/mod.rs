@@ -28,7 +28,7 @@ pub use clip::{Clip, ClipNoise, ClipOptions};
 pub use family::Armflow;
 pub use meanflow::meanflow_grid;
 pub(crate) use networks::Networks;
-pub use session::{
-    step_reactors, step_reactors_joints, PenetrationGuard, Reactor, ReactorOptions, Recentring,
-    RootSmoothing, TokenNoise, HISTORY_TOKENS,
-};
+// The guard and the smoothing are every session's now (`Session::set_penetration_guard`); their
+// types keep the paths they had here.
+pub use crate::family::motion::{PenetrationGuard, RootSmoothing};
+pub use session::{step_reactors, Reactor, ReactorOptions, Recentring, TokenNoise, HISTORY_TOKENS};

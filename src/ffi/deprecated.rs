@@ -63,22 +63,95 @@ pub unsafe extern "C" fn troupe_clip_generate(
     }
 }
 
-/// Deprecated name of `troupe_armflow_session_set_penetration_guard`, kept until 2.0.
+/// Deprecated name of `troupe_session_set_penetration_guard` (0.2: the guard serves every
+/// streaming family), kept until 2.0.
 ///
 /// # Safety
-/// As `troupe_armflow_session_set_penetration_guard`.
-#[deprecated(note = "use troupe_armflow_session_set_penetration_guard")]
+/// As `troupe_session_set_penetration_guard`.
+#[deprecated(note = "use troupe_session_set_penetration_guard")]
 #[no_mangle]
-pub unsafe extern "C" fn troupe_session_set_penetration_guard(
+pub unsafe extern "C" fn troupe_armflow_session_set_penetration_guard(
     session: *mut troupe_session,
     enabled: i32,
     d_safe: f32,
     max_speed: f32,
 ) -> troupe_status {
-    // SAFETY: the contract of `troupe_armflow_session_set_penetration_guard`, which the caller upholds.
+    // SAFETY: the contract of `troupe_session_set_penetration_guard`, which the caller upholds.
     unsafe {
-        crate::ffi::armflow::guard::troupe_armflow_session_set_penetration_guard(
+        crate::ffi::session_motion::guard::troupe_session_set_penetration_guard(
             session, enabled, d_safe, max_speed,
+        )
+    }
+}
+
+/// Deprecated name of `troupe_session_set_root_smoothing` (0.2: the smoothing serves every
+/// streaming family), kept until 2.0.
+///
+/// # Safety
+/// As `troupe_session_set_root_smoothing`.
+#[deprecated(note = "use troupe_session_set_root_smoothing")]
+#[no_mangle]
+pub unsafe extern "C" fn troupe_armflow_session_set_root_smoothing(
+    session: *mut troupe_session,
+    enabled: i32,
+    time_constant: f32,
+) -> troupe_status {
+    // SAFETY: the contract of `troupe_session_set_root_smoothing`, which the caller upholds.
+    unsafe {
+        crate::ffi::session_motion::smoothing::troupe_session_set_root_smoothing(
+            session,
+            enabled,
+            time_constant,
+        )
+    }
+}
+
+/// Deprecated name of `troupe_session_set_foot_lock` (0.2: the foot lock serves every stream
+/// whose frames carry contact labels), kept until 2.0.
+///
+/// # Safety
+/// As `troupe_session_set_foot_lock`.
+#[deprecated(note = "use troupe_session_set_foot_lock")]
+#[no_mangle]
+pub unsafe extern "C" fn troupe_armflow_session_set_foot_lock(
+    session: *mut troupe_session,
+    enabled: i32,
+    contact_threshold: f32,
+    release_frames: u32,
+    max_stretch: f32,
+) -> troupe_status {
+    // SAFETY: the contract of `troupe_session_set_foot_lock`, which the caller upholds.
+    unsafe {
+        crate::ffi::session_motion::foot_lock::troupe_session_set_foot_lock(
+            session,
+            enabled,
+            contact_threshold,
+            release_frames,
+            max_stretch,
+        )
+    }
+}
+
+/// Deprecated name of `troupe_armflow_session_queue_noise` (0.2: ARMFlow's own calls are named
+/// for it), kept until 2.0.
+///
+/// # Safety
+/// As `troupe_armflow_session_queue_noise`.
+#[deprecated(note = "use troupe_armflow_session_queue_noise")]
+#[no_mangle]
+pub unsafe extern "C" fn troupe_session_queue_noise(
+    session: *mut troupe_session,
+    actor_noise: *const f32,
+    reactor_noise: *const f32,
+    len: usize,
+) -> troupe_status {
+    // SAFETY: the contract of `troupe_armflow_session_queue_noise`, which the caller upholds.
+    unsafe {
+        crate::ffi::armflow::noise::troupe_armflow_session_queue_noise(
+            session,
+            actor_noise,
+            reactor_noise,
+            len,
         )
     }
 }

@@ -40,6 +40,8 @@ pub mod model;
 pub mod motion;
 pub mod progress;
 pub mod session;
+// A session's motion stages: joints in, poses out, guard, smoothing, foot lock.
+pub mod session_motion;
 pub mod status;
 pub mod text;
 pub mod threads;

@@ -1,5 +1,5 @@
 //! `troupe_session`: one stream, whatever the family: an ARMFlow reactor to an actor, a MAGNet
-//! live partner to a user, or ARFlow's online stream (`src/shared/stream.rs`). What only one
+//! live partner to a user, or ARFlow's online stream (`src/family/session.rs`). What only one
 //! family's stream takes lives in that family's module (`ffi/armflow/`, `ffi/magnet/`,
 //! `ffi/arflow/`) and is refused with `TROUPE_ERR_UNSUPPORTED` on another family's session.
 
@@ -12,7 +12,7 @@ use crate::ffi::boundary::{
     TROUPE_ERR_POISONED, TROUPE_ERR_SHAPE, TROUPE_ERR_UNSUPPORTED,
 };
 use crate::ffi::model::troupe_model;
-use crate::{ActorLatent, Model, Reactor, ReactorOptions, Session, SessionOptions, TokenNoise};
+use crate::{ActorLatent, Capability, Model, Reactor, ReactorOptions, Session, SessionOptions};
 
 /// Actor tokens are the VAE posterior sample `(mean + std * noise) * scale` (the official choice).
 pub const TROUPE_ACTOR_LATENT_SAMPLE: i32 = 0;
@@ -526,7 +526,7 @@ pub unsafe extern "C" fn troupe_sessions_step(
                 non_null(out[i], &format!("out[{i}]"))?;
             }
         }
-        let outputs = crate::shared::stream::step_sessions_bounded(&mut live, &chunks, capacity)?;
+        let outputs = crate::family::session::step_sessions_bounded(&mut live, &chunks, capacity)?;
         for (i, output) in outputs.iter().enumerate() {
             let frames = output.frames.as_slice().expect("standard layout");
             if !frames.is_empty() {
@@ -728,12 +728,14 @@ pub unsafe extern "C" fn troupe_session_set_steps(
     }
 }
 
-/// Sets the classifier-free guidance scale (finite; 1 disables it) for tokens generated from
-/// now on. The null branch zeroes the actor token and the context.
+/// Sets the classifier-free guidance scale (finite) for what is generated from now on, on a
+/// stream with the capability (`troupe_session_capabilities`, `TROUPE_CAP_CFG_SCALE`: ARMFlow's),
+/// applied as the family's official sampler applies it (ARMFlow: guided only above 1; the null
+/// branch zeroes the actor token and the context). A stream without guidance accepts 1.
 ///
 /// Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (NaN or infinite),
-/// `TROUPE_ERR_UNSUPPORTED` (a scale other than 1 on a stream without guidance: any but
-/// ARMFlow's), `TROUPE_ERR_POISONED`, `TROUPE_ERR_PANIC`. One thread at a time per session.
+/// `TROUPE_ERR_UNSUPPORTED` (a scale other than 1 on a stream without the capability),
+/// `TROUPE_ERR_POISONED`, `TROUPE_ERR_PANIC`. One thread at a time per session.
 ///
 /// # Safety
 /// `session` must be NULL or a live handle.
@@ -745,24 +747,20 @@ pub unsafe extern "C" fn troupe_session_set_cfg_scale(
     // SAFETY: forwarded contract.
     unsafe {
         with_session(session, "troupe_session_set_cfg_scale", |s| {
-            // Every stream runs unguided; only ARMFlow's take another scale.
-            if scale == 1.0 && s.family() != "armflow" {
-                return Ok(());
-            }
-            Ok(reactor(s, "a CFG scale other than 1")?.set_cfg_scale(scale)?)
+            Ok(s.set_cfg_scale(scale)?)
         })
     }
 }
 
 /// Sets the conditioning vector (`len` must equal `troupe_model_condition_dim`; borrowed for the
-/// call) for tokens generated from now on. `condition` NULL with `len` 0 selects the null
-/// condition (zeros).
+/// call) for what is generated from now on, on a stream with the capability
+/// (`TROUPE_CAP_CONDITION`). `condition` NULL with `len` 0 selects the null condition, which
+/// every stream accepts.
 ///
 /// Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_SHAPE` (wrong `len`),
 /// `TROUPE_ERR_INVALID_ARG` (NaN or infinite value), `TROUPE_ERR_UNSUPPORTED` (a condition other
-/// than the null one on a stream without conditioning: any but ARMFlow's),
-/// `TROUPE_ERR_INFERENCE`, `TROUPE_ERR_POISONED`, `TROUPE_ERR_PANIC`. One thread at a time per
-/// session.
+/// than the null one on a stream without the capability), `TROUPE_ERR_INFERENCE`,
+/// `TROUPE_ERR_POISONED`, `TROUPE_ERR_PANIC`. One thread at a time per session.
 ///
 /// # Safety
 /// `session` must be a live handle; `condition` readable for `len` floats.
@@ -776,35 +774,32 @@ pub unsafe extern "C" fn troupe_session_set_condition(
     unsafe {
         with_session(session, "troupe_session_set_condition", |s| {
             if condition.is_null() && len == 0 {
-                // Every stream runs on the null condition; only ARMFlow's take another.
-                if s.family() != "armflow" {
-                    return Ok(());
-                }
-                return Ok(reactor(s, "a condition")?.set_condition(None)?);
+                return Ok(s.set_condition(None)?);
             }
-            let reactor = reactor(s, "a condition")?;
-            let dim = reactor.condition_dim();
-            if len != dim {
+            if s.capabilities().has(Capability::Condition) && len != s.condition_dim() {
                 return Err(FfiError::new(
                     TROUPE_ERR_SHAPE,
-                    format!("condition has {len} floats, the bundle expects {dim}"),
+                    format!(
+                        "condition has {len} floats, the bundle expects {}",
+                        s.condition_dim()
+                    ),
                 ));
             }
             let condition = boundary::slice(condition, len, "condition")?;
-            Ok(reactor.set_condition(Some(condition))?)
+            Ok(s.set_condition(Some(condition))?)
         })
     }
 }
 
-/// Conditions the tokens generated from now on on a text prompt (a NUL-terminated UTF-8
-/// string, borrowed for the call): the condition `troupe_text_prompt_encode` gives, for bundles
-/// with `troupe_model_takes_prompts`. The model caches the last 64 prompts it encoded.
+/// Conditions what is generated from now on on a text prompt (a NUL-terminated UTF-8 string,
+/// borrowed for the call): the condition `troupe_text_prompt_encode` gives, on a stream with
+/// the capability (`TROUPE_CAP_PROMPT`: bundles with `troupe_model_takes_prompts`). The model
+/// caches the last 64 prompts it encoded.
 ///
-/// Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (a bundle that takes no
-/// prompts, text that is not UTF-8 or longer than 64 KiB), `TROUPE_ERR_UNSUPPORTED` (a stream
-/// without conditioning: any but ARMFlow's), `TROUPE_ERR_INFERENCE`,
-/// `TROUPE_ERR_POISONED`, `TROUPE_ERR_BUSY`, `TROUPE_ERR_PANIC`. One thread at a time per
-/// session.
+/// Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (text that is not UTF-8
+/// or longer than 64 KiB), `TROUPE_ERR_UNSUPPORTED` (a stream without the capability),
+/// `TROUPE_ERR_INFERENCE`, `TROUPE_ERR_POISONED`, `TROUPE_ERR_BUSY`, `TROUPE_ERR_PANIC`. One
+/// thread at a time per session.
 ///
 /// # Safety
 /// `session` must be a live handle; `prompt` NUL-terminated and readable for the call.
@@ -817,63 +812,57 @@ pub unsafe extern "C" fn troupe_session_set_prompt(
     unsafe {
         with_session(session, "troupe_session_set_prompt", |s| {
             let prompt = boundary::required_str(prompt, "prompt")?;
-            Ok(reactor(s, "a prompt")?.set_prompt(prompt)?)
+            Ok(s.set_prompt(prompt)?)
         })
     }
 }
 
-/// Queues the noise of the next token not yet generated, to reproduce a run exactly:
-/// `actor_noise` (the posterior sample's standard normals) and `reactor_noise` (the starting
-/// noise), `len` floats each (`troupe_model_latent_dim`), borrowed for the call. Queued noise is
-/// used in order before the seeded generator; `troupe_session_reset` drops it.
+/// The session takes a conditioning vector (`troupe_session_set_condition`).
+pub const TROUPE_CAP_CONDITION: u32 = 1 << 0;
+/// The session takes a text prompt (`troupe_session_set_prompt`).
+pub const TROUPE_CAP_PROMPT: u32 = 1 << 1;
+/// The session takes a CFG scale other than 1 (`troupe_session_set_cfg_scale`).
+pub const TROUPE_CAP_CFG_SCALE: u32 = 1 << 2;
+/// The session takes queued standard normals (`troupe_session_queue_normals`).
+pub const TROUPE_CAP_QUEUED_NORMALS: u32 = 1 << 3;
+
+/// Writes to `*out` the session's capabilities: the `TROUPE_CAP_*` bits of what it takes beyond
+/// frames, seed and steps. A call for a capability it lacks returns `TROUPE_ERR_UNSUPPORTED`
+/// naming it.
 ///
-/// Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_SHAPE`, `TROUPE_ERR_INVALID_ARG`
-/// (non-finite value), `TROUPE_ERR_UNSUPPORTED` (any stream but ARMFlow's), `TROUPE_ERR_POISONED`,
-/// `TROUPE_ERR_PANIC`. One thread at a time per session.
+/// Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_POISONED`, `TROUPE_ERR_PANIC`. One
+/// thread at a time per session.
 ///
 /// # Safety
-/// `session` must be a live handle; both noise pointers readable for `len` floats.
+/// `session` must be NULL or a live handle; `out` writable.
 #[no_mangle]
-pub unsafe extern "C" fn troupe_session_queue_noise(
+pub unsafe extern "C" fn troupe_session_capabilities(
     session: *mut troupe_session,
-    actor_noise: *const f32,
-    reactor_noise: *const f32,
-    len: usize,
+    out: *mut u32,
 ) -> troupe_status {
     // SAFETY: forwarded contract.
     unsafe {
-        with_session(session, "troupe_session_queue_noise", |s| {
-            let lat = s.latent_dim();
-            if len != lat {
-                return Err(FfiError::new(
-                    TROUPE_ERR_SHAPE,
-                    format!("noise vectors have {len} floats, the bundle's latent dim is {lat}"),
-                ));
-            }
-            non_null(actor_noise, "actor_noise")?;
-            non_null(reactor_noise, "reactor_noise")?;
-            let noise = TokenNoise {
-                actor: boundary::slice(actor_noise, len, "actor_noise")?.to_vec(),
-                reactor: boundary::slice(reactor_noise, len, "reactor_noise")?.to_vec(),
-            };
-            Ok(reactor(s, "queued noise")?.queue_noise(noise)?)
+        with_session(session, "troupe_session_capabilities", |s| {
+            non_null(out, "out")?;
+            out.write_unaligned(s.capabilities().bits());
+            Ok(())
         })
     }
 }
 
-/// Queues standard normals for the draws a MAGNet live partner or an ARFlow online stream makes
-/// next, to replay another implementation's stream exactly: `normals` holds `len` floats
-/// (borrowed for the call), appended to any still queued. Each draw (in the order
-/// `docs/MAGNET.md` and `docs/ARFLOW.md` give: ARFlow per frame the start noise when σ > 0,
-/// then one ε per step when η > 0, 262 each) takes the next ones it needs while any are
-/// queued; then the seeded generator goes on as if the queued draws had been its. A step whose
-/// draw needs more than are left fails with `TROUPE_ERR_INVALID_ARG`, the session as it was.
-/// `troupe_session_reset` drops them.
+/// Queues standard normals for the draws the stream makes next, to replay another
+/// implementation's stream exactly (`TROUPE_CAP_QUEUED_NORMALS`: every streaming family):
+/// `normals` holds `len` floats (borrowed for the call), appended to any still queued. Each
+/// draw takes the next ones it needs while any are queued, in the sampler's order (ARMFlow per
+/// token the actor's posterior noise then the reactor's start noise, `troupe_model_latent_dim`
+/// each, whole tokens only; MAGNet as `docs/MAGNET.md` gives; ARFlow per frame the start noise
+/// when σ > 0, then one ε per step when η > 0, 262 each); then the seeded generator goes on as
+/// if the queued draws had been its. A step whose draw needs more than are left fails with
+/// `TROUPE_ERR_INVALID_ARG`, the session as it was. `troupe_session_reset` drops them.
 ///
-/// Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (a non-finite value),
-/// `TROUPE_ERR_UNSUPPORTED` (an ARMFlow stream: its noise is queued per token,
-/// `troupe_session_queue_noise`), `TROUPE_ERR_POISONED`, `TROUPE_ERR_PANIC`. One thread at a
-/// time per session.
+/// Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (a non-finite value;
+/// ARMFlow: not whole tokens), `TROUPE_ERR_UNSUPPORTED` (a stream without the capability),
+/// `TROUPE_ERR_POISONED`, `TROUPE_ERR_PANIC`. One thread at a time per session.
 ///
 /// # Safety
 /// `session` must be a live handle; `normals` readable for `len` floats.
@@ -905,5 +894,27 @@ pub unsafe extern "C" fn troupe_testing_panic(session: *mut troupe_session) -> t
         with_session(session, "troupe_testing_panic", |_| {
             panic!("deliberate test panic")
         })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_capability_bits_are_the_rust_ones() {
+        for (c, bit) in [
+            (Capability::Condition, TROUPE_CAP_CONDITION),
+            (Capability::Prompt, TROUPE_CAP_PROMPT),
+            (Capability::CfgScale, TROUPE_CAP_CFG_SCALE),
+            (Capability::QueuedNormals, TROUPE_CAP_QUEUED_NORMALS),
+        ] {
+            assert_eq!(c.bit(), bit, "{c}");
+        }
+        assert_eq!(
+            Capability::ALL.len(),
+            4,
+            "a capability without a TROUPE_CAP_ bit"
+        );
     }
 }

@@ -7,6 +7,8 @@ use std::sync::Arc;
 
 use ndarray::{ArrayView2, ArrayView3};
 
+use crate::family::session::Session;
+use crate::family::{family_as, Family, SessionOptions, StreamOptions};
 use crate::magnet::draws::Draws;
 use crate::magnet::generate::{
     configuration, default_live_config, generate, injected_draws, output_shape, MagnetOptions,
@@ -17,9 +19,7 @@ use crate::magnet::live::{check_persons, LivePartner, LiveSettings};
 use crate::magnet::networks::Networks;
 use crate::magnet::spec::{MagnetSpec, SamplingSpec};
 use crate::shared::error::Result;
-use crate::shared::family::{family_as, Family, SessionOptions, StreamOptions};
 use crate::shared::snapshot::SnapshotReader;
-use crate::shared::stream::Session;
 
 /// Options of a live partner stream. Fields left `None` take the configuration's defaults.
 #[derive(Debug, Clone, Default, PartialEq)]
@@ -179,6 +179,11 @@ impl Family for Magnet {
         self.nets.spec.model.window * FRAMES_PER_TOKEN - 1
     }
 
+    /// Joint positions become SMPL-X frames by inverse kinematics, frame by frame: no latency.
+    fn joints_latency_frames(&self) -> usize {
+        self.latency_frames()
+    }
+
     /// `n` plus the frames a stream may hold back, under one window (`4 Tm`).
     fn max_output_frames(&self, n: usize) -> usize {
         n.saturating_add(self.nets.spec.model.window * FRAMES_PER_TOKEN)
@@ -222,7 +227,7 @@ impl From<SessionOptions> for PartnerOptions {
     }
 }
 
-impl crate::shared::family::sealed::Sealed for PartnerOptions {}
+impl crate::family::sealed::Sealed for PartnerOptions {}
 
 impl StreamOptions for PartnerOptions {
     #[allow(private_interfaces)]

@@ -24,10 +24,13 @@ use super::networks::Networks;
 use super::spec::{SamplingSpec, Task};
 use super::tasks::{live_matrix, rolling_chunk, Run};
 use super::transforms::{canonical_frame, compose, from_9d, inverse, to_9d, Mat4};
+use crate::family::session::Session;
+use crate::family::stream::{
+    downcast_all, Capabilities, Capability, Finish, StepOutput, StepTogether, Stream, TokenTrace,
+};
 use crate::shared::checks::{check_frames, check_input};
 use crate::shared::error::{Error, Result};
 use crate::shared::snapshot::{self, SnapshotReader, SnapshotWriter};
-use crate::shared::stream::{downcast_all, Session, StepOutput, StepTogether, Stream, TokenTrace};
 
 /// Tokens of the user's past frames the encoder sees before a window (its receptive field
 /// reaches about 21 tokens back).
@@ -393,16 +396,13 @@ impl LivePartner {
     }
 }
 
-/// The family name snapshots of live partners carry.
-const SNAPSHOT_FAMILY: &str = "magnet";
 /// The longest configuration (JSON) a snapshot may carry.
 const MAX_CONFIG_BYTES: usize = 1 << 16;
 
 impl LivePartner {
     /// The stream's snapshot (`Session::snapshot`): its settings (the configuration as JSON, the
     /// seed, the emission, the opening frames) and everything its chunks carry forward.
-    pub(crate) fn snapshot(&self) -> Result<Vec<u8>> {
-        let mut w = SnapshotWriter::new(SNAPSHOT_FAMILY, &self.nets.io.identity(), 1 << 16);
+    pub(crate) fn save(&self, w: &mut SnapshotWriter) -> Result<()> {
         let config = serde_json::to_string(&self.settings.sampling)
             .map_err(|e| Error::InvalidInput(format!("snapshot: the configuration: {e}")))?;
         w.str(&config)
@@ -432,8 +432,7 @@ impl LivePartner {
         if let Some(world) = &st.world {
             w.f32s(world.as_flattened());
         }
-        save_draws(&mut w, &st.draws)?;
-        Ok(w.finish())
+        save_draws(w, &st.draws)
     }
 
     /// The stream a snapshot's payload holds, over `nets` (the model it was checked to come
@@ -668,9 +667,9 @@ pub(crate) fn check_persons(nets: &Networks) -> Result<()> {
 pub(crate) fn advance(
     sessions: &mut [&mut LivePartner],
     frames: &[&[f32]],
-    max_frames: &[usize],
+    finish: Finish<'_>,
     indexed: bool,
-) -> Result<Vec<LiveOutput>> {
+) -> Result<Vec<StepOutput>> {
     let whose = |i: usize, e: Error| match (e, indexed) {
         (Error::InvalidInput(m), true) => Error::InvalidInput(format!("session {i}: {m}")),
         (e, _) => e,
@@ -685,16 +684,6 @@ pub(crate) fn advance(
                      (SessionOptions::partner_opening, troupe_magnet_session_set_partner_opening)"
                         .into(),
                 ),
-            ));
-        }
-        let max = max_frames.get(i).copied().unwrap_or(usize::MAX);
-        let out = session.frames_ready_after(chunk.len() / FRAME_DIM);
-        if out > max {
-            return Err(whose(
-                i,
-                Error::InvalidInput(format!(
-                    "this call returns {out} frames, the output holds {max}"
-                )),
             ));
         }
     }
@@ -739,7 +728,7 @@ pub(crate) fn advance(
             })?;
         }
     }
-    let result = outputs
+    let mut result = outputs
         .into_iter()
         .map(|parts| {
             let views: Vec<_> = parts.iter().map(|(f, _)| f.view()).collect();
@@ -749,9 +738,12 @@ pub(crate) fn advance(
                 concatenate(Axis(0), &views).expect("frames of one width")
             };
             let tokens = parts.into_iter().flat_map(|(_, t)| t).collect();
-            LiveOutput { frames, tokens }
+            StepOutput::from(LiveOutput { frames, tokens })
         })
-        .collect();
+        .collect::<Vec<_>>();
+    for (i, output) in result.iter_mut().enumerate() {
+        finish(i, output)?;
+    }
     for (session, mut state) in sessions.iter_mut().zip(states) {
         session.trim(&mut state);
         session.state = state;
@@ -928,17 +920,29 @@ impl Stream for LivePartner {
     fn latent_dim(&self) -> usize {
         self.token_dim()
     }
-    fn step_bounded(&mut self, frames: &[f32], max_frames: usize) -> Result<StepOutput> {
-        let mut out = advance(&mut [self], &[frames], &[max_frames], false)?;
-        Ok(out.pop().expect("one stream, one output").into())
+    fn frame_layout(&self) -> &str {
+        &self.nets.io.motion.layout
+    }
+    fn fps(&self) -> f32 {
+        self.nets.io.motion.fps as f32
+    }
+    fn capabilities(&self) -> Capabilities {
+        Capabilities::of(&[Capability::QueuedNormals])
+    }
+    fn model_identity(&self) -> [u8; 32] {
+        self.nets.io.identity()
+    }
+    fn save(&self, w: &mut SnapshotWriter) -> Result<()> {
+        LivePartner::save(self, w)
+    }
+    fn step(&mut self, frames: &[f32], finish: Finish<'_>) -> Result<StepOutput> {
+        let mut out = advance(&mut [self], &[frames], finish, false)?;
+        Ok(out.pop().expect("one stream, one output"))
     }
     fn step_together(&self) -> StepTogether {
-        |streams, frames, max_frames| {
+        |streams, frames, finish| {
             let mut partners = downcast_all::<LivePartner>(streams);
-            Ok(advance(&mut partners, frames, max_frames, true)?
-                .into_iter()
-                .map(StepOutput::from)
-                .collect())
+            advance(&mut partners, frames, finish, true)
         }
     }
     fn same_model(&self, other: &dyn Stream) -> bool {
@@ -977,9 +981,6 @@ impl Stream for LivePartner {
     }
     fn frames_received(&self) -> u64 {
         self.state.received
-    }
-    fn snapshot(&self) -> Result<Vec<u8>> {
-        LivePartner::snapshot(self)
     }
     fn frames_emitted(&self) -> u64 {
         self.state.frames_out

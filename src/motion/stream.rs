@@ -118,12 +118,7 @@ impl FeatureStream {
     /// Writes the stream to a snapshot: its format and rate, its placement, how far its
     /// resampler is and the last frame it placed.
     pub(crate) fn save(&self, w: &mut SnapshotWriter) {
-        let f = self.format;
-        w.u32(f.units as u32)
-            .u32(f.up as u32)
-            .u32(f.handedness as u32)
-            .f32(f.fps)
-            .f64(self.resampler.fps_out());
+        save_format(w, self.format, self.resampler.fps_out());
         w.bool(self.placement.is_some());
         if let Some(p) = &self.placement {
             let q = p.heading;
@@ -134,9 +129,8 @@ impl FeatureStream {
         save_points(w, self.previous.as_deref());
     }
 
-    /// The stream [`FeatureStream::save`] wrote; its format and placement are checked as
-    /// [`FeatureStream::new`] checks them.
-    pub(crate) fn load(r: &mut SnapshotReader) -> Result<Self> {
+    /// The format and output rate [`save_format`] wrote, both validated.
+    pub(crate) fn load_format(r: &mut SnapshotReader) -> Result<(JointsFormat, f32)> {
         let units = match r.u32("the joints' units")? {
             0 => Units::Meters,
             1 => Units::Centimeters,
@@ -162,6 +156,19 @@ impl FeatureStream {
             handedness,
             fps,
         };
+        format.validate()?;
+        JointsFormat {
+            fps: fps_out,
+            ..format
+        }
+        .validate()?;
+        Ok((format, fps_out))
+    }
+
+    /// The stream [`FeatureStream::save`] wrote; its format and placement are checked as
+    /// [`FeatureStream::new`] checks them.
+    pub(crate) fn load(r: &mut SnapshotReader) -> Result<Self> {
+        let (format, fps_out) = Self::load_format(r)?;
         let placement = if r.bool("whether the joints are placed")? {
             let mut v = [0.0; 7];
             for x in &mut v {
@@ -186,4 +193,13 @@ impl FeatureStream {
         stream.previous = load_points(r, "the joints' last frame", T2M22_JOINTS)?;
         Ok(stream)
     }
+}
+
+/// Writes how a caller measures positions (`f`) and the rate they are resampled to.
+pub(crate) fn save_format(w: &mut SnapshotWriter, f: JointsFormat, fps_out: f64) {
+    w.u32(f.units as u32)
+        .u32(f.up as u32)
+        .u32(f.handedness as u32)
+        .f32(f.fps)
+        .f64(fps_out);
 }

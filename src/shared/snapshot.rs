@@ -24,7 +24,7 @@ use crate::shared::error::{Error, Result};
 /// The first bytes of every snapshot.
 pub const MAGIC: [u8; 8] = *b"TRPSNAP\0";
 /// The layout written; a reader refuses any other.
-pub const FORMAT_VERSION: u32 = 2;
+pub const FORMAT_VERSION: u32 = 3;
 /// The longest family name a snapshot may carry.
 pub const MAX_FAMILY_BYTES: usize = 32;
 /// Bytes of the model's identity.

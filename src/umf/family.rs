@@ -3,8 +3,8 @@
 
 use std::any::Any;
 
+use crate::family::Family;
 use crate::shared::error::Result;
-use crate::shared::family::Family;
 use crate::shared::text::branch::TextBranch;
 use crate::shared::text::prompt::PromptEncoder;
 use crate::umf::group::{Group, GroupNoise, GroupNoiseShape, GroupOptions};

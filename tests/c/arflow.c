@@ -129,31 +129,31 @@ int main(int argc, char **argv) {
            TROUPE_ERR_INVALID_ARG);
     CHECK(inside == 77);
 
-    /* the penetration guard of an ARMFlow session */
+    /* a session's motion stages (the penetration guard, root smoothing, foot lock), and ARMFlow's recentring */
     {
         troupe_session *session = NULL, *partner = NULL;
         troupe_model *magnet = NULL;
         EXPECT(troupe_session_new(armflow, NULL, &session), TROUPE_OK);
-        EXPECT(troupe_armflow_session_set_penetration_guard(session, 1, 0.05f, 2.0f), TROUPE_OK);
-        EXPECT(troupe_armflow_session_set_penetration_guard(session, 1, -1.0f, 2.0f), TROUPE_ERR_INVALID_ARG);
-        EXPECT(troupe_armflow_session_set_penetration_guard(session, 1, 0.05f, 0.0f), TROUPE_ERR_INVALID_ARG);
-        EXPECT(troupe_armflow_session_set_penetration_guard(session, 0, NAN, NAN), TROUPE_OK);
-        EXPECT(troupe_armflow_session_set_penetration_guard(NULL, 1, 0.05f, 2.0f), TROUPE_ERR_NULL_ARG);
+        EXPECT(troupe_session_set_penetration_guard(session, 1, 0.05f, 2.0f), TROUPE_OK);
+        EXPECT(troupe_session_set_penetration_guard(session, 1, -1.0f, 2.0f), TROUPE_ERR_INVALID_ARG);
+        EXPECT(troupe_session_set_penetration_guard(session, 1, 0.05f, 0.0f), TROUPE_ERR_INVALID_ARG);
+        EXPECT(troupe_session_set_penetration_guard(session, 0, NAN, NAN), TROUPE_OK);
+        EXPECT(troupe_session_set_penetration_guard(NULL, 1, 0.05f, 2.0f), TROUPE_ERR_NULL_ARG);
         /* its root smoothing */
-        EXPECT(troupe_armflow_session_set_root_smoothing(session, 1, 0.1f), TROUPE_OK);
-        EXPECT(troupe_armflow_session_set_root_smoothing(session, 1, 0.0f), TROUPE_ERR_INVALID_ARG);
-        EXPECT(troupe_armflow_session_set_root_smoothing(session, 1, NAN), TROUPE_ERR_INVALID_ARG);
-        EXPECT(troupe_armflow_session_set_root_smoothing(session, 1, 3.0f), TROUPE_ERR_INVALID_ARG);
-        EXPECT(troupe_armflow_session_set_root_smoothing(session, 0, NAN), TROUPE_OK);
-        EXPECT(troupe_armflow_session_set_root_smoothing(NULL, 1, 0.1f), TROUPE_ERR_NULL_ARG);
+        EXPECT(troupe_session_set_root_smoothing(session, 1, 0.1f), TROUPE_OK);
+        EXPECT(troupe_session_set_root_smoothing(session, 1, 0.0f), TROUPE_ERR_INVALID_ARG);
+        EXPECT(troupe_session_set_root_smoothing(session, 1, NAN), TROUPE_ERR_INVALID_ARG);
+        EXPECT(troupe_session_set_root_smoothing(session, 1, 3.0f), TROUPE_ERR_INVALID_ARG);
+        EXPECT(troupe_session_set_root_smoothing(session, 0, NAN), TROUPE_OK);
+        EXPECT(troupe_session_set_root_smoothing(NULL, 1, 0.1f), TROUPE_ERR_NULL_ARG);
         /* and its foot lock */
-        EXPECT(troupe_armflow_session_set_foot_lock(session, 1, 0.5f, 4, 0.25f), TROUPE_OK);
-        EXPECT(troupe_armflow_session_set_foot_lock(session, 1, 0.0f, 4, 0.25f), TROUPE_ERR_INVALID_ARG);
-        EXPECT(troupe_armflow_session_set_foot_lock(session, 1, NAN, 4, 0.25f), TROUPE_ERR_INVALID_ARG);
-        EXPECT(troupe_armflow_session_set_foot_lock(session, 1, 0.5f, 0, 0.25f), TROUPE_ERR_INVALID_ARG);
-        EXPECT(troupe_armflow_session_set_foot_lock(session, 1, 0.5f, 4, INFINITY), TROUPE_ERR_INVALID_ARG);
-        EXPECT(troupe_armflow_session_set_foot_lock(session, 0, NAN, 0, NAN), TROUPE_OK);
-        EXPECT(troupe_armflow_session_set_foot_lock(NULL, 1, 0.5f, 4, 0.25f), TROUPE_ERR_NULL_ARG);
+        EXPECT(troupe_session_set_foot_lock(session, 1, 0.5f, 4, 0.25f), TROUPE_OK);
+        EXPECT(troupe_session_set_foot_lock(session, 1, 0.0f, 4, 0.25f), TROUPE_ERR_INVALID_ARG);
+        EXPECT(troupe_session_set_foot_lock(session, 1, NAN, 4, 0.25f), TROUPE_ERR_INVALID_ARG);
+        EXPECT(troupe_session_set_foot_lock(session, 1, 0.5f, 0, 0.25f), TROUPE_ERR_INVALID_ARG);
+        EXPECT(troupe_session_set_foot_lock(session, 1, 0.5f, 4, INFINITY), TROUPE_ERR_INVALID_ARG);
+        EXPECT(troupe_session_set_foot_lock(session, 0, NAN, 0, NAN), TROUPE_OK);
+        EXPECT(troupe_session_set_foot_lock(NULL, 1, 0.5f, 4, 0.25f), TROUPE_ERR_NULL_ARG);
         /* and its recentring */
         EXPECT(troupe_armflow_session_set_recentring(session, 1, 0.5f), TROUPE_OK);
         EXPECT(troupe_armflow_session_set_recentring(session, 1, 0.0f), TROUPE_ERR_INVALID_ARG);
@@ -164,9 +164,12 @@ int main(int argc, char **argv) {
         if (argc > 3) {
             EXPECT(troupe_model_load_file(argv[3], &magnet), TROUPE_OK);
             EXPECT(troupe_session_new(magnet, NULL, &partner), TROUPE_OK);
-            EXPECT(troupe_armflow_session_set_penetration_guard(partner, 1, 0.05f, 2.0f), TROUPE_ERR_UNSUPPORTED);
-            EXPECT(troupe_armflow_session_set_foot_lock(partner, 1, 0.5f, 4, 0.25f), TROUPE_ERR_UNSUPPORTED);
-            EXPECT(troupe_armflow_session_set_root_smoothing(partner, 1, 0.1f), TROUPE_ERR_UNSUPPORTED);
+            /* a MAGNet partner takes the guard and the smoothing (its bodies have joints), not the
+             * foot lock (its frames carry no contact labels) nor ARMFlow's recentring */
+            EXPECT(troupe_session_set_penetration_guard(partner, 1, 0.05f, 2.0f), TROUPE_OK);
+            EXPECT(troupe_session_set_root_smoothing(partner, 1, 0.1f), TROUPE_OK);
+            EXPECT(troupe_session_set_foot_lock(partner, 1, 0.5f, 4, 0.25f), TROUPE_ERR_UNSUPPORTED);
+            CHECK(strstr(troupe_last_error_message(), "contact labels") != NULL);
             EXPECT(troupe_armflow_session_set_recentring(partner, 1, 0.5f), TROUPE_ERR_UNSUPPORTED);
             troupe_session_free(partner);
             troupe_model_free(magnet);
@@ -200,7 +203,7 @@ int main(int argc, char **argv) {
         {
             /* queued normals: all zero, a stream given them steps as the whole clip given the
              * same zeros as its draws (the order cannot matter then); a draw the queue cannot
-             * fill fails and changes nothing; ARMFlow sessions take noise per token instead */
+             * fill fails and changes nothing; ARMFlow sessions take them in whole tokens */
             size_t m = (size_t)frames * 6 * 262, used = 0;
             float *zeros = (float *)calloc(m, sizeof *zeros), *whole = (float *)malloc(n_actor * sizeof *whole);
             troupe_session *reactor = NULL;
@@ -226,7 +229,8 @@ int main(int argc, char **argv) {
             zeros[0] = NAN;
             EXPECT(troupe_session_queue_normals(flow, zeros, 4), TROUPE_ERR_INVALID_ARG);
             EXPECT(troupe_session_new(armflow, NULL, &reactor), TROUPE_OK);
-            EXPECT(troupe_session_queue_normals(reactor, whole, 4), TROUPE_ERR_UNSUPPORTED);
+            EXPECT(troupe_session_queue_normals(reactor, whole, 4), TROUPE_ERR_INVALID_ARG);
+            CHECK(strstr(troupe_last_error_message(), "not whole tokens") != NULL);
             troupe_session_free(reactor);
             free(zeros);
             free(whole);

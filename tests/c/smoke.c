@@ -296,13 +296,13 @@ int main(int argc, char **argv) {
     cond[1] = 0.25f;
     EXPECT(troupe_session_set_condition(session, cond, cdim), TROUPE_OK);
     EXPECT(troupe_session_set_condition(session, NULL, 0), TROUPE_OK);
-    EXPECT(troupe_session_queue_noise(session, noise, noise, lat + 1), TROUPE_ERR_SHAPE);
-    EXPECT(troupe_session_queue_noise(session, NULL, noise, lat), TROUPE_ERR_NULL_ARG);
-    EXPECT(troupe_session_queue_noise(session, noise, NULL, lat), TROUPE_ERR_NULL_ARG);
+    EXPECT(troupe_armflow_session_queue_noise(session, noise, noise, lat + 1), TROUPE_ERR_SHAPE);
+    EXPECT(troupe_armflow_session_queue_noise(session, NULL, noise, lat), TROUPE_ERR_NULL_ARG);
+    EXPECT(troupe_armflow_session_queue_noise(session, noise, NULL, lat), TROUPE_ERR_NULL_ARG);
     noise[2] = NAN;
-    EXPECT(troupe_session_queue_noise(session, noise, noise, lat), TROUPE_ERR_INVALID_ARG);
+    EXPECT(troupe_armflow_session_queue_noise(session, noise, noise, lat), TROUPE_ERR_INVALID_ARG);
     noise[2] = 0.0f;
-    EXPECT(troupe_session_queue_noise(session, noise, noise, lat), TROUPE_OK);
+    EXPECT(troupe_armflow_session_queue_noise(session, noise, noise, lat), TROUPE_OK);
     EXPECT(troupe_session_set_steps(session, 0), TROUPE_ERR_INVALID_ARG);
     EXPECT(troupe_session_set_steps(session, 2), TROUPE_OK);
     EXPECT(troupe_session_set_cfg_scale(session, NAN), TROUPE_ERR_INVALID_ARG);
@@ -311,7 +311,7 @@ int main(int argc, char **argv) {
     EXPECT(troupe_session_set_seed(NULL, 9), TROUPE_ERR_NULL_ARG);
     EXPECT(troupe_session_set_steps(NULL, 1), TROUPE_ERR_NULL_ARG);
     EXPECT(troupe_session_set_cfg_scale(NULL, 1.0f), TROUPE_ERR_NULL_ARG);
-    EXPECT(troupe_session_queue_noise(NULL, noise, noise, lat), TROUPE_ERR_NULL_ARG);
+    EXPECT(troupe_armflow_session_queue_noise(NULL, noise, noise, lat), TROUPE_ERR_NULL_ARG);
     EXPECT(troupe_session_output_frames(NULL, 1, &n), TROUPE_ERR_NULL_ARG);
     EXPECT(troupe_session_output_frames(session, 1, NULL), TROUPE_ERR_NULL_ARG);
     CHECK(stream(session, actor, 8, dim, 8, again, frames) == 8);

@@ -732,16 +732,16 @@ class Session:
         self._call(_lib.troupe_arflow_session_set_options, ctypes.byref(opt))
 
     def set_penetration_guard(self, enabled: bool = True, d_safe: float = 0.05, max_speed: float = 2.0) -> None:
-        """An ARMFlow stream's penetration guard: each reactor frame sent is shifted in the floor
-        plane out of the actor's body (joints nearer than `d_safe` metres), never faster than
-        `max_speed` m/s (docs/ARFLOW.md). Off again with `enabled=False`."""
-        self._call(_lib.troupe_armflow_session_set_penetration_guard, 1 if enabled else 0, d_safe, max_speed)
+        """The penetration guard (every streaming family): each frame sent is shifted in the floor
+        plane out of the input person's body (joints nearer than `d_safe` metres), never faster
+        than `max_speed` m/s (docs/MOTION.md). Off again with `enabled=False`."""
+        self._call(_lib.troupe_session_set_penetration_guard, 1 if enabled else 0, d_safe, max_speed)
 
     def set_root_smoothing(self, enabled: bool = True, time_constant: float = 0.1) -> None:
-        """An ARMFlow stream's root smoothing: the reactor's root path on the floor filtered
-        causally with `time_constant` seconds, the body moving with it, before the guard (no
+        """The root smoothing (every streaming family): the generated person's root path on the
+        floor filtered causally with `time_constant` seconds, the body moving with it, before the guard (no
         frame held back; the root lags by about the time constant). Off with `enabled=False`."""
-        self._call(_lib.troupe_armflow_session_set_root_smoothing, 1 if enabled else 0, time_constant)
+        self._call(_lib.troupe_session_set_root_smoothing, 1 if enabled else 0, time_constant)
 
     def set_foot_lock(
         self,
@@ -750,13 +750,14 @@ class Session:
         release_frames: int = 4,
         max_stretch: float = 0.25,
     ) -> None:
-        """An ARMFlow stream's foot lock, on the poses `step_joints` returns: while a foot's ankle
+        """The foot lock of the poses `step_joints` returns (streams whose frames carry contact
+        labels: ARMFlow, ARFlow): while a foot's ankle
         contact label is at least `contact_threshold` the ankle stays where the contact began (the
         leg bent by two-bone IK); it returns to the motion over `release_frames` frames when the
         label drops or the motion's ankle is more than `max_stretch` metres away. No frame is
         held back. Off again with `enabled=False`."""
         self._call(
-            _lib.troupe_armflow_session_set_foot_lock,
+            _lib.troupe_session_set_foot_lock,
             1 if enabled else 0,
             contact_threshold,
             release_frames,
@@ -781,15 +782,25 @@ class Session:
         """Queues one token's noise (latent_dim floats each), used before the seeded generator."""
         a = _floats(actor_noise, "actor_noise")
         r = _floats(reactor_noise, "reactor_noise", a.size)
-        self._call(_lib.troupe_session_queue_noise, _ptr(a), _ptr(r), a.size)
+        self._call(_lib.troupe_armflow_session_queue_noise, _ptr(a), _ptr(r), a.size)
 
     def queue_normals(self, normals: ArrayLike) -> None:
-        """Queues standard normals for a magnet live partner's or an arflow online stream's next
-        draws, to replay another implementation's stream exactly: each draw takes the next ones
-        it needs while any are queued, then the seed goes on as if they had been its; reset()
-        drops them. (armflow streams take noise per token: set_noise.)"""
+        """Queues standard normals for the stream's next draws (every streaming family), to
+        replay another implementation's stream exactly: each draw takes the next ones it needs
+        while any are queued, then the seed goes on as if they had been its; reset() drops them.
+        An armflow stream takes whole tokens (the actor's posterior noise, then the reactor's
+        start noise, latent_dim each), as set_noise queues one."""
         a = _floats(np.asarray(normals, dtype=np.float32).reshape(-1), "normals")
         self._call(_lib.troupe_session_queue_normals, _ptr(a), a.size)
+
+    @property
+    def capabilities(self) -> frozenset[str]:
+        """What the stream takes beyond frames, seed and steps: any of "condition", "prompt",
+        "cfg_scale", "queued_normals". The calls for the others raise `Unsupported`."""
+        bits = ctypes.c_uint32()
+        self._call(_lib.troupe_session_capabilities, ctypes.byref(bits))
+        names = ("condition", "prompt", "cfg_scale", "queued_normals")
+        return frozenset(n for i, n in enumerate(names) if bits.value >> i & 1)
 
     def close(self) -> None:
         handle, self._handle = getattr(self, "_handle", None), None  # type: ignore[assignment]

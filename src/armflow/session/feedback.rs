@@ -52,7 +52,7 @@ pub(super) fn conditioning(
     session: &Reactor,
     placement: &[f32; DIM],
 ) -> Result<Conditioning> {
-    nets.conditioning_fed(session.conditioning.condition.clone(), placement)
+    nets.conditioning_fed(session.conditioning().condition.clone(), placement)
 }
 
 #[cfg(test)]

@@ -27,29 +27,24 @@ use crate::armflow::kv_cache::KvCache;
 use crate::armflow::meanflow::meanflow_grid;
 use crate::armflow::networks::{Conditioning, Networks, VaeState};
 use crate::armflow::spec::{ActorLatent, ArmFlowSpec};
-use crate::motion::{FeatureStream, FootLock, FootLockOptions};
+use crate::family::stream::{
+    downcast_all, Capabilities, Capability, Finish, StepOutput, StepTogether, Stream, TokenTrace,
+};
 use crate::shared::checks::{check_frames, check_input};
 use crate::shared::error::{Error, Result};
 use crate::shared::limits::{at_most, check_cfg, check_steps, LIMITS};
 use crate::shared::noise::{fill_normals, STREAM_ACTOR_POSTERIOR, STREAM_REACTOR_NOISE};
-use crate::shared::stream::{downcast_all, StepOutput, StepTogether, Stream, TokenTrace};
+use crate::shared::snapshot::SnapshotWriter;
 use crate::shared::text::prompt::no_prompts;
 
 mod feedback;
-mod guard;
-mod joints;
+mod lane;
 mod lanes;
 mod recentre;
-mod smoothing;
 mod snapshot;
-use guard::GuardState;
-pub use guard::PenetrationGuard;
-pub use joints::step_reactors_joints;
-use lanes::Lane;
+use lane::Lane;
 use recentre::History;
 pub use recentre::{Recentring, HISTORY_TOKENS};
-pub use smoothing::RootSmoothing;
-use smoothing::SmoothingState;
 
 /// Options of a session. Fields left `None` take the bundle's defaults (`sampler` and
 /// `context` sections of the manifest).
@@ -59,7 +54,8 @@ pub struct ReactorOptions {
     pub seed: u64,
     /// MeanFlow steps per token (>= 1).
     pub steps: Option<u32>,
-    /// Classifier-free guidance scale; 1 disables guidance (one network call per step).
+    /// Classifier-free guidance scale; guides above 1 (two network rows per step), as the
+    /// official sampler does; 1 and below run the conditional velocity alone.
     pub cfg_scale: Option<f32>,
     /// Conditioning vector of `condition_dim` floats; `None` is the bundle's null condition.
     pub condition: Option<Vec<f32>>,
@@ -73,15 +69,6 @@ pub struct ReactorOptions {
     /// Run the VAE over windows even when the bundle has per-token step graphs. Slower; the two
     /// agree to float rounding. For comparisons and for debugging a bundle.
     pub vae_windows: bool,
-    /// Pull the reactor's frames out of the actor's body as they are sent (`guard.rs`); off
-    /// when `None`.
-    pub penetration_guard: Option<PenetrationGuard>,
-    /// Filter the reactor's root path against jitter before the guard (`smoothing.rs`); off
-    /// when `None`.
-    pub root_smoothing: Option<RootSmoothing>,
-    /// Keep the reactor's feet still while their contact labels are on, in the poses
-    /// [`Reactor::step_joints`] returns (`crate::motion::foot_lock`); off when `None`.
-    pub foot_lock: Option<FootLockOptions>,
     /// Move the networks' frame under the actor when it wanders from where the stream began
     /// (`recentre.rs`); off when `None`.
     pub recentring: Option<Recentring>,
@@ -105,8 +92,6 @@ struct Settings {
     condition: Option<Vec<f32>>,
     capacity: usize,
     actor_latent: ActorLatent,
-    guard: Option<PenetrationGuard>,
-    smoothing: Option<RootSmoothing>,
     recentring: Option<Recentring>,
 }
 
@@ -132,10 +117,6 @@ struct StreamState {
     injected: VecDeque<TokenNoise>,
     /// The VAE steps' convolution state; `None` when the VAE runs over windows.
     vae: Option<VaeState>,
-    /// The penetration guard's offset and the actor's joints for frames not yet sent.
-    guard: GuardState,
-    /// The root smoothing's filtered root.
-    smoothing: SmoothingState,
     /// Both people's last tokens of motion, in the stream's frame, while recentring is on.
     history: Option<History>,
     /// Where the networks' frame is centred on the stream's floor: they see positions less
@@ -159,11 +140,6 @@ pub struct Reactor {
     state: StreamState,
     /// The VAE steps' zero state, when the session uses step graphs rather than windows.
     vae_start: Option<VaeState>,
-    /// Actor joint positions to features, for [`Reactor::step_joints`] (`None` until used or
-    /// configured).
-    joints: Option<FeatureStream>,
-    /// The foot lock of the poses [`Reactor::step_joints`] returns, when on.
-    foot_lock: Option<FootLock>,
 }
 
 impl Reactor {
@@ -178,8 +154,6 @@ impl Reactor {
                 .context_capacity
                 .unwrap_or(m.context.capacity_tokens),
             actor_latent: options.actor_latent.unwrap_or(m.sampler.actor_latent),
-            guard: options.penetration_guard,
-            smoothing: options.root_smoothing,
             recentring: options.recentring,
             condition: match (options.condition, &options.prompt) {
                 (Some(_), Some(_)) => {
@@ -193,12 +167,6 @@ impl Reactor {
         };
         check_steps("sampler steps", settings.steps)?;
         check_cfg(settings.cfg_scale)?;
-        if let Some(guard) = &settings.guard {
-            guard.check()?;
-        }
-        if let Some(smoothing) = &settings.smoothing {
-            smoothing.check()?;
-        }
         if settings.capacity < 2 {
             return Err(Error::InvalidOption(format!(
                 "context capacity {} is below 2 (<sos> and the newest token)",
@@ -216,7 +184,6 @@ impl Reactor {
         } else {
             nets.vae_state()
         };
-        let foot_lock = options.foot_lock.map(FootLock::new).transpose()?;
         let mut reactor = Self {
             conditioning: nets.conditioning(settings.condition.as_deref())?,
             grid: meanflow_grid(settings.steps),
@@ -224,8 +191,6 @@ impl Reactor {
             vae_start,
             settings,
             nets,
-            joints: None,
-            foot_lock,
         };
         if let Some(recentring) = options.recentring {
             reactor.set_recentring(Some(recentring))?;
@@ -236,6 +201,44 @@ impl Reactor {
     /// The bundle's `armflow` fields.
     fn spec(&self) -> &ArmFlowSpec {
         &self.nets.spec
+    }
+
+    // What the token loop and recentring (`lanes.rs`, `lane.rs`, `recentre.rs`, `feedback.rs`)
+    // read of the session, so that they never reach into its fields.
+
+    /// MeanFlow steps per token in force.
+    fn steps(&self) -> u32 {
+        self.settings.steps
+    }
+
+    /// The CFG scale in force.
+    fn cfg_scale(&self) -> f32 {
+        self.settings.cfg_scale
+    }
+
+    /// MeanFlow's time grid for the steps in force.
+    fn grid(&self) -> &[f32] {
+        &self.grid
+    }
+
+    /// Posterior sample or mean for the actor's tokens.
+    fn actor_latent(&self) -> ActorLatent {
+        self.settings.actor_latent
+    }
+
+    /// The context cache's capacity in tokens.
+    fn capacity(&self) -> usize {
+        self.settings.capacity
+    }
+
+    /// The condition's modulation and start token, as the networks computed them.
+    fn conditioning(&self) -> &Conditioning {
+        &self.conditioning
+    }
+
+    /// The state a step starts from (the lanes work on a copy).
+    fn state(&self) -> &StreamState {
+        &self.state
     }
 
     /// Whether this session runs the bundle's per-token VAE steps (O(1) per token) rather than
@@ -289,17 +292,15 @@ impl Reactor {
 
     /// [`Reactor::step_detailed`] on row-major frames (`n * frame_dim` floats).
     pub fn step_flat(&mut self, actor: &[f32]) -> Result<StepOutput> {
-        self.step_bounded(actor, usize::MAX)
+        self.step_finished(actor, &mut |_, _| Ok(()))
     }
 
-    /// [`Reactor::step_flat`] that fails, leaving the session unchanged, when more than
-    /// `max_frames` frames would come out (the C ABI's caller-sized buffer).
-    pub(crate) fn step_bounded(&mut self, actor: &[f32], max_frames: usize) -> Result<StepOutput> {
+    /// [`Reactor::step_flat`] with `finish` run on the output before the step is committed.
+    fn step_finished(&mut self, actor: &[f32], finish: Finish<'_>) -> Result<StepOutput> {
         let dim = self.nets.frame_dim();
         check_actor_chunk(actor, dim)?;
         let nets = Arc::clone(&self.nets);
-        let mut outputs =
-            advance_sessions(&nets, &mut [&mut *self], &[actor], &[max_frames], false)?;
+        let mut outputs = advance_sessions(&nets, &mut [&mut *self], &[actor], finish, false)?;
         Ok(outputs.pop().expect("one session, one output"))
     }
 
@@ -310,48 +311,12 @@ impl Reactor {
         if self.settings.recentring.is_some() {
             self.state.history = Some(History::starting_at(0));
         }
-        if let Some(joints) = &mut self.joints {
-            joints.reset(None).expect("no placement to refuse");
-        }
-        if let Some(lock) = &mut self.foot_lock {
-            lock.reset();
-        }
     }
 
     /// Algorithmic latency in frames (as [`crate::Model::latency_frames`]): how many actor
     /// frames after frame `t` arrive before the reactor frame `t` is out.
     pub fn latency_frames(&self) -> usize {
         self.spec().latency_frames()
-    }
-
-    /// Turns the penetration guard on (with its settings) or off (`None`) for the frames sent
-    /// from now on. Turning it on starts with no offset: frames already decoded but not yet sent
-    /// go out unguarded.
-    pub fn set_penetration_guard(&mut self, guard: Option<PenetrationGuard>) -> Result<()> {
-        if let Some(g) = &guard {
-            g.check()?;
-        }
-        self.settings.guard = guard;
-        self.state.guard = GuardState::starting_at(self.state.frames_received);
-        Ok(())
-    }
-
-    /// Turns the root smoothing on (with its time constant) or off (`None`) for the frames sent
-    /// from now on; turning it on starts from the next frame's root.
-    pub fn set_root_smoothing(&mut self, smoothing: Option<RootSmoothing>) -> Result<()> {
-        if let Some(s) = &smoothing {
-            s.check()?;
-        }
-        self.settings.smoothing = smoothing;
-        self.state.smoothing = SmoothingState::default();
-        Ok(())
-    }
-
-    /// Turns the foot lock of the poses [`Reactor::step_joints`] returns on (with its settings)
-    /// or off (`None`), from the next pose on; turning it on starts with no foot pinned.
-    pub fn set_foot_lock(&mut self, options: Option<FootLockOptions>) -> Result<()> {
-        self.foot_lock = options.map(FootLock::new).transpose()?;
-        Ok(())
     }
 
     /// Turns recentring on (with its distance) or off (`None`): before each token, when the
@@ -380,11 +345,6 @@ impl Reactor {
         self.settings.recentring
     }
 
-    /// The foot lock's settings, when it is on.
-    pub fn foot_lock(&self) -> Option<FootLockOptions> {
-        self.foot_lock.as_ref().map(FootLock::options)
-    }
-
     /// Sets the noise seed; applies to tokens generated from now on.
     pub fn set_seed(&mut self, seed: u64) {
         self.settings.seed = seed;
@@ -398,7 +358,8 @@ impl Reactor {
         Ok(())
     }
 
-    /// Sets the classifier-free guidance scale (finite; 1 disables guidance).
+    /// Sets the classifier-free guidance scale (finite; guides only above 1, as the official
+    /// sampler does).
     pub fn set_cfg_scale(&mut self, scale: f32) -> Result<()> {
         check_cfg(scale)?;
         self.settings.cfg_scale = scale;
@@ -444,6 +405,35 @@ impl Reactor {
             false,
         )?;
         self.state.injected.push_back(noise);
+        Ok(())
+    }
+
+    /// Queues whole tokens of standard normals in the order the sampler draws them: per token
+    /// the actor's posterior noise, then the reactor's start noise (`latent_dim` each), as
+    /// [`Reactor::queue_noise`] does token by token.
+    pub fn queue_normals(&mut self, normals: &[f32]) -> Result<()> {
+        check_input("queued normals", normals)?;
+        let lat = self.nets.latent_dim();
+        if !normals.len().is_multiple_of(2 * lat) {
+            return Err(Error::InvalidInput(format!(
+                "{} queued normals are not whole tokens: an armflow token draws {} (the actor's \
+                 posterior noise, then the reactor's start noise, {lat} each)",
+                normals.len(),
+                2 * lat
+            )));
+        }
+        at_most(
+            "queued noise (tokens)",
+            (self.state.injected.len() + normals.len() / (2 * lat)) as u64,
+            LIMITS.max_queued_noise_tokens,
+            false,
+        )?;
+        for token in normals.chunks_exact(2 * lat) {
+            self.queue_noise(TokenNoise {
+                actor: token[..lat].to_vec(),
+                reactor: token[lat..].to_vec(),
+            })?;
+        }
         Ok(())
     }
 
@@ -502,7 +492,6 @@ impl Reactor {
         std::mem::size_of::<Self>()
             + st.cache.bytes()
             + st.vae.as_ref().map_or(0, VaeState::bytes)
-            + st.guard.bytes()
             + st.history.as_ref().map_or(0, History::bytes)
             + floats * std::mem::size_of::<f32>()
     }
@@ -527,8 +516,6 @@ impl StreamState {
             reactor_base: 0,
             frames_emitted: 0,
             injected: VecDeque::new(),
-            guard: GuardState::default(),
-            smoothing: SmoothingState::default(),
             history: None,
             centre: [0.0, 0.0],
             feedback: [0.0; feedback::DIM],
@@ -572,15 +559,15 @@ impl StreamState {
 /// steps, CFG, condition, capacity, history length, and how many frames they are given. On error
 /// every session is unchanged.
 pub fn step_reactors(sessions: &mut [&mut Reactor], actor: &[&[f32]]) -> Result<Vec<StepOutput>> {
-    step_reactors_bounded(sessions, actor, &[])
+    step_reactors_finished(sessions, actor, &mut |_, _| Ok(()))
 }
 
-/// [`step_reactors`] that fails, changing no session, when session `i` would return more than
-/// `max_frames[i]` frames (the C ABI's caller-sized buffers; empty: unbounded).
-pub(crate) fn step_reactors_bounded(
+/// [`step_reactors`] with `finish` run on each session's output before the step is committed
+/// (the session's motion stages).
+fn step_reactors_finished(
     sessions: &mut [&mut Reactor],
     actor: &[&[f32]],
-    max_frames: &[usize],
+    finish: Finish<'_>,
 ) -> Result<Vec<StepOutput>> {
     if actor.len() != sessions.len() {
         return Err(Error::InvalidInput(format!(
@@ -605,18 +592,18 @@ pub(crate) fn step_reactors_bounded(
             other => other,
         })?;
     }
-    advance_sessions(&nets, sessions, actor, max_frames, true)
+    advance_sessions(&nets, sessions, actor, finish, true)
 }
 
 /// Runs the token loop over `sessions` (validated, all of `nets`), one lane each. Each session's
 /// cache moves into its lane (written in place, no copy) and comes back committed when every
-/// lane succeeded and fits its `max_frames` (missing: unbounded), rolled back otherwise, every
-/// session then unchanged. With `indexed`, messages name the session by its index.
+/// lane succeeded and `finish` accepted its output, rolled back otherwise, every session then
+/// unchanged. With `indexed`, messages name the session by its index.
 fn advance_sessions(
     nets: &Networks,
     sessions: &mut [&mut Reactor],
     actor: &[&[f32]],
-    max_frames: &[usize],
+    finish: Finish<'_>,
     indexed: bool,
 ) -> Result<Vec<StepOutput>> {
     let dim = nets.frame_dim();
@@ -641,11 +628,7 @@ fn advance_sessions(
     let checked = finished
         .iter_mut()
         .enumerate()
-        .try_for_each(|(i, (state, output, _))| {
-            let max = max_frames.get(i).copied().unwrap_or(usize::MAX);
-            check_output_room(output, max, indexed.then_some(i))?;
-            shape_output(sessions[i], nets, state, output, actor[i])
-        });
+        .try_for_each(|(i, (_, output, _))| finish(i, output));
     if let Err(e) = checked {
         for (session, (state, _, set_aside)) in sessions.iter_mut().zip(finished) {
             let mut cache = set_aside.unwrap_or(state.cache);
@@ -665,40 +648,8 @@ fn advance_sessions(
         .collect())
 }
 
-/// What is done to the frames a step sends: the root smoothing, then the penetration guard,
-/// each when on (on the step's working state: `session` still holds the state before the step).
-fn shape_output(
-    session: &Reactor,
-    nets: &Networks,
-    state: &mut StreamState,
-    output: &mut StepOutput,
-    actor: &[f32],
-) -> Result<()> {
-    let fps = nets.io.motion.fps as f64;
-    if let Some(smoothing) = &session.settings.smoothing {
-        state.smoothing.apply(smoothing, &mut output.frames, fps);
-    }
-    let Some(settings) = &session.settings.guard else {
-        return Ok(());
-    };
-    state.guard.push_actor(actor, nets.frame_dim());
-    let first = session.state.frames_emitted;
-    state.guard.apply(settings, &mut output.frames, first, fps)
-}
-
 fn check_actor_chunk(actor: &[f32], dim: usize) -> Result<()> {
     check_frames("actor frames", actor, dim)
-}
-
-fn check_output_room(output: &StepOutput, max_frames: usize, session: Option<usize>) -> Result<()> {
-    if output.frames.nrows() <= max_frames {
-        return Ok(());
-    }
-    let whose = session.map_or(String::new(), |i| format!("session {i}: "));
-    Err(Error::InvalidInput(format!(
-        "{whose}this call returns {} frames, the output holds {max_frames}",
-        output.frames.nrows()
-    )))
 }
 
 /// The condition of `prompt` through the bundle's prompt encoder.
@@ -713,6 +664,41 @@ impl Stream for Reactor {
     fn family(&self) -> &'static str {
         "armflow"
     }
+    fn frame_layout(&self) -> &str {
+        &self.nets.io.motion.layout
+    }
+    fn fps(&self) -> f32 {
+        self.nets.io.motion.fps as f32
+    }
+    fn capabilities(&self) -> Capabilities {
+        let mut caps = vec![
+            Capability::Condition,
+            Capability::CfgScale,
+            Capability::QueuedNormals,
+        ];
+        if self.nets.prompt_encoder().is_some() {
+            caps.push(Capability::Prompt);
+        }
+        Capabilities::of(&caps)
+    }
+    fn set_cfg_scale(&mut self, scale: f32) -> Result<()> {
+        Reactor::set_cfg_scale(self, scale)
+    }
+    fn set_condition(&mut self, condition: Option<&[f32]>) -> Result<()> {
+        Reactor::set_condition(self, condition)
+    }
+    fn set_prompt(&mut self, prompt: &str) -> Result<()> {
+        Reactor::set_prompt(self, prompt)
+    }
+    fn queue_normals(&mut self, normals: &[f32]) -> Result<()> {
+        Reactor::queue_normals(self, normals)
+    }
+    fn model_identity(&self) -> [u8; 32] {
+        self.nets.io.identity()
+    }
+    fn save(&self, w: &mut SnapshotWriter) -> Result<()> {
+        Reactor::save(self, w)
+    }
     fn frame_dim(&self) -> usize {
         Reactor::frame_dim(self)
     }
@@ -722,12 +708,12 @@ impl Stream for Reactor {
     fn condition_dim(&self) -> usize {
         Reactor::condition_dim(self)
     }
-    fn step_bounded(&mut self, frames: &[f32], max_frames: usize) -> Result<StepOutput> {
-        Reactor::step_bounded(self, frames, max_frames)
+    fn step(&mut self, frames: &[f32], finish: Finish<'_>) -> Result<StepOutput> {
+        self.step_finished(frames, finish)
     }
     fn step_together(&self) -> StepTogether {
-        |streams, frames, max_frames| {
-            step_reactors_bounded(&mut downcast_all::<Reactor>(streams), frames, max_frames)
+        |streams, frames, finish| {
+            step_reactors_finished(&mut downcast_all::<Reactor>(streams), frames, finish)
         }
     }
     fn same_model(&self, other: &dyn Stream) -> bool {
@@ -766,9 +752,6 @@ impl Stream for Reactor {
     fn context_len(&self) -> usize {
         Reactor::context_len(self)
     }
-    fn snapshot(&self) -> Result<Vec<u8>> {
-        Reactor::snapshot(self)
-    }
     fn as_any(&self) -> &dyn std::any::Any {
         self
     }
@@ -777,7 +760,7 @@ impl Stream for Reactor {
     }
 }
 
-impl From<Reactor> for crate::shared::stream::Session {
+impl From<Reactor> for crate::family::session::Session {
     fn from(reactor: Reactor) -> Self {
         Self::new(reactor)
     }

@@ -33,11 +33,11 @@
 //! encoder steps (both people batched), as many decoder steps, and one context pass.
 
 use super::feedback;
-use super::guard::shift_on_floor;
-use super::lanes::{actor_token, Lane};
+use super::lane::{actor_token, Lane};
 use super::Reactor;
 use crate::armflow::kv_cache::KvCache;
 use crate::armflow::networks::{Networks, VaeState};
+use crate::family::motion::layout::FrameLayout;
 use crate::motion::features::POSITIONS;
 use crate::shared::checks::{check_output, check_output_counted};
 use crate::shared::error::{Error, Result};
@@ -165,7 +165,7 @@ fn keep(held: &mut Vec<f32>, frames: &[f32]) {
 /// Moves every position of feature rows (`frame_dim` floats each) by `by` on the floor.
 pub(super) fn shift_rows(rows: &mut [f32], frame_dim: usize, by: [f64; 2]) {
     for row in rows.chunks_exact_mut(frame_dim) {
-        shift_on_floor(row, by, by);
+        FrameLayout::Features.shift_on_floor(row, by, by);
     }
 }
 
@@ -197,7 +197,7 @@ impl Reactor {
 /// least one of them, once there are any: turned on mid-stream, it waits for a token), and the
 /// root is farther than the distance from the centre.
 pub(super) fn due(lane: &Lane, frame_dim: usize) -> Option<[f64; 2]> {
-    let setting = lane.session.settings.recentring?;
+    let setting = lane.session.recentring()?;
     let st = &lane.state;
     let fpt = lane.session.spec().latent.frames_per_token;
     let history = st.history.as_ref()?;
@@ -258,13 +258,13 @@ pub(super) fn recentre(nets: &Networks, lane: &mut Lane, centre: [f64; 2]) -> Re
     // 3. The context: <sos> at 0, the pair of token k at position k + 1 (where the token loop
     // put it), the newest pair left for the next token to append; no more pairs than the cache
     // holds beside <sos>.
-    let mut cache = KvCache::empty(&m.context, session.settings.capacity);
+    let mut cache = KvCache::empty(&m.context, session.capacity());
     if lane.state.tokens > 0 {
-        let mut feed = session.conditioning.start_token.clone();
+        let mut feed = session.conditioning().start_token.clone();
         let mut positions = vec![0i64];
         let mut fed = Vec::new();
         let newest = tokens - 1;
-        for k in newest - newest.min(session.settings.capacity - 1)..newest {
+        for k in newest - newest.min(session.capacity() - 1)..newest {
             feed.extend_from_slice(&pairs[k * 2 * lat..(k + 1) * 2 * lat]);
             positions.push((first + k as u64 + 1) as i64);
             if nets.io.condition.feedback.is_some() {
@@ -277,7 +277,7 @@ pub(super) fn recentre(nets: &Networks, lane: &mut Lane, centre: [f64; 2]) -> Re
                 fed.push(feedback::conditioning(nets, session, &placement)?);
             }
         }
-        let mut modulations = vec![&session.conditioning.modulation];
+        let mut modulations = vec![&session.conditioning().modulation];
         if !fed.is_empty() {
             modulations.extend(fed.iter().map(|c| &c.modulation));
         }

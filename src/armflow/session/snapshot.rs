@@ -12,28 +12,19 @@
 use std::collections::VecDeque;
 use std::sync::Arc;
 
-use super::guard::GuardState;
 use super::recentre::History;
-use super::smoothing::SmoothingState;
-use super::{
-    PenetrationGuard, Reactor, ReactorOptions, Recentring, RootSmoothing, StreamState, TokenNoise,
-};
+use super::{Reactor, ReactorOptions, Recentring, StreamState, TokenNoise};
 use crate::armflow::kv_cache::KvCache;
 use crate::armflow::networks::{Networks, VaeState};
 use crate::armflow::spec::ActorLatent;
 use crate::motion::world::MAX_WORLD_METRES;
-use crate::motion::{FeatureStream, FootLock};
 use crate::shared::error::Result;
 use crate::shared::limits::LIMITS;
 use crate::shared::snapshot::{bad, SnapshotReader, SnapshotWriter};
 
-/// The family name snapshots of reactors carry.
-pub(crate) const FAMILY: &str = "armflow";
-
 impl Reactor {
-    /// The reactor's snapshot (`Session::snapshot`).
-    pub(crate) fn snapshot(&self) -> Result<Vec<u8>> {
-        let mut w = SnapshotWriter::new(FAMILY, &self.nets.io.identity(), self.memory_bytes());
+    /// Writes the reactor's snapshot payload (`Session::snapshot` frames it).
+    pub(crate) fn save(&self, w: &mut SnapshotWriter) -> Result<()> {
         let s = &self.settings;
         w.u64(s.seed).u32(s.steps).f32(s.cfg_scale);
         w.bool(s.condition.is_some());
@@ -44,30 +35,13 @@ impl Reactor {
             ActorLatent::Sample => 0,
             ActorLatent::Mean => 1,
         });
-        w.bool(s.guard.is_some());
-        if let Some(g) = &s.guard {
-            w.f64(g.d_safe).f64(g.max_speed);
-        }
-        w.bool(s.smoothing.is_some());
-        if let Some(sm) = &s.smoothing {
-            w.f64(sm.time_constant);
-        }
         w.bool(s.recentring.is_some());
         if let Some(r) = &s.recentring {
             w.f64(r.distance);
         }
         w.bool(self.uses_vae_steps());
-        w.bool(self.foot_lock.is_some());
-        if let Some(lock) = &self.foot_lock {
-            lock.save(&mut w);
-        }
-        w.bool(self.joints.is_some());
-        if let Some(joints) = &self.joints {
-            joints.save(&mut w);
-        }
         self.state
-            .save(&mut w, self.nets.io.condition.feedback.is_some())?;
-        Ok(w.finish())
+            .save(w, self.nets.io.condition.feedback.is_some())
     }
 
     /// The reactor a snapshot's payload holds, over `nets` (the model the snapshot was checked
@@ -87,21 +61,6 @@ impl Reactor {
             1 => ActorLatent::Mean,
             v => return Err(bad(format!("actor latent {v}"))),
         };
-        let penetration_guard = if r.bool("whether the guard is on")? {
-            Some(PenetrationGuard {
-                d_safe: r.f64("the guard's margin")?,
-                max_speed: r.f64("the guard's speed")?,
-            })
-        } else {
-            None
-        };
-        let root_smoothing = if r.bool("whether the smoothing is on")? {
-            Some(RootSmoothing {
-                time_constant: r.f64("the smoothing's time constant")?,
-            })
-        } else {
-            None
-        };
         let recentring = if r.bool("whether recentring is on")? {
             Some(Recentring {
                 distance: r.f64("the recentring distance")?,
@@ -113,16 +72,6 @@ impl Reactor {
         if vae_steps && nets.vae_state().is_none() {
             return Err(bad("VAE steps, which this bundle does not have"));
         }
-        let foot_lock = if r.bool("whether the foot lock is on")? {
-            Some(FootLock::load(r)?)
-        } else {
-            None
-        };
-        let joints = if r.bool("whether positions were streamed")? {
-            Some(FeatureStream::load(r)?)
-        } else {
-            None
-        };
         let options = ReactorOptions {
             seed,
             steps: Some(steps),
@@ -131,14 +80,10 @@ impl Reactor {
             context_capacity: Some(capacity),
             actor_latent: Some(actor_latent),
             vae_windows: !vae_steps,
-            penetration_guard,
-            root_smoothing,
             recentring,
             ..ReactorOptions::default()
         };
         let mut reactor = Reactor::new(nets, options)?;
-        reactor.foot_lock = foot_lock;
-        reactor.joints = joints;
         reactor.state = StreamState::load(&reactor, r)?;
         Ok(reactor)
     }
@@ -167,8 +112,6 @@ impl StreamState {
         if let Some(vae) = &self.vae {
             vae.save(w)?;
         }
-        self.guard.save(w);
-        self.smoothing.save(w);
         w.f64(self.centre[0]).f64(self.centre[1]);
         if let Some(history) = &self.history {
             history.save(w);
@@ -259,8 +202,6 @@ impl StreamState {
             (false, None) => None,
             _ => return Err(bad("a VAE state that disagrees with the VAE's mode")),
         };
-        let guard = GuardState::load(r, received)?;
-        let smoothing = SmoothingState::load(r)?;
         let centre = [r.finite("the centre")?, r.finite("the centre")?];
         if centre.iter().any(|c| c.abs() > MAX_WORLD_METRES) {
             return Err(bad(format!(
@@ -307,8 +248,6 @@ impl StreamState {
             frames_emitted,
             injected,
             vae,
-            guard,
-            smoothing,
         })
     }
 }

@@ -5,7 +5,7 @@
 
 use std::path::Path;
 
-use crate::shared::stream::step_sessions_bounded;
+use crate::family::session::step_sessions_bounded;
 use crate::{Model, SessionOptions};
 
 fn tiny() -> Model {

@@ -1,16 +1,27 @@
-//! What a model family gives the neutral layer. A family's loaded model (`armflow::Armflow`,
-//! `umf::Umf`, `magnet::Magnet`, `arflow::Arflow`) implements [`Family`]: the questions every
-//! caller asks whatever the family, its text encoder if it has one, and its default stream if
-//! it streams. [`crate::Model`] holds one behind this trait and hands out the family's own type
-//! for everything else (`model.armflow()?`), so no layer above a family grows with its
-//! operations.
+//! What a model family plugs into, and the neutral machinery every family shares: the layer
+//! between `shared`/`motion` beneath and the family folders above.
+//!
+//! - [`Family`] (here): a family's loaded model (`armflow::Armflow`, `umf::Umf`,
+//!   `magnet::Magnet`, `arflow::Arflow`) answers the questions every caller asks whatever the
+//!   family, gives its text encoder if it has one, and opens its default stream if it streams.
+//!   [`crate::Model`] holds one behind this trait and hands out the family's own type for
+//!   everything else (`model.armflow()?`), so no layer above a family grows with its operations.
+//! - `stream.rs`: the [`stream::Stream`] trait a streaming family implements, and the
+//!   capabilities a stream reports.
+//! - `session.rs`: the [`session::Session`] that boxes any stream, the one way to step one.
+//! - `motion/`: the motion stages a session runs around its stream by the stream's frame
+//!   layout (joints in, poses out, guard, smoothing, foot lock).
+
+pub(crate) mod motion;
+pub(crate) mod session;
+pub(crate) mod stream;
 
 use std::any::Any;
 use std::fmt::Debug;
 
+use crate::family::session::Session;
 use crate::shared::error::{a_or_an, Error, Result};
 use crate::shared::snapshot::{cannot_snapshot, SnapshotReader};
-use crate::shared::stream::Session;
 use crate::shared::text::branch::TextBranch;
 use crate::shared::text::prompt::PromptEncoder;
 

@@ -1,4 +1,4 @@
-//! Root smoothing of an ARMFlow stream: the reactor's root path in the floor plane filtered
+//! Root smoothing of a stream: the output person's root path in the floor plane filtered
 //! causally, against the jitter a token-by-token generator shows at its token boundaries.
 //!
 //! Per reactor frame `t`, with the decoded root `r[t]` (x, z) and `a = 1 − exp(−1 / (fps · τ))`:
@@ -10,8 +10,7 @@
 
 use ndarray::Array2;
 
-use super::guard::shift_on_floor;
-use crate::motion::features::POSITIONS;
+use super::layout::FrameLayout;
 use crate::shared::error::{Error, Result};
 use crate::shared::snapshot::{SnapshotReader, SnapshotWriter};
 
@@ -48,33 +47,39 @@ impl RootSmoothing {
 
 /// What the smoothing carries between steps: the filtered root and the last shift.
 #[derive(Debug, Clone, Default)]
-pub(super) struct SmoothingState {
+pub(crate) struct SmoothingState {
     root: Option<[f64; 2]>,
     shift: [f64; 2],
 }
 
 impl SmoothingState {
-    /// Smooths `frames` (the reactor's, `[n, frame_dim]`) in place.
-    pub(super) fn apply(&mut self, smoothing: &RootSmoothing, frames: &mut Array2<f32>, fps: f64) {
+    /// Smooths `frames` (the output's, `[n, frame_dim]`) in place.
+    pub(crate) fn apply(
+        &mut self,
+        layout: FrameLayout,
+        smoothing: &RootSmoothing,
+        frames: &mut Array2<f32>,
+        fps: f64,
+    ) {
         let a = 1.0 - (-1.0 / (fps * smoothing.time_constant)).exp();
         for mut frame in frames.outer_iter_mut() {
             let row = frame
                 .as_slice_mut()
                 .expect("rows of a standard-layout array");
-            let r = [f64::from(row[POSITIONS]), f64::from(row[POSITIONS + 2])];
+            let r = layout.root_on_floor(row);
             let s = match self.root {
                 Some(s) => [s[0] + a * (r[0] - s[0]), s[1] + a * (r[1] - s[1])],
                 None => r,
             };
             let shift = [s[0] - r[0], s[1] - r[1]];
-            shift_on_floor(row, shift, self.shift);
+            layout.shift_on_floor(row, shift, self.shift);
             self.root = Some(s);
             self.shift = shift;
         }
     }
 
     /// Writes the filtered root and the last shift.
-    pub(super) fn save(&self, w: &mut SnapshotWriter) {
+    pub(crate) fn save(&self, w: &mut SnapshotWriter) {
         w.bool(self.root.is_some());
         let root = self.root.unwrap_or_default();
         w.f64(root[0])
@@ -84,7 +89,7 @@ impl SmoothingState {
     }
 
     /// The state [`SmoothingState::save`] wrote.
-    pub(super) fn load(r: &mut SnapshotReader) -> Result<Self> {
+    pub(crate) fn load(r: &mut SnapshotReader) -> Result<Self> {
         let started = r.bool("whether the smoothing started")?;
         let root = [
             r.finite("the smoothed root")?,
@@ -104,7 +109,7 @@ impl SmoothingState {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::motion::features::{FEATURE_DIM, VELOCITIES};
+    use crate::motion::features::{FEATURE_DIM, POSITIONS, VELOCITIES};
     use crate::motion::T2M22_JOINTS as JOINTS;
 
     /// Frames whose every joint is at `(x, 0, 0)` for the given root x's.
@@ -123,7 +128,7 @@ mod tests {
         let smoothing = RootSmoothing { time_constant: 0.1 };
         let mut state = SmoothingState::default();
         let mut f = frames(&[0.0, 1.0, 1.0, 1.0]);
-        state.apply(&smoothing, &mut f, 30.0);
+        state.apply(FrameLayout::Features, &smoothing, &mut f, 30.0);
         let a = 1.0 - (-1.0f64 / 3.0).exp();
         let want = [0.0, a, a + a * (1.0 - a), 1.0 - (1.0 - a).powi(3)];
         for (t, w) in want.iter().enumerate() {
@@ -140,12 +145,12 @@ mod tests {
         let smoothing = RootSmoothing::default();
         let xs = [0.0, 0.3, -0.2, 0.5, 0.4, 0.1];
         let mut whole = frames(&xs);
-        SmoothingState::default().apply(&smoothing, &mut whole, 30.0);
+        SmoothingState::default().apply(FrameLayout::Features, &smoothing, &mut whole, 30.0);
         let mut state = SmoothingState::default();
         let mut a = frames(&xs[..2]);
         let mut b = frames(&xs[2..]);
-        state.apply(&smoothing, &mut a, 30.0);
-        state.apply(&smoothing, &mut b, 30.0);
+        state.apply(FrameLayout::Features, &smoothing, &mut a, 30.0);
+        state.apply(FrameLayout::Features, &smoothing, &mut b, 30.0);
         assert_eq!(whole.slice(ndarray::s![..2, ..]), a);
         assert_eq!(whole.slice(ndarray::s![2.., ..]), b);
     }

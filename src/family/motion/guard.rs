@@ -1,8 +1,9 @@
-//! The penetration guard of an ARMFlow stream: after each token's reactor frames are decoded,
-//! they are pulled out of the actor's body (`crate::motion::penetration`), in feature space,
-//! by a rule that keeps the frames consistent and cannot make the motion jump.
+//! The penetration guard of a stream: the frames a step sends are pulled out of the input
+//! person's body (`crate::motion::penetration`), in the stream's own frames (any layout whose
+//! joints [`FrameLayout`] knows), by a rule that keeps the frames consistent and cannot make the
+//! motion jump.
 //!
-//! The rule, per reactor frame `t` (features in the stream's one world, y up):
+//! The rule, per output frame `t` (in the stream's one world, y up):
 //! 1. The reactor keeps an offset `o` in the floor plane (x, z), carried from frame to frame.
 //! 2. If the reactor's joints at `o` moved toward 0 by one step are clear of the actor's body
 //!    (no joint nearer than `d_safe`), that is the target: the reactor returns to its own motion.
@@ -12,23 +13,25 @@
 //! 3. The offset moves toward the target by at most one step, `max_speed / fps`: the guard
 //!    never moves the reactor faster than that, so it cannot make the motion jump.
 //! 4. Every joint position moves by the offset (a rigid shift: rotations and the body's shape are
-//!    unchanged), and every joint velocity (`p[t+1] − p[t]`) by the offset's own change from the
-//!    previous frame; contacts are left as decoded.
+//!    unchanged), and in `interhuman262` every joint velocity (`p[t+1] − p[t]`) by the offset's
+//!    own change from the previous frame; contacts are left as decoded.
 //!
-//! The network's own history (its latent tokens) is not changed: the guard shapes what is sent.
+//! The network's own history is not changed: the guard shapes what is sent. Output frame `t` is
+//! checked against input frame `t` (the two people share one timeline in every family).
 
 use std::collections::VecDeque;
 
 use ndarray::Array2;
 
+use super::layout::FrameLayout;
 use crate::motion::body::BodyModel;
-use crate::motion::features::{POSITIONS, VELOCITIES};
 use crate::motion::penetration::{Hinge, PenetrationLoss};
+use crate::motion::skeleton::T2M22_JOINTS;
 use crate::motion::vec3::Vec3;
 use crate::shared::error::{Error, Result};
 use crate::shared::snapshot::{self, SnapshotReader, SnapshotWriter};
 
-const JOINTS: usize = 22;
+const JOINTS: usize = T2M22_JOINTS;
 const SEARCH_STEPS: usize = 16;
 
 /// The guard's settings (off unless a session sets one).
@@ -70,21 +73,14 @@ impl PenetrationGuard {
     }
 }
 
-/// What the guard carries between steps: its offset and the actor's joints for the frames not
-/// yet sent.
+/// What the guard carries between steps: its offset and the input person's joints for the
+/// frames not yet sent.
 #[derive(Debug, Clone, Default)]
-pub(super) struct GuardState {
+pub(crate) struct GuardState {
     offset: [f64; 2],
     /// The actor's joint positions (66 floats) from frame `base` on.
     actor: VecDeque<Vec<f32>>,
     base: u64,
-}
-
-fn joints(positions: &[f32]) -> Vec<Vec3> {
-    positions
-        .chunks_exact(3)
-        .map(|p| [p[0] as f64, p[1] as f64, p[2] as f64])
-        .collect()
 }
 
 fn shifted(pose: &[Vec3], o: [f64; 2]) -> Vec<Vec3> {
@@ -94,18 +90,6 @@ fn shifted(pose: &[Vec3], o: [f64; 2]) -> Vec<Vec3> {
 }
 
 /// `to` moved toward `from` so that it is at most `limit` away from it.
-/// Moves a feature frame rigidly by `offset` on the floor (x, z): every joint position by it,
-/// every joint velocity by its change from the previous frame's `previous` (the guard's and
-/// the root smoothing's shift).
-pub(super) fn shift_on_floor(row: &mut [f32], offset: [f64; 2], previous: [f64; 2]) {
-    for j in 0..JOINTS {
-        row[POSITIONS + 3 * j] += offset[0] as f32;
-        row[POSITIONS + 3 * j + 2] += offset[1] as f32;
-        row[VELOCITIES + 3 * j] += (offset[0] - previous[0]) as f32;
-        row[VELOCITIES + 3 * j + 2] += (offset[1] - previous[1]) as f32;
-    }
-}
-
 fn clamp_move(from: [f64; 2], to: [f64; 2], limit: f64) -> [f64; 2] {
     let d = [to[0] - from[0], to[1] - from[1]];
     let n = (d[0] * d[0] + d[1] * d[1]).sqrt();
@@ -118,25 +102,27 @@ fn clamp_move(from: [f64; 2], to: [f64; 2], limit: f64) -> [f64; 2] {
 
 impl GuardState {
     /// No offset, the actor's joints kept from frame `frame` on.
-    pub(super) fn starting_at(frame: u64) -> Self {
+    pub(crate) fn starting_at(frame: u64) -> Self {
         GuardState {
             base: frame,
             ..Default::default()
         }
     }
 
-    /// Keeps the joint positions of the actor's new frames (`frame_dim` floats each).
-    pub(super) fn push_actor(&mut self, frames: &[f32], frame_dim: usize) {
+    /// Keeps the joint positions of the input person's new frames (`frame_dim` floats each).
+    pub(crate) fn push_actor(&mut self, layout: FrameLayout, frames: &[f32], frame_dim: usize) {
         for f in frames.chunks_exact(frame_dim) {
+            let joints = layout.joints(f);
             self.actor
-                .push_back(f[POSITIONS..POSITIONS + 3 * JOINTS].to_vec());
+                .push_back(joints.iter().flat_map(|p| p.map(|v| v as f32)).collect());
         }
     }
 
-    /// Guards `frames` (the reactor's, `[n, frame_dim]`, the first of them frame `first`), then
-    /// forgets the actor's frames before the next one to send.
-    pub(super) fn apply(
+    /// Guards `frames` (the output's, `[n, frame_dim]`, the first of them frame `first`), then
+    /// forgets the input's frames before the next one to send.
+    pub(crate) fn apply(
         &mut self,
+        layout: FrameLayout,
         guard: &PenetrationGuard,
         frames: &mut Array2<f32>,
         first: u64,
@@ -156,14 +142,11 @@ impl GuardState {
             else {
                 continue; // no actor frame for it (cannot happen in a stream): sent as decoded
             };
-            let actor = [joints(actor)];
-            let pose = joints(
-                frame
-                    .as_slice()
-                    .expect("rows of a standard-layout array")
-                    .get(POSITIONS..POSITIONS + 3 * JOINTS)
-                    .expect("interhuman262 frames"),
-            );
+            let actor = [actor
+                .chunks_exact(3)
+                .map(|p| [f64::from(p[0]), f64::from(p[1]), f64::from(p[2])])
+                .collect::<Vec<Vec3>>()];
+            let pose = layout.joints(frame.as_slice().expect("rows of a standard-layout array"));
             let clear = |o: [f64; 2]| -> Result<bool> {
                 Ok(loss.evaluate(&body, &actor, &[shifted(&pose, o)])?.loss == 0.0)
             };
@@ -190,7 +173,7 @@ impl GuardState {
                 o
             };
             let o = clamp_move(previous, target, step);
-            shift_on_floor(
+            layout.shift_on_floor(
                 frame
                     .as_slice_mut()
                     .expect("rows of a standard-layout array"),
@@ -208,12 +191,12 @@ impl GuardState {
     }
 
     /// Bytes held.
-    pub(super) fn bytes(&self) -> usize {
+    pub(crate) fn bytes(&self) -> usize {
         self.actor.iter().map(Vec::capacity).sum::<usize>() * std::mem::size_of::<f32>()
     }
 
     /// Writes the offset and the actor's kept joints.
-    pub(super) fn save(&self, w: &mut SnapshotWriter) {
+    pub(crate) fn save(&self, w: &mut SnapshotWriter) {
         w.f64(self.offset[0]).f64(self.offset[1]).u64(self.base);
         w.u64(self.actor.len() as u64);
         for joints in &self.actor {
@@ -223,7 +206,7 @@ impl GuardState {
 
     /// The state [`GuardState::save`] wrote, of a stream that has received `received` frames
     /// (the kept joints are of frames it received: at most `received - base` of them).
-    pub(super) fn load(r: &mut SnapshotReader, received: u64) -> Result<Self> {
+    pub(crate) fn load(r: &mut SnapshotReader, received: u64) -> Result<Self> {
         let offset = [
             r.finite("the guard's offset")?,
             r.finite("the guard's offset")?,
