@@ -96,10 +96,10 @@ extern "C" {
  *    4. Threads, logging and progress
  *    5. Model
  *    6. Session
- *    7. Session motion
- *    8. Text prompts
- *    9. Motion
- *   10. Rigs and glTF
+ *    7. Text prompts
+ *    8. Motion
+ *    9. Rigs and glTF
+ *   10. Session motion
  *   11. ARMFlow
  *   12. UMF
  *   13. MAGNet
@@ -1051,141 +1051,7 @@ troupe_status troupe_session_capabilities(struct troupe_session *session, uint32
 troupe_status troupe_session_queue_normals(struct troupe_session *session, const float *normals, size_t len);
 
 /* ============================================================================================
- * 7. Session motion
- *
- * Every streaming family's motion stages, chosen by its frame layout: joint positions in and
- * poses out, the penetration guard, the root smoothing, the foot lock.
- * ============================================================================================ */
-
-/**
- * Turns a session's foot lock on (`enabled` nonzero) or off (`interhuman262` streams: ARMFlow,
- * ARFlow; MAGNet's frames carry no contact labels), from the next pose
- * `troupe_session_step_joints` returns: while a foot's ankle contact label is at least
- * `contact_threshold` (in (0, 1]) the ankle stays where the contact began, the leg bent by
- * two-bone IK; when the label drops, or the motion's ankle is farther than `max_stretch` metres
- * (in (0, 1]) from where it is held, it returns to the motion over `release_frames` frames (1
- * to 60). No frame is held back. The defaults are 0.5, 4 frames and 0.25 m; the other values
- * are ignored when turning it off. Turning it on starts with no foot held. Feature frames
- * (`troupe_session_step`) are not changed.
- *
- * Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (a value out of range;
- * the session keeps its foot lock), `TROUPE_ERR_UNSUPPORTED` (a stream whose frames the stage does not know),
- * `TROUPE_ERR_POISONED`, `TROUPE_ERR_PANIC`. One thread at a time per session.
- *
- * # Safety
- * `session` must be NULL or a live handle.
- */
-troupe_status troupe_session_set_foot_lock(struct troupe_session *session, int32_t enabled, float contact_threshold, uint32_t release_frames, float max_stretch);
-
-/**
- * Turns a session's penetration guard on (`enabled` nonzero) or off, for the frames sent from
- * now on (every streaming family: ARMFlow, ARFlow, MAGNet): each sent frame is shifted in the
- * floor plane out of the input person's body (joints nearer than `d_safe` metres, in [0, 0.5]), never faster than `max_speed` metres
- * per second (in (0, 10]); `docs/ARFLOW.md` states the rule and what it measured. The defaults
- * are 0.05 m and 2 m/s. `d_safe` and `max_speed` are ignored when turning it off.
- *
- * Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (a value out of range),
- * `TROUPE_ERR_UNSUPPORTED` (a stream whose frames the stage does not know), `TROUPE_ERR_POISONED`, `TROUPE_ERR_PANIC`.
- * One thread at a time per session.
- *
- * # Safety
- * `session` must be NULL or a live handle.
- */
-troupe_status troupe_session_set_penetration_guard(struct troupe_session *session, int32_t enabled, float d_safe, float max_speed);
-
-/**
- * Sets how `troupe_session_step_joints` reads the input person's positions (units, up axis,
- * handedness, frame rate; resampled to the bundle's rate) and forgets the joint stream's
- * frames and placement. Without it, positions are metres, Y up, right-handed, at the bundle's
- * rate. Every streaming family takes joint positions: `interhuman262` streams (ARMFlow, ARFlow)
- * as features, `magnet-smplx145` streams (MAGNet) by inverse kinematics (`docs/MOTION.md`).
- *
- * Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (a bad format; the
- * session is then unchanged),
- * `TROUPE_ERR_UNSUPPORTED` (a stream whose frames carry no joints), `TROUPE_ERR_POISONED`, `TROUPE_ERR_PANIC`.
- * One thread at a time per session.
- *
- * # Safety
- * `session` a live handle; `format` readable for its `struct_size` bytes.
- */
-troupe_status troupe_session_set_joints_format(struct troupe_session *session, const struct troupe_joints_format *format);
-
-/**
- * Feeds `n_frames` frames of the input person's joint positions (`actor`: float32
- * `[n_frames][22][3]`, measured as `troupe_session_set_joints_format` said; may be NULL when
- * `n_frames` is 0) and writes the other person's poses that became ready, in the caller's
- * world, into the buffers of `*out` (each non-NULL buffer must hold `out_capacity_frames`
- * frames of its part), their count into `*n_written`. `troupe_session_joints_ready_after`
- * gives the exact count; `troupe_model_joints_latency_frames` the latency.
- *
- * On any error nothing is written and the session is exactly as before the call, except after
- * `TROUPE_ERR_PANIC`, which poisons it.
- *
- * Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_SHAPE` (a buffer smaller than its
- * capacity says), `TROUPE_ERR_INVALID_ARG` (a NaN or infinite position, naming frame and
- * joint), `TROUPE_ERR_UNSUPPORTED` (a stream whose frames carry no joints),
- * `TROUPE_ERR_BUFFER_TOO_SMALL`,
- * `TROUPE_ERR_INFERENCE`, `TROUPE_ERR_POISONED`, `TROUPE_ERR_PANIC`. One thread at a time per
- * session.
- *
- * # Safety
- * `session` a live handle; `actor` readable for `n_frames * 66` floats; `out` readable and its
- * buffers writable for their lengths, overlapping nothing else; `n_written` writable.
- */
-troupe_status troupe_session_step_joints(struct troupe_session *session, const float *actor, size_t n_frames, const struct troupe_pose_buffers *out, size_t out_capacity_frames, size_t *n_written);
-
-/**
- * Writes to `*n_out` how many poses `troupe_session_step_joints` returns for the next
- * `n_frames` joint frames.
- *
- * Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_UNSUPPORTED` (a stream whose frames
- * carry no joints),
- * `TROUPE_ERR_POISONED`, `TROUPE_ERR_PANIC`. One thread at a time per session.
- *
- * # Safety
- * `session` a live handle; `n_out` writable.
- */
-troupe_status troupe_session_joints_ready_after(struct troupe_session *session, size_t n_frames, size_t *n_out);
-
-/**
- * Writes the joint stream's placement (where the poses are put: fixed by the first joint
- * frame for `interhuman262` streams, the caller's own world for `magnet-smplx145` ones) to
- * `*out`.
- *
- * Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (no joint frame yet),
- * `TROUPE_ERR_UNSUPPORTED` (a stream whose frames carry no joints), `TROUPE_ERR_POISONED`, `TROUPE_ERR_PANIC`.
- * One thread at a time per session.
- *
- * # Safety
- * `session` a live handle; `out` writable.
- */
-troupe_status troupe_session_joints_placement(struct troupe_session *session, struct troupe_placement *out);
-
-/**
- * Latency in frames when the input person streams joint positions: `troupe_model_latency_frames`
- * plus what the conversion waits for (one frame for `interhuman262` velocities and contacts,
- * none for `magnet-smplx145`); 0 for NULL or a `umf` model. Thread-safe.
- */
-size_t troupe_model_joints_latency_frames(const struct troupe_model *model);
-
-/**
- * Turns a session's root smoothing on (`enabled` nonzero) or off, for the frames sent from now
- * on (every streaming family): the generated person's root path on the floor is filtered causally with time constant
- * `time_constant` seconds (in (0, 2]; 0.1 is the demo's), the whole body moving with it, before
- * the penetration guard. No frame is held back; the root lags by about the time constant.
- * `time_constant` is ignored when turning it off.
- *
- * Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (a value out of range;
- * the session keeps its setting), `TROUPE_ERR_UNSUPPORTED` (a stream whose frames the stage does not know),
- * `TROUPE_ERR_POISONED`, `TROUPE_ERR_PANIC`. One thread at a time per session.
- *
- * # Safety
- * `session` must be NULL or a live handle.
- */
-troupe_status troupe_session_set_root_smoothing(struct troupe_session *session, int32_t enabled, float time_constant);
-
-/* ============================================================================================
- * 8. Text prompts
+ * 7. Text prompts
  *
  * Conditions from text, for bundles with a text encoder or text branch.
  * ============================================================================================ */
@@ -1248,7 +1114,7 @@ size_t troupe_model_text_token_dim(const struct troupe_model *model);
 troupe_status troupe_text_encode(const struct troupe_model *model, const float *clip_tokens, size_t n_tokens, size_t eot_index, float *condition, size_t condition_capacity);
 
 /* ============================================================================================
- * 9. Motion
+ * 8. Motion
  *
  * Joint positions of the t2m-22 skeleton in the caller's units and axes, feature encoding, BVH
  * and JSON files, the penetration metrics.
@@ -1726,7 +1592,7 @@ troupe_status troupe_bvh_write(const char *path, const float *positions, size_t 
 troupe_status troupe_motion_write_json(const char *path, const float *positions, size_t n_people, size_t n_frames, const struct troupe_joints_format *format, const char *const *names);
 
 /* ============================================================================================
- * 10. Rigs and glTF
+ * 9. Rigs and glTF
  *
  * A caller's character rig, troupe's motion retargeted onto it frame by frame or as a clip,
  * and glTF (.glb) and BVH files of it.
@@ -1935,6 +1801,140 @@ troupe_status troupe_gltf_write(const char *path, const struct troupe_rig *rig, 
  * `path` NUL-terminated; `positions` readable for `n_frames * 66` floats; `format` readable.
  */
 troupe_status troupe_rig_bvh_write(const char *path, const struct troupe_rig *rig, const float *positions, size_t n_frames, const struct troupe_joints_format *format, uint32_t units, uint32_t flags);
+
+/* ============================================================================================
+ * 10. Session motion
+ *
+ * Every streaming family's motion stages, chosen by its frame layout: joint positions in and
+ * poses out, the penetration guard, the root smoothing, the foot lock.
+ * ============================================================================================ */
+
+/**
+ * Turns a session's foot lock on (`enabled` nonzero) or off (`interhuman262` streams: ARMFlow,
+ * ARFlow; MAGNet's frames carry no contact labels), from the next pose
+ * `troupe_session_step_joints` returns: while a foot's ankle contact label is at least
+ * `contact_threshold` (in (0, 1]) the ankle stays where the contact began, the leg bent by
+ * two-bone IK; when the label drops, or the motion's ankle is farther than `max_stretch` metres
+ * (in (0, 1]) from where it is held, it returns to the motion over `release_frames` frames (1
+ * to 60). No frame is held back. The defaults are 0.5, 4 frames and 0.25 m; the other values
+ * are ignored when turning it off. Turning it on starts with no foot held. Feature frames
+ * (`troupe_session_step`) are not changed.
+ *
+ * Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (a value out of range;
+ * the session keeps its foot lock), `TROUPE_ERR_UNSUPPORTED` (a stream whose frames the stage does not know),
+ * `TROUPE_ERR_POISONED`, `TROUPE_ERR_PANIC`. One thread at a time per session.
+ *
+ * # Safety
+ * `session` must be NULL or a live handle.
+ */
+troupe_status troupe_session_set_foot_lock(struct troupe_session *session, int32_t enabled, float contact_threshold, uint32_t release_frames, float max_stretch);
+
+/**
+ * Turns a session's penetration guard on (`enabled` nonzero) or off, for the frames sent from
+ * now on (every streaming family: ARMFlow, ARFlow, MAGNet): each sent frame is shifted in the
+ * floor plane out of the input person's body (joints nearer than `d_safe` metres, in [0, 0.5]), never faster than `max_speed` metres
+ * per second (in (0, 10]); `docs/ARFLOW.md` states the rule and what it measured. The defaults
+ * are 0.05 m and 2 m/s. `d_safe` and `max_speed` are ignored when turning it off.
+ *
+ * Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (a value out of range),
+ * `TROUPE_ERR_UNSUPPORTED` (a stream whose frames the stage does not know), `TROUPE_ERR_POISONED`, `TROUPE_ERR_PANIC`.
+ * One thread at a time per session.
+ *
+ * # Safety
+ * `session` must be NULL or a live handle.
+ */
+troupe_status troupe_session_set_penetration_guard(struct troupe_session *session, int32_t enabled, float d_safe, float max_speed);
+
+/**
+ * Sets how `troupe_session_step_joints` reads the input person's positions (units, up axis,
+ * handedness, frame rate; resampled to the bundle's rate) and forgets the joint stream's
+ * frames and placement. Without it, positions are metres, Y up, right-handed, at the bundle's
+ * rate. Every streaming family takes joint positions: `interhuman262` streams (ARMFlow, ARFlow)
+ * as features, `magnet-smplx145` streams (MAGNet) by inverse kinematics (`docs/MOTION.md`).
+ *
+ * Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (a bad format; the
+ * session is then unchanged),
+ * `TROUPE_ERR_UNSUPPORTED` (a stream whose frames carry no joints), `TROUPE_ERR_POISONED`, `TROUPE_ERR_PANIC`.
+ * One thread at a time per session.
+ *
+ * # Safety
+ * `session` a live handle; `format` readable for its `struct_size` bytes.
+ */
+troupe_status troupe_session_set_joints_format(struct troupe_session *session, const struct troupe_joints_format *format);
+
+/**
+ * Feeds `n_frames` frames of the input person's joint positions (`actor`: float32
+ * `[n_frames][22][3]`, measured as `troupe_session_set_joints_format` said; may be NULL when
+ * `n_frames` is 0) and writes the other person's poses that became ready, in the caller's
+ * world, into the buffers of `*out` (each non-NULL buffer must hold `out_capacity_frames`
+ * frames of its part), their count into `*n_written`. `troupe_session_joints_ready_after`
+ * gives the exact count; `troupe_model_joints_latency_frames` the latency.
+ *
+ * On any error nothing is written and the session is exactly as before the call, except after
+ * `TROUPE_ERR_PANIC`, which poisons it.
+ *
+ * Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_SHAPE` (a buffer smaller than its
+ * capacity says), `TROUPE_ERR_INVALID_ARG` (a NaN or infinite position, naming frame and
+ * joint), `TROUPE_ERR_UNSUPPORTED` (a stream whose frames carry no joints),
+ * `TROUPE_ERR_BUFFER_TOO_SMALL`,
+ * `TROUPE_ERR_INFERENCE`, `TROUPE_ERR_POISONED`, `TROUPE_ERR_PANIC`. One thread at a time per
+ * session.
+ *
+ * # Safety
+ * `session` a live handle; `actor` readable for `n_frames * 66` floats; `out` readable and its
+ * buffers writable for their lengths, overlapping nothing else; `n_written` writable.
+ */
+troupe_status troupe_session_step_joints(struct troupe_session *session, const float *actor, size_t n_frames, const struct troupe_pose_buffers *out, size_t out_capacity_frames, size_t *n_written);
+
+/**
+ * Writes to `*n_out` how many poses `troupe_session_step_joints` returns for the next
+ * `n_frames` joint frames.
+ *
+ * Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_UNSUPPORTED` (a stream whose frames
+ * carry no joints),
+ * `TROUPE_ERR_POISONED`, `TROUPE_ERR_PANIC`. One thread at a time per session.
+ *
+ * # Safety
+ * `session` a live handle; `n_out` writable.
+ */
+troupe_status troupe_session_joints_ready_after(struct troupe_session *session, size_t n_frames, size_t *n_out);
+
+/**
+ * Writes the joint stream's placement (where the poses are put: fixed by the first joint
+ * frame for `interhuman262` streams, the caller's own world for `magnet-smplx145` ones) to
+ * `*out`.
+ *
+ * Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (no joint frame yet),
+ * `TROUPE_ERR_UNSUPPORTED` (a stream whose frames carry no joints), `TROUPE_ERR_POISONED`, `TROUPE_ERR_PANIC`.
+ * One thread at a time per session.
+ *
+ * # Safety
+ * `session` a live handle; `out` writable.
+ */
+troupe_status troupe_session_joints_placement(struct troupe_session *session, struct troupe_placement *out);
+
+/**
+ * Latency in frames when the input person streams joint positions: `troupe_model_latency_frames`
+ * plus what the conversion waits for (one frame for `interhuman262` velocities and contacts,
+ * none for `magnet-smplx145`); 0 for NULL or a `umf` model. Thread-safe.
+ */
+size_t troupe_model_joints_latency_frames(const struct troupe_model *model);
+
+/**
+ * Turns a session's root smoothing on (`enabled` nonzero) or off, for the frames sent from now
+ * on (every streaming family): the generated person's root path on the floor is filtered causally with time constant
+ * `time_constant` seconds (in (0, 2]; 0.1 is the demo's), the whole body moving with it, before
+ * the penetration guard. No frame is held back; the root lags by about the time constant.
+ * `time_constant` is ignored when turning it off.
+ *
+ * Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (a value out of range;
+ * the session keeps its setting), `TROUPE_ERR_UNSUPPORTED` (a stream whose frames the stage does not know),
+ * `TROUPE_ERR_POISONED`, `TROUPE_ERR_PANIC`. One thread at a time per session.
+ *
+ * # Safety
+ * `session` must be NULL or a live handle.
+ */
+troupe_status troupe_session_set_root_smoothing(struct troupe_session *session, int32_t enabled, float time_constant);
 
 /* ============================================================================================
  * 11. ARMFlow

@@ -46,17 +46,6 @@ const SECTIONS: &[(&str, &str, &[&str])] = &[
         &["session.rs"],
     ),
     (
-        "Session motion",
-        "Every streaming family's motion stages, chosen by its frame layout: joint positions \
-         in and poses out, the penetration guard, the root smoothing, the foot lock.",
-        &[
-            "session_motion/joints.rs",
-            "session_motion/guard.rs",
-            "session_motion/smoothing.rs",
-            "session_motion/foot_lock.rs",
-        ],
-    ),
-    (
         "Text prompts",
         "Conditions from text, for bundles with a text encoder or text branch.",
         &["text.rs"],
@@ -72,6 +61,17 @@ const SECTIONS: &[(&str, &str, &[&str])] = &[
         "A caller's character rig, troupe's motion retargeted onto it frame by frame or as a \
          clip, and glTF (.glb) and BVH files of it.",
         &["motion/rig.rs"],
+    ),
+    (
+        "Session motion",
+        "Every streaming family's motion stages, chosen by its frame layout: joint positions \
+         in and poses out, the penetration guard, the root smoothing, the foot lock.",
+        &[
+            "session_motion/joints.rs",
+            "session_motion/guard.rs",
+            "session_motion/smoothing.rs",
+            "session_motion/foot_lock.rs",
+        ],
     ),
     (
         "ARMFlow",

@@ -256,8 +256,10 @@ int main(int argc, char **argv) {
         CHECK(worst == 0.0f);
         EXPECT(troupe_session_step_joints(NULL, clip, 1, &pose, 4, &got), TROUPE_ERR_NULL_ARG);
         troupe_session_free(joints);
+        /* a stream whose frames carry no joints the motion stages know (InterX's) */
         EXPECT(troupe_session_new(interx, NULL, &joints), TROUPE_OK);
-        EXPECT(troupe_session_set_joints_format(joints, &format), TROUPE_ERR_INVALID_ARG);
+        EXPECT(troupe_session_set_joints_format(joints, &format), TROUPE_ERR_UNSUPPORTED);
+        CHECK(strstr(troupe_last_error_message(), "interx336") != NULL);
         troupe_session_free(joints);
         troupe_session_free(plain);
         free(reactor);

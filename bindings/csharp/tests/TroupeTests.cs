@@ -197,7 +197,7 @@ internal static class TroupeTests
         using (var tiny = Model.Load(tinyBundle))
         using (var s = tiny.CreateSession())
         {
-            Throws<InvalidArgumentException>(() => s.SetJointsFormat(JointsFormat.Default), "joint positions on a bundle of other features");
+            Throws<UnsupportedException>(() => s.SetJointsFormat(JointsFormat.Default), "joint positions on a bundle of other features");
             int dim = tiny.FrameDim;
             var actor = new float[32 * dim];
             for (int i = 0; i < actor.Length; i++) actor[i] = (float)Math.Sin(0.01 * i);

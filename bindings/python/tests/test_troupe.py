@@ -45,7 +45,7 @@ def test_every_header_function_has_a_prototype():
     header = (REPO / "include" / "troupe.h").read_text()
     # The deprecated 0.1 names (docs/ABI.md) need no prototype: the package uses today's.
     deprecated = set(re.findall(r'TROUPE_DEPRECATED\("[^"]*"\)[^;(]*\b(troupe_\w+)\(', header))
-    assert len(deprecated) == 17, sorted(deprecated)
+    assert len(deprecated) == 20, sorted(deprecated)
     declared = set(re.findall(r"\b(troupe_\w+)\(", header)) - deprecated
     assert declared, "no functions found in the header"
     missing = declared - set(_native.PROTOTYPES)
@@ -468,7 +468,7 @@ def test_prompts_encode_as_the_reference_and_condition_sessions_clips_and_groups
     assert not model.takes_prompts
     with pytest.raises(troupe.TroupeError, match="takes no text prompts"):
         model.encode_prompt("hello")
-    with pytest.raises(troupe.TroupeError, match="takes no text prompts"):
+    with pytest.raises(troupe.Unsupported, match="a text prompt: this `armflow` stream does not take it"):
         troupe.Session(model, prompt="hello")
 
 
@@ -555,7 +555,7 @@ def test_magnet_live_partner_streams_as_the_reference(magnet, model):
         bare.step(frames[:1, 0])
     with pytest.raises(troupe.TroupeError, match="opening frames hold"):
         bare.set_partner_opening(frames[:31, 1])
-    with pytest.raises(troupe.TroupeError, match="armflow"):
+    with pytest.raises(troupe.Unsupported, match="text prompt"):
         bare.set_prompt("wave")
     with pytest.raises(troupe.TroupeError, match="TROUPE_ERR_UNSUPPORTED.*only magnet streams"):
         model.session().set_early_emission(True)
@@ -831,8 +831,21 @@ def test_an_online_arflow_stream_replays_queued_normals():
         s = troupe.Session(m)
         with pytest.raises(troupe.TroupeError, match="normals"):
             s.queue_normals([float("nan")])
-    with troupe.Model(BUNDLE) as armflow, pytest.raises(troupe.TroupeError, match="per token"):
-        troupe.Session(armflow).queue_normals([0.0])
+    # An armflow stream takes whole tokens (the actor's posterior noise, then the reactor's
+    # start noise), as set_noise takes one: the two queue the same stream.
+    with troupe.Model(BUNDLE) as armflow:
+        with pytest.raises(troupe.TroupeError, match="whole tokens"):
+            troupe.Session(armflow).queue_normals([0.0])
+        lat = armflow.latent_dim
+        token = np.sin(np.arange(2 * lat, dtype=np.float32) * 0.3)
+        a, b = troupe.Session(armflow), troupe.Session(armflow)
+        a.queue_normals(token)
+        b.set_noise(token[:lat], token[lat:])
+        assert "queued_normals" in a.capabilities and "cfg_scale" in a.capabilities
+        frames = np.cos(np.arange(8 * 262, dtype=np.float32) * 0.11).reshape(8, 262)
+        assert np.array_equal(a.step(frames), b.step(frames))
+    with troupe.Model(online) as m:
+        assert troupe.Session(m).capabilities == frozenset({"queued_normals"})
 
 
 def test_a_snapshot_continues_bit_for_bit_in_another_process(model, tmp_path):
