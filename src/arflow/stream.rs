@@ -26,6 +26,7 @@ use crate::family::session::Session;
 use crate::family::stream::{
     downcast_all, Capabilities, Capability, Finish, StepOutput, StepTogether, Stream,
 };
+use crate::shared::bundle_io::BundleIo;
 use crate::shared::checks::check_frames;
 use crate::shared::error::{Error, Result};
 use crate::shared::limits::{at_most, LIMITS};
@@ -428,17 +429,11 @@ impl Stream for OnlineStream {
     fn latent_dim(&self) -> usize {
         FRAME_DIM
     }
-    fn frame_layout(&self) -> &str {
-        &self.nets.io.motion.layout
-    }
-    fn fps(&self) -> f32 {
-        self.nets.io.motion.fps as f32
+    fn io(&self) -> &BundleIo {
+        &self.nets.io
     }
     fn capabilities(&self) -> Capabilities {
         Capabilities::of(&[Capability::QueuedNormals])
-    }
-    fn model_identity(&self) -> [u8; 32] {
-        self.nets.io.identity()
     }
     fn save(&self, w: &mut SnapshotWriter) -> Result<()> {
         OnlineStream::save(self, w);

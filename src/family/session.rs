@@ -19,7 +19,7 @@ use crate::motion::foot_lock::FootLockOptions;
 use crate::motion::placement::Placement;
 use crate::motion::skeleton::T2M22_JOINTS;
 use crate::motion::world::JointsFormat;
-use crate::shared::checks::{check_frames, check_input};
+use crate::shared::checks::{check_frame_count, check_input};
 use crate::shared::error::{a_or_an, Error, Result};
 use crate::shared::snapshot::{SnapshotReader, SnapshotWriter};
 
@@ -265,16 +265,6 @@ impl Session {
             return Ok(());
         }
         self.require(Capability::Condition)?;
-        if let Some(c) = condition {
-            let dim = self.condition_dim();
-            if c.len() != dim {
-                return Err(Error::InvalidInput(format!(
-                    "the condition has {} floats, the bundle takes {dim}",
-                    c.len()
-                )));
-            }
-            check_input("the condition", c)?;
-        }
         self.stream.set_condition(condition)
     }
 
@@ -379,10 +369,10 @@ pub fn step_sessions_joints(
         Error::InvalidInput(m) if indexed => Error::InvalidInput(format!("session {i}: {m}")),
         other => other,
     };
-    // Convert on copies of the joint conversions, kept only when every step succeeds.
-    let mut inputs = Vec::with_capacity(sessions.len());
+    // Convert on copies of the stages' joint conversions, kept only when every step succeeds.
+    let mut stages: Vec<MotionStages> = sessions.iter().map(|s| s.motion.clone()).collect();
     let mut frames: Vec<Vec<f32>> = Vec::with_capacity(sessions.len());
-    for (i, (session, chunk)) in sessions.iter().zip(positions).enumerate() {
+    for (i, (stage, chunk)) in stages.iter_mut().zip(positions).enumerate() {
         if chunk.shape()[1..] != [T2M22_JOINTS, 3] {
             return Err(whose(
                 i,
@@ -392,7 +382,7 @@ pub fn step_sessions_joints(
                 )),
             ));
         }
-        let mut input = session.motion.joints_input().map_err(|e| whose(i, e))?;
+        let mut input = stage.take_joints_input().map_err(|e| whose(i, e))?;
         let mut flat = Vec::new();
         for (t, frame) in chunk.outer_iter().enumerate() {
             input.push(frame, &mut flat).map_err(|e| match e {
@@ -400,19 +390,10 @@ pub fn step_sessions_joints(
                 other => other,
             })?;
         }
-        inputs.push(input);
+        stage.set_joints_input(input);
         frames.push(flat);
     }
     let chunks: Vec<&[f32]> = frames.iter().map(Vec::as_slice).collect();
-    let stages = sessions
-        .iter()
-        .zip(inputs)
-        .map(|(s, input)| {
-            let mut stages = s.motion.clone();
-            stages.set_joints_input(input);
-            stages
-        })
-        .collect();
     let out = advance_with(sessions, &chunks, &[], stages, true, indexed)?;
     Ok(out.into_iter().map(|(_, poses)| poses).collect())
 }
@@ -477,8 +458,9 @@ fn advance_with(
     }
     let mut starts = Vec::with_capacity(sessions.len());
     for (i, (session, chunk)) in sessions.iter().zip(frames).enumerate() {
+        // The count is needed here; the values are checked by the family's step, which reads them.
         let dim = session.frame_dim();
-        check_frames("input frames", chunk, dim).map_err(|e| whose(i, e))?;
+        check_frame_count("input frames", chunk, dim).map_err(|e| whose(i, e))?;
         let out = session.stream.frames_ready_after(chunk.len() / dim);
         let max = max_frames.get(i).copied().unwrap_or(usize::MAX);
         if out > max {

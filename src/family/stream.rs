@@ -7,6 +7,7 @@ use std::fmt::{self, Debug};
 
 use ndarray::Array2;
 
+use crate::shared::bundle_io::BundleIo;
 use crate::shared::error::{Error, Result};
 use crate::shared::snapshot::{cannot_snapshot, SnapshotWriter};
 
@@ -143,10 +144,16 @@ pub(crate) type StepTogether =
 pub(crate) trait Stream: Send + Debug + Any {
     /// The family's manifest name (`"armflow"`).
     fn family(&self) -> &'static str;
+    /// The bundle facts the stream's model was loaded with.
+    fn io(&self) -> &BundleIo;
     /// The frames' layout (`motion.layout` of the manifest: `"interhuman262"`, ...).
-    fn frame_layout(&self) -> &str;
+    fn frame_layout(&self) -> &str {
+        &self.io().motion.layout
+    }
     /// Frames per second, in and out.
-    fn fps(&self) -> f32;
+    fn fps(&self) -> f32 {
+        self.io().motion.fps as f32
+    }
     /// Floats per frame, in and out.
     fn frame_dim(&self) -> usize;
     /// Floats per latent token (a frame for a family without latents).
@@ -206,7 +213,9 @@ pub(crate) trait Stream: Send + Debug + Any {
     /// Context held for the next step (tokens, or frames for a frame-wise stream).
     fn context_len(&self) -> usize;
     /// The model's identity, which the stream's snapshots carry.
-    fn model_identity(&self) -> [u8; 32];
+    fn model_identity(&self) -> [u8; 32] {
+        self.io().identity()
+    }
     /// Writes the stream's snapshot payload (`Session::snapshot` frames it and adds the
     /// session's own part after it).
     fn save(&self, _w: &mut SnapshotWriter) -> Result<()> {

@@ -28,6 +28,7 @@ use crate::family::session::Session;
 use crate::family::stream::{
     downcast_all, Capabilities, Capability, Finish, StepOutput, StepTogether, Stream, TokenTrace,
 };
+use crate::shared::bundle_io::BundleIo;
 use crate::shared::checks::{check_frames, check_input};
 use crate::shared::error::{Error, Result};
 use crate::shared::snapshot::{self, SnapshotReader, SnapshotWriter};
@@ -920,17 +921,11 @@ impl Stream for LivePartner {
     fn latent_dim(&self) -> usize {
         self.token_dim()
     }
-    fn frame_layout(&self) -> &str {
-        &self.nets.io.motion.layout
-    }
-    fn fps(&self) -> f32 {
-        self.nets.io.motion.fps as f32
+    fn io(&self) -> &BundleIo {
+        &self.nets.io
     }
     fn capabilities(&self) -> Capabilities {
         Capabilities::of(&[Capability::QueuedNormals])
-    }
-    fn model_identity(&self) -> [u8; 32] {
-        self.nets.io.identity()
     }
     fn save(&self, w: &mut SnapshotWriter) -> Result<()> {
         LivePartner::save(self, w)

@@ -34,6 +34,14 @@ pub(crate) fn check_input(what: &str, values: &[f32]) -> Result<()> {
 /// number of `dim`-float frames, at most [`LIMITS`]`.max_frames_per_call` of them, every value
 /// as [`check_input`] wants it.
 pub(crate) fn check_frames(what: &str, frames: &[f32], dim: usize) -> Result<()> {
+    check_frame_count(what, frames, dim)?;
+    check_input(what, frames)
+}
+
+/// [`check_frames`] without looking at the values: a whole number of `dim`-float frames, at most
+/// [`LIMITS`]`.max_frames_per_call` of them (what a caller needs before counting frames, when
+/// the values are checked where they are read).
+pub(crate) fn check_frame_count(what: &str, frames: &[f32], dim: usize) -> Result<()> {
     if !frames.len().is_multiple_of(dim) {
         return Err(Error::InvalidInput(format!(
             "{} floats is not a whole number of {dim}-float frames",
@@ -45,8 +53,7 @@ pub(crate) fn check_frames(what: &str, frames: &[f32], dim: usize) -> Result<()>
         (frames.len() / dim) as u64,
         LIMITS.max_frames_per_call,
         false,
-    )?;
-    check_input(what, frames)
+    )
 }
 
 /// Checks values a network computed: a non-finite one (extreme inputs or settings overflowed the

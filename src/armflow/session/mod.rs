@@ -30,6 +30,7 @@ use crate::armflow::spec::{ActorLatent, ArmFlowSpec};
 use crate::family::stream::{
     downcast_all, Capabilities, Capability, Finish, StepOutput, StepTogether, Stream, TokenTrace,
 };
+use crate::shared::bundle_io::BundleIo;
 use crate::shared::checks::{check_frames, check_input};
 use crate::shared::error::{Error, Result};
 use crate::shared::limits::{at_most, check_cfg, check_steps, LIMITS};
@@ -664,11 +665,8 @@ impl Stream for Reactor {
     fn family(&self) -> &'static str {
         "armflow"
     }
-    fn frame_layout(&self) -> &str {
-        &self.nets.io.motion.layout
-    }
-    fn fps(&self) -> f32 {
-        self.nets.io.motion.fps as f32
+    fn io(&self) -> &BundleIo {
+        &self.nets.io
     }
     fn capabilities(&self) -> Capabilities {
         let mut caps = vec![
@@ -692,9 +690,6 @@ impl Stream for Reactor {
     }
     fn queue_normals(&mut self, normals: &[f32]) -> Result<()> {
         Reactor::queue_normals(self, normals)
-    }
-    fn model_identity(&self) -> [u8; 32] {
-        self.nets.io.identity()
     }
     fn save(&self, w: &mut SnapshotWriter) -> Result<()> {
         Reactor::save(self, w)

@@ -12,6 +12,8 @@ pub(crate) mod joints;
 pub(crate) mod layout;
 pub(crate) mod smoothing;
 
+use std::sync::Arc;
+
 use guard::GuardState;
 pub use guard::PenetrationGuard;
 use joints::JointsInput;
@@ -32,7 +34,8 @@ use crate::shared::snapshot::{bad, SnapshotReader, SnapshotWriter};
 pub(crate) struct MotionStages {
     /// The stream's layout, when the stages know it (`None`: only frames in and out).
     layout: Option<FrameLayout>,
-    layout_name: String,
+    /// Shared, so that copying the stages for a step allocates nothing for it.
+    layout_name: Arc<str>,
     frame_dim: usize,
     fps: f32,
     guard: Option<(PenetrationGuard, GuardState)>,
@@ -47,7 +50,7 @@ impl MotionStages {
     pub(crate) fn new(layout: &str, frame_dim: usize, fps: f32) -> Self {
         MotionStages {
             layout: FrameLayout::of(layout, frame_dim),
-            layout_name: layout.to_owned(),
+            layout_name: Arc::from(layout),
             frame_dim,
             fps,
             guard: None,
@@ -127,18 +130,32 @@ impl MotionStages {
     /// The conversion of joint positions: the configured one, or metres, Y up, at the stream's
     /// rate.
     pub(crate) fn joints_input(&self) -> Result<JointsInput> {
-        let layout = self.layout("joint positions")?;
         match &self.joints {
             Some(j) => Ok(j.clone()),
-            None => JointsInput::new(
-                layout,
-                JointsFormat {
-                    fps: self.fps,
-                    ..JointsFormat::default()
-                },
-                self.fps,
-            ),
+            None => self.default_joints_input(),
         }
+    }
+
+    /// [`MotionStages::joints_input`], taken out of these stages (put it back with
+    /// [`MotionStages::set_joints_input`]).
+    pub(crate) fn take_joints_input(&mut self) -> Result<JointsInput> {
+        match self.joints.take() {
+            Some(j) => Ok(j),
+            None => self.default_joints_input(),
+        }
+    }
+
+    /// Metres, Y up, at the stream's rate.
+    fn default_joints_input(&self) -> Result<JointsInput> {
+        let layout = self.layout("joint positions")?;
+        JointsInput::new(
+            layout,
+            JointsFormat {
+                fps: self.fps,
+                ..JointsFormat::default()
+            },
+            self.fps,
+        )
     }
 
     /// Frames of latency the joint conversion adds.
