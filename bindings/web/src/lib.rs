@@ -204,7 +204,8 @@ impl WebSession {
 
     /// Feeds actor joint positions (`n × 22 × 3` floats, in the joints format set, by default
     /// metres, +Y up, at the model's frame rate) and returns the reactor's (`m × 22 × 3`, same
-    /// format). ARMFlow only. On error nothing changes.
+    /// format). Every streaming family (ARMFlow, ARFlow online, MAGNet). On error nothing
+    /// changes.
     #[wasm_bindgen(js_name = stepJoints)]
     pub fn step_joints(&mut self, joints: &[f32]) -> Result<Vec<f32>, JsError> {
         let per_frame = JOINTS * 3;
@@ -216,7 +217,7 @@ impl WebSession {
         }
         let view = ArrayView3::from_shape((joints.len() / per_frame, JOINTS, 3), joints)
             .map_err(|e| invalid(&e.to_string()))?;
-        let poses = self.reactor()?.step_joints(view).map_err(js_error)?;
+        let poses = self.session.step_joints(view).map_err(js_error)?;
         Ok(poses
             .iter()
             .flat_map(|p| p.positions.iter().flatten().copied())
@@ -225,7 +226,7 @@ impl WebSession {
 
     /// The joints format of [`WebSession::step_joints`]: `units` one of `m`, `cm`, `mm`, `in`;
     /// `up` `y` or `z`; `fps` the caller's frame rate (troupe resamples to the model's).
-    /// ARMFlow only; refused once joints have been streamed (until [`WebSession::reset`]).
+    /// Forgets the joint frames and placement streamed so far.
     #[wasm_bindgen(js_name = setJointsFormat)]
     pub fn set_joints_format(&mut self, units: &str, up: &str, fps: f32) -> Result<(), JsError> {
         let units = match units {
@@ -250,7 +251,7 @@ impl WebSession {
             fps,
             ..JointsFormat::default()
         };
-        self.reactor()?.set_joints_format(format).map_err(js_error)
+        self.session.set_joints_format(format).map_err(js_error)
     }
 
     /// Starts the stream again from nothing (options and condition kept).
@@ -262,24 +263,22 @@ impl WebSession {
     #[wasm_bindgen(js_name = setCondition)]
     pub fn set_condition(&mut self, model: &WebModel, name: &str) -> Result<(), JsError> {
         let vector = model.model.condition_for(name).map_err(js_error)?;
-        self.reactor()?
-            .set_condition(Some(&vector))
-            .map_err(js_error)
+        self.session.set_condition(Some(&vector)).map_err(js_error)
     }
 
     /// Conditions the stream on a conditioning vector of the model's condition size
     /// (`undefined`: the bundle's null condition) from the next token on (ARMFlow).
     #[wasm_bindgen(js_name = setConditionVector)]
     pub fn set_condition_vector(&mut self, vector: Option<Vec<f32>>) -> Result<(), JsError> {
-        self.reactor()?
+        self.session
             .set_condition(vector.as_deref())
             .map_err(js_error)
     }
 
-    /// Classifier-free guidance scale (ARMFlow; 1 disables guidance).
+    /// Classifier-free guidance scale (streams that take one: ARMFlow, guided above 1).
     #[wasm_bindgen(js_name = setCfgScale)]
     pub fn set_cfg_scale(&mut self, scale: f32) -> Result<(), JsError> {
-        self.reactor()?.set_cfg_scale(scale).map_err(js_error)
+        self.session.set_cfg_scale(scale).map_err(js_error)
     }
 
     /// Queues the noise of the next token (ARMFlow): `actor`, the standard normals of the
@@ -297,7 +296,7 @@ impl WebSession {
     /// prompts).
     #[wasm_bindgen(js_name = setPrompt)]
     pub fn set_prompt(&mut self, prompt: &str) -> Result<(), JsError> {
-        self.reactor()?.set_prompt(prompt).map_err(js_error)
+        self.session.set_prompt(prompt).map_err(js_error)
     }
 
     /// MeanFlow steps per token (ARMFlow; at least 1).
@@ -307,7 +306,7 @@ impl WebSession {
     }
 
     /// The penetration guard: the reactor pushed out of the actor's body by at least `d_safe`
-    /// metres, at most `max_speed` m/s; `enabled = false` turns it off (ARMFlow).
+    /// metres, at most `max_speed` m/s; `enabled = false` turns it off (every streaming family).
     #[wasm_bindgen(js_name = setPenetrationGuard)]
     pub fn set_penetration_guard(
         &mut self,
@@ -316,19 +315,15 @@ impl WebSession {
         max_speed: f64,
     ) -> Result<(), JsError> {
         let guard = enabled.then_some(PenetrationGuard { d_safe, max_speed });
-        self.reactor()?
-            .set_penetration_guard(guard)
-            .map_err(js_error)
+        self.session.set_penetration_guard(guard).map_err(js_error)
     }
 
-    /// Root smoothing with time constant `tau` seconds; `enabled = false` turns it off
-    /// (ARMFlow).
+    /// Root smoothing with time constant `tau` seconds; `enabled = false` turns it off (every
+    /// streaming family).
     #[wasm_bindgen(js_name = setRootSmoothing)]
     pub fn set_root_smoothing(&mut self, enabled: bool, tau: f64) -> Result<(), JsError> {
         let smoothing = enabled.then_some(RootSmoothing { time_constant: tau });
-        self.reactor()?
-            .set_root_smoothing(smoothing)
-            .map_err(js_error)
+        self.session.set_root_smoothing(smoothing).map_err(js_error)
     }
 
     /// Recentring: before each token, when the actor is more than `distance` metres from the
@@ -340,11 +335,12 @@ impl WebSession {
         self.reactor()?.set_recentring(recentring).map_err(js_error)
     }
 
-    /// The foot lock with troupe's defaults; `enabled = false` turns it off (ARMFlow).
+    /// The foot lock with troupe's defaults; `enabled = false` turns it off (streams whose
+    /// frames carry contact labels: ARMFlow, ARFlow).
     #[wasm_bindgen(js_name = setFootLock)]
     pub fn set_foot_lock(&mut self, enabled: bool) -> Result<(), JsError> {
         let lock = enabled.then(FootLockOptions::default);
-        self.reactor()?.set_foot_lock(lock).map_err(js_error)
+        self.session.set_foot_lock(lock).map_err(js_error)
     }
 
     /// Tokens generated since the stream began.
