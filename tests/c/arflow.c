@@ -10,6 +10,27 @@
 #include <stdlib.h>
 #include <string.h>
 
+/* Streams `frames` frames of joint positions (metres, Y up, at the bundle's rate) through
+ * `session` one frame at a time; each call returns exactly the poses troupe said it would, all
+ * finite. Returns the number of poses. */
+static size_t stream_joints(troupe_session *session, const float *joints, size_t frames) {
+    size_t t, k, ready = 0, got = 0, total = 0;
+    static float posed[64 * 66]; /* a MAGNet partner sends a chunk of frames at once */
+    troupe_pose_buffers pose;
+    memset(&pose, 0, sizeof pose);
+    pose.positions = posed;
+    pose.positions_len = 64 * 66;
+    for (t = 0; t < frames; t++) {
+        EXPECT(troupe_session_joints_ready_after(session, 1, &ready), TROUPE_OK);
+        CHECK(ready <= 64);
+        EXPECT(troupe_session_step_joints(session, joints + t * 66, 1, &pose, 64, &got), TROUPE_OK);
+        CHECK(got == ready);
+        for (k = 0; k < got * 66; k++) CHECK(isfinite(posed[k]));
+        total += got;
+    }
+    return total;
+}
+
 int main(int argc, char **argv) {
     troupe_model *model = NULL, *armflow = NULL;
     troupe_arflow_options opt;
@@ -133,8 +154,13 @@ int main(int argc, char **argv) {
     {
         troupe_session *session = NULL, *partner = NULL;
         troupe_model *magnet = NULL;
+        size_t n_poses;
         EXPECT(troupe_session_new(armflow, NULL, &session), TROUPE_OK);
+        /* joint positions in, poses out, with the guard on */
         EXPECT(troupe_session_set_penetration_guard(session, 1, 0.05f, 2.0f), TROUPE_OK);
+        n_poses = stream_joints(session, joints_a, frames);
+        CHECK(n_poses + troupe_model_joints_latency_frames(armflow) >= frames && n_poses < frames);
+        EXPECT(troupe_session_reset(session), TROUPE_OK);
         EXPECT(troupe_session_set_penetration_guard(session, 1, -1.0f, 2.0f), TROUPE_ERR_INVALID_ARG);
         EXPECT(troupe_session_set_penetration_guard(session, 1, 0.05f, 0.0f), TROUPE_ERR_INVALID_ARG);
         EXPECT(troupe_session_set_penetration_guard(session, 0, NAN, NAN), TROUPE_OK);
@@ -162,8 +188,22 @@ int main(int argc, char **argv) {
         EXPECT(troupe_armflow_session_set_recentring(session, 0, NAN), TROUPE_OK);
         EXPECT(troupe_armflow_session_set_recentring(NULL, 1, 0.5f), TROUPE_ERR_NULL_ARG);
         if (argc > 3) {
+            float *pair, opening[32 * 145];
+            size_t n_pair = 0;
             EXPECT(troupe_model_load_file(argv[3], &magnet), TROUPE_OK);
             EXPECT(troupe_session_new(magnet, NULL, &partner), TROUPE_OK);
+            /* joint positions through a live partner (SMPL-X frames by inverse kinematics), its
+             * opening the second person of the bundle's golden pair ([128][2][145]) */
+            pair = read_npy(argv[3], "frames", &n_pair);
+            CHECK(pair != NULL && n_pair == 128 * 2 * 145);
+            for (t = 0; pair && t < 32; t++) memcpy(opening + t * 145, pair + (t * 2 + 1) * 145, 145 * sizeof *pair);
+            free(pair);
+            EXPECT(troupe_magnet_session_set_partner_opening(partner, opening, 32), TROUPE_OK);
+            EXPECT(troupe_session_set_penetration_guard(partner, 1, 0.05f, 2.0f), TROUPE_OK);
+            /* the clip three times over: the partner's latency is a window of frames */
+            for (n_poses = 0, t = 0; t < 3; t++) n_poses += stream_joints(partner, joints_a, frames);
+            CHECK(troupe_model_joints_latency_frames(magnet) == troupe_model_latency_frames(magnet));
+            CHECK(n_poses > 0 && n_poses + troupe_model_joints_latency_frames(magnet) >= 3 * frames);
             /* a MAGNet partner takes the guard and the smoothing (its bodies have joints), not the
              * foot lock (its frames carry no contact labels) nor ARMFlow's recentring */
             EXPECT(troupe_session_set_penetration_guard(partner, 1, 0.05f, 2.0f), TROUPE_OK);
@@ -200,6 +240,13 @@ int main(int argc, char **argv) {
         printf("arflow stream through the C ABI: %.2e relative\n",
                (double)(max_abs(out, want, n_actor) / max_value(want, n_actor)));
         CHECK(max_abs(out, want, n_actor) <= 1e-4f * max_value(want, n_actor));
+        /* joint positions through the online stream (its frames are ARMFlow's), guarded */
+        EXPECT(troupe_session_reset(flow), TROUPE_OK);
+        EXPECT(troupe_session_set_penetration_guard(flow, 1, 0.05f, 2.0f), TROUPE_OK);
+        written = stream_joints(flow, joints_a, frames);
+        CHECK(written + troupe_model_joints_latency_frames(online) == frames);
+        EXPECT(troupe_session_set_penetration_guard(flow, 0, 0.0f, 0.0f), TROUPE_OK);
+        EXPECT(troupe_session_reset(flow), TROUPE_OK);
         {
             /* queued normals: all zero, a stream given them steps as the whole clip given the
              * same zeros as its draws (the order cannot matter then); a draw the queue cannot

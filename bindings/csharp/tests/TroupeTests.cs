@@ -231,5 +231,22 @@ internal static class TroupeTests
         // A group model (UMF) streams nothing: its family does not offer sessions.
         using (var group = Model.Load(Path.Combine(Path.GetDirectoryName(Path.GetFullPath(tinyBundle)), "umf-tiny")))
             Throws<UnsupportedException>(() => group.CreateSession(), "a session of a group model");
+
+        // Every streaming family takes joint positions: ARFlow's online stream, guarded. 400 frames
+        // at 120 fps are 100 at 30, less the one frame features wait for.
+        using (var online = Model.Load(Path.Combine(Path.GetDirectoryName(Path.GetFullPath(tinyBundle)), "arflow-tiny-online")))
+        using (var s = online.CreateSession())
+        {
+            s.SetJointsFormat(new JointsFormat { Units = Units.Metres, Up = UpAxis.Z, Handedness = Handedness.Right, Fps = 120f });
+            s.SetPenetrationGuard(true);
+            var poses = new float[100 * 66];
+            int n = s.StepJoints(clip, 400, poses);
+            Check(n == 99, "an ARFlow stream returns 99 poses for 400 joint frames (got " + n + ")");
+            bool finite = true;
+            for (int i = 0; i < n * 66; i++)
+                finite &= !float.IsNaN(poses[i]) && !float.IsInfinity(poses[i]);
+            Check(finite, "its poses are finite");
+            Throws<UnsupportedException>(() => s.SetRecentring(true), "ARMFlow's recentring on an ARFlow stream");
+        }
     }
 }

@@ -897,3 +897,31 @@ def test_hostile_snapshots_raise(model):
     with troupe.Model(REPO / "onnx" / "bundles" / "magnet-tiny") as magnet:
         with pytest.raises(troupe.InvalidArgument, match="`armflow` stream's, not a `magnet`"):
             magnet.restore(good)
+
+
+def test_every_streaming_family_streams_joint_positions():
+    """The same joint positions through ARMFlow, ARFlow online and a MAGNet live partner (its
+    SMPL-X frames found by inverse kinematics): poses back from each, with the guard and the
+    smoothing on; the foot lock refused where the frames carry no contact labels."""
+    clip = troupe.bundles.demo_clip()[:360]
+    fmt = troupe.motion.JointsFormat(units="m", up="z", fps=120)
+    bundles = REPO / "onnx" / "bundles"
+    golden = np.load(bundles / "magnet-tiny" / "golden" / "frames.npy")
+    for name, latency in (("armflow-tiny", 1), ("arflow-tiny-online", 1), ("magnet-tiny", 0)):
+        with troupe.Model(bundles / name) as m, m.session() as s:
+            if name.startswith("magnet"):
+                s.set_partner_opening(golden[:32, 1])
+            s.set_joints_format(fmt)
+            s.set_penetration_guard(True)
+            s.set_root_smoothing(True)
+            assert m.joints_latency_frames == m.latency_frames + latency, name
+            poses = [s.step_joints(clip[t : t + 12]).positions for t in range(0, len(clip), 12)]
+            positions = np.concatenate(poses)
+            # 360 frames at 120 fps are 90 at 30: all but the latency come back, finite.
+            assert 90 - m.latency_frames - latency <= len(positions) <= 90, (name, len(positions))
+            assert positions.shape[1:] == (22, 3) and np.isfinite(positions).all(), name
+            if name.startswith("magnet"):
+                with pytest.raises(troupe.Unsupported, match="contact labels"):
+                    s.set_foot_lock(True)
+            else:
+                s.set_foot_lock(True)
