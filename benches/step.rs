@@ -9,7 +9,7 @@
 //! - `load`: `Model::load` plus a first session.
 //! - `step/history_H`: one full token (4 new actor frames in, 4 reactor frames out) with `H`
 //!   tokens in the context cache (capacity `H + 1`, so the cache stays at H as the stream runs).
-//! - `sessions_step/N`: one round of `step_reactors` over N sessions at history 10, one token
+//! - `sessions_step/N`: one round of `step_sessions` over N sessions at history 10, one token
 //!   each; compare with N times `step/history_10`.
 //! - `snapshot/history_H`, `restore/history_H`: `Session::snapshot` and `Model::restore` of a
 //!   session whose cache is full at `H` tokens (its size in bytes is printed).
@@ -18,8 +18,7 @@ use std::hint::black_box;
 use std::path::PathBuf;
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
-use troupe::armflow::step_reactors;
-use troupe::{Model, Reactor, ReactorOptions, Session};
+use troupe::{Model, ReactorOptions, Session};
 
 #[path = "../examples/common/mod.rs"]
 mod common;
@@ -32,16 +31,14 @@ fn bundle() -> PathBuf {
 }
 
 /// A session warmed to `history` tokens with capacity `history + 1`.
-fn warm_session(model: &Model, history: usize, seed: u64) -> Reactor {
+fn warm_session(model: &Model, history: usize, seed: u64) -> Session {
     warm_with_capacity(model, history, history + 1, seed)
 }
 
 /// A session warmed to `tokens` tokens with capacity `capacity`.
-fn warm_with_capacity(model: &Model, tokens: usize, capacity: usize, seed: u64) -> Reactor {
+fn warm_with_capacity(model: &Model, tokens: usize, capacity: usize, seed: u64) -> Session {
     let mut session = model
-        .armflow()
-        .unwrap()
-        .reactor(ReactorOptions {
+        .session(ReactorOptions {
             seed,
             context_capacity: Some(capacity),
             ..Default::default()
@@ -62,12 +59,7 @@ fn benches(c: &mut Criterion) {
     c.bench_function("load", |b| {
         b.iter(|| {
             let m = Model::load(&path).expect("load");
-            black_box(
-                m.armflow()
-                    .unwrap()
-                    .reactor(ReactorOptions::default())
-                    .expect("session"),
-            )
+            black_box(m.session(ReactorOptions::default()).expect("session"))
         })
     });
 
@@ -83,13 +75,13 @@ fn benches(c: &mut Criterion) {
 
     let mut group = c.benchmark_group("sessions_step");
     for n in [1, 8, 32] {
-        let mut sessions: Vec<Reactor> = (0..n).map(|i| warm_session(&model, 10, i)).collect();
+        let mut sessions: Vec<Session> = (0..n).map(|i| warm_session(&model, 10, i)).collect();
         let chunks = vec![token; n as usize];
         group.throughput(Throughput::Elements(n));
         group.bench_function(BenchmarkId::from_parameter(n), |b| {
             b.iter(|| {
-                let mut refs: Vec<&mut Reactor> = sessions.iter_mut().collect();
-                black_box(step_reactors(&mut refs, &chunks).expect("batched step"))
+                let mut refs: Vec<&mut Session> = sessions.iter_mut().collect();
+                black_box(troupe::step_sessions(&mut refs, &chunks).expect("batched step"))
             })
         });
     }
@@ -100,7 +92,7 @@ fn benches(c: &mut Criterion) {
     // 128: the paper bundle's default capacity.
     for history in [10, 128, 1000, 2000] {
         // One token past the capacity: the cache is full and has wrapped.
-        let session = Session::from(warm_with_capacity(&model, history + 1, history, 2));
+        let session = warm_with_capacity(&model, history + 1, history, 2);
         let bytes = session.snapshot().expect("snapshot");
         println!("snapshot at history {history}: {} bytes", bytes.len());
         saves.bench_function(

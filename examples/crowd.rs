@@ -1,6 +1,6 @@
 //! A crowd: many reactor streams of one model, each fed a 30 fps actor, and whether the machine
-//! keeps them all in real time. Runs the sessions batched (`step_reactors`: one network call per
-//! graph for all of them) or one by one (`Reactor::step` each), on one or more threads.
+//! keeps them all in real time. Runs the sessions batched (`step_sessions`: one network call per
+//! graph for all of them) or one by one (`Session::step` each), on one or more threads.
 //!
 //!     cargo run --release --example crowd -- --bundle onnx/bundles/paper --sessions 8,32,64 --history 100
 //!
@@ -9,7 +9,7 @@
 //! worth of new actor frames (4 frames, 133 ms of motion at 30 fps) and collects its reactor
 //! frames. The crowd is in real time when a round's p99 fits in that 133 ms. With `--threads T`
 //! the crowd is split into T equal parts stepped on T threads. Also reported: the memory a
-//! session holds (`Reactor::memory_bytes`, the largest in the crowd) and the RSS growth from
+//! session holds (`Session::memory_bytes`, the largest in the crowd) and the RSS growth from
 //! creating and warming the crowd divided by N (Linux; it includes allocator slack and what the
 //! warm-up's batched calls left behind, so it is an upper bound).
 //!
@@ -19,8 +19,7 @@
 
 use std::time::Instant;
 
-use troupe::armflow::step_reactors;
-use troupe::{Model, Reactor, ReactorOptions};
+use troupe::{Model, ReactorOptions, Session};
 
 mod common;
 use common::{percentile, synthetic_actor};
@@ -118,15 +117,15 @@ fn rss_bytes() -> u64 {
 }
 
 /// One round: every session gets `chunk`; the crowd is split over `threads` threads.
-fn round(sessions: &mut [Reactor], chunk: &[f32], mode: Mode, threads: usize) {
+fn round(sessions: &mut [Session], chunk: &[f32], mode: Mode, threads: usize) {
     let part = sessions.len().div_ceil(threads);
     std::thread::scope(|scope| {
         for group in sessions.chunks_mut(part) {
             scope.spawn(move || match mode {
                 Mode::Batched => {
-                    let mut refs: Vec<&mut Reactor> = group.iter_mut().collect();
+                    let mut refs: Vec<&mut Session> = group.iter_mut().collect();
                     let chunks = vec![chunk; refs.len()];
-                    step_reactors(&mut refs, &chunks).expect("batched step");
+                    troupe::step_sessions(&mut refs, &chunks).expect("batched step");
                 }
                 Mode::Alone => {
                     for s in group {
@@ -162,9 +161,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     for &n in &args.sessions {
         let before = rss_bytes();
         let history = |i: usize| least + (most - least) * i / (n - 1).max(1);
-        let mut sessions: Vec<Reactor> = (0..n)
+        let mut sessions: Vec<Session> = (0..n)
             .map(|i| {
-                model.armflow()?.reactor(ReactorOptions {
+                model.session(ReactorOptions {
                     seed: i as u64,
                     // Mixed histories keep every token, so that each cache has its own length.
                     context_capacity: (least != most).then(|| history(i) + timed + 2),
@@ -178,13 +177,13 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             let chunks: Vec<&[f32]> = (0..group.len())
                 .map(|i| &clip[(most - history(g * 64 + i)) * fpt * dim..most * fpt * dim])
                 .collect();
-            let mut refs: Vec<&mut Reactor> = group.iter_mut().collect();
-            step_reactors(&mut refs, &chunks)?;
+            let mut refs: Vec<&mut Session> = group.iter_mut().collect();
+            troupe::step_sessions(&mut refs, &chunks)?;
         }
         let per_session_mb = (rss_bytes().saturating_sub(before)) as f64 / n as f64 / 1e6;
         let held_mb = sessions
             .iter()
-            .map(Reactor::memory_bytes)
+            .map(Session::memory_bytes)
             .max()
             .unwrap_or(0) as f64
             / 1e6;

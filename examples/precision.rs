@@ -46,7 +46,7 @@ fn main() -> Result<(), Box<dyn Error>> {
         _ => common::synthetic_actor(frames, full.frame_dim()),
     };
     let run = |model: &Model| -> Result<(Vec<f32>, Vec<TokenTrace>), troupe::Error> {
-        let mut s = model.armflow()?.reactor(ReactorOptions {
+        let mut s = model.session(ReactorOptions {
             seed,
             ..Default::default()
         })?;

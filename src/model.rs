@@ -191,7 +191,7 @@ impl Model {
         self.inner.family.latency_frames()
     }
 
-    /// Latency in frames when the actor streams joint positions ([`crate::Reactor::step_joints`]):
+    /// Latency in frames when the actor streams joint positions ([`crate::Session::step_joints`]):
     /// [`Model::latency_frames`] plus the frame that velocities and contacts wait for. 0 for a
     /// `umf` model.
     pub fn joints_latency_frames(&self) -> usize {

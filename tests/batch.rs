@@ -5,13 +5,12 @@ mod common;
 
 use common::*;
 use ndarray::s;
-use troupe::armflow::step_reactors;
-use troupe::{ActorLatent, Model, Reactor, ReactorOptions, StepOutput};
+use troupe::{ActorLatent, Model, ReactorOptions, Session, StepOutput};
 
 /// Sessions that differ in every setting a batch must keep apart: seed, steps, CFG (so some
 /// rows come in pairs), condition, a small capacity (evicting while others do not, so histories
 /// of unequal length share a batch), the posterior mean, and the VAE windows path.
-fn varied_sessions() -> Vec<Reactor> {
+fn varied_sessions() -> Vec<Session> {
     let condition: Vec<f32> = (0..model().condition_dim())
         .map(|i| (i as f32 * 0.37).sin())
         .collect();
@@ -44,7 +43,7 @@ fn varied_sessions() -> Vec<Reactor> {
     ];
     options
         .into_iter()
-        .map(|o| model().armflow().unwrap().reactor(o).unwrap())
+        .map(|o| model().session(o).unwrap())
         .collect()
 }
 
@@ -88,8 +87,8 @@ fn batched_step_equals_stepping_each_session_alone() {
             .map(|&(a, b)| actor.slice(s![a..b, ..]).iter().copied().collect())
             .collect();
         let views: Vec<&[f32]> = chunks.iter().map(Vec::as_slice).collect();
-        let mut refs: Vec<&mut Reactor> = together.iter_mut().collect();
-        let batched = step_reactors(&mut refs, &views).unwrap();
+        let mut refs: Vec<&mut Session> = together.iter_mut().collect();
+        let batched = troupe::step_sessions(&mut refs, &views).unwrap();
         for (i, out) in batched.iter().enumerate() {
             let single = alone[i].step_flat(views[i]).unwrap();
             assert_eq!(
@@ -125,34 +124,32 @@ fn a_bad_batch_changes_no_session() {
     let mut twins = varied_sessions();
     let warm: Vec<f32> = actor.slice(s![..10, ..]).iter().copied().collect();
     {
-        let mut refs: Vec<&mut Reactor> = sessions.iter_mut().collect();
-        step_reactors(&mut refs, &[warm.as_slice(); 5]).unwrap();
-        let mut refs: Vec<&mut Reactor> = twins.iter_mut().collect();
-        step_reactors(&mut refs, &[warm.as_slice(); 5]).unwrap();
+        let mut refs: Vec<&mut Session> = sessions.iter_mut().collect();
+        troupe::step_sessions(&mut refs, &[warm.as_slice(); 5]).unwrap();
+        let mut refs: Vec<&mut Session> = twins.iter_mut().collect();
+        troupe::step_sessions(&mut refs, &[warm.as_slice(); 5]).unwrap();
     }
     let good: Vec<f32> = actor.slice(s![10..14, ..]).iter().copied().collect();
     let mut nan = good.clone();
     nan[7] = f32::NAN;
     let short = &good[..good.len() - 1];
     let other_model = Model::load(bundle_dir()).unwrap();
-    let mut stranger = other_model
-        .armflow()
-        .unwrap()
-        .reactor(default_options())
-        .unwrap();
+    let mut stranger = other_model.session(default_options()).unwrap();
 
-    let mut refs: Vec<&mut Reactor> = sessions.iter_mut().collect();
+    let mut refs: Vec<&mut Session> = sessions.iter_mut().collect();
     let bad_chunks: [(Vec<&[f32]>, &str); 3] = [
         (vec![&good, &good, &nan, &good, &good], "session 2: "),
         (vec![&good, &good, &good, short, &good], "session 3: "),
         (vec![&good; 4], "5 sessions but 4 chunks"),
     ];
     for (chunks, expected) in bad_chunks {
-        let err = step_reactors(&mut refs, &chunks).unwrap_err().to_string();
+        let err = troupe::step_sessions(&mut refs, &chunks)
+            .unwrap_err()
+            .to_string();
         assert!(err.contains(expected), "{err}");
     }
     refs.push(&mut stranger);
-    let err = step_reactors(&mut refs, &[good.as_slice(); 6])
+    let err = troupe::step_sessions(&mut refs, &[good.as_slice(); 6])
         .unwrap_err()
         .to_string();
     assert!(err.contains("session 5 runs another model"), "{err}");
@@ -165,5 +162,5 @@ fn a_bad_batch_changes_no_session() {
         let (x, y) = (a.step_flat(&rest).unwrap(), b.step_flat(&rest).unwrap());
         assert_eq!(x.frames, y.frames);
     }
-    assert!(step_reactors(&mut [], &[]).unwrap().is_empty());
+    assert!(troupe::step_sessions(&mut [], &[]).unwrap().is_empty());
 }

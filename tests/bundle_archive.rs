@@ -24,11 +24,7 @@ fn pack_bundle() -> Vec<u8> {
 }
 
 fn stream(model: &Model) -> (Vec<f32>, Vec<TokenTrace>) {
-    run_chunked(
-        &mut model.armflow().unwrap().reactor(default_options()).unwrap(),
-        &actor(),
-        4,
-    )
+    run_chunked(&mut model.session(default_options()).unwrap(), &actor(), 4)
 }
 
 #[test]

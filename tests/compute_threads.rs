@@ -6,19 +6,18 @@
 mod common;
 
 use common::*;
-use troupe::armflow::step_reactors;
 use troupe::{set_compute_threads, Error};
 
 fn stream_and_round() -> (Vec<f32>, Vec<Vec<f32>>) {
     let model = model();
     let actor = actor();
-    let mut alone = model.armflow().unwrap().reactor(default_options()).unwrap();
+    let mut alone = model.session(default_options()).unwrap();
     let frames = alone.step(actor.view()).unwrap();
-    let mut a = model.armflow().unwrap().reactor(default_options()).unwrap();
-    let mut b = model.armflow().unwrap().reactor(default_options()).unwrap();
+    let mut a = model.session(default_options()).unwrap();
+    let mut b = model.session(default_options()).unwrap();
     let chunk = actor.slice(ndarray::s![..40, ..]).to_owned();
     let slice = chunk.as_slice().unwrap();
-    let outs = step_reactors(&mut [&mut a, &mut b], &[slice, slice]).unwrap();
+    let outs = troupe::step_sessions(&mut [&mut a, &mut b], &[slice, slice]).unwrap();
     let round = outs
         .into_iter()
         .map(|o| o.frames.into_raw_vec_and_offset().0)

@@ -8,8 +8,7 @@
 mod common;
 
 use common::*;
-use troupe::armflow::step_reactors;
-use troupe::{Model, Reactor, ReactorOptions};
+use troupe::{Model, ReactorOptions, Session};
 
 fn options(seed: u64, capacity: Option<usize>) -> ReactorOptions {
     ReactorOptions {
@@ -29,9 +28,9 @@ fn streams_at_mixed_history_lengths_step_together_as_they_do_alone() {
     // its ring), then step all of them in one round per token, against their twins alone.
     let warm = [4usize, 36, 120, 176];
     let capacities = [None, Some(5), None, Some(1000)];
-    let make = |c| m.armflow().unwrap().reactor(options(11, c)).unwrap();
-    let mut together: Vec<Reactor> = capacities.iter().map(|&c| make(c)).collect();
-    let mut alone: Vec<Reactor> = capacities.iter().map(|&c| make(c)).collect();
+    let make = |c| m.session(options(11, c)).unwrap();
+    let mut together: Vec<Session> = capacities.iter().map(|&c| make(c)).collect();
+    let mut alone: Vec<Session> = capacities.iter().map(|&c| make(c)).collect();
     for ((a, b), &w) in together.iter_mut().zip(&mut alone).zip(&warm) {
         a.step_flat(&flat[..w * d]).unwrap();
         b.step_flat(&flat[..w * d]).unwrap();
@@ -41,9 +40,9 @@ fn streams_at_mixed_history_lengths_step_together_as_they_do_alone() {
     let mut worst = 0f32;
     for token in 0..4 {
         let part = &flat[(token * 4) * d..(token * 4 + 4) * d];
-        let mut refs: Vec<&mut Reactor> = together.iter_mut().collect();
+        let mut refs: Vec<&mut Session> = together.iter_mut().collect();
         let parts = vec![part; refs.len()];
-        let batched = step_reactors(&mut refs, &parts).unwrap();
+        let batched = troupe::step_sessions(&mut refs, &parts).unwrap();
         for (out, s) in batched.iter().zip(&mut alone) {
             let own = s.step_flat(part).unwrap();
             let (x, y) = (
@@ -80,11 +79,7 @@ fn a_bundle_of_the_one_graph_context_contract_is_refused_with_the_command_that_r
 
 #[test]
 fn a_full_cache_keeps_its_capacity_in_constant_memory() {
-    let mut s = model()
-        .armflow()
-        .unwrap()
-        .reactor(options(1, Some(6)))
-        .unwrap();
+    let mut s = model().session(options(1, Some(6))).unwrap();
     let actor = actor();
     run_chunked(&mut s, &actor, 4);
     let (len, bytes) = (s.context_len(), s.memory_bytes());
@@ -107,11 +102,7 @@ fn a_full_cache_keeps_its_capacity_in_constant_memory() {
 fn a_cache_grown_past_its_first_slots_equals_a_full_recompute() {
     // 160 tokens with every one kept: the cache holds them in 10 pages.
     let m = model();
-    let mut s = m
-        .armflow()
-        .unwrap()
-        .reactor(options(2, Some(1000)))
-        .unwrap();
+    let mut s = m.session(options(2, Some(1000))).unwrap();
     let actor = actor();
     let mut tokens = Vec::new();
     let mut small = 0;

@@ -7,28 +7,20 @@ use std::path::Path;
 
 use common::*;
 use ndarray::{s, Array2};
-use troupe::{Error, Model, Reactor, ReactorOptions, TokenNoise};
+use troupe::{Error, Model, Reactor, ReactorOptions, Session, TokenNoise};
 
 /// A session that has consumed 10 frames (2 tokens), and a twin to compare against.
-fn twins() -> (Reactor, Reactor) {
+fn twins() -> (Session, Session) {
     let actor = actor();
-    let mut a = model()
-        .armflow()
-        .unwrap()
-        .reactor(default_options())
-        .unwrap();
-    let mut b = model()
-        .armflow()
-        .unwrap()
-        .reactor(default_options())
-        .unwrap();
+    let mut a = model().session(default_options()).unwrap();
+    let mut b = model().session(default_options()).unwrap();
     a.step(actor.slice(s![..10, ..])).unwrap();
     b.step(actor.slice(s![..10, ..])).unwrap();
     (a, b)
 }
 
 /// The session behaves exactly like its untouched twin from here on.
-fn assert_unchanged(touched: &mut Reactor, twin: &mut Reactor) {
+fn assert_unchanged(touched: &mut Session, twin: &mut Session) {
     assert_eq!(touched.frames_received(), twin.frames_received());
     assert_eq!(touched.tokens_generated(), twin.tokens_generated());
     let rest = actor().slice(s![10.., ..]).to_owned();
@@ -72,7 +64,7 @@ fn non_finite_frames_are_rejected() {
 #[test]
 fn bad_options_are_rejected() {
     let m = model();
-    let opt = |o: ReactorOptions| m.armflow().unwrap().reactor(o).unwrap_err();
+    let opt = |o: ReactorOptions| m.session(o).unwrap_err();
     assert!(matches!(
         opt(ReactorOptions {
             steps: Some(0),
@@ -117,6 +109,8 @@ fn bad_setters_leave_the_session_unchanged() {
     assert!(s.set_condition(Some(&[f32::NAN; 32])).is_err());
     let lat = model().latent_dim();
     let e = s
+        .family_mut::<Reactor>()
+        .unwrap()
         .queue_noise(TokenNoise {
             actor: vec![0.0; lat - 1],
             reactor: vec![0.0; lat],
@@ -124,6 +118,8 @@ fn bad_setters_leave_the_session_unchanged() {
         .unwrap_err();
     assert!(message(e).contains("actor noise has 15 floats"));
     let e = s
+        .family_mut::<Reactor>()
+        .unwrap()
         .queue_noise(TokenNoise {
             actor: vec![0.0; lat],
             reactor: vec![f32::NAN; lat],

@@ -12,7 +12,7 @@ use std::path::{Path, PathBuf};
 use common::*;
 use ndarray::{Array1, Array2};
 use ndarray_npy::read_npy;
-use troupe::{Model, Reactor, ReactorOptions, TokenNoise, TokenTrace};
+use troupe::{Model, Reactor, ReactorOptions, Session, TokenNoise, TokenTrace};
 
 const LATENT_TOL: f32 = 1e-5;
 const FRAME_TOL: f32 = 1e-4;
@@ -50,7 +50,7 @@ impl Bundle {
             .unwrap_or_else(|e| panic!("{}: golden {name}: {e}", self.dir.display()))
     }
 
-    fn queue_noise(&self, session: &mut Reactor, case: &str) {
+    fn queue_noise(&self, session: &mut Session, case: &str) {
         let (xi, eps) = (
             self.golden2(&format!("{case}_xi")),
             self.golden2(&format!("{case}_eps")),
@@ -60,7 +60,11 @@ impl Bundle {
                 actor: a.to_vec(),
                 reactor: r.to_vec(),
             };
-            session.queue_noise(noise).unwrap();
+            session
+                .family_mut::<Reactor>()
+                .unwrap()
+                .queue_noise(noise)
+                .unwrap();
         }
     }
 }
@@ -71,7 +75,7 @@ fn bundles() -> [Bundle; 2] {
 }
 
 fn run_case(bundle: &Bundle, case: &str, options: ReactorOptions, chunk: usize) -> Parity {
-    let mut session = bundle.model.armflow().unwrap().reactor(options).unwrap();
+    let mut session = bundle.model.session(options).unwrap();
     bundle.queue_noise(&mut session, case);
     let (frames, tokens) = run_chunked(&mut session, &bundle.golden2("actor"), chunk);
     let gather = |f: fn(&TokenTrace) -> &Vec<f32>| -> Vec<f32> {
@@ -162,9 +166,7 @@ fn cfg_multistep_sliding_window_matches_pytorch() {
 fn seeded_noise_matches_python_bit_for_bit() {
     let model = model();
     let session = model
-        .armflow()
-        .unwrap()
-        .reactor(ReactorOptions {
+        .session(ReactorOptions {
             seed: 7,
             ..Default::default()
         })
@@ -176,7 +178,10 @@ fn seeded_noise_matches_python_bit_for_bit() {
             let mut got = vec![0f32; want.ncols()];
             troupe::noise::fill_normals(7, *token, stream, &mut got);
             assert_eq!(got, want.row(row).to_vec(), "stream {stream} token {token}");
-            let noise = session.seeded_noise(*token);
+            let noise = session
+                .family_ref::<Reactor>()
+                .unwrap()
+                .seeded_noise(*token);
             let expect = if stream == 0 {
                 &noise.actor
             } else {

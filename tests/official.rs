@@ -15,7 +15,7 @@ use std::sync::OnceLock;
 use common::max_abs_diff;
 use ndarray::{Array1, Array2};
 use ndarray_npy::read_npy;
-use troupe::{ClipNoise, ClipOptions, Error, Model, ReactorOptions, TokenNoise};
+use troupe::{ClipNoise, ClipOptions, Error, Model, Reactor, ReactorOptions, TokenNoise};
 
 const LATENT_TOL: f32 = 1e-5;
 const FRAME_TOL: f32 = 1e-4;
@@ -156,9 +156,7 @@ fn stream_mode_with_lookahead_windows_matches_the_reference() {
 fn check_stream(m: &Model, config: &str, case: &str) {
     let condition = g1(config, "text_condition").to_vec();
     let mut session = m
-        .armflow()
-        .unwrap()
-        .reactor(ReactorOptions {
+        .session(ReactorOptions {
             condition: Some(condition),
             ..Default::default()
         })
@@ -169,6 +167,8 @@ fn check_stream(m: &Model, config: &str, case: &str) {
         .zip(g2(config, &format!("{case}_eps")).rows())
     {
         session
+            .family_mut::<Reactor>()
+            .unwrap()
             .queue_noise(TokenNoise {
                 actor: a.to_vec(),
                 reactor: r.to_vec(),
@@ -241,19 +241,18 @@ fn seeded_clip_draws_are_the_session_draws_of_those_tokens() {
     let m = model("interhuman");
     let noise = m.armflow().unwrap().clip_noise(11).unwrap();
     let session = m
-        .armflow()
-        .unwrap()
-        .reactor(ReactorOptions {
+        .session(ReactorOptions {
             seed: 11,
             ..Default::default()
         })
         .unwrap();
     let lat = m.latent_dim();
+    let reactor = session.family_ref::<Reactor>().unwrap();
     for j in [0usize, 1, 74] {
-        let s = session.seeded_noise(j as u64);
+        let s = reactor.seeded_noise(j as u64);
         assert_eq!(&noise.actor_posterior[j * lat..(j + 1) * lat], &s.actor[..]);
     }
-    assert_eq!(noise.reactor_noise, session.seeded_noise(74).reactor);
+    assert_eq!(noise.reactor_noise, reactor.seeded_noise(74).reactor);
     let seeded = ClipOptions {
         seed: 11,
         ..Default::default()

@@ -10,8 +10,7 @@ use std::path::{Path, PathBuf};
 use common::*;
 use ndarray::{Array1, Array2};
 use ndarray_npy::read_npy;
-use troupe::armflow::step_reactors;
-use troupe::{Model, Reactor, ReactorOptions, TokenNoise, Weights};
+use troupe::{Model, Reactor, ReactorOptions, Session, TokenNoise, Weights};
 
 /// Largest differences the int8 demo may show against the float32 demo over the golden
 /// stream's 48 tokens, relative to the float32 values' largest magnitude. Measured on
@@ -57,9 +56,7 @@ where
 fn run(model: &Model) -> (Vec<f32>, Vec<f32>, Vec<f32>) {
     let condition: Array1<f32> = golden("default_condition");
     let mut s = model
-        .armflow()
-        .unwrap()
-        .reactor(ReactorOptions {
+        .session(ReactorOptions {
             condition: Some(condition.to_vec()),
             ..Default::default()
         })
@@ -75,14 +72,16 @@ fn run(model: &Model) -> (Vec<f32>, Vec<f32>, Vec<f32>) {
     (actor_latents, reactor_latents, frames)
 }
 
-fn queue(s: &mut Reactor) {
+fn queue(s: &mut Session) {
     let (xi, eps): (Array2<f32>, Array2<f32>) = (golden("default_xi"), golden("default_eps"));
+    let reactor = s.family_mut::<Reactor>().unwrap();
     for (a, r) in xi.rows().into_iter().zip(eps.rows()) {
-        s.queue_noise(TokenNoise {
-            actor: a.to_vec(),
-            reactor: r.to_vec(),
-        })
-        .unwrap();
+        reactor
+            .queue_noise(TokenNoise {
+                actor: a.to_vec(),
+                reactor: r.to_vec(),
+            })
+            .unwrap();
     }
 }
 
@@ -128,20 +127,15 @@ fn batched_against_alone(model: &Model) -> f32 {
         ..Default::default()
     };
     let actor: Array2<f32> = golden("actor");
-    let alone = run_chunked(
-        &mut model.armflow().unwrap().reactor(options(1)).unwrap(),
-        &actor,
-        8,
-    )
-    .0;
-    let mut sessions: Vec<Reactor> = [1, 2, 3]
+    let alone = run_chunked(&mut model.session(options(1)).unwrap(), &actor, 8).0;
+    let mut sessions: Vec<Session> = [1, 2, 3]
         .into_iter()
-        .map(|s| model.armflow().unwrap().reactor(options(s)).unwrap())
+        .map(|s| model.session(options(s)).unwrap())
         .collect();
     let mut batched = Vec::new();
     for part in actor.as_slice().unwrap().chunks(8 * model.frame_dim()) {
-        let mut refs: Vec<&mut Reactor> = sessions.iter_mut().collect();
-        let outs = step_reactors(&mut refs, &[part, part, part]).unwrap();
+        let mut refs: Vec<&mut Session> = sessions.iter_mut().collect();
+        let outs = troupe::step_sessions(&mut refs, &[part, part, part]).unwrap();
         batched.extend(outs[0].frames.iter().copied());
     }
     relative(&batched, &alone)

@@ -10,7 +10,7 @@ use std::time::Duration;
 
 use common::*;
 use ndarray::Array2;
-use troupe::{ClipOptions, Error, Model, ReactorOptions, TokenNoise, LIMITS};
+use troupe::{ClipOptions, Error, Model, Reactor, ReactorOptions, TokenNoise, LIMITS};
 
 /// Loads `path` on another thread; fails the test if the load has not returned in 60 s (a hang)
 /// rather than hanging the suite.
@@ -251,26 +251,27 @@ fn sizes_from_the_caller_are_bounded() {
         steps: Some(u32::MAX),
         ..default_options()
     };
-    let e = m.armflow().unwrap().reactor(huge_steps).unwrap_err();
+    let e = m.session(huge_steps).unwrap_err();
     assert!(matches!(e, Error::InvalidOption(_)), "{e}");
     assert!(e.to_string().contains("limit of 10000"), "{e}");
-    let mut s = m.armflow().unwrap().reactor(default_options()).unwrap();
+    let mut s = m.session(default_options()).unwrap();
     assert!(s.set_steps(u32::MAX).is_err());
     let huge_capacity = ReactorOptions {
         context_capacity: Some(usize::MAX),
         ..default_options()
     };
-    assert!(m.armflow().unwrap().reactor(huge_capacity).is_err());
+    assert!(m.session(huge_capacity).is_err());
 
     let lat = m.latent_dim();
     let noise = TokenNoise {
         actor: vec![0.5; lat],
         reactor: vec![0.5; lat],
     };
+    let reactor = s.family_mut::<Reactor>().unwrap();
     for _ in 0..LIMITS.max_queued_noise_tokens {
-        s.queue_noise(noise.clone()).unwrap();
+        reactor.queue_noise(noise.clone()).unwrap();
     }
-    let e = s.queue_noise(noise).unwrap_err();
+    let e = reactor.queue_noise(noise).unwrap_err();
     assert!(e.to_string().contains("queued noise"), "{e}");
     s.reset();
     let out = s.step(actor().view()).unwrap();
@@ -281,14 +282,14 @@ fn sizes_from_the_caller_are_bounded() {
 fn extreme_settings_and_inputs_are_refused_or_give_finite_output_and_the_session_recovers() {
     let m = model();
     let d = m.frame_dim();
-    let mut s = m.armflow().unwrap().reactor(default_options()).unwrap();
+    let mut s = m.session(default_options()).unwrap();
     assert!(s.set_cfg_scale(f32::MAX).is_err());
     assert!(s.set_cfg_scale(-f32::MAX).is_err());
     let cfg = ReactorOptions {
         cfg_scale: Some(f32::MAX),
         ..default_options()
     };
-    assert!(m.armflow().unwrap().reactor(cfg).is_err());
+    assert!(m.session(cfg).is_err());
 
     // ±FLT_MAX frames are refused; 200 ordinary frames afterwards are all finite.
     for extreme in [f32::MAX, -f32::MAX, f32::MIN_POSITIVE / 2.0] {
@@ -311,9 +312,7 @@ fn extreme_settings_and_inputs_are_refused_or_give_finite_output_and_the_session
         (1.0, -0.0),
     ] {
         let mut s = m
-            .armflow()
-            .unwrap()
-            .reactor(ReactorOptions {
+            .session(ReactorOptions {
                 cfg_scale: Some(cfg),
                 ..default_options()
             })
@@ -338,9 +337,7 @@ fn extreme_settings_and_inputs_are_refused_or_give_finite_output_and_the_session
 #[test]
 fn a_long_stream_with_the_smallest_cache_runs() {
     let mut s = model()
-        .armflow()
-        .unwrap()
-        .reactor(ReactorOptions {
+        .session(ReactorOptions {
             context_capacity: Some(2),
             ..default_options()
         })

@@ -332,9 +332,11 @@ fn hostile_snapshots_are_refused_with_a_clear_error() {
     let recentred = recentring.snapshot().unwrap();
     // Turned off after it recentred, the stream keeps its rebuilt cache, and still restores.
     let mut off = model.restore(&recentred).unwrap();
-    let reactor = off.family_mut::<Reactor>().unwrap();
-    reactor.set_recentring(None).unwrap();
-    reactor.step_flat(&sine[..8 * 262]).unwrap();
+    off.family_mut::<Reactor>()
+        .unwrap()
+        .set_recentring(None)
+        .unwrap();
+    off.step_flat(&sine[..8 * 262]).unwrap();
     assert!(model.restore(&off.snapshot().unwrap()).is_ok());
     for good in [&good, &recentred] {
         for n in 0..good.len() {

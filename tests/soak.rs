@@ -83,9 +83,7 @@ fn memory_stays_flat_over_long_streams_and_many_handles() {
     // 1. One session, one token (4 frames) per call.
     let tokens = if long { 1_000_000 } else { 20_000 };
     let mut session = model
-        .armflow()
-        .unwrap()
-        .reactor(ReactorOptions {
+        .session(ReactorOptions {
             context_capacity: Some(16),
             ..default_options()
         })
@@ -107,9 +105,7 @@ fn memory_stays_flat_over_long_streams_and_many_handles() {
     let first = actor.slice(ndarray::s![..8, ..]).to_owned();
     flat("session cycles", cycles, cycles / 20, cycles / 10, |i| {
         let mut s = model
-            .armflow()
-            .unwrap()
-            .reactor(ReactorOptions {
+            .session(ReactorOptions {
                 seed: i as u64,
                 ..default_options()
             })

@@ -5,10 +5,10 @@ mod common;
 
 use common::*;
 use ndarray::{s, Array2};
-use troupe::{ActorLatent, Model, Reactor, ReactorOptions};
+use troupe::{ActorLatent, Model, Reactor, ReactorOptions, Session};
 
-fn session(options: ReactorOptions) -> Reactor {
-    model().armflow().unwrap().reactor(options).unwrap()
+fn session(options: ReactorOptions) -> Session {
+    model().session(options).unwrap()
 }
 
 /// The cached context of every token equals a from-scratch causal pass over its history.
@@ -94,7 +94,8 @@ fn reset_equals_a_fresh_session() {
     let fresh = run_chunked(&mut session(options.clone()), &actor, 7);
     let mut s = session(options.clone());
     run_chunked(&mut s, &actor.slice(s![..90, ..]).to_owned(), 5);
-    s.queue_noise(s.seeded_noise(99)).unwrap(); // queued noise is dropped by reset too
+    let reactor = s.family_mut::<Reactor>().unwrap();
+    reactor.queue_noise(reactor.seeded_noise(99)).unwrap(); // queued noise is dropped by reset too
     s.reset();
     assert_eq!(
         (s.frames_received(), s.tokens_generated(), s.context_len()),
@@ -130,7 +131,7 @@ fn same_seed_is_bit_identical_across_runs_and_threads() {
         .map(|_| {
             let (model, actor) = (shared.clone(), actor.clone());
             std::thread::spawn(move || {
-                let mut s = model.armflow().unwrap().reactor(default_options()).unwrap();
+                let mut s = model.session(default_options()).unwrap();
                 run_chunked(&mut s, &actor, 4)
             })
         })
@@ -161,8 +162,10 @@ fn injected_noise_reproduces_a_seeded_run() {
         ..default_options()
     });
     let donor = session(default_options());
+    let donor = donor.family_ref::<Reactor>().unwrap();
+    let reactor = s.family_mut::<Reactor>().unwrap();
     for j in 0..48 {
-        s.queue_noise(donor.seeded_noise(j)).unwrap();
+        reactor.queue_noise(donor.seeded_noise(j)).unwrap();
     }
     assert!(run_chunked(&mut s, &actor, 4) == seeded);
 }
@@ -278,7 +281,10 @@ fn vae_steps_equal_vae_windows() {
             cfg_scale: Some(2.0),
             ..default_options()
         });
-        assert_eq!(s.uses_vae_steps(), !vae_windows);
+        assert_eq!(
+            s.family_ref::<Reactor>().unwrap().uses_vae_steps(),
+            !vae_windows
+        );
         run_chunked(&mut s, &actor(), 5)
     };
     let (frames_steps, tokens_steps) = run(false);
@@ -307,9 +313,7 @@ fn window_graphs_optimised_on_first_use_serve_racing_threads() {
     let fresh = Model::load(bundle_dir()).unwrap();
     let run = |model: &Model| {
         let mut s = model
-            .armflow()
-            .unwrap()
-            .reactor(ReactorOptions {
+            .session(ReactorOptions {
                 vae_windows: true,
                 ..default_options()
             })
@@ -324,64 +328,25 @@ fn window_graphs_optimised_on_first_use_serve_racing_threads() {
     assert!(racing.iter().all(|r| *r == after));
 }
 
-/// The family-neutral `Session` boxes a reactor: the same frames and tokens as the reactor
-/// itself, alone or in a crowd, the reactor's own settings through `family_mut`, and another
-/// family's stream type refused as unsupported.
+/// A session reaches its reactor's own settings through `family_ref`/`family_mut`, refuses
+/// another family's stream type as unsupported, and is not stepped together with a session of
+/// another model.
 #[test]
-fn a_session_streams_what_its_reactor_streams() {
+fn a_session_reaches_its_reactor_and_no_other_stream() {
     let m = model();
-    let actor = actor();
-    let options = |seed| ReactorOptions {
-        seed,
-        ..default_options()
-    };
-    let mut reactor = session(options(3));
-    let mut boxed = m.session(options(3)).unwrap();
-    assert_eq!(boxed.family(), "armflow");
-    assert_eq!(boxed.latency_frames(), reactor.latency_frames());
-    let flat: Vec<f32> = actor.slice(s![..24, ..]).iter().copied().collect();
-    let (a, b) = (
-        reactor.step_flat(&flat).unwrap(),
-        boxed.step_flat(&flat).unwrap(),
-    );
-    assert_eq!(a.frames, b.frames);
-    assert_eq!(a.tokens, b.tokens);
-
-    // The reactor's own settings, through the session.
-    let condition = vec![0.5; m.condition_dim()];
-    boxed
-        .family_mut::<Reactor>()
-        .unwrap()
-        .set_condition(Some(&condition))
-        .unwrap();
-    reactor.set_condition(Some(&condition)).unwrap();
-    let next: Vec<f32> = actor.slice(s![24..40, ..]).iter().copied().collect();
-    assert_eq!(
-        reactor.step_flat(&next).unwrap().frames,
-        boxed.step_flat(&next).unwrap().frames
-    );
-    let e = boxed.family_mut::<troupe::LivePartner>().unwrap_err();
+    let mut s = m.session(default_options()).unwrap();
+    assert_eq!(s.family(), "armflow");
+    assert!(s.family_ref::<Reactor>().unwrap().uses_vae_steps());
+    assert_eq!(s.family_ref::<Reactor>().unwrap().recentring(), None);
+    let e = s.family_mut::<troupe::LivePartner>().unwrap_err();
     assert!(matches!(e, troupe::Error::Unsupported(_)), "{e}");
     assert!(e.to_string().contains("`armflow` model"), "{e}");
 
-    // A crowd of sessions equals the same crowd of reactors.
-    let mut sessions: Vec<troupe::Session> =
-        (0..3).map(|i| m.session(options(i)).unwrap()).collect();
-    let mut reactors: Vec<Reactor> = (0..3).map(|i| session(options(i))).collect();
-    let chunks = [&flat[..4 * 262], &flat[..], &flat[..0]];
-    let mut session_refs: Vec<&mut troupe::Session> = sessions.iter_mut().collect();
-    let mut reactor_refs: Vec<&mut Reactor> = reactors.iter_mut().collect();
-    let together = troupe::step_sessions(&mut session_refs, &chunks).unwrap();
-    let alone = troupe::armflow::step_reactors(&mut reactor_refs, &chunks).unwrap();
-    for (s, r) in together.iter().zip(&alone) {
-        assert_eq!(s.frames, r.frames);
-    }
-    // Sessions of different families (or models) are not stepped together.
     let mut other = Model::load(bundle_dir())
         .unwrap()
-        .session(options(9))
+        .session(default_options())
         .unwrap();
-    let mut mixed = [&mut sessions[0], &mut other];
-    let e = troupe::step_sessions(&mut mixed, &[&flat[..0], &flat[..0]]).unwrap_err();
+    let mut mixed = [&mut s, &mut other];
+    let e = troupe::step_sessions(&mut mixed, &[&[][..], &[][..]]).unwrap_err();
     assert!(e.to_string().contains("another model"), "{e}");
 }

@@ -95,7 +95,7 @@ fn sessions_clips_and_groups_take_prompts_as_their_vectors() {
     let condition = armflow.encode_prompt(prompt).unwrap();
     let actor = golden2_in(&bundle("armflow-tiny-interhuman"), "clip_actor");
     let run = |options: ReactorOptions, set_prompt: bool| {
-        let mut s = armflow.armflow().unwrap().reactor(options).unwrap();
+        let mut s = armflow.session(options).unwrap();
         if set_prompt {
             s.set_prompt(prompt).unwrap();
         }
@@ -115,11 +115,7 @@ fn sessions_clips_and_groups_take_prompts_as_their_vectors() {
         by_vector,
         "the prompt changes the output"
     );
-    match armflow
-        .armflow()
-        .unwrap()
-        .reactor(seeded(Some(condition.clone()), Some(prompt.into())))
-    {
+    match armflow.session(seeded(Some(condition.clone()), Some(prompt.into()))) {
         Err(Error::InvalidOption(m)) => assert!(m.contains("not both"), "{m}"),
         other => panic!("condition and prompt together: {other:?}"),
     }
@@ -137,9 +133,7 @@ fn bundles_without_a_text_encoder_refuse_prompts_by_name() {
         model.encode_prompt("hello").map(|_| ()),
         model.prompt_token_ids("hello").map(|_| ()),
         model
-            .armflow()
-            .unwrap()
-            .reactor(ReactorOptions {
+            .session(ReactorOptions {
                 prompt: Some("hello".into()),
                 ..default_options()
             })
@@ -155,7 +149,7 @@ fn bundles_without_a_text_encoder_refuse_prompts_by_name() {
             other => panic!("a prompt to a bundle without a text encoder: {other:?}"),
         }
     }
-    let mut session = model.armflow().unwrap().reactor(default_options()).unwrap();
+    let mut session = model.session(default_options()).unwrap();
     assert!(session.set_prompt("hello").is_err());
 }
 
@@ -242,17 +236,13 @@ fn a_prompt_session_streams_like_a_vector_session_token_by_token() {
     let actor = golden2_in(&dir, "clip_actor");
     let prompt = "A person waves at the other, then both sit down.";
     let mut a = model
-        .armflow()
-        .unwrap()
-        .reactor(ReactorOptions {
+        .session(ReactorOptions {
             prompt: Some(prompt.into()),
             ..Default::default()
         })
         .unwrap();
     let mut b = model
-        .armflow()
-        .unwrap()
-        .reactor(ReactorOptions {
+        .session(ReactorOptions {
             condition: Some(model.encode_prompt(prompt).unwrap()),
             ..Default::default()
         })

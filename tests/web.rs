@@ -72,7 +72,7 @@ fn native_frames(model: &Model, bundle: &Path, case: &str) -> Vec<f32> {
         }
         other => panic!("no case {other}"),
     };
-    let mut session = model.armflow().unwrap().reactor(options).unwrap();
+    let mut session = model.session(options).unwrap();
     let (xi, eps) = (
         golden(&format!("{case}_xi")),
         golden(&format!("{case}_eps")),

@@ -35,7 +35,7 @@ impl Arflow {
         &self.nets.spec
     }
 
-    /// Whether the bundle is the online variant, which streams ([`Arflow::online`]).
+    /// Whether the bundle is the online variant, which streams (`Model::session`).
     pub fn streams(&self) -> bool {
         self.nets.streams()
     }
@@ -70,7 +70,7 @@ impl Arflow {
 
     /// Starts the online variant's stream: the bundle's sampler settings changed by `options`
     /// (its seed too).
-    pub fn online(&self, options: &ArflowOptions) -> Result<OnlineStream> {
+    pub(crate) fn online(&self, options: &ArflowOptions) -> Result<OnlineStream> {
         let sampling = options.apply(&self.nets.spec.sampler)?;
         OnlineStream::new(Arc::clone(&self.nets), sampling, options.seed)
     }

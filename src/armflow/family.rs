@@ -47,7 +47,7 @@ impl Armflow {
     }
 
     /// Starts a reactor stream; options left unset take the bundle's defaults.
-    pub fn reactor(&self, options: ReactorOptions) -> Result<Reactor> {
+    pub(crate) fn reactor(&self, options: ReactorOptions) -> Result<Reactor> {
         Reactor::new(Arc::clone(&self.nets), options)
     }
 

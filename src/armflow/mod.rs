@@ -31,4 +31,4 @@ pub(crate) use networks::Networks;
 // The guard and the smoothing are every session's now (`Session::set_penetration_guard`); their
 // types keep the paths they had here.
 pub use crate::family::motion::{PenetrationGuard, RootSmoothing};
-pub use session::{step_reactors, Reactor, ReactorOptions, Recentring, TokenNoise, HISTORY_TOKENS};
+pub use session::{Reactor, ReactorOptions, Recentring, TokenNoise, HISTORY_TOKENS};

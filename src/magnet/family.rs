@@ -126,7 +126,7 @@ impl Magnet {
 
     /// Starts a live partner stream (a two-person model's `motion_control_live`
     /// configuration). Give the partner's opening frames before the user's first frame.
-    pub fn partner(&self, options: PartnerOptions) -> Result<LivePartner> {
+    pub(crate) fn partner(&self, options: PartnerOptions) -> Result<LivePartner> {
         let settings = self.live_settings(&options)?;
         LivePartner::new(Arc::clone(&self.nets), settings)
     }

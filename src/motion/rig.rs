@@ -1,6 +1,6 @@
 //! A caller's character rig: the skeleton motion is retargeted onto and written out for.
 //!
-//! Unlike [`Skeleton`](crate::motion::Skeleton) (troupe's own t2m-22 body, in canonical axes), a
+//! Unlike [`Skeleton`] (troupe's own t2m-22 body, in canonical axes), a
 //! rig is whatever a game engine or a DCC tool has: any joint names, extra joints (a root bone,
 //! twist bones, fingers), any rest pose (T-pose, A-pose), rest rotations on its joints (glTF and
 //! FBX rigs have them; BVH rigs do not), and its own units and axes. It comes from a BVH

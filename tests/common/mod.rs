@@ -11,7 +11,7 @@ use std::sync::OnceLock;
 
 use ndarray::{Array1, Array2};
 use ndarray_npy::read_npy;
-use troupe::{Model, Reactor, ReactorOptions, TokenNoise, TokenTrace};
+use troupe::{Model, Reactor, ReactorOptions, Session, TokenNoise, TokenTrace};
 
 /// The committed tiny bundle.
 pub fn bundle_dir() -> PathBuf {
@@ -85,7 +85,7 @@ pub fn max_abs_diff(a: &[f32], b: &[f32]) -> f32 {
 }
 
 /// Queues the golden case's injected noise into a session.
-pub fn queue_golden_noise(session: &mut Reactor, case: &str) {
+pub fn queue_golden_noise(session: &mut Session, case: &str) {
     queue_noise_rows(
         session,
         &golden2(&format!("{case}_xi")),
@@ -95,9 +95,10 @@ pub fn queue_golden_noise(session: &mut Reactor, case: &str) {
 
 /// Queues one token's noise per row: the actor's standard normals `xi`, the reactor's `eps`.
 #[allow(dead_code)] // not every test binary queues noise
-pub fn queue_noise_rows(session: &mut Reactor, xi: &Array2<f32>, eps: &Array2<f32>) {
+pub fn queue_noise_rows(session: &mut Session, xi: &Array2<f32>, eps: &Array2<f32>) {
+    let reactor = session.family_mut::<Reactor>().unwrap();
     for (a, r) in xi.rows().into_iter().zip(eps.rows()) {
-        session
+        reactor
             .queue_noise(TokenNoise {
                 actor: a.to_vec(),
                 reactor: r.to_vec(),
@@ -108,7 +109,7 @@ pub fn queue_noise_rows(session: &mut Reactor, xi: &Array2<f32>, eps: &Array2<f3
 
 /// Feeds `actor` in chunks of `chunk` frames; returns all frames and the token traces.
 pub fn run_chunked(
-    session: &mut Reactor,
+    session: &mut Session,
     actor: &Array2<f32>,
     chunk: usize,
 ) -> (Vec<f32>, Vec<TokenTrace>) {

@@ -4,7 +4,7 @@
 //! working copy of its state. The loop runs in rounds; each round generates the next token of
 //! every lane that has the frames for one, with one network call per graph for all of them, so
 //! the weights are read once per round however many streams there are. A single
-//! [`Reactor::step`](super::Session::step) is a batch of one lane through the same code.
+//! A session's step ([`crate::Session::step`]) is a batch of one lane through the same code.
 //!
 //! Every token's actor latent, context, reactor latent, VAE state and decoded frames are checked
 //! to be finite before the loop goes on: extreme settings or inputs can overflow a network, and

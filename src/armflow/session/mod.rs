@@ -21,8 +21,6 @@
 use std::collections::VecDeque;
 use std::sync::Arc;
 
-use ndarray::{Array2, ArrayView2};
-
 use crate::armflow::kv_cache::KvCache;
 use crate::armflow::meanflow::meanflow_grid;
 use crate::armflow::networks::{Conditioning, Networks, VaeState};
@@ -249,54 +247,23 @@ impl Reactor {
     }
 
     /// Floats per motion frame, in and out.
-    pub fn frame_dim(&self) -> usize {
+    pub(crate) fn frame_dim(&self) -> usize {
         self.nets.frame_dim()
     }
 
     /// Floats per latent token (the length of each [`TokenNoise`] vector).
-    pub fn latent_dim(&self) -> usize {
+    pub(crate) fn latent_dim(&self) -> usize {
         self.nets.latent_dim()
     }
 
     /// Floats in the conditioning vector [`Reactor::set_condition`] takes.
-    pub fn condition_dim(&self) -> usize {
+    pub(crate) fn condition_dim(&self) -> usize {
         self.nets.io.condition.dim
     }
 
-    /// Feeds any number of actor frames (`[n, frame_dim]`, n may be 0) and returns the reactor
-    /// frames that became ready (a multiple of frames_per_token rows). On error the session is
-    /// unchanged.
-    pub fn step(&mut self, actor: ArrayView2<f32>) -> Result<Array2<f32>> {
-        Ok(self.step_detailed(actor)?.frames)
-    }
-
-    /// [`Reactor::step`], also returning the latent tokens and contexts it computed.
-    pub fn step_detailed(&mut self, actor: ArrayView2<f32>) -> Result<StepOutput> {
-        let dim = self.nets.frame_dim();
-        if actor.ncols() != dim {
-            return Err(Error::InvalidInput(format!(
-                "actor frames have {} features, the bundle's `{}` layout has {dim}",
-                actor.ncols(),
-                self.nets.io.motion.layout
-            )));
-        }
-        let owned;
-        let flat = match actor.as_slice() {
-            Some(s) => s,
-            None => {
-                owned = actor.as_standard_layout().into_owned();
-                owned.as_slice().expect("standard layout")
-            }
-        };
-        self.step_flat(flat)
-    }
-
-    /// [`Reactor::step_detailed`] on row-major frames (`n * frame_dim` floats).
-    pub fn step_flat(&mut self, actor: &[f32]) -> Result<StepOutput> {
-        self.step_finished(actor, &mut |_, _| Ok(()))
-    }
-
-    /// [`Reactor::step_flat`] with `finish` run on the output before the step is committed.
+    /// Feeds row-major actor frames (`n * frame_dim` floats, n may be 0) and returns the reactor
+    /// frames that became ready, `finish` run on them before the step is committed (the
+    /// session's motion stages). On error the stream is unchanged.
     fn step_finished(&mut self, actor: &[f32], finish: Finish<'_>) -> Result<StepOutput> {
         let dim = self.nets.frame_dim();
         check_actor_chunk(actor, dim)?;
@@ -307,7 +274,7 @@ impl Reactor {
 
     /// Returns the session to the state of a fresh session with the current settings (seed,
     /// steps, CFG, condition, capacity). Queued noise is dropped.
-    pub fn reset(&mut self) {
+    pub(crate) fn reset(&mut self) {
         self.state = StreamState::new(self.spec(), self.settings.capacity, self.vae_start.clone());
         if self.settings.recentring.is_some() {
             self.state.history = Some(History::starting_at(0));
@@ -316,7 +283,7 @@ impl Reactor {
 
     /// Algorithmic latency in frames (as [`crate::Model::latency_frames`]): how many actor
     /// frames after frame `t` arrive before the reactor frame `t` is out.
-    pub fn latency_frames(&self) -> usize {
+    pub(crate) fn latency_frames(&self) -> usize {
         self.spec().latency_frames()
     }
 
@@ -347,12 +314,12 @@ impl Reactor {
     }
 
     /// Sets the noise seed; applies to tokens generated from now on.
-    pub fn set_seed(&mut self, seed: u64) {
+    pub(crate) fn set_seed(&mut self, seed: u64) {
         self.settings.seed = seed;
     }
 
     /// Sets the number of MeanFlow steps per token (>= 1).
-    pub fn set_steps(&mut self, steps: u32) -> Result<()> {
+    pub(crate) fn set_steps(&mut self, steps: u32) -> Result<()> {
         check_steps("sampler steps", steps)?;
         self.settings.steps = steps;
         self.grid = meanflow_grid(steps);
@@ -361,7 +328,7 @@ impl Reactor {
 
     /// Sets the classifier-free guidance scale (finite; guides only above 1, as the official
     /// sampler does).
-    pub fn set_cfg_scale(&mut self, scale: f32) -> Result<()> {
+    pub(crate) fn set_cfg_scale(&mut self, scale: f32) -> Result<()> {
         check_cfg(scale)?;
         self.settings.cfg_scale = scale;
         Ok(())
@@ -369,7 +336,7 @@ impl Reactor {
 
     /// Sets the conditioning vector (`None`: the null condition). Runs the conditioning graph
     /// once; applies to tokens generated from now on.
-    pub fn set_condition(&mut self, condition: Option<&[f32]>) -> Result<()> {
+    pub(crate) fn set_condition(&mut self, condition: Option<&[f32]>) -> Result<()> {
         self.conditioning = self.nets.conditioning(condition)?;
         self.settings.condition = condition.map(<[f32]>::to_vec);
         Ok(())
@@ -377,7 +344,7 @@ impl Reactor {
 
     /// Conditions the tokens generated from now on on a text prompt: [`Reactor::set_condition`]
     /// with [`crate::Model::encode_prompt`]'s condition (cached per prompt in the model).
-    pub fn set_prompt(&mut self, prompt: &str) -> Result<()> {
+    pub(crate) fn set_prompt(&mut self, prompt: &str) -> Result<()> {
         let condition = encode_prompt(&self.nets, prompt)?;
         self.set_condition(Some(&condition))
     }
@@ -412,7 +379,7 @@ impl Reactor {
     /// Queues whole tokens of standard normals in the order the sampler draws them: per token
     /// the actor's posterior noise, then the reactor's start noise (`latent_dim` each), as
     /// [`Reactor::queue_noise`] does token by token.
-    pub fn queue_normals(&mut self, normals: &[f32]) -> Result<()> {
+    pub(crate) fn queue_normals(&mut self, normals: &[f32]) -> Result<()> {
         check_input("queued normals", normals)?;
         let lat = self.nets.latent_dim();
         if !normals.len().is_multiple_of(2 * lat) {
@@ -452,7 +419,7 @@ impl Reactor {
     }
 
     /// Exactly how many reactor frames a `step` with `n_actor_frames` new frames will return.
-    pub fn frames_ready_after(&self, n_actor_frames: usize) -> usize {
+    pub(crate) fn frames_ready_after(&self, n_actor_frames: usize) -> usize {
         let m = self.spec();
         let fpt = m.latent.frames_per_token as u64;
         let received = self
@@ -465,24 +432,24 @@ impl Reactor {
     }
 
     /// Actor frames received since the start (or the last reset).
-    pub fn frames_received(&self) -> u64 {
+    pub(crate) fn frames_received(&self) -> u64 {
         self.state.frames_received
     }
 
     /// Reactor frames returned since the start (or the last reset).
-    pub fn frames_emitted(&self) -> u64 {
+    pub(crate) fn frames_emitted(&self) -> u64 {
         self.state.frames_emitted
     }
 
     /// Tokens generated since the start (or the last reset).
-    pub fn tokens_generated(&self) -> u64 {
+    pub(crate) fn tokens_generated(&self) -> u64 {
         self.state.tokens
     }
 
     /// Bytes this stream holds: its context cache, VAE state, buffered frames and latents, and
     /// its conditioning. Bounded by the context capacity however long the stream runs (allocator
     /// overhead and the model's weights, shared by all sessions, are not counted).
-    pub fn memory_bytes(&self) -> usize {
+    pub(crate) fn memory_bytes(&self) -> usize {
         let st = &self.state;
         let floats = st.actor_frames.capacity()
             + st.last_pair.capacity()
@@ -498,7 +465,7 @@ impl Reactor {
     }
 
     /// Entries held in the context cache (`<sos>` included); never above the capacity.
-    pub fn context_len(&self) -> usize {
+    pub(crate) fn context_len(&self) -> usize {
         self.state.cache.len()
     }
 }
@@ -550,21 +517,16 @@ impl StreamState {
     }
 }
 
-/// Advances many sessions of one model in one call: `actor[i]` (row-major frames, any number)
-/// goes to `sessions[i]`, and the result's entry `i` is what [`Reactor::step_flat`] would have
-/// returned for it. Each round of the loop runs every graph once for all the sessions that have
-/// a token to generate, so the weights are read once per round rather than once per session;
-/// each session's outputs equal stepping it alone up to float rounding (<= 1e-5 in the tests).
+/// Advances many reactors of one model in one call (what `step_sessions` runs for ARMFlow):
+/// `actor[i]` (row-major frames, any number) goes to `sessions[i]`, `finish` runs on each output
+/// before the step is committed (the sessions' motion stages). Each round of the loop runs every
+/// graph once for all the sessions that have a token to generate, so the weights are read once
+/// per round rather than once per session; each session's outputs equal stepping it alone up to
+/// float rounding (<= 1e-5 in the tests).
 ///
 /// Sessions may differ in everything but their model (same [`crate::Model`] or a clone): seed,
 /// steps, CFG, condition, capacity, history length, and how many frames they are given. On error
 /// every session is unchanged.
-pub fn step_reactors(sessions: &mut [&mut Reactor], actor: &[&[f32]]) -> Result<Vec<StepOutput>> {
-    step_reactors_finished(sessions, actor, &mut |_, _| Ok(()))
-}
-
-/// [`step_reactors`] with `finish` run on each session's output before the step is committed
-/// (the session's motion stages).
 fn step_reactors_finished(
     sessions: &mut [&mut Reactor],
     actor: &[&[f32]],
