@@ -66,10 +66,10 @@
 
 /* Version of this header, from Cargo.toml; compare with troupe_version_number(). */
 #define TROUPE_VERSION_MAJOR 0
-#define TROUPE_VERSION_MINOR 1
+#define TROUPE_VERSION_MINOR 2
 #define TROUPE_VERSION_PATCH 0
-#define TROUPE_VERSION_STRING "0.1.0"
-#define TROUPE_VERSION_NUMBER 256
+#define TROUPE_VERSION_STRING "0.2.0"
+#define TROUPE_VERSION_NUMBER 512
 
 /* Marks the deprecated names; define TROUPE_NO_DEPRECATION_WARNINGS to silence them. */
 #if defined(TROUPE_NO_DEPRECATION_WARNINGS)
@@ -121,7 +121,7 @@ extern "C" {
 #define TROUPE_ABI_VERSION 1
 
 /**
- * The library version, e.g. `"0.1.0"`.
+ * The library version, e.g. `"0.2.0"`.
  *
  * Returns a static NUL-terminated string (never free it). Thread-safe.
  */
@@ -713,8 +713,12 @@ size_t troupe_model_clip_frames(const struct troupe_model *model);
 typedef struct troupe_session troupe_session;
 
 /**
- * Options of a new session. Fill with `troupe_session_options_init`, then change fields.
- * Fields are only ever appended; `struct_size` tells the library which version the caller has.
+ * Options every stream takes at its start. Fill with `troupe_session_options_init`, then change
+ * fields. Fields are only ever appended; `struct_size` tells the library which version the
+ * caller has. A family's own options go in its own struct (`troupe_armflow_session_options`);
+ * `cfg_scale` and `actor_latent` are ARMFlow's, kept here (deprecated since 0.2) so that 0.1
+ * programs keep their layout: `troupe_session_new` still reads them, and
+ * `troupe_armflow_session_new` does not.
  */
 typedef struct troupe_session_options {
   /**
@@ -730,7 +734,8 @@ typedef struct troupe_session_options {
    */
   uint64_t seed;
   /**
-   * Classifier-free guidance scale, finite; 1 disables guidance (a magnet session takes 1).
+   * Deprecated since 0.2 (use `troupe_armflow_session_options.cfg_scale`): an ARMFlow
+   * stream's classifier-free guidance scale, finite; another family's session takes 1.
    */
   float cfg_scale;
   /**
@@ -739,8 +744,9 @@ typedef struct troupe_session_options {
    */
   uint32_t context_capacity;
   /**
-   * `TROUPE_ACTOR_LATENT_SAMPLE` or `TROUPE_ACTOR_LATENT_MEAN` (armflow; a magnet session
-   * takes `_SAMPLE`, which it ignores).
+   * Deprecated since 0.2 (use `troupe_armflow_session_options.actor_latent`):
+   * `TROUPE_ACTOR_LATENT_SAMPLE` or `_MEAN` for an ARMFlow stream; another family's session
+   * takes `_SAMPLE`.
    */
   int32_t actor_latent;
   /**
@@ -776,7 +782,8 @@ troupe_status troupe_session_options_init(const struct troupe_model *model, stru
 /**
  * Starts a stream on `model` with `options` (NULL: the bundle's defaults). On an `armflow`
  * model the session answers an actor with the reactor, starting with the null condition (set
- * one with `troupe_session_set_condition`). On a two-person `magnet` model it answers a user
+ * one with `troupe_session_set_condition`); `troupe_armflow_session_new` opens one with
+ * ARMFlow's own options. On a two-person `magnet` model it answers a user
  * with the live partner (its `motion_control_live` configuration); give the partner's opening
  * frames with `troupe_magnet_session_set_partner_opening` before the first step.
  *
@@ -1939,7 +1946,7 @@ troupe_status troupe_session_set_root_smoothing(struct troupe_session *session, 
 /* ============================================================================================
  * 11. ARMFlow
  *
- * Online reaction: recentring, noise queued per token, the official clip.
+ * Online reaction: its session options, recentring, noise queued per token, the official clip.
  * ============================================================================================ */
 
 /**
@@ -1993,6 +2000,32 @@ typedef struct troupe_armflow_clip_options {
    */
   uint32_t reserved;
 } troupe_armflow_clip_options;
+
+/**
+ * Options only an ARMFlow stream takes. Fill with `troupe_armflow_session_options_init`, then
+ * change fields. Fields are only ever appended; `struct_size` tells the library which version
+ * the caller has.
+ */
+typedef struct troupe_armflow_session_options {
+  /**
+   * `sizeof(troupe_armflow_session_options)` as the caller compiled it (set by `_init`).
+   */
+  uint32_t struct_size;
+  /**
+   * Classifier-free guidance scale, finite; the stream guides only above 1, as the official
+   * sampler does. Changeable later with `troupe_session_set_cfg_scale`.
+   */
+  float cfg_scale;
+  /**
+   * `TROUPE_ACTOR_LATENT_SAMPLE` (the official choice) or `TROUPE_ACTOR_LATENT_MEAN`.
+   */
+  int32_t actor_latent;
+  /**
+   * Nonzero: run the VAE over windows of frames (the reference path) rather than the
+   * bundle's per-token steps; slower, and recentring is then unavailable.
+   */
+  int32_t vae_windows;
+} troupe_armflow_session_options;
 
 /**
  * `sizeof(troupe_armflow_clip_options)` in this library, for bindings to check their mirror.
@@ -2089,6 +2122,53 @@ troupe_status troupe_armflow_clip_generate_with_options(const struct troupe_mode
  * `session` must be a live handle; both noise pointers readable for `len` floats.
  */
 troupe_status troupe_armflow_session_queue_noise(struct troupe_session *session, const float *actor_noise, const float *reactor_noise, size_t len);
+
+/**
+ * `sizeof(troupe_armflow_session_options)` in this library, for bindings to check their mirror.
+ * Thread-safe.
+ */
+size_t troupe_armflow_session_options_size(void);
+
+/**
+ * Fills `options` with the defaults of `model`'s bundle (its CFG scale and actor latent, the
+ * VAE's per-token steps) and sets `struct_size`. Pass `sizeof(troupe_armflow_session_options)`
+ * as `options_size`: the library writes only that many bytes (zeroing fields it does not know).
+ *
+ * Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (an `options_size`
+ * smaller than the first version of the struct), `TROUPE_ERR_UNSUPPORTED` (not an ARMFlow
+ * model). Thread-safe.
+ *
+ * # Safety
+ * `model` must be a live handle; `options` must be writable for `options_size` bytes.
+ */
+troupe_status troupe_armflow_session_options_init(const struct troupe_model *model, struct troupe_armflow_session_options *options, size_t options_size);
+
+/**
+ * Starts an ARMFlow stream on `model` (the reactor to an actor, from the null condition) with
+ * the options every stream takes (`options`, NULL: the bundle's defaults) and ARMFlow's own
+ * (`armflow`, NULL: the bundle's defaults). The deprecated `cfg_scale` and `actor_latent` fields
+ * of `options` are not read: `armflow` says them.
+ *
+ * On success `*out` receives a new handle owned by the caller (free with
+ * `troupe_session_free`); it keeps `model` alive. On failure `*out` is set to NULL.
+ *
+ * Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (bad option values or
+ * `struct_size`), `TROUPE_ERR_UNSUPPORTED` (not an ARMFlow model), `TROUPE_ERR_INFERENCE`,
+ * `TROUPE_ERR_PANIC`. Thread-safe with respect to `model`.
+ *
+ * ```c
+ * troupe_armflow_session_options arm;
+ * troupe_armflow_session_options_init(model, &arm, sizeof arm);
+ * arm.cfg_scale = 2.0f;
+ * troupe_session *session = NULL;
+ * troupe_status st = troupe_armflow_session_new(model, NULL, &arm, &session);
+ * ```
+ *
+ * # Safety
+ * `model` must be a live handle; `options` and `armflow` NULL or readable for their
+ * `struct_size`; `out` writable.
+ */
+troupe_status troupe_armflow_session_new(const struct troupe_model *model, const struct troupe_session_options *options, const struct troupe_armflow_session_options *armflow, struct troupe_session **out);
 
 /**
  * Turns an ARMFlow session's recentring on (`enabled` nonzero) or off: before each token, when

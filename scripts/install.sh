@@ -11,7 +11,7 @@
 #   PREFIX/lib/pkgconfig/troupe.pc           pkg-config, shared (Libs.private: the static link's)
 #   PREFIX/lib/pkgconfig/troupe-static.pc    pkg-config, static
 #   PREFIX/lib/cmake/troupe/troupeConfig.cmake, troupeConfigVersion.cmake
-#                                            find_package(troupe 1): troupe::troupe (shared),
+#                                            find_package(troupe 0.2): troupe::troupe (shared),
 #                                            troupe::troupe_static
 #   PREFIX/share/troupe/bundles/armflow-demo the trained demo model
 #
@@ -147,7 +147,7 @@ EOF
     rm -f "$lib/pkgconfig/troupe-static.pc"
     cat >"$lib/cmake/troupe/troupeConfig.cmake" <<EOF
 # troupe's CMake package for Windows x64 (scripts/install.sh --target x86_64-pc-windows-gnu).
-# find_package(troupe $abi) gives troupe::troupe: bin/troupe.dll, imported through
+# find_package(troupe $version) gives troupe::troupe: bin/troupe.dll, imported through
 # lib/libtroupe.dll.a (MinGW); with MSVC, make troupe.lib from lib/troupe.def and set the
 # target's IMPORTED_IMPLIB to it. troupe_BUNDLE_DIR: the installed models.
 get_filename_component(_troupe_prefix "\${CMAKE_CURRENT_LIST_DIR}/../../.." ABSOLUTE)
@@ -173,20 +173,30 @@ EOF
 # The CMake package's version file, the same for every target.
 write_config_version() {
 cat >"$lib/cmake/troupe/troupeConfigVersion.cmake" <<EOF
-# The package is versioned by the C ABI ($abi): any request for major version $abi is met, as
-# the shared library's SONAME promises (docs/ABI.md); the library's release is $version.
-set(PACKAGE_VERSION "$abi")
+# The package's version is the library's release ($version). Every release from 0.1 on speaks
+# C ABI $abi (docs/ABI.md), so a request for an older or equal 0.x release is met by this one;
+# a request for a newer release is not. A request for the ABI number itself ($abi, what the 0.1
+# package was versioned by) is met too, as the SONAME libtroupe.so.$abi promises; once releases
+# reach 1.0 the release's major number is the ABI's.
+set(PACKAGE_VERSION "$version")
 if(PACKAGE_FIND_VERSION STREQUAL "")
     set(PACKAGE_VERSION_COMPATIBLE TRUE)
-elseif(NOT PACKAGE_FIND_VERSION_MAJOR EQUAL $abi)
-    set(PACKAGE_VERSION_COMPATIBLE FALSE)
-else()
-    set(PACKAGE_VERSION_COMPATIBLE TRUE)
-    if(PACKAGE_FIND_VERSION STREQUAL PACKAGE_VERSION)
-        set(PACKAGE_VERSION_EXACT TRUE)
+elseif(PACKAGE_FIND_VERSION_MAJOR EQUAL 0)
+    if(PACKAGE_FIND_VERSION_MINOR GREATER_EQUAL 1 AND NOT PACKAGE_FIND_VERSION VERSION_GREATER PACKAGE_VERSION)
+        set(PACKAGE_VERSION_COMPATIBLE TRUE)
+    else()
+        set(PACKAGE_VERSION_COMPATIBLE FALSE)
     endif()
+elseif(PACKAGE_FIND_VERSION_MAJOR EQUAL $abi AND PACKAGE_FIND_VERSION_COUNT EQUAL 1)
+    set(PACKAGE_VERSION_COMPATIBLE TRUE)
+else()
+    set(PACKAGE_VERSION_COMPATIBLE FALSE)
 endif()
-if(NOT CMAKE_SIZEOF_VOID_P STREQUAL "8")
+if(PACKAGE_FIND_VERSION STREQUAL PACKAGE_VERSION)
+    set(PACKAGE_VERSION_EXACT TRUE)
+endif()
+# A project without languages has no pointer size: only a known one that differs is refused.
+if(NOT "\${CMAKE_SIZEOF_VOID_P}" STREQUAL "" AND NOT CMAKE_SIZEOF_VOID_P STREQUAL "8")
     set(PACKAGE_VERSION "\${PACKAGE_VERSION} (64-bit)")
     set(PACKAGE_VERSION_UNSUITABLE TRUE)
 endif()
@@ -237,7 +247,7 @@ Libs: \${libdir}/libtroupe.a $static_flags $static_libs
 EOF
 
 cat >"$lib/cmake/troupe/troupeConfig.cmake" <<EOF
-# troupe's CMake package (scripts/install.sh). find_package(troupe $abi) gives:
+# troupe's CMake package (scripts/install.sh). find_package(troupe $version) gives:
 #   troupe::troupe          the shared library, libtroupe.so.$abi
 #   troupe::troupe_static   the static library with the system libraries it needs
 #   troupe_VERSION          the C ABI version the package is found by ($abi)

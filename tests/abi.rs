@@ -4,7 +4,8 @@
 //!   every one `troupe_`-prefixed and declared in `include/troupe.h`, every header function
 //!   exported;
 //! - its SONAME carries the ABI version;
-//! - a program compiled against the frozen 0.1.0 header (`abi/0.1.0/troupe.h`) runs against it;
+//! - programs compiled against the frozen 0.1.0 and 0.2.0 headers (`abi/<release>/troupe.h`) run
+//!   against it;
 //! - the 0.1 names compile against today's header with a deprecation warning naming the new one.
 
 mod common;
@@ -163,17 +164,18 @@ fn soname_carries_the_abi_version() {
     );
 }
 
-#[test]
-fn a_program_built_against_the_0_1_header_runs_against_this_library() {
+/// Compiles `tests/c/{program}.c` against the frozen header of `release` (first on the include
+/// path, so `#include "troupe.h"` is that release's), runs it on the tiny bundles `bundles`
+/// against this library, and asserts every check passed.
+fn run_against_frozen_header(release: &str, program: &str, bundles: &[&str]) {
     let dir = tempfile::tempdir().unwrap();
-    let binary = dir.path().join("abi_0_1");
+    let binary = dir.path().join(program);
     let libdir = libs().display().to_string();
-    // The frozen header comes first on the include path, so `#include "troupe.h"` is 0.1.0's.
     let out = Command::new("cc")
         .args(["-std=c99", "-Wall", "-Wextra", "-Werror", "-pedantic"])
-        .arg(format!("-I{}", root().join("abi/0.1.0").display()))
+        .arg(format!("-I{}", root().join("abi").join(release).display()))
         .arg(format!("-I{}", root().join("tests/c").display()))
-        .arg(root().join("tests/c/abi_0_1.c"))
+        .arg(root().join(format!("tests/c/{program}.c")))
         .arg("-o")
         .arg(&binary)
         .args([
@@ -186,29 +188,43 @@ fn a_program_built_against_the_0_1_header_runs_against_this_library() {
         .expect("run cc");
     assert!(
         out.status.success(),
-        "compiling against the 0.1.0 header failed:\n{}",
+        "compiling against the {release} header failed:\n{}",
         String::from_utf8_lossy(&out.stderr)
     );
-    let bundles = root().join("onnx/bundles");
     let run = Command::new(&binary)
-        .args(
-            [
-                "armflow-tiny",
-                "armflow-tiny-interhuman",
-                "umf-tiny",
-                "magnet-tiny",
-                "arflow-tiny-online",
-            ]
-            .map(|b| bundles.join(b)),
-        )
+        .args(bundles.iter().map(|b| root().join("onnx/bundles").join(b)))
         .output()
-        .expect("run the 0.1.0 program");
+        .unwrap_or_else(|e| panic!("run the {release} program: {e}"));
     let text = format!(
         "{}{}",
         String::from_utf8_lossy(&run.stdout),
         String::from_utf8_lossy(&run.stderr)
     );
     assert!(run.status.success() && text.contains(" 0 failed"), "{text}");
+}
+
+#[test]
+fn a_program_built_against_the_0_1_header_runs_against_this_library() {
+    run_against_frozen_header(
+        "0.1.0",
+        "abi_0_1",
+        &[
+            "armflow-tiny",
+            "armflow-tiny-interhuman",
+            "umf-tiny",
+            "magnet-tiny",
+            "arflow-tiny-online",
+        ],
+    );
+}
+
+#[test]
+fn a_program_built_against_the_0_2_header_runs_against_this_library() {
+    run_against_frozen_header(
+        "0.2.0",
+        "abi_0_2",
+        &["armflow-tiny", "arflow-tiny-online", "magnet-tiny"],
+    );
 }
 
 #[test]
@@ -246,5 +262,35 @@ fn the_old_names_compile_with_a_warning_naming_the_new_one() {
         quiet.status.success(),
         "{}",
         String::from_utf8_lossy(&quiet.stderr)
+    );
+}
+
+/// Every package and binding says the release `Cargo.toml` says (`docs/ABI.md`, "Releases and
+/// the ABI"), and the release's header is frozen.
+#[test]
+fn every_package_says_one_release() {
+    let release = env!("CARGO_PKG_VERSION");
+    let places: [(&str, &str); 8] = [
+        ("bindings/web/Cargo.toml", "\nversion = \"{}\""),
+        ("bindings/python/pyproject.toml", "\nversion = \"{}\""),
+        ("bindings/python/troupe/__init__.py", "\n__version__ = \"{}\""),
+        ("bindings/csharp/Troupe.cs", "AssemblyVersion(\"{}\")"),
+        ("unity/package.json", "\"version\": \"{}\""),
+        ("include/troupe.h", "#define TROUPE_VERSION_STRING \"{}\""),
+        ("README.md", "troupe-{}-py3"),
+        ("docs/INSTALL.md", "troupe-{}-py3"),
+    ];
+    for (file, pattern) in places {
+        let text = std::fs::read_to_string(root().join(file)).unwrap();
+        let expected = pattern.replace("{}", release);
+        assert!(
+            text.contains(&expected),
+            "{file} does not say release {release} (expected `{}`)",
+            expected.trim()
+        );
+    }
+    assert!(
+        root().join("abi").join(release).join("troupe.h").is_file(),
+        "abi/{release}/troupe.h: the release's header is not frozen"
     );
 }

@@ -75,8 +75,10 @@ const SECTIONS: &[(&str, &str, &[&str])] = &[
     ),
     (
         "ARMFlow",
-        "Online reaction: recentring, noise queued per token, the official clip.",
+        "Online reaction: its session options, recentring, noise queued per token, the \
+         official clip.",
         &[
+            "armflow/options.rs",
             "armflow/recentring.rs",
             "armflow/noise.rs",
             "armflow/clip.rs",

@@ -25,6 +25,10 @@ using System.Collections.Generic;
 using System.Runtime.InteropServices;
 using System.Text;
 
+// The binding's release: the library's version it was written for (a test checks they match).
+[assembly: System.Reflection.AssemblyVersion("0.2.0")]
+[assembly: System.Reflection.AssemblyInformationalVersion("0.2.0")]
+
 namespace Troupe
 {
     /// <summary>A troupe call failed: <see cref="Status"/> is the TROUPE_ERR_* code and
@@ -138,7 +142,7 @@ namespace Troupe
 
         private Model(ModelHandle handle) { Handle = handle; }
 
-        /// <summary>The library's version, e.g. "0.1.0".</summary>
+        /// <summary>The library's version, e.g. "0.2.0".</summary>
         public static string Version { get { return Native.Utf8(Native.troupe_version_string()); } }
         /// <summary>The C ABI version the library speaks (this binding needs 1).</summary>
         public static uint AbiVersion { get { return Native.troupe_abi_version(); } }

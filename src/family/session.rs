@@ -137,7 +137,17 @@ impl Session {
     /// every stream whose frames the motion stages know (`docs/MOTION.md`); on error the session
     /// is unchanged.
     pub fn step_joints(&mut self, positions: ArrayView3<f32>) -> Result<Vec<Pose>> {
-        let out = step_sessions_joints(&mut [self], &[positions])?;
+        self.step_joints_bounded(positions, usize::MAX)
+    }
+
+    /// [`Session::step_joints`] that fails, leaving the session unchanged, when more than
+    /// `max_poses` poses would come out (the C ABI's caller-sized buffers).
+    pub(crate) fn step_joints_bounded(
+        &mut self,
+        positions: ArrayView3<f32>,
+        max_poses: usize,
+    ) -> Result<Vec<Pose>> {
+        let out = joints_bounded(&mut [self], &[positions], &[max_poses])?;
         Ok(out.into_iter().next().expect("one session, one output"))
     }
 
@@ -357,6 +367,16 @@ pub fn step_sessions_joints(
     sessions: &mut [&mut Session],
     positions: &[ArrayView3<f32>],
 ) -> Result<Vec<Vec<Pose>>> {
+    joints_bounded(sessions, positions, &[])
+}
+
+/// [`step_sessions_joints`] that fails, changing no session, when session `i` would return
+/// more than `max_poses[i]` poses (empty: unbounded).
+fn joints_bounded(
+    sessions: &mut [&mut Session],
+    positions: &[ArrayView3<f32>],
+    max_poses: &[usize],
+) -> Result<Vec<Vec<Pose>>> {
     if positions.len() != sessions.len() {
         return Err(Error::InvalidInput(format!(
             "{} sessions but {} chunks of joint positions",
@@ -394,7 +414,7 @@ pub fn step_sessions_joints(
         frames.push(flat);
     }
     let chunks: Vec<&[f32]> = frames.iter().map(Vec::as_slice).collect();
-    let out = advance_with(sessions, &chunks, &[], stages, true, indexed)?;
+    let out = advance_with(sessions, &chunks, max_poses, stages, true, indexed)?;
     Ok(out.into_iter().map(|(_, poses)| poses).collect())
 }
 
@@ -447,6 +467,7 @@ fn advance_with(
     };
     let whose = |i: usize, e: Error| match e {
         Error::InvalidInput(m) if indexed => Error::InvalidInput(format!("session {i}: {m}")),
+        Error::OutputTooSmall(m) if indexed => Error::OutputTooSmall(format!("session {i}: {m}")),
         other => other,
     };
     if let Some(i) = (1..sessions.len()).find(|&i| {
@@ -466,7 +487,7 @@ fn advance_with(
         if out > max {
             return Err(whose(
                 i,
-                Error::InvalidInput(format!(
+                Error::OutputTooSmall(format!(
                     "this call returns {out} frames, the output holds {max}"
                 )),
             ));

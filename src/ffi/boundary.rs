@@ -43,6 +43,7 @@ impl From<Error> for FfiError {
             Error::Inference { .. } => TROUPE_ERR_INFERENCE,
             Error::Cancelled(_) => TROUPE_ERR_CANCELLED,
             Error::Unsupported(_) => TROUPE_ERR_UNSUPPORTED,
+            Error::OutputTooSmall(_) => TROUPE_ERR_BUFFER_TOO_SMALL,
         };
         Self::new(status, e.to_string())
     }

@@ -6,6 +6,7 @@
 use std::ffi::c_char;
 use std::sync::atomic::{AtomicBool, Ordering};
 
+use crate::ffi::armflow::options::{actor_latent_code, actor_latent_of};
 use crate::ffi::boundary::{
     self, check_struct_size, checked_mul, non_null, read_versioned, troupe_status, write_versioned,
     Exclusive, FfiError, FfiResult, TROUPE_ERR_BUFFER_TOO_SMALL, TROUPE_ERR_INVALID_ARG,
@@ -19,8 +20,12 @@ pub const TROUPE_ACTOR_LATENT_SAMPLE: i32 = 0;
 /// Actor tokens are the posterior mean: no actor noise is drawn.
 pub const TROUPE_ACTOR_LATENT_MEAN: i32 = 1;
 
-/// Options of a new session. Fill with `troupe_session_options_init`, then change fields.
-/// Fields are only ever appended; `struct_size` tells the library which version the caller has.
+/// Options every stream takes at its start. Fill with `troupe_session_options_init`, then change
+/// fields. Fields are only ever appended; `struct_size` tells the library which version the
+/// caller has. A family's own options go in its own struct (`troupe_armflow_session_options`);
+/// `cfg_scale` and `actor_latent` are ARMFlow's, kept here (deprecated since 0.2) so that 0.1
+/// programs keep their layout: `troupe_session_new` still reads them, and
+/// `troupe_armflow_session_new` does not.
 #[repr(C)]
 #[derive(Debug, Clone, Copy)]
 pub struct troupe_session_options {
@@ -30,13 +35,15 @@ pub struct troupe_session_options {
     pub steps: u32,
     /// Seed of the portable noise generator: equal seeds give bit-identical motion everywhere.
     pub seed: u64,
-    /// Classifier-free guidance scale, finite; 1 disables guidance (a magnet session takes 1).
+    /// Deprecated since 0.2 (use `troupe_armflow_session_options.cfg_scale`): an ARMFlow
+    /// stream's classifier-free guidance scale, finite; another family's session takes 1.
     pub cfg_scale: f32,
     /// armflow: tokens kept in the context cache, `<sos>` included, >= 2; older ones slide out.
     /// magnet: context tokens per window (1 to window - 1; the window advances by the rest).
     pub context_capacity: u32,
-    /// `TROUPE_ACTOR_LATENT_SAMPLE` or `TROUPE_ACTOR_LATENT_MEAN` (armflow; a magnet session
-    /// takes `_SAMPLE`, which it ignores).
+    /// Deprecated since 0.2 (use `troupe_armflow_session_options.actor_latent`):
+    /// `TROUPE_ACTOR_LATENT_SAMPLE` or `_MEAN` for an ARMFlow stream; another family's session
+    /// takes `_SAMPLE`.
     pub actor_latent: i32,
     /// Must be 0.
     pub reserved: u32,
@@ -53,7 +60,7 @@ pub struct troupe_session {
 
 impl troupe_session {
     /// A new handle owning `session`, for the caller to free with `troupe_session_free`.
-    fn into_raw(session: Session) -> *mut troupe_session {
+    pub(crate) fn into_raw(session: Session) -> *mut troupe_session {
         Box::into_raw(Box::new(troupe_session {
             session: Exclusive::new(session),
             poisoned: AtomicBool::new(false),
@@ -146,10 +153,7 @@ fn option_defaults(model: &Model, size: usize) -> FfiResult<troupe_session_optio
         seed: common.seed,
         cfg_scale,
         context_capacity: clamp(common.context_capacity.unwrap_or(0)),
-        actor_latent: match actor_latent {
-            ActorLatent::Sample => TROUPE_ACTOR_LATENT_SAMPLE,
-            ActorLatent::Mean => TROUPE_ACTOR_LATENT_MEAN,
-        },
+        actor_latent: actor_latent_code(actor_latent),
         reserved: 0,
     })
 }
@@ -159,10 +163,10 @@ fn option_defaults(model: &Model, size: usize) -> FfiResult<troupe_session_optio
 ///
 /// # Safety
 /// `options` must be readable for `struct_size` bytes.
-unsafe fn read_options(
+unsafe fn read_raw(
     model: &Model,
     options: *const troupe_session_options,
-) -> FfiResult<CallerOptions> {
+) -> FfiResult<troupe_session_options> {
     // SAFETY: readable for its `struct_size` per the contract.
     let o = unsafe {
         read_versioned(
@@ -173,32 +177,51 @@ unsafe fn read_options(
             "troupe_session_options_init",
         )
     }?;
-    let actor_latent = match o.actor_latent {
-        TROUPE_ACTOR_LATENT_SAMPLE => ActorLatent::Sample,
-        TROUPE_ACTOR_LATENT_MEAN => ActorLatent::Mean,
-        other => {
-            return Err(FfiError::new(
-                TROUPE_ERR_INVALID_ARG,
-                format!(
-                    "options.actor_latent {other} is neither TROUPE_ACTOR_LATENT_SAMPLE nor _MEAN"
-                ),
-            ))
-        }
-    };
     if o.reserved != 0 {
         return Err(FfiError::new(
             TROUPE_ERR_INVALID_ARG,
             "options.reserved must be 0",
         ));
     }
+    Ok(o)
+}
+
+/// What every stream takes of `o`.
+fn common_of(o: &troupe_session_options) -> SessionOptions {
+    SessionOptions {
+        seed: o.seed,
+        steps: Some(o.steps),
+        context_capacity: Some(o.context_capacity as usize),
+    }
+}
+
+/// Reads what every stream takes of the caller's options; the deprecated ARMFlow fields are
+/// not read (a family's own call takes its own struct).
+///
+/// # Safety
+/// `options` must be readable for `struct_size` bytes.
+pub(crate) unsafe fn read_common_options(
+    model: &Model,
+    options: *const troupe_session_options,
+) -> FfiResult<SessionOptions> {
+    // SAFETY: forwarded contract.
+    Ok(common_of(&unsafe { read_raw(model, options) }?))
+}
+
+/// Reads the caller's options for `troupe_session_new`, the deprecated ARMFlow fields too.
+///
+/// # Safety
+/// `options` must be readable for `struct_size` bytes.
+unsafe fn read_options(
+    model: &Model,
+    options: *const troupe_session_options,
+) -> FfiResult<CallerOptions> {
+    // SAFETY: forwarded contract.
+    let o = unsafe { read_raw(model, options) }?;
     Ok(CallerOptions {
-        common: SessionOptions {
-            seed: o.seed,
-            steps: Some(o.steps),
-            context_capacity: Some(o.context_capacity as usize),
-        },
+        common: common_of(&o),
         cfg_scale: o.cfg_scale,
-        actor_latent,
+        actor_latent: actor_latent_of(o.actor_latent, "options.actor_latent")?,
     })
 }
 
@@ -239,7 +262,8 @@ impl CallerOptions {
 
 /// Starts a stream on `model` with `options` (NULL: the bundle's defaults). On an `armflow`
 /// model the session answers an actor with the reactor, starting with the null condition (set
-/// one with `troupe_session_set_condition`). On a two-person `magnet` model it answers a user
+/// one with `troupe_session_set_condition`); `troupe_armflow_session_new` opens one with
+/// ARMFlow's own options. On a two-person `magnet` model it answers a user
 /// with the live partner (its `motion_control_live` configuration); give the partner's opening
 /// frames with `troupe_magnet_session_set_partner_opening` before the first step.
 ///
@@ -387,14 +411,8 @@ pub unsafe extern "C" fn troupe_session_step(
             let dim = s.frame_dim();
             let n_in = checked_mul(n_actor_frames, dim, "n_actor_frames * frame_dim")?;
             let actor = boundary::slice(actor, n_in, "actor")?;
-            let ready = s.frames_ready_after(n_actor_frames);
-            if ready > out_capacity_frames {
-                return Err(FfiError::new(
-                    TROUPE_ERR_BUFFER_TOO_SMALL,
-                    format!("this call returns {ready} frames, the output buffer holds {out_capacity_frames}"),
-                ));
-            }
-            if ready > 0 {
+            // The room for the frames is checked by the session's step, the only place that does.
+            if out.is_null() && s.frames_ready_after(n_actor_frames) > 0 {
                 non_null(out, "out")?;
             }
             let output = s.step_bounded(actor, out_capacity_frames)?;
@@ -512,17 +530,7 @@ pub unsafe extern "C" fn troupe_sessions_step(
             let n_in = checked_mul(n_actor_frames[i], dim, "n_actor_frames[i] * frame_dim")?;
             // SAFETY: readable for n_in floats per the contract.
             chunks.push(unsafe { boundary::slice(actor[i], n_in, &format!("actor[{i}]"))? });
-            let ready = live[i].frames_ready_after(n_actor_frames[i]);
-            if ready > capacity[i] {
-                return Err(FfiError::new(
-                    TROUPE_ERR_BUFFER_TOO_SMALL,
-                    format!(
-                        "session {i}: this call returns {ready} frames, out[{i}] holds {}",
-                        capacity[i]
-                    ),
-                ));
-            }
-            if ready > 0 {
+            if out[i].is_null() && live[i].frames_ready_after(n_actor_frames[i]) > 0 {
                 non_null(out[i], &format!("out[{i}]"))?;
             }
         }

@@ -8,7 +8,7 @@ pub const TROUPE_ABI_VERSION: u32 = 1;
 
 static VERSION: &str = concat!(env!("CARGO_PKG_VERSION"), "\0");
 
-/// The library version, e.g. `"0.1.0"`.
+/// The library version, e.g. `"0.2.0"`.
 ///
 /// Returns a static NUL-terminated string (never free it). Thread-safe.
 #[no_mangle]

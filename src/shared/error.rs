@@ -37,6 +37,10 @@ pub enum Error {
     /// Data passed to a session is unusable (wrong size, non-finite values).
     #[error("invalid input: {0}")]
     InvalidInput(String),
+    /// The output a caller sized cannot hold what a step returns (the C ABI's caller-sized
+    /// buffers); nothing changed.
+    #[error("output too small: {0}")]
+    OutputTooSmall(String),
     /// A session option is out of range.
     #[error("invalid option: {0}")]
     InvalidOption(String),

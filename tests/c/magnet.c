@@ -67,6 +67,13 @@ static void live_partner(troupe_model *model, troupe_model *armflow, const float
     EXPECT(troupe_magnet_session_set_partner_opening(session, opening, 32), TROUPE_ERR_INVALID_ARG);
     EXPECT(troupe_session_set_prompt(session, "wave"), TROUPE_ERR_UNSUPPORTED);
     EXPECT(troupe_session_set_cfg_scale(session, 2.0f), TROUPE_ERR_UNSUPPORTED);
+    {
+        troupe_armflow_session_options arm;
+        troupe_session *not_armflow = NULL;
+        EXPECT(troupe_armflow_session_options_init(model, &arm, sizeof arm), TROUPE_ERR_UNSUPPORTED);
+        EXPECT(troupe_armflow_session_new(model, NULL, NULL, &not_armflow), TROUPE_ERR_UNSUPPORTED);
+        CHECK(not_armflow == NULL);
+    }
     /* after a reset the same stream comes out again (the opening is kept) */
     EXPECT(troupe_session_reset(session), TROUPE_OK);
     EXPECT(troupe_session_step(session, user, 128, out, 96, &written), TROUPE_OK);

@@ -204,6 +204,48 @@ int main(int argc, char **argv) {
     CHECK(stream(session, actor, frames, dim, 4, again, frames) == frames);
     CHECK(memcmp(out, again, frames * dim * sizeof(float)) == 0);
 
+    /* ARMFlow's own options: the stream the deprecated fields of the common options give */
+    {
+        troupe_armflow_session_options arm;
+        troupe_session *own = NULL, *legacy = NULL;
+        float *guided = (float *)calloc(frames * dim, sizeof(float));
+        EXPECT(troupe_armflow_session_options_init(model, &arm, 8), TROUPE_ERR_INVALID_ARG);
+        EXPECT(troupe_armflow_session_options_init(model, NULL, sizeof arm), TROUPE_ERR_NULL_ARG);
+        EXPECT(troupe_armflow_session_options_init(model, &arm, sizeof arm), TROUPE_OK);
+        CHECK(arm.struct_size == sizeof arm && arm.cfg_scale == 1.0f &&
+              arm.actor_latent == TROUPE_ACTOR_LATENT_SAMPLE && arm.vae_windows == 0);
+        arm.cfg_scale = 2.0f;
+        arm.actor_latent = TROUPE_ACTOR_LATENT_MEAN;
+        opt.cfg_scale = 2.0f;
+        opt.actor_latent = TROUPE_ACTOR_LATENT_MEAN;
+        EXPECT(troupe_session_new(model, &opt, &legacy), TROUPE_OK);
+        opt.cfg_scale = 1.0f;
+        opt.actor_latent = 7; /* the family's call does not read the deprecated fields */
+        EXPECT(troupe_armflow_session_new(model, &opt, &arm, &own), TROUPE_OK);
+        opt.actor_latent = TROUPE_ACTOR_LATENT_SAMPLE;
+        CHECK(stream(own, actor, frames, dim, 5, guided, frames) == frames);
+        CHECK(stream(legacy, actor, frames, dim, 3, again, frames) == frames);
+        CHECK(memcmp(guided, again, frames * dim * sizeof(float)) == 0);
+        CHECK(memcmp(guided, out, frames * dim * sizeof(float)) != 0); /* guided, mean: not `out` */
+        troupe_session_free(own);
+        troupe_session_free(legacy);
+        own = NULL;
+        arm.actor_latent = 9;
+        EXPECT(troupe_armflow_session_new(model, NULL, &arm, &own), TROUPE_ERR_INVALID_ARG);
+        CHECK(own == NULL && strstr(troupe_last_error_message(), "armflow.actor_latent 9") != NULL);
+        arm.actor_latent = TROUPE_ACTOR_LATENT_SAMPLE;
+        arm.cfg_scale = NAN;
+        EXPECT(troupe_armflow_session_new(model, NULL, &arm, &own), TROUPE_ERR_INVALID_ARG);
+        arm.cfg_scale = 1.0f;
+        arm.struct_size = 4;
+        EXPECT(troupe_armflow_session_new(model, NULL, &arm, &own), TROUPE_ERR_INVALID_ARG);
+        EXPECT(troupe_armflow_session_new(model, NULL, NULL, NULL), TROUPE_ERR_NULL_ARG);
+        EXPECT(troupe_armflow_session_new(NULL, NULL, NULL, &own), TROUPE_ERR_NULL_ARG);
+        EXPECT(troupe_armflow_session_new(model, NULL, NULL, &own), TROUPE_OK);
+        troupe_session_free(own);
+        free(guided);
+    }
+
     /* many sessions in one call: each equals the session streamed alone (`out`) */
     {
         troupe_session *crowd[3] = {NULL, NULL, NULL}, *kept;

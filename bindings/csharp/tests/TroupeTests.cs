@@ -90,7 +90,8 @@ internal static class TroupeTests
     private static void Run(string demoBundle, string clipPath, string outPath, string tinyBundle)
     {
         Check(Model.AbiVersion == 1, "the library speaks ABI 1");
-        Check(!string.IsNullOrEmpty(Model.Version), "version " + Model.Version);
+        string assembly = typeof(Model).Assembly.GetName().Version.ToString(3);
+        Check(Model.Version == assembly, "library " + Model.Version + ", binding " + assembly);
 
         int[] shape;
         float[] clip = ReadNpy(clipPath, out shape);

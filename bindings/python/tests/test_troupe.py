@@ -39,6 +39,7 @@ def test_version_and_abi():
     lib = _native.load()
     assert lib.troupe_abi_version() == _native.ABI_VERSION
     assert re.fullmatch(r"\d+\.\d+\.\d+", troupe.version())
+    assert troupe.__version__ == troupe.version(), (troupe.__version__, troupe.version())
 
 
 def test_every_header_function_has_a_prototype():

@@ -25,6 +25,10 @@ import numpy as np
 from . import _native, errors
 from .errors import *  # noqa: F403  (the exception classes, re-exported)
 
+#: The package's release; the library it loads says its own with :func:`version` (they match when
+#: the wheel was built from one tree; the tests check it).
+__version__ = "0.2.0"
+
 __all__ = [*errors.__all__, "Model", "Session", "bundles", "errors", "motion", "viewer", "step_sessions", "version", "limits",
            "set_load_threads", "set_compute_threads", "compute_threads", "progress", "ACTOR_LATENT_SAMPLE", "ACTOR_LATENT_MEAN", "EULER", "RK4"]
 

@@ -1,9 +1,10 @@
-//! The C entry points of the `armflow` family: recentring, noise queued per token and the
-//! official clip loop. Sessions and their motion stages are family-neutral (`ffi/session.rs`,
-//! `ffi/session_motion/`).
+//! The C entry points of the `armflow` family: its session options, recentring, noise queued
+//! per token and the official clip loop. Sessions and their motion stages are family-neutral
+//! (`ffi/session.rs`, `ffi/session_motion/`).
 
 pub mod clip;
 pub mod noise;
+pub mod options;
 pub mod recentring;
 
 #[cfg(test)]

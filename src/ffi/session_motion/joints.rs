@@ -4,8 +4,7 @@
 use ndarray::ArrayView3;
 
 use crate::ffi::boundary::{
-    self, checked_mul, non_null, troupe_status, FfiError, TROUPE_ERR_BUFFER_TOO_SMALL,
-    TROUPE_ERR_INVALID_ARG,
+    self, checked_mul, non_null, troupe_status, FfiError, TROUPE_ERR_INVALID_ARG,
 };
 use crate::ffi::model::{property, troupe_model};
 use crate::ffi::motion::{read_format, troupe_joints_format, troupe_placement, PoseParts};
@@ -79,16 +78,7 @@ pub unsafe extern "C" fn troupe_session_step_joints(
             let view =
                 ArrayView3::from_shape((n_frames, T2M22_JOINTS, 3), flat).expect("length checked");
             let parts = PoseParts::check(out, out_capacity_frames, false)?;
-            let ready = s.joints_ready_after(n_frames)?;
-            if ready > out_capacity_frames {
-                return Err(FfiError::new(
-                    TROUPE_ERR_BUFFER_TOO_SMALL,
-                    format!(
-                        "this call returns {ready} poses, the output holds {out_capacity_frames}"
-                    ),
-                ));
-            }
-            let poses = s.step_joints(view)?;
+            let poses = s.step_joints_bounded(view, out_capacity_frames)?;
             parts.fill(&poses);
             *n_written = poses.len();
             Ok(())
