@@ -13,6 +13,7 @@ use std::path::Path;
 
 use serde::{Deserialize, Serialize};
 
+use crate::family::section::FamilySection;
 use crate::shared::bundle::BundleFiles;
 use crate::shared::bundle_io::BundleIo;
 use crate::shared::checks::ensure;
@@ -64,23 +65,45 @@ pub struct Manifest {
     pub family: Family,
 }
 
-/// The model families troupe runs, each with the manifest fields of its own.
-#[derive(Debug, Clone, Serialize, Deserialize)]
-#[serde(tag = "family", rename_all = "lowercase")]
-pub enum Family {
-    /// ARMFlow: online reaction, streamed token by token ([`crate::Session`]).
-    Armflow(Box<ArmFlowSpec>),
-    /// UMF: text-to-group generation ([`crate::Umf::generate_group`]).
-    Umf(Box<UmfSpec>),
-    /// MAGNet: multi-agent diffusion forcing ([`crate::Magnet::generate`]).
-    Magnet(Box<MagnetSpec>),
-    /// ARFlow: action-to-reaction flow with penetration guidance
-    /// ([`crate::Arflow::generate`]).
-    Arflow(Box<ArflowSpec>),
+/// Builds the registration table below: the [`Family`] enum the manifest is read into (tagged
+/// by `family`), [`FAMILIES`], and [`Family::section`], the one dispatch to each family's
+/// [`FamilySection`].
+macro_rules! register_families {
+    ($($(#[$doc:meta])* $variant:ident($section:ty) = $name:literal,)+) => {
+        /// The model families troupe runs, each with the manifest fields of its own.
+        #[derive(Debug, Clone, Serialize, Deserialize)]
+        #[serde(tag = "family")]
+        pub enum Family {
+            $($(#[$doc])* #[serde(rename = $name)] $variant(Box<$section>),)+
+        }
+
+        /// The family names this runtime reads, as they appear in `troupe.json`.
+        pub const FAMILIES: [&str; [$($name),+].len()] = [$($name),+];
+
+        impl Family {
+            /// The family's section, through what every family answers.
+            pub(crate) fn section(&self) -> &dyn FamilySection {
+                match self {
+                    $(Self::$variant(section) => &**section,)+
+                }
+            }
+        }
+    };
 }
 
-/// The family names this runtime reads, as they appear in `troupe.json`.
-pub const FAMILIES: [&str; 4] = ["armflow", "umf", "magnet", "arflow"];
+// The families, one registration line each: a fifth family adds its line here, its folder under
+// `src/` (whose section implements `FamilySection`), its `ffi/` module and its bindings.
+register_families! {
+    /// ARMFlow: online reaction, streamed token by token ([`crate::Session`]).
+    Armflow(ArmFlowSpec) = "armflow",
+    /// UMF: text-to-group generation ([`crate::Umf::generate_group`]).
+    Umf(UmfSpec) = "umf",
+    /// MAGNet: multi-agent diffusion forcing ([`crate::Magnet::generate`]).
+    Magnet(MagnetSpec) = "magnet",
+    /// ARFlow: action-to-reaction flow with penetration guidance
+    /// ([`crate::Arflow::generate`]).
+    Arflow(ArflowSpec) = "arflow",
+}
 
 impl Manifest {
     /// Reads and validates `troupe.json` from a bundle.
@@ -111,12 +134,7 @@ impl Manifest {
 
     /// The family name as written in the manifest.
     pub fn family_name(&self) -> &'static str {
-        match self.family {
-            Family::Armflow(_) => "armflow",
-            Family::Umf(_) => "umf",
-            Family::Magnet(_) => "magnet",
-            Family::Arflow(_) => "arflow",
-        }
+        self.family.section().name()
     }
 
     fn validate(&self) -> std::result::Result<(), String> {
@@ -126,22 +144,10 @@ impl Manifest {
         })?;
         crate::motion::check_layout(m)?;
         self.condition.validate()?;
-        match &self.family {
-            Family::Armflow(spec) => spec.validate(m.frame_dim)?,
-            Family::Umf(spec) => spec.validate(&self.condition)?,
-            Family::Magnet(spec) => spec.validate(m, &self.condition)?,
-            Family::Arflow(spec) => spec.validate(m, &self.condition)?,
-        }
+        let section = self.family.section();
+        section.validate(m, &self.condition)?;
         if let Some(feedback) = &self.condition.feedback {
-            match &self.family {
-                Family::Armflow(spec) => spec.validate_feedback(m)?,
-                _ => {
-                    return Err(format!(
-                        "condition.feedback `{}` is for armflow bundles only",
-                        feedback.kind
-                    ))
-                }
-            }
+            section.validate_feedback(feedback, m)?;
         }
         let (encoder, branch) = self.text_graphs();
         ensure(encoder.is_some() == self.tokenizer.is_some(), || {
@@ -161,26 +167,7 @@ impl Manifest {
 
     /// The family's `text_encoder` and `text_branch` declarations.
     fn text_graphs(&self) -> (Option<&GraphSpec>, Option<&GraphSpec>) {
-        match &self.family {
-            Family::Armflow(s) => (
-                s.graphs.text_encoder.as_ref(),
-                s.graphs.text_branch.as_ref(),
-            ),
-            Family::Umf(s) => (
-                s.graphs.text_encoder.as_ref(),
-                s.graphs.text_branch.as_ref(),
-            ),
-            Family::Magnet(_) | Family::Arflow(_) => (None, None),
-        }
-    }
-
-    /// Floats per CLIP token feature: the condition's width for ARMFlow, each text branch's
-    /// input (`text.prior_dim`) for UMF.
-    fn text_token_dim(&self) -> usize {
-        match &self.family {
-            Family::Armflow(_) | Family::Magnet(_) | Family::Arflow(_) => self.condition.dim,
-            Family::Umf(s) => s.text.prior_dim,
-        }
+        self.family.section().text_graphs()
     }
 
     /// The graphs whose weights are not float32 (by role, in manifest order), as each graph's
@@ -200,14 +187,11 @@ impl Manifest {
     /// Each graph as declared, next to the interface the runtime requires of it.
     pub(crate) fn graph_contract(&self) -> Vec<(&'static str, &GraphSpec, GraphSpec)> {
         let (motion, condition) = (&self.motion, &self.condition);
-        let mut contracts = match &self.family {
-            Family::Armflow(spec) => spec.graph_contract(motion, condition),
-            Family::Umf(spec) => spec.graph_contract(motion, condition),
-            Family::Magnet(spec) => spec.graph_contract(),
-            Family::Arflow(spec) => spec.graph_contract(),
-        };
+        let section = self.family.section();
+        let mut contracts = section.graph_contract(motion, condition);
         if let (Some(encoder), Some(tokenizer)) = (self.text_graphs().0, &self.tokenizer) {
-            let expected = text_encoder_contract(encoder, tokenizer.context, self.text_token_dim());
+            let token_dim = section.text_token_dim(condition);
+            let expected = text_encoder_contract(encoder, tokenizer.context, token_dim);
             contracts.push(("text_encoder", encoder, expected));
         }
         contracts

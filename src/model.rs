@@ -1,5 +1,5 @@
 //! [`Model`]: a loaded bundle, above the families. It reads the manifest, loads the family's
-//! model (one registration line per family in `load_family`), answers the questions every
+//! model through its manifest section (`manifest.rs`'s registration table), answers the questions every
 //! caller asks whatever the family (frame size, latency, dimensions, text prompts, a default
 //! stream), and gives the family's own type for everything else: `model.armflow()?`,
 //! `model.umf()?`, `model.magnet()?`, `model.arflow()?`. Immutable once loaded, cheap to clone,
@@ -10,19 +10,19 @@ use std::sync::Arc;
 
 use ndarray::ArrayView2;
 
-use crate::arflow::{self, Arflow};
-use crate::armflow::{self, Armflow};
+use crate::arflow::Arflow;
+use crate::armflow::Armflow;
+use crate::family::motion::joints_added_latency;
 use crate::family::session::Session;
 use crate::family::{wrong_family, Family, StreamOptions};
-use crate::magnet::{self, Magnet};
-use crate::manifest::{self, ConditionLabel, Manifest};
+use crate::magnet::Magnet;
+use crate::manifest::{ConditionLabel, Manifest};
 use crate::shared::bundle::BundleFiles;
-use crate::shared::bundle_io::BundleIo;
 use crate::shared::error::{Error, Result};
 use crate::shared::snapshot::SnapshotReader;
 use crate::shared::text::branch::TextBranch;
 use crate::shared::text::prompt::{no_prompts, PromptEncoder};
-use crate::umf::{self, Umf};
+use crate::umf::Umf;
 
 /// A loaded bundle: manifest plus optimised graphs, of one family. What every family answers
 /// is here; the rest is the family's own type (`model.armflow()?.generate_clip(..)`).
@@ -40,30 +40,6 @@ struct Inner {
     identity: [u8; 32],
     manifest: Manifest,
     family: Box<dyn Family>,
-}
-
-/// Loads the family the manifest names: the one place that lists the families.
-fn load_family(manifest: &Manifest, io: BundleIo, files: &BundleFiles) -> Result<Box<dyn Family>> {
-    Ok(match &manifest.family {
-        manifest::Family::Armflow(spec) => Box::new(Armflow::new(armflow::Networks::load(
-            files,
-            io,
-            (**spec).clone(),
-        )?)),
-        manifest::Family::Umf(spec) => {
-            Box::new(Umf::new(umf::Networks::load(files, io, (**spec).clone())?))
-        }
-        manifest::Family::Magnet(spec) => Box::new(Magnet::new(magnet::Networks::load(
-            files,
-            io,
-            (**spec).clone(),
-        )?)),
-        manifest::Family::Arflow(spec) => Box::new(Arflow::new(arflow::Networks::load(
-            files,
-            io,
-            (**spec).clone(),
-        )?)),
-    })
 }
 
 impl Model {
@@ -85,7 +61,7 @@ impl Model {
     fn from_files(files: BundleFiles, source: &Path) -> Result<Self> {
         let manifest = Manifest::load(&files)?;
         let io = manifest.bundle_io();
-        let family = load_family(&manifest, io.clone(), &files)?;
+        let family = manifest.family.section().load(&files, io.clone())?;
         let identity = files.identity();
         io.identity.get_or_init(|| identity);
         let inner = Inner {
@@ -195,7 +171,11 @@ impl Model {
     /// [`Model::latency_frames`] plus the frame that velocities and contacts wait for. 0 for a
     /// `umf` model.
     pub fn joints_latency_frames(&self) -> usize {
-        self.inner.family.joints_latency_frames()
+        if self.inner.family.session_defaults().is_err() {
+            return 0;
+        }
+        let motion = &self.inner.manifest.motion;
+        self.latency_frames() + joints_added_latency(&motion.layout, motion.frame_dim)
     }
 
     /// The most frames one `step` with `n_actor_frames` new frames can return, whatever the

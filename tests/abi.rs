@@ -273,7 +273,10 @@ fn every_package_says_one_release() {
     let places: [(&str, &str); 8] = [
         ("bindings/web/Cargo.toml", "\nversion = \"{}\""),
         ("bindings/python/pyproject.toml", "\nversion = \"{}\""),
-        ("bindings/python/troupe/__init__.py", "\n__version__ = \"{}\""),
+        (
+            "bindings/python/troupe/__init__.py",
+            "\n__version__ = \"{}\"",
+        ),
         ("bindings/csharp/Troupe.cs", "AssemblyVersion(\"{}\")"),
         ("unity/package.json", "\"version\": \"{}\""),
         ("include/troupe.h", "#define TROUPE_VERSION_STRING \"{}\""),

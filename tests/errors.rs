@@ -239,7 +239,7 @@ fn condition_feedback_is_checked_at_load() {
     });
     let text = load_error(dir.path());
     assert!(
-        text.contains("condition.feedback `partner_placement` is for armflow bundles only"),
+        text.contains("condition.feedback `partner_placement` is not read by umf bundles"),
         "{text}"
     );
 }

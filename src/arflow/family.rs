@@ -11,9 +11,13 @@ use crate::arflow::networks::Networks;
 use crate::arflow::sampler::{self, ArflowOptions};
 use crate::arflow::spec::ArflowSpec;
 use crate::arflow::stream::OnlineStream;
+use crate::family::section::FamilySection;
 use crate::family::session::Session;
 use crate::family::{family_as, Family, SessionOptions, StreamOptions};
+use crate::shared::bundle::BundleFiles;
+use crate::shared::bundle_io::{BundleIo, ConditionSpec, MotionSpec};
 use crate::shared::error::Result;
+use crate::shared::graph_spec::GraphSpec;
 use crate::shared::noise::NormalSource;
 use crate::shared::snapshot::SnapshotReader;
 
@@ -95,14 +99,6 @@ impl Family for Arflow {
         0
     }
 
-    /// Joint positions become features one frame late (velocities and contacts look ahead).
-    fn joints_latency_frames(&self) -> usize {
-        match self.session_defaults() {
-            Ok(_) => crate::motion::STREAM_LATENCY_FRAMES,
-            Err(_) => 0,
-        }
-    }
-
     fn max_output_frames(&self, n: usize) -> usize {
         n
     }
@@ -155,5 +151,29 @@ impl StreamOptions for ArflowOptions {
     fn open(self, family: &dyn Family) -> Result<Session> {
         let arflow: &Arflow = family_as(family, "arflow", "an ARFlow stream")?;
         Ok(Session::new(arflow.online(&self)?))
+    }
+}
+
+// The section's own checks are inherent methods of `ArflowSpec` (`spec.rs`), called by path.
+impl FamilySection for ArflowSpec {
+    fn name(&self) -> &'static str {
+        "arflow"
+    }
+    fn validate(&self, motion: &MotionSpec, condition: &ConditionSpec) -> Result<(), String> {
+        ArflowSpec::validate(self, motion, condition)
+    }
+    fn graph_contract<'a>(
+        &'a self,
+        _: &MotionSpec,
+        _: &ConditionSpec,
+    ) -> Vec<(&'static str, &'a GraphSpec, GraphSpec)> {
+        ArflowSpec::graph_contract(self)
+    }
+    fn load(&self, files: &BundleFiles, io: BundleIo) -> Result<Box<dyn Family>> {
+        Ok(Box::new(Arflow::new(Networks::load(
+            files,
+            io,
+            self.clone(),
+        )?)))
     }
 }

@@ -20,7 +20,6 @@ pub mod spec;
 mod stream;
 
 pub use family::Arflow;
-pub(crate) use networks::Networks;
 pub use sampler::ArflowOptions;
 pub use spec::STREAM_ARFLOW;
 pub use stream::OnlineStream;

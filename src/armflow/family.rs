@@ -10,10 +10,13 @@ use crate::armflow::clip::{Clip, ClipNoise, ClipOptions};
 use crate::armflow::networks::Networks;
 use crate::armflow::session::{Reactor, ReactorOptions};
 use crate::armflow::spec::{ArmFlowSpec, ClipSpec};
+use crate::family::section::FamilySection;
 use crate::family::session::Session;
 use crate::family::{family_as, Family, SessionOptions, StreamOptions};
-use crate::motion::STREAM_LATENCY_FRAMES;
+use crate::shared::bundle::BundleFiles;
+use crate::shared::bundle_io::{BundleIo, ConditionFeedback, ConditionSpec, MotionSpec};
 use crate::shared::error::Result;
+use crate::shared::graph_spec::GraphSpec;
 use crate::shared::snapshot::SnapshotReader;
 use crate::shared::text::branch::TextBranch;
 use crate::shared::text::prompt::PromptEncoder;
@@ -109,10 +112,6 @@ impl Family for Armflow {
         self.nets.spec.latency_frames()
     }
 
-    fn joints_latency_frames(&self) -> usize {
-        self.nets.spec.latency_frames() + STREAM_LATENCY_FRAMES
-    }
-
     fn max_output_frames(&self, n: usize) -> usize {
         let fpt = self.frames_per_token();
         n.div_ceil(fpt).saturating_mul(fpt)
@@ -174,5 +173,36 @@ impl StreamOptions for ReactorOptions {
     fn open(self, family: &dyn Family) -> Result<Session> {
         let armflow: &Armflow = family_as(family, "armflow", "a reactor stream")?;
         Ok(Session::new(armflow.reactor(self)?))
+    }
+}
+
+// The section's own checks are inherent methods of `ArmFlowSpec` (`spec.rs`), called by path.
+impl FamilySection for ArmFlowSpec {
+    fn name(&self) -> &'static str {
+        "armflow"
+    }
+    fn validate(&self, motion: &MotionSpec, _: &ConditionSpec) -> Result<(), String> {
+        ArmFlowSpec::validate(self, motion.frame_dim)
+    }
+    fn validate_feedback(&self, _: &ConditionFeedback, motion: &MotionSpec) -> Result<(), String> {
+        ArmFlowSpec::validate_feedback(self, motion)
+    }
+    fn graph_contract<'a>(
+        &'a self,
+        motion: &MotionSpec,
+        condition: &ConditionSpec,
+    ) -> Vec<(&'static str, &'a GraphSpec, GraphSpec)> {
+        ArmFlowSpec::graph_contract(self, motion, condition)
+    }
+    fn text_graphs(&self) -> (Option<&GraphSpec>, Option<&GraphSpec>) {
+        let g = &self.graphs;
+        (g.text_encoder.as_ref(), g.text_branch.as_ref())
+    }
+    fn load(&self, files: &BundleFiles, io: BundleIo) -> Result<Box<dyn Family>> {
+        Ok(Box::new(Armflow::new(Networks::load(
+            files,
+            io,
+            self.clone(),
+        )?)))
     }
 }

@@ -27,7 +27,6 @@ pub mod spec;
 pub use clip::{Clip, ClipNoise, ClipOptions};
 pub use family::Armflow;
 pub use meanflow::meanflow_grid;
-pub(crate) use networks::Networks;
 // The guard and the smoothing are every session's now (`Session::set_penetration_guard`); their
 // types keep the paths they had here.
 pub use crate::family::motion::{PenetrationGuard, RootSmoothing};

@@ -13,6 +13,7 @@
 //!   layout (joints in, poses out, guard, smoothing, foot lock).
 
 pub(crate) mod motion;
+pub(crate) mod section;
 pub(crate) mod session;
 pub(crate) mod stream;
 
@@ -36,10 +37,6 @@ pub(crate) trait Family: Send + Sync + Debug + Any {
     fn latent_dim(&self) -> usize;
     /// Algorithmic latency of the family's default stream, in frames (0 without one).
     fn latency_frames(&self) -> usize;
-    /// Latency when the stream reads joint positions (0 for a family that does not).
-    fn joints_latency_frames(&self) -> usize {
-        0
-    }
     /// The most frames one step with `n` new frames can return (0 without a stream).
     fn max_output_frames(&self, n: usize) -> usize;
     /// Frames per generated clip (0 for a family without clips).

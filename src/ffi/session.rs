@@ -6,7 +6,6 @@
 use std::ffi::c_char;
 use std::sync::atomic::{AtomicBool, Ordering};
 
-use crate::ffi::armflow::options::{actor_latent_code, actor_latent_of};
 use crate::ffi::boundary::{
     self, check_struct_size, checked_mul, non_null, read_versioned, troupe_status, write_versioned,
     Exclusive, FfiError, FfiResult, TROUPE_ERR_BUFFER_TOO_SMALL, TROUPE_ERR_INVALID_ARG,
@@ -19,6 +18,26 @@ use crate::{ActorLatent, Capability, Model, Reactor, ReactorOptions, Session, Se
 pub const TROUPE_ACTOR_LATENT_SAMPLE: i32 = 0;
 /// Actor tokens are the posterior mean: no actor noise is drawn.
 pub const TROUPE_ACTOR_LATENT_MEAN: i32 = 1;
+
+/// The C code of an actor latent choice.
+pub(crate) fn actor_latent_code(latent: ActorLatent) -> i32 {
+    match latent {
+        ActorLatent::Sample => TROUPE_ACTOR_LATENT_SAMPLE,
+        ActorLatent::Mean => TROUPE_ACTOR_LATENT_MEAN,
+    }
+}
+
+/// The actor latent choice a C code names, or `TROUPE_ERR_INVALID_ARG` naming `field`.
+pub(crate) fn actor_latent_of(code: i32, field: &str) -> FfiResult<ActorLatent> {
+    match code {
+        TROUPE_ACTOR_LATENT_SAMPLE => Ok(ActorLatent::Sample),
+        TROUPE_ACTOR_LATENT_MEAN => Ok(ActorLatent::Mean),
+        other => Err(FfiError::new(
+            TROUPE_ERR_INVALID_ARG,
+            format!("{field} {other} is neither TROUPE_ACTOR_LATENT_SAMPLE nor _MEAN"),
+        )),
+    }
+}
 
 /// Options every stream takes at its start. Fill with `troupe_session_options_init`, then change
 /// fields. Fields are only ever appended; `struct_size` tells the library which version the

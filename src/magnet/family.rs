@@ -7,6 +7,7 @@ use std::sync::Arc;
 
 use ndarray::{ArrayView2, ArrayView3};
 
+use crate::family::section::FamilySection;
 use crate::family::session::Session;
 use crate::family::{family_as, Family, SessionOptions, StreamOptions};
 use crate::magnet::draws::Draws;
@@ -18,7 +19,10 @@ use crate::magnet::layout::FRAMES_PER_TOKEN;
 use crate::magnet::live::{check_persons, LivePartner, LiveSettings};
 use crate::magnet::networks::Networks;
 use crate::magnet::spec::{MagnetSpec, SamplingSpec};
+use crate::shared::bundle::BundleFiles;
+use crate::shared::bundle_io::{BundleIo, ConditionSpec, MotionSpec};
 use crate::shared::error::Result;
+use crate::shared::graph_spec::GraphSpec;
 use crate::shared::snapshot::SnapshotReader;
 
 /// Options of a live partner stream. Fields left `None` take the configuration's defaults.
@@ -180,10 +184,6 @@ impl Family for Magnet {
     }
 
     /// Joint positions become SMPL-X frames by inverse kinematics, frame by frame: no latency.
-    fn joints_latency_frames(&self) -> usize {
-        self.latency_frames()
-    }
-
     /// `n` plus the frames a stream may hold back, under one window (`4 Tm`).
     fn max_output_frames(&self, n: usize) -> usize {
         n.saturating_add(self.nets.spec.model.window * FRAMES_PER_TOKEN)
@@ -234,5 +234,29 @@ impl StreamOptions for PartnerOptions {
     fn open(self, family: &dyn Family) -> Result<Session> {
         let magnet: &Magnet = family_as(family, "magnet", "a live partner stream")?;
         Ok(Session::new(magnet.partner(self)?))
+    }
+}
+
+// The section's own checks are inherent methods of `MagnetSpec` (`spec.rs`), called by path.
+impl FamilySection for MagnetSpec {
+    fn name(&self) -> &'static str {
+        "magnet"
+    }
+    fn validate(&self, motion: &MotionSpec, condition: &ConditionSpec) -> Result<(), String> {
+        MagnetSpec::validate(self, motion, condition)
+    }
+    fn graph_contract<'a>(
+        &'a self,
+        _: &MotionSpec,
+        _: &ConditionSpec,
+    ) -> Vec<(&'static str, &'a GraphSpec, GraphSpec)> {
+        MagnetSpec::graph_contract(self)
+    }
+    fn load(&self, files: &BundleFiles, io: BundleIo) -> Result<Box<dyn Family>> {
+        Ok(Box::new(Magnet::new(Networks::load(
+            files,
+            io,
+            self.clone(),
+        )?)))
     }
 }

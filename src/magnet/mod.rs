@@ -37,4 +37,3 @@ pub use draws::{Draws, STREAM_MAGNET};
 pub use family::{Magnet, PartnerOptions};
 pub use generate::{MagnetOptions, MagnetOutput};
 pub use live::{LivePartner, DECODER_CONTEXT_TOKENS, ENCODER_CONTEXT_TOKENS};
-pub(crate) use networks::Networks;

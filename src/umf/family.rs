@@ -3,8 +3,12 @@
 
 use std::any::Any;
 
+use crate::family::section::FamilySection;
 use crate::family::Family;
+use crate::shared::bundle::BundleFiles;
+use crate::shared::bundle_io::{BundleIo, ConditionSpec, MotionSpec};
 use crate::shared::error::Result;
+use crate::shared::graph_spec::GraphSpec;
 use crate::shared::text::branch::TextBranch;
 use crate::shared::text::prompt::PromptEncoder;
 use crate::umf::group::{Group, GroupNoise, GroupNoiseShape, GroupOptions};
@@ -97,5 +101,33 @@ impl Family for Umf {
 
     fn as_any(&self) -> &dyn Any {
         self
+    }
+}
+
+// The section's own checks are inherent methods of `UmfSpec` (`spec.rs`), called by path.
+impl FamilySection for UmfSpec {
+    fn name(&self) -> &'static str {
+        "umf"
+    }
+    fn validate(&self, _: &MotionSpec, condition: &ConditionSpec) -> Result<(), String> {
+        UmfSpec::validate(self, condition)
+    }
+    fn graph_contract<'a>(
+        &'a self,
+        motion: &MotionSpec,
+        condition: &ConditionSpec,
+    ) -> Vec<(&'static str, &'a GraphSpec, GraphSpec)> {
+        UmfSpec::graph_contract(self, motion, condition)
+    }
+    fn text_graphs(&self) -> (Option<&GraphSpec>, Option<&GraphSpec>) {
+        let g = &self.graphs;
+        (g.text_encoder.as_ref(), g.text_branch.as_ref())
+    }
+    /// Each text branch reads CLIP features of `text.prior_dim` floats.
+    fn text_token_dim(&self, _: &ConditionSpec) -> usize {
+        self.text.prior_dim
+    }
+    fn load(&self, files: &BundleFiles, io: BundleIo) -> Result<Box<dyn Family>> {
+        Ok(Box::new(Umf::new(Networks::load(files, io, self.clone())?)))
     }
 }

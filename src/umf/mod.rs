@@ -21,4 +21,3 @@ pub use group::{
     Group, GroupNoise, GroupNoiseShape, GroupOptions, MAX_PEOPLE, STREAM_JUMP_NOISE,
     STREAM_PRIOR_NOISE, STREAM_REACTION_NOISE,
 };
-pub(crate) use networks::Networks;

@@ -29,6 +29,13 @@ use crate::motion::world::JointsFormat;
 use crate::shared::error::{Error, Result};
 use crate::shared::snapshot::{bad, SnapshotReader, SnapshotWriter};
 
+/// Frames the joints-in stage adds to the latency of a stream whose frames are `layout` (`dim`
+/// floats): one for features, whose velocities and contacts wait for the next frame; none for a
+/// layout the stages do not know (joints are then refused).
+pub(crate) fn joints_added_latency(layout: &str, dim: usize) -> usize {
+    FrameLayout::of(layout, dim).map_or(0, JointsInput::latency_frames)
+}
+
 /// A session's motion stages: which are on, with their state.
 #[derive(Debug, Clone)]
 pub(crate) struct MotionStages {

@@ -3,15 +3,13 @@
 //! session with both.
 
 use crate::ffi::boundary::{
-    self, check_struct_size, non_null, read_versioned, troupe_status, write_versioned, FfiError,
-    FfiResult, TROUPE_ERR_INVALID_ARG,
+    self, check_struct_size, non_null, read_versioned, troupe_status, write_versioned, FfiResult,
 };
 use crate::ffi::model::troupe_model;
 use crate::ffi::session::{
-    read_common_options, troupe_session, troupe_session_options, TROUPE_ACTOR_LATENT_MEAN,
-    TROUPE_ACTOR_LATENT_SAMPLE,
+    actor_latent_code, actor_latent_of, read_common_options, troupe_session, troupe_session_options,
 };
-use crate::{ActorLatent, Model, ReactorOptions};
+use crate::{Model, ReactorOptions};
 
 /// Options only an ARMFlow stream takes. Fill with `troupe_armflow_session_options_init`, then
 /// change fields. Fields are only ever appended; `struct_size` tells the library which version
@@ -52,26 +50,6 @@ fn defaults(model: &Model, size: usize) -> FfiResult<troupe_armflow_session_opti
         actor_latent: actor_latent_code(sampler.actor_latent),
         vae_windows: 0,
     })
-}
-
-/// The C code of an actor latent choice.
-pub(crate) fn actor_latent_code(latent: ActorLatent) -> i32 {
-    match latent {
-        ActorLatent::Sample => TROUPE_ACTOR_LATENT_SAMPLE,
-        ActorLatent::Mean => TROUPE_ACTOR_LATENT_MEAN,
-    }
-}
-
-/// The actor latent choice a C code names, or `TROUPE_ERR_INVALID_ARG` naming `field`.
-pub(crate) fn actor_latent_of(code: i32, field: &str) -> FfiResult<ActorLatent> {
-    match code {
-        TROUPE_ACTOR_LATENT_SAMPLE => Ok(ActorLatent::Sample),
-        TROUPE_ACTOR_LATENT_MEAN => Ok(ActorLatent::Mean),
-        other => Err(FfiError::new(
-            TROUPE_ERR_INVALID_ARG,
-            format!("{field} {other} is neither TROUPE_ACTOR_LATENT_SAMPLE nor _MEAN"),
-        )),
-    }
 }
 
 /// Fills `options` with the defaults of `model`'s bundle (its CFG scale and actor latent, the
