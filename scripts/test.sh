@@ -141,6 +141,9 @@ rm -rf "$lint_probe"
 start_tests
 phase "build: host, every target, linted (cargo test --no-run --all-targets)"
 cargo test --features testing --no-run --all-targets
+# The API docs: every intra-doc link resolves and no public item's docs point at a private one.
+phase "docs: cargo doc, warnings denied"
+RUSTDOCFLAGS="-D warnings" cargo doc --no-deps --features testing
 
 # 3. The web page (docs/WEB.md, tests/web.rs): troupe-web built for wasm32 into web/pkg (linted
 #    as it compiles), with the pinned wasm-bindgen-cli, which scripts/web.sh installs once.

@@ -249,8 +249,8 @@ impl Model {
 
     /// Starts a stream. [`crate::SessionOptions`] opens the family's default stream (an
     /// `armflow` reactor, a `magnet` live partner, an online `arflow` stream) with the bundle's
-    /// defaults; a family's own options ([`armflow::ReactorOptions`],
-    /// [`magnet::PartnerOptions`], [`arflow::ArflowOptions`]) open that family's stream with
+    /// defaults; a family's own options ([`crate::armflow::ReactorOptions`],
+    /// [`crate::magnet::PartnerOptions`], [`crate::arflow::ArflowOptions`]) open that family's stream with
     /// everything it offers, and are refused by another family's bundle
     /// ([`Error::Unsupported`], as is any session of a `umf` bundle, which does not stream).
     ///
