@@ -80,7 +80,7 @@ def main() -> None:
             for guidance in (0.0, 2.0):
                 weight = Sampling().weight if guidance else 1.0  # guidance off: plain Euler
                 s = Sampling(guidance=guidance, weight=weight, seed=3)
-                ours = median_ms(lambda: model.arflow_generate(actor, seed=3, guidance=guidance, weight=weight), args.runs)
+                ours = median_ms(lambda: model.arflow.generate(actor, seed=3, guidance=guidance, weight=weight), args.runs)
                 onnx = median_ms(lambda: sample(ort_denoise, actor, mean, std, s), args.runs)
                 eager = median_ms(lambda: sample(torch_denoise, actor, mean, std, s), args.runs)
                 row = {"variant": variant, "guidance": guidance, "frames": args.frames,
@@ -91,7 +91,7 @@ def main() -> None:
             if variant == "online":
                 for guidance in (0.0, 2.0):
                     session = model.session()
-                    session.set_arflow_options(seed=3, guidance=guidance, weight=0.7 if guidance else 1.0)
+                    session.arflow.set_options(seed=3, guidance=guidance, weight=0.7 if guidance else 1.0)
                     times = []
                     for t in range(args.frames):
                         start = time.perf_counter()

@@ -169,7 +169,7 @@ def main(argv=None):
         decode_tokens(ref.vqvae, out, betas, stats, lat)
 
     def troupe_run(cfg_json: dict):
-        model.magnet_generate(cfg_json, frames)
+        model.magnet.generate(cfg_json, frames)
 
     # Warm up: optimise every graph (the guidance graphs are optimised on first use).
     troupe_run(window_config(base, 2, 1, True))
@@ -231,7 +231,7 @@ def main(argv=None):
     # One end-to-end check of the prediction: DD100 joint, one sample, guidance off.
     joint = next(r for r in rows if r["config"] == "dd100")
     start = time.perf_counter()
-    model.magnet_generate("dd100", frames, samples=1, x0_guidance=False)
+    model.magnet.generate("dd100", frames, samples=1, x0_guidance=False)
     measured = (time.perf_counter() - start) * 1e3 / joint["frames"]
     predicted = joint["calls_per_frame"] * costs[("troupe", 1, False)]
     print(f"\nend to end, dd100 at S = 1, guidance off: {measured:.1f} ms per generated frame "

@@ -84,7 +84,7 @@ def arflow_rows(troupe, motion) -> list[dict]:
         with troupe.Model(bundle) as model:
             free = None
             for guidance in (0.0, 2.0):
-                seconds, out = median_time(lambda: model.arflow_generate(actor, seed=3, guidance=guidance))
+                seconds, out = median_time(lambda: model.arflow.generate(actor, seed=3, guidance=guidance))
                 if guidance == 0.0:
                     free = out
                 m = motion.penetration_metrics(joints(actor), joints(out))

@@ -520,6 +520,16 @@ troupe_status troupe_model_load_memory(const uint8_t *data, size_t len, struct t
 void troupe_model_free(struct troupe_model *model);
 
 /**
+ * The model's family as its manifest names it (`"armflow"`, `"umf"`, `"magnet"`, `"arflow"`):
+ * which family's calls (`troupe_<family>_...`) it serves. NULL for NULL. The string is owned by
+ * the model and valid until `troupe_model_free`; never free it. Thread-safe.
+ *
+ * # Safety
+ * `model` must be NULL or a live handle.
+ */
+const char *troupe_model_family(const struct troupe_model *model);
+
+/**
  * Floats per motion frame (262 for the `interhuman262` layout); 0 for NULL. Thread-safe.
  *
  * # Safety

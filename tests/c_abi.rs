@@ -111,12 +111,22 @@ fn cpp_wrapper_without_exceptions() {
     let int8 = root().join("onnx/bundles/armflow-demo-int8");
     let magnet = root().join("onnx/bundles/magnet-tiny");
     let arflow = root().join("onnx/bundles/arflow-tiny");
+    let clip = root().join("onnx/bundles/armflow-tiny-interhuman");
     println!(
         "{}",
         run(
             &[],
             &bin,
-            &[&armflow, &umf, scratch(), &demo, &int8, &magnet, &arflow]
+            &[
+                &armflow,
+                &umf,
+                scratch(),
+                &demo,
+                &int8,
+                &magnet,
+                &arflow,
+                &clip
+            ]
         )
     );
 }
@@ -135,10 +145,20 @@ fn cpp_wrapper_with_its_exception_helpers() {
     let int8 = root().join("onnx/bundles/armflow-demo-int8");
     let magnet = root().join("onnx/bundles/magnet-tiny");
     let arflow = root().join("onnx/bundles/arflow-tiny");
+    let clip = root().join("onnx/bundles/armflow-tiny-interhuman");
     run(
         &[],
         &bin,
-        &[&armflow, &umf, scratch(), &demo, &int8, &magnet, &arflow],
+        &[
+            &armflow,
+            &umf,
+            scratch(),
+            &demo,
+            &int8,
+            &magnet,
+            &arflow,
+            &clip,
+        ],
     );
 }
 

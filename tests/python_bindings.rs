@@ -42,7 +42,8 @@ fn require_python_tools() {
     );
 }
 
-/// Runs the pytest suite of the package with `env` and asserts it passed.
+/// Runs the pytest suite of the package with `env` and asserts it passed. A deprecated name
+/// used anywhere but where a test expects its warning fails the suite.
 fn pytest_suite(env: &[(&str, &Path)], unset_library: bool) -> String {
     let text = python(
         &[
@@ -51,6 +52,8 @@ fn pytest_suite(env: &[(&str, &Path)], unset_library: bool) -> String {
             "-q",
             "-p",
             "no:cacheprovider",
+            "-W",
+            "error::DeprecationWarning",
             "bindings/python/tests",
         ],
         env,

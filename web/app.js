@@ -142,7 +142,7 @@ function newSession() {
   s.setRootSmoothing(true, 0.1);
   s.setPenetrationGuard(true, 0.25, 10.0);
   s.setFootLock(true);
-  s.setRecentring(true, 1.0);
+  s.armflowSetRecentring(true, 1.0);
   if (session) session.free();
   session = s;
   startedAt = null;

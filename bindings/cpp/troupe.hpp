@@ -186,68 +186,167 @@ class Model {
         return Status::from(troupe_session_options_init(handle_, &out, sizeof out));
     }
 
-    // ---- text-to-group (umf bundles) ----
+    /// Frames per clip: per person of a UMF bundle, of an official ARMFlow clip (0 otherwise).
     std::size_t clip_frames() const { return troupe_model_clip_frames(handle_); }
-    std::size_t group_tokens() const { return troupe_umf_tokens(handle_); }
-    std::size_t group_stages() const { return troupe_umf_stages(handle_); }
-    /// The bundle's default group options (solvers, CFG), seed 0.
-    Status default_group_options(troupe_group_options &out) const {
-        return Status::from(troupe_umf_options_init(handle_, &out, sizeof out));
-    }
-    /// Generates `people` persons; `motion` becomes [people][clip_frames][frame_dim]. A NULL
-    /// `condition` is the null condition; NULL `options` the bundle's defaults; NULL `noise`
-    /// draws from the seed. On failure `motion` is left as it was.
-    Status generate_group(const float *condition, std::size_t condition_len, std::uint32_t people,
-                          std::vector<float> &motion, const troupe_group_options *options = nullptr,
-                          const troupe_group_noise *noise = nullptr) const {
-        std::vector<float> out(static_cast<std::size_t>(people) * clip_frames() * frame_dim());
-        Status s = Status::from(troupe_umf_generate(handle_, options, condition, condition_len, people, noise,
-                                                      out.data(), out.size(), nullptr, 0));
-        if (s) motion.swap(out);
-        return s;
-    }
+    /// The family: "armflow", "umf", "magnet" or "arflow".
+    std::string family() const { return troupe_model_family(handle_); }
 
-    // ---- multi-agent diffusion forcing (magnet bundles) ----
-    /// People the model generates together (0 for other bundles).
-    std::size_t magnet_people() const { return troupe_magnet_people(handle_); }
-    /// The released sampling configurations, by the official YAML's name ("dd100", ...).
-    std::vector<std::string> magnet_configs() const {
-        std::vector<std::string> out;
-        for (std::size_t i = 0, n = troupe_magnet_config_count(handle_); i < n; ++i)
-            out.emplace_back(troupe_magnet_config(handle_, i));
-        return out;
-    }
-    /// Runs a sampling configuration (a released name, or a whole configuration as JSON) on
-    /// `frame_count` frames `[frame_count][people][145]`; `out` becomes
-    /// `[samples][frames][people][145]` and `shape` {samples, frames, people} on success only.
-    /// NULL `options` runs the configuration as released; NULL `present` means everyone.
-    Status magnet_generate(const std::string &config, const float *frames, std::size_t frame_count,
-                           std::vector<float> &out, std::size_t shape[3],
-                           const troupe_magnet_options *options = nullptr,
-                           const std::uint8_t *present = nullptr) const {
-        std::size_t s = 0, f = 0, p = 0;
-        Status st = Status::from(troupe_magnet_output_shape(handle_, config.c_str(), options, frame_count, &s, &f, &p));
-        if (!st) return st;
-        std::vector<float> v(s * f * p * 145);
-        st = Status::from(troupe_magnet_generate(handle_, config.c_str(), options, frames, frame_count, present,
-                                                 v.data(), v.size()));
-        if (st) {
-            out.swap(v);
-            shape[0] = s;
-            shape[1] = f;
-            shape[2] = p;
+    /// What only an ARMFlow model offers: `model.armflow().generate_clip(...)`. The calls of
+    /// another family's model answer `TROUPE_ERR_UNSUPPORTED`.
+    class Armflow {
+      public:
+        /// Tokens of an official clip (0 for a streaming-only bundle).
+        std::size_t clip_tokens() const { return troupe_armflow_clip_tokens(m_); }
+        /// The bundle's clip settings (steps, CFG), seed 0.
+        Status default_clip_options(troupe_armflow_clip_options &out) const {
+            return Status::from(troupe_armflow_clip_options_init(m_, &out, sizeof out));
         }
-        return st;
+        /// The official clip loop: `n_actor_frames` (1..clip_frames) actor frames in, the
+        /// reactor's `clip_frames x frame_dim` frames out (`frames` replaced only on success). A
+        /// NULL `condition` is the null condition; NULL `options` the bundle's defaults; NULL
+        /// `noise` draws from the seed.
+        Status generate_clip(const float *actor, std::size_t n_actor_frames, std::vector<float> &frames,
+                             const float *condition = nullptr, std::size_t condition_len = 0,
+                             const troupe_armflow_clip_options *options = nullptr,
+                             const troupe_clip_noise *noise = nullptr) const {
+            troupe_armflow_clip_options defaults;
+            if (!options) {
+                Status st = default_clip_options(defaults);
+                if (!st) return st;
+                options = &defaults;
+            }
+            std::vector<float> out(troupe_model_clip_frames(m_) * troupe_model_frame_dim(m_));
+            Status st = Status::from(troupe_armflow_clip_generate_with_options(
+                m_, options, actor, n_actor_frames, condition, condition_len, noise, out.data(), out.size(), nullptr, 0));
+            if (st) frames.swap(out);
+            return st;
+        }
+
+      private:
+        friend class Model;
+        explicit Armflow(const troupe_model *m) : m_(m) {}
+        const troupe_model *m_;
+    };
+
+    /// What only a UMF model offers: `model.umf().generate_group(...)`.
+    class Umf {
+      public:
+        std::size_t tokens() const { return troupe_umf_tokens(m_); }
+        std::size_t stages() const { return troupe_umf_stages(m_); }
+        /// The bundle's default group options (solvers, CFG), seed 0.
+        Status default_options(troupe_group_options &out) const {
+            return Status::from(troupe_umf_options_init(m_, &out, sizeof out));
+        }
+        /// Generates `people` persons; `motion` becomes [people][clip_frames][frame_dim]. A NULL
+        /// `condition` is the null condition; NULL `options` the bundle's defaults; NULL `noise`
+        /// draws from the seed. On failure `motion` is left as it was.
+        Status generate_group(const float *condition, std::size_t condition_len, std::uint32_t people,
+                              std::vector<float> &motion, const troupe_group_options *options = nullptr,
+                              const troupe_group_noise *noise = nullptr) const {
+            std::vector<float> out(static_cast<std::size_t>(people) * troupe_model_clip_frames(m_) *
+                                   troupe_model_frame_dim(m_));
+            Status s = Status::from(troupe_umf_generate(m_, options, condition, condition_len, people, noise,
+                                                          out.data(), out.size(), nullptr, 0));
+            if (s) motion.swap(out);
+            return s;
+        }
+
+      private:
+        friend class Model;
+        explicit Umf(const troupe_model *m) : m_(m) {}
+        const troupe_model *m_;
+    };
+
+    /// What only a MAGNet model offers: `model.magnet().generate(...)`.
+    class Magnet {
+      public:
+        /// People the model generates together.
+        std::size_t people() const { return troupe_magnet_people(m_); }
+        /// The released sampling configurations, by the official YAML's name ("dd100", ...).
+        std::vector<std::string> configs() const {
+            std::vector<std::string> out;
+            for (std::size_t i = 0, n = troupe_magnet_config_count(m_); i < n; ++i)
+                out.emplace_back(troupe_magnet_config(m_, i));
+            return out;
+        }
+        /// Runs a sampling configuration (a released name, or a whole configuration as JSON) on
+        /// `frame_count` frames `[frame_count][people][145]`; `out` becomes
+        /// `[samples][frames][people][145]` and `shape` {samples, frames, people} on success only.
+        /// NULL `options` runs the configuration as released; NULL `present` means everyone.
+        Status generate(const std::string &config, const float *frames, std::size_t frame_count,
+                        std::vector<float> &out, std::size_t shape[3],
+                        const troupe_magnet_options *options = nullptr,
+                        const std::uint8_t *present = nullptr) const {
+            std::size_t s = 0, f = 0, p = 0;
+            Status st = Status::from(troupe_magnet_output_shape(m_, config.c_str(), options, frame_count, &s, &f, &p));
+            if (!st) return st;
+            std::vector<float> v(s * f * p * 145);
+            st = Status::from(troupe_magnet_generate(m_, config.c_str(), options, frames, frame_count, present,
+                                                     v.data(), v.size()));
+            if (st) {
+                out.swap(v);
+                shape[0] = s;
+                shape[1] = f;
+                shape[2] = p;
+            }
+            return st;
+        }
+
+      private:
+        friend class Model;
+        explicit Magnet(const troupe_model *m) : m_(m) {}
+        const troupe_model *m_;
+    };
+
+    /// What only an ARFlow model offers: `model.arflow().generate(...)`.
+    class Arflow {
+      public:
+        /// The reactor's `frame_count` x 262 frames for the actor's; `options` null runs the
+        /// bundle's defaults. `out` is replaced only on success.
+        Status generate(const float *actor, std::size_t frame_count, std::vector<float> &out,
+                        const troupe_arflow_options *options = nullptr) const {
+            std::vector<float> v(frame_count * 262);
+            Status st = Status::from(troupe_arflow_generate(m_, options, actor, frame_count, v.data(), frame_count));
+            if (st) out.swap(v);
+            return st;
+        }
+
+      private:
+        friend class Model;
+        explicit Arflow(const troupe_model *m) : m_(m) {}
+        const troupe_model *m_;
+    };
+
+    Armflow armflow() const { return Armflow(handle_); }
+    Umf umf() const { return Umf(handle_); }
+    Magnet magnet() const { return Magnet(handle_); }
+    Arflow arflow() const { return Arflow(handle_); }
+
+    // ---- the 0.1 names, kept for one release ----
+    [[deprecated("use umf().tokens()")]] std::size_t group_tokens() const { return umf().tokens(); }
+    [[deprecated("use umf().stages()")]] std::size_t group_stages() const { return umf().stages(); }
+    [[deprecated("use umf().default_options()")]] Status default_group_options(troupe_group_options &out) const {
+        return umf().default_options(out);
     }
-    /// ARFlow: the reactor's `frame_count` x 262 frames for the actor's; `options` null runs the
-    /// bundle's defaults. `out` is replaced only on success.
-    Status arflow_generate(const float *actor, std::size_t frame_count, std::vector<float> &out,
-                           const troupe_arflow_options *options = nullptr) const {
-        std::vector<float> v(frame_count * 262);
-        Status st = Status::from(
-            troupe_arflow_generate(handle_, options, actor, frame_count, v.data(), frame_count));
-        if (st) out.swap(v);
-        return st;
+    [[deprecated("use umf().generate_group()")]] Status generate_group(
+        const float *condition, std::size_t condition_len, std::uint32_t people, std::vector<float> &motion,
+        const troupe_group_options *options = nullptr, const troupe_group_noise *noise = nullptr) const {
+        return umf().generate_group(condition, condition_len, people, motion, options, noise);
+    }
+    [[deprecated("use magnet().people()")]] std::size_t magnet_people() const { return magnet().people(); }
+    [[deprecated("use magnet().configs()")]] std::vector<std::string> magnet_configs() const {
+        return magnet().configs();
+    }
+    [[deprecated("use magnet().generate()")]] Status magnet_generate(
+        const std::string &config, const float *frames, std::size_t frame_count, std::vector<float> &out,
+        std::size_t shape[3], const troupe_magnet_options *options = nullptr,
+        const std::uint8_t *present = nullptr) const {
+        return magnet().generate(config, frames, frame_count, out, shape, options, present);
+    }
+    [[deprecated("use arflow().generate()")]] Status arflow_generate(
+        const float *actor, std::size_t frame_count, std::vector<float> &out,
+        const troupe_arflow_options *options = nullptr) const {
+        return arflow().generate(actor, frame_count, out, options);
     }
     const troupe_model *get() const { return handle_; }
 
@@ -281,6 +380,14 @@ class Session {
         if (s) out = Session(h, model.frame_dim());
         return s;
     }
+    /// Starts an ARMFlow stream with ARMFlow's own options (`armflow` null: the bundle's).
+    static Status create_armflow(const Model &model, const troupe_session_options *options,
+                                 const troupe_armflow_session_options *armflow, Session &out) {
+        troupe_session *h = nullptr;
+        Status s = Status::from(troupe_armflow_session_new(model.get(), options, armflow, &h));
+        if (s) out = Session(h, model.frame_dim());
+        return s;
+    }
 #ifdef TROUPE_CPP_EXCEPTIONS
     static Session create_or_throw(const Model &model, const troupe_session_options *options = nullptr) {
         Session s;
@@ -303,20 +410,12 @@ class Session {
     Status set_condition(const float *condition, std::size_t len) {
         return Status::from(troupe_session_set_condition(handle_, condition, len));
     }
-    /// An ARMFlow stream's noise for its next token (`queue_normals` queues any family's draws).
-    Status queue_noise(const float *actor_noise, const float *reactor_noise, std::size_t len) {
-        return Status::from(troupe_armflow_session_queue_noise(handle_, actor_noise, reactor_noise, len));
-    }
     /// Standard normals for the stream's next draws, in its sampler's order (every family).
     Status queue_normals(const float *normals, std::size_t len) {
         return Status::from(troupe_session_queue_normals(handle_, normals, len));
     }
     /// The `TROUPE_CAP_*` bits of what the stream takes beyond frames, seed and steps.
     Status capabilities(std::uint32_t &out) const { return Status::from(troupe_session_capabilities(handle_, &out)); }
-    /// An ARFlow stream's sampler settings (from `troupe_arflow_options_init`).
-    Status set_arflow_options(const troupe_arflow_options &options) {
-        return Status::from(troupe_arflow_session_set_options(handle_, &options));
-    }
     /// The session's penetration guard (every streaming family; `enabled` false: off); see
     /// docs/MOTION.md.
     Status set_penetration_guard(bool enabled, float d_safe = 0.05f, float max_speed = 2.0f) {
@@ -337,25 +436,87 @@ class Session {
         return Status::from(
             troupe_session_set_foot_lock(handle_, enabled ? 1 : 0, contact_threshold, release_frames, max_stretch));
     }
-    /// An ARMFlow session's recentring (`enabled` false: off): before each token, when the
-    /// actor's root is more than `distance` metres from the networks' centre, the centre moves to
-    /// it and the networks' state is rebuilt from the last 8 tokens; output stays in the stream's
-    /// frame.
-    Status set_recentring(bool enabled, float distance = 1.0f) {
-        return Status::from(troupe_armflow_session_set_recentring(handle_, enabled ? 1 : 0, distance));
+    /// What only an ARMFlow stream takes: `session.armflow().set_recentring(true)`. The calls
+    /// on another family's stream answer `TROUPE_ERR_UNSUPPORTED`.
+    class Armflow {
+      public:
+        /// Recentring (`enabled` false: off): before each token, when the actor's root is more
+        /// than `distance` metres from the networks' centre, the centre moves to it and the
+        /// networks' state is rebuilt from the last 8 tokens; output stays in the stream's frame.
+        Status set_recentring(bool enabled, float distance = 1.0f) {
+            return Status::from(troupe_armflow_session_set_recentring(s_, enabled ? 1 : 0, distance));
+        }
+        /// The noise of the next token (`Session::queue_normals` queues whole tokens too).
+        Status queue_noise(const float *actor_noise, const float *reactor_noise, std::size_t len) {
+            return Status::from(troupe_armflow_session_queue_noise(s_, actor_noise, reactor_noise, len));
+        }
+
+      private:
+        friend class Session;
+        explicit Armflow(troupe_session *s) : s_(s) {}
+        troupe_session *s_;
+    };
+
+    /// What only a MAGNet live partner takes (before the first step or after a reset).
+    class Magnet {
+      public:
+        /// The partner's opening frames, `n_frames` x 145 floats, row-major.
+        Status set_partner_opening(const float *frames, std::size_t n_frames) {
+            return Status::from(troupe_magnet_session_set_partner_opening(s_, frames, n_frames));
+        }
+        /// Send each chunk's frames as soon as they are generated (lower latency).
+        Status set_early_emission(bool early) {
+            return Status::from(troupe_magnet_session_set_early_emission(s_, early ? 1 : 0));
+        }
+        /// The sampling configuration: a released name or JSON.
+        Status set_live_config(const std::string &config) {
+            return Status::from(troupe_magnet_session_set_live_config(s_, config.c_str()));
+        }
+
+      private:
+        friend class Session;
+        explicit Magnet(troupe_session *s) : s_(s) {}
+        troupe_session *s_;
+    };
+
+    /// What only an ARFlow online stream takes.
+    class Arflow {
+      public:
+        /// The stream's sampler settings (from `troupe_arflow_options_init`).
+        Status set_options(const troupe_arflow_options &options) {
+            return Status::from(troupe_arflow_session_set_options(s_, &options));
+        }
+
+      private:
+        friend class Session;
+        explicit Arflow(troupe_session *s) : s_(s) {}
+        troupe_session *s_;
+    };
+
+    Armflow armflow() { return Armflow(handle_); }
+    Magnet magnet() { return Magnet(handle_); }
+    Arflow arflow() { return Arflow(handle_); }
+
+    // ---- the 0.1 names, kept for one release ----
+    [[deprecated("use armflow().set_recentring()")]] Status set_recentring(bool enabled, float distance = 1.0f) {
+        return armflow().set_recentring(enabled, distance);
     }
-    // ---- a MAGNet live partner (before the first step or after a reset) ----
-    /// The partner's opening frames, `n_frames` x 145 floats, row-major.
-    Status set_partner_opening(const float *frames, std::size_t n_frames) {
-        return Status::from(troupe_magnet_session_set_partner_opening(handle_, frames, n_frames));
+    [[deprecated("use armflow().queue_noise()")]] Status queue_noise(const float *actor_noise,
+                                                                    const float *reactor_noise, std::size_t len) {
+        return armflow().queue_noise(actor_noise, reactor_noise, len);
     }
-    /// Send each chunk's frames as soon as they are generated (lower latency).
-    Status set_early_emission(bool early) {
-        return Status::from(troupe_magnet_session_set_early_emission(handle_, early ? 1 : 0));
+    [[deprecated("use arflow().set_options()")]] Status set_arflow_options(const troupe_arflow_options &options) {
+        return arflow().set_options(options);
     }
-    /// The sampling configuration: a released name or JSON.
-    Status set_live_config(const std::string &config) {
-        return Status::from(troupe_magnet_session_set_live_config(handle_, config.c_str()));
+    [[deprecated("use magnet().set_partner_opening()")]] Status set_partner_opening(const float *frames,
+                                                                                   std::size_t n_frames) {
+        return magnet().set_partner_opening(frames, n_frames);
+    }
+    [[deprecated("use magnet().set_early_emission()")]] Status set_early_emission(bool early) {
+        return magnet().set_early_emission(early);
+    }
+    [[deprecated("use magnet().set_live_config()")]] Status set_live_config(const std::string &config) {
+        return magnet().set_live_config(config);
     }
     /// Everything the stream needs to go on, as bytes (`out` replaced only on success): restore it
     /// with `Session::restore` on the same model, in this process or another, and it continues

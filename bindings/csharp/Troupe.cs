@@ -171,6 +171,8 @@ namespace Troupe
         public int FrameDim { get { return (int)Native.troupe_model_frame_dim(Live()); } }
         /// <summary>Frames per second of the model.</summary>
         public int Fps { get { return (int)Native.troupe_model_fps(Live()); } }
+        /// <summary>The family: "armflow", "umf", "magnet" or "arflow".</summary>
+        public string Family { get { return Native.Utf8(Native.troupe_model_family(Live())); } }
         /// <summary>Frames per token.</summary>
         public int FramesPerToken { get { return (int)Native.troupe_model_frames_per_token(Live()); } }
 
@@ -248,7 +250,55 @@ namespace Troupe
         }
     }
 
-    /// <summary>One stream: the reactor answering an actor. One thread at a time.</summary>
+    /// <summary>What only an ARMFlow stream takes, as Session.Armflow.</summary>
+    public sealed class ArmflowSession
+    {
+        private readonly Session session;
+        internal ArmflowSession(Session session) { this.session = session; }
+
+        /// <summary>Recentring (off with enabled false): before each token, when the actor's root
+        /// is more than distance metres from the networks' centre, the centre moves to it and the
+        /// networks' state is rebuilt from the last 8 tokens; output stays in the stream's
+        /// frame.</summary>
+        public void SetRecentring(bool enabled, float distance = 1.0f)
+        {
+            Native.Check(Native.troupe_armflow_session_set_recentring(session.Handle(), enabled ? 1 : 0, distance));
+        }
+    }
+
+    /// <summary>What only a MAGNet live partner takes, as Session.Magnet (before the first step
+    /// or after a reset).</summary>
+    public sealed class MagnetSession
+    {
+        private readonly Session session;
+        internal MagnetSession(Session session) { this.session = session; }
+
+        /// <summary>The partner's opening frames: <paramref name="frames"/> frames of FrameDim
+        /// (145) floats each, row-major.</summary>
+        public void SetPartnerOpening(float[] opening, int frames)
+        {
+            if (opening == null) throw new ArgumentNullException("opening");
+            if (frames < 0 || (long)frames * session.FrameDim > opening.Length)
+                throw new ArgumentException("opening holds fewer than " + frames + " frames of " + session.FrameDim + " floats", "frames");
+            Native.Check(Native.troupe_magnet_session_set_partner_opening(session.Handle(), opening, (UIntPtr)frames));
+        }
+
+        /// <summary>Send each chunk's frames as soon as they are generated (lower latency).</summary>
+        public void SetEarlyEmission(bool early)
+        {
+            Native.Check(Native.troupe_magnet_session_set_early_emission(session.Handle(), early ? 1 : 0));
+        }
+
+        /// <summary>The sampling configuration the partner runs: a released name or JSON.</summary>
+        public void SetLiveConfig(string config)
+        {
+            if (config == null) throw new ArgumentNullException("config");
+            Native.Check(Native.troupe_magnet_session_set_live_config(session.Handle(), Native.Utf8Z(config)));
+        }
+    }
+
+    /// <summary>One stream: an ARMFlow reactor answering an actor, an ARFlow online stream, or a
+    /// MAGNet live partner answering a user. One thread at a time.</summary>
     public sealed class Session : IDisposable
     {
         private readonly SessionHandle handle;
@@ -384,14 +434,23 @@ namespace Troupe
             Native.Check(Native.troupe_session_set_foot_lock(Live(), enabled ? 1 : 0, contactThreshold, releaseFrames, maxStretch));
         }
 
-        /// <summary>An ARMFlow session's recentring (off with enabled false): before each token, when
-        /// the actor's root is more than distance metres from the networks' centre, the centre moves
-        /// to it and the networks' state is rebuilt from the last 8 tokens; output stays in the
-        /// stream's frame.</summary>
+        /// <summary>What only an ARMFlow stream takes (its recentring). Its calls on another
+        /// family's stream throw UnsupportedException.</summary>
+        public ArmflowSession Armflow { get { return new ArmflowSession(this); } }
+
+        /// <summary>What only a MAGNet live partner takes (its opening frames, configuration and
+        /// early emission). Its calls on another family's stream throw UnsupportedException.</summary>
+        public MagnetSession Magnet { get { return new MagnetSession(this); } }
+
+        /// <summary>Deprecated since 0.2: Session.Armflow.SetRecentring.</summary>
+        [Obsolete("use Session.Armflow.SetRecentring")]
         public void SetRecentring(bool enabled, float distance = 1.0f)
         {
-            Native.Check(Native.troupe_armflow_session_set_recentring(Live(), enabled ? 1 : 0, distance));
+            Armflow.SetRecentring(enabled, distance);
         }
+
+        internal SessionHandle Handle() { return Live(); }
+        internal int FrameDim { get { return frameDim; } }
 
         /// <summary>Frees the session.</summary>
         public void Dispose()
@@ -518,6 +577,10 @@ namespace Troupe
         [DllImport(Lib, CallingConvention = CallingConvention.Cdecl)] internal static extern int troupe_session_set_penetration_guard(SessionHandle session, int enabled, float dSafe, float maxSpeed);
         [DllImport(Lib, CallingConvention = CallingConvention.Cdecl)] internal static extern int troupe_session_set_root_smoothing(SessionHandle session, int enabled, float timeConstant);
         [DllImport(Lib, CallingConvention = CallingConvention.Cdecl)] internal static extern int troupe_armflow_session_set_recentring(SessionHandle session, int enabled, float distance);
+        [DllImport(Lib, CallingConvention = CallingConvention.Cdecl)] internal static extern int troupe_magnet_session_set_partner_opening(SessionHandle session, float[] frames, UIntPtr nFrames);
+        [DllImport(Lib, CallingConvention = CallingConvention.Cdecl)] internal static extern int troupe_magnet_session_set_early_emission(SessionHandle session, int early);
+        [DllImport(Lib, CallingConvention = CallingConvention.Cdecl)] internal static extern int troupe_magnet_session_set_live_config(SessionHandle session, byte[] config);
+        [DllImport(Lib, CallingConvention = CallingConvention.Cdecl)] internal static extern IntPtr troupe_model_family(ModelHandle model);
         [DllImport(Lib, CallingConvention = CallingConvention.Cdecl)] internal static extern int troupe_session_set_foot_lock(SessionHandle session, int enabled, float contactThreshold, uint releaseFrames, float maxStretch);
         [DllImport(Lib, CallingConvention = CallingConvention.Cdecl)] internal static extern int troupe_session_set_seed(SessionHandle session, ulong seed);
         [DllImport(Lib, CallingConvention = CallingConvention.Cdecl)] internal static extern int troupe_session_set_condition(SessionHandle session, [In] float[] condition, UIntPtr len);

@@ -26,10 +26,10 @@ def main():
     ap.add_argument("--out", type=Path, default=Path("magnet_py.npy"))
     args = ap.parse_args()
     model = troupe.Model(args.bundle)
-    print(f"{args.bundle}: {model.magnet_people} people, configurations {', '.join(model.magnet_configs)}")
+    print(f"{args.bundle}: {model.magnet.people} people, configurations {', '.join(model.magnet.configs)}")
     frames = np.load(args.frames or args.bundle / "golden" / "frames.npy")
     start = time.perf_counter()
-    out = model.magnet_generate(args.config, frames, samples=args.samples, steps=args.steps,
+    out = model.magnet.generate(args.config, frames, samples=args.samples, steps=args.steps,
                                 x0_guidance=not args.no_x0_guidance)
     seconds = time.perf_counter() - start
     print(f"{args.config} on {len(frames)} frames: {out.shape} in {seconds:.2f} s; finite: {bool(np.isfinite(out).all())}")

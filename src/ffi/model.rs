@@ -14,6 +14,8 @@ use crate::Model;
 /// created from it keep it alive, so it may be freed before them.
 pub struct troupe_model {
     pub(crate) model: Model,
+    /// The family's manifest name, NUL-terminated for C; it lives as long as the handle.
+    family: CString,
     /// The names of the bundle's condition labels, NUL-terminated for C (the manifest refuses
     /// names holding NUL); they live as long as the handle.
     label_names: Vec<CString>,
@@ -89,6 +91,7 @@ fn publish(model: Model, out: *mut *mut troupe_model) {
         })
         .unwrap_or_default();
     let handle = troupe_model {
+        family: CString::new(model.family()).unwrap_or_default(),
         model,
         label_names,
         reduced_precision,
@@ -180,6 +183,17 @@ pub unsafe extern "C" fn troupe_model_free(model: *mut troupe_model) {
 /// Reads a property of a model; 0 for NULL.
 pub(crate) fn property(model: Option<&troupe_model>, f: impl FnOnce(&Model) -> usize) -> usize {
     model.map_or(0, |m| boundary::get(0, || f(&m.model)))
+}
+
+/// The model's family as its manifest names it (`"armflow"`, `"umf"`, `"magnet"`, `"arflow"`):
+/// which family's calls (`troupe_<family>_...`) it serves. NULL for NULL. The string is owned by
+/// the model and valid until `troupe_model_free`; never free it. Thread-safe.
+///
+/// # Safety
+/// `model` must be NULL or a live handle.
+#[no_mangle]
+pub unsafe extern "C" fn troupe_model_family(model: Option<&troupe_model>) -> *const c_char {
+    model.map_or(std::ptr::null(), |m| m.family.as_ptr())
 }
 
 /// Floats per motion frame (262 for the `interhuman262` layout); 0 for NULL. Thread-safe.

@@ -59,6 +59,7 @@ static void armflow(const char *dir) {
 
     EXPECT(troupe_model_load_file(dir, &model), TROUPE_OK);
     if (!model) return;
+    CHECK(strcmp(troupe_model_family(model), "armflow") == 0);
     /* The struct sizes this program was compiled with are the library's. */
     CHECK(troupe_session_options_size() == sizeof(troupe_session_options));
     CHECK(troupe_armflow_session_options_size() == sizeof(troupe_armflow_session_options));
@@ -94,6 +95,7 @@ static void arflow_online(const char *dir) {
 
     EXPECT(troupe_model_load_file(dir, &model), TROUPE_OK);
     if (!model) return;
+    CHECK(strcmp(troupe_model_family(model), "arflow") == 0);
     EXPECT(troupe_session_new(model, NULL, &s), TROUPE_OK);
     if (!s) return;
     EXPECT(troupe_session_capabilities(s, &caps), TROUPE_OK);
@@ -115,6 +117,7 @@ static void magnet(const char *dir) {
 
     EXPECT(troupe_model_load_file(dir, &model), TROUPE_OK);
     if (!model) return;
+    CHECK(strcmp(troupe_model_family(model), "magnet") == 0);
     EXPECT(troupe_armflow_session_options_init(model, &arm, sizeof arm), TROUPE_ERR_UNSUPPORTED);
     EXPECT(troupe_armflow_session_new(model, NULL, NULL, &s), TROUPE_ERR_UNSUPPORTED);
     CHECK(s == NULL);

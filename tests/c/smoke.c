@@ -118,6 +118,7 @@ int main(int argc, char **argv) {
 
     /* getters, NULL-safe */
     dim = troupe_model_frame_dim(model);
+    CHECK(strcmp(troupe_model_family(model), "armflow") == 0 && troupe_model_family(NULL) == NULL);
     fpt = troupe_model_frames_per_token(model);
     lat = troupe_model_latent_dim(model);
     cdim = troupe_model_condition_dim(model);

@@ -154,24 +154,24 @@ int main(int argc, char **argv) {
     // Groups: defaults, a seed, determinism, and a failure that leaves the output alone.
     troupe::Model umf;
     CHECK(troupe::Model::load(argv[2], umf).ok());
-    CHECK(umf.group_stages() == 2 && umf.clip_frames() == 40 && umf.group_tokens() == 16);
+    CHECK(umf.umf().stages() == 2 && umf.clip_frames() == 40 && umf.umf().tokens() == 16);
     troupe_group_options gopt;
-    CHECK(umf.default_group_options(gopt).ok() && gopt.stage_count == 2);
+    CHECK(umf.umf().default_options(gopt).ok() && gopt.stage_count == 2);
     gopt.seed = 3;
     std::vector<float> g1, g2;
-    CHECK(umf.generate_group(nullptr, 0, 2, g1, &gopt).ok());
+    CHECK(umf.umf().generate_group(nullptr, 0, 2, g1, &gopt).ok());
     CHECK(g1.size() == 2 * umf.clip_frames() * umf.frame_dim());
-    CHECK(umf.generate_group(nullptr, 0, 2, g2, &gopt).ok() && g1 == g2);
-    troupe::Status none = umf.generate_group(nullptr, 0, 0, g2, &gopt);
+    CHECK(umf.umf().generate_group(nullptr, 0, 2, g2, &gopt).ok() && g1 == g2);
+    troupe::Status none = umf.umf().generate_group(nullptr, 0, 0, g2, &gopt);
     CHECK(none.code() == TROUPE_ERR_INVALID_ARG && g1 == g2);
-    CHECK(other.generate_group(nullptr, 0, 1, g2).code() == TROUPE_ERR_NULL_ARG);
+    CHECK(other.umf().generate_group(nullptr, 0, 1, g2).code() == TROUPE_ERR_NULL_ARG);
 
     // Prompts: the bundle's tokenizer, CLIP tower and text branches give a condition.
     CHECK(umf.takes_prompts() && !other.takes_prompts());
     std::vector<float> p1, p2;
     CHECK(umf.encode_prompt("two people shake hands", p1).ok() && p1.size() == umf.condition_dim());
     CHECK(umf.encode_prompt("two people shake hands", p2).ok() && p1 == p2);
-    CHECK(umf.generate_group(p1.data(), p1.size(), 2, g2, &gopt).ok() && g1 != g2);
+    CHECK(umf.umf().generate_group(p1.data(), p1.size(), 2, g2, &gopt).ok() && g1 != g2);
     CHECK(other.encode_prompt("hello", p2).code() == TROUPE_ERR_NULL_ARG && p1 == p2);
 
     // MAGNet: released configurations, a changed one, determinism, a failure that leaves the
@@ -179,10 +179,10 @@ int main(int argc, char **argv) {
     if (argc > 6) {
         troupe::Model magnet;
         CHECK(troupe::Model::load(argv[6], magnet).ok());
-        const std::vector<std::string> configs = magnet.magnet_configs();
-        CHECK(magnet.magnet_people() == 2 && configs.size() == 8);
+        const std::vector<std::string> configs = magnet.magnet().configs();
+        CHECK(magnet.magnet().people() == 2 && configs.size() == 8);
         CHECK(std::find(configs.begin(), configs.end(), "dd100") != configs.end());
-        CHECK(umf.magnet_people() == 0 && umf.magnet_configs().empty());
+        CHECK(umf.magnet().people() == 0 && umf.magnet().configs().empty());
         std::size_t n = 0;
         float *clip = read_npy(argv[6], "frames", &n);
         CHECK(clip != nullptr && n == 128 * 2 * 145);
@@ -194,10 +194,10 @@ int main(int argc, char **argv) {
         mopt.flags = TROUPE_MAGNET_NO_X0_GUIDANCE;
         std::vector<float> m1, m2;
         std::size_t shape[3] = {0, 0, 0};
-        CHECK(magnet.magnet_generate("dd100", clip, 128, m1, shape, &mopt).ok());
+        CHECK(magnet.magnet().generate("dd100", clip, 128, m1, shape, &mopt).ok());
         CHECK(shape[0] == 1 && shape[1] == 64 && shape[2] == 2 && m1.size() == 64 * 2 * 145);
-        CHECK(magnet.magnet_generate("dd100", clip, 128, m2, shape, &mopt).ok() && m1 == m2);
-        troupe::Status missing = magnet.magnet_generate("nope", clip, 128, m2, shape, &mopt);
+        CHECK(magnet.magnet().generate("dd100", clip, 128, m2, shape, &mopt).ok() && m1 == m2);
+        troupe::Status missing = magnet.magnet().generate("nope", clip, 128, m2, shape, &mopt);
         CHECK(missing.code() == TROUPE_ERR_INVALID_ARG && m1 == m2);
         CHECK(missing.message().find("no sampling configuration") != std::string::npos);
 
@@ -213,14 +213,14 @@ int main(int argc, char **argv) {
         std::size_t ready = 0, written = 0;
         troupe::Status early = live.step(user.data(), 1, nullptr, 0, written);
         CHECK(early.code() == TROUPE_ERR_INVALID_ARG);
-        CHECK(live.set_live_config("{\"task\": 1}").code() == TROUPE_ERR_INVALID_ARG);
-        CHECK(live.set_steps(2).ok() && live.set_partner_opening(opening.data(), 32).ok());
-        CHECK(live.set_early_emission(true).ok());
+        CHECK(live.magnet().set_live_config("{\"task\": 1}").code() == TROUPE_ERR_INVALID_ARG);
+        CHECK(live.set_steps(2).ok() && live.magnet().set_partner_opening(opening.data(), 32).ok());
+        CHECK(live.magnet().set_early_emission(true).ok());
         CHECK(live.output_frames(64, ready).ok() && ready == 64);
         std::vector<float> partner(128 * 145), again(128 * 145);
         CHECK(live.step(user.data(), 64, partner.data(), 128, written).ok() && written == 64);
         CHECK(live.step(user.data() + 64 * 145, 64, partner.data() + 64 * 145, 64, written).ok() && written == 64);
-        CHECK(live.set_early_emission(false).code() == TROUPE_ERR_INVALID_ARG);
+        CHECK(live.magnet().set_early_emission(false).code() == TROUPE_ERR_INVALID_ARG);
         CHECK(live.reset().ok());
         CHECK(live.step(user.data(), 128, again.data(), 128, written).ok() && written == 128);
         CHECK(partner == again);
@@ -235,11 +235,11 @@ int main(int argc, char **argv) {
         float *actor = read_npy(argv[7], "actor", &n);
         CHECK(actor != nullptr && n == 40 * 262);
         std::vector<float> guided, plain, kept;
-        CHECK(arflow.arflow_generate(actor, 40, guided).ok() && guided.size() == n);
+        CHECK(arflow.arflow().generate(actor, 40, guided).ok() && guided.size() == n);
         troupe_arflow_options aopt;
         CHECK(troupe_arflow_options_init(arflow.get(), &aopt, sizeof aopt) == TROUPE_OK);
         aopt.guidance = 0.0f;
-        CHECK(arflow.arflow_generate(actor, 40, plain, &aopt).ok() && plain != guided);
+        CHECK(arflow.arflow().generate(actor, 40, plain, &aopt).ok() && plain != guided);
         kept = plain;
         troupe::Model reactor_model;
         CHECK(troupe::Model::load(argv[1], reactor_model).ok());
@@ -248,11 +248,44 @@ int main(int argc, char **argv) {
         CHECK(reactor.set_penetration_guard(true).ok());
         CHECK(reactor.set_penetration_guard(true, -1.0f).code() == TROUPE_ERR_INVALID_ARG);
         CHECK(reactor.set_penetration_guard(false).ok());
-        CHECK(reactor.set_arflow_options(aopt).code() == TROUPE_ERR_UNSUPPORTED);
+        CHECK(reactor.arflow().set_options(aopt).code() == TROUPE_ERR_UNSUPPORTED);
         aopt.weight = 2.0f;
-        troupe::Status refused = arflow.arflow_generate(actor, 40, plain, &aopt);
+        troupe::Status refused = arflow.arflow().generate(actor, 40, plain, &aopt);
         CHECK(refused.code() == TROUPE_ERR_INVALID_ARG && plain == kept);
         std::free(actor);
+    }
+
+    // The family views: the model's family, ARMFlow's own session options, the official clip.
+    {
+        CHECK(umf.family() == "umf");
+        troupe::Model plain;
+        CHECK(troupe::Model::load(argv[1], plain).ok() && plain.family() == "armflow");
+        troupe_armflow_session_options arm;
+        CHECK(troupe_armflow_session_options_init(plain.get(), &arm, sizeof arm) == TROUPE_OK);
+        arm.cfg_scale = 2.0f;
+        troupe::Session guided, refused;
+        CHECK(troupe::Session::create_armflow(plain, nullptr, &arm, guided).ok());
+        std::uint32_t caps = 0;
+        CHECK(guided.capabilities(caps).ok() && (caps & TROUPE_CAP_CFG_SCALE) != 0);
+        CHECK(troupe::Session::create_armflow(umf, nullptr, nullptr, refused).code() == TROUPE_ERR_UNSUPPORTED);
+        CHECK(!refused.valid());
+        std::vector<float> untouched{1.0f};
+        CHECK(!plain.armflow().generate_clip(nullptr, 0, untouched) && untouched.size() == 1);  // no clip
+        if (argc > 8) {
+            troupe::Model clip;
+            CHECK(troupe::Model::load(argv[8], clip).ok());
+            const std::size_t n = clip.clip_frames(), dim = clip.frame_dim();
+            CHECK(n > 0 && clip.armflow().clip_tokens() > 0);
+            std::vector<float> actor(n * dim), out, direct(n * dim);
+            for (std::size_t i = 0; i < actor.size(); i++) actor[i] = 0.02f * std::sin(static_cast<float>(i));
+            troupe_armflow_clip_options copt;
+            CHECK(clip.armflow().default_clip_options(copt).ok());
+            copt.seed = 5;
+            CHECK(clip.armflow().generate_clip(actor.data(), n, out, nullptr, 0, &copt).ok() && out.size() == n * dim);
+            CHECK(troupe_armflow_clip_generate_with_options(clip.get(), &copt, actor.data(), n, nullptr, 0, nullptr,
+                                                            direct.data(), direct.size(), nullptr, 0) == TROUPE_OK);
+            CHECK(out == direct);
+        }
     }
 
     // ---- motion: skeleton, positions <-> features, joint sessions, files ----
@@ -299,9 +332,9 @@ int main(int argc, char **argv) {
         CHECK(joints.set_foot_lock(false).ok());
         CHECK(joints.set_root_smoothing(true).ok() && joints.set_root_smoothing(true, -1.0f).code() == TROUPE_ERR_INVALID_ARG);
         // Recentring: a distance in range is taken, others refused; the stream goes on with it.
-        CHECK(joints.set_recentring(true).ok() && joints.set_recentring(true, 0.0f).code() == TROUPE_ERR_INVALID_ARG);
+        CHECK(joints.armflow().set_recentring(true).ok() && joints.armflow().set_recentring(true, 0.0f).code() == TROUPE_ERR_INVALID_ARG);
         CHECK(joints.step_joints(clip.data(), frames, poses).ok() && !poses.empty());
-        CHECK(joints.set_recentring(false).ok());
+        CHECK(joints.armflow().set_recentring(false).ok());
 
         if (argc > 3) {
             // Named after this binary: the builds with and without exceptions share the directory.

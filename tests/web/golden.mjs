@@ -51,7 +51,7 @@ for (const [name, c] of Object.entries(cases)) {
   const xi = golden(`${name}_xi`), eps = golden(`${name}_eps`);
   const latent = model.latentDim;
   for (let t = 0; t < xi.shape[0]; t++) {
-    session.queueNoise(xi.data.subarray(t * latent, (t + 1) * latent),
+    session.armflowQueueNoise(xi.data.subarray(t * latent, (t + 1) * latent),
       eps.data.subarray(t * latent, (t + 1) * latent));
   }
   const got = [];

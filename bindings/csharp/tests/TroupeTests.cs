@@ -170,9 +170,9 @@ internal static class TroupeTests
             b.SetFootLock(true);
             a.SetRootSmoothing(true);
             b.SetRootSmoothing(true);
-            a.SetRecentring(true);
-            b.SetRecentring(true);
-            Throws<InvalidArgumentException>(() => a.SetRecentring(true, 0f), "a zero recentring distance");
+            a.Armflow.SetRecentring(true);
+            b.Armflow.SetRecentring(true);
+            Throws<InvalidArgumentException>(() => a.Armflow.SetRecentring(true, 0f), "a zero recentring distance");
             Throws<InvalidArgumentException>(() => a.SetRootSmoothing(true, 0f), "a zero smoothing time constant");
             Throws<InvalidArgumentException>(() => a.SetFootLock(true, 0.5f, 0), "a foot lock releasing over zero frames");
             Throws<InvalidArgumentException>(() => a.SetFootLock(true, float.NaN), "a NaN contact threshold");
@@ -247,7 +247,34 @@ internal static class TroupeTests
             for (int i = 0; i < n * 66; i++)
                 finite &= !float.IsNaN(poses[i]) && !float.IsInfinity(poses[i]);
             Check(finite, "its poses are finite");
-            Throws<UnsupportedException>(() => s.SetRecentring(true), "ARMFlow's recentring on an ARFlow stream");
+            Throws<UnsupportedException>(() => s.Armflow.SetRecentring(true), "ARMFlow's recentring on an ARFlow stream");
+            Throws<UnsupportedException>(() => s.Magnet.SetEarlyEmission(true), "a MAGNet setting on an ARFlow stream");
+        }
+
+        // ... and a MAGNet live partner (its SMPL-X frames by inverse kinematics), after its opening:
+        // the second person of the bundle's golden pair. Its latency is a window of frames.
+        string bundles = Path.GetDirectoryName(Path.GetFullPath(tinyBundle));
+        using (var magnet = Model.Load(Path.Combine(bundles, "magnet-tiny")))
+        using (var s = magnet.CreateSession())
+        {
+            Check(magnet.Family == "magnet", "the model names its family (" + magnet.Family + ")");
+            int[] shape;
+            float[] pair = ReadNpy(Path.Combine(bundles, "magnet-tiny", "golden", "frames.npy"), out shape);
+            var opening = new float[32 * 145];
+            for (int t = 0; t < 32; t++) Array.Copy(pair, (t * 2 + 1) * 145, opening, t * 145, 145);
+            Throws<ArgumentException>(() => s.Magnet.SetPartnerOpening(opening, 33), "more opening frames than the array holds");
+            s.Magnet.SetPartnerOpening(opening, 32);
+            s.SetJointsFormat(new JointsFormat { Units = Units.Metres, Up = UpAxis.Z, Handedness = Handedness.Right, Fps = 120f });
+            s.SetPenetrationGuard(true);
+            var poses = new float[Math.Max(1, s.JointsReadyAfter(400)) * 66];
+            int n = s.StepJoints(clip, 400, poses);
+            Check(n > 0 && n <= 100, "a MAGNet partner returns poses for 400 joint frames at 120 fps (got " + n + ")");
+            bool finite = true;
+            for (int i = 0; i < n * 66; i++)
+                finite &= !float.IsNaN(poses[i]) && !float.IsInfinity(poses[i]);
+            Check(finite, "its poses are finite");
+            Throws<UnsupportedException>(() => s.SetFootLock(true), "the foot lock on frames without contact labels");
+            Throws<UnsupportedException>(() => s.Armflow.SetRecentring(true), "ARMFlow's recentring on a MAGNet partner");
         }
     }
 }

@@ -98,7 +98,7 @@ def test_golden_parity_with_injected_noise(model):
     xi, eps = np.load(GOLDEN / "default_xi.npy"), np.load(GOLDEN / "default_eps.npy")
     with model.session(condition=np.load(GOLDEN / "default_condition.npy")) as s:
         for a, r in zip(xi, eps):
-            s.set_noise(a, r)
+            s.armflow.queue_noise(a, r)
         frames = s.step(np.load(GOLDEN / "actor.npy"))
     assert np.abs(frames - np.load(GOLDEN / "default_frames.npy")).max() <= 1e-4
 
@@ -196,7 +196,7 @@ def test_failed_steps_leave_the_session_unchanged(model):
 
 def test_many_sessions_in_one_call_equal_each_alone(model):
     x = actor(48)
-    settings = [dict(seed=1), dict(seed=2, steps=2, cfg=2.0), dict(seed=3, capacity=4)]
+    settings = [dict(seed=1), dict(seed=2, steps=2, cfg_scale=2.0), dict(seed=3, capacity=4)]
     ticks = [1, 5, 12]
     alone = []
     for kw, tick in zip(settings, ticks):
@@ -326,16 +326,16 @@ def umf_golden(name):
 
 
 def test_group_generation_matches_the_reference(umf):
-    assert (umf.group_stages, umf.group_tokens, umf.clip_frames, umf.frame_dim) == (2, 16, 40, 262)
+    assert (umf.umf.stages, umf.umf.tokens, umf.clip_frames, umf.frame_dim) == (2, 16, 40, 262)
     cond = umf_golden("seeded_2p_condition")
-    motion, latents = umf.generate_group(2, condition=cond, seed=7, return_latents=True)
+    motion, latents = umf.umf.generate_group(2, condition=cond, seed=7, return_latents=True)
     assert motion.shape == (2, 40, 262) and latents.shape == (2, 16, umf.latent_dim)
     assert np.abs(motion - umf_golden("seeded_2p_motion")).max() <= 1e-4
     assert np.abs(latents - umf_golden("seeded_2p_latents")).max() <= 1e-5
     # The paper's Euler 45/5/10 with injected noise, as the reference ran it.
     noise = (umf_golden("euler_paper_2p_prior_noise"), umf_golden("euler_paper_2p_jump1"),
              umf_golden("euler_paper_2p_reaction_noise"))
-    motion = umf.generate_group(2, condition=umf_golden("euler_paper_2p_condition"), cfg=3.0,
+    motion = umf.umf.generate_group(2, condition=umf_golden("euler_paper_2p_condition"), cfg_scale=3.0,
                                 prior=[("euler", 45), ("euler", 5)], reaction=("euler", 10), noise=noise)
     assert np.abs(motion - umf_golden("euler_paper_2p_motion")).max() <= 1e-4
 
@@ -345,7 +345,7 @@ def test_group_text_branch_and_three_people_match_the_reference(umf):
     cond = umf.encode_text(umf_golden("text_clip_tokens"), int(umf_golden("text_eot_index")[0]))
     assert np.abs(cond - umf_golden("text_condition")).max() <= 1e-5
     noise = (umf_golden("text_3p_prior_noise"), umf_golden("text_3p_jump1"), umf_golden("text_3p_reaction_noise"))
-    motion, latents = umf.generate_group(3, condition=cond, noise=noise, return_latents=True)
+    motion, latents = umf.umf.generate_group(3, condition=cond, noise=noise, return_latents=True)
     assert np.abs(latents - umf_golden("text_3p_latents")).max() <= 1e-5
     assert np.abs(motion - umf_golden("text_3p_motion")).max() <= 1e-4
     with pytest.raises(ValueError, match=r"clip_tokens must be \[tokens, 16\]"):
@@ -354,16 +354,16 @@ def test_group_text_branch_and_three_people_match_the_reference(umf):
 
 def test_group_errors(umf, model):
     with pytest.raises(troupe.TroupeError, match="people is 0") as e:
-        umf.generate_group(0)
+        umf.umf.generate_group(0)
     assert e.value.name == "TROUPE_ERR_INVALID_ARG"
     with pytest.raises(troupe.TroupeError, match="TROUPE_ERR_SHAPE"):
-        umf.generate_group(1, condition=np.zeros(3, np.float32))
+        umf.umf.generate_group(1, condition=np.zeros(3, np.float32))
     with pytest.raises(troupe.TroupeError, match="1 prior solvers given"):
-        umf.generate_group(1, prior=[("rk4", 4)])
+        umf.umf.generate_group(1, prior=[("rk4", 4)])
     with pytest.raises(ValueError, match="unknown solver"):
-        umf.generate_group(1, reaction=("midpoint", 4))
-    with pytest.raises(troupe.TroupeError, match="needs a `umf` bundle"):
-        model.generate_group(1)
+        umf.umf.generate_group(1, reaction=("midpoint", 4))
+    with pytest.raises(troupe.Unsupported, match="`armflow` model; only umf models"):
+        model.umf.generate_group(1)
     with pytest.raises(troupe.TroupeError, match="`umf` model"):
         umf.session()
 
@@ -377,21 +377,21 @@ def official_golden(name):
 
 def test_official_clip_loop_and_text_branch_match_the_reference():
     m = troupe.Model(OFFICIAL)
-    assert (m.clip_frames, m.clip_tokens) == (300, 75)
+    assert (m.clip_frames, m.armflow.clip_tokens) == (300, 75)
     cond = m.encode_text(official_golden("text_clip_tokens"), int(official_golden("text_eot_index")[0]))
     assert np.abs(cond - official_golden("text_condition")).max() <= 1e-5
     noise = (official_golden("clip_xi"), official_golden("clip_eps"))
-    motion, latents = m.generate_clip(official_golden("clip_actor"), cond, noise=noise, return_latents=True)
+    motion, latents = m.armflow.generate_clip(official_golden("clip_actor"), cond, noise=noise, return_latents=True)
     assert np.abs(motion - official_golden("clip_frames")).max() <= 1e-4
     assert np.abs(latents - official_golden("clip_reactor_latents")).max() <= 1e-5
-    seeded = m.generate_clip(official_golden("clip_actor"), seed=4)
-    assert np.array_equal(seeded, m.generate_clip(official_golden("clip_actor"), seed=4))
+    seeded = m.armflow.generate_clip(official_golden("clip_actor"), seed=4)
+    assert np.array_equal(seeded, m.armflow.generate_clip(official_golden("clip_actor"), seed=4))
     with pytest.raises(troupe.TroupeError, match="1..=300 frames"):
-        m.generate_clip(np.zeros((301, 262), np.float32))
+        m.armflow.generate_clip(np.zeros((301, 262), np.float32))
     with pytest.raises(troupe.TroupeError, match="reactor_noise"):
-        m.generate_clip(official_golden("clip_actor"), noise=(noise[0], noise[1][:3]))
+        m.armflow.generate_clip(official_golden("clip_actor"), noise=(noise[0], noise[1][:3]))
     with pytest.raises(troupe.TroupeError, match="no `clip` section"):
-        troupe.Model(BUNDLE).generate_clip(np.zeros((4, 262), np.float32))
+        troupe.Model(BUNDLE).armflow.generate_clip(np.zeros((4, 262), np.float32))
     with pytest.raises(ValueError, match="clip_tokens must be"):
         m.encode_text(np.zeros((5, 7), np.float32), 0)
 
@@ -401,16 +401,16 @@ def test_guided_clip_matches_the_reference_guided():
     assert ctypes.sizeof(_native.ClipOptions) == _native.load().troupe_armflow_clip_options_size()
     cond = official_golden("text_condition")
     noise = (official_golden("clip_guided_xi"), official_golden("clip_guided_eps"))
-    motion, latents = m.generate_clip(official_golden("clip_guided_actor"), cond, noise=noise, return_latents=True,
+    motion, latents = m.armflow.generate_clip(official_golden("clip_guided_actor"), cond, noise=noise, return_latents=True,
                                       cfg_scale=2.0)
     assert np.abs(latents - official_golden("clip_guided_reactor_latents")).max() <= 1e-5
     assert np.abs(motion - official_golden("clip_guided_frames")).max() <= 1e-4
-    unguided = m.generate_clip(official_golden("clip_guided_actor"), cond, noise=noise)
-    assert np.array_equal(unguided, m.generate_clip(official_golden("clip_guided_actor"), cond, noise=noise,
+    unguided = m.armflow.generate_clip(official_golden("clip_guided_actor"), cond, noise=noise)
+    assert np.array_equal(unguided, m.armflow.generate_clip(official_golden("clip_guided_actor"), cond, noise=noise,
                                                     cfg_scale=1.0))
     assert np.abs(unguided - motion).max() > 1e-3
     with pytest.raises(troupe.TroupeError, match="(?i)cfg"):
-        m.generate_clip(official_golden("clip_guided_actor"), cond, cfg_scale=float("nan"))
+        m.armflow.generate_clip(official_golden("clip_guided_actor"), cond, cfg_scale=float("nan"))
 
 
 def test_reduced_precision_graphs_are_listed(model):
@@ -455,8 +455,8 @@ def test_prompts_encode_as_the_reference_and_condition_sessions_clips_and_groups
         s = troupe.Session(m, seed=1)
         s.set_prompt(prompts[1])
         assert np.array_equal(s.step(actor_clip), by_vector)
-        assert np.array_equal(m.generate_clip(actor_clip, prompt=prompts[2], seed=3),
-                              m.generate_clip(actor_clip, m.encode_prompt(prompts[2]), seed=3))
+        assert np.array_equal(m.armflow.generate_clip(actor_clip, prompt=prompts[2], seed=3),
+                              m.armflow.generate_clip(actor_clip, m.encode_prompt(prompts[2]), seed=3))
         with pytest.raises(ValueError, match="not both"):
             troupe.Session(m, condition=by_vector[0, :m.condition_dim], prompt="x")
         with pytest.raises(ValueError, match="NUL"):
@@ -464,8 +464,8 @@ def test_prompts_encode_as_the_reference_and_condition_sessions_clips_and_groups
         with pytest.raises(troupe.TroupeError, match="length in bytes"):
             m.encode_prompt("x" * (1 << 20))
     with troupe.Model(REPO / "onnx" / "bundles" / "umf-tiny") as u:
-        assert np.array_equal(u.generate_group(2, prompt="two people dance", seed=5),
-                              u.generate_group(2, u.encode_prompt("two people dance"), seed=5))
+        assert np.array_equal(u.umf.generate_group(2, prompt="two people dance", seed=5),
+                              u.umf.generate_group(2, u.encode_prompt("two people dance"), seed=5))
     assert not model.takes_prompts
     with pytest.raises(troupe.TroupeError, match="takes no text prompts"):
         model.encode_prompt("hello")
@@ -507,14 +507,14 @@ def test_magnet_options_mirror_the_library():
 def test_magnet_matches_the_reference_on_every_golden_task(magnet):
     import json
 
-    assert magnet.magnet_people == 2 and magnet.frame_dim == 145
-    assert "dd100" in magnet.magnet_configs and len(magnet.magnet_configs) == 8
+    assert magnet.magnet.people == 2 and magnet.frame_dim == 145
+    assert "dd100" in magnet.magnet.configs and len(magnet.magnet.configs) == 8
     frames = np.load(MAGNET / "golden" / "frames.npy")
     cases = json.loads((MAGNET / "golden" / "cases.json").read_text())
     for case, spec in cases.items():
         if case.startswith("live_stream"):
             continue  # streams: test_magnet_live_partner_streams_as_the_reference
-        out = magnet.magnet_generate(spec["sampling"], frames)
+        out = magnet.magnet.generate(spec["sampling"], frames)
         want = np.load(MAGNET / "golden" / f"{case}_frames.npy")
         assert out.shape == want.shape, case
         assert np.abs(out - want).max() <= 1e-4 * np.abs(want).max(), case
@@ -522,12 +522,12 @@ def test_magnet_matches_the_reference_on_every_golden_task(magnet):
 
 def test_magnet_released_configuration_with_options(magnet):
     frames = np.load(MAGNET / "golden" / "frames.npy")
-    out = magnet.magnet_generate("dd100", frames, samples=1, steps=2, seq_len=64, seed=9, x0_guidance=False)
+    out = magnet.magnet.generate("dd100", frames, samples=1, steps=2, seq_len=64, seed=9, x0_guidance=False)
     assert out.shape == (1, 64, 2, 145) and np.isfinite(out).all()
-    again = magnet.magnet_generate("dd100", frames, samples=1, steps=2, seq_len=64, seed=9, x0_guidance=False,
+    again = magnet.magnet.generate("dd100", frames, samples=1, steps=2, seq_len=64, seed=9, x0_guidance=False,
                                    present=np.ones(frames.shape[:2], bool))
     np.testing.assert_array_equal(out, again)
-    keys = magnet.magnet_generate("dd100_inbetweening", frames, steps=2, x0_guidance=False, keyframes=[0, 60])
+    keys = magnet.magnet.generate("dd100_inbetweening", frames, steps=2, x0_guidance=False, keyframes=[0, 60])
     assert keys.shape == (1, 64, 2, 145)
 
 
@@ -555,11 +555,11 @@ def test_magnet_live_partner_streams_as_the_reference(magnet, model):
     with pytest.raises(troupe.TroupeError, match="opening frames"):
         bare.step(frames[:1, 0])
     with pytest.raises(troupe.TroupeError, match="opening frames hold"):
-        bare.set_partner_opening(frames[:31, 1])
+        bare.magnet.set_partner_opening(frames[:31, 1])
     with pytest.raises(troupe.Unsupported, match="text prompt"):
         bare.set_prompt("wave")
-    with pytest.raises(troupe.TroupeError, match="TROUPE_ERR_UNSUPPORTED.*only magnet streams"):
-        model.session().set_early_emission(True)
+    with pytest.raises(troupe.Unsupported, match="TROUPE_ERR_UNSUPPORTED.*only magnet models"):
+        model.session().magnet.set_early_emission(True)
 
 
 def test_magnet_frames_pose_on_the_skeleton(magnet):
@@ -585,21 +585,20 @@ def test_magnet_frames_pose_on_the_skeleton(magnet):
 def test_magnet_errors(magnet, model):
     frames = np.load(MAGNET / "golden" / "frames.npy")
     with pytest.raises(troupe.TroupeError, match="no sampling configuration `nope`") as e:
-        magnet.magnet_generate("nope", frames)
+        magnet.magnet.generate("nope", frames)
     assert e.value.name == "TROUPE_ERR_INVALID_ARG"
     with pytest.raises(troupe.TroupeError, match="needs at least 32 frames"):
-        magnet.magnet_generate("dd100", frames[:16], steps=2)
+        magnet.magnet.generate("dd100", frames[:16], steps=2)
     bad = frames.copy()
     bad[5, 0, 3] = np.nan
     with pytest.raises(troupe.TroupeError, match="TROUPE_ERR_INVALID_ARG"):
-        magnet.magnet_generate("dd100", bad, steps=2, samples=1)
+        magnet.magnet.generate("dd100", bad, steps=2, samples=1)
     with pytest.raises(ValueError, match=r"frames must be \[frames, 2, 145\]"):
-        magnet.magnet_generate("dd100", np.zeros((64, 3, 145), np.float32), steps=2)
+        magnet.magnet.generate("dd100", np.zeros((64, 3, 145), np.float32), steps=2)
     with pytest.raises(ValueError, match="present must be"):
-        magnet.magnet_generate("dd100", frames, present=np.ones((3, 2), bool))
-    with pytest.raises(troupe.TroupeError, match="needs a `magnet` bundle"):
-        model.magnet_generate("dd100", frames)
-    assert model.magnet_configs == [] and model.magnet_people == 0
+        magnet.magnet.generate("dd100", frames, present=np.ones((3, 2), bool))
+    with pytest.raises(troupe.Unsupported, match="only magnet models"):
+        model.magnet.generate("dd100", frames)
 
 
 ARFLOW = REPO / "onnx" / "bundles" / "arflow-tiny"
@@ -614,7 +613,7 @@ def test_arflow_matches_the_reference_and_refuses_bad_input(model):
     with troupe.Model(ARFLOW) as arflow:
         for case in ("euler", "guided", "stochastic"):
             c = cases[case]
-            out = arflow.arflow_generate(actor, seed=c["seed"], steps=c["steps"], guidance=c["guidance"],
+            out = arflow.arflow.generate(actor, seed=c["seed"], steps=c["steps"], guidance=c["guidance"],
                                          weight=c["weight"], eta=c["eta"], d_safe=c["d_safe"], sigma=c["sigma"],
                                          squared=c["squared"], guided_backprojection=c["guided_backprojection"],
                                          mixing=c["mixing"])
@@ -622,11 +621,11 @@ def test_arflow_matches_the_reference_and_refuses_bad_input(model):
             bound = 1e-4 if c["guidance"] > 0 else 1e-5
             assert np.abs(out - want).max() <= bound * np.abs(want).max(), case
         with pytest.raises(troupe.TroupeError, match="guidance strength"):
-            arflow.arflow_generate(actor, guidance=-1.0)
+            arflow.arflow.generate(actor, guidance=-1.0)
         with pytest.raises(ValueError, match=r"\[frames, 262\]"):
-            arflow.arflow_generate(actor[:, :100])
-    with pytest.raises(troupe.TroupeError, match="needs an `arflow` bundle"):
-        model.arflow_generate(actor)
+            arflow.arflow.generate(actor[:, :100])
+    with pytest.raises(troupe.Unsupported, match="only arflow models"):
+        model.arflow.generate(actor)
 
 
 def _philox_normals():
@@ -647,13 +646,13 @@ def test_arflow_injected_draws_replay_the_seeded_run():
     philox = _philox_normals()
     with troupe.Model(ARFLOW) as arflow:
         settings = dict(steps=3, eta=0.5, sigma=0.1)
-        seeded = arflow.arflow_generate(actor, seed=7, **settings)
+        seeded = arflow.arflow.generate(actor, seed=7, **settings)
         draws = np.concatenate([philox(7, i, 9, actor.size) for i in range(4)]).astype(np.float32)
-        assert np.array_equal(arflow.arflow_generate(actor, draws=draws, **settings), seeded)
+        assert np.array_equal(arflow.arflow.generate(actor, draws=draws, **settings), seeded)
         with pytest.raises(ValueError, match="took .* of the .* normals given"):
-            arflow.arflow_generate(actor, draws=np.concatenate([draws, draws[:5]]), **settings)
+            arflow.arflow.generate(actor, draws=np.concatenate([draws, draws[:5]]), **settings)
         with pytest.raises(troupe.TroupeError, match="draw 3 needs"):
-            arflow.arflow_generate(actor, draws=draws[:-1], **settings)
+            arflow.arflow.generate(actor, draws=draws[:-1], **settings)
 
 
 def test_magnet_injected_draws_replay_the_seeded_run(magnet):
@@ -664,11 +663,11 @@ def test_magnet_injected_draws_replay_the_seeded_run(magnet):
     frames = np.load(MAGNET / "golden" / "frames.npy")
     philox = _philox_normals()
     settings = dict(samples=1, steps=2, seq_len=64, seed=4, x0_guidance=False)
-    seeded = magnet.magnet_generate("dd100", frames, **settings)
+    seeded = magnet.magnet.generate("dd100", frames, **settings)
     draws = np.zeros(0, np.float32)
     for draw in range(100):
         try:
-            replayed = magnet.magnet_generate("dd100", frames, draws=draws, **settings)
+            replayed = magnet.magnet.generate("dd100", frames, draws=draws, **settings)
             break
         except troupe.TroupeError as e:
             n = int(re.search(rf"draw {draw} needs (\d+) normals", str(e)).group(1))
@@ -783,7 +782,7 @@ def test_recentring_keeps_the_demo_partner_as_the_actor_walks_away():
             s = demo.session(seed=7, condition="mirror")
             s.set_joints_format(motion.JointsFormat(units="m", up="z", fps=30))
             if recentring:
-                s.set_recentring(True)
+                s.armflow.set_recentring(True)
             out = np.concatenate([s.step_joints(actor[i : i + 4]).positions for i in range(0, len(actor), 4)])
             n = len(out)
             error = np.linalg.norm(out - truth[:n], axis=-1).mean(axis=-1)
@@ -792,11 +791,11 @@ def test_recentring_keeps_the_demo_partner_as_the_actor_walks_away():
         assert late[True] < 40 and late[False] > 3 * late[True], late
         s = demo.session(seed=7)
         with pytest.raises(troupe.TroupeError, match="distance"):
-            s.set_recentring(True, float("nan"))
-        s.set_recentring(False)
+            s.armflow.set_recentring(True, float("nan"))
+        s.armflow.set_recentring(False)
     with troupe.Model(REPO / "onnx" / "bundles" / "magnet-tiny") as magnet:
         with pytest.raises(troupe.Unsupported):
-            magnet.session().set_recentring(True)
+            magnet.session().armflow.set_recentring(True)
 
 
 def test_the_online_arflow_variant_streams_frame_by_frame():
@@ -805,11 +804,11 @@ def test_the_online_arflow_variant_streams_frame_by_frame():
     want = np.load(online / "golden" / "guided_reactor.npy")
     with troupe.Model(online) as model:
         s = model.session()
-        s.set_arflow_options(seed=3)
+        s.arflow.set_options(seed=3)
         got = np.concatenate([s.step(actor[t : t + 1]) for t in range(len(actor))])
         assert np.abs(got - want).max() <= 1e-4 * np.abs(want).max()
         with pytest.raises(TypeError, match="unknown ARFlow settings"):
-            s.set_arflow_options(lambda_=2)
+            s.arflow.set_options(lambda_=2)
 
 
 def test_an_online_arflow_stream_replays_queued_normals():
@@ -821,7 +820,7 @@ def test_an_online_arflow_stream_replays_queued_normals():
     with troupe.Model(online) as m:
         def stream(seed, normals=None):
             s = troupe.Session(m)
-            s.set_arflow_options(seed=seed, steps=2, eta=0.4, sigma=0.1)
+            s.arflow.set_options(seed=seed, steps=2, eta=0.4, sigma=0.1)
             if normals is not None:
                 s.queue_normals(normals)
             return np.concatenate([s.step(actor[i:i + 1]) for i in range(len(actor))])
@@ -841,7 +840,7 @@ def test_an_online_arflow_stream_replays_queued_normals():
         token = np.sin(np.arange(2 * lat, dtype=np.float32) * 0.3)
         a, b = troupe.Session(armflow), troupe.Session(armflow)
         a.queue_normals(token)
-        b.set_noise(token[:lat], token[lat:])
+        b.armflow.queue_noise(token[:lat], token[lat:])
         assert "queued_normals" in a.capabilities and "cfg_scale" in a.capabilities
         frames = np.cos(np.arange(8 * 262, dtype=np.float32) * 0.11).reshape(8, 262)
         assert np.array_equal(a.step(frames), b.step(frames))
@@ -911,7 +910,7 @@ def test_every_streaming_family_streams_joint_positions():
     for name, latency in (("armflow-tiny", 1), ("arflow-tiny-online", 1), ("magnet-tiny", 0)):
         with troupe.Model(bundles / name) as m, m.session() as s:
             if name.startswith("magnet"):
-                s.set_partner_opening(golden[:32, 1])
+                s.magnet.set_partner_opening(golden[:32, 1])
             s.set_joints_format(fmt)
             s.set_penetration_guard(True)
             s.set_root_smoothing(True)
@@ -926,3 +925,40 @@ def test_every_streaming_family_streams_joint_positions():
                     s.set_foot_lock(True)
             else:
                 s.set_foot_lock(True)
+
+
+def test_family_calls_live_in_family_namespaces_and_the_0_1_names_still_work(model):
+    """`model.<family>` and `session.<family>` hold what one family offers; another family's
+    namespace raises Unsupported. The 0.1 names forward to them with a DeprecationWarning."""
+    assert model.family == "armflow"
+    for name in ("umf", "magnet", "arflow"):
+        with pytest.raises(troupe.Unsupported, match=f"`armflow` model; only {name} models"):
+            getattr(model, name)
+    with troupe.Model(REPO / "onnx" / "bundles" / "umf-tiny") as umf:
+        assert umf.family == "umf"
+        with pytest.warns(DeprecationWarning, match="model.umf.generate_group"):
+            old = umf.generate_group(2, seed=7, cfg=2.0)
+        assert np.array_equal(old, umf.umf.generate_group(2, seed=7, cfg_scale=2.0))
+        with pytest.warns(DeprecationWarning, match="model.umf.stages"):
+            assert umf.group_stages == umf.umf.stages
+    with troupe.Model(REPO / "onnx" / "bundles" / "magnet-tiny") as magnet:
+        with pytest.warns(DeprecationWarning, match="model.magnet.configs"):
+            assert magnet.magnet_configs == magnet.magnet.configs
+        s = magnet.session()
+        with pytest.raises(troupe.Unsupported, match="only armflow models"):
+            s.armflow.set_recentring(True)
+        golden = np.load(REPO / "onnx" / "bundles" / "magnet-tiny" / "golden" / "frames.npy")
+        with pytest.warns(DeprecationWarning, match="session.magnet.set_partner_opening"):
+            s.set_partner_opening(golden[:32, 1])
+    lat = model.latent_dim
+    token = np.sin(np.arange(2 * lat, dtype=np.float32) * 0.3)
+    frames = np.cos(np.arange(8 * 262, dtype=np.float32) * 0.11).reshape(8, 262)
+    a, b = model.session(seed=3), model.session(seed=3)
+    a.armflow.queue_noise(token[:lat], token[lat:])
+    with pytest.warns(DeprecationWarning, match="session.armflow.queue_noise"):
+        b.set_noise(token[:lat], token[lat:])
+    assert np.array_equal(a.step(frames), b.step(frames))
+    with pytest.warns(DeprecationWarning, match="`cfg_scale`"):
+        c = model.session(seed=3, cfg=2.0)
+    assert np.array_equal(c.step(frames), model.session(seed=3, cfg_scale=2.0).step(frames))
+

@@ -16,6 +16,7 @@ from __future__ import annotations
 import ctypes
 import os
 import threading
+import warnings
 from typing import Any, Callable, Sequence
 
 from numpy.typing import ArrayLike
@@ -29,7 +30,8 @@ from .errors import *  # noqa: F403  (the exception classes, re-exported)
 #: the wheel was built from one tree; the tests check it).
 __version__ = "0.2.0"
 
-__all__ = [*errors.__all__, "Model", "Session", "bundles", "errors", "motion", "viewer", "step_sessions", "version", "limits",
+__all__ = [*errors.__all__, "Model", "Session", "ArmflowModel", "UmfModel", "MagnetModel", "ArflowModel",
+           "ArmflowSession", "MagnetSession", "ArflowSession", "bundles", "errors", "motion", "viewer", "step_sessions", "version", "limits",
            "set_load_threads", "set_compute_threads", "compute_threads", "progress", "ACTOR_LATENT_SAMPLE", "ACTOR_LATENT_MEAN", "EULER", "RK4"]
 
 ACTOR_LATENT_SAMPLE = 0
@@ -145,6 +147,29 @@ class Model:
             raise ValueError("the model is closed")
         return self._handle
 
+    family = property(lambda self: _lib.troupe_model_family(self._h()).decode(),
+                      doc='the family: "armflow", "umf", "magnet" or "arflow"')
+
+    @property
+    def armflow(self) -> ArmflowModel:
+        """What only an ARMFlow model offers (the official clip); `Unsupported` for another family."""
+        return _family_view(self, self.family, "armflow", ArmflowModel)
+
+    @property
+    def umf(self) -> UmfModel:
+        """What only a UMF model offers (groups); `Unsupported` for another family."""
+        return _family_view(self, self.family, "umf", UmfModel)
+
+    @property
+    def magnet(self) -> MagnetModel:
+        """What only a MAGNet model offers (its tasks); `Unsupported` for another family."""
+        return _family_view(self, self.family, "magnet", MagnetModel)
+
+    @property
+    def arflow(self) -> ArflowModel:
+        """What only an ARFlow model offers (whole reactions); `Unsupported` for another family."""
+        return _family_view(self, self.family, "arflow", ArflowModel)
+
     frame_dim = property(lambda self: _lib.troupe_model_frame_dim(self._h()), doc="floats per frame")
     fps = property(lambda self: _lib.troupe_model_fps(self._h()), doc="frames per second")
     frames_per_token = property(lambda self: _lib.troupe_model_frames_per_token(self._h()))
@@ -200,57 +225,62 @@ class Model:
         _check(_lib.troupe_session_restore(self._h(), data, len(data), ctypes.byref(handle)))
         return Session._adopting(self, handle)
 
-    group_stages = property(lambda self: _lib.troupe_umf_stages(self._h()),
-                            doc="pyramid stages of a umf bundle (0 otherwise)")
-    group_tokens = property(lambda self: _lib.troupe_umf_tokens(self._h()),
-                            doc="latent tokens per person of a umf bundle (0 otherwise)")
     clip_frames = property(lambda self: _lib.troupe_model_clip_frames(self._h()),
                            doc="frames per clip: per person of a umf bundle, of an official "
                                "ARMFlow clip (0 otherwise)")
-    clip_tokens = property(lambda self: _lib.troupe_armflow_clip_tokens(self._h()),
-                           doc="tokens of an official ARMFlow clip (0 otherwise)")
 
-    def generate_clip(self, actor: ArrayLike, condition: str | ArrayLike | None = None, seed: int = 0,
-                      steps: int = 0, noise: Sequence[ArrayLike] | None = None, return_latents: bool = False,
-                      prompt: str | None = None,
-                      cfg_scale: float | None = None) -> np.ndarray | tuple[np.ndarray, np.ndarray | None]:
-        """The official ARMFlow clip loop (an armflow bundle exported from the official layout):
-        `actor` [frames, frame_dim] with 1..clip_frames frames, zero-padded to the clip.
-        Returns the reactor motion [clip_frames, frame_dim] (and the reactor tokens
-        [clip_tokens, latent_dim] with `return_latents`).
+    # The 0.1 names of the family calls, kept for one release.
+    def generate_clip(self, *args: Any, **kwargs: Any) -> Any:
+        """Deprecated since 0.2: `model.armflow.generate_clip`."""
+        _deprecated("Model.generate_clip", "model.armflow.generate_clip")
+        return self.armflow.generate_clip(*args, **kwargs)
 
-        `condition`: condition_dim floats, or None for the null condition; or `prompt`, a text
-        (see encode_prompt). `steps`: MeanFlow steps per token, 0 for the bundle's default.
-        `cfg_scale`: classifier-free guidance, None for the bundle's (`sampler.cfg_scale`, which
-        the official sampler applies; 1 is off). `noise`: (actor_posterior [clip_tokens,
-        latent_dim], reactor_noise [latent_dim]) replacing the seeded draws, the way to
-        reproduce another implementation's run exactly. Releases the GIL."""
-        h = self._h()
-        a = _floats(actor, "actor")
-        if a.ndim != 2 or a.shape[1] != self.frame_dim:
-            raise ValueError(f"actor must be [frames, {self.frame_dim}], got {list(a.shape)}")
-        cond = self._condition_or_prompt(condition, prompt)
-        opt = _native.ClipOptions()
-        _check(_lib.troupe_armflow_clip_options_init(h, ctypes.byref(opt), ctypes.sizeof(opt)))
-        opt.seed = seed
-        if steps:
-            opt.steps = steps
-        if cfg_scale is not None:
-            opt.cfg_scale = cfg_scale
-        noise_struct = None
-        if noise is not None:
-            # `arrays` stays alive until the call returns, so the struct's pointers stay valid.
-            arrays = [_floats(x, name) for x, name in zip(noise, ("actor_posterior", "reactor_noise"))]
-            noise_struct = _native.ClipNoise(*[v for x in arrays for v in (_ptr(x), x.size)])
-        motion = np.empty((self.clip_frames, self.frame_dim), np.float32)
-        latents = np.empty((self.clip_tokens, self.latent_dim), np.float32) if return_latents else None
-        _check(_lib.troupe_armflow_clip_generate_with_options(
-            h, ctypes.byref(opt), _ptr(a), a.shape[0],
-            None if cond is None else _ptr(cond), 0 if cond is None else cond.size,
-            None if noise_struct is None else ctypes.byref(noise_struct),
-            _ptr(motion), motion.size,
-            None if latents is None else _ptr(latents), 0 if latents is None else latents.size))
-        return (motion, latents) if return_latents else motion
+    def generate_group(self, *args: Any, cfg: float | None = None, **kwargs: Any) -> Any:
+        """Deprecated since 0.2: `model.umf.generate_group` (its `cfg` is `cfg_scale`)."""
+        _deprecated("Model.generate_group", "model.umf.generate_group")
+        if cfg is not None:
+            kwargs["cfg_scale"] = cfg
+        return self.umf.generate_group(*args, **kwargs)
+
+    def magnet_generate(self, *args: Any, **kwargs: Any) -> Any:
+        """Deprecated since 0.2: `model.magnet.generate`."""
+        _deprecated("Model.magnet_generate", "model.magnet.generate")
+        return self.magnet.generate(*args, **kwargs)
+
+    def arflow_generate(self, *args: Any, **kwargs: Any) -> Any:
+        """Deprecated since 0.2: `model.arflow.generate`."""
+        _deprecated("Model.arflow_generate", "model.arflow.generate")
+        return self.arflow.generate(*args, **kwargs)
+
+    @property
+    def magnet_configs(self) -> list[str]:
+        """Deprecated since 0.2: `model.magnet.configs` (empty for another family)."""
+        _deprecated("Model.magnet_configs", "model.magnet.configs")
+        return self.magnet.configs if self.family == "magnet" else []
+
+    @property
+    def magnet_people(self) -> int:
+        """Deprecated since 0.2: `model.magnet.people` (0 for another family)."""
+        _deprecated("Model.magnet_people", "model.magnet.people")
+        return _lib.troupe_magnet_people(self._h())
+
+    @property
+    def group_stages(self) -> int:
+        """Deprecated since 0.2: `model.umf.stages` (0 for another family)."""
+        _deprecated("Model.group_stages", "model.umf.stages")
+        return _lib.troupe_umf_stages(self._h())
+
+    @property
+    def group_tokens(self) -> int:
+        """Deprecated since 0.2: `model.umf.tokens` (0 for another family)."""
+        _deprecated("Model.group_tokens", "model.umf.tokens")
+        return _lib.troupe_umf_tokens(self._h())
+
+    @property
+    def clip_tokens(self) -> int:
+        """Deprecated since 0.2: `model.armflow.clip_tokens` (0 for another family)."""
+        _deprecated("Model.clip_tokens", "model.armflow.clip_tokens")
+        return _lib.troupe_armflow_clip_tokens(self._h())
 
     text_token_dim = property(lambda self: _lib.troupe_model_text_token_dim(self._h()),
                               doc="width of the CLIP token features encode_text reads (0: no text branch)")
@@ -288,8 +318,108 @@ class Model:
         _check(_lib.troupe_text_prompt_encode(self._h(), prompt.encode("utf-8"), _ptr(out), out.size))
         return out
 
+    def session(self, seed: int = 0, steps: int | None = None, cfg_scale: float | None = None,
+                capacity: int | None = None, actor_latent: int | None = None,
+                condition: str | ArrayLike | None = None, prompt: str | None = None,
+                partner_opening: ArrayLike | None = None, live_config: str | None = None,
+                early: bool = False, cfg: float | None = None) -> "Session":
+        """Starts a stream: `Session(model, ...)` (its arguments are this call's)."""
+        return Session(self, seed, steps, cfg_scale, capacity, actor_latent, condition, prompt,
+                       partner_opening=partner_opening, live_config=live_config, early=early, cfg=cfg)
+
+    def close(self) -> None:
+        """Releases this reference (sessions keep the model alive)."""
+        handle, self._handle = getattr(self, "_handle", None), None  # type: ignore[assignment]
+        if handle:
+            _lib.troupe_model_free(handle)
+
+    __del__ = close
+
+    def __enter__(self) -> Model:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+def _deprecated(old: str, new: str) -> None:
+    """Warns once per call site that `old` is deprecated since 0.2 and goes in 0.3."""
+    warnings.warn(f"{old} is deprecated since troupe 0.2 and goes in 0.3: use {new}", DeprecationWarning,
+                  stacklevel=3)
+
+
+def _family_view(owner: Any, family: str, needed: str, view: Any) -> Any:
+    """`view(owner)` when `family` is `needed`; else Unsupported, as the C calls answer."""
+    if family != needed:
+        article = "an" if family.startswith("a") else "a"
+        raise Unsupported(f"this is {article} `{family}` model; only {needed} models have `.{needed}`")
+    return view(owner)
+
+
+class ArmflowModel:
+    """What only an ARMFlow model offers, as `model.armflow`: the official clip loop."""
+
+    def __init__(self, model: Model):
+        self._model = model
+
+    clip_tokens = property(lambda self: _lib.troupe_armflow_clip_tokens(self._model._h()),
+                           doc="tokens of an official ARMFlow clip (0 for a streaming-only bundle)")
+
+    def generate_clip(self, actor: ArrayLike, condition: str | ArrayLike | None = None, seed: int = 0,
+                      steps: int = 0, noise: Sequence[ArrayLike] | None = None, return_latents: bool = False,
+                      prompt: str | None = None,
+                      cfg_scale: float | None = None) -> np.ndarray | tuple[np.ndarray, np.ndarray | None]:
+        """The official ARMFlow clip loop (an armflow bundle exported from the official layout):
+        `actor` [frames, frame_dim] with 1..clip_frames frames, zero-padded to the clip.
+        Returns the reactor motion [clip_frames, frame_dim] (and the reactor tokens
+        [clip_tokens, latent_dim] with `return_latents`).
+
+        `condition`: condition_dim floats, or None for the null condition; or `prompt`, a text
+        (see encode_prompt). `steps`: MeanFlow steps per token, 0 for the bundle's default.
+        `cfg_scale`: classifier-free guidance, None for the bundle's (`sampler.cfg_scale`, which
+        the official sampler applies; 1 is off). `noise`: (actor_posterior [clip_tokens,
+        latent_dim], reactor_noise [latent_dim]) replacing the seeded draws, the way to
+        reproduce another implementation's run exactly. Releases the GIL."""
+        h = self._model._h()
+        a = _floats(actor, "actor")
+        if a.ndim != 2 or a.shape[1] != self._model.frame_dim:
+            raise ValueError(f"actor must be [frames, {self._model.frame_dim}], got {list(a.shape)}")
+        cond = self._model._condition_or_prompt(condition, prompt)
+        opt = _native.ClipOptions()
+        _check(_lib.troupe_armflow_clip_options_init(h, ctypes.byref(opt), ctypes.sizeof(opt)))
+        opt.seed = seed
+        if steps:
+            opt.steps = steps
+        if cfg_scale is not None:
+            opt.cfg_scale = cfg_scale
+        noise_struct = None
+        if noise is not None:
+            # `arrays` stays alive until the call returns, so the struct's pointers stay valid.
+            arrays = [_floats(x, name) for x, name in zip(noise, ("actor_posterior", "reactor_noise"))]
+            noise_struct = _native.ClipNoise(*[v for x in arrays for v in (_ptr(x), x.size)])
+        motion = np.empty((self._model.clip_frames, self._model.frame_dim), np.float32)
+        latents = np.empty((self.clip_tokens, self._model.latent_dim), np.float32) if return_latents else None
+        _check(_lib.troupe_armflow_clip_generate_with_options(
+            h, ctypes.byref(opt), _ptr(a), a.shape[0],
+            None if cond is None else _ptr(cond), 0 if cond is None else cond.size,
+            None if noise_struct is None else ctypes.byref(noise_struct),
+            _ptr(motion), motion.size,
+            None if latents is None else _ptr(latents), 0 if latents is None else latents.size))
+        return (motion, latents) if return_latents else motion
+
+
+
+class UmfModel:
+    """What only a UMF model offers, as `model.umf`: groups from a text."""
+
+    def __init__(self, model: Model):
+        self._model = model
+
+    stages = property(lambda self: _lib.troupe_umf_stages(self._model._h()), doc="pyramid stages")
+    tokens = property(lambda self: _lib.troupe_umf_tokens(self._model._h()), doc="latent tokens per person")
+
     def generate_group(self, people: int, condition: str | ArrayLike | None = None, seed: int = 0,
-                       cfg: float | None = None, prior: Sequence[tuple[str, int]] | None = None,
+                       cfg_scale: float | None = None, prior: Sequence[tuple[str, int]] | None = None,
                        reaction: tuple[str, int] | None = None, noise: Sequence[ArrayLike] | None = None,
                        return_latents: bool = False,
                        prompt: str | None = None) -> np.ndarray | tuple[np.ndarray, np.ndarray | None]:
@@ -301,12 +431,12 @@ class Model:
         condition; or `prompt`, a text (see encode_prompt). `prior`: one (method, steps) per pyramid stage, method "euler" or "rk4";
         `reaction`: one (method, steps). `noise`: (prior, jumps, reactions) arrays replacing the
         seeded draws (lengths as troupe_umf_noise_lengths gives). Releases the GIL."""
-        h = self._h()
+        h = self._model._h()
         opt = _native.GroupOptions()
         _check(_lib.troupe_umf_options_init(h, ctypes.byref(opt), ctypes.sizeof(opt)))
         opt.seed = seed
-        if cfg is not None:
-            opt.cfg_scale = cfg
+        if cfg_scale is not None:
+            opt.cfg_scale = cfg_scale
         if prior is not None:
             if len(prior) > _native.MAX_STAGES:
                 raise ValueError(f"at most {_native.MAX_STAGES} stages")
@@ -315,14 +445,14 @@ class Model:
                 opt.stage_solver[k], opt.stage_steps[k] = _solver(method), steps
         if reaction is not None:
             opt.reaction_solver, opt.reaction_steps = _solver(reaction[0]), reaction[1]
-        cond = self._condition_or_prompt(condition, prompt)
+        cond = self._model._condition_or_prompt(condition, prompt)
         noise_struct = None
         if noise is not None:
             # `arrays` stays alive until the call returns, so the struct's pointers stay valid.
             arrays = [_floats(a, name) for a, name in zip(noise, ("prior", "jumps", "reactions"))]
             noise_struct = _native.GroupNoise(*[v for a in arrays for v in (_ptr(a), a.size)])
-        motion = np.empty((people, self.clip_frames, self.frame_dim), np.float32)
-        latents = np.empty((people, self.group_tokens, self.latent_dim), np.float32) if return_latents else None
+        motion = np.empty((people, self._model.clip_frames, self._model.frame_dim), np.float32)
+        latents = np.empty((people, self.tokens, self._model.latent_dim), np.float32) if return_latents else None
         _check(_lib.troupe_umf_generate(
             h, ctypes.byref(opt),
             None if cond is None else _ptr(cond), 0 if cond is None else cond.size,
@@ -331,18 +461,25 @@ class Model:
             None if latents is None else _ptr(latents), 0 if latents is None else latents.size))
         return (motion, latents) if return_latents else motion
 
-    magnet_people = property(lambda self: _lib.troupe_magnet_people(self._h()),
-                             doc="people a `magnet` model generates together (0 for other bundles)")
+
+class MagnetModel:
+    """What only a MAGNet model offers, as `model.magnet`: its released tasks."""
+
+    def __init__(self, model: Model):
+        self._model = model
+
+    people = property(lambda self: _lib.troupe_magnet_people(self._model._h()),
+                      doc="people the model generates together")
 
     @property
-    def magnet_configs(self) -> list:
-        """The released sampling configurations of a `magnet` bundle, by the official YAML's
-        name (`dd100`, `dd100_partner_prediction`, ...); empty for other bundles."""
-        h = self._h()
+    def configs(self) -> list[str]:
+        """The released sampling configurations, by the official YAML's name (`dd100`,
+        `dd100_partner_prediction`, ...)."""
+        h = self._model._h()
         return [_lib.troupe_magnet_config(h, i).decode("utf-8")
                 for i in range(_lib.troupe_magnet_config_count(h))]
 
-    def _magnet_options(self, samples: int | None, steps: int | None, seq_len: int | None, seed: int | None,
+    def _options(self, samples: int | None, steps: int | None, seq_len: int | None, seed: int | None,
                         eta: float | None, x0_guidance: bool, keyframes: Sequence[int] | None) -> Any:
         opt = _native.MagnetOptions()
         _check(_lib.troupe_magnet_options_init(ctypes.byref(opt), ctypes.sizeof(opt)))
@@ -364,17 +501,17 @@ class Model:
                 opt.keyframes[i] = k
         return opt
 
-    def magnet_generate(self, config: str | dict, frames: ArrayLike, present: ArrayLike | None = None,
-                        samples: int | None = None,
-                        steps: int | None = None, seq_len: int | None = None, seed: int | None = None,
-                        eta: float | None = None, x0_guidance: bool = True, keyframes: Sequence[int] | None = None,
-                        draws: ArrayLike | None = None) -> np.ndarray:
+    def generate(self, config: str | dict, frames: ArrayLike, present: ArrayLike | None = None,
+                 samples: int | None = None,
+                 steps: int | None = None, seq_len: int | None = None, seed: int | None = None,
+                 eta: float | None = None, x0_guidance: bool = True, keyframes: Sequence[int] | None = None,
+                 draws: ArrayLike | None = None) -> np.ndarray:
         """Runs a MAGNet sampling configuration on `frames` [F, people, 145] (per person and
         frame: betas, the 21 body joints' 6-D rotations, the root's pose in the world, y up) and
         returns the frames it generates, float32 [samples, frames, people, 145], every root in
         the input's world frame.
 
-        `config`: a name from `magnet_configs`, or a whole configuration (a dict with the fields
+        `config`: a name from `configs`, or a whole configuration (a dict with the fields
         of the manifest's `sampling` entries). `present`: [F, people] booleans (None: everyone).
         The other arguments change the configuration for this call (None keeps it);
         `x0_guidance=False` turns the decoder-space corrections off (three to five times
@@ -386,11 +523,11 @@ class Model:
 
         name = (json.dumps(config) if isinstance(config, dict) else str(config)).encode("utf-8")
         data = _floats(frames, "frames")
-        h = self._h()
+        h = self._model._h()
         people = _lib.troupe_magnet_people(h)
         if data.ndim != 3 or (people and data.shape[1:] != (people, 145)):
             raise ValueError(f"frames must be [frames, {people or 'people'}, 145], got shape {data.shape}")
-        opt = self._magnet_options(samples, steps, seq_len, seed, eta, x0_guidance, keyframes)
+        opt = self._options(samples, steps, seq_len, seed, eta, x0_guidance, keyframes)
         s, f, p = ctypes.c_size_t(), ctypes.c_size_t(), ctypes.c_size_t()
         _check(_lib.troupe_magnet_output_shape(h, name, ctypes.byref(opt), data.shape[0],
                                                ctypes.byref(s), ctypes.byref(f), ctypes.byref(p)))
@@ -412,11 +549,19 @@ class Model:
         _all_used(used.value, normals.size)
         return out
 
-    def arflow_generate(self, actor: ArrayLike, seed: int = 0, steps: int | None = None, guidance: float | None = None,
-                        weight: float | None = None, eta: float | None = None, d_safe: float | None = None,
-                        sigma: float | None = None, squared: bool | None = None,
-                        guided_backprojection: bool | None = None, mixing: str | None = None,
-                        draws: ArrayLike | None = None) -> np.ndarray:
+
+class ArflowModel:
+    """What only an ARFlow model offers, as `model.arflow`: whole reactions with penetration
+    guidance."""
+
+    def __init__(self, model: Model):
+        self._model = model
+
+    def generate(self, actor: ArrayLike, seed: int = 0, steps: int | None = None, guidance: float | None = None,
+                 weight: float | None = None, eta: float | None = None, d_safe: float | None = None,
+                 sigma: float | None = None, squared: bool | None = None,
+                 guided_backprojection: bool | None = None, mixing: str | None = None,
+                 draws: ArrayLike | None = None) -> np.ndarray:
         """ARFlow: the reactor's interhuman262 frames [T, 262] for the actor's (one world frame
         for both). Unset settings take the bundle's defaults (5 steps, guidance λ 2, weight w 0.7,
         η 0, d_safe 0.02 m, linear hinge, guided back-projection, `mixing` "linear"; see
@@ -426,7 +571,7 @@ class Model:
         a = _floats(actor, "actor")
         if a.ndim != 2 or a.shape[1] != 262:
             raise ValueError(f"actor must be [frames, 262], got {list(a.shape)}")
-        h = self._h()
+        h = self._model._h()
         opt = _arflow_options(h, seed, steps, guidance, weight, eta, d_safe, sigma, squared,
                               guided_backprojection, mixing)
         out = np.empty_like(a)
@@ -439,32 +584,70 @@ class Model:
         _all_used(used.value, normals.size)
         return out
 
-    def session(self, seed: int = 0, steps: int | None = None, cfg: float | None = None,
-                capacity: int | None = None, actor_latent: int | None = None,
-                condition: str | ArrayLike | None = None, partner_opening: ArrayLike | None = None,
-                live_config: str | None = None,
-                early: bool = False) -> "Session":
-        """Starts a stream; unset options take the bundle's defaults. On an armflow model the
-        session answers an actor with the reactor; on a two-person magnet model it answers a
-        user with the live partner: give the partner's opening frames (float32
-        [context frames, 145]), optionally a sampling configuration (a released name or JSON)
-        and early emission (lower latency, see docs/MAGNET.md)."""
-        return Session(self, seed, steps, cfg, capacity, actor_latent, condition,
-                       partner_opening=partner_opening, live_config=live_config, early=early)
 
-    def close(self) -> None:
-        """Releases this reference (sessions keep the model alive)."""
-        handle, self._handle = getattr(self, "_handle", None), None  # type: ignore[assignment]
-        if handle:
-            _lib.troupe_model_free(handle)
+class ArmflowSession:
+    """What only an ARMFlow stream takes, as `session.armflow`."""
 
-    __del__ = close
+    def __init__(self, session: Session):
+        self._session = session
 
-    def __enter__(self) -> Model:
-        return self
+    def set_recentring(self, enabled: bool = True, distance: float = 1.0) -> None:
+        """Recentring: before each token, when the actor's root is more than `distance` metres
+        on the floor from where the networks' frame is centred, the centre moves to the actor
+        and the networks' state is rebuilt around it from the last 8 tokens of both people's
+        motion (kept while it is on). Frames and poses stay in the stream's frame; a model
+        trained near the origin keeps its quality however far the actor walks. Off again with
+        `enabled=False`; `Unsupported` for a session that cannot recentre."""
+        self._session._call(_lib.troupe_armflow_session_set_recentring, 1 if enabled else 0, distance)
 
-    def __exit__(self, *exc: object) -> None:
-        self.close()
+    def queue_noise(self, actor_noise: ArrayLike, reactor_noise: ArrayLike) -> None:
+        """Queues one token's noise (latent_dim floats each: the actor posterior's normals, the
+        reactor's start noise), used before the seeded generator."""
+        a = _floats(actor_noise, "actor_noise")
+        r = _floats(reactor_noise, "reactor_noise", a.size)
+        self._session._call(_lib.troupe_armflow_session_queue_noise, _ptr(a), _ptr(r), a.size)
+
+
+class MagnetSession:
+    """What only a MAGNet live partner takes, as `session.magnet`."""
+
+    def __init__(self, session: Session):
+        self._session = session
+
+    def set_partner_opening(self, frames: ArrayLike) -> None:
+        """The partner's opening frames (float32 [context frames, 145]); before the first step
+        or after a reset."""
+        f = _floats(frames, "frames")
+        dim = self._session.frame_dim
+        if f.ndim != 2 or f.shape[1] != dim:
+            raise ValueError(f"opening frames must be [frames, {dim}], got {list(f.shape)}")
+        self._session._call(_lib.troupe_magnet_session_set_partner_opening, _ptr(f), f.shape[0])
+
+    def set_early_emission(self, early: bool) -> None:
+        """Send the partner's frames as each chunk generates them (lower latency); before the
+        first step or after a reset."""
+        self._session._call(_lib.troupe_magnet_session_set_early_emission, 1 if early else 0)
+
+    def set_live_config(self, config: str) -> None:
+        """The sampling configuration the partner runs (a released name or JSON); before the
+        first step or after a reset."""
+        self._session._call(_lib.troupe_magnet_session_set_live_config, config.encode("utf-8"))
+
+
+class ArflowSession:
+    """What only an ARFlow online stream takes, as `session.arflow`."""
+
+    def __init__(self, session: Session):
+        self._session = session
+
+    def set_options(self, seed: int = 0, **settings: Any) -> None:
+        """The stream's sampler settings: the bundle's with `settings` changed (the arguments
+        of `model.arflow.generate`) and `seed`."""
+        opt = _arflow_options(self._session._model._h(), seed, *(settings.pop(k, None) for k in (
+            "steps", "guidance", "weight", "eta", "d_safe", "sigma", "squared", "guided_backprojection", "mixing")))
+        if settings:
+            raise TypeError(f"unknown ARFlow settings: {sorted(settings)}")
+        self._session._call(_lib.troupe_arflow_session_set_options, ctypes.byref(opt))
 
 
 def _normals(draws: ArrayLike) -> np.ndarray:
@@ -549,37 +732,58 @@ class Session:
     """One stream: an armflow reactor answering an actor, or a magnet live partner answering a
     user. Use it from one thread at a time."""
 
-    def __init__(self, model: Model, seed: int = 0, steps: int | None = None, cfg: float | None = None,
+    def __init__(self, model: Model, seed: int = 0, steps: int | None = None, cfg_scale: float | None = None,
                  capacity: int | None = None, actor_latent: int | None = None,
                  condition: str | ArrayLike | None = None, prompt: str | None = None,
-                 partner_opening: ArrayLike | None = None, live_config: str | None = None, early: bool = False):
+                 partner_opening: ArrayLike | None = None, live_config: str | None = None, early: bool = False,
+                 cfg: float | None = None):
+        """Starts a stream on `model`; unset options take the bundle's defaults. Every
+        streaming family takes `seed`, `steps` and `capacity` (context tokens); an armflow
+        model also `cfg_scale`, `actor_latent`, `condition` or `prompt`; a two-person magnet
+        model the partner's `partner_opening` frames (float32 [context frames, 145]), a
+        `live_config` (a released name or JSON) and `early` emission (docs/MAGNET.md).
+        `cfg` is the deprecated 0.1 name of `cfg_scale`."""
         errors.expect_type(model, Model, "model")
         if condition is not None and prompt is not None:
             raise ValueError("give a condition or a prompt, not both")
+        if cfg is not None:
+            _deprecated("the `cfg` argument", "`cfg_scale`")
+            cfg_scale = cfg if cfg_scale is None else cfg_scale
+        h = model._h()
         opt = _native.SessionOptions()
-        _check(_lib.troupe_session_options_init(model._h(), ctypes.byref(opt), ctypes.sizeof(opt)))
+        _check(_lib.troupe_session_options_init(h, ctypes.byref(opt), ctypes.sizeof(opt)))
         opt.seed = seed
         if steps is not None:
             opt.steps = steps
-        if cfg is not None:
-            opt.cfg_scale = cfg
         if capacity is not None:
             opt.context_capacity = capacity
-        if actor_latent is not None:
-            opt.actor_latent = actor_latent
         handle = _native.session_p()
-        _check(_lib.troupe_session_new(model._h(), ctypes.byref(opt), ctypes.byref(handle)))
+        if model.family == "armflow":
+            own = _native.ArmflowSessionOptions()
+            _check(_lib.troupe_armflow_session_options_init(h, ctypes.byref(own), ctypes.sizeof(own)))
+            if cfg_scale is not None:
+                own.cfg_scale = cfg_scale
+            if actor_latent is not None:
+                own.actor_latent = actor_latent
+            _check(_lib.troupe_armflow_session_new(h, ctypes.byref(opt), ctypes.byref(own), ctypes.byref(handle)))
+        else:
+            # Another family refuses what only ARMFlow takes, as the C call does.
+            if cfg_scale is not None:
+                opt.cfg_scale = cfg_scale
+            if actor_latent is not None:
+                opt.actor_latent = actor_latent
+            _check(_lib.troupe_session_new(h, ctypes.byref(opt), ctypes.byref(handle)))
         self._adopt(model, handle)
         if condition is not None:
             self.set_condition(condition)
         if prompt is not None:
             self.set_prompt(prompt)
         if live_config is not None:
-            self.set_live_config(live_config)
+            self.magnet.set_live_config(live_config)
         if partner_opening is not None:
-            self.set_partner_opening(partner_opening)
+            self.magnet.set_partner_opening(partner_opening)
         if early:
-            self.set_early_emission(True)
+            self.magnet.set_early_emission(True)
 
     def _adopt(self, model: Model, handle: _native.session_p) -> None:
         self._handle = handle
@@ -591,6 +795,25 @@ class Session:
         # Frames a stream may hold back and send with a later step (a magnet window; 0 for armflow).
         self._held_back = _lib.troupe_model_max_output_frames(model._h(), 0)
         self._model = model
+        self.family = model.family
+
+    @property
+    def armflow(self) -> ArmflowSession:
+        """What only an ARMFlow stream takes (recentring, queued token noise); `Unsupported`
+        for another family's stream."""
+        return _family_view(self, self.family, "armflow", ArmflowSession)
+
+    @property
+    def magnet(self) -> MagnetSession:
+        """What only a MAGNet live partner takes (its opening, configuration, early emission);
+        `Unsupported` for another family's stream."""
+        return _family_view(self, self.family, "magnet", MagnetSession)
+
+    @property
+    def arflow(self) -> ArflowSession:
+        """What only an ARFlow online stream takes (its sampler settings); `Unsupported` for
+        another family's stream."""
+        return _family_view(self, self.family, "arflow", ArflowSession)
 
     @classmethod
     def _adopting(cls, model: Model, handle: _native.session_p) -> "Session":
@@ -713,28 +936,6 @@ class Session:
             raise ValueError("prompt must be a str without NUL characters")
         self._call(_lib.troupe_session_set_prompt, prompt.encode("utf-8"))
 
-    def set_partner_opening(self, frames: ArrayLike) -> None:
-        """A magnet live partner's opening frames (float32 [context frames, 145]); before the
-        first step or after a reset."""
-        f = _floats(frames, "frames")
-        if f.ndim != 2 or f.shape[1] != self.frame_dim:
-            raise ValueError(f"opening frames must be [frames, {self.frame_dim}], got {list(f.shape)}")
-        self._call(_lib.troupe_magnet_session_set_partner_opening, _ptr(f), f.shape[0])
-
-    def set_early_emission(self, early: bool) -> None:
-        """Send a magnet live partner's frames as each chunk generates them (lower latency);
-        before the first step or after a reset."""
-        self._call(_lib.troupe_magnet_session_set_early_emission, 1 if early else 0)
-
-    def set_arflow_options(self, seed: int = 0, **settings: Any) -> None:
-        """An ARFlow stream's sampler settings: the bundle's with `settings` changed (the
-        arguments of `Model.arflow_generate`) and `seed`."""
-        opt = _arflow_options(self._model._h(), seed, *(settings.pop(k, None) for k in (
-            "steps", "guidance", "weight", "eta", "d_safe", "sigma", "squared", "guided_backprojection", "mixing")))
-        if settings:
-            raise TypeError(f"unknown ARFlow settings: {sorted(settings)}")
-        self._call(_lib.troupe_arflow_session_set_options, ctypes.byref(opt))
-
     def set_penetration_guard(self, enabled: bool = True, d_safe: float = 0.05, max_speed: float = 2.0) -> None:
         """The penetration guard (every streaming family): each frame sent is shifted in the floor
         plane out of the input person's body (joints nearer than `d_safe` metres), never faster
@@ -768,34 +969,45 @@ class Session:
             max_stretch,
         )
 
-    def set_recentring(self, enabled: bool = True, distance: float = 1.0) -> None:
-        """An ARMFlow stream's recentring: before each token, when the actor's root is more than
-        `distance` metres on the floor from where the networks' frame is centred, the centre
-        moves to the actor and the networks' state is rebuilt around it from the last 8 tokens
-        of both people's motion (kept while it is on). Frames and poses stay in the stream's
-        frame; a model trained near the origin keeps its quality however far the actor walks.
-        Off again with `enabled=False`; `Unsupported` for a session that cannot recentre."""
-        self._call(_lib.troupe_armflow_session_set_recentring, 1 if enabled else 0, distance)
-
-    def set_live_config(self, config: str) -> None:
-        """The sampling configuration a magnet live partner runs (a released name or JSON);
-        before the first step or after a reset."""
-        self._call(_lib.troupe_magnet_session_set_live_config, config.encode("utf-8"))
-
-    def set_noise(self, actor_noise: ArrayLike, reactor_noise: ArrayLike) -> None:
-        """Queues one token's noise (latent_dim floats each), used before the seeded generator."""
-        a = _floats(actor_noise, "actor_noise")
-        r = _floats(reactor_noise, "reactor_noise", a.size)
-        self._call(_lib.troupe_armflow_session_queue_noise, _ptr(a), _ptr(r), a.size)
-
     def queue_normals(self, normals: ArrayLike) -> None:
         """Queues standard normals for the stream's next draws (every streaming family), to
         replay another implementation's stream exactly: each draw takes the next ones it needs
         while any are queued, then the seed goes on as if they had been its; reset() drops them.
         An armflow stream takes whole tokens (the actor's posterior noise, then the reactor's
-        start noise, latent_dim each), as set_noise queues one."""
+        start noise, latent_dim each), as `session.armflow.queue_noise` queues one."""
         a = _floats(np.asarray(normals, dtype=np.float32).reshape(-1), "normals")
         self._call(_lib.troupe_session_queue_normals, _ptr(a), a.size)
+
+    # The 0.1 names of the family calls, kept for one release.
+    def set_partner_opening(self, frames: ArrayLike) -> None:
+        """Deprecated since 0.2: `session.magnet.set_partner_opening`."""
+        _deprecated("Session.set_partner_opening", "session.magnet.set_partner_opening")
+        self.magnet.set_partner_opening(frames)
+
+    def set_early_emission(self, early: bool) -> None:
+        """Deprecated since 0.2: `session.magnet.set_early_emission`."""
+        _deprecated("Session.set_early_emission", "session.magnet.set_early_emission")
+        self.magnet.set_early_emission(early)
+
+    def set_live_config(self, config: str) -> None:
+        """Deprecated since 0.2: `session.magnet.set_live_config`."""
+        _deprecated("Session.set_live_config", "session.magnet.set_live_config")
+        self.magnet.set_live_config(config)
+
+    def set_arflow_options(self, seed: int = 0, **settings: Any) -> None:
+        """Deprecated since 0.2: `session.arflow.set_options`."""
+        _deprecated("Session.set_arflow_options", "session.arflow.set_options")
+        self.arflow.set_options(seed, **settings)
+
+    def set_recentring(self, enabled: bool = True, distance: float = 1.0) -> None:
+        """Deprecated since 0.2: `session.armflow.set_recentring`."""
+        _deprecated("Session.set_recentring", "session.armflow.set_recentring")
+        self.armflow.set_recentring(enabled, distance)
+
+    def set_noise(self, actor_noise: ArrayLike, reactor_noise: ArrayLike) -> None:
+        """Deprecated since 0.2: `session.armflow.queue_noise`."""
+        _deprecated("Session.set_noise", "session.armflow.queue_noise")
+        self.armflow.queue_noise(actor_noise, reactor_noise)
 
     @property
     def capabilities(self) -> frozenset[str]:

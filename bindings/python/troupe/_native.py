@@ -31,6 +31,18 @@ class SessionOptions(ctypes.Structure):
     ]
 
 
+class ArmflowSessionOptions(ctypes.Structure):
+    """Mirror of `troupe_armflow_session_options` (checked against
+    troupe_armflow_session_options_size())."""
+
+    _fields_ = [
+        ("struct_size", ctypes.c_uint32),
+        ("cfg_scale", ctypes.c_float),
+        ("actor_latent", ctypes.c_int32),
+        ("vae_windows", ctypes.c_int32),
+    ]
+
+
 class LimitValues(ctypes.Structure):
     """Mirror of `troupe_limit_values`."""
 
@@ -234,6 +246,11 @@ PROTOTYPES = {
     "troupe_session_options_size": (c_size, []),
     "troupe_session_options_init": (status, [model_p, ctypes.POINTER(SessionOptions), c_size]),
     "troupe_session_new": (status, [model_p, ctypes.POINTER(SessionOptions), ctypes.POINTER(session_p)]),
+    "troupe_armflow_session_options_size": (c_size, []),
+    "troupe_armflow_session_options_init": (status, [model_p, ctypes.POINTER(ArmflowSessionOptions), c_size]),
+    "troupe_armflow_session_new": (status, [model_p, ctypes.POINTER(SessionOptions),
+                                            ctypes.POINTER(ArmflowSessionOptions), ctypes.POINTER(session_p)]),
+    "troupe_model_family": (ctypes.c_char_p, [model_p]),
     "troupe_session_free": (None, [session_p]),
     "troupe_session_step": (status, [session_p, f32p, c_size, f32p, c_size, ctypes.POINTER(c_size)]),
     "troupe_sessions_step": (status, [ctypes.POINTER(session_p), c_size, ctypes.POINTER(f32p), ctypes.POINTER(c_size),

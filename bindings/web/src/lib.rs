@@ -285,8 +285,12 @@ impl WebSession {
     /// actor's posterior sample, and `reactor`, the reactor's starting noise, `latentDim`
     /// floats each; queued tokens use them instead of the seeded generator's, to reproduce a
     /// run exactly.
-    #[wasm_bindgen(js_name = queueNoise)]
-    pub fn queue_noise(&mut self, actor: Vec<f32>, reactor: Vec<f32>) -> Result<(), JsError> {
+    #[wasm_bindgen(js_name = armflowQueueNoise)]
+    pub fn armflow_queue_noise(
+        &mut self,
+        actor: Vec<f32>,
+        reactor: Vec<f32>,
+    ) -> Result<(), JsError> {
         self.reactor()?
             .queue_noise(TokenNoise { actor, reactor })
             .map_err(js_error)
@@ -329,8 +333,8 @@ impl WebSession {
     /// Recentring: before each token, when the actor is more than `distance` metres from the
     /// networks' centre, the centre moves to it and their state is rebuilt from the last 8
     /// tokens; `enabled = false` turns it off (ARMFlow).
-    #[wasm_bindgen(js_name = setRecentring)]
-    pub fn set_recentring(&mut self, enabled: bool, distance: f64) -> Result<(), JsError> {
+    #[wasm_bindgen(js_name = armflowSetRecentring)]
+    pub fn armflow_set_recentring(&mut self, enabled: bool, distance: f64) -> Result<(), JsError> {
         let recentring = enabled.then_some(Recentring { distance });
         self.reactor()?.set_recentring(recentring).map_err(js_error)
     }

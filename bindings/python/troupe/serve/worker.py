@@ -22,9 +22,9 @@ import troupe
 # What a client may set on its stream; everything else is refused.
 SESSION_OPTIONS = ("seed", "steps", "cfg", "capacity", "condition")
 SETTERS = {
-    "penetration_guard": "set_penetration_guard",
-    "root_smoothing": "set_root_smoothing",
-    "recentring": "set_recentring",
+    "penetration_guard": lambda session: session.set_penetration_guard,
+    "root_smoothing": lambda session: session.set_root_smoothing,
+    "recentring": lambda session: session.armflow.set_recentring,
 }
 
 
@@ -49,12 +49,13 @@ def check_options(options: Any) -> dict:
 
 
 def new_session(model: troupe.Model, options: dict) -> troupe.Session:
-    session = model.session(**{k: options[k] for k in SESSION_OPTIONS if k in options})
+    # The protocol's `cfg` is the session's `cfg_scale`.
+    session = model.session(**{"cfg_scale" if k == "cfg" else k: options[k] for k in SESSION_OPTIONS if k in options})
     try:
         for name, setter in SETTERS.items():
             value = options.get(name)
             if value:
-                getattr(session, setter)(**(value if isinstance(value, dict) else {}))
+                setter(session)(**(value if isinstance(value, dict) else {}))
     except BaseException:
         session.close()
         raise
