@@ -405,7 +405,7 @@ fn every_streaming_family_streams_joint_positions() {
     for (model, latency) in [(armflow, 1), (&arflow, 1), (&magnet, 0)] {
         let mut session = model.session(troupe::SessionOptions::default()).unwrap();
         if let Ok(partner) = session.family_mut::<troupe::LivePartner>() {
-            partner.set_opening(&opening(32)).unwrap();
+            partner.set_partner_opening(&opening(32)).unwrap();
         }
         session.set_joints_format(format()).unwrap();
         assert_eq!(

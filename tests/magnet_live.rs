@@ -240,12 +240,12 @@ fn bad_input_is_refused_and_changes_nothing() {
     assert_eq!(bare.frames_received(), 0);
     // Opening frames of the wrong length, or not finite.
     assert_invalid(
-        partner(&mut bare).set_opening(&user[..FRAME]),
+        partner(&mut bare).set_partner_opening(&user[..FRAME]),
         "opening frames hold",
     );
     let mut nan = user[..32 * FRAME].to_vec();
     nan[7] = f32::NAN;
-    assert!(partner(&mut bare).set_opening(&nan).is_err());
+    assert!(partner(&mut bare).set_partner_opening(&nan).is_err());
     // A running stream: bad frames leave it where it was.
     let mut s = g.session("live_stream");
     s.step_flat(&user[..60 * FRAME]).unwrap();
@@ -254,7 +254,7 @@ fn bad_input_is_refused_and_changes_nothing() {
     assert!(s.step_flat(&bad).is_err());
     assert_invalid(s.step_flat(&user[..FRAME + 1]), "whole number");
     assert_invalid(
-        partner(&mut s).set_opening(&user[..32 * FRAME]),
+        partner(&mut s).set_partner_opening(&user[..32 * FRAME]),
         "before the first step",
     );
     assert_invalid(

@@ -410,6 +410,10 @@ class Session {
     Status set_condition(const float *condition, std::size_t len) {
         return Status::from(troupe_session_set_condition(handle_, condition, len));
     }
+    /// Conditions the tokens from now on on a text prompt (streams with the prompt capability).
+    Status set_prompt(const std::string &prompt) {
+        return Status::from(troupe_session_set_prompt(handle_, prompt.c_str()));
+    }
     /// Standard normals for the stream's next draws, in its sampler's order (every family).
     Status queue_normals(const float *normals, std::size_t len) {
         return Status::from(troupe_session_queue_normals(handle_, normals, len));

@@ -35,7 +35,7 @@ pub struct PartnerOptions {
     /// Context tokens per window (`Tc`, 1 to window - 1; the stride is the rest).
     pub context_capacity: Option<usize>,
     /// The partner's opening frames, `[context frames, 145]` row-major (also
-    /// [`LivePartner::set_opening`]). A stream needs them before the user's first frame.
+    /// [`LivePartner::set_partner_opening`]). A stream needs them before the user's first frame.
     pub opening: Option<Vec<f32>>,
     /// The sampling configuration: a released name or JSON; `None` is the bundle's first
     /// `motion_control_live` configuration.

@@ -869,7 +869,7 @@ fn run_chunk(
 impl LivePartner {
     /// Sets the partner's opening frames (`[context frames, 145]`, row-major), kept across
     /// resets. Only before the first frame or after a reset.
-    pub fn set_opening(&mut self, frames: &[f32]) -> Result<()> {
+    pub fn set_partner_opening(&mut self, frames: &[f32]) -> Result<()> {
         if self.frames_received() > 0 {
             return Err(Error::InvalidInput(
                 "the partner's opening frames are set before the first step or after a reset"
@@ -879,6 +879,15 @@ impl LivePartner {
         let mut settings = self.settings.clone();
         settings.opening = Some(frames.to_vec());
         self.configure(settings)
+    }
+
+    /// [`LivePartner::set_partner_opening`], under its 0.1 name.
+    #[deprecated(
+        since = "0.2.0",
+        note = "use set_partner_opening, the name every binding uses"
+    )]
+    pub fn set_opening(&mut self, frames: &[f32]) -> Result<()> {
+        self.set_partner_opening(frames)
     }
 
     /// Runs the sampling configuration `config` (a released name or JSON). Only before the

@@ -267,6 +267,7 @@ int main(int argc, char **argv) {
         CHECK(troupe::Session::create_armflow(plain, nullptr, &arm, guided).ok());
         std::uint32_t caps = 0;
         CHECK(guided.capabilities(caps).ok() && (caps & TROUPE_CAP_CFG_SCALE) != 0);
+        CHECK((caps & TROUPE_CAP_PROMPT) == 0 && guided.set_prompt("wave").code() == TROUPE_ERR_UNSUPPORTED);
         CHECK(troupe::Session::create_armflow(umf, nullptr, nullptr, refused).code() == TROUPE_ERR_UNSUPPORTED);
         CHECK(!refused.valid());
         std::vector<float> untouched{1.0f};

@@ -38,7 +38,7 @@ pub unsafe extern "C" fn troupe_magnet_session_set_partner_opening(
         with_session(session, "troupe_magnet_session_set_partner_opening", |s| {
             let n = checked_mul(n_frames, s.frame_dim(), "n_frames * frame_dim")?;
             let frames = boundary::slice(frames, n, "frames")?;
-            Ok(partner(s, "the partner's opening frames")?.set_opening(frames)?)
+            Ok(partner(s, "the partner's opening frames")?.set_partner_opening(frames)?)
         })
     }
 }
