@@ -12,7 +12,7 @@ use crate::ffi::boundary::{
     TROUPE_ERR_POISONED, TROUPE_ERR_SHAPE, TROUPE_ERR_UNSUPPORTED,
 };
 use crate::ffi::model::troupe_model;
-use crate::{ActorLatent, Capability, Model, Reactor, ReactorOptions, Session, SessionOptions};
+use crate::{ActorLatent, Capability, Model, ReactorOptions, Session, SessionOptions};
 
 /// Actor tokens are the VAE posterior sample `(mean + std * noise) * scale` (the official choice).
 pub const TROUPE_ACTOR_LATENT_SAMPLE: i32 = 0;
@@ -102,11 +102,6 @@ pub(crate) fn family_stream<'a, S: 'static>(
             format!("{what}: only {needed} streams take this; this session runs {article} `{family}` model"),
         )
     })
-}
-
-/// The ARMFlow reactor behind a session, for what only it takes.
-pub(crate) fn reactor<'a>(session: &'a mut Session, what: &str) -> FfiResult<&'a mut Reactor> {
-    family_stream(session, "armflow", what)
 }
 
 /// `sizeof(troupe_session_options)` in this library, for bindings to check their mirror.

@@ -1,7 +1,8 @@
 //! An ARMFlow stream's noise queued token by token.
 
+use crate::ffi::armflow::reactor;
 use crate::ffi::boundary::{self, non_null, troupe_status, FfiError, TROUPE_ERR_SHAPE};
-use crate::ffi::session::{reactor, troupe_session, with_session};
+use crate::ffi::session::{troupe_session, with_session};
 use crate::TokenNoise;
 
 /// Queues the noise of the next token an ARMFlow stream has not yet generated, to reproduce a

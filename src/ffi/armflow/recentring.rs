@@ -1,7 +1,8 @@
 //! The recentring of an ARMFlow joint stream (`armflow/session/recentre.rs`).
 
+use crate::ffi::armflow::reactor;
 use crate::ffi::boundary::troupe_status;
-use crate::ffi::session::{reactor, troupe_session, with_session};
+use crate::ffi::session::{troupe_session, with_session};
 use crate::Recentring;
 
 /// Turns an ARMFlow session's recentring on (`enabled` nonzero) or off: before each token, when
