@@ -97,6 +97,24 @@ fn c_smoke_against_the_staticlib() {
     run(&[], &bin, &[&dir, &archive]);
 }
 
+/// `tests/cpp/wrapper.cpp`'s arguments: armflow, umf, a scratch folder, the demo model and its
+/// int8 copy, magnet, arflow, and an ARMFlow bundle with the official clip.
+fn wrapper_args() -> Vec<PathBuf> {
+    let [umf, armflow] = group_args();
+    let mut args = vec![armflow, umf, scratch().to_path_buf()];
+    args.extend(
+        [
+            "armflow-demo",
+            "armflow-demo-int8",
+            "magnet-tiny",
+            "arflow-tiny",
+            "armflow-tiny-interhuman",
+        ]
+        .map(|b| root().join("onnx/bundles").join(b)),
+    );
+    args
+}
+
 #[test]
 fn cpp_wrapper_without_exceptions() {
     let bin = compile(
@@ -106,29 +124,9 @@ fn cpp_wrapper_without_exceptions() {
         &shared_link(),
         "wrapper_cpp",
     );
-    let [umf, armflow] = group_args();
-    let demo = root().join("onnx/bundles/armflow-demo");
-    let int8 = root().join("onnx/bundles/armflow-demo-int8");
-    let magnet = root().join("onnx/bundles/magnet-tiny");
-    let arflow = root().join("onnx/bundles/arflow-tiny");
-    let clip = root().join("onnx/bundles/armflow-tiny-interhuman");
-    println!(
-        "{}",
-        run(
-            &[],
-            &bin,
-            &[
-                &armflow,
-                &umf,
-                scratch(),
-                &demo,
-                &int8,
-                &magnet,
-                &arflow,
-                &clip
-            ]
-        )
-    );
+    let args = wrapper_args();
+    let args: Vec<&Path> = args.iter().map(PathBuf::as_path).collect();
+    println!("{}", run(&[], &bin, &args));
 }
 
 #[test]
@@ -140,26 +138,9 @@ fn cpp_wrapper_with_its_exception_helpers() {
         &shared_link(),
         "wrapper_cpp_exceptions",
     );
-    let [umf, armflow] = group_args();
-    let demo = root().join("onnx/bundles/armflow-demo");
-    let int8 = root().join("onnx/bundles/armflow-demo-int8");
-    let magnet = root().join("onnx/bundles/magnet-tiny");
-    let arflow = root().join("onnx/bundles/arflow-tiny");
-    let clip = root().join("onnx/bundles/armflow-tiny-interhuman");
-    run(
-        &[],
-        &bin,
-        &[
-            &armflow,
-            &umf,
-            scratch(),
-            &demo,
-            &int8,
-            &magnet,
-            &arflow,
-            &clip,
-        ],
-    );
+    let args = wrapper_args();
+    let args: Vec<&Path> = args.iter().map(PathBuf::as_path).collect();
+    run(&[], &bin, &args);
 }
 
 /// No leak and no invalid access under valgrind: the smoke test always (about a minute on 2
