@@ -1,9 +1,9 @@
 //! [`Model`]: a loaded bundle, above the families. It reads the manifest, loads the family's
-//! model through its manifest section (`manifest.rs`'s registration table), answers the questions every
-//! caller asks whatever the family (frame size, latency, dimensions, text prompts, a default
-//! stream), and gives the family's own type for everything else: `model.armflow()?`,
-//! `model.umf()?`, `model.magnet()?`, `model.arflow()?`. Immutable once loaded, cheap to clone,
-//! shared by any number of sessions on any number of threads.
+//! model through its manifest section (`manifest.rs`'s registration table), answers the
+//! questions every caller asks whatever the family (frame size, latency, dimensions, text
+//! prompts, a default stream), and gives the family's own type for everything else:
+//! `model.armflow()?`, `model.umf()?`, `model.magnet()?`, `model.arflow()?`. Immutable once
+//! loaded, cheap to clone, shared by any number of sessions on any number of threads.
 
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -250,8 +250,8 @@ impl Model {
     /// Starts a stream. [`crate::SessionOptions`] opens the family's default stream (an
     /// `armflow` reactor, a `magnet` live partner, an online `arflow` stream) with the bundle's
     /// defaults; a family's own options ([`crate::armflow::ReactorOptions`],
-    /// [`crate::magnet::PartnerOptions`], [`crate::arflow::ArflowOptions`]) open that family's stream with
-    /// everything it offers, and are refused by another family's bundle
+    /// [`crate::magnet::PartnerOptions`], [`crate::arflow::ArflowOptions`]) open that family's
+    /// stream with everything it offers, and are refused by another family's bundle
     /// ([`Error::Unsupported`], as is any session of a `umf` bundle, which does not stream).
     ///
     /// ```no_run
