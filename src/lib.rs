@@ -38,6 +38,11 @@
 
 #![warn(missing_docs)]
 
+/// The Rust samples of the README and the docs, run as doc tests (`build.rs` gathers them).
+#[cfg(doctest)]
+#[doc = include_str!(concat!(env!("OUT_DIR"), "/doc_samples.md"))]
+pub struct DocSamples;
+
 pub mod arflow;
 pub mod armflow;
 mod family;

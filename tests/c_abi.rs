@@ -639,3 +639,39 @@ fn c_viewer_as_c99_and_cpp17() {
     );
     run(&[], &cpp, &[&dir]);
 }
+
+/// Every C sample of the README and the docs compiles as C99 with every warning an error and
+/// runs against the library (`tests/common/samples.rs`: its setup at file scope, the sample as
+/// `main`'s body), from the repository root, where its paths lead.
+#[test]
+fn c_samples_of_the_docs_run() {
+    let samples = common::samples::samples(root(), "c");
+    assert!(!samples.is_empty());
+    for (i, sample) in samples.iter().enumerate() {
+        assert!(sample.skip.is_none(), "{sample:?}: a C sample is run");
+        let source = scratch().join(format!("sample_{i}.c"));
+        std::fs::write(
+            &source,
+            format!(
+                "{}int main(void) {{\n{}    return 0;\n}}\n",
+                sample.setup, sample.code
+            ),
+        )
+        .unwrap();
+        let bin = compile(
+            "cc",
+            &["-std=c99"],
+            &[&source],
+            &shared_link(),
+            &format!("sample_{i}"),
+        );
+        let out = Command::new(&bin).current_dir(root()).output().unwrap();
+        assert!(
+            out.status.success() && out.stderr.is_empty(),
+            "C sample {}:{}: {}",
+            sample.file,
+            sample.line,
+            String::from_utf8_lossy(&out.stderr)
+        );
+    }
+}

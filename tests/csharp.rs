@@ -104,3 +104,56 @@ fn csharp_binding_streams_like_rust_and_refuses_misuse() {
     );
     assert!(worst <= 1e-5, "C# and Rust differ by {worst}");
 }
+
+/// Every C# sample of the README and the docs compiles with the binding (warnings as errors) and
+/// runs under Mono against the library (`tests/common/samples.rs`: its setup and the sample as
+/// `Main`'s body), from the repository root, where its paths lead.
+#[test]
+fn csharp_samples_of_the_docs_run() {
+    if !common::tools_or_skip(
+        "csharp_samples_of_the_docs_run",
+        &["mcs", "mono"],
+        "mono-mcs mono-runtime",
+    ) {
+        return;
+    }
+    let samples = common::samples::samples(root(), "csharp");
+    assert!(samples.len() >= 2, "{samples:?}");
+    let scratch = tempfile::tempdir().unwrap();
+    for (i, sample) in samples.iter().enumerate() {
+        assert!(sample.skip.is_none(), "{sample:?}: a C# sample is run");
+        let source = scratch.path().join(format!("Sample{i}.cs"));
+        std::fs::write(
+            &source,
+            format!(
+                "static class Sample {{\n    static void Main() {{\n{}{}    }}\n}}\n",
+                sample.setup, sample.code
+            ),
+        )
+        .unwrap();
+        let exe = scratch.path().join(format!("sample{i}.exe"));
+        common::run_ok(
+            Command::new("mcs")
+                .arg("-warnaserror")
+                // A sample shows what a call returns without using it.
+                .arg("-nowarn:219")
+                .arg(format!("-out:{}", exe.display()))
+                .arg(root().join("bindings/csharp/Troupe.cs"))
+                .arg(&source),
+        );
+        let out = Command::new("mono")
+            .arg(&exe)
+            .current_dir(root())
+            .env("LD_LIBRARY_PATH", common::c_libraries())
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "C# sample {}:{}: {}{}",
+            sample.file,
+            sample.line,
+            String::from_utf8_lossy(&out.stdout),
+            String::from_utf8_lossy(&out.stderr)
+        );
+    }
+}

@@ -281,3 +281,42 @@ fn python_magnet_example_runs() {
     let out: ndarray::Array4<f32> = ndarray_npy::read_npy(&npy).unwrap();
     assert_eq!(out.dim(), (1, 208, 2, 145));
 }
+
+/// Every Python sample of the README and the docs runs (`tests/common/samples.rs`: each with the
+/// setup its comment gives), in a scratch folder that sees the repository's bundles and data, so
+/// that what a sample writes lands there.
+#[test]
+fn python_samples_of_the_docs_run() {
+    require_python_tools();
+    let lib = c_libraries().join("libtroupe.so");
+    let scratch = tempfile::tempdir().unwrap();
+    for dir in ["onnx", "tests"] {
+        std::os::unix::fs::symlink(root().join(dir), scratch.path().join(dir)).unwrap();
+    }
+    let samples = common::samples::samples(root(), "python");
+    assert!(samples.len() >= 5, "{samples:?}");
+    for sample in samples {
+        let name = format!("python sample {}:{}", sample.file, sample.line);
+        if let Some(reason) = &sample.skip {
+            common::skip(&name, reason);
+            continue;
+        }
+        let script = scratch.path().join("sample.py");
+        std::fs::write(&script, format!("{}{}", sample.setup, sample.code)).unwrap();
+        let out = Command::new(common::python_command())
+            .current_dir(scratch.path())
+            .arg("-W")
+            .arg("error::DeprecationWarning")
+            .arg(&script)
+            .env("TROUPE_LIBRARY_PATH", &lib)
+            .env("PYTHONPATH", root().join("bindings/python"))
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "{name} failed:\n{}{}",
+            String::from_utf8_lossy(&out.stdout),
+            String::from_utf8_lossy(&out.stderr)
+        );
+    }
+}

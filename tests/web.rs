@@ -411,3 +411,40 @@ fn the_visitor_steers_the_actor_with_the_arrow_keys() {
         "holding ← moved the actor's root by only {apart} m"
     );
 }
+
+/// The JavaScript sample of `docs/WEB.md` runs in Node against the built module
+/// (`tests/common/samples.rs`: its setup gives Node the page's `fetch`, reading files), from a
+/// folder that holds the module as `pkg/`, where the sample's paths lead.
+#[test]
+fn the_javascript_samples_of_the_docs_run() {
+    let test = "the_javascript_samples_of_the_docs_run";
+    let Some(pkg) = web_pkg(test) else { return };
+    if !common::tools_or_skip(test, &["node"], "nodejs") {
+        return;
+    }
+    let samples = common::samples::samples(&repo(""), "js");
+    assert!(!samples.is_empty());
+    let scratch = tempfile::tempdir().unwrap();
+    std::os::unix::fs::symlink(&pkg, scratch.path().join("pkg")).unwrap();
+    for (i, sample) in samples.iter().enumerate() {
+        assert!(
+            sample.skip.is_none(),
+            "{sample:?}: a JavaScript sample is run"
+        );
+        let script = scratch.path().join(format!("sample_{i}.mjs"));
+        std::fs::write(&script, format!("{}{}", sample.setup, sample.code)).unwrap();
+        let out = Command::new("node")
+            .arg(&script)
+            .current_dir(scratch.path())
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "JavaScript sample {}:{}: {}{}",
+            sample.file,
+            sample.line,
+            String::from_utf8_lossy(&out.stdout),
+            String::from_utf8_lossy(&out.stderr)
+        );
+    }
+}

@@ -3,6 +3,7 @@
 
 pub mod c_programs;
 pub mod pictures;
+pub mod samples;
 pub mod static_server;
 
 use std::path::{Path, PathBuf};
