@@ -1933,7 +1933,8 @@ troupe_status troupe_session_joints_placement(struct troupe_session *session, st
 /**
  * Latency in frames when the input person streams joint positions: `troupe_model_latency_frames`
  * plus what the conversion waits for (one frame for `interhuman262` velocities and contacts,
- * none for `magnet-smplx145`); 0 for NULL or a `umf` model. Thread-safe.
+ * none for `magnet-smplx145`); 0 for NULL and for a model whose streams take no joint
+ * positions (a `umf` model, an ARMFlow bundle of InterX frames). Thread-safe.
  */
 size_t troupe_model_joints_latency_frames(const struct troupe_model *model);
 

@@ -168,14 +168,18 @@ impl Model {
     }
 
     /// Latency in frames when the actor streams joint positions ([`crate::Session::step_joints`]):
-    /// [`Model::latency_frames`] plus the frame that velocities and contacts wait for. 0 for a
-    /// `umf` model.
+    /// [`Model::latency_frames`] plus what the joints stage of the stream's frame layout adds
+    /// (one frame for features, whose velocities and contacts wait for the next; none for a
+    /// MAGNet partner's SMPL-X frames). 0 for a model whose streams take no joint positions (a
+    /// `umf` model, an InterX ARMFlow bundle).
     pub fn joints_latency_frames(&self) -> usize {
-        if self.inner.family.session_defaults().is_err() {
-            return 0;
-        }
         let motion = &self.inner.manifest.motion;
-        self.latency_frames() + joints_added_latency(&motion.layout, motion.frame_dim)
+        match joints_added_latency(&motion.layout, motion.frame_dim) {
+            Some(added) if self.inner.family.session_defaults().is_ok() => {
+                self.latency_frames() + added
+            }
+            _ => 0,
+        }
     }
 
     /// The most frames one `step` with `n_actor_frames` new frames can return, whatever the

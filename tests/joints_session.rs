@@ -40,6 +40,15 @@ fn joints_in_poses_out_equal_the_feature_path() {
         model.latency_frames() + 1
     );
     assert_eq!(model.joints_latency_frames(), model.latency_frames() + 1);
+    // Streams that take no joint positions have no joint latency.
+    for other in ["armflow-tiny-interx", "umf-tiny"] {
+        let m = Model::load(
+            std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+                .join("onnx/bundles")
+                .join(other),
+        );
+        assert_eq!(m.unwrap().joints_latency_frames(), 0, "{other}");
+    }
     // The same motion through an explicit feature stream and the feature session.
     let mut features = model.session(common::default_options()).unwrap();
     let mut stream = FeatureStream::new(format(), model.fps() as f32, None).unwrap();

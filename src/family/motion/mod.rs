@@ -30,10 +30,10 @@ use crate::shared::error::{Error, Result};
 use crate::shared::snapshot::{bad, SnapshotReader, SnapshotWriter};
 
 /// Frames the joints-in stage adds to the latency of a stream whose frames are `layout` (`dim`
-/// floats): one for features, whose velocities and contacts wait for the next frame; none for a
-/// layout the stages do not know (joints are then refused).
-pub(crate) fn joints_added_latency(layout: &str, dim: usize) -> usize {
-    FrameLayout::of(layout, dim).map_or(0, JointsInput::latency_frames)
+/// floats): one for features, whose velocities and contacts wait for the next frame, none for
+/// SMPL-X frames; `None` for a layout the stages do not know (its streams refuse joints).
+pub(crate) fn joints_added_latency(layout: &str, dim: usize) -> Option<usize> {
+    FrameLayout::of(layout, dim).map(JointsInput::latency_frames)
 }
 
 /// A session's motion stages: which are on, with their state.

@@ -144,7 +144,8 @@ pub unsafe extern "C" fn troupe_session_joints_placement(
 
 /// Latency in frames when the input person streams joint positions: `troupe_model_latency_frames`
 /// plus what the conversion waits for (one frame for `interhuman262` velocities and contacts,
-/// none for `magnet-smplx145`); 0 for NULL or a `umf` model. Thread-safe.
+/// none for `magnet-smplx145`); 0 for NULL and for a model whose streams take no joint
+/// positions (a `umf` model, an ARMFlow bundle of InterX frames). Thread-safe.
 #[no_mangle]
 pub extern "C" fn troupe_model_joints_latency_frames(model: Option<&troupe_model>) -> usize {
     property(model, Model::joints_latency_frames)
