@@ -147,13 +147,13 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let clip = synthetic_actor((most + timed + 1) * fpt, dim);
     let clip = clip.as_slice().expect("standard layout");
     println!(
-        "bundle {} ({}): history {} tokens, {} timed rounds of {fpt} frames ({budget_ms:.1} ms of motion), {} thread(s), attention kernel {}",
+        "bundle {} ({}): history {} tokens, {} timed rounds of {fpt} frames ({budget_ms:.1} ms of motion), {} thread(s), kernels: {}",
         args.bundle,
         model.manifest().name,
         if least == most { format!("{most}") } else { format!("{least} to {most} (every token kept)") },
         args.rounds,
         args.threads,
-        troupe::attention_kernel()
+        troupe::kernels()
     );
     println!("| sessions | mode | round p50 ms | round p99 ms | per session-token ms | real time | held per session MB | RSS per session MB |");
     println!("|---|---|---|---|---|---|---|---|");

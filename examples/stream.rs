@@ -358,6 +358,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         model.joints_latency_frames(),
     );
     println!("attention kernel: {}", troupe::attention_kernel());
+    println!("kernels: {}", troupe::kernels());
     let on = |yes: bool| if yes { "on" } else { "off" };
     println!(
         "root smoothing {}, penetration guard {}, foot lock {}, recentring {}",

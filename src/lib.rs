@@ -75,7 +75,7 @@ pub use magnet::{LivePartner, Magnet, MagnetOptions, MagnetOutput, PartnerOption
 pub use manifest::{ActorLatent, ConditionLabel, Manifest, Weights};
 pub use model::Model;
 pub use motion::FootLockOptions;
-pub use shared::attention::kernel as attention_kernel;
+pub use shared::attention::{kernel as attention_kernel, kernels};
 pub use shared::error::{Error, Result};
 #[doc(hidden)]
 pub use shared::graph::load_graph_for_fuzzing;

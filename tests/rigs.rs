@@ -666,23 +666,6 @@ fn blender_imports_the_glb_and_the_bvh_and_puts_every_bone_where_troupe_did() {
     }
 }
 
-/// An example built with the tests (`cargo test` builds them beside its own binaries).
-fn example(name: &str) -> PathBuf {
-    let deps = std::env::current_exe().unwrap();
-    let path = deps
-        .parent()
-        .and_then(Path::parent)
-        .unwrap()
-        .join("examples")
-        .join(name);
-    assert!(
-        path.is_file(),
-        "{} is not built (cargo test builds the examples)",
-        path.display()
-    );
-    path
-}
-
 /// The streaming demo with `--gltf` and `--rig`: the reactor retargeted as it streams, the file
 /// valid for Khronos' validator, loaded and played by three.js, imported by Blender.
 #[test]
@@ -692,7 +675,7 @@ fn the_demo_writes_a_glb_that_the_clients_open() {
     let mixamo =
         common::pypi_sdist("bvhtoolbox==0.1.3").join("tests/example_files/test_freebvh.bvh");
     let out = common::run_ok(
-        Command::new(example("stream"))
+        Command::new(common::example("stream"))
             .current_dir(repo(""))
             .args(["--frames", "240", "--no-pictures", "--gltf"])
             .arg(&glb)

@@ -350,3 +350,49 @@ fn a_session_reaches_its_reactor_and_no_other_stream() {
     let e = troupe::step_sessions(&mut mixed, &[&[][..], &[][..]]).unwrap_err();
     assert!(e.to_string().contains("another model"), "{e}");
 }
+
+/// `TRACT_CPU_ISA` chooses troupe's attention build and tract's matrix kernels together: on an
+/// AVX-512 machine the AVX2 and portable builds run too (the way a benchmark shows how another
+/// machine's kernels do), and every build streams the same motion up to float rounding.
+#[test]
+fn every_kernel_build_streams_the_same_motion() {
+    let builds: [(&str, &str); 3] = [
+        ("", ""),
+        (
+            "-avx512f,-avx512vnni,-avx512fp16,-avxvnni",
+            "attention avx2+fma",
+        ),
+        (
+            "-avx512f,-avx512vnni,-avx512fp16,-avxvnni,-avx2,-fma,-avx,-f16c",
+            "attention portable",
+        ),
+    ];
+    let dir = tempfile::tempdir().unwrap();
+    let mut streams = Vec::new();
+    for (i, (isa, expected)) in builds.iter().enumerate() {
+        let out = dir.path().join(format!("reactor{i}.npy"));
+        let run = common::run_ok(
+            std::process::Command::new(common::example("stream"))
+                .current_dir(env!("CARGO_MANIFEST_DIR"))
+                .env("TRACT_CPU_ISA", isa)
+                .args(["--bundle", "onnx/bundles/armflow-tiny", "--synthetic"])
+                .args(["--frames", "160", "--no-pictures", "--out"])
+                .arg(&out),
+        );
+        let text = common::output_text(&run);
+        let kernels = text.lines().find(|l| l.starts_with("kernels: ")).unwrap();
+        println!("TRACT_CPU_ISA={isa:?}: {kernels}");
+        // A CPU without AVX2 runs the portable build whatever is asked.
+        let has_avx2 = cfg!(target_arch = "x86_64") && kernels.contains(",avx2");
+        if !expected.is_empty() && (has_avx2 || expected.ends_with("portable")) {
+            assert!(kernels.contains(expected), "{kernels}");
+        }
+        streams.push(ndarray_npy::read_npy::<_, Array2<f32>>(&out).unwrap());
+    }
+    let scale = streams[0].iter().fold(0f32, |m, v| m.max(v.abs()));
+    for (i, other) in streams.iter().enumerate().skip(1) {
+        let d = max_abs_diff(streams[0].as_slice().unwrap(), other.as_slice().unwrap());
+        println!("build {i} against the machine's own: {d:.2e} (scale {scale:.2})");
+        assert!(d <= 1e-4 * scale, "build {i} differs by {d}");
+    }
+}

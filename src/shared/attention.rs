@@ -43,15 +43,23 @@ enum Isa {
     Avx512,
 }
 
+/// The build this machine runs: the best the CPU has among those tract's instruction-set view
+/// allows. tract reads `TRACT_CPU_ISA` (`-avx512f` to run the AVX2 kernels on an AVX-512
+/// machine, `-avx2` for the portable ones), so one setting chooses both troupe's kernels and
+/// tract's, and a benchmark on one machine shows how the others' kernels do.
 fn isa() -> Isa {
     static ISA: OnceLock<Isa> = OnceLock::new();
     *ISA.get_or_init(|| {
         #[cfg(target_arch = "x86_64")]
         {
-            if std::arch::is_x86_feature_detected!("avx512f") {
+            use tract_linalg::isa::Isa as Tract;
+            let allowed = tract_linalg::isa::native();
+            if allowed.has(Tract::X86_64Avx512f) && std::arch::is_x86_feature_detected!("avx512f") {
                 return Isa::Avx512;
             }
-            if std::arch::is_x86_feature_detected!("avx2")
+            if allowed.has(Tract::X86_64Avx2)
+                && allowed.has(Tract::X86_64Fma)
+                && std::arch::is_x86_feature_detected!("avx2")
                 && std::arch::is_x86_feature_detected!("fma")
             {
                 return Isa::Avx2Fma;
@@ -59,6 +67,17 @@ fn isa() -> Isa {
         }
         Isa::Portable
     })
+}
+
+/// The kernels this process runs, for benchmarks and logs: troupe's attention build and the
+/// instruction sets tract's matrix kernels may use (after `TRACT_CPU_ISA`), e.g.
+/// `attention avx2+fma; tract x86_64,avx,avx2,fma,f16c`.
+pub fn kernels() -> String {
+    let tract: Vec<&str> = tract_linalg::isa::native()
+        .iter()
+        .map(|i| i.name())
+        .collect();
+    format!("attention {}; tract {}", kernel(), tract.join(","))
 }
 
 /// The build of the kernel this CPU runs (`"avx512"`, `"avx2+fma"` or `"portable"`), for

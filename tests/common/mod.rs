@@ -331,3 +331,20 @@ pub fn magnet_draw_refused(refusal: &troupe::Error, draw: u64, seed: u64) -> Vec
     troupe::noise::fill_normals(seed, draw, troupe::magnet::STREAM_MAGNET, &mut normals);
     normals
 }
+
+/// An example built with the tests (`cargo test` builds them beside its own binaries).
+pub fn example(name: &str) -> PathBuf {
+    let deps = std::env::current_exe().unwrap();
+    let path = deps
+        .parent()
+        .and_then(Path::parent)
+        .unwrap()
+        .join("examples")
+        .join(name);
+    assert!(
+        path.is_file(),
+        "{} is not built (cargo test builds the examples)",
+        path.display()
+    );
+    path
+}
