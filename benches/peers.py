@@ -7,6 +7,7 @@ but for the context encoder: see `ort` below).
                                                   # --preset tiny --out /tmp/tiny --peer-graphs`
     python3 benches/peers.py --histories 10,100 --steps 20 --peers ort,torch-kv \\
         --troupe-binary target/release/examples/stream --json /tmp/peers.json
+    python3 benches/peers.py --peers ort --troupe-binary target/release/examples/stream --isa avx2
 
 The paper bundle is not committed: `python3 onnx/cli.py armflow export --preset paper --out onnx/bundles/paper --peer-graphs`.
 
@@ -44,6 +45,18 @@ step (untimed and timed) runs against that same H-token cache: its key/value out
 and dropped, so each timed step sees exactly H cached tokens, as troupe's do with `--capacity H+1`
 (where the session drops the oldest pair before appending). The peers pay no eviction; troupe
 does. `torch-recompute` likewise recomputes over the same H tokens plus the new one.
+
+Method, for noisy machines: at each history every side (each peer, troupe with the cache
+holding all H tokens, troupe at the bundle's own capacity) times a block of `--steps` full steps
+in turn, `--repeats` times (5 by default), the order of the sides flipping every repetition
+(A B B A A B ...) so that a slow phase of the machine falls on all sides alike. Each block gives
+its median (p50) and p99; each side is reported as the median over its blocks, with the spread of
+its block medians (lowest to highest), and troupe against a peer as the ratio of the medians.
+The report names the CPU, its SIMD flags and the kernels troupe chose (its attention build and
+tract's instruction sets); `--isa avx2` or `--isa portable` makes troupe run the kernels of an
+AVX2-only or a SIMD-less machine here (`TRACT_CPU_ISA`, which troupe's attention follows too),
+so one machine shows how troupe does on the others. onnxruntime chooses its kernels by CPUID
+and has no such setting.
 
 Reported per history and peer: median and p99 of the full-step wall time over `--steps` timed
 steps (p99 as troupe reports it: the sorted sample at rank round(0.99 (n-1))), and the process
@@ -94,6 +107,17 @@ STEP_ROLES = ("context_step", "velocity", "vae_encoder_step", "vae_decoder_step"
 # graph of the same weights here.
 PEER_FILES = {"context_step": "peers/context_step.onnx"}
 PEERS = ("ort", "torch-kv", "torch-recompute")
+# What `--isa` asks tract (and so troupe's attention, which follows tract's view) to run, as
+# `TRACT_CPU_ISA` edits of the probed set: the AVX2 machines' kernels on an AVX-512 one, or the
+# portable ones. onnxruntime (MLAS) chooses its kernels by CPUID and offers no such setting.
+ISA_PRESETS = {
+    "native": "",
+    "avx2": "-avx512f,-avx512vnni,-avx512fp16,-avxvnni,-amx-int8,-amx-bf16",
+    "portable": "-avx512f,-avx512vnni,-avx512fp16,-avxvnni,-amx-int8,-amx-bf16,-avx2,-fma,-avx,-f16c",
+}
+# The CPU flags worth naming beside a timing: the vector units and dot-product instructions.
+SIMD_FLAGS = ("sse4_2", "avx", "avx2", "fma", "f16c", "avx512f", "avx512bw", "avx512vl", "avx512_vnni",
+              "avx512_bf16", "avx512_fp16", "avx_vnni", "amx_bf16", "amx_int8", "asimd", "sve")
 
 
 # --------------------------------------------------------------------------------------------
@@ -162,6 +186,42 @@ def fixed_condition(b: Bundle) -> np.ndarray:
 def rss_bytes() -> int:
     with open("/proc/self/statm") as f:
         return int(f.read().split()[1]) * os.sysconf("SC_PAGE_SIZE")
+
+
+def machine() -> dict:
+    """The CPU the run is on: its model, logical cores and the SIMD flags of SIMD_FLAGS it has."""
+    model, flags = "unknown", set()
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            key, _, value = line.partition(":")
+            if key.strip() == "model name" and model == "unknown":
+                model = value.strip()
+            elif key.strip() in ("flags", "Features") and not flags:
+                flags = set(value.split())
+    except OSError:
+        pass
+    return {"cpu": model, "cores": os.cpu_count(), "simd": [f for f in SIMD_FLAGS if f in flags]}
+
+
+def combine(reps: list[dict]) -> dict:
+    """One figure per timed block (a repetition) -> the median over the repetitions of each, and
+    the spread of the per-block medians (`p50_min`, `p50_max`, every `p50_each`)."""
+    p50s = sorted(r["p50"] for r in reps)
+    out = dict(reps[0])  # first-step figures and the agreement check come from the first block
+    out.update({
+        "p50": float(np.median(p50s)), "p50_min": p50s[0], "p50_max": p50s[-1], "p50_each": p50s,
+        "p99": float(np.median([r["p99"] for r in reps])), "repeats": len(reps),
+    })
+    if "max" in reps[0]:
+        out["max"] = max(r["max"] for r in reps)
+    if "rss_per_stream_bytes" in reps[0]:
+        out["rss_per_stream_bytes"] = int(np.median([r["rss_per_stream_bytes"] for r in reps]))
+    return out
+
+
+def spread(r: dict) -> str:
+    """`p50 [min-max]` of a combined figure, in ms."""
+    return f"{r['p50']:.2f} [{r['p50_min']:.2f}-{r['p50_max']:.2f}]"
 
 
 def percentiles(samples_ms: list[float]) -> dict:
@@ -413,7 +473,17 @@ def read_bandwidth() -> dict:
     return out
 
 
-def run_troupe(binary: str, bundle: Path, history: int, steps: int, bounded: bool = False) -> dict:
+def troupe_env(isa: str) -> dict:
+    """The environment troupe's binary runs in: `TRACT_CPU_ISA` as `--isa` asks."""
+    env = dict(os.environ)
+    env.pop("TRACT_CPU_ISA", None)
+    if ISA_PRESETS[isa]:
+        env["TRACT_CPU_ISA"] = ISA_PRESETS[isa]
+    return env
+
+
+def run_troupe(binary: str, bundle: Path, history: int, steps: int, bounded: bool = False,
+               isa: str = "native") -> dict:
     """troupe's stream at `history`: the cache holds all H tokens (capacity H + 1), or with
     `bounded` the bundle's own capacity (the oldest pairs slide out)."""
     with tempfile.TemporaryDirectory() as tmp:
@@ -423,20 +493,22 @@ def run_troupe(binary: str, bundle: Path, history: int, steps: int, bounded: boo
             "--warmup-tokens", str(history), "--frames", str(4 * (history + steps)), "--tick", "4",
             "--out", str(Path(tmp) / "reactor.npy"),
         ]
-        out = subprocess.run(cmd, capture_output=True, text=True, check=True).stdout
+        out = subprocess.run(cmd, capture_output=True, text=True, check=True, env=troupe_env(isa)).stdout
     m = re.search(r"calls that produced a token \((\d+) calls\): p50 ([\d.]+) ms\s+p99 ([\d.]+) ms", out)
     load = re.search(r"loaded in ([\d.]+) ms", out)
-    if not m or not load:
+    kernels = re.search(r"^kernels: (.*)$", out, re.M)
+    if not m or not load or not kernels:
         sys.exit(f"cannot parse the output of {' '.join(cmd)}:\n{out}")
-    return {"n": int(m[1]), "p50": float(m[2]), "p99": float(m[3]), "load_ms": float(load[1])}
+    return {"n": int(m[1]), "p50": float(m[2]), "p99": float(m[3]), "load_ms": float(load[1]),
+            "kernels": kernels[1]}
 
 
-def troupe_first_step(binary: str, bundle: Path) -> dict:
+def troupe_first_step(binary: str, bundle: Path, isa: str = "native") -> dict:
     """A fresh process: `Model::load` and a session (troupe's own report), then the first token."""
     with tempfile.TemporaryDirectory() as tmp:
         cmd = [binary, "--bundle", str(bundle), "--synthetic", "--no-pictures", "--frames", "4", "--tick", "4",
                "--out", str(Path(tmp) / "r.npy")]
-        out = subprocess.run(cmd, capture_output=True, text=True, check=True).stdout
+        out = subprocess.run(cmd, capture_output=True, text=True, check=True, env=troupe_env(isa)).stdout
     load = re.search(r"loaded in ([\d.]+) ms", out)
     first = re.search(r"every call \(1 calls\): p50 ([\d.]+) ms", out)
     if not load or not first:
@@ -460,21 +532,24 @@ def check_agreement(first: dict) -> dict:
 
 
 def table(s: dict) -> str:
+    """Per history: each side's median over the repetitions of its blocks' p50 [the lowest and
+    highest block p50], its median p99, and troupe / peer as the ratio of the medians."""
     troupe, peers, bounded = s["troupe"], s["peers"], s["troupe_bounded"]
-    head = ["history"] + ([f"troupe bounded ({s['capacity']}) p50 / p99 ms", "troupe p50 / p99 ms"] if troupe else [])
+    head = ["history"] + ([f"troupe bounded ({s['capacity']}) p50 [spread] / p99 ms",
+                           "troupe p50 [spread] / p99 ms"] if troupe else [])
     for p in peers:
-        head += [f"{p} p50 / p99 ms"] + ([f"{p} / troupe"] if troupe else [])
+        head += [f"{p} p50 [spread] / p99 ms"] + ([f"troupe / {p} (p50, p99)"] if troupe else [])
     lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     for h, results in s["results"].items():
         row = [str(h)]
         if troupe:
-            row.append(f"{bounded[h]['p50']:.2f} / {bounded[h]['p99']:.2f}")
-            row.append(f"{troupe[h]['p50']:.2f} / {troupe[h]['p99']:.2f}")
+            row.append(f"{spread(bounded[h])} / {bounded[h]['p99']:.2f}")
+            row.append(f"{spread(troupe[h])} / {troupe[h]['p99']:.2f}")
         for p in peers:
             r = results[p]
-            row.append(f"{r['p50']:.2f} / {r['p99']:.2f}")
+            row.append(f"{spread(r)} / {r['p99']:.2f}")
             if troupe:
-                row.append(f"{r['p50'] / troupe[h]['p50']:.2f}x / {r['p99'] / troupe[h]['p99']:.2f}x")
+                row.append(f"{troupe[h]['p50'] / r['p50']:.2f}x, {troupe[h]['p99'] / r['p99']:.2f}x")
         lines.append("| " + " | ".join(row) + " |")
     return "\n".join(lines)
 
@@ -482,8 +557,14 @@ def table(s: dict) -> str:
 def print_report(s: dict):
     troupe, results = s["troupe"], s["results"]
     first, last = next(iter(results)), list(results)[-1]
-    print(f"\n## {s['name']}: full streaming step, {s['steps']} timed steps per history, "
-          f"{s['threads']} thread(s)\n")
+    m = s["machine"]
+    print(f"\n## {s['name']}: full streaming step, {s['repeats']} alternating repetitions of {s['steps']} "
+          f"timed steps per history and side, {s['threads']} thread(s)\n")
+    print(f"CPU: {m['cpu']} ({m['cores']} logical cores), SIMD: {' '.join(m['simd'])}")
+    if troupe:
+        kernels = sorted({t["kernels"] for t in troupe.values()})
+        print(f"troupe kernels (--isa {s['isa']}): {'; '.join(kernels)}")
+    print("onnxruntime kernels: MLAS, chosen by CPUID (no setting forces another family)\n")
     print(table(s))
     print()
     print("versions: " + ", ".join(s["versions"]))
@@ -535,13 +616,18 @@ def main():
     ap.add_argument("--json", type=Path, help="also write the results here")
     ap.add_argument("--crowd", help="comma-separated crowd sizes: time ORT streams stepped one by one "
                     "at the first history (compare with examples/crowd.rs)")
+    ap.add_argument("--repeats", type=int, default=5,
+                    help="alternating repetitions per history: each side times --steps steps in turn, "
+                    "A/B/B/A..., and each side's figures are medians over its repetitions")
+    ap.add_argument("--isa", choices=sorted(ISA_PRESETS), default="native",
+                    help="the kernel family troupe runs (TRACT_CPU_ISA): this machine's, AVX2's or portable")
     args = ap.parse_args()
     histories = [int(h) for h in args.histories.split(",")]
     peer_names = args.peers.split(",")
     if unknown := set(peer_names) - set(PEERS):
         ap.error(f"unknown peers {sorted(unknown)}")
-    if min(histories) < 1 or args.steps < 1:
-        ap.error("histories and --steps must be >= 1")
+    if min(histories) < 1 or args.steps < 1 or args.repeats < 1:
+        ap.error("histories, --steps and --repeats must be >= 1")
     b = Bundle(args.bundle)
     condition = fixed_condition(b)
     peers = {
@@ -550,11 +636,27 @@ def main():
         for name in peer_names
     }
 
+    # Every side times a block of --steps steps in turn, the order flipping each repetition
+    # (A B B A A B ...), so that a machine's slow phase falls on both sides alike.
     results, agreement = {}, {}
+    troupe = bounded = first = None
+    if args.troupe_binary:
+        troupe, bounded = {}, {}
     for h in histories:
         inp = Inputs(b, h, WARMUP_STEPS + args.steps)
-        results[h] = {name: run_peer(p, inp, args.steps) for name, p in peers.items()}
-        print(f"history {h}: " + ", ".join(f"{n} p50 {r['p50']:.2f} ms" for n, r in results[h].items()),
+        sides = [(name, lambda p=p: run_peer(p, inp, args.steps)) for name, p in peers.items()]
+        if args.troupe_binary:
+            sides.append(("troupe", lambda: run_troupe(args.troupe_binary, args.bundle, h, args.steps, isa=args.isa)))
+            sides.append(("troupe bounded", lambda: run_troupe(args.troupe_binary, args.bundle, h, args.steps,
+                                                               bounded=True, isa=args.isa)))
+        reps = {name: [] for name, _ in sides}
+        for r in range(args.repeats):
+            for name, run in sides if r % 2 == 0 else reversed(sides):
+                reps[name].append(run())
+        results[h] = {name: combine(reps[name]) for name in peers}
+        if args.troupe_binary:
+            troupe[h], bounded[h] = combine(reps["troupe"]), combine(reps["troupe bounded"])
+        print(f"history {h}: " + ", ".join(f"{n} p50 {combine(v)['p50']:.2f} ms" for n, v in reps.items()),
               file=sys.stderr)
         if h == histories[0]:  # identical inputs on every peer's first full step
             agreement = check_agreement(results[h])
@@ -564,16 +666,14 @@ def main():
     if args.crowd and "ort" in peers:
         sizes = [int(n) for n in args.crowd.split(",")]
         crowd = run_crowd(peers["ort"], Inputs(b, histories[0], WARMUP_STEPS + 10), sizes, 10)
-    troupe = bounded = first = None
     if args.troupe_binary:
-        troupe = {h: run_troupe(args.troupe_binary, args.bundle, h, args.steps) for h in histories}
-        bounded = {h: run_troupe(args.troupe_binary, args.bundle, h, args.steps, bounded=True) for h in histories}
-        first = troupe_first_step(args.troupe_binary, args.bundle)
+        first = troupe_first_step(args.troupe_binary, args.bundle, args.isa)
     weights = weight_bytes(b)
     bandwidth = read_bandwidth()
 
     summary = {
         "bundle": str(args.bundle), "name": b.name, "steps": args.steps, "threads": args.threads,
+        "repeats": args.repeats, "isa": args.isa, "machine": machine(),
         "warmup_steps": WARMUP_STEPS, "peers": peer_names,
         "versions": sorted({f"numpy {np.__version__}"} | {p.library for p in peers.values()}),
         "ort_load_ms": peers["ort"].load_ms if "ort" in peers else None,

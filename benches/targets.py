@@ -62,10 +62,12 @@ def sh(cmd: list[str], env: dict | None = None) -> str:
 
 
 def crowd_rows(out: str) -> dict[int, dict]:
-    """`examples/crowd`'s table rows: sessions -> round p50 / p99 ms."""
+    """`examples/crowd`'s table rows: sessions -> round p50 (median of the blocks, and their
+    spread) / p99 ms."""
     rows = {}
-    for m in re.finditer(r"^\| (\d+) \| batched \| ([\d.]+) \| ([\d.]+) \|", out, re.M):
-        rows[int(m[1])] = {"p50": float(m[2]), "p99": float(m[3])}
+    row = r"^\| (\d+) \| batched \| ([\d.]+) \[([\d.]+)-([\d.]+)\] \| ([\d.]+) \|"
+    for m in re.finditer(row, out, re.M):
+        rows[int(m[1])] = {"p50": float(m[2]), "p50_min": float(m[3]), "p50_max": float(m[4]), "p99": float(m[5])}
     if not rows:
         sys.exit(f"cannot parse the crowd's output:\n{out}")
     return rows

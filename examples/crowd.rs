@@ -5,9 +5,14 @@
 //!     cargo run --release --example crowd -- --bundle onnx/bundles/paper --sessions 8,32,64 --history 100
 //!
 //! For each crowd size N: N sessions (seeds 0..N, the bundle's context capacity) are warmed to
-//! `--history` tokens, then `--rounds` rounds are timed; a round gives every session one token's
-//! worth of new actor frames (4 frames, 133 ms of motion at 30 fps) and collects its reactor
-//! frames. The crowd is in real time when a round's p99 fits in that 133 ms. With `--threads T`
+//! `--history` tokens, then the modes take turns timing blocks of `--rounds` rounds, `--repeats`
+//! blocks each (5 by default), the order flipping every repetition (A B B A ...) so that a slow
+//! phase of the machine falls on both alike; a round gives every session one token's worth of
+//! new actor frames (4 frames, 133 ms of motion at 30 fps) and collects its reactor frames. Each
+//! mode is reported as the median of its blocks' p50 [their lowest and highest] and the median of
+//! their p99. The crowd is in real time when that p99 fits in the 133 ms. The kernels troupe
+//! runs are named in the first line (`TRACT_CPU_ISA=-avx512f,...` forces the AVX2 ones; see
+//! `benches/peers.py --isa`). With `--threads T`
 //! the crowd is split into T equal parts stepped on T threads. Also reported: the memory a
 //! session holds (`Session::memory_bytes`, the largest in the crowd) and the RSS growth from
 //! creating and warming the crowd divided by N (Linux; it includes allocator slack and what the
@@ -30,6 +35,8 @@ struct Args {
     /// The least and the most history of the crowd's sessions (equal unless mixed).
     history: (usize, usize),
     rounds: usize,
+    /// Blocks of `rounds` rounds per mode, the modes taking turns (A B B A ...).
+    repeats: usize,
     threads: usize,
     modes: Vec<Mode>,
 }
@@ -55,6 +62,7 @@ fn parse_args() -> Result<Args, String> {
         sessions: vec![1, 8, 32],
         history: (100, 100),
         rounds: 20,
+        repeats: 5,
         threads: 1,
         modes: vec![Mode::Batched, Mode::Alone],
     };
@@ -81,6 +89,7 @@ fn parse_args() -> Result<Args, String> {
                 }
             }
             "--rounds" => args.rounds = number(value()?)?,
+            "--repeats" => args.repeats = number(value()?)?,
             "--threads" => args.threads = number(value()?)?.max(1),
             "--compute-threads" => troupe::set_compute_threads(number(value()?)?)
                 .map_err(|e| format!("--compute-threads: {e}"))?,
@@ -95,15 +104,15 @@ fn parse_args() -> Result<Args, String> {
             "-h" | "--help" => {
                 println!(
                     "crowd [--bundle DIR] [--sessions 1,8,32] [--history 100 | LO..HI] [--rounds 20] \
-                     [--threads 1] [--mode batched|alone|both]"
+                     [--repeats 5] [--threads 1] [--mode batched|alone|both]"
                 );
                 std::process::exit(0);
             }
             other => return Err(format!("unknown argument {other}")),
         }
     }
-    if args.sessions.contains(&0) || args.rounds == 0 {
-        return Err("--sessions and --rounds must be >= 1".into());
+    if args.sessions.contains(&0) || args.rounds == 0 || args.repeats == 0 {
+        return Err("--sessions, --rounds and --repeats must be >= 1".into());
     }
     Ok(args)
 }
@@ -143,19 +152,20 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let (dim, fpt) = (model.frame_dim(), model.frames_per_token());
     let budget_ms = 1e3 * fpt as f64 / f64::from(model.fps());
     let (least, most) = args.history;
-    let timed = args.modes.len() * args.rounds;
+    let timed = args.modes.len() * args.rounds * args.repeats;
     let clip = synthetic_actor((most + timed + 1) * fpt, dim);
     let clip = clip.as_slice().expect("standard layout");
     println!(
-        "bundle {} ({}): history {} tokens, {} timed rounds of {fpt} frames ({budget_ms:.1} ms of motion), {} thread(s), kernels: {}",
+        "bundle {} ({}): history {} tokens, {} x {} timed rounds of {fpt} frames ({budget_ms:.1} ms of motion) per mode, {} thread(s), kernels: {}",
         args.bundle,
         model.manifest().name,
         if least == most { format!("{most}") } else { format!("{least} to {most} (every token kept)") },
+        args.repeats,
         args.rounds,
         args.threads,
         troupe::kernels()
     );
-    println!("| sessions | mode | round p50 ms | round p99 ms | per session-token ms | real time | held per session MB | RSS per session MB |");
+    println!("| sessions | mode | round p50 ms [spread] | round p99 ms | per session-token ms | real time | held per session MB | RSS per session MB |");
     println!("|---|---|---|---|---|---|---|---|");
     let mut best = vec![0usize; args.modes.len()];
     for &n in &args.sessions {
@@ -187,27 +197,47 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             .max()
             .unwrap_or(0) as f64
             / 1e6;
-        // Both modes continue the same streams; each round advances every stream by a token.
+        // The modes continue the same streams, each round advancing every stream by a token. They
+        // take turns in blocks of `rounds` rounds, the order flipping every repetition (A B B A
+        // ...), so that a slow phase of the machine falls on every mode alike; each mode's block
+        // medians give its median and spread, its block p99s its p99.
         let mut fed = most;
-        for (m, &mode) in args.modes.iter().enumerate() {
-            let mut times = Vec::with_capacity(args.rounds);
-            for _ in 0..args.rounds {
-                let at = fed * fpt * dim;
-                let chunk = &clip[at..at + fpt * dim];
-                let t = Instant::now();
-                round(&mut sessions, chunk, mode, args.threads);
-                times.push(t.elapsed().as_secs_f64() * 1e3);
-                fed += 1;
+        let mut blocks: Vec<Vec<(f64, f64)>> = vec![Vec::new(); args.modes.len()];
+        for r in 0..args.repeats {
+            let order: Vec<usize> = if r % 2 == 0 {
+                (0..args.modes.len()).collect()
+            } else {
+                (0..args.modes.len()).rev().collect()
+            };
+            for m in order {
+                let mut times = Vec::with_capacity(args.rounds);
+                for _ in 0..args.rounds {
+                    let at = fed * fpt * dim;
+                    let chunk = &clip[at..at + fpt * dim];
+                    let t = Instant::now();
+                    round(&mut sessions, chunk, args.modes[m], args.threads);
+                    times.push(t.elapsed().as_secs_f64() * 1e3);
+                    fed += 1;
+                }
+                times.sort_by(f64::total_cmp);
+                blocks[m].push((percentile(&times, 0.5), percentile(&times, 0.99)));
             }
-            times.sort_by(f64::total_cmp);
-            let (p50, p99) = (percentile(&times, 0.5), percentile(&times, 0.99));
+        }
+        for (m, &mode) in args.modes.iter().enumerate() {
+            let mut p50s: Vec<f64> = blocks[m].iter().map(|b| b.0).collect();
+            let mut p99s: Vec<f64> = blocks[m].iter().map(|b| b.1).collect();
+            p50s.sort_by(f64::total_cmp);
+            p99s.sort_by(f64::total_cmp);
+            let (p50, p99) = (percentile(&p50s, 0.5), percentile(&p99s, 0.5));
             let real_time = p99 <= budget_ms;
             if real_time {
                 best[m] = best[m].max(n);
             }
             println!(
-                "| {n} | {} | {p50:.2} | {p99:.2} | {:.3} | {} | {held_mb:.2} | {per_session_mb:.2} |",
+                "| {n} | {} | {p50:.2} [{:.2}-{:.2}] | {p99:.2} | {:.3} | {} | {held_mb:.2} | {per_session_mb:.2} |",
                 mode.name(),
+                p50s[0],
+                p50s[p50s.len() - 1],
                 p50 / n as f64,
                 if real_time { "yes" } else { "no" }
             );
