@@ -52,9 +52,9 @@ fn main() {
     for file in samples::sample_files(root) {
         println!("cargo:rerun-if-changed={}", file.display());
     }
-    for dir in ["docs", "bindings/csharp", "unity", "onnx"] {
-        println!("cargo:rerun-if-changed={}", root.join(dir).display());
-    }
+    // `docs/` too, so that a new page's samples are gathered. Cargo walks a watched folder on
+    // every build: the other folders (`onnx/` holds the bundles) are watched by their README only.
+    println!("cargo:rerun-if-changed={}", root.join("docs").display());
     let out =
         Path::new(&std::env::var("OUT_DIR").expect("cargo sets OUT_DIR")).join("doc_samples.md");
     std::fs::write(&out, rust_samples(root)).expect("write the doc samples");
