@@ -582,6 +582,16 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         );
     }
 
+    // The slowest calls in the order they came, to tell a first-use cost (call 0) or a
+    // periodic one (recentring, page growth) from the machine's noise.
+    let mut slowest: Vec<(usize, f64)> = timing.all_calls.iter().copied().enumerate().collect();
+    slowest.sort_by(|a, b| b.1.total_cmp(&a.1));
+    slowest.truncate(5);
+    slowest.sort_by_key(|&(i, _)| i);
+    let slowest: Vec<String> = slowest
+        .iter()
+        .map(|(i, ms)| format!("#{i} {ms:.2} ms"))
+        .collect();
     for v in [&mut timing.all_calls, &mut timing.token_calls] {
         v.sort_by(f64::total_cmp);
     }
@@ -601,6 +611,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             v.last().copied().unwrap_or(f64::NAN)
         );
     }
+    println!("slowest calls: {}", slowest.join(", "));
     let motion_ms = timing.timed_frames as f64 / f64::from(input_fps) * 1e3;
     println!(
         "real-time factor {:.1}x ({:.0} ms of motion computed in {:.0} ms; context holds {} tokens)",

@@ -54,6 +54,21 @@ pub struct BodyModel {
     joints: usize,
 }
 
+/// A box around a posed body beyond which points are farther than a margin from it
+/// ([`BodyModel::reach`]): the penetration checks skip such points without a distance.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Reach {
+    low: Vec3,
+    high: Vec3,
+}
+
+impl Reach {
+    /// Whether `point` lies outside the box (and so farther than the margin from the body).
+    pub fn beyond(&self, point: Vec3) -> bool {
+        (0..3).any(|k| point[k] < self.low[k] || point[k] > self.high[k])
+    }
+}
+
 /// The signed distance from a point to a body, and its gradient with respect to the point.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SignedDistance {
@@ -151,6 +166,47 @@ impl BodyModel {
         }
         best
     }
+
+    /// Whether every point of `points` is at least `margin` metres from the body posed at
+    /// `pose` (its signed distance `>= margin`): what a zero penetration loss with that safe
+    /// distance means, answered without the loss's gradient. Points farther from the joints'
+    /// bounding box than the widest capsule reaches are passed without a distance (the common
+    /// case of two people apart), and the answer comes at the first point too near.
+    ///
+    /// # Panics
+    /// When `pose` has fewer than [`BodyModel::joints`] positions.
+    pub fn clear_of(&self, pose: &[Vec3], points: &[Vec3], margin: f64) -> bool {
+        let reach = self.reach(pose, margin);
+        points
+            .iter()
+            .all(|&p| reach.beyond(p) || self.signed_distance(pose, p).distance >= margin)
+    }
+
+    /// The box around the body posed at `pose` outside which every point is farther than
+    /// `margin` from it, so that its signed distance need not be computed.
+    ///
+    /// # Panics
+    /// When `pose` has fewer than [`BodyModel::joints`] positions.
+    pub fn reach(&self, pose: &[Vec3], margin: f64) -> Reach {
+        let widest = self.capsules.iter().fold(0.0f64, |r, c| r.max(c.radius));
+        // A capsule lies inside the box of its two joints grown by its radius, so a point
+        // farther than `grow` outside the joints' box along any axis is farther than `margin`
+        // from every capsule (the small constant absorbs the distance's rounding).
+        let grow = widest + margin + 1e-9;
+        let mut reach = Reach {
+            low: [f64::INFINITY; 3],
+            high: [f64::NEG_INFINITY; 3],
+        };
+        for c in &self.capsules {
+            for p in [pose[c.from], pose[c.to]] {
+                for (k, v) in p.iter().enumerate() {
+                    reach.low[k] = reach.low[k].min(v - grow);
+                    reach.high[k] = reach.high[k].max(v + grow);
+                }
+            }
+        }
+        reach
+    }
 }
 
 #[cfg(test)]
@@ -167,6 +223,29 @@ mod tests {
             }],
         )
         .unwrap()
+    }
+
+    #[test]
+    fn clear_of_agrees_with_the_distances() {
+        let body = BodyModel::t2m22();
+        let pose = Skeleton::t2m22().rest_positions();
+        // A grid of points from inside the body to well outside it, at three margins: the
+        // bounding-box shortcut must never change the answer.
+        for margin in [0.0, 0.05, 0.3] {
+            for i in -12..=12 {
+                for j in -4..=20 {
+                    for k in -6..=6 {
+                        let p = [0.1 * f64::from(i), 0.1 * f64::from(j), 0.1 * f64::from(k)];
+                        let expected = body.signed_distance(&pose, p).distance >= margin;
+                        assert_eq!(body.clear_of(&pose, &[p], margin), expected, "{p:?}");
+                    }
+                }
+            }
+        }
+        // Several points: clear only when all are.
+        let far = [5.0, 0.0, 0.0];
+        assert!(body.clear_of(&pose, &[far, far], 0.05));
+        assert!(!body.clear_of(&pose, &[far, pose[0]], 0.05));
     }
 
     #[test]

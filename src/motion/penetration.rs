@@ -124,8 +124,13 @@ impl PenetrationLoss {
             .iter()
             .zip(reactor)
             .map(|(a, r)| {
+                // Joints beyond the body's reach add nothing (their distance exceeds d_safe).
+                let reach = body.reach(a, self.d_safe);
                 r.iter()
                     .map(|&p| {
+                        if reach.beyond(p) {
+                            return [0.0; 3];
+                        }
                         let sd = body.signed_distance(a, p);
                         let x = self.d_safe - sd.distance;
                         if x <= 0.0 {
@@ -214,6 +219,41 @@ mod tests {
         let m = penetration_metrics(&body, &a, &b).unwrap();
         assert_eq!((m.frames, m.frames_intersecting, m.frequency), (4, 4, 1.0));
         assert!(m.depth_sum > 0.0 && m.max_depth > 0.05);
+    }
+
+    #[test]
+    fn skipping_joints_beyond_reach_changes_nothing() {
+        // The reactor at many offsets, from overlapping to apart: the loss and every gradient
+        // equal those of every joint's distance computed.
+        let body = BodyModel::t2m22();
+        let rest = Skeleton::t2m22().rest_positions();
+        for hinge in [Hinge::Linear, Hinge::Squared] {
+            let loss = PenetrationLoss { d_safe: 0.1, hinge };
+            for step in 0..40 {
+                let by = [0.03 * f64::from(step), 0.01 * f64::from(step % 7), 0.02];
+                let reactor = shifted(&rest, by);
+                let got = loss
+                    .evaluate(
+                        &body,
+                        std::slice::from_ref(&rest),
+                        std::slice::from_ref(&reactor),
+                    )
+                    .unwrap();
+                let (mut want, mut grads) = (0.0, Vec::new());
+                for &p in &reactor {
+                    let sd = body.signed_distance(&rest, p);
+                    let x = (loss.d_safe - sd.distance).max(0.0);
+                    let (value, slope) = match hinge {
+                        Hinge::Linear => (x, f64::from(u8::from(x > 0.0))),
+                        Hinge::Squared => (x * x, 2.0 * x),
+                    };
+                    want += value;
+                    grads.push(scale(sd.gradient, -slope));
+                }
+                assert_eq!(got.loss, want, "offset {by:?}");
+                assert_eq!(got.gradient[0], grads, "offset {by:?}");
+            }
+        }
     }
 
     #[test]

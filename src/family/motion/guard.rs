@@ -147,12 +147,20 @@ impl GuardState {
                 .map(|p| [f64::from(p[0]), f64::from(p[1]), f64::from(p[2])])
                 .collect::<Vec<Vec3>>()];
             let pose = layout.joints(frame.as_slice().expect("rows of a standard-layout array"));
-            let clear = |o: [f64; 2]| -> Result<bool> {
-                Ok(loss.evaluate(&body, &actor, &[shifted(&pose, o)])?.loss == 0.0)
-            };
+            if !actor[0]
+                .iter()
+                .chain(&pose)
+                .flatten()
+                .all(|v| v.is_finite())
+            {
+                return Err(Error::InvalidInput(format!(
+                    "penetration guard: frame {index} holds a non-finite joint position"
+                )));
+            }
             let previous = self.offset;
             let released = clamp_move(previous, [0.0, 0.0], step);
-            let target = if clear(released)? {
+            // Clear means a zero loss: every joint at least `d_safe` from the actor's body.
+            let target = if body.clear_of(&actor[0], &shifted(&pose, released), guard.d_safe) {
                 released
             } else {
                 let mut o = previous;
