@@ -19,7 +19,7 @@ against.
 
 Latency, in frames at 30 fps, for the partner's frame t: the user's frames up to the end of the
 chunk that sends it must have arrived (the algorithmic part: from `4 Tc` to `latency_frames`),
-then the chunk computes (its wall time here, one thread). Deviation: the partner's root position
+then the chunk computes (its wall time here, on `--threads` compute threads, 1 by default). Deviation: the partner's root position
 (RMS and largest difference, metres) and body joint rotations (mean geodesic angle, degrees)
 against the released settings' output over the frames both sent. The weights are random, so a
 deviation measures how much a setting changes the output, not whether the motion is good.
@@ -104,9 +104,13 @@ def main() -> None:
     ap.add_argument("--frames", required=True, help="float32 [F, 2, 145]: person 0 the user, person 1's start the opening")
     ap.add_argument("--seed", type=int, default=1111)
     ap.add_argument("--only", help="semicolon-separated settings to run (default: all)")
+    ap.add_argument("--threads", type=int, default=1,
+                    help="troupe's compute threads (set_compute_threads): the matrix products split over them")
     ap.add_argument("--json")
     args = ap.parse_args()
     import troupe
+
+    troupe.set_compute_threads(args.threads)
 
     model = troupe.Model(args.bundle)
     clip = np.load(args.frames).astype(np.float32)
@@ -145,7 +149,7 @@ def main() -> None:
     if args.json:
         Path(args.json).write_text(json.dumps({
             "bundle": Path(args.bundle).name, "frames": args.frames, "input_frames": int(len(user)),
-            "seed": args.seed, "threads": 1, "results": results}, indent=2) + "\n")
+            "seed": args.seed, "threads": args.threads, "results": results}, indent=2) + "\n")
 
 
 if __name__ == "__main__":

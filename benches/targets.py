@@ -1,5 +1,6 @@
 #!/usr/bin/env python3
-"""Every speed target of performance round three, measured in one run and set against its bound.
+"""Every speed target of performance round four (issue 55), measured in one run and set against
+its bound.
 
     cargo build --release --lib --example stream --example crowd
     python3 onnx/cli.py armflow export --preset paper --out onnx/bundles/paper --peer-graphs
@@ -14,19 +15,26 @@
 This script measures nothing itself: it runs the benchmarks that each own a target, one after
 the other on this machine, reads what they report, and prints one table of target, measured
 value and whether it is met. Each part can be left out (`--skip magnet,prompt`); a part left out
-is a row that says so, never a pass. The parts and their commands:
+is a row that says so, never a pass. Every timing is taken with nothing else running: the
+script runs its parts one at a time. The parts and their commands:
 
 - `step`: `benches/peers.py` at H = 10, 100, 1000, 2000, onnxruntime and troupe's
-  `examples/stream` side by side (batch 1, every token cached; load to the first step).
+  `examples/stream` alternating (batch 1, every token cached; load to the first step).
+- `avx2`: the same with troupe on the AVX2 kernels (`--isa avx2`: how troupe does on a machine
+  without AVX-512; onnxruntime keeps its own choice, which it has no setting for).
 - `f16`: `examples/stream` at H = 100 on the paper bundle with float16 weights (made once by
   `armflow quantize --weights float16` under `target/bench/`), against the `step` part's
-  onnxruntime at H = 100.
+  onnxruntime at H = 100, and against the time its weights' bytes take to read at the `step`
+  part's measured single-thread bandwidth.
+- `demo`: `examples/stream --synthetic --frames 40000 --tick 4` on the demo bundle: 10,000
+  token calls with the clean-ups on (p50, p99, max).
 - `crowd`: `examples/crowd` on two threads at `--crowd-sizes` (history 100, batched), then
   `benches/sgemm_peak.py` on two threads; a session-token does at least two FLOP per float32
   weight of the step (`peers.py`'s `weights_bytes`), which sets the round's arithmetic against
   that peak. Mixed histories: 16 streams at 10 to 2000 against 16 at the mean.
 - `magnet`: `benches/magnet.py` (troupe against torch eager, per iteration) and
-  `benches/magnet_live.py` (the released live partner and the low-latency setting).
+  `benches/magnet_live.py` on two compute threads (the released live partner and the
+  low-latency setting).
 - `prompt`: `benches/prompts.py` on the official-size text path.
 - `exactness`: the tests that hold batched = alone and the golden parity of the streaming path
   (`cargo test --release --test batch --test context_cache --test golden`).
@@ -47,9 +55,11 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT / "benches"))
-PARTS = ("step", "f16", "crowd", "magnet", "prompt", "exactness")
+PARTS = ("step", "avx2", "f16", "demo", "crowd", "magnet", "prompt", "exactness")
 HISTORIES = (10, 100, 1000, 2000)
 BUDGET_MS = 4 / 30 * 1e3  # a round is real time when its p99 fits in one token's 4 frames
+STEP_TARGET = 0.85  # troupe / onnxruntime, batch 1, every history
+STEP_GRAPHS = ("vae_encoder_step", "context_layers", "velocity", "vae_decoder_step")
 
 
 def sh(cmd: list[str], env: dict | None = None) -> str:
@@ -59,6 +69,18 @@ def sh(cmd: list[str], env: dict | None = None) -> str:
     if done.returncode != 0:
         sys.exit(f"failed ({done.returncode}): {' '.join(cmd)}\n{done.stdout[-4000:]}\n{done.stderr[-4000:]}")
     return done.stdout
+
+
+def step_bytes(bundle: Path) -> int:
+    """Bytes of the weights a streaming step reads: the initializers of its graphs."""
+    import numpy as np
+    import onnx
+    from onnx.helper import tensor_dtype_to_np_dtype
+
+    graphs = json.loads((bundle / "troupe.json").read_text())["graphs"]
+    files = [g["file"] for role in STEP_GRAPHS for g in (graphs[role] if isinstance(graphs[role], list) else [graphs[role]])]
+    return sum(int(np.prod(t.dims)) * tensor_dtype_to_np_dtype(t.data_type).itemsize
+               for f in files for t in onnx.load(bundle / f).graph.initializer)
 
 
 def crowd_rows(out: str) -> dict[int, dict]:
@@ -151,10 +173,25 @@ def main(argv=None) -> None:
 
         peers = report["step"] = once("step", measure_steps)
         ratios = {h: peers["troupe"][str(h)]["p50"] / peers["results"][str(h)]["ort"]["p50"] for h in HISTORIES}
-        table.add("ARMFlow batch 1, f32, all cached: ≤ 0.9× onnxruntime at H = 10, 100, 1000, 2000",
-                  ", ".join(f"{r:.2f}×" for r in ratios.values()), all(r <= 0.9 for r in ratios.values()))
+        table.add(f"ARMFlow batch 1, f32, all cached: ≤ {STEP_TARGET}× onnxruntime at H = 10, 100, 1000, 2000 "
+                  "(this machine's kernels)",
+                  ", ".join(f"{r:.2f}×" for r in ratios.values()), all(r <= STEP_TARGET for r in ratios.values()))
     else:
-        table.skipped("ARMFlow batch 1, f32: ≤ 0.9× onnxruntime", "step")
+        table.skipped(f"ARMFlow batch 1, f32: ≤ {STEP_TARGET}× onnxruntime", "step")
+
+    if "avx2" not in skip:
+        def measure_avx2():
+            sh([sys.executable, "benches/peers.py", "--bundle", str(args.bundle), "--histories",
+                ",".join(map(str, HISTORIES)), "--steps", str(args.steps), "--peers", "ort", "--isa", "avx2",
+                "--troupe-binary", stream, "--json", str(tmp / "peers-avx2.json")])
+            return json.loads((tmp / "peers-avx2.json").read_text())
+
+        avx2 = report["avx2"] = once("avx2", measure_avx2)
+        ratios = {h: avx2["troupe"][str(h)]["p50"] / avx2["results"][str(h)]["ort"]["p50"] for h in HISTORIES}
+        table.add(f"the same with troupe on the AVX2 kernels: ≤ {STEP_TARGET}× onnxruntime (on its own kernels)",
+                  ", ".join(f"{r:.2f}×" for r in ratios.values()), all(r <= STEP_TARGET for r in ratios.values()))
+    else:
+        table.skipped(f"ARMFlow batch 1 on the AVX2 kernels: ≤ {STEP_TARGET}× onnxruntime", "avx2")
 
     if "f16" not in skip and peers:
         from peers import run_troupe
@@ -166,10 +203,28 @@ def main(argv=None) -> None:
         print("$", stream, "--bundle", f16, "(H = 100)", flush=True)
         half = report["f16"] = once("f16", lambda: run_troupe(stream, f16, 100, args.steps))
         ratio = half["p50"] / peers["results"]["100"]["ort"]["p50"]
-        table.add("float16 weights ≤ 0.6× onnxruntime f32 at H = 100",
-                  f"{ratio:.2f}× ({half['p50']:.2f} / {peers['results']['100']['ort']['p50']:.2f} ms)", ratio <= 0.6)
+        table.add("float16 weights ≤ 0.5× onnxruntime f32 at H = 100",
+                  f"{ratio:.2f}× ({half['p50']:.2f} / {peers['results']['100']['ort']['p50']:.2f} ms)", ratio <= 0.5)
+        bound = step_bytes(f16) / max(peers["read_bandwidth_bytes_per_s"].values()) * 1e3
+        table.add("float16 weights ≤ 1.3× the time to read the bytes of the step",
+                  f"{half['p50'] / bound:.2f}× ({half['p50']:.2f} / {bound:.2f} ms)", half["p50"] <= 1.3 * bound)
     else:
-        table.skipped("float16 weights ≤ 0.6× onnxruntime f32 at H = 100", "f16" if "f16" in skip else "step")
+        table.skipped("float16 weights ≤ 0.5× onnxruntime f32 at H = 100", "f16" if "f16" in skip else "step")
+        table.skipped("float16 weights ≤ 1.3× the bytes' bound", "f16" if "f16" in skip else "step")
+
+    if "demo" not in skip:
+        def measure_demo():
+            out = sh([stream, "--synthetic", "--frames", "40000", "--no-pictures", "--tick", "4",
+                      "--out", str(tmp / "demo.npy")])
+            m = re.search(r"every call \((\d+) calls\): p50 ([\d.]+) ms  p99 ([\d.]+) ms  max ([\d.]+) ms", out)
+            return {"calls": int(m[1]), "p50": float(m[2]), "p99": float(m[3]), "max": float(m[4])}
+
+        d = report["demo"] = once("demo", measure_demo)
+        table.add(f"demo model, clean-ups on, {d['calls']} token calls: p50 ≤ 0.6, p99 ≤ 2, max ≤ 8 ms",
+                  f"p50 {d['p50']:.3f}, p99 {d['p99']:.3f}, max {d['max']:.3f} ms",
+                  d["p50"] <= 0.6 and d["p99"] <= 2 and d["max"] <= 8)
+    else:
+        table.skipped("demo model, clean-ups on: p50 ≤ 0.6, p99 ≤ 2, max ≤ 8 ms", "demo")
 
     if peers:
         growth = peers["troupe"]["2000"]["p50"] / peers["troupe"]["10"]["p50"]
@@ -205,7 +260,7 @@ def main(argv=None) -> None:
             flop = 2 * sum(peers["weights_bytes"].values()) / 4  # a lower bound: two per float32 weight
             at = largest or min(rows)
             gflops = flop * at / (rows[at]["p50"] / 1e3) / 1e9
-            table.add("crowd arithmetic ≥ 40 % of the sgemm peak of the same run",
+            table.add("crowd arithmetic ≥ 40 % of the sgemm peak of the same run (round three's)",
                       f"{100 * gflops / peak:.0f} % ({gflops:.1f} of {peak:.1f} GFLOP/s, {at} sessions)",
                       gflops / peak >= 0.4)
         else:
@@ -232,22 +287,24 @@ def main(argv=None) -> None:
         per = report["magnet"] = once("magnet", measure_magnet)
         ratios = {f"S = {s}, guidance {g}": per[f"troupe_S{s}_guidance_{g}"] / per[f"torch_S{s}_guidance_{g}"]
                   for s in (1, 10) for g in ("off", "on")}
-        table.add("MAGNet DD100 iteration ≤ 0.8× torch eager (" + "; ".join(ratios) + ")",
-                  ", ".join(f"{r:.2f}×" for r in ratios.values()), all(r <= 0.8 for r in ratios.values()))
+        table.add("MAGNet DD100 iteration ≤ 0.8× torch eager at S = 10, guidance on (others for reference: "
+                  + "; ".join(ratios) + ")",
+                  ", ".join(f"{r:.2f}×" for r in ratios.values()), ratios["S = 10, guidance on"] <= 0.8)
         def measure_live():
             sh([sys.executable, "benches/magnet_live.py", "--bundle", str(args.magnet_bundle), "--frames",
-                str(args.magnet_frames), "--only", "released;10 steps, guidance off, early",
+                str(args.magnet_frames), "--only", "released;10 steps, guidance off, early", "--threads", "2",
                 "--json", str(tmp / "live.json")], lib_env)
             return {r["setting"]: r for r in json.loads((tmp / "live.json").read_text())["results"]}
 
         live = report["magnet_live"] = once("live", measure_live)
         released, fast = live["released"]["real_time_factor"], live["10 steps, guidance off, early"]["real_time_factor"]
-        table.add("MAGNet live partner, released settings, one core: ≥ 0.5× real time", f"{released:.2f}×", released >= 0.5)
-        table.add("MAGNet live partner, lower-latency setting (10 steps, guidance off, early): ≥ 1.5× real time",
-                  f"{fast:.2f}×", fast >= 1.5)
+        table.add("MAGNet live partner, released settings, two compute threads: ≥ 1.0× real time",
+                  f"{released:.2f}×", released >= 1.0)
+        table.add("MAGNet live partner, lower-latency setting (10 steps, guidance off, early; round three's): "
+                  "≥ 1.5× real time", f"{fast:.2f}×", fast >= 1.5)
     else:
         table.skipped("MAGNet DD100 iteration ≤ 0.8× torch eager", "magnet")
-        table.skipped("MAGNet live partner ≥ 0.5× real time", "magnet")
+        table.skipped("MAGNet live partner ≥ 1.0× real time", "magnet")
         table.skipped("MAGNet lower-latency setting ≥ 1.5× real time", "magnet")
 
     # --- prompts ----------------------------------------------------------------------------

@@ -20,6 +20,7 @@
 //!                         frames the partner's opening, through a live partner session
 //!                         (`--steps`, `--seed` and `--no-x0-guidance` apply; `--early` sends
 //!                         each chunk as it is generated)
+//!   --compute-threads N   threads the matrix products may split over (default 1: this thread)
 //! ```
 
 use std::path::Path;
@@ -68,6 +69,9 @@ fn parse_args() -> Result<Args, String> {
             "--seq-len" => a.options.seq_len = Some(num(value()?)? as usize),
             "--seed" => a.options.seed = Some(num(value()?)? as u64),
             "--eta" => a.options.eta = Some(num(value()?)? as f32),
+            "--compute-threads" => {
+                troupe::set_compute_threads(num(value()?)? as usize).map_err(|e| e.to_string())?
+            }
             "--no-x0-guidance" => a.options.without_x0_guidance = true,
             "--keyframes" => {
                 a.options.keyframes = Some(
