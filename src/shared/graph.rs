@@ -26,6 +26,7 @@ use crate::shared::onnx_guard;
 use crate::shared::panics;
 use crate::shared::progress;
 use crate::shared::threads::load_threads;
+use crate::shared::unit_axes;
 
 /// A loaded graph whose inputs and outputs are addressed in manifest order.
 #[derive(Debug)]
@@ -136,7 +137,10 @@ impl Graph {
         let plan = panics::catch(quiet, || {
             model
                 .into_optimized()
-                .and_then(|m| m.into_runnable())
+                .and_then(|mut m| {
+                    unit_axes::natural_unit_axes(&mut m);
+                    m.into_runnable()
+                })
                 .map_err(|e| bad(format!("cannot be optimised: {e:#}")))
         })
         .unwrap_or_else(|reason| Err(bad(format!("optimising the graph panicked: {reason}"))))?;

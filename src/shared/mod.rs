@@ -21,3 +21,4 @@ pub(crate) mod snapshot;
 pub mod solver;
 pub(crate) mod text;
 pub(crate) mod threads;
+pub(crate) mod unit_axes;
