@@ -169,7 +169,10 @@ fn main() {
                             }
                             m.into_optimized()
                         })
-                        .and_then(|m| m.into_runnable())
+                        .and_then(|mut m| {
+                            troupe::finish_optimised(&mut m);
+                            m.into_runnable()
+                        })
                         .unwrap_or_else(|e| panic!("{}: {e:#}", file.display()))
                 })
                 .collect()

@@ -78,7 +78,7 @@ pub use motion::FootLockOptions;
 pub use shared::attention::{kernel as attention_kernel, kernels};
 pub use shared::error::{Error, Result};
 #[doc(hidden)]
-pub use shared::graph::load_graph_for_fuzzing;
+pub use shared::graph::{finish_optimised, load_graph_for_fuzzing};
 pub use shared::limits::{Limits, LIMITS};
 pub use shared::noise;
 pub use shared::progress::with_progress;

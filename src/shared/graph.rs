@@ -138,7 +138,7 @@ impl Graph {
             model
                 .into_optimized()
                 .and_then(|mut m| {
-                    unit_axes::natural_unit_axes(&mut m);
+                    finish_optimised(&mut m);
                     m.into_runnable()
                 })
                 .map_err(|e| bad(format!("cannot be optimised: {e:#}")))
@@ -199,6 +199,13 @@ impl Phases {
             .collect();
         parts.join(", ")
     }
+}
+
+/// What troupe does to a graph tract has optimised, before running it (`shared/unit_axes.rs`):
+/// for benchmarks that load graphs by hand as troupe loads them (`benches/graph_rows.rs`).
+#[doc(hidden)]
+pub fn finish_optimised(model: &mut TypedModel) {
+    unit_axes::natural_unit_axes(model);
 }
 
 /// Loads `onnx` as a bundle's graph is loaded (the protobuf guard, tract's typing, the
