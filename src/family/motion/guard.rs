@@ -24,8 +24,9 @@ use std::collections::VecDeque;
 use ndarray::Array2;
 
 use super::layout::FrameLayout;
-use crate::motion::body::BodyModel;
-use crate::motion::penetration::{Hinge, PenetrationLoss};
+use crate::motion::body::{BodyModel, Reach};
+#[cfg(doc)]
+use crate::motion::penetration::PenetrationLoss;
 use crate::motion::skeleton::T2M22_JOINTS;
 use crate::motion::vec3::Vec3;
 use crate::shared::error::{Error, Result};
@@ -89,6 +90,34 @@ fn shifted(pose: &[Vec3], o: [f64; 2]) -> Vec<Vec3> {
         .collect()
 }
 
+/// The linear penetration loss of `pose` moved by `o` on the floor against the actor's body,
+/// and its gradient with respect to `o` (the joints' gradients summed, x and z): what
+/// [`PenetrationLoss::evaluate`] gives with the linear hinge, to the bit, without building a
+/// gradient per joint. `reach` is the actor's [`BodyModel::reach`] at `d_safe`.
+fn floor_push(
+    body: &BodyModel,
+    reach: &Reach,
+    actor: &[Vec3],
+    pose: &[Vec3],
+    o: [f64; 2],
+    d_safe: f64,
+) -> (f64, [f64; 2]) {
+    let (mut loss, mut g) = (0.0, [0.0, 0.0]);
+    for p in pose {
+        let p = [p[0] + o[0], p[1], p[2] + o[1]];
+        if reach.beyond(p) {
+            continue;
+        }
+        let sd = body.signed_distance(actor, p);
+        let x = d_safe - sd.distance;
+        if x > 0.0 {
+            loss += x;
+            g = [g[0] - sd.gradient[0], g[1] - sd.gradient[2]];
+        }
+    }
+    (loss, g)
+}
+
 /// `to` moved toward `from` so that it is at most `limit` away from it.
 fn clamp_move(from: [f64; 2], to: [f64; 2], limit: f64) -> [f64; 2] {
     let d = [to[0] - from[0], to[1] - from[1]];
@@ -129,10 +158,6 @@ impl GuardState {
         fps: f64,
     ) -> Result<()> {
         let body = BodyModel::t2m22();
-        let loss = PenetrationLoss {
-            d_safe: guard.d_safe,
-            hinge: Hinge::Linear,
-        };
         let step = guard.max_speed / fps;
         for (i, mut frame) in frames.outer_iter_mut().enumerate() {
             let index = first + i as u64;
@@ -142,17 +167,12 @@ impl GuardState {
             else {
                 continue; // no actor frame for it (cannot happen in a stream): sent as decoded
             };
-            let actor = [actor
+            let actor: Vec<Vec3> = actor
                 .chunks_exact(3)
                 .map(|p| [f64::from(p[0]), f64::from(p[1]), f64::from(p[2])])
-                .collect::<Vec<Vec3>>()];
+                .collect();
             let pose = layout.joints(frame.as_slice().expect("rows of a standard-layout array"));
-            if !actor[0]
-                .iter()
-                .chain(&pose)
-                .flatten()
-                .all(|v| v.is_finite())
-            {
+            if !actor.iter().chain(&pose).flatten().all(|v| v.is_finite()) {
                 return Err(Error::InvalidInput(format!(
                     "penetration guard: frame {index} holds a non-finite joint position"
                 )));
@@ -160,18 +180,16 @@ impl GuardState {
             let previous = self.offset;
             let released = clamp_move(previous, [0.0, 0.0], step);
             // Clear means a zero loss: every joint at least `d_safe` from the actor's body.
-            let target = if body.clear_of(&actor[0], &shifted(&pose, released), guard.d_safe) {
+            let target = if body.clear_of(&actor, &shifted(&pose, released), guard.d_safe) {
                 released
             } else {
+                let reach = body.reach(&actor, guard.d_safe);
                 let mut o = previous;
                 for _ in 0..SEARCH_STEPS {
-                    let pen = loss.evaluate(&body, &actor, &[shifted(&pose, o)])?;
-                    if pen.loss == 0.0 {
+                    let (loss, g) = floor_push(&body, &reach, &actor, &pose, o, guard.d_safe);
+                    if loss == 0.0 {
                         break;
                     }
-                    let g = pen.gradient[0]
-                        .iter()
-                        .fold([0.0, 0.0], |s, g| [s[0] + g[0], s[1] + g[2]]);
                     let n = (g[0] * g[0] + g[1] * g[1]).sqrt();
                     if n == 0.0 {
                         break;
@@ -234,5 +252,40 @@ impl GuardState {
             actor,
             base,
         })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::motion::penetration::{Hinge, PenetrationLoss};
+    use crate::motion::skeleton::Skeleton;
+
+    #[test]
+    fn the_floor_push_is_the_linear_losses_summed_gradient() {
+        let body = BodyModel::t2m22();
+        let actor = Skeleton::t2m22().rest_positions();
+        let loss = PenetrationLoss {
+            d_safe: 0.25,
+            hinge: Hinge::Linear,
+        };
+        let reach = body.reach(&actor, loss.d_safe);
+        let mut inside = 0;
+        for step in 0..30 {
+            let o = [0.08 * f64::from(step) - 0.3, 0.01 * f64::from(step % 5)];
+            let pose = shifted(&actor, [0.05, 0.02]);
+            let want = loss
+                .evaluate(&body, std::slice::from_ref(&actor), &[shifted(&pose, o)])
+                .unwrap();
+            let summed = want.gradient[0]
+                .iter()
+                .fold([0.0, 0.0], |s, g| [s[0] + g[0], s[1] + g[2]]);
+            let (got, g) = floor_push(&body, &reach, &actor, &pose, o, loss.d_safe);
+            assert_eq!(got, want.loss, "offset {o:?}");
+            assert_eq!(g, summed, "offset {o:?}");
+            inside += usize::from(got > 0.0);
+        }
+        // Offsets from overlapping to clear: both cases were compared.
+        assert!(inside > 0 && inside < 30, "{inside} of 30 offsets overlap");
     }
 }
