@@ -84,12 +84,6 @@ pub(crate) struct GuardState {
     base: u64,
 }
 
-fn shifted(pose: &[Vec3], o: [f64; 2]) -> Vec<Vec3> {
-    pose.iter()
-        .map(|p| [p[0] + o[0], p[1], p[2] + o[1]])
-        .collect()
-}
-
 /// The linear penetration loss of `pose` moved by `o` on the floor against the actor's body,
 /// and its gradient with respect to `o` (the joints' gradients summed, x and z): what
 /// [`PenetrationLoss::evaluate`] gives with the linear hinge, to the bit, without building a
@@ -179,11 +173,18 @@ impl GuardState {
             }
             let previous = self.offset;
             let released = clamp_move(previous, [0.0, 0.0], step);
-            // Clear means a zero loss: every joint at least `d_safe` from the actor's body.
-            let target = if body.clear_of(&actor, &shifted(&pose, released), guard.d_safe) {
+            let reach = body.reach(&actor, guard.d_safe);
+            // Clear means a zero loss: every joint at least `d_safe` from the actor's body (the
+            // first joint too near answers).
+            let clear = |o: [f64; 2]| {
+                pose.iter().all(|p| {
+                    let p = [p[0] + o[0], p[1], p[2] + o[1]];
+                    reach.beyond(p) || body.signed_distance(&actor, p).distance >= guard.d_safe
+                })
+            };
+            let target = if clear(released) {
                 released
             } else {
-                let reach = body.reach(&actor, guard.d_safe);
                 let mut o = previous;
                 for _ in 0..SEARCH_STEPS {
                     let (loss, g) = floor_push(&body, &reach, &actor, &pose, o, guard.d_safe);
@@ -260,6 +261,12 @@ mod tests {
     use super::*;
     use crate::motion::penetration::{Hinge, PenetrationLoss};
     use crate::motion::skeleton::Skeleton;
+
+    fn shifted(pose: &[Vec3], o: [f64; 2]) -> Vec<Vec3> {
+        pose.iter()
+            .map(|p| [p[0] + o[0], p[1], p[2] + o[1]])
+            .collect()
+    }
 
     #[test]
     fn the_floor_push_is_the_linear_losses_summed_gradient() {
