@@ -443,17 +443,17 @@ def run_crowd(peer, inp: Inputs, sizes: list[int], rounds: int) -> dict:
     return out
 
 
-def weight_bytes(b: Bundle) -> dict:
+def initializer_bytes(path: Path) -> int:
+    """Bytes of an ONNX file's initializers (its weights), in the types they are stored in."""
     import onnx
     from onnx.helper import tensor_dtype_to_np_dtype
 
-    out = {}
-    for role in STEP_ROLES:
-        graph = onnx.load(b.path(role)).graph
-        out[role] = sum(
-            int(np.prod(t.dims)) * tensor_dtype_to_np_dtype(t.data_type).itemsize for t in graph.initializer
-        )
-    return out
+    return sum(int(np.prod(t.dims)) * tensor_dtype_to_np_dtype(t.data_type).itemsize
+               for t in onnx.load(path).graph.initializer)
+
+
+def weight_bytes(b: Bundle) -> dict:
+    return {role: initializer_bytes(b.path(role)) for role in STEP_ROLES}
 
 
 def read_bandwidth() -> dict:

@@ -73,14 +73,11 @@ def sh(cmd: list[str], env: dict | None = None) -> str:
 
 def step_bytes(bundle: Path) -> int:
     """Bytes of the weights a streaming step reads: the initializers of its graphs."""
-    import numpy as np
-    import onnx
-    from onnx.helper import tensor_dtype_to_np_dtype
+    from peers import initializer_bytes
 
     graphs = json.loads((bundle / "troupe.json").read_text())["graphs"]
     files = [g["file"] for role in STEP_GRAPHS for g in (graphs[role] if isinstance(graphs[role], list) else [graphs[role]])]
-    return sum(int(np.prod(t.dims)) * tensor_dtype_to_np_dtype(t.data_type).itemsize
-               for f in files for t in onnx.load(bundle / f).graph.initializer)
+    return sum(initializer_bytes(bundle / f) for f in files)
 
 
 def crowd_rows(out: str) -> dict[int, dict]:
