@@ -4,7 +4,11 @@
 use crate::motion::skeleton::T2M22_JOINTS;
 use crate::motion::vec3::{load_points, save_points, Vec3};
 use crate::shared::error::Result;
-use crate::shared::snapshot::{SnapshotReader, SnapshotWriter};
+use crate::shared::snapshot::{bad as bad_snapshot, SnapshotReader, SnapshotWriter};
+
+/// The most input frames a restored resampler may claim: past 2^52 its `f64` frame times stop
+/// being exact (and a stream at 1,000 fps takes 140,000 years to get there).
+const MAX_FRAMES_IN: u64 = 1 << 52;
 
 /// Turns frames at `fps_in` into frames at `fps_out` by linear interpolation: output frame `k`
 /// is the caller's motion at time `k / fps_out`, emitted as soon as the input frame at or after
@@ -37,11 +41,53 @@ impl Resampler {
     }
 
     /// Takes back the progress [`Resampler::save_progress`] wrote.
+    /// The counts are checked against each other and against the rates, as untrusted input: a
+    /// count that no sequence of pushes could give would make the next push emit frames without
+    /// end (or none), so it is refused, naming the field, and `self` is left as it was.
     pub(crate) fn load_progress(&mut self, r: &mut SnapshotReader) -> Result<()> {
-        self.received = r.u64("the resampler's frames in")?;
-        self.emitted = r.u64("the resampler's frames out")?;
-        self.last = load_points(r, "the resampler's last frame", T2M22_JOINTS)?;
+        let received = r.u64("the resampler's frames in")?;
+        let emitted = r.u64("the resampler's frames out")?;
+        let last = load_points(r, "the resampler's last frame", T2M22_JOINTS)?;
+        if received > MAX_FRAMES_IN {
+            return Err(bad_snapshot(format!(
+                "the resampler's frames in: {received} is over the {MAX_FRAMES_IN} a stream can \
+                 have taken"
+            )));
+        }
+        let due = self.due_after(received);
+        if emitted != due {
+            return Err(bad_snapshot(format!(
+                "the resampler's frames out: {emitted}, but {received} frames in give {due}"
+            )));
+        }
+        if last.is_some() != (received > 0) {
+            return Err(bad_snapshot(format!(
+                "the resampler's last frame: {} after {received} frames in",
+                if last.is_some() { "present" } else { "absent" }
+            )));
+        }
+        (self.received, self.emitted, self.last) = (received, emitted, last);
         Ok(())
+    }
+
+    /// How many output frames the first `received` input frames give: what `emitted` is after
+    /// that many pushes, i.e. the first `k` that [`Resampler::push`]'s test `k fps_in <= i
+    /// fps_out` (rounding included) fails for the last frame `i`.
+    fn due_after(&self, received: u64) -> u64 {
+        if received == 0 {
+            return 0;
+        }
+        let bound = (received - 1) as f64 * self.fps_out + 1e-9 * self.fps_out;
+        let is_due = |k: u64| (k as f64) * self.fps_in <= bound;
+        // The quotient lands within a frame or two of the answer; the test settles it exactly.
+        let mut k = (bound / self.fps_in).floor().max(0.0) as u64 + 1;
+        while k > 0 && !is_due(k - 1) {
+            k -= 1;
+        }
+        while is_due(k) {
+            k += 1;
+        }
+        k
     }
 
     /// The output frame rate.
@@ -69,9 +115,8 @@ impl Resampler {
         if n == 0 {
             return 0;
         }
-        let last = (self.received + n as u64 - 1) as f64;
         // Output frames k with k fps_in <= last fps_out, less those already emitted.
-        let due = ((last * self.fps_out + 1e-9 * self.fps_out) / self.fps_in).floor() as u64 + 1;
+        let due = self.due_after(self.received.saturating_add(n as u64));
         due.saturating_sub(self.emitted) as usize
     }
 
@@ -115,6 +160,8 @@ mod tests {
         for i in 0..n {
             let (before, predicted) = (out.len(), r.outputs_after(1));
             r.push(vec![[i as f64 / f64::from(fps_in), 0.0, 0.0]], &mut out);
+            // What a restored snapshot's counts are checked against.
+            assert_eq!(r.emitted, r.due_after(r.received), "{fps_in} -> {fps_out}");
             assert_eq!(
                 out.len() - before,
                 predicted,
@@ -144,5 +191,45 @@ mod tests {
                 );
             }
         }
+    }
+
+    /// A snapshot's counts are untrusted: ones no run of pushes gives (a tampered file whose
+    /// checksum was recomputed) are refused, naming the field, and leave the resampler as it was.
+    #[test]
+    fn restoring_counts_no_stream_could_have_is_refused() {
+        use crate::shared::snapshot::MODEL_ID_BYTES;
+        let model = [7u8; MODEL_ID_BYTES];
+        let frame = vec![[0.5, 1.0, 0.0]; T2M22_JOINTS];
+        let saved = |received: u64, emitted: u64, last: bool| {
+            let mut w = SnapshotWriter::new("armflow", &model, 0);
+            w.u64(received).u64(emitted);
+            save_points(&mut w, last.then_some(&frame[..]));
+            w.finish()
+        };
+        let restore = |r: &mut Resampler, bytes: &[u8]| {
+            let mut reader = SnapshotReader::open(bytes, "armflow", &model).unwrap();
+            r.load_progress(&mut reader).map_err(|e| e.to_string())
+        };
+        // 120 fps in, 30 out: 9 frames in give frames out 0, 1 and 2.
+        let mut r = Resampler::new(120.0, 30.0);
+        restore(&mut r, &saved(9, 3, true)).unwrap();
+        for (received, emitted, last, field) in [
+            (u64::MAX, 3, true, "frames in"),
+            (1 << 40, 3, true, "frames out"),
+            (9, 4, true, "frames out"),
+            (9, 2, true, "frames out"),
+            (9, 3, false, "last frame"),
+            (0, 0, true, "last frame"),
+        ] {
+            let e = restore(&mut r, &saved(received, emitted, last)).unwrap_err();
+            assert!(e.contains(field), "{received}/{emitted}: {e}");
+            assert_eq!((r.received, r.emitted), (9, 3), "left as it was");
+        }
+        let mut out = Vec::new();
+        r.push(frame.clone(), &mut out);
+        assert!(
+            out.is_empty(),
+            "frame 9 completes no output frame at 120 -> 30"
+        );
     }
 }
