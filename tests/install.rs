@@ -24,8 +24,7 @@ fn root() -> &'static Path {
 
 /// A scratch directory shared by the tests of this binary.
 fn scratch() -> &'static Path {
-    static DIR: OnceLock<tempfile::TempDir> = OnceLock::new();
-    DIR.get_or_init(|| tempfile::tempdir().unwrap()).path()
+    common::process_scratch()
 }
 
 fn stdout(out: &Output) -> String {

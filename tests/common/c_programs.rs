@@ -13,8 +13,7 @@ pub fn root() -> &'static Path {
 
 /// A scratch directory for compiled binaries and the bundle archive.
 pub fn scratch() -> &'static Path {
-    static DIR: OnceLock<tempfile::TempDir> = OnceLock::new();
-    DIR.get_or_init(|| tempfile::tempdir().unwrap()).path()
+    super::process_scratch()
 }
 
 /// The tiny bundle packed as a tar archive, for `troupe_model_load_memory`.

@@ -14,6 +14,33 @@ use ndarray::{Array1, Array2};
 use ndarray_npy::read_npy;
 use troupe::{Model, Reactor, ReactorOptions, Session, TokenNoise, TokenTrace};
 
+/// A directory for the whole test process (programs compiled once, an install prefix), under
+/// cargo's scratch folder for integration tests, and removed when the process exits, whether
+/// its tests passed or failed. A `TempDir` kept in a static is never dropped: each run used to
+/// leave half a gigabyte of compiled programs and installs behind in the system's temp folder.
+pub fn process_scratch() -> &'static Path {
+    static DIR: OnceLock<PathBuf> = OnceLock::new();
+    extern "C" fn remove_at_exit() {
+        if let Some(dir) = DIR.get() {
+            let _ = std::fs::remove_dir_all(dir);
+        }
+    }
+    DIR.get_or_init(|| {
+        let dir = tempfile::Builder::new()
+            .prefix("scratch-")
+            .tempdir_in(env!("CARGO_TARGET_TMPDIR"))
+            .unwrap()
+            .keep();
+        // SAFETY: registers a plain function, run by `exit` once `main` (the test harness,
+        // passing or failing) has returned; it only reads the set `DIR`.
+        #[cfg(unix)]
+        unsafe {
+            libc::atexit(remove_at_exit);
+        }
+        dir
+    })
+}
+
 /// The committed tiny bundle.
 pub fn bundle_dir() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("onnx/bundles/armflow-tiny")
