@@ -35,6 +35,20 @@ pub(crate) fn bad(message: impl Into<String>) -> Error {
     Error::InvalidInput(format!("snapshot: {}", message.into()))
 }
 
+/// Refuses a run of stored values with a NaN or an infinity: no stream state holds one (every
+/// step checks its outputs), so one in a snapshot is damage or an edit, and restoring it would
+/// leave a session whose every step fails.
+fn all_finite<T: Copy + Into<f64>>(what: &str, values: &[T]) -> Result<()> {
+    match values.iter().position(|&v| !v.into().is_finite()) {
+        None => Ok(()),
+        Some(i) => Err(bad(format!(
+            "{what}: value {i} of {} is {}, not finite",
+            values.len(),
+            values[i].into()
+        ))),
+    }
+}
+
 /// The error of a family whose streams have no snapshot yet.
 pub(crate) fn cannot_snapshot(family: &str) -> Error {
     Error::Unsupported(format!(
@@ -276,11 +290,13 @@ impl<'a> SnapshotReader<'a> {
         take(&mut self.rest, need, what)
     }
 
-    /// Reads a run of `f32`s of at most `max` values (checked before anything is allocated).
+    /// Reads a run of finite `f32`s of at most `max` values (checked before anything is
+    /// allocated).
     pub fn f32s(&mut self, what: &str, max: usize) -> Result<Vec<f32>> {
         let bytes = self.run(what, max, 4)?;
         let mut v = vec![0f32; bytes.len() / 4];
         floats_from(bytes, &mut v);
+        all_finite(what, &v)?;
         Ok(v)
     }
 
@@ -295,11 +311,12 @@ impl<'a> SnapshotReader<'a> {
         Ok(())
     }
 
-    /// Reads exactly `dst.len()` `f32`s written by [`SnapshotWriter::f32s_raw`] into `dst`.
+    /// Reads exactly `dst.len()` finite `f32`s written by [`SnapshotWriter::f32s_raw`] into
+    /// `dst` (which holds them, or some of them, when they are not all finite).
     pub fn f32s_into(&mut self, what: &str, dst: &mut [f32]) -> Result<()> {
         let bytes = take(&mut self.rest, dst.len() * 4, what)?;
         floats_from(bytes, dst);
-        Ok(())
+        all_finite(what, dst)
     }
 
     /// Reads a run of exactly `n` `f32`s ([`SnapshotReader::f32s`] then the count checked).
@@ -311,13 +328,16 @@ impl<'a> SnapshotReader<'a> {
         Ok(v)
     }
 
-    /// Reads a run of `f64`s of at most `max` values (checked before anything is allocated).
+    /// Reads a run of finite `f64`s of at most `max` values (checked before anything is
+    /// allocated).
     pub fn f64s(&mut self, what: &str, max: usize) -> Result<Vec<f64>> {
-        Ok(self
+        let v: Vec<f64> = self
             .run(what, max, 8)?
             .chunks_exact(8)
             .map(|c| f64::from_bits(u64_of(c)))
-            .collect())
+            .collect();
+        all_finite(what, &v)?;
+        Ok(v)
     }
 
     /// Reads a count of at most `max` (of items that follow).
@@ -370,7 +390,7 @@ mod tests {
             .f32(-0.0)
             .f64(f64::NAN)
             .bool(true)
-            .f32s(&[1.5, f32::INFINITY, -2.0])
+            .f32s(&[1.5, f32::MAX, -2.0])
             .f64s(&[0.25])
             .str("mirror");
         w.finish()
@@ -387,10 +407,30 @@ mod tests {
         assert!(r.bool("e").unwrap());
         let v = r.f32s("f", 3).unwrap();
         assert_eq!(v[0], 1.5);
-        assert_eq!(v[1], f32::INFINITY);
+        assert_eq!(v[1], f32::MAX);
         assert_eq!(r.f64s("g", 1).unwrap(), [0.25]);
         assert_eq!(r.str("h", 6).unwrap(), "mirror");
         r.finish().unwrap();
+    }
+
+    /// No stream state holds a NaN or an infinity, so a run with one (its checksum repaired) is
+    /// refused, naming the field and the value, whichever reader takes it.
+    #[test]
+    fn runs_of_values_that_are_not_finite_are_refused() {
+        for bad_value in [f32::NAN, f32::INFINITY, f32::NEG_INFINITY] {
+            let mut w = SnapshotWriter::new("armflow", &MODEL, 0);
+            w.f32s(&[0.0, bad_value])
+                .f32s_raw(&[1.0, 2.0, bad_value])
+                .f64s(&[1.0, f64::from(bad_value)]);
+            let bytes = w.finish();
+            let mut r = SnapshotReader::open(&bytes, "armflow", &MODEL).unwrap();
+            let e = r.f32s("the latents", 2).unwrap_err().to_string();
+            assert!(e.contains("the latents: value 1 of 2"), "{e}");
+            let e = r.f32s_into("the keys", &mut [0.0; 3]).unwrap_err();
+            assert!(e.to_string().contains("the keys: value 2 of 3"), "{e}");
+            let e = r.f64s("the last frame", 2).unwrap_err().to_string();
+            assert!(e.contains("not finite"), "{e}");
+        }
     }
 
     #[test]
