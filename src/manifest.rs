@@ -17,7 +17,7 @@ use crate::family::section::FamilySection;
 use crate::shared::bundle::BundleFiles;
 use crate::shared::bundle_io::BundleIo;
 use crate::shared::checks::ensure;
-use crate::shared::error::{Error, Result};
+use crate::shared::error::{file_name_shown, json_error_shown, Error, Result};
 use crate::shared::graph_spec::check_contract;
 use crate::shared::limits::LIMITS;
 use crate::shared::text::encoder::text_encoder_contract;
@@ -124,10 +124,11 @@ impl Manifest {
             message,
         };
         let value: serde_json::Value =
-            serde_json::from_str(text).map_err(|e| bad(e.to_string()))?;
+            serde_json::from_str(text).map_err(|e| bad(json_error_shown(&e)))?;
         check_header(&value).map_err(bad)?;
         check_integers(&value, "").map_err(bad)?;
-        let manifest: Manifest = serde_json::from_value(value).map_err(|e| bad(e.to_string()))?;
+        let manifest: Manifest =
+            serde_json::from_value(value).map_err(|e| bad(json_error_shown(&e)))?;
         manifest.validate().map_err(bad)?;
         Ok(manifest)
     }
@@ -245,19 +246,25 @@ fn check_header(value: &serde_json::Value) -> std::result::Result<(), String> {
     let field = |name: &str| value.get(name);
     let format = field("format").and_then(|v| v.as_str()).unwrap_or("");
     ensure(format == FORMAT, || {
-        format!("format is `{format}`, expected `{FORMAT}`")
+        format!("format is {}, expected `{FORMAT}`", file_name_shown(format))
     })?;
     let version = field("format_version").and_then(|v| v.as_u64());
     ensure(version == Some(u64::from(FORMAT_VERSION)), || {
+        let found = match field("format_version") {
+            None => "(missing)".to_owned(),
+            Some(v) => v
+                .as_u64()
+                .map_or("not a whole number".into(), |v| v.to_string()),
+        };
         format!(
-            "format_version {} is not supported (this runtime reads version {FORMAT_VERSION})",
-            field("format_version").map_or("(missing)".into(), |v| v.to_string())
+            "format_version {found} is not supported (this runtime reads version {FORMAT_VERSION})"
         )
     })?;
     let family = field("family").and_then(|v| v.as_str()).unwrap_or("");
     ensure(FAMILIES.contains(&family), || {
         format!(
-            "family `{family}` is not supported (this runtime reads {})",
+            "family {} is not supported (this runtime reads {})",
+            file_name_shown(family),
             FAMILIES.join(", ")
         )
     })

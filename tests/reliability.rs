@@ -511,3 +511,62 @@ fn latent_scales_that_overflow_every_step_are_refused_at_load() {
         );
     }
 }
+
+/// A file named by mistake (or by a caller probing a service) is refused without its contents
+/// in the message: a service passes its errors on, so a message quoting the file would hand out
+/// whatever file a caller names. Each case carries a secret the message must not hold.
+#[test]
+fn files_that_are_not_bundles_are_refused_without_quoting_them() {
+    const SECRET: &str = "root:x:0:0:s3cr3t/hunter2:/root:/bin/bash";
+    let dir = tempfile::tempdir().unwrap();
+    let mut cases: Vec<(String, std::path::PathBuf)> = Vec::new();
+    // Files: the loader tries a single file as a bundle archive.
+    let text = dir.path().join("passwd");
+    std::fs::write(
+        &text,
+        format!("{SECRET}\ndaemon:x:1:1::/usr/sbin:/usr/sbin/nologin\n"),
+    )
+    .unwrap();
+    cases.push(("a text file".into(), text));
+    let mut binary = SECRET.as_bytes().to_vec();
+    binary.extend((0..4096u32).map(|i| (i.wrapping_mul(2_654_435_761) >> 24) as u8));
+    let binary_path = dir.path().join("blob");
+    std::fs::write(&binary_path, &binary).unwrap();
+    cases.push(("a binary file".into(), binary_path));
+    // Directories whose manifest is JSON holding the secret where a name or a value belongs.
+    let header = format!(r#""format": "troupe-bundle", "format_version": 1, "family": "armflow""#);
+    for (what, json) in [
+        ("the format", format!(r#"{{"format": "{SECRET}"}}"#)),
+        (
+            "the family",
+            format!(r#"{{"format": "troupe-bundle", "format_version": 1, "family": "{SECRET}"}}"#),
+        ),
+        (
+            "the version",
+            format!(r#"{{"format": "troupe-bundle", "format_version": "{SECRET}"}}"#),
+        ),
+        ("a value", format!(r#"{{{header}, "motion": "{SECRET}"}}"#)),
+        ("a key", format!(r#"{{{header}, "{SECRET}": 1}}"#)),
+        ("not JSON", SECRET.to_owned()),
+    ] {
+        let bundle = dir.path().join(what.replace(' ', "-"));
+        std::fs::create_dir(&bundle).unwrap();
+        std::fs::write(bundle.join("troupe.json"), json).unwrap();
+        cases.push((format!("a manifest with the secret as {what}"), bundle));
+    }
+    for (what, path) in cases {
+        let message = load_without_hanging(&path).err().expect(&what).to_string();
+        // No run of 6 bytes of the secret (its shortest field is 6) appears.
+        for window in SECRET.as_bytes().windows(6) {
+            let window = std::str::from_utf8(window).unwrap();
+            assert!(
+                !message.contains(window),
+                "{what}: {message:?} quotes {window:?}"
+            );
+        }
+        assert!(
+            message.contains(&path.display().to_string()),
+            "{what}: names the file: {message}"
+        );
+    }
+}

@@ -7,16 +7,18 @@
 //! resolve inside the directory, names must be plain relative paths, and every size (a tar
 //! member's declared size included) is checked against [`LIMITS`] before anything is allocated.
 
+use std::cell::Cell;
 use std::collections::{BTreeMap, HashMap};
 use std::fs::File;
 use std::io::Read;
 use std::path::{Component, Path, PathBuf};
+use std::rc::Rc;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Mutex;
 
 use sha2::{Digest, Sha256};
 
-use crate::shared::error::{excerpt, excerpt_of, Error, Result, EXCERPT_BYTES};
+use crate::shared::error::{excerpt, Error, Result};
 use crate::shared::limits::LIMITS;
 use crate::shared::paths;
 
@@ -242,18 +244,25 @@ impl BundleFiles {
     /// sizes are checked against what is left of the archive before any is read; links, devices
     /// and FIFOs, unsafe or repeated names, and too many members are refused.
     fn read_archive(reader: impl Read, len: u64, label: &Path) -> Result<Self> {
-        // The tar reader's errors can quote the archive's bytes: a bounded, escaped excerpt.
+        let consumed = Rc::new(Cell::new(0u64));
+        // The tar reader's own messages quote the bytes it could not parse (a file named by
+        // mistake, `/etc/passwd` say, would have its first line in the error a service passes
+        // on): say where reading stopped instead, and quote only the system's I/O errors.
         let bad = |e: std::io::Error| {
-            invalid(
-                label,
-                format!(
-                    "not a readable tar archive: {}",
-                    excerpt_of(&e.to_string(), 4 * EXCERPT_BYTES)
+            let why = match e.raw_os_error() {
+                Some(_) => e.to_string(),
+                None => format!(
+                    "damaged, or not a tar archive (reading stopped at byte {} of {len})",
+                    consumed.get()
                 ),
-            )
+            };
+            invalid(label, format!("not a readable tar archive: {why}"))
         };
         let mut files: HashMap<String, Vec<u8>> = HashMap::new();
-        let mut archive = tar::Archive::new(reader);
+        let mut archive = tar::Archive::new(CountingReader {
+            inner: reader,
+            consumed: Rc::clone(&consumed),
+        });
         let (mut members, mut total) = (0u64, 0u64);
         for entry in archive.entries().map_err(bad)? {
             let mut entry = entry.map_err(bad)?;
@@ -440,6 +449,21 @@ impl BundleFiles {
                 Ok(FileBytes::Borrowed(bytes.as_slice()))
             }
         }
+    }
+}
+
+/// A reader that counts the bytes it has handed on, so that an archive's error can say where
+/// reading stopped without quoting what it read.
+struct CountingReader<R> {
+    inner: R,
+    consumed: Rc<Cell<u64>>,
+}
+
+impl<R: Read> Read for CountingReader<R> {
+    fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+        let n = self.inner.read(buf)?;
+        self.consumed.set(self.consumed.get() + n as u64);
+        Ok(n)
     }
 }
 

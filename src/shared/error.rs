@@ -97,6 +97,47 @@ pub(crate) fn excerpt(text: &str) -> String {
     excerpt_of(text, EXCERPT_BYTES)
 }
 
+/// The longest name read from a file that a message shows.
+const FILE_NAME_BYTES: usize = 40;
+
+/// A name read from a file (a manifest key, a family, a format), as a message shows it: in
+/// backquotes when it is a short identifier (letters, digits, `_`, `-`, `.`), otherwise only its
+/// length. A file's other bytes are never quoted: a service passes its errors on, and a caller
+/// who names a file that is not a bundle must not learn what the file holds.
+pub(crate) fn file_name_shown(text: &str) -> String {
+    let plain = |c: char| c.is_ascii_alphanumeric() || matches!(c, '_' | '-' | '.');
+    if !text.is_empty() && text.len() <= FILE_NAME_BYTES && text.chars().all(plain) {
+        format!("`{text}`")
+    } else {
+        format!("a text of {} bytes (not shown)", text.len())
+    }
+}
+
+/// A JSON reader's message about a file's contents with the contents taken out: the value
+/// found (`invalid type: string "…", expected …`) becomes its kind, and a key or variant
+/// (``unknown field `…` ``) shows as [`file_name_shown`] does. Positions (line, column) and what
+/// was expected (the schema's own names) stay.
+pub(crate) fn json_error_shown(e: &serde_json::Error) -> String {
+    let message = e.to_string();
+    for lead in ["invalid type: ", "invalid value: ", "invalid length "] {
+        if let Some(rest) = message.strip_prefix(lead) {
+            let (found, after) = rest.split_once(", expected").unwrap_or((rest, ""));
+            // The kind is what precedes the quoted value: `string`, `integer`, `map`, ...
+            let kind = found.split(['"', '`', '\'']).next().unwrap_or("").trim();
+            return format!("{lead}{kind}, expected{after}");
+        }
+    }
+    for lead in ["unknown field `", "unknown variant `", "duplicate field `"] {
+        if let Some(rest) = message.strip_prefix(lead) {
+            if let Some((name, after)) = rest.split_once('`') {
+                let what = &lead[..lead.len() - 2];
+                return format!("{what} {}{after}", file_name_shown(name));
+            }
+        }
+    }
+    message
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
