@@ -74,6 +74,11 @@ async def main(bundle: str, snapshot_dir: Path) -> None:
         await refused(url, [json.dumps({"type": "open", "options": {"temperature": 2}})], "unknown stream options")
         await refused(url, [json.dumps({"type": "open", "options": {"penetration_guard": 3}})], "penetration_guard")
         await refused(url, [json.dumps({"type": "open", "options": {"seed": "x"}})], "seed is an integer")
+        # Values a C integer cannot hold are refused, not wrapped (2**32 + 1 steps used to run 1);
+        # a JSON boolean is not a number.
+        await refused(url, [json.dumps({"type": "open", "options": {"steps": 2**32 + 1}})], "does not fit uint32_t")
+        await refused(url, [json.dumps({"type": "open", "options": {"seed": -1}})], "does not fit uint64_t")
+        await refused(url, [json.dumps({"type": "open", "options": {"cfg": True}})], "cfg is a number")
         await refused(url, [json.dumps({"type": "open", "options": {"condition": "dance"}})], "dance")
         await refused(url, [json.dumps({"type": "open", "stream": "0" * 32})], "no stream")
         await refused(url, [opening, b"\x01\x02"], "at least 8 bytes")

@@ -159,6 +159,23 @@ def test_wrong_types_raise_type_errors_naming_the_type(model):
         troupe.Session(None)
 
 
+def test_integers_outside_the_c_type_are_refused_not_wrapped(model):
+    # ctypes alone wraps them: steps=2**32 + 1 ran 1 step, capacity=2**32 + 64 gave 64.
+    for settings, field in [({"steps": 2**32 + 1}, "steps"), ({"capacity": 2**32 + 64}, "context_capacity"),
+                            ({"seed": -1}, "seed"), ({"seed": 2**64}, "seed")]:
+        with pytest.raises(troupe.InvalidArgument, match=f"{field} = .* does not fit uint"):
+            model.session(**settings)
+    for settings in [{"steps": True}, {"steps": 1.5}, {"seed": "7"}]:
+        with pytest.raises(TypeError, match="must be an integer"):
+            model.session(**settings)
+    with pytest.raises(TypeError, match="cfg_scale must be a number, got bool"):
+        model.session(cfg_scale=True)
+    with model.session(seed=2**64 - 1, steps=np.uint32(2)) as s:
+        with pytest.raises(troupe.InvalidArgument, match="4294967300 does not fit uint32_t"):
+            s.set_foot_lock(release_frames=2**32 + 4)
+        s.set_foot_lock(release_frames=4)
+
+
 def test_the_demo_model_and_clip_come_with_the_package():
     from troupe import bundles
 

@@ -442,7 +442,8 @@ class UmfModel:
                 raise ValueError(f"at most {_native.MAX_STAGES} stages")
             opt.stage_count = len(prior)
             for k, (method, steps) in enumerate(prior):
-                opt.stage_solver[k], opt.stage_steps[k] = _solver(method), steps
+                opt.stage_solver[k] = _solver(method)
+                opt.stage_steps[k] = _native.checked_int(f"prior stage {k} steps", steps, ctypes.c_uint32)
         if reaction is not None:
             opt.reaction_solver, opt.reaction_steps = _solver(reaction[0]), reaction[1]
         cond = self._model._condition_or_prompt(condition, prompt)
@@ -498,7 +499,7 @@ class MagnetModel:
             opt.flags |= _native.MAGNET_KEYFRAMES
             opt.keyframe_count = len(keyframes)
             for i, k in enumerate(keyframes):
-                opt.keyframes[i] = k
+                opt.keyframes[i] = _native.checked_int(f"key frame {i}", k, ctypes.c_uint32)
         return opt
 
     def generate(self, config: str | dict, frames: ArrayLike, present: ArrayLike | None = None,

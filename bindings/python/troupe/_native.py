@@ -6,6 +6,7 @@ import ctypes
 import os
 import sys
 from pathlib import Path
+from typing import Any, Callable, Sequence
 
 ABI_VERSION = 1  # TROUPE_ABI_VERSION this package was written for
 
@@ -16,8 +17,73 @@ status = ctypes.c_int32
 c_size = ctypes.c_size_t
 f32p = ctypes.POINTER(ctypes.c_float)
 
+# The C integer types of the API and their ranges. ctypes wraps an integer that does not fit
+# (2**32 + 1 into a uint32_t is 1) without a word; troupe refuses it instead.
+_INT_TYPES = (ctypes.c_int8, ctypes.c_uint8, ctypes.c_int16, ctypes.c_uint16, ctypes.c_int32,
+              ctypes.c_uint32, ctypes.c_int64, ctypes.c_uint64, ctypes.c_size_t, ctypes.c_int,
+              ctypes.c_uint, ctypes.c_long, ctypes.c_ulong)
 
-class SessionOptions(ctypes.Structure):
+
+def _int_range(ctype: type) -> tuple[int, int, str]:
+    bits = 8 * ctypes.sizeof(ctype)
+    signed = ctype(-1).value == -1
+    if signed:
+        return -(1 << (bits - 1)), (1 << (bits - 1)) - 1, f"int{bits}_t"
+    return 0, (1 << bits) - 1, f"uint{bits}_t"
+
+
+def checked_int(what: str, value: object, ctype: type) -> int:
+    """`value` as an integer that fits the C type `ctype`; a `TypeError` for a non-integer (a
+    bool, a float, a string) and an `InvalidArgument` (a `ValueError`) for one out of range,
+    never the silent wrap ctypes would apply."""
+    from .errors import InvalidArgument
+
+    if isinstance(value, bool) or not hasattr(value, "__index__"):
+        raise TypeError(f"{what} must be an integer, got {type(value).__name__}")
+    number = value.__index__()  # type: ignore[attr-defined]
+    low, high, name = _int_range(ctype)
+    if not low <= number <= high:
+        raise InvalidArgument(f"{what} = {number} does not fit {name} ({low} to {high})")
+    return number
+
+
+class CStruct(ctypes.Structure):
+    """A C struct whose integer fields refuse values their type cannot hold (see
+    `checked_int`) instead of wrapping them, and whose number fields refuse bools."""
+
+    def __setattr__(self, name: str, value: object) -> None:
+        for field in type(self)._fields_:
+            if field[0] != name:
+                continue
+            what = f"{type(self).__name__}.{name}"
+            if field[1] in _INT_TYPES:
+                value = checked_int(what, value, field[1])
+            elif field[1] in (ctypes.c_float, ctypes.c_double) and isinstance(value, bool):
+                # A JSON `true` or a Python flag is not a number, though Python calls it 1.
+                raise TypeError(f"{what} must be a number, got bool")
+            break
+        super().__setattr__(name, value)
+
+
+def checked_function(name: str, fn: Callable[..., Any], argtypes: Sequence[Any]) -> Callable[..., Any]:
+    """`fn` with its integer arguments checked as `checked_int` checks them (`fn` itself when it
+    takes none)."""
+    ints = [(i, t) for i, t in enumerate(argtypes) if t in _INT_TYPES]
+    if not ints:
+        return fn
+
+    def call(*args: Any) -> Any:
+        for i, ctype in ints:
+            if i < len(args):
+                checked_int(f"{name}: argument {i + 1}", args[i], ctype)
+        return fn(*args)
+
+    call.__name__ = call.__qualname__ = name
+    call.__wrapped__ = fn  # type: ignore[attr-defined]
+    return call
+
+
+class SessionOptions(CStruct):
     """Mirror of `troupe_session_options` (checked against troupe_session_options_size())."""
 
     _fields_ = [
@@ -31,7 +97,7 @@ class SessionOptions(ctypes.Structure):
     ]
 
 
-class ArmflowSessionOptions(ctypes.Structure):
+class ArmflowSessionOptions(CStruct):
     """Mirror of `troupe_armflow_session_options` (checked against
     troupe_armflow_session_options_size())."""
 
@@ -43,7 +109,7 @@ class ArmflowSessionOptions(ctypes.Structure):
     ]
 
 
-class LimitValues(ctypes.Structure):
+class LimitValues(CStruct):
     """Mirror of `troupe_limit_values`."""
 
     _fields_ = [
@@ -58,7 +124,7 @@ class LimitValues(ctypes.Structure):
     ]
 
 
-class Limits(ctypes.Structure):
+class Limits(CStruct):
     """Mirror of `troupe_limits`."""
 
     _fields_ = [("struct_size", ctypes.c_uint32), ("reserved", ctypes.c_uint32), ("values", LimitValues)]
@@ -67,7 +133,7 @@ class Limits(ctypes.Structure):
 MAX_STAGES = 8  # TROUPE_MAX_STAGES
 
 
-class GroupOptions(ctypes.Structure):
+class GroupOptions(CStruct):
     """Mirror of `troupe_group_options` (checked against troupe_umf_options_size())."""
 
     _fields_ = [
@@ -87,7 +153,7 @@ MAGNET_MAX_KEYFRAMES = 8  # TROUPE_MAGNET_MAX_KEYFRAMES
 MAGNET_SEED, MAGNET_ETA, MAGNET_NO_X0_GUIDANCE, MAGNET_KEYFRAMES = 1, 2, 4, 8  # TROUPE_MAGNET_*
 
 
-class ArflowOptions(ctypes.Structure):
+class ArflowOptions(CStruct):
     """Mirror of `troupe_arflow_options` (checked against troupe_arflow_options_size())."""
 
     _fields_ = [
@@ -106,7 +172,7 @@ class ArflowOptions(ctypes.Structure):
 ARFLOW_SQUARED_HINGE, ARFLOW_UNGUIDED_BACKPROJECTION, ARFLOW_VARIANCE_PRESERVING = 1, 2, 4
 
 
-class MagnetOptions(ctypes.Structure):
+class MagnetOptions(CStruct):
     """Mirror of `troupe_magnet_options` (checked against troupe_magnet_options_size())."""
 
     _fields_ = [
@@ -123,7 +189,7 @@ class MagnetOptions(ctypes.Structure):
     ]
 
 
-class GroupNoise(ctypes.Structure):
+class GroupNoise(CStruct):
     """Mirror of `troupe_group_noise`."""
 
     _fields_ = [
@@ -136,7 +202,7 @@ class GroupNoise(ctypes.Structure):
     ]
 
 
-class ClipOptions(ctypes.Structure):
+class ClipOptions(CStruct):
     """Mirror of `troupe_armflow_clip_options` (checked against
     troupe_armflow_clip_options_size())."""
 
@@ -149,7 +215,7 @@ class ClipOptions(ctypes.Structure):
     ]
 
 
-class ClipNoise(ctypes.Structure):
+class ClipNoise(CStruct):
     """Mirror of `troupe_clip_noise`."""
 
     _fields_ = [
@@ -160,7 +226,7 @@ class ClipNoise(ctypes.Structure):
     ]
 
 
-class JointsFormat(ctypes.Structure):
+class JointsFormat(CStruct):
     """Mirror of `troupe_joints_format`."""
 
     _fields_ = [
@@ -173,7 +239,7 @@ class JointsFormat(ctypes.Structure):
     ]
 
 
-class Placement(ctypes.Structure):
+class Placement(CStruct):
     """Mirror of `troupe_placement` (a plain value)."""
 
     _fields_ = [
@@ -184,7 +250,7 @@ class Placement(ctypes.Structure):
     ]
 
 
-class PoseBuffers(ctypes.Structure):
+class PoseBuffers(CStruct):
     """Mirror of `troupe_pose_buffers`."""
 
     _fields_ = [
@@ -212,7 +278,7 @@ fmt_p = ctypes.POINTER(JointsFormat)
 placement_p = ctypes.POINTER(Placement)
 
 # name: (restype, argtypes) for every function of include/troupe.h.
-PROTOTYPES = {
+PROTOTYPES: dict[str, tuple[Any, list[Any]]] = {
     "troupe_version_string": (ctypes.c_char_p, []),
     "troupe_version_number": (ctypes.c_uint32, []),
     "troupe_abi_version": (ctypes.c_uint32, []),
@@ -406,6 +472,7 @@ def load() -> ctypes.CDLL:
     for name, (restype, argtypes) in PROTOTYPES.items():
         fn = getattr(lib, name)
         fn.restype, fn.argtypes = restype, argtypes
+        setattr(lib, name, checked_function(name, fn, argtypes))
     abi = lib.troupe_abi_version()
     if abi != ABI_VERSION:
         raise OSError(f"{path} speaks troupe ABI {abi}, this package needs {ABI_VERSION}")

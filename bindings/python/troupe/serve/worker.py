@@ -38,7 +38,7 @@ def check_options(options: Any) -> dict:
     for name in ("seed", "steps", "capacity"):
         if name in options and (not isinstance(options[name], int) or isinstance(options[name], bool)):
             raise ValueError(f"{name} is an integer")
-    if "cfg" in options and not isinstance(options["cfg"], (int, float)):
+    if "cfg" in options and (not isinstance(options["cfg"], (int, float)) or isinstance(options["cfg"], bool)):
         raise ValueError("cfg is a number")
     if "condition" in options and not isinstance(options["condition"], (str, list)):
         raise ValueError("condition is a label or a list of numbers")
