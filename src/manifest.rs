@@ -9,6 +9,7 @@
 //! `crate::magnet::spec`, `crate::arflow::spec`). The types a manifest is made of are
 //! re-exported here under the paths they have always had.
 
+use std::collections::BTreeMap;
 use std::path::Path;
 
 use serde::{Deserialize, Serialize};
@@ -20,6 +21,7 @@ use crate::shared::checks::ensure;
 use crate::shared::error::{file_name_shown, json_error_shown, Error, Result};
 use crate::shared::graph_spec::check_contract;
 use crate::shared::limits::LIMITS;
+use crate::shared::logging::{self, Level};
 use crate::shared::text::encoder::text_encoder_contract;
 
 pub use crate::arflow::spec::ArflowSpec;
@@ -63,6 +65,12 @@ pub struct Manifest {
     /// `family` tag plus the family's own top-level fields.
     #[serde(flatten)]
     pub family: Family,
+    /// The SHA-256 (64 lowercase hex digits) of each file the manifest names, by file name, as
+    /// the exporter wrote them (`onnx/cli.py bundle digests` records them for an older
+    /// bundle). Every file the load reads is checked against it, so a damaged or edited graph
+    /// is refused at load, naming the file. A bundle without it loads, with a warning.
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub sha256: BTreeMap<String, String>,
 }
 
 /// Builds the registration table below: the [`Family`] enum the manifest is read into (tagged
@@ -114,7 +122,25 @@ impl Manifest {
             path: path.clone(),
             message: "not UTF-8 text".into(),
         })?;
-        Self::parse(text, &path)
+        let manifest = Self::parse(text, &path)?;
+        if manifest.sha256.is_empty() {
+            logging::log(Level::Warn, "troupe::load", || {
+                format!(
+                    "{}: records no SHA-256 of its files, so a damaged graph is found only when \
+                     a step fails (`onnx/cli.py bundle digests` records them)",
+                    path.display()
+                )
+            });
+        } else {
+            // Checked by `validate`: every value is 64 hex digits.
+            let digests = manifest
+                .sha256
+                .iter()
+                .filter_map(|(name, hex)| Some((name.clone(), sha256_from_hex(hex)?)))
+                .collect();
+            files.expect_digests(digests);
+        }
+        Ok(manifest)
     }
 
     /// Parses and validates manifest text; `path` is only used in messages.
@@ -139,6 +165,14 @@ impl Manifest {
     }
 
     fn validate(&self) -> std::result::Result<(), String> {
+        for (name, hex) in &self.sha256 {
+            ensure(sha256_from_hex(hex).is_some(), || {
+                format!(
+                    "sha256 of {}: not 64 hexadecimal digits",
+                    file_name_shown(name)
+                )
+            })?;
+        }
         let m = &self.motion;
         ensure(m.frame_dim > 0 && m.fps > 0, || {
             "motion.frame_dim and motion.fps must be positive".into()
@@ -268,4 +302,18 @@ fn check_header(value: &serde_json::Value) -> std::result::Result<(), String> {
             FAMILIES.join(", ")
         )
     })
+}
+
+/// The 32 bytes a SHA-256 written as 64 hexadecimal digits stands for.
+fn sha256_from_hex(hex: &str) -> Option<[u8; 32]> {
+    let digits = hex.as_bytes();
+    if digits.len() != 64 {
+        return None;
+    }
+    let mut out = [0u8; 32];
+    for (byte, pair) in out.iter_mut().zip(digits.chunks_exact(2)) {
+        let text = std::str::from_utf8(pair).ok()?;
+        *byte = u8::from_str_radix(text, 16).ok()?;
+    }
+    Some(out)
 }

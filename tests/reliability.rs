@@ -239,6 +239,8 @@ fn graphs_of_an_unknown_operator_set_are_refused() {
     let path = dir.path().join("velocity.onnx");
     let bytes = std::fs::read(&path).unwrap();
     std::fs::write(&path, with_opset(&bytes, 99)).unwrap();
+    // The manifest's digests follow the edit, so that the graph reaches the operator-set check.
+    record_digests(dir.path());
     let e = Model::load(dir.path()).unwrap_err();
     assert!(matches!(e, Error::Graph { .. }), "{e}");
     assert!(e.to_string().contains("operator set 99"), "{e}");
@@ -534,7 +536,7 @@ fn files_that_are_not_bundles_are_refused_without_quoting_them() {
     std::fs::write(&binary_path, &binary).unwrap();
     cases.push(("a binary file".into(), binary_path));
     // Directories whose manifest is JSON holding the secret where a name or a value belongs.
-    let header = format!(r#""format": "troupe-bundle", "format_version": 1, "family": "armflow""#);
+    let header = r#""format": "troupe-bundle", "format_version": 1, "family": "armflow""#;
     for (what, json) in [
         ("the format", format!(r#"{{"format": "{SECRET}"}}"#)),
         (
@@ -555,7 +557,7 @@ fn files_that_are_not_bundles_are_refused_without_quoting_them() {
         cases.push((format!("a manifest with the secret as {what}"), bundle));
     }
     for (what, path) in cases {
-        let message = load_without_hanging(&path).err().expect(&what).to_string();
+        let message = load_without_hanging(&path).expect_err(&what).to_string();
         // No run of 6 bytes of the secret (its shortest field is 6) appears.
         for window in SECRET.as_bytes().windows(6) {
             let window = std::str::from_utf8(window).unwrap();
@@ -569,4 +571,62 @@ fn files_that_are_not_bundles_are_refused_without_quoting_them() {
             "{what}: names the file: {message}"
         );
     }
+}
+
+/// A graph damaged after export (bits flipped inside the weights, which tract would load) is
+/// refused at load, naming the file, because the manifest records every file's SHA-256; so is
+/// a manifest whose list leaves a file out or holds no digest. A bundle recording none still
+/// loads (with a warning in the log).
+#[test]
+fn damaged_graphs_are_refused_at_load_by_the_manifests_digests() {
+    let graph = "vae_encoder_step.onnx";
+    let copy = bundle_copy();
+    let path = copy.path().join(graph);
+    let mut bytes = std::fs::read(&path).unwrap();
+    // Eight flips in the last quarter, where the weights' raw data lie.
+    for i in 0..8 {
+        let at = bytes.len() - 1 - i * 97;
+        bytes[at] ^= 0x10;
+    }
+    std::fs::write(&path, &bytes).unwrap();
+    let e = load_without_hanging(copy.path()).expect_err("a damaged graph is refused");
+    assert!(matches!(e, Error::Graph { .. }), "{e:?}");
+    let message = e.to_string();
+    assert!(
+        message.contains(graph) && message.contains("SHA-256"),
+        "{message}"
+    );
+
+    let manifest_of = |copy: &tempfile::TempDir| -> serde_json::Value {
+        serde_json::from_slice(&std::fs::read(copy.path().join("troupe.json")).unwrap()).unwrap()
+    };
+    let write = |copy: &tempfile::TempDir, manifest: &serde_json::Value| {
+        std::fs::write(copy.path().join("troupe.json"), manifest.to_string()).unwrap();
+    };
+    // A file left out of the list.
+    let copy = bundle_copy();
+    let mut manifest = manifest_of(&copy);
+    manifest["sha256"]
+        .as_object_mut()
+        .unwrap()
+        .remove("velocity.onnx");
+    write(&copy, &manifest);
+    let message = load_without_hanging(copy.path()).err().unwrap().to_string();
+    assert!(
+        message.contains("velocity.onnx") && message.contains("records no SHA-256"),
+        "{message}"
+    );
+    // A digest that is not one.
+    manifest["sha256"]["velocity.onnx"] = "not hex".into();
+    write(&copy, &manifest);
+    let message = load_without_hanging(copy.path()).err().unwrap().to_string();
+    assert!(
+        message.contains("sha256 of `velocity.onnx`: not 64 hexadecimal digits"),
+        "{message}"
+    );
+    // No digests at all: an older bundle, loaded as before.
+    manifest.as_object_mut().unwrap().remove("sha256");
+    write(&copy, &manifest);
+    let unchecked = load_without_hanging(copy.path()).expect("loads without digests");
+    assert_eq!(unchecked.manifest().sha256.len(), 0);
 }

@@ -123,7 +123,7 @@ fn a_local_cluster_serves_streams_exactly_once_and_survives_a_node_dying() {
         "onnx/bundles/armflow-tiny",
         snapshots.to_str().unwrap(),
     ]);
-    assert!(checks.contains("serving checks: 21 passed"), "{checks}");
+    assert!(checks.contains("serving checks: 24 passed"), "{checks}");
 
     // The demo model, its rules in turn, guard and smoothing on: what a service would run.
     let bundle = "onnx/bundles/armflow-demo";

@@ -285,6 +285,56 @@ fn a_joint_stream_with_its_foot_lock_and_recentring_restores_bit_for_bit() {
     }
 }
 
+/// Every count a joint stream's snapshot holds (its resampler's frames in and out, the held
+/// frames, the cache's entries, ...), rewritten to values an edit would write with the checksum
+/// made to agree, is refused at restore or gives a stream whose next call stays bounded. The
+/// resampler's frames-in set to 2^64 - 1 once made that call allocate until the host aborted.
+#[test]
+fn every_count_of_a_joint_stream_snapshot_edited_is_refused_or_harmless() {
+    let model = common::model();
+    let clip: Array3<f32> = read_npy(
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/mocap/cmu-playground-120fps.npy"),
+    )
+    .unwrap();
+    let mut stream = busy(model, &busy_options(model, false));
+    stream
+        .set_joints_format(JointsFormat {
+            up: UpAxis::Z,
+            fps: 120.0,
+            ..Default::default()
+        })
+        .unwrap();
+    stream
+        .set_foot_lock(Some(FootLockOptions::default()))
+        .unwrap();
+    stream.step_joints(clip.slice(s![..61, .., ..])).unwrap();
+    let good = stream.snapshot().unwrap();
+    let next = clip.slice(s![61..68, .., ..]);
+    // Where the snapshot holds what reads as a small count (float data seldom does).
+    let counts = (0..good.len() - 12).filter(|&p| {
+        let v = u64::from_le_bytes(good[p..p + 8].try_into().unwrap());
+        (1..=1 << 20).contains(&v)
+    });
+    let (mut edits, mut restored) = (0, 0);
+    for at in counts {
+        for claim in [0, 121, 240, 1 << 31, 1 << 40, u64::MAX] {
+            let mut b = good.clone();
+            b[at..at + 8].copy_from_slice(&claim.to_le_bytes());
+            edits += 1;
+            if let Ok(mut s) = model.restore(&reframed(b)) {
+                restored += 1;
+                if let Ok(poses) = s.step_joints(next) {
+                    assert!(poses.len() <= 64, "{} poses for 7 frames", poses.len());
+                }
+            }
+        }
+    }
+    assert!(
+        edits > 100 && restored < edits,
+        "{restored} of {edits} edits restored"
+    );
+}
+
 /// Rewrites a snapshot's checksum after an edit, so the edit reaches the payload's checks.
 fn reframed(mut bytes: Vec<u8>) -> Vec<u8> {
     let n = bytes.len() - 4;

@@ -44,11 +44,32 @@ pub fn model() -> &'static Model {
     MODEL.get_or_init(|| Model::load(bundle_dir()).expect("the committed bundle loads"))
 }
 
-/// A tar archive of the tiny bundle with `replace`'s file swapped for the given bytes.
+/// The tiny bundle's manifest without the digests of its files, as a bundle written before the
+/// exporters recorded them: a replaced graph then reaches the graph loader's checks instead of
+/// being refused for its digest.
+fn manifest_without_digests() -> &'static [u8] {
+    static BYTES: OnceLock<Vec<u8>> = OnceLock::new();
+    BYTES.get_or_init(|| {
+        let (_, text) = bundle_files()
+            .iter()
+            .find(|(name, _)| name == "troupe.json")
+            .expect("the manifest");
+        let mut manifest: serde_json::Value = serde_json::from_slice(text).unwrap();
+        manifest.as_object_mut().unwrap().remove("sha256");
+        serde_json::to_vec(&manifest).unwrap()
+    })
+}
+
+/// A tar archive of the tiny bundle with `replace`'s file swapped for the given bytes (and, when
+/// that is not the manifest, the manifest's digests left out).
 pub fn archive_with(replace: &str, bytes: &[u8]) -> Vec<u8> {
     let mut builder = tar::Builder::new(Vec::new());
     for (name, data) in bundle_files() {
-        let data = if name == replace { bytes } else { data };
+        let data = match name.as_str() {
+            _ if name == replace => bytes,
+            "troupe.json" => manifest_without_digests(),
+            _ => data,
+        };
         let mut header = tar::Header::new_gnu();
         header.set_size(data.len() as u64);
         header.set_mode(0o644);
@@ -449,14 +470,49 @@ pub fn session_snapshot(data: &[u8]) {
             .set_root_smoothing(smoothing)
             .expect("an armflow session is smoothed");
         let frames = usize::from(bytes.u8() % 24);
-        let actor: Vec<f32> = (0..frames * session.frame_dim())
-            .map(|i| ((i as f32) * 0.37).sin())
-            .collect();
-        session.step_flat(&actor).expect("finite frames step");
+        // One stream in three takes joint positions at another rate than the bundle's, so that
+        // its snapshot carries the resampler's counts, the placement and the foot lock.
+        let pick = usize::from(bytes.u8()) % (3 * JOINT_RATES.len());
+        let joint_rate = JOINT_RATES.get(pick).copied().unwrap_or(0.0);
+        if joint_rate > 0.0 {
+            let format = troupe::motion::JointsFormat {
+                fps: joint_rate,
+                ..Default::default()
+            };
+            session.set_joints_format(format).expect("a valid format");
+            if bytes.u8() % 2 == 0 {
+                session
+                    .set_foot_lock(Some(troupe::FootLockOptions::default()))
+                    .expect("an armflow session locks feet");
+            }
+            session
+                .step_joints(joint_frames(frames, 0).view())
+                .expect("finite positions step");
+        } else {
+            let actor: Vec<f32> = (0..frames * session.frame_dim())
+                .map(|i| ((i as f32) * 0.37).sin())
+                .collect();
+            session.step_flat(&actor).expect("finite frames step");
+        }
         let mut snapshot = session.snapshot().expect("an armflow session saves");
+        // Where the snapshot holds what reads as a small count: the counts and lengths an edit
+        // would change (float data seldom reads as one).
+        let counts: Vec<usize> = (0..snapshot.len().saturating_sub(7))
+            .filter(|&p| {
+                let v = u64::from_le_bytes(snapshot[p..p + 8].try_into().unwrap());
+                (1..=1 << 20).contains(&v)
+            })
+            .collect();
         for _ in 0..1 + bytes.u8() % 8 {
-            let at = (bytes.u32() as usize) % snapshot.len();
-            snapshot[at] = bytes.u8();
+            if bytes.u8() % 2 == 0 && !counts.is_empty() {
+                // A count rewritten whole: what an edit, not an accident, does.
+                let at = counts[(bytes.u32() as usize) % counts.len()];
+                let value = COUNTS[usize::from(bytes.u8()) % COUNTS.len()];
+                snapshot[at..at + 8].copy_from_slice(&value.to_le_bytes());
+            } else {
+                let at = (bytes.u32() as usize) % snapshot.len();
+                snapshot[at] = bytes.u8();
+            }
         }
         if bytes.u8() % 4 == 0 {
             let keep = (bytes.u32() as usize) % (snapshot.len() + 1);
@@ -470,9 +526,36 @@ pub fn session_snapshot(data: &[u8]) {
         snapshot
     };
     if let Ok(mut restored) = model.restore(&snapshot) {
+        // Whatever a restore accepted, the stream's next calls stay bounded (a tampered
+        // resampler count once made this allocate until the host aborted).
+        if let Ok(poses) = restored.step_joints(joint_frames(9, 40).view()) {
+            assert!(
+                poses.len() <= 64,
+                "{} poses for 9 joint frames",
+                poses.len()
+            );
+        }
         step_arbitrarily(&mut restored, &mut Bytes(&[4, 0, 9, 0]), 9);
         restored.snapshot().expect("a restored session saves");
     }
+}
+
+/// Joint frame rates a fuzzed stream feeds (0: features instead); the bundle's is 30.
+const JOINT_RATES: [f32; 5] = [24.0, 60.0, 120.0, 29.97, 100.0];
+
+/// Counts an edited snapshot may carry.
+const COUNTS: [u64; 8] = [0, 1, 121, 240, 1 << 31, 1 << 40, u64::MAX, u64::MAX / 2];
+
+/// `n` frames of a standing figure that sways (t2m-22 joints, metres, Y up), from frame `t0`.
+fn joint_frames(n: usize, t0: usize) -> ndarray::Array3<f32> {
+    ndarray::Array3::from_shape_fn((n, 22, 3), |(t, j, d)| {
+        let sway = (((t0 + t) as f32) * 0.2).sin() * 0.05;
+        match d {
+            0 => (j % 3) as f32 * 0.15 - 0.15 + sway,
+            1 => 1.7 - (j / 3) as f32 * 0.2,
+            _ => (j % 2) as f32 * 0.05,
+        }
+    })
 }
 
 /// Any bytes as a rig (a rig JSON document, or a BVH hierarchy): whatever is accepted retargets

@@ -14,7 +14,7 @@ use std::io::Read;
 use std::path::{Component, Path, PathBuf};
 use std::rc::Rc;
 use std::sync::atomic::{AtomicU64, Ordering};
-use std::sync::Mutex;
+use std::sync::{Mutex, OnceLock};
 
 use sha2::{Digest, Sha256};
 
@@ -43,10 +43,18 @@ pub(crate) enum BundleFiles {
     },
 }
 
-/// The SHA-256 of each file a load read, by name: the model's identity is made of them, so that
-/// a snapshot of a stream goes back only onto the bundle it was taken from, whether that bundle
-/// is a directory or a tar of it (files the load never read do not count).
-pub(crate) type FileDigests = Mutex<BTreeMap<String, [u8; 32]>>;
+/// The SHA-256 of each file a load read, by name, and of each file the manifest says the bundle
+/// holds.
+#[derive(Debug, Default)]
+pub(crate) struct FileDigests {
+    /// What each file read held: the model's identity is made of them, so that a snapshot of a
+    /// stream goes back only onto the bundle it was taken from, whether that bundle is a
+    /// directory or a tar of it (files the load never read do not count).
+    read: Mutex<BTreeMap<String, [u8; 32]>>,
+    /// What the manifest records each file holds (its `sha256`), once it has been read: every
+    /// file read after it is checked against it.
+    expected: OnceLock<BTreeMap<String, [u8; 32]>>,
+}
 
 fn io_error(path: &Path, kind: std::io::ErrorKind, message: impl Into<String>) -> Error {
     Error::Io {
@@ -351,7 +359,7 @@ impl BundleFiles {
     /// by name, in name order (call it once the load has read them all).
     pub(crate) fn identity(&self) -> [u8; 32] {
         let (Self::Dir { digests, .. } | Self::Archive { digests, .. }) = self;
-        let digests = digests.lock().unwrap_or_else(|e| e.into_inner());
+        let digests = digests.read.lock().unwrap_or_else(|e| e.into_inner());
         let mut all = Sha256::new();
         for (name, digest) in digests.iter() {
             all.update((name.len() as u64).to_le_bytes());
@@ -369,12 +377,36 @@ impl BundleFiles {
         let (Self::Dir { digests, .. } | Self::Archive { digests, .. }) = self;
         if let Some(plain) = plain_name(name) {
             let digest: [u8; 32] = Sha256::digest(&*bytes).into();
+            if let Some(expected) = digests.expected.get() {
+                let why = match expected.get(&plain) {
+                    Some(recorded) if *recorded == digest => None,
+                    Some(_) => Some(
+                        "its SHA-256 is not the one troupe.json records for it: the file was \
+                         damaged or changed after the bundle was written",
+                    ),
+                    None => Some("troupe.json records no SHA-256 for it (its `sha256` list)"),
+                };
+                if let Some(why) = why {
+                    return Err(Error::Graph {
+                        file: self.path_of(name),
+                        message: why.into(),
+                    });
+                }
+            }
             digests
+                .read
                 .lock()
                 .unwrap_or_else(|e| e.into_inner())
                 .insert(plain, digest);
         }
         Ok(bytes)
+    }
+
+    /// From now on every file read must hold what `sha256` (the manifest's, by file name)
+    /// records for it. Set once, after the manifest is read.
+    pub(crate) fn expect_digests(&self, sha256: BTreeMap<String, [u8; 32]>) {
+        let (Self::Dir { digests, .. } | Self::Archive { digests, .. }) = self;
+        let _ = digests.expected.set(sha256);
     }
 
     fn read_unrecorded(&self, name: &str, limit: u64) -> Result<FileBytes<'_>> {

@@ -8,6 +8,8 @@ use std::sync::{OnceLock, RwLock};
 pub enum Level {
     /// Something failed.
     Error = 1,
+    /// Something works but should be looked at (a bundle without digests of its files).
+    Warn = 2,
     /// Milestones: a model loaded, a session started.
     Info = 3,
     /// Details useful when debugging an integration.

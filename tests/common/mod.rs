@@ -83,6 +83,25 @@ pub fn edit_manifest(dir: &Path, edit: impl FnOnce(&mut serde_json::Value)) {
     std::fs::write(&path, serde_json::to_string_pretty(&v).unwrap()).unwrap();
 }
 
+/// Records again, in `dir`'s manifest, the SHA-256 of each file it lists: for a test that
+/// changes a graph on purpose to reach a check that runs after the digests' (the loader refuses
+/// a file whose digest is not the recorded one before anything else looks at it).
+pub fn record_digests(dir: &Path) {
+    use sha2::{Digest, Sha256};
+    edit_manifest(dir, |v| {
+        if let Some(digests) = v["sha256"].as_object_mut() {
+            for (name, digest) in digests.iter_mut() {
+                let bytes = std::fs::read(dir.join(name)).unwrap();
+                let hex: String = Sha256::digest(&bytes)
+                    .iter()
+                    .map(|b| format!("{b:02x}"))
+                    .collect();
+                *digest = hex.into();
+            }
+        }
+    });
+}
+
 /// The tiny model, loaded once per test binary.
 pub fn model() -> &'static Model {
     static MODEL: OnceLock<Model> = OnceLock::new();

@@ -20,6 +20,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from troupe_onnx.shared.manifest import write_manifest
 from troupe_onnx.arflow.networks import Arflow, ArflowConfig, FrameStep, init_random
 from troupe_onnx.arflow.sampler import POSITIONS, STREAM_ARFLOW, Sampling, guidance_gradient, sample
 from troupe_onnx.motion.skeleton import t2m22
@@ -190,7 +191,7 @@ def export_bundle(preset: str, out_dir: Path, seed: int = 0):
         "sampler": defaults | {"stream": STREAM_ARFLOW},
         "graphs": specs,
     }
-    (out_dir / "troupe.json").write_text(json.dumps(manifest, indent=2) + "\n")
+    manifest = write_manifest(out_dir, manifest)
     return model
 
 

@@ -23,6 +23,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from troupe_onnx.shared.manifest import write_manifest
 from troupe_onnx.armflow.reference import (
     STREAM_ACTOR_POSTERIOR,
     STREAM_REACTOR_NOISE,
@@ -417,7 +418,7 @@ def export_bundle(
     for section, values in (manifest_extra or {}).items():
         merge = isinstance(values, dict) and isinstance(manifest.get(section), dict)
         manifest[section] = {**manifest[section], **values} if merge else values
-    (out_dir / "troupe.json").write_text(json.dumps(manifest, indent=2) + "\n")
+    manifest = write_manifest(out_dir, manifest)
     return model
 
 

@@ -30,6 +30,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from troupe_onnx.shared.manifest import write_manifest
 from troupe_onnx.magnet.checkpoint import load_release, write_release
 from troupe_onnx.magnet.configs import released_for
 from troupe_onnx.magnet.decoder_gradients import DecoderVjp, weighted_gradient
@@ -211,7 +212,7 @@ def export_bundle(preset: str, out_dir: Path, seed: int = 0, checkpoint: Path | 
         "sampling": {name: c.to_json() for name, c in configs.items()},
         "graphs": specs,
     }
-    (out_dir / "troupe.json").write_text(json.dumps(manifest, indent=2) + "\n")
+    manifest = write_manifest(out_dir, manifest)
     return model, stats
 
 

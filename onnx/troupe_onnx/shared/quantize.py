@@ -35,6 +35,7 @@ import sys
 import tempfile
 from pathlib import Path
 
+from troupe_onnx.shared.manifest import write_manifest
 from troupe_onnx.shared.export import compare_bundles
 
 DEFAULT_GRAPHS = {
@@ -132,7 +133,7 @@ def quantize_bundle(src: Path, out: Path, graphs: list[str], weights: str = "int
             "scheme": SCHEMES[weights],
         },
     }
-    (out / "troupe.json").write_text(json.dumps(manifest, indent=2) + "\n")
+    manifest = write_manifest(out, manifest)
     return manifest
 
 

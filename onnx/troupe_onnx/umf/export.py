@@ -29,6 +29,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from troupe_onnx.shared.manifest import write_manifest
 from troupe_onnx.shared.checkpoint import CheckpointError, load_checkpoint
 from troupe_onnx.shared.clip import CONTEXT, text_encoder_spec, tokenizer_manifest, write_merges, write_prompt_golden
 from troupe_onnx.shared.export import FORMAT_VERSION, OPSET, export_graph, exporter_cli
@@ -333,7 +334,7 @@ def export_bundle(
         },
         "graphs": specs,
     }
-    (out_dir / "troupe.json").write_text(json.dumps(manifest, indent=2) + "\n")
+    manifest = write_manifest(out_dir, manifest)
     return model
 
 
