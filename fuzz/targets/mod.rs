@@ -197,6 +197,8 @@ fn other_model(name: &'static str) -> &'static Model {
 
 /// MAGNet's live partner and ARFlow's online stream with arbitrary settings, opening frames,
 /// chunking and values: every step either fails (the stream usable) or gives finite frames.
+/// One input in two then edits the stream's snapshot ([`edit_snapshot`]) and steps what it
+/// restores.
 pub fn other_streams(data: &[u8]) {
     let mut bytes = Bytes(data);
     let magnet = bytes.u8() % 2 == 0;
@@ -251,6 +253,22 @@ pub fn other_streams(data: &[u8]) {
         return;
     };
     step_arbitrarily(&mut session, &mut bytes, 40);
+    // The stream's snapshot (a MAGNet live partner's or an ARFlow online stream's), edited and
+    // restored: refused, or a stream that steps on.
+    if bytes.u8() % 2 == 0 {
+        let Ok(mut snapshot) = session.snapshot() else {
+            return;
+        };
+        edit_snapshot(&mut snapshot, &mut bytes);
+        let model = other_model(if magnet {
+            "magnet-tiny"
+        } else {
+            "arflow-tiny-online"
+        });
+        if let Ok(mut restored) = model.restore(&snapshot) {
+            step_arbitrarily(&mut restored, &mut Bytes(&[9, 0, 33, 0]), 40);
+        }
+    }
 }
 
 /// The penetration metrics and loss on arbitrary joints: errors for non-finite input, finite
@@ -440,10 +458,10 @@ pub const TARGETS: [(&str, Target); 13] = [
 ];
 
 /// Snapshots of streams: a real snapshot of a session stepped from the input (settings, the
-/// guard, frames), then edited by the rest of the input (bytes overwritten, the length cut) with
-/// its checksum made to agree one time in two, so the payload's checks are reached; or, when
-/// the first byte says so, the input itself as a snapshot. Whatever is restored steps to
-/// finite frames and snapshots again.
+/// guard, feature frames or, one time in three, joint positions at another rate with the foot
+/// lock), then edited by the rest of the input ([`edit_snapshot`]); or, when the first byte
+/// says so, the input itself as a snapshot. Whatever is restored takes joint positions with
+/// bounded output, steps to finite frames and snapshots again.
 pub fn session_snapshot(data: &[u8]) {
     let model = model();
     let mut bytes = Bytes(data);
@@ -495,34 +513,7 @@ pub fn session_snapshot(data: &[u8]) {
             session.step_flat(&actor).expect("finite frames step");
         }
         let mut snapshot = session.snapshot().expect("an armflow session saves");
-        // Where the snapshot holds what reads as a small count: the counts and lengths an edit
-        // would change (float data seldom reads as one).
-        let counts: Vec<usize> = (0..snapshot.len().saturating_sub(7))
-            .filter(|&p| {
-                let v = u64::from_le_bytes(snapshot[p..p + 8].try_into().unwrap());
-                (1..=1 << 20).contains(&v)
-            })
-            .collect();
-        for _ in 0..1 + bytes.u8() % 8 {
-            if bytes.u8() % 2 == 0 && !counts.is_empty() {
-                // A count rewritten whole: what an edit, not an accident, does.
-                let at = counts[(bytes.u32() as usize) % counts.len()];
-                let value = COUNTS[usize::from(bytes.u8()) % COUNTS.len()];
-                snapshot[at..at + 8].copy_from_slice(&value.to_le_bytes());
-            } else {
-                let at = (bytes.u32() as usize) % snapshot.len();
-                snapshot[at] = bytes.u8();
-            }
-        }
-        if bytes.u8() % 4 == 0 {
-            let keep = (bytes.u32() as usize) % (snapshot.len() + 1);
-            snapshot.truncate(keep);
-        }
-        if bytes.u8() % 2 == 0 && snapshot.len() >= 4 {
-            let n = snapshot.len() - 4;
-            let crc = crc32fast::hash(&snapshot[..n]);
-            snapshot[n..].copy_from_slice(&crc.to_le_bytes());
-        }
+        edit_snapshot(&mut snapshot, &mut bytes);
         snapshot
     };
     if let Ok(mut restored) = model.restore(&snapshot) {
@@ -537,6 +528,41 @@ pub fn session_snapshot(data: &[u8]) {
         }
         step_arbitrarily(&mut restored, &mut Bytes(&[4, 0, 9, 0]), 9);
         restored.snapshot().expect("a restored session saves");
+    }
+}
+
+/// Edits a snapshot as an attacker with write access to the store would: bytes and whole counts
+/// rewritten (where the snapshot holds what reads as a small count: the counts and lengths;
+/// float data seldom reads as one), sometimes cut short, and the checksum made to agree one
+/// time in two, so that the edits reach the payload's checks.
+fn edit_snapshot(snapshot: &mut Vec<u8>, bytes: &mut Bytes) {
+    if snapshot.is_empty() {
+        return;
+    }
+    let counts: Vec<usize> = (0..snapshot.len().saturating_sub(7))
+        .filter(|&p| {
+            let v = u64::from_le_bytes(snapshot[p..p + 8].try_into().unwrap());
+            (1..=1 << 20).contains(&v)
+        })
+        .collect();
+    for _ in 0..1 + bytes.u8() % 8 {
+        if bytes.u8().is_multiple_of(2) && !counts.is_empty() {
+            let at = counts[(bytes.u32() as usize) % counts.len()];
+            let value = COUNTS[usize::from(bytes.u8()) % COUNTS.len()];
+            snapshot[at..at + 8].copy_from_slice(&value.to_le_bytes());
+        } else {
+            let at = (bytes.u32() as usize) % snapshot.len();
+            snapshot[at] = bytes.u8();
+        }
+    }
+    if bytes.u8().is_multiple_of(4) {
+        let keep = (bytes.u32() as usize) % (snapshot.len() + 1);
+        snapshot.truncate(keep);
+    }
+    if bytes.u8().is_multiple_of(2) && snapshot.len() >= 4 {
+        let n = snapshot.len() - 4;
+        let crc = crc32fast::hash(&snapshot[..n]);
+        snapshot[n..].copy_from_slice(&crc.to_le_bytes());
     }
 }
 

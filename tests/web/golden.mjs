@@ -4,7 +4,8 @@
 // writes the reactor's frames to OUT/<case>.f32 (raw little-endian float32) and prints one JSON
 // line: the frames' largest difference from the PyTorch reference over its largest magnitude,
 // the figure tests/golden.rs holds the native build to. tests/web.rs compares the frames with the
-// native build's.
+// native build's. Last, a line {"refused": N, "of": M}: integers out of range tried against the
+// module (seeds, capacities, steps), each of which must be refused.
 //
 //   node tests/web/golden.mjs WEB_PKG BUNDLE_DIR OUT
 import { readFileSync, writeFileSync } from "node:fs";
@@ -72,4 +73,33 @@ for (const [name, c] of Object.entries(cases)) {
   }));
   session.free();
 }
+
+// Integers out of range are refused, not wrapped (a plain u32 parameter took 2 ** 32 + 1 as 1).
+const refusals = [
+  ["seed 2n ** 64n", () => model.session(2n ** 64n)],
+  ["seed -1n", () => model.session(-1n)],
+  ["seed -1", () => model.session(-1)],
+  ["seed 1.5", () => model.session(1.5)],
+  ["seed '7'", () => model.session("7")],
+  ["capacity 2 ** 32 + 64", () => model.session(0n, undefined, 2 ** 32 + 64)],
+  ["capacity 16.5", () => model.session(0n, undefined, 16.5)],
+  ["steps 2 ** 32 + 1", () => model.session(0n).setSteps(2 ** 32 + 1)],
+  ["steps -1", () => model.session(0n).setSteps(-1)],
+  ["steps NaN", () => model.session(0n).setSteps(NaN)],
+];
+let refused = 0;
+for (const [what, call] of refusals) {
+  try {
+    call();
+  } catch (e) {
+    if (!/whole number|BigInt/.test(String(e))) throw new Error(`${what}: refused with ${e}`);
+    refused += 1;
+    continue;
+  }
+  throw new Error(`${what} was accepted`);
+}
+// In range, as BigInt or Number, they are taken.
+model.session(2n ** 64n - 1n, undefined, 16).setSteps(2);
+model.session(7).free();
+console.log(JSON.stringify({ refused, of: refusals.length }));
 model.free();

@@ -50,6 +50,32 @@ fn invalid(message: &str) -> JsError {
     JsError::new(message)
 }
 
+/// A JavaScript number as a whole number in `0..=max`: refused, not wrapped, when it is not one
+/// (wasm-bindgen's own `u32` parameters take 2^32 + 1 as 1, and 1.5 as 1).
+fn whole(what: &str, value: f64, max: u64) -> Result<u64, JsError> {
+    // Past 2^53 a number is no longer every whole number it seems to be.
+    let max = max.min(1 << 53);
+    if value.is_finite() && value.fract() == 0.0 && value >= 0.0 && value <= max as f64 {
+        Ok(value as u64)
+    } else {
+        Err(invalid(&format!(
+            "{what}: {value} is not a whole number from 0 to {max}"
+        )))
+    }
+}
+
+/// A seed given as a BigInt (0n to 2n ** 64n - 1n) or a whole Number (up to 2^53), refused when
+/// out of range instead of wrapped as a plain `u64` parameter would be.
+fn seed_of(seed: JsValue) -> Result<u64, JsError> {
+    if seed.is_bigint() {
+        u64::try_from(seed).map_err(|_| invalid("seed: a BigInt from 0n to 2n ** 64n - 1n"))
+    } else if let Some(n) = seed.as_f64() {
+        whole("seed", n, u64::MAX)
+    } else {
+        Err(invalid("seed: a BigInt or a whole number"))
+    }
+}
+
 /// A loaded bundle.
 #[wasm_bindgen]
 pub struct WebModel {
@@ -149,10 +175,14 @@ impl WebModel {
     /// bundle's). ARMFlow streams start with no clean-up; the setters turn them on.
     pub fn session(
         &self,
-        seed: u64,
+        seed: JsValue,
         condition: Option<String>,
-        capacity: Option<usize>,
+        capacity: Option<f64>,
     ) -> Result<WebSession, JsError> {
+        let seed = seed_of(seed)?;
+        let capacity = capacity
+            .map(|c| whole("capacity", c, u32::MAX.into()).map(|c| c as usize))
+            .transpose()?;
         let session = if self.model.family() == "armflow" {
             let condition = condition
                 .map(|name| self.model.condition_for(&name))
@@ -305,7 +335,8 @@ impl WebSession {
 
     /// MeanFlow steps per token (ARMFlow; at least 1).
     #[wasm_bindgen(js_name = setSteps)]
-    pub fn set_steps(&mut self, steps: u32) -> Result<(), JsError> {
+    pub fn set_steps(&mut self, steps: f64) -> Result<(), JsError> {
+        let steps = whole("steps", steps, u32::MAX.into())? as u32;
         self.session.set_steps(steps).map_err(js_error)
     }
 
