@@ -75,10 +75,11 @@ pub use magnet::{LivePartner, Magnet, MagnetOptions, MagnetOutput, PartnerOption
 pub use manifest::{ActorLatent, ConditionLabel, Manifest, Weights};
 pub use model::Model;
 pub use motion::FootLockOptions;
-pub use shared::attention::{kernel as attention_kernel, kernels};
+pub use shared::attention::kernel as attention_kernel;
 pub use shared::error::{Error, Result};
 #[doc(hidden)]
 pub use shared::graph::{finish_optimised, load_graph_for_fuzzing};
+pub use shared::isa::kernels;
 pub use shared::limits::{Limits, LIMITS};
 pub use shared::noise;
 pub use shared::progress::with_progress;

@@ -351,20 +351,27 @@ fn a_session_reaches_its_reactor_and_no_other_stream() {
     assert!(e.to_string().contains("another model"), "{e}");
 }
 
-/// `TRACT_CPU_ISA` chooses troupe's attention build and tract's matrix kernels together: on an
-/// AVX-512 machine the AVX2 and portable builds run too (the way a benchmark shows how another
-/// machine's kernels do), and every build streams the same motion up to float rounding.
+/// `TRACT_CPU_ISA` chooses troupe's kernels (the attention, the products with float16 weights)
+/// and tract's matrix kernels together: on an AVX-512 machine the AVX2 and portable builds run
+/// too (the way a benchmark shows how another machine's kernels do), and every build streams the
+/// same motion up to float rounding, with float32 weights and with float16 ones.
 #[test]
 fn every_kernel_build_streams_the_same_motion() {
+    for bundle in ["onnx/bundles/armflow-tiny", "onnx/bundles/armflow-demo-f16"] {
+        every_kernel_build_streams_the_same_motion_on(bundle);
+    }
+}
+
+fn every_kernel_build_streams_the_same_motion_on(bundle: &str) {
     let builds: [(&str, &str); 3] = [
         ("", ""),
         (
             "-avx512f,-avx512vnni,-avx512fp16,-avxvnni",
-            "attention avx2+fma",
+            "attention avx2+fma; float16 products avx2+fma",
         ),
         (
             "-avx512f,-avx512vnni,-avx512fp16,-avxvnni,-avx2,-fma,-avx,-f16c",
-            "attention portable",
+            "attention portable; float16 products portable",
         ),
     ];
     let dir = tempfile::tempdir().unwrap();
@@ -375,13 +382,13 @@ fn every_kernel_build_streams_the_same_motion() {
             std::process::Command::new(common::example("stream"))
                 .current_dir(env!("CARGO_MANIFEST_DIR"))
                 .env("TRACT_CPU_ISA", isa)
-                .args(["--bundle", "onnx/bundles/armflow-tiny", "--synthetic"])
+                .args(["--bundle", bundle, "--synthetic"])
                 .args(["--frames", "160", "--no-pictures", "--out"])
                 .arg(&out),
         );
         let text = common::output_text(&run);
         let kernels = text.lines().find(|l| l.starts_with("kernels: ")).unwrap();
-        println!("TRACT_CPU_ISA={isa:?}: {kernels}");
+        println!("{bundle}, TRACT_CPU_ISA={isa:?}: {kernels}");
         // A CPU without AVX2 runs the portable build whatever is asked.
         let has_avx2 = cfg!(target_arch = "x86_64") && kernels.contains(",avx2");
         if !expected.is_empty() && (has_avx2 || expected.ends_with("portable")) {
@@ -392,7 +399,7 @@ fn every_kernel_build_streams_the_same_motion() {
     let scale = streams[0].iter().fold(0f32, |m, v| m.max(v.abs()));
     for (i, other) in streams.iter().enumerate().skip(1) {
         let d = max_abs_diff(streams[0].as_slice().unwrap(), other.as_slice().unwrap());
-        println!("build {i} against the machine's own: {d:.2e} (scale {scale:.2})");
+        println!("{bundle}, build {i} against the machine's own: {d:.2e} (scale {scale:.2})");
         assert!(d <= 1e-4 * scale, "build {i} differs by {d}");
     }
 }

@@ -9,7 +9,7 @@
 //! bit for bit whichever instruction set runs it: the AVX-512 and AVX2/FMA builds of the same
 //! code (chosen at run time, [`kernel`]) only run those lanes wider.
 
-use std::sync::OnceLock;
+use crate::shared::isa::{self, isa, Isa};
 
 /// Accumulator lanes of every reduction: one AVX-512 register, two AVX2 registers.
 const LANES: usize = 16;
@@ -33,63 +33,10 @@ pub(crate) struct KvBlock<'a> {
     pub values: &'a [f32],
 }
 
-/// The instruction sets the kernel is built for.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-enum Isa {
-    Portable,
-    #[cfg(target_arch = "x86_64")]
-    Avx2Fma,
-    #[cfg(target_arch = "x86_64")]
-    Avx512,
-}
-
-/// The build this machine runs: the best the CPU has among those tract's instruction-set view
-/// allows. tract reads `TRACT_CPU_ISA` (`-avx512f` to run the AVX2 kernels on an AVX-512
-/// machine, `-avx2` for the portable ones), so one setting chooses both troupe's kernels and
-/// tract's, and a benchmark on one machine shows how the others' kernels do.
-fn isa() -> Isa {
-    static ISA: OnceLock<Isa> = OnceLock::new();
-    *ISA.get_or_init(|| {
-        #[cfg(target_arch = "x86_64")]
-        {
-            use tract_linalg::isa::Isa as Tract;
-            let allowed = tract_linalg::isa::native();
-            if allowed.has(Tract::X86_64Avx512f) && std::arch::is_x86_feature_detected!("avx512f") {
-                return Isa::Avx512;
-            }
-            if allowed.has(Tract::X86_64Avx2)
-                && allowed.has(Tract::X86_64Fma)
-                && std::arch::is_x86_feature_detected!("avx2")
-                && std::arch::is_x86_feature_detected!("fma")
-            {
-                return Isa::Avx2Fma;
-            }
-        }
-        Isa::Portable
-    })
-}
-
-/// The kernels this process runs, for benchmarks and logs: troupe's attention build and the
-/// instruction sets tract's matrix kernels may use (after `TRACT_CPU_ISA`), e.g.
-/// `attention avx2+fma; tract x86_64,avx,avx2,fma,f16c`.
-pub fn kernels() -> String {
-    let tract: Vec<&str> = tract_linalg::isa::native()
-        .iter()
-        .map(|i| i.name())
-        .collect();
-    format!("attention {}; tract {}", kernel(), tract.join(","))
-}
-
 /// The build of the kernel this CPU runs (`"avx512"`, `"avx2+fma"` or `"portable"`), for
 /// benchmarks and logs.
 pub fn kernel() -> &'static str {
-    match isa() {
-        Isa::Portable => "portable",
-        #[cfg(target_arch = "x86_64")]
-        Isa::Avx2Fma => "avx2+fma",
-        #[cfg(target_arch = "x86_64")]
-        Isa::Avx512 => "avx512",
-    }
+    isa::name(isa())
 }
 
 /// `out = softmax(K q) V` over every row of `blocks` except the rows `hidden` lists (indices

@@ -20,6 +20,7 @@ use crate::shared::bundle::BundleFiles;
 use crate::shared::clock::Stopwatch;
 use crate::shared::error::{Error, Result};
 use crate::shared::graph_spec::{DType, Dim, GraphSpec, TensorSpec, Weights};
+use crate::shared::half_products;
 use crate::shared::limits::LIMITS;
 use crate::shared::logging::{log, Level};
 use crate::shared::onnx_guard;
@@ -81,6 +82,8 @@ impl Graph {
         assert_row_counts(&model).map_err(&bad)?;
         if spec.weights == Weights::Float16 {
             keep_float16_weights(&mut model).map_err(&bad)?;
+            half_products::use_half_products(&mut model)
+                .map_err(|e| bad(format!("its float16 products: {e:#}")))?;
         }
         phases.mark("typed");
         let (input_order, output_order) = check_interface(&model, spec).map_err(&bad)?;
@@ -472,7 +475,7 @@ fn with_one_row(model: &TypedModel) -> std::result::Result<TypedModel, String> {
 /// matrix-product constant whose values are all float16 values (those, and no float32 weight,
 /// since a float32 weight rounded to 16 bits would not be) becomes float16 again, so that tract
 /// packs 16-bit weights and picks its float16 × float32 kernels. The values are unchanged.
-fn keep_float16_weights(model: &mut TypedModel) -> std::result::Result<(), String> {
+pub(crate) fn keep_float16_weights(model: &mut TypedModel) -> std::result::Result<(), String> {
     use half::slice::HalfFloatSliceExt;
     use tract_onnx::prelude::f16;
     use tract_onnx::tract_core::ops::einsum::EinSum;

@@ -10,6 +10,8 @@ pub mod error;
 pub(crate) mod files;
 pub mod graph;
 pub mod graph_spec;
+pub(crate) mod half_products;
+pub(crate) mod isa;
 pub mod limits;
 pub(crate) mod logging;
 pub mod noise;
