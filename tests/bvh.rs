@@ -11,7 +11,7 @@ use ndarray::Axis;
 use troupe::motion::bvh::{parse_bvh, read_bvh, write_bvh, BvhPerson, BvhWriteOptions};
 use troupe::motion::ik::{forward_kinematics, inverse_kinematics};
 use troupe::motion::vec3::{norm, sub, Vec3};
-use troupe::motion::{JointMap, Placement, Skeleton, Units};
+use troupe::motion::{JointMap, JointsFormat, Placement, Skeleton, Units};
 
 const CHAIN: &str = "HIERARCHY
 ROOT Hips
@@ -710,4 +710,54 @@ fn joints_a_rig_lacks_are_inferred_and_reported() {
         let knee: Vec3 = std::array::from_fn(|k| f64::from(joints.positions[[t, 4, k]]));
         assert!(d(knee, at("shin.L", t)) < 1e-6);
     }
+}
+
+/// A frame time written with a few digits is read as the rate its author meant: `0.0333333` s
+/// is 30 fps, not 30.00003 (which would resample a 30 fps clip onto 30 fps, and put the first
+/// pose one frame late and lose the last token). Rates that are not near a whole or NTSC rate
+/// are read as they are.
+#[test]
+fn frame_times_are_read_as_the_rate_their_author_meant() {
+    let fps_of = |frame_time: &str| {
+        let text = CHAIN.replace(
+            "Frame Time: 0.0333333",
+            &format!("Frame Time: {frame_time}"),
+        );
+        parse_bvh(text.as_bytes(), "chain.bvh").unwrap().fps()
+    };
+    for (frame_time, meant) in [
+        ("0.0333333", 30.0),
+        ("0.033333", 30.0),
+        ("0.0416667", 24.0),
+        ("0.04", 25.0),
+        ("0.0166667", 60.0),
+        ("0.0083333", 120.0),
+        ("0.01", 100.0),
+        ("0.0417083", 24000.0 / 1001.0),
+        ("0.0333667", 30000.0 / 1001.0),
+        ("0.0166833", 60000.0 / 1001.0),
+        ("0.03", 1.0 / 0.03),
+        ("0.0335", 1.0 / 0.0335),
+        ("0.0332", 1.0 / 0.0332),
+    ] {
+        assert_eq!(fps_of(frame_time), meant, "Frame Time {frame_time}");
+    }
+    // On a 30 fps stream, 69 frames of a 30 fps file are 17 whole tokens: 68 poses, none lost.
+    let model = common::model();
+    assert_eq!(model.fps(), 30);
+    let mut session = model.session(common::default_options()).unwrap();
+    let mut poses_after = |fps: f64, frames: usize| {
+        session
+            .set_joints_format(JointsFormat {
+                fps: fps as f32,
+                ..Default::default()
+            })
+            .unwrap();
+        session.joints_ready_after(frames).unwrap()
+    };
+    assert_eq!(poses_after(fps_of("0.0333333"), 69), 68);
+    assert!(
+        poses_after(1.0 / 0.0333333, 69) < 68,
+        "the literal rate resamples"
+    );
 }

@@ -40,11 +40,20 @@ impl JointMap {
     }
 
     /// A map from its JSON document: `{"skeleton": "t2m22", "joints": {"pelvis": ["Hips", ...],
-    /// ...}}` naming every t2m-22 joint.
+    /// ...}}` with an entry for every t2m-22 joint; an empty list says the rig has no such joint
+    /// (placed from its neighbours where troupe can: `docs/RIGS.md`).
     pub fn from_json(text: &str) -> Result<JointMap> {
         let bad = |m: String| Error::InvalidInput(format!("joint map: {m}"));
-        let doc: MapDoc =
-            serde_json::from_str(text).map_err(|e| bad(format!("not a joint map: {e}")))?;
+        let doc: MapDoc = serde_json::from_str(text).map_err(|e| {
+            // A file name where the text was meant is the usual mistake: say what is expected.
+            let hint = if text.trim_start().starts_with('{') {
+                ""
+            } else {
+                " (a joint map is JSON text, {\"skeleton\": \"t2m22\", \"joints\": {...}}, \
+                 not the name of a file)"
+            };
+            bad(format!("not a joint map: {e}{hint}"))
+        })?;
         let skeleton = Skeleton::t2m22();
         if doc.skeleton != skeleton.name() {
             return Err(bad(format!(
@@ -60,11 +69,14 @@ impl JointMap {
             .names()
             .iter()
             .map(|n| {
-                doc.joints
-                    .get(n)
-                    .filter(|c| !c.is_empty())
-                    .cloned()
-                    .ok_or_else(|| bad(format!("no names for t2m-22 joint {n:?}")))
+                // An empty list says the rig has no such joint: it is placed from its
+                // neighbours where troupe can (`joint_inference`), else the rig is refused.
+                doc.joints.get(n).cloned().ok_or_else(|| {
+                    bad(format!(
+                        "no entry for t2m-22 joint {n:?} (list its names on your rig, or [] \
+                         if the rig has no such joint)"
+                    ))
+                })
             })
             .collect::<Result<_>>()?;
         Ok(JointMap { candidates })
@@ -118,7 +130,10 @@ impl JointMap {
             .iter()
             .enumerate()
             .filter(|(_, f)| f.is_none())
-            .map(|(j, _)| format!("{} (tried {})", names[j], self.candidates[j].join(", ")))
+            .map(|(j, _)| match &self.candidates[j][..] {
+                [] => format!("{} (the joint map says the rig has none)", names[j]),
+                tried => format!("{} (tried {})", names[j], tried.join(", ")),
+            })
             .collect();
         if !missing.is_empty() {
             return Err(Error::InvalidInput(format!(

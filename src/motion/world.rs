@@ -84,6 +84,27 @@ impl Default for JointsFormat {
 /// Frame rates troupe accepts, frames per second.
 pub const FPS_RANGE: std::ops::RangeInclusive<f32> = 1.0..=1000.0;
 
+/// The video rates that are not whole numbers (NTSC's 24, 30 and 60 × 1000/1001), which a file's
+/// frame time may approximate as it approximates whole rates.
+const NTSC_RATES: [f64; 3] = [24000.0 / 1001.0, 30000.0 / 1001.0, 60000.0 / 1001.0];
+
+/// How close, relatively, a file's frame rate must be to a whole or NTSC rate to be read as it:
+/// a frame time written with 7 significant digits (`0.0333333`) is 1e-6 off.
+const RATE_TOLERANCE: f64 = 1e-4;
+
+/// The frame rate a file's author meant by `fps`, computed from a rounded frame time: the
+/// nearest whole rate or NTSC rate (23.976, 29.97, 59.94) when `fps` is within 1e-4 of it
+/// relatively, else `fps` itself. A BVH's `Frame Time: 0.0333333` is 30.00003 fps; taken
+/// literally it would make troupe resample a 30 fps clip onto 30 fps.
+pub fn rate_meant(fps: f64) -> f64 {
+    let whole = fps.round();
+    std::iter::once(whole)
+        .chain(NTSC_RATES)
+        .filter(|&rate| rate >= 1.0)
+        .find(|&rate| (fps - rate).abs() <= RATE_TOLERANCE * rate)
+        .unwrap_or(fps)
+}
+
 /// The farthest a joint position or a placement may lie from the origin along any axis, in
 /// metres (1000 km). Beyond, single-precision features lose all precision and differences can
 /// overflow to infinity: such input is refused, so that finite input gives finite output.

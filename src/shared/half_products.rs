@@ -457,7 +457,8 @@ impl TypedOp for HalfProduct {
 
 /// Replaces every product of float32 rows with a float16 constant weight (`x · W` or `x · Wᵀ`,
 /// as ONNX `MatMul` and `Gemm` make them: the rows' last axis summed, their other axes kept in
-/// front) by a [`HalfProduct`]; returns how many. Other products are left to tract.
+/// front; at least 16 output columns) by a [`HalfProduct`]; returns how many. Other products
+/// are left to tract.
 pub(crate) fn use_half_products(model: &mut TypedModel) -> TractResult<usize> {
     let mut replaced = 0;
     for id in 0..model.nodes.len() {
@@ -481,12 +482,22 @@ pub(crate) fn use_half_products(model: &mut TypedModel) -> TractResult<usize> {
         let Some(transposed) = rows_times_weight(&einsum.axes.to_string()) else {
             continue;
         };
-        let view = weight.to_plain_array_view::<f16>()?;
         let (rows, cols) = (weight.shape()[0], weight.shape()[1]);
-        let matrix = if transposed {
-            HalfMatrix::pack(cols, rows, |kk, nn| view[[nn, kk]])
+        let (k, n) = if transposed {
+            (cols, rows)
         } else {
-            HalfMatrix::pack(rows, cols, |kk, nn| view[[kk, nn]])
+            (rows, cols)
+        };
+        // Panels pad `n` to a multiple of 32 columns: a weight of fewer than 16 columns would
+        // take more than twice its bytes (and an empty one nothing), so tract keeps those.
+        if k == 0 || n < PANEL / 2 {
+            continue;
+        }
+        let view = weight.to_plain_array_view::<f16>()?;
+        let matrix = if transposed {
+            HalfMatrix::pack(k, n, |kk, nn| view[[nn, kk]])
+        } else {
+            HalfMatrix::pack(k, n, |kk, nn| view[[kk, nn]])
         };
         let op = HalfProduct {
             weight: Arc::new(matrix),

@@ -89,6 +89,29 @@ def test_a_bvh_rig_and_the_files_written_on_it(tmp_path, clip):
         motion.write_gltf(tmp_path / "x.glb", {"a": clip, "b": clip[:10]}, FMT)
 
 
+def test_a_joint_map_is_json_text_a_dict_or_a_file(tmp_path, clip):
+    source = tmp_path / "source.bvh"
+    motion.write_bvh(source, {"actor": clip}, FMT)
+    names = motion.skeleton().names
+    own = {"skeleton": "t2m22", "joints": {n: [n] for n in names}}
+    path = tmp_path / "map.json"
+    path.write_text(json.dumps(own))
+    builtin = motion.read_bvh_take(source)
+    for given in (own, json.dumps(own), path, str(path)):
+        take = motion.read_bvh_take(source, joint_map=given)
+        assert np.array_equal(take.positions, builtin.positions), type(given)
+    # An empty list says the rig has no such joint: it is placed from its neighbours.
+    no_toes = {"skeleton": "t2m22", "joints": {**own["joints"], "left_foot": []}}
+    take = motion.read_bvh_take(source, joint_map=no_toes)
+    assert [line for line in take.inferred if line.startswith("left_foot")], take.inferred
+    with pytest.raises(FileNotFoundError, match="neither joint-map JSON text nor a file"):
+        motion.read_bvh_take(source, joint_map=str(tmp_path / "missing.json"))
+    with pytest.raises(TypeError, match="joint_map"):
+        motion.read_bvh_take(source, joint_map=3)  # type: ignore[arg-type]
+    with pytest.raises(troupe.TroupeError, match="no entry for t2m-22 joint"):
+        motion.read_bvh_take(source, joint_map={"skeleton": "t2m22", "joints": {"pelvis": ["pelvis"]}})
+
+
 def test_bad_rigs_are_refused_with_the_reason(tmp_path):
     with pytest.raises(troupe.TroupeError, match="0 joints"):
         motion.Rig.from_json('{"name": "x", "joints": []}')

@@ -145,6 +145,25 @@ def penetration_metrics(first: ArrayLike, second: ArrayLike) -> dict:
             "depth_sum": depth.value, "max_depth": deepest.value}
 
 
+def _joint_map(joint_map: str | os.PathLike | dict | None) -> bytes | None:
+    """A joint map as the C API takes it (JSON text), from JSON text, a dict, or a JSON file's
+    path; None for the built-in map."""
+    if joint_map is None:
+        return None
+    if isinstance(joint_map, dict):
+        import json
+        return json.dumps(joint_map).encode()
+    if isinstance(joint_map, str) and joint_map.lstrip().startswith("{"):
+        return joint_map.encode()
+    if isinstance(joint_map, (str, os.PathLike)):
+        if not os.path.isfile(joint_map):
+            raise FileNotFoundError(
+                f"joint_map: {os.fspath(joint_map)!r} is neither joint-map JSON text nor a file")
+        with open(joint_map, "rb") as f:
+            return f.read()
+    raise TypeError(f"joint_map: expected JSON text, a dict or a path, got {type(joint_map).__name__}")
+
+
 def _positions(x: ArrayLike, what: str) -> np.ndarray:
     a = _floats(x, what)
     if a.ndim != 3 or a.shape[1:] != (JOINTS, 3):
@@ -264,20 +283,22 @@ class BvhTake(NamedTuple):
 
 
 def read_bvh(path: str | os.PathLike, units: str | None = None,
-             joint_map: str | None = None) -> tuple[np.ndarray, JointsFormat]:
+             joint_map: str | os.PathLike | dict | None = None) -> tuple[np.ndarray, JointsFormat]:
     """A BVH take as t2m-22 joint positions: (positions [T, 22, 3] in the file's units and axes,
     its JointsFormat). `units`: the file's ("m", "cm", ...), or None to guess from the figure's
-    height; `joint_map`: a joint-map JSON text to use instead of the built-in one. Joints the rig
+    height; `joint_map`: a joint map (JSON text, a dict, or a JSON file's path) to use instead of
+    the built-in one. Joints the rig
     lacks are placed from the others (`read_bvh_take` says which)."""
     take = read_bvh_take(path, units, joint_map)
     return take.positions, take.format
 
 
-def read_bvh_take(path: str | os.PathLike, units: str | None = None, joint_map: str | None = None) -> BvhTake:
+def read_bvh_take(path: str | os.PathLike, units: str | None = None,
+                  joint_map: str | os.PathLike | dict | None = None) -> BvhTake:
     """`read_bvh`, also saying which t2m-22 joints the rig lacks and how they were placed."""
     handle = _native.bvh_p()
     code = _UNITS_AUTO if units is None else _UNITS[units]
-    jm = joint_map.encode() if joint_map is not None else None
+    jm = _joint_map(joint_map)
     _check(_lib.troupe_bvh_read(os.fsencode(path), jm, code, ctypes.byref(handle)))
     try:
         frames = _lib.troupe_bvh_frames(handle)
@@ -349,15 +370,16 @@ def _retarget_flags(foot_lock: bool, limb_ik: bool) -> int:
 
 class Rig:
     """A character rig (its joints, rest pose, units and axes) with the joint map saying which of
-    its joints is which t2m-22 joint (`joint_map`: a joint-map JSON text, or None for the built-in
-    names: Mixamo, LAFAN1, CMU, HumanIK, SMPL, Rigify). Immutable; share it freely."""
+    its joints is which t2m-22 joint (`joint_map`: JSON text, a dict or a JSON file's path, or None
+    for the built-in names: Mixamo, LAFAN1, CMU, HumanIK, SMPL, Rigify). Immutable; share it
+    freely."""
 
     def __init__(self, handle: Any):
         self._handle = handle
 
     @classmethod
     def from_bvh(cls, path: str | os.PathLike, units: str | None = None, rest_frame: int | None = None,
-                 joint_map: str | None = None) -> "Rig":
+                 joint_map: str | os.PathLike | dict | None = None) -> "Rig":
         """The rig of a BVH file. `units`: the file's, or None to guess; `rest_frame`: the frame
         whose pose is the rest pose (for files whose all-zero pose lies down, as LAFAN1's), or
         None for the all-zero pose."""
@@ -366,27 +388,28 @@ class Rig:
         if rest_frame is not None and not 0 <= int(rest_frame) < _RIG_ZERO_POSE:
             raise ValueError(f"rest_frame must be a frame index, got {rest_frame!r}")
         frame = _RIG_ZERO_POSE if rest_frame is None else int(rest_frame)
-        jm = joint_map.encode() if joint_map is not None else None
+        jm = _joint_map(joint_map)
         _check(_lib.troupe_rig_from_bvh(os.fsencode(path), code, frame, jm, ctypes.byref(handle)))
         return cls(handle)
 
     @classmethod
-    def from_gltf(cls, path: str | os.PathLike, skin: int = 0, joint_map: str | None = None) -> "Rig":
+    def from_gltf(cls, path: str | os.PathLike, skin: int = 0,
+                  joint_map: str | os.PathLike | dict | None = None) -> "Rig":
         """The rig of skin `skin` in a glTF file (.glb or .gltf): its joints, their hierarchy and
         their nodes' transforms as the rest pose."""
         handle = _native.rig_p()
         if not 0 <= int(skin):
             raise ValueError(f"skin must be an index, got {skin!r}")
-        jm = joint_map.encode() if joint_map is not None else None
+        jm = _joint_map(joint_map)
         _check(_lib.troupe_rig_from_gltf(os.fsencode(path), int(skin), jm, ctypes.byref(handle)))
         return cls(handle)
 
     @classmethod
-    def from_json(cls, text: str, joint_map: str | None = None) -> "Rig":
+    def from_json(cls, text: str, joint_map: str | os.PathLike | dict | None = None) -> "Rig":
         """A rig from its JSON document (docs/RIGS.md)."""
         expect_type(text, str, "text")
         handle = _native.rig_p()
-        jm = joint_map.encode() if joint_map is not None else None
+        jm = _joint_map(joint_map)
         _check(_lib.troupe_rig_from_json(text.encode(), jm, ctypes.byref(handle)))
         return cls(handle)
 

@@ -31,6 +31,7 @@ use crate::motion::rotation::Quat;
 use crate::motion::vec3::{add, Vec3};
 use crate::motion::world::{JointsFormat, Units};
 use crate::shared::error::{Error, Result};
+use crate::shared::logging::{log, Level};
 
 /// One channel of a BVH joint.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -122,9 +123,10 @@ impl Bvh {
             .unwrap_or(0)
     }
 
-    /// Frames per second.
+    /// Frames per second, as the author meant them: `1 / frame_time`, or the whole or NTSC
+    /// rate it is within 1e-4 of ([`crate::motion::world::rate_meant`]; `0.0333333` s is 30 fps).
     pub fn fps(&self) -> f64 {
-        1.0 / self.frame_time
+        crate::motion::world::rate_meant(1.0 / self.frame_time)
     }
 
     /// The index of the joint called `name`.
@@ -203,6 +205,15 @@ impl Bvh {
                 "{label}: Frame Time {} s is {fps} fps, outside [1, 1000]",
                 self.frame_time
             )));
+        }
+        if fps != 1.0 / self.frame_time {
+            log(Level::Info, "troupe::motion", || {
+                format!(
+                    "{label}: Frame Time {} s read as {} fps",
+                    self.frame_time,
+                    (fps * 1000.0).round() / 1000.0
+                )
+            });
         }
         let names: Vec<String> = self.joints.iter().map(|j| j.name.clone()).collect();
         let parents: Vec<Option<usize>> = self.joints.iter().map(|j| j.parent).collect();
