@@ -392,6 +392,64 @@ fn a_dropped_bvh_becomes_the_actor_and_streams() {
     assert_eq!(text(&dropped, "drawn"), text(&named, "drawn"));
 }
 
+/// A file the page cannot use is said so in the status line, and the stage does not stay empty:
+/// a BVH that is no humanoid (a chain of two joints) named by `?bvh=` leaves the default clip
+/// playing, and dropped on a playing page leaves the current actor playing.
+#[test]
+fn a_file_the_page_cannot_use_is_said_so_and_the_stage_plays_on() {
+    let test = "a_file_the_page_cannot_use_is_said_so_and_the_stage_plays_on";
+    let Some(modules) = page_tools(test) else {
+        return;
+    };
+    let folder = tempfile::tempdir().unwrap();
+    let chain = folder.path().join("chain.bvh");
+    std::fs::write(
+        &chain,
+        "HIERARCHY\nROOT Hips\n{\n OFFSET 0 0 0\n CHANNELS 6 Xposition Yposition Zposition \
+         Zrotation Xrotation Yrotation\n JOINT Spine\n {\n  OFFSET 0 10 0\n  CHANNELS 3 \
+         Xrotation Yrotation Zrotation\n  End Site\n  {\n   OFFSET 0 5 0\n  }\n }\n}\nMOTION\n\
+         Frames: 2\nFrame Time: 0.0333333\n0 90 0 0 0 0 0 0 0\n0 90 0 0 0 0 0 0 0\n",
+    )
+    .unwrap();
+    let named = open_page(
+        &modules,
+        "bvh=/files/chain.bvh&frames=200&rule=follow",
+        vec![("/files/".into(), folder.path().to_path_buf())],
+        None,
+    );
+    let dropped = open_page_with(
+        &modules,
+        "frames=200&rule=follow",
+        Vec::new(),
+        None,
+        &[("TROUPE_DROP", chain.to_str().unwrap())],
+    );
+    for (how, state, then) in [
+        ("named", &named, "playing the default clip instead"),
+        ("dropped", &dropped, "the current actor plays on"),
+    ] {
+        let said = text(state, "refused");
+        println!("{how}: {said}");
+        assert!(
+            said.starts_with("chain.bvh cannot be used (") && said.ends_with(then),
+            "{how}: {said}"
+        );
+        assert!(
+            said.contains("left_hip"),
+            "{how}: the reason is given: {said}"
+        );
+        assert_ne!(text(state, "actor"), "chain.bvh", "{how}");
+        let tokens = number(state, "tokens");
+        assert!(tokens >= 5.0, "{how}: {tokens} tokens");
+        let d = drawn(state);
+        let height = d.actor.iter().map(|p| p[1]).fold(f32::MIN, f32::max)
+            - d.actor.iter().map(|p| p[1]).fold(f32::MAX, f32::min);
+        assert!((1.0..2.2).contains(&height), "{how}: actor {height} m tall");
+    }
+    // The same default clip plays either way.
+    assert_eq!(text(&named, "actor"), text(&dropped, "actor"));
+}
+
 /// The steered actor goes where the arrow keys send it: live, 4 s of stream with ← held turn it
 /// away from where it goes with no key, and the partner keeps streaming.
 #[test]

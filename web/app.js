@@ -26,6 +26,12 @@ function status(text, error = false) {
   $("status").classList.toggle("error", error);
   if (error) state.error = text;
 }
+// A visitor's file the page cannot use: said in the status line (in red), while the page plays on.
+function refused(text) {
+  $("status").textContent = text;
+  $("status").classList.add("error");
+  state.refused = text;
+}
 
 // ---- actors: frames of 22 joints, metres, +Y up, at their own rate ---------------------------
 
@@ -338,7 +344,15 @@ async function useBvh(name, buffer) {
         (inferred.length ? `; inferred: ${inferred.join("; ")}` : "")
     );
   } catch (e) {
-    status(`${name}: ${e.message ?? e}`, true);
+    // The stage never stays empty: with no actor yet (a `?bvh=` that cannot be used), the
+    // default clip plays; otherwise the current actor plays on.
+    let then = "the current actor plays on";
+    if (!source) {
+      $("source").value = "clip";
+      setSource(new LoopedClip(cmu));
+      then = "playing the default clip instead";
+    }
+    refused(`${name} cannot be used (${e.message ?? e}); ${then}`);
   }
 }
 window.addEventListener("dragover", (e) => {

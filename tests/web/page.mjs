@@ -45,8 +45,8 @@ try {
         window.dispatchEvent(new DragEvent(type, { dataTransfer: files, bubbles: true, cancelable: true }));
       }
     }, { name, bytes });
-    await page.waitForFunction((name) => document.body.dataset.actor === name || document.body.dataset.error,
-      name, { timeout: 120000 });
+    await page.waitForFunction((name) => document.body.dataset.actor === name || document.body.dataset.error ||
+      document.body.dataset.refused, name, { timeout: 120000 });
   }
   const tokens = Number(process.env.TROUPE_TOKENS || 0);
   await page.waitForFunction(
