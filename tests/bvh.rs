@@ -742,7 +742,8 @@ fn frame_times_are_read_as_the_rate_their_author_meant() {
     ] {
         assert_eq!(fps_of(frame_time), meant, "Frame Time {frame_time}");
     }
-    // On a 30 fps stream, 69 frames of a 30 fps file are 17 whole tokens: 68 poses, none lost.
+    // On a 30 fps stream, 69 frames of a 30 fps file (68 and the one the first velocity needs)
+    // are 17 whole tokens: 68 poses, none lost.
     let model = common::model();
     assert_eq!(model.fps(), 30);
     let mut session = model.session(common::default_options()).unwrap();
@@ -756,6 +757,9 @@ fn frame_times_are_read_as_the_rate_their_author_meant() {
         session.joints_ready_after(frames).unwrap()
     };
     assert_eq!(poses_after(fps_of("0.0333333"), 69), 68);
+    // Nor when a whole multiple of the rate is resampled: 60 and 120 fps files of 17 tokens.
+    assert_eq!(poses_after(fps_of("0.0166667"), 137), 68);
+    assert_eq!(poses_after(fps_of("0.0083333"), 273), 68);
     assert!(
         poses_after(1.0 / 0.0333333, 69) < 68,
         "the literal rate resamples"
