@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import ctypes
 import os
+import warnings
 from typing import Any, NamedTuple
 
 import numpy as np
@@ -325,11 +326,18 @@ def write_bvh(path: str | os.PathLike, people: ArrayLike | dict[str, ArrayLike],
 
 def _people(people: ArrayLike | dict[str, ArrayLike],
             fmt: JointsFormat | None) -> tuple[np.ndarray, Any, _native.JointsFormat]:
+    """The people stacked [P, T, 22, 3] for the C API, over the frames they all have: a partner
+    streamed back lags its actor by the stream's latency, so the actor's last frames have no
+    partner pose yet; they are left out, with a warning naming how many."""
     if not isinstance(people, dict):
         people = {"person1": people}
     arrays = [_positions(p, f"positions of {name}") for name, p in people.items()]
-    if len({a.shape[0] for a in arrays}) > 1:
-        raise ValueError("every person needs the same number of frames")
+    frames = min(a.shape[0] for a in arrays)
+    if any(a.shape[0] != frames for a in arrays):
+        longer = ", ".join(f"{name} {a.shape[0]}" for name, a in zip(people, arrays) if a.shape[0] != frames)
+        warnings.warn(f"people of different lengths are written over the {frames} frames they all have "
+                      f"(the last frames of {longer} left out)", stacklevel=3)
+        arrays = [a[:frames] for a in arrays]
     for name in people:
         if not isinstance(name, str) or "\0" in name:
             raise ValueError(f"person name {name!r} must be a str without NUL characters")
