@@ -765,3 +765,89 @@ fn frame_times_are_read_as_the_rate_their_author_meant() {
         "the literal rate resamples"
     );
 }
+
+/// A rig whose names the joint map does not know is recognised by the shape of its hierarchy:
+/// bvhtoolbox's mocapbank file (`Chest`, `Chest2`, `LeftCollar`, `LeftShoulder` as the upper
+/// arm, no toes), which the names alone refuse, and Mixamo's rig with every joint renamed to a
+/// number, which maps exactly as its names do.
+#[test]
+fn rigs_the_names_do_not_map_are_recognised_by_their_shape() {
+    let folder = common::pypi_sdist("bvhtoolbox==0.1.3").join("tests/example_files");
+    let mocapbank = read_bvh(folder.join("test_mocapbank.bvh")).unwrap();
+    let joints = mocapbank
+        .to_t2m22(&JointMap::builtin(), None, "test_mocapbank.bvh")
+        .unwrap();
+    let said = joints.inferred.join("\n");
+    println!("{said}");
+    assert!(
+        said.starts_with("joints recognised by the rig's shape"),
+        "{said}"
+    );
+    for pair in [
+        "pelvis Hips",
+        "spine1 Chest",
+        "spine3 Chest2",
+        "left_collar LeftCollar",
+        "left_shoulder LeftShoulder",
+        "right_elbow RightElbow",
+        "left_wrist LeftWrist",
+        "right_hip RightHip",
+        "left_ankle LeftAnkle",
+        "neck Neck",
+        "head Head",
+    ] {
+        assert!(said.contains(pair), "{pair} not in {said}");
+    }
+    // The joints it has are its own, frame by frame: the left wrist is the file's LeftWrist.
+    let all = mocapbank.positions();
+    let wrist = mocapbank.joint("LeftWrist").unwrap();
+    for t in [0, mocapbank.frames() - 1] {
+        for d in 0..3 {
+            assert_eq!(joints.positions[[t, 20, d]], all[[t, wrist, d]]);
+        }
+    }
+
+    // Retargeting onto that rig recognises it the same way (the names alone refused it).
+    let rig = mocapbank.rig(None, "mocapbank").unwrap();
+    let onto = troupe::motion::Retargeter::new(
+        &rig,
+        &JointMap::builtin(),
+        &Skeleton::t2m22(),
+        Default::default(),
+    )
+    .unwrap();
+    let drives = |t2m: usize| onto.rig_joints()[t2m].map(|r| rig.names()[r].as_str());
+    assert_eq!(drives(16), Some("LeftShoulder"));
+    assert_eq!(drives(13), Some("LeftCollar"));
+    assert_eq!(drives(21), Some("RightWrist"));
+    assert_eq!(drives(10), None, "no toes");
+
+    // Mixamo's rig with its names replaced by numbers: the same t2m-22 positions as by name.
+    let path = folder.join("test_freebvh.bvh");
+    let text = std::fs::read_to_string(&path).unwrap();
+    let mut count = 0;
+    let renamed: String = text
+        .lines()
+        .map(|line| {
+            let trimmed = line.trim_start();
+            for kind in ["ROOT ", "JOINT "] {
+                if trimmed.starts_with(kind) {
+                    count += 1;
+                    return format!("{kind}bone{count}\n");
+                }
+            }
+            format!("{line}\n")
+        })
+        .collect();
+    let named = read_bvh(&path)
+        .unwrap()
+        .to_t2m22(&JointMap::builtin(), None, "test_freebvh.bvh")
+        .unwrap();
+    let numbered = parse_bvh(renamed.as_bytes(), "numbered.bvh")
+        .unwrap()
+        .to_t2m22(&JointMap::builtin(), None, "numbered.bvh")
+        .unwrap();
+    println!("{}", numbered.inferred.join("\n"));
+    assert!(named.inferred.is_empty());
+    assert_eq!(numbered.positions, named.positions);
+}

@@ -61,6 +61,10 @@ pub struct RigShape<'a> {
     pub parents: &'a [Option<usize>],
     /// Whether each joint has an end site.
     pub end_sites: &'a [bool],
+    /// One pose of the rig, each joint's position, Y up (a standing person: a mocap file's first
+    /// frame), for recognising its joints by their shape when the names do not say (empty: names
+    /// only).
+    pub pose: &'a [Vec3],
 }
 
 impl RigShape<'_> {
@@ -157,9 +161,53 @@ impl JointMap {
     /// Where each t2m-22 joint comes from on `rig`: its own joint where the map names one,
     /// else inferred (see the module documentation). An error names every joint that cannot be
     /// placed and the names tried (`label` names the rig).
+    ///
+    /// When the names leave joints that cannot be placed, the rig's joints are recognised from
+    /// the shape of its hierarchy in `rig.pose` instead (`shape_map`), and the first line of
+    /// `inferred` says so and which joint became which.
     pub fn resolve_inferring(&self, rig: RigShape, label: &str) -> Result<ResolvedJoints> {
+        let by_names = self.resolve_partial(rig.names);
+        let named_error = match self.place(rig, by_names, label) {
+            Ok(resolved) => return Ok(resolved),
+            Err(e) => e,
+        };
+        if rig.pose.len() != rig.names.len() {
+            return Err(named_error);
+        }
+        let by_shape =
+            match crate::motion::shape_map::map_by_shape(rig.names, rig.parents, rig.pose) {
+                Ok(found) => found,
+                Err(why) => {
+                    return Err(Error::InvalidInput(format!(
+                        "{named_error}; nor can its joints be recognised by their shape: {why}"
+                    )))
+                }
+            };
         let t2m = Skeleton::t2m22();
-        let found = self.resolve_partial(rig.names);
+        let said: Vec<String> = by_shape
+            .iter()
+            .enumerate()
+            .filter_map(|(j, f)| f.map(|i| format!("{} {}", t2m.names()[j], rig.names[i])))
+            .collect();
+        let mut resolved = self.place(rig, by_shape, label)?;
+        resolved.inferred.insert(
+            0,
+            format!(
+                "joints recognised by the rig's shape, its names not being known: {}",
+                said.join(", ")
+            ),
+        );
+        Ok(resolved)
+    }
+
+    /// [`JointMap::resolve_inferring`] with the rig joints `found` for each t2m-22 joint.
+    fn place(
+        &self,
+        rig: RigShape,
+        found: Vec<Option<usize>>,
+        label: &str,
+    ) -> Result<ResolvedJoints> {
+        let t2m = Skeleton::t2m22();
         let mut mapped = vec![false; rig.names.len()];
         for i in found.iter().flatten() {
             mapped[*i] = true;

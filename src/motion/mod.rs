@@ -36,6 +36,7 @@ pub mod resample;
 pub mod retarget;
 pub mod rig;
 pub mod rotation;
+pub(crate) mod shape_map;
 pub mod skeleton;
 pub mod smplx145;
 pub mod stream;

@@ -224,7 +224,19 @@ impl Retargeter {
                 options.fps, options.max_pin_stretch, options.release_frames
             )));
         }
-        let found = map.resolve_partial(rig.names());
+        let mut found = map.resolve_partial(rig.names());
+        if REQUIRED_JOINTS.iter().any(|&j| found[j].is_none()) {
+            // The names do not say: recognise the joints by the shape of the rig's rest pose
+            // (metres, Y up), if it has a humanoid's.
+            let (rest, _) = rig.with_format(JointsFormat::default()).rest_world();
+            if let Ok(by_shape) =
+                crate::motion::shape_map::map_by_shape(rig.names(), rig.parents(), &rest)
+            {
+                if REQUIRED_JOINTS.iter().all(|&j| by_shape[j].is_some()) {
+                    found = by_shape;
+                }
+            }
+        }
         let t2m = Skeleton::t2m22();
         let missing: Vec<String> = REQUIRED_JOINTS
             .iter()

@@ -218,11 +218,14 @@ impl Bvh {
         let names: Vec<String> = self.joints.iter().map(|j| j.name.clone()).collect();
         let parents: Vec<Option<usize>> = self.joints.iter().map(|j| j.parent).collect();
         let end_sites: Vec<bool> = self.joints.iter().map(|j| j.end_site.is_some()).collect();
+        // The first frame, a standing person in a mocap file, shows the rig's shape.
+        let first_pose = self.pose(0).0;
         let resolved = map.resolve_inferring(
             RigShape {
                 names: &names,
                 parents: &parents,
                 end_sites: &end_sites,
+                pose: &first_pose,
             },
             label,
         )?;
