@@ -374,7 +374,7 @@ fn a_dropped_bvh_becomes_the_actor_and_streams() {
     let named = open_page(
         &modules,
         "bvh=/files/test_freebvh.bvh&frames=200&rule=follow",
-        vec![("/files/".into(), folder)],
+        vec![("/files/".into(), folder.clone())],
         None,
     );
     for (how, state) in [("dropped", &dropped), ("named", &named)] {
@@ -390,6 +390,20 @@ fn a_dropped_bvh_becomes_the_actor_and_streams() {
     }
     // The same file, the same stream: the drop goes through the same reader and session.
     assert_eq!(text(&dropped, "drawn"), text(&named, "drawn"));
+    // A rig the built-in names do not map (bvhtoolbox's mocapbank file: `LeftShoulder` is its
+    // upper arm, no toes) is recognised by its shape and streams too, saying so.
+    let other = open_page_with(
+        &modules,
+        "frames=200&rule=follow",
+        Vec::new(),
+        None,
+        &[(
+            "TROUPE_DROP",
+            folder.join("test_mocapbank.bvh").to_str().unwrap(),
+        )],
+    );
+    assert_eq!(text(&other, "actor"), "test_mocapbank.bvh");
+    assert!(number(&other, "tokens") >= 5.0);
 }
 
 /// A file the page cannot use is said so in the status line, and the stage does not stay empty:
