@@ -851,3 +851,91 @@ fn rigs_the_names_do_not_map_are_recognised_by_their_shape() {
     assert!(named.inferred.is_empty());
     assert_eq!(numbered.positions, named.positions);
 }
+
+/// Every BVH file of the registry packages the tests fetch (bvhtools, bvhtoolbox: LAFAN1,
+/// Mixamo, mocapbank, Rigify and hand-made takes; used at test time only, never committed) is
+/// read with the built-in map, without a hand-written one; with its joint names replaced by
+/// numbers, each is read again, by its shape alone, and every joint it has lands on the same
+/// rig joint as by its names (joints inferred along a chain may be placed from other joints).
+#[test]
+fn every_registry_bvh_reads_without_a_joint_map_and_by_its_shape_alone() {
+    let files = [
+        ("bvhtools==1.6.0", "tutorials/test1.bvh"),
+        ("bvhtools==1.6.0", "tutorials/test2.bvh"),
+        ("bvhtools==1.6.0", "testBvhFiles/test.bvh"),
+        ("bvhtools==1.6.0", "testBvhFiles/test2.bvh"),
+        ("bvhtools==1.6.0", "testBvhFiles/test3.bvh"),
+        ("bvhtoolbox==0.1.3", "tests/example_files/test_freebvh.bvh"),
+        (
+            "bvhtoolbox==0.1.3",
+            "tests/example_files/test_mocapbank.bvh",
+        ),
+    ];
+    println!("| file | joints | by the built-in names | by shape alone |");
+    for (package, file) in files {
+        let path = common::pypi_sdist(package).join(file);
+        let text = std::fs::read_to_string(&path).unwrap();
+        let bvh = parse_bvh(text.as_bytes(), file).unwrap();
+        let named = bvh.to_t2m22(&JointMap::builtin(), None, file);
+        let mut count = 0;
+        let numbered: String = text
+            .lines()
+            .map(|line| {
+                let trimmed = line.trim_start();
+                for kind in ["ROOT ", "JOINT "] {
+                    if trimmed.starts_with(kind) {
+                        count += 1;
+                        return format!("{kind}bone{count}\n");
+                    }
+                }
+                format!("{line}\n")
+            })
+            .collect();
+        let shaped = parse_bvh(numbered.as_bytes(), file).unwrap().to_t2m22(
+            &JointMap::builtin(),
+            None,
+            file,
+        );
+        let said = |r: &troupe::Result<troupe::motion::bvh::BvhJoints>| match r {
+            Ok(j)
+                if j.inferred
+                    .first()
+                    .is_some_and(|l| l.starts_with("joints recognised")) =>
+            {
+                format!("by shape, {} inferred", j.inferred.len() - 1)
+            }
+            Ok(j) => format!("yes, {} inferred", j.inferred.len()),
+            Err(e) => format!("no: {e}"),
+        };
+        println!(
+            "| {package} {file} | {} | {} | {} |",
+            bvh.joints.len(),
+            said(&named),
+            said(&shaped)
+        );
+        let (named, shaped) = (named.unwrap(), shaped.unwrap());
+        // The joints both readings take from the rig itself agree exactly.
+        let own = |j: &troupe::motion::bvh::BvhJoints| -> Vec<bool> {
+            let lines = j.inferred.join("\n");
+            troupe::motion::Skeleton::t2m22()
+                .names()
+                .iter()
+                .map(|n| !lines.lines().any(|l| l.starts_with(&format!("{n} "))))
+                .collect()
+        };
+        let (a, b) = (own(&named), own(&shaped));
+        for j in 0..22 {
+            if a[j] && b[j] {
+                for t in [0, named.positions.shape()[0] - 1] {
+                    for d in 0..3 {
+                        assert_eq!(
+                            named.positions[[t, j, d]],
+                            shaped.positions[[t, j, d]],
+                            "{file}: t2m joint {j}, frame {t}"
+                        );
+                    }
+                }
+            }
+        }
+    }
+}

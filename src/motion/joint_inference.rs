@@ -65,6 +65,8 @@ pub struct RigShape<'a> {
     /// frame), for recognising its joints by their shape when the names do not say (empty: names
     /// only).
     pub pose: &'a [Vec3],
+    /// Each joint's end site in that pose, where it has one (empty with an empty `pose`).
+    pub pose_end_sites: &'a [Option<Vec3>],
 }
 
 impl RigShape<'_> {
@@ -174,15 +176,19 @@ impl JointMap {
         if rig.pose.len() != rig.names.len() {
             return Err(named_error);
         }
-        let by_shape =
-            match crate::motion::shape_map::map_by_shape(rig.names, rig.parents, rig.pose) {
-                Ok(found) => found,
-                Err(why) => {
-                    return Err(Error::InvalidInput(format!(
-                        "{named_error}; nor can its joints be recognised by their shape: {why}"
-                    )))
-                }
-            };
+        let by_shape = match crate::motion::shape_map::map_by_shape(
+            rig.names,
+            rig.parents,
+            rig.pose,
+            rig.pose_end_sites,
+        ) {
+            Ok(found) => found,
+            Err(why) => {
+                return Err(Error::InvalidInput(format!(
+                    "{named_error}; nor can its joints be recognised by their shape: {why}"
+                )))
+            }
+        };
         let t2m = Skeleton::t2m22();
         let said: Vec<String> = by_shape
             .iter()

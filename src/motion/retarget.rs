@@ -228,9 +228,16 @@ impl Retargeter {
         if REQUIRED_JOINTS.iter().any(|&j| found[j].is_none()) {
             // The names do not say: recognise the joints by the shape of the rig's rest pose
             // (metres, Y up), if it has a humanoid's.
-            let (rest, _) = rig.with_format(JointsFormat::default()).rest_world();
+            let canonical = rig.with_format(JointsFormat::default());
+            let (rest, turns) = canonical.rest_world();
+            let ends: Vec<Option<Vec3>> = canonical
+                .end_sites()
+                .iter()
+                .enumerate()
+                .map(|(j, e)| e.map(|e| add(rest[j], turns[j].rotate(e))))
+                .collect();
             if let Ok(by_shape) =
-                crate::motion::shape_map::map_by_shape(rig.names(), rig.parents(), &rest)
+                crate::motion::shape_map::map_by_shape(rig.names(), rig.parents(), &rest, &ends)
             {
                 if REQUIRED_JOINTS.iter().all(|&j| by_shape[j].is_some()) {
                     found = by_shape;

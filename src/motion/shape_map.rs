@@ -43,6 +43,8 @@ const WRISTS: [usize; 2] = [20, 21];
 struct Posed<'a> {
     children: Vec<Vec<usize>>,
     points: &'a [Vec3],
+    /// Each joint's end site, where it has one.
+    ends: &'a [Option<Vec3>],
     /// The lowest and highest heights of each joint's subtree.
     reach: Vec<(f64, f64)>,
     /// The length of the longest path of bones down each joint's subtree, and its next joint.
@@ -51,7 +53,11 @@ struct Posed<'a> {
 
 impl<'a> Posed<'a> {
     /// `None` unless every joint's parent comes before it (as in a BVH file).
-    fn new(parents: &[Option<usize>], points: &'a [Vec3]) -> Option<Self> {
+    fn new(
+        parents: &[Option<usize>],
+        points: &'a [Vec3],
+        ends: &'a [Option<Vec3>],
+    ) -> Option<Self> {
         let n = parents.len();
         let mut children = vec![Vec::new(); n];
         for (j, p) in parents.iter().enumerate() {
@@ -76,6 +82,7 @@ impl<'a> Posed<'a> {
         Some(Self {
             children,
             points,
+            ends,
             reach,
             longest,
         })
@@ -110,15 +117,16 @@ impl<'a> Posed<'a> {
         norm(sub(self.points[b], self.points[a]))
     }
 
-    /// The index `i` in `chain` where bones `chain[i] → chain[i+1] → chain[i+2]` are the
-    /// longest consecutive pair (the upper and lower limb), if the chain has two bones.
+    /// The index `i` where the bones from point `i` of `chain` to point `i + 2` are the
+    /// longest consecutive pair (the upper and lower limb), if the chain has two bones. The
+    /// chain's points are its joints and then the last one's end site, if it has one (a forearm
+    /// without a hand ends there): points `i` and `i + 1` are always joints.
     fn limb(&self, chain: &[usize]) -> Option<usize> {
-        (0..chain.len().checked_sub(2)?).max_by(|&a, &b| {
-            let pair = |i: usize| {
-                self.bone(chain[i], chain[i + 1]) + self.bone(chain[i + 1], chain[i + 2])
-            };
-            pair(a).total_cmp(&pair(b))
-        })
+        let mut points: Vec<Vec3> = chain.iter().map(|&j| self.points[j]).collect();
+        points.extend(chain.last().and_then(|&j| self.ends[j]));
+        let bone = |i: usize| norm(sub(points[i + 1], points[i]));
+        (0..points.len().checked_sub(2)?)
+            .max_by(|&a, &b| (bone(a) + bone(a + 1)).total_cmp(&(bone(b) + bone(b + 1))))
     }
 }
 
@@ -140,15 +148,20 @@ fn side_named(name: &str) -> f64 {
 }
 
 /// For each t2m-22 joint, the rig joint the shape of `names`/`parents` in the pose `points`
-/// (one per joint, Y up) says it is (`None`: the rig has no such joint, to be placed from its
-/// neighbours), or why the rig is not a humanoid.
+/// (one per joint, Y up; `ends`, each joint's end site in that pose, where it has one) says it
+/// is (`None`: the rig has no such joint, to be placed from its neighbours), or why the rig is
+/// not a humanoid.
 pub(crate) fn map_by_shape(
     names: &[String],
     parents: &[Option<usize>],
     points: &[Vec3],
+    ends: &[Option<Vec3>],
 ) -> std::result::Result<Vec<Option<usize>>, String> {
     let n = names.len();
-    let rig = Posed::new(parents, points)
+    if points.len() != n || ends.len() != n {
+        return Err("the pose does not have a point per joint".into());
+    }
+    let rig = Posed::new(parents, points, ends)
         .ok_or("its joints are not listed parents first, as a BVH file lists them")?;
     let (lowest, highest) = (0..n)
         .filter(|&j| parents[j].is_none())
@@ -254,8 +267,8 @@ pub(crate) fn map_by_shape(
     let mut forward = [0.0, 0.0];
     for chain in &leg_chains {
         if let Some(at) = rig.limb(chain) {
-            if let Some(&toe) = chain.get(at + 3) {
-                let (a, t) = (points[chain[at + 2]], points[toe]);
+            if let (Some(&ankle), Some(&toe)) = (chain.get(at + 2), chain.get(at + 3)) {
+                let (a, t) = (points[ankle], points[toe]);
                 forward[0] += t[0] - a[0];
                 forward[1] += t[2] - a[2];
             }
@@ -302,7 +315,7 @@ pub(crate) fn map_by_shape(
         };
         map[HIPS[s]] = Some(chain[at]);
         map[KNEES[s]] = Some(chain[at + 1]);
-        map[ANKLES[s]] = Some(chain[at + 2]);
+        map[ANKLES[s]] = chain.get(at + 2).copied();
         map[TOES[s]] = chain.get(at + 3).copied();
     }
     for (s, chain) in order(arms).iter().enumerate() {
@@ -315,7 +328,7 @@ pub(crate) fn map_by_shape(
         map[COLLARS[s]] = at.checked_sub(1).map(|c| chain[c]);
         map[SHOULDERS[s]] = Some(chain[at]);
         map[ELBOWS[s]] = Some(chain[at + 1]);
-        map[WRISTS[s]] = Some(chain[at + 2]);
+        map[WRISTS[s]] = chain.get(at + 2).copied();
     }
     Ok(map)
 }
@@ -329,7 +342,7 @@ mod tests {
         let names: Vec<String> = joints.iter().map(|j| j.0.to_string()).collect();
         let parents: Vec<Option<usize>> = joints.iter().map(|j| j.1).collect();
         let points: Vec<Vec3> = joints.iter().map(|j| j.2).collect();
-        map_by_shape(&names, &parents, &points).unwrap()
+        map_by_shape(&names, &parents, &points, &vec![None; points.len()]).unwrap()
     }
 
     /// Names that say nothing, a collar on each arm, two spine joints, no toes, in an order no
@@ -395,6 +408,7 @@ mod tests {
                 [0.0, 2.0, 0.0],
                 [0.0, 3.0, 0.0],
             ],
+            &[None; 4],
         );
         assert!(chain.unwrap_err().contains("no joint branches"));
         // A four-legged figure: hind legs down from the hips, the spine level with them.
@@ -423,6 +437,7 @@ mod tests {
                 [0.0, 0.65, 0.8],
                 [0.0, 0.7, 0.9],
             ],
+            &[None; 9],
         );
         assert!(dog.unwrap_err().contains("does not rise above its hips"));
         // Two people under one root (a scene): which one is meant is not for troupe to guess.
@@ -438,7 +453,7 @@ mod tests {
                 points.push([p[0] + shift, p[1], p[2]]);
             }
         }
-        let two = map_by_shape(&names, &parents, &points).unwrap_err();
+        let two = map_by_shape(&names, &parents, &points, &vec![None; points.len()]).unwrap_err();
         assert!(two.contains("holds 2 figures"), "{two}");
     }
 }

@@ -150,6 +150,19 @@ impl Bvh {
         out
     }
 
+    /// World positions of every joint and of its end site, where it has one, in frame `t`
+    /// (file units and axes).
+    fn pose_with_end_sites(&self, t: usize) -> (Vec<Vec3>, Vec<Option<Vec3>>) {
+        let (pos, rot) = self.pose(t);
+        let ends = self
+            .joints
+            .iter()
+            .enumerate()
+            .map(|(j, joint)| joint.end_site.map(|e| add(pos[j], rot[j].rotate(e))))
+            .collect();
+        (pos, ends)
+    }
+
     /// World positions and rotations of every joint in frame `t` (file units and axes).
     fn pose(&self, t: usize) -> (Vec<Vec3>, Vec<Quat>) {
         let n = self.joints.len();
@@ -219,25 +232,20 @@ impl Bvh {
         let parents: Vec<Option<usize>> = self.joints.iter().map(|j| j.parent).collect();
         let end_sites: Vec<bool> = self.joints.iter().map(|j| j.end_site.is_some()).collect();
         // The first frame, a standing person in a mocap file, shows the rig's shape.
-        let first_pose = self.pose(0).0;
+        let (first_pose, first_ends) = self.pose_with_end_sites(0);
         let resolved = map.resolve_inferring(
             RigShape {
                 names: &names,
                 parents: &parents,
                 end_sites: &end_sites,
                 pose: &first_pose,
+                pose_end_sites: &first_ends,
             },
             label,
         )?;
         let mut positions = Array3::<f32>::zeros((frames, resolved.sources.len(), 3));
         for t in 0..frames {
-            let (pos, rot) = self.pose(t);
-            let ends: Vec<Option<Vec3>> = self
-                .joints
-                .iter()
-                .enumerate()
-                .map(|(j, joint)| joint.end_site.map(|e| add(pos[j], rot[j].rotate(e))))
-                .collect();
+            let (pos, ends) = self.pose_with_end_sites(t);
             for (k, source) in resolved.sources.iter().enumerate() {
                 let p = source.position(&pos, &ends);
                 for d in 0..3 {
