@@ -766,6 +766,24 @@ fn frame_times_are_read_as_the_rate_their_author_meant() {
     );
 }
 
+/// A BVH file's text with every joint renamed `bone1`, `bone2`, ... in file order: only the
+/// hierarchy's shape can say which joint is which.
+fn numbered(text: &str) -> String {
+    let mut count = 0;
+    text.lines()
+        .map(|line| {
+            let trimmed = line.trim_start();
+            for kind in ["ROOT ", "JOINT "] {
+                if trimmed.starts_with(kind) {
+                    count += 1;
+                    return format!("{kind}bone{count}\n");
+                }
+            }
+            format!("{line}\n")
+        })
+        .collect()
+}
+
 /// A rig whose names the joint map does not know is recognised by the shape of its hierarchy:
 /// bvhtoolbox's mocapbank file (`Chest`, `Chest2`, `LeftCollar`, `LeftShoulder` as the upper
 /// arm, no toes), which the names alone refuse, and Mixamo's rig with every joint renamed to a
@@ -824,21 +842,7 @@ fn rigs_the_names_do_not_map_are_recognised_by_their_shape() {
 
     // Mixamo's rig with its names replaced by numbers: the same t2m-22 positions as by name.
     let path = folder.join("test_freebvh.bvh");
-    let text = std::fs::read_to_string(&path).unwrap();
-    let mut count = 0;
-    let renamed: String = text
-        .lines()
-        .map(|line| {
-            let trimmed = line.trim_start();
-            for kind in ["ROOT ", "JOINT "] {
-                if trimmed.starts_with(kind) {
-                    count += 1;
-                    return format!("{kind}bone{count}\n");
-                }
-            }
-            format!("{line}\n")
-        })
-        .collect();
+    let renamed = numbered(&std::fs::read_to_string(&path).unwrap());
     let named = read_bvh(&path)
         .unwrap()
         .to_t2m22(&JointMap::builtin(), None, "test_freebvh.bvh")
@@ -877,25 +881,9 @@ fn every_registry_bvh_reads_without_a_joint_map_and_by_its_shape_alone() {
         let text = std::fs::read_to_string(&path).unwrap();
         let bvh = parse_bvh(text.as_bytes(), file).unwrap();
         let named = bvh.to_t2m22(&JointMap::builtin(), None, file);
-        let mut count = 0;
-        let numbered: String = text
-            .lines()
-            .map(|line| {
-                let trimmed = line.trim_start();
-                for kind in ["ROOT ", "JOINT "] {
-                    if trimmed.starts_with(kind) {
-                        count += 1;
-                        return format!("{kind}bone{count}\n");
-                    }
-                }
-                format!("{line}\n")
-            })
-            .collect();
-        let shaped = parse_bvh(numbered.as_bytes(), file).unwrap().to_t2m22(
-            &JointMap::builtin(),
-            None,
-            file,
-        );
+        let shaped = parse_bvh(numbered(&text).as_bytes(), file)
+            .unwrap()
+            .to_t2m22(&JointMap::builtin(), None, file);
         let said = |r: &troupe::Result<troupe::motion::bvh::BvhJoints>| match r {
             Ok(j)
                 if j.inferred
