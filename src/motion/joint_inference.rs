@@ -171,11 +171,9 @@ impl JointMap {
         let by_names = self.resolve_partial(rig.names);
         let named_error = match self.place(rig, by_names, label) {
             Ok(resolved) => return Ok(resolved),
-            Err(e) => e,
+            Err(Error::InvalidInput(message)) if rig.pose.len() == rig.names.len() => message,
+            Err(e) => return Err(e),
         };
-        if rig.pose.len() != rig.names.len() {
-            return Err(named_error);
-        }
         let by_shape = match crate::motion::shape_map::map_by_shape(
             rig.names,
             rig.parents,
