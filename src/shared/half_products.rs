@@ -601,6 +601,7 @@ mod tests {
 
     /// The builds this CPU can run.
     fn builds() -> Vec<Isa> {
+        #[cfg_attr(not(target_arch = "x86_64"), allow(unused_mut))]
         let mut builds = vec![Isa::Portable];
         #[cfg(target_arch = "x86_64")]
         {
