@@ -224,20 +224,15 @@ impl Retargeter {
                 options.fps, options.max_pin_stretch, options.release_frames
             )));
         }
+        let canonical_rig = rig.with_format(JointsFormat::default());
+        let (rest_pos, rest_rot) = canonical_rig.rest_world();
         let mut found = map.resolve_partial(rig.names());
         if REQUIRED_JOINTS.iter().any(|&j| found[j].is_none()) {
             // The names do not say: recognise the joints by the shape of the rig's rest pose
             // (metres, Y up), if it has a humanoid's.
-            let canonical = rig.with_format(JointsFormat::default());
-            let (rest, turns) = canonical.rest_world();
-            let ends: Vec<Option<Vec3>> = canonical
-                .end_sites()
-                .iter()
-                .enumerate()
-                .map(|(j, e)| e.map(|e| add(rest[j], turns[j].rotate(e))))
-                .collect();
+            let ends = canonical_rig.end_site_positions(&rest_pos, &rest_rot);
             if let Ok(by_shape) =
-                crate::motion::shape_map::map_by_shape(rig.names(), rig.parents(), &rest, &ends)
+                crate::motion::shape_map::map_by_shape(rig.names(), rig.parents(), &rest_pos, &ends)
             {
                 if REQUIRED_JOINTS.iter().all(|&j| by_shape[j].is_some()) {
                     found = by_shape;
@@ -283,8 +278,6 @@ impl Retargeter {
                 }
             }
         }
-        let canonical_rig = rig.with_format(JointsFormat::default());
-        let (rest_pos, rest_rot) = canonical_rig.rest_world();
         let src_rest = source.rest_positions();
 
         // The rotation taking the rig's rest body frame onto the source's: hips across, spine up.

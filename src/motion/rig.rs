@@ -391,17 +391,28 @@ impl Rig {
         self.forward_kinematics(&self.rotations, None)
     }
 
+    /// Where each joint's end site is, for joints that have one, in the pose whose world
+    /// positions and rotations are `pos` and `rot` (as [`Rig::forward_kinematics`] gives them).
+    pub fn end_site_positions(&self, pos: &[Vec3], rot: &[Quat]) -> Vec<Option<Vec3>> {
+        self.end_sites
+            .iter()
+            .enumerate()
+            .map(|(j, e)| e.map(|e| add(pos[j], rot[j].rotate(e))))
+            .collect()
+    }
+
     /// The rest pose's height (highest minus lowest joint or end site along the up axis), in
     /// metres.
     pub fn height_metres(&self) -> f64 {
         let canonical_rig = self.with_format(JointsFormat::default());
         let (pos, rot) = canonical_rig.rest_world();
         let mut points = pos.clone();
-        for (j, e) in canonical_rig.end_sites.iter().enumerate() {
-            if let Some(e) = e {
-                points.push(add(pos[j], rot[j].rotate(*e)));
-            }
-        }
+        points.extend(
+            canonical_rig
+                .end_site_positions(&pos, &rot)
+                .into_iter()
+                .flatten(),
+        );
         let (lo, hi) = points
             .iter()
             .fold((f64::INFINITY, f64::NEG_INFINITY), |a, p| {

@@ -473,8 +473,9 @@ fn with_one_row(model: &TypedModel) -> std::result::Result<TypedModel, String> {
 /// Gives back to a `float16` graph's matrix products the weights its file stores in 16 bits.
 /// Building the graph folds each `Cast` of a float16 initializer into a float32 constant; every
 /// matrix-product constant whose values are all float16 values (those, and no float32 weight,
-/// since a float32 weight rounded to 16 bits would not be) becomes float16 again, so that tract
-/// packs 16-bit weights and picks its float16 × float32 kernels. The values are unchanged.
+/// since a float32 weight rounded to 16 bits would not be) becomes float16 again, for troupe's
+/// float16 products (`shared/half_products.rs`) or, for the products those do not take,
+/// tract's float16 × float32 kernels. The values are unchanged.
 pub(crate) fn keep_float16_weights(model: &mut TypedModel) -> std::result::Result<(), String> {
     use half::slice::HalfFloatSliceExt;
     use tract_onnx::prelude::f16;

@@ -493,11 +493,21 @@ pub(crate) fn use_half_products(model: &mut TypedModel) -> TractResult<usize> {
         if k == 0 || n < PANEL / 2 {
             continue;
         }
+        // The weight's values row-major (a constant's always are; copied in order if not):
+        // indexing a dynamic-rank view per element made packing a visible part of the load.
         let view = weight.to_plain_array_view::<f16>()?;
+        let copy: Vec<f16>;
+        let values = match view.as_slice() {
+            Some(values) => values,
+            None => {
+                copy = view.iter().copied().collect();
+                &copy
+            }
+        };
         let matrix = if transposed {
-            HalfMatrix::pack(k, n, |kk, nn| view[[nn, kk]])
+            HalfMatrix::pack(k, n, |kk, nn| values[nn * k + kk])
         } else {
-            HalfMatrix::pack(k, n, |kk, nn| view[[kk, nn]])
+            HalfMatrix::pack(k, n, |kk, nn| values[kk * n + nn])
         };
         let op = HalfProduct {
             weight: Arc::new(matrix),

@@ -23,6 +23,7 @@ onto it a clip or a frame at a time, and glTF (.glb) and BVH files of it:
 from __future__ import annotations
 
 import ctypes
+import json
 import os
 import warnings
 from typing import Any, NamedTuple
@@ -152,7 +153,6 @@ def _joint_map(joint_map: str | os.PathLike | dict | None) -> bytes | None:
     if joint_map is None:
         return None
     if isinstance(joint_map, dict):
-        import json
         return json.dumps(joint_map).encode()
     if isinstance(joint_map, str) and joint_map.lstrip().startswith("{"):
         return joint_map.encode()
@@ -288,8 +288,8 @@ def read_bvh(path: str | os.PathLike, units: str | None = None,
     """A BVH take as t2m-22 joint positions: (positions [T, 22, 3] in the file's units and axes,
     its JointsFormat). `units`: the file's ("m", "cm", ...), or None to guess from the figure's
     height; `joint_map`: a joint map (JSON text, a dict, or a JSON file's path) to use instead of
-    the built-in one. Joints the rig
-    lacks are placed from the others (`read_bvh_take` says which)."""
+    the built-in one. Joints the rig lacks are placed from the others (`read_bvh_take` says
+    which)."""
     take = read_bvh_take(path, units, joint_map)
     return take.positions, take.format
 
