@@ -5,11 +5,14 @@
 //! - the protocol checks (`tests/python/serving_checks.py`): every bad message refused with an
 //!   error naming it, the gateway still serving; a dropped connection re-attached and continued
 //!   bit for bit; snapshots kept in a folder and deleted with their stream;
-//! - the load test (`python -m troupe.serve.bench`): simulated 30 Hz clients, a fixed count for
-//!   a fixed time on loopback; every token acknowledged once and every stream equal, bit for
-//!   bit, to a plain session run uninterrupted. Latency p50/p99 and missed deadlines are
-//!   printed, not asserted (speed lives in benchmarks; here a debug build of troupe's own code
-//!   shares two cores with Ray);
+//! - the load test (`python -m troupe.serve.bench --hostile`): simulated 30 Hz clients, a fixed
+//!   count for a fixed time on loopback, beside two hostile tenants (one asking for 10,000 steps
+//!   with guidance, then streaming at the most the limits allow; one opening 200 streams); every
+//!   token acknowledged once and every stream equal, bit for bit, to a plain session run
+//!   uninterrupted; the heavy options and the flood beyond the per-client limit refused.
+//!   Latency p50/p99 and missed deadlines are printed, not asserted (speed lives in benchmarks;
+//!   here a debug build of troupe's own code shares two cores with Ray; docs/SERVING.md has the
+//!   release figures with and without the limits);
 //! - the chaos test: the same, and the node of the busiest worker is killed mid-stream (its
 //!   worker process and its raylet at once). Its streams must be restored on the survivor with
 //!   no frame lost and none duplicated, and still equal the uninterrupted streams bit for bit.
@@ -123,14 +126,38 @@ fn a_local_cluster_serves_streams_exactly_once_and_survives_a_node_dying() {
         "onnx/bundles/armflow-tiny",
         snapshots.to_str().unwrap(),
     ]);
-    assert!(checks.contains("serving checks: 24 passed"), "{checks}");
+    assert!(checks.contains("serving checks: 37 passed"), "{checks}");
 
-    // The demo model, its rules in turn, guard and smoothing on: what a service would run.
+    // The demo model, its rules in turn, guard and smoothing on: what a service would run, with
+    // a heavy and a flooding tenant beside the clients.
     let bundle = "onnx/bundles/armflow-demo";
-    let load = bench(bundle, &[], &scratch.path().join("load.json"));
+    let load = bench(
+        bundle,
+        &["--hostile", "--flood", "200"],
+        &scratch.path().join("load.json"),
+    );
     assert_exactly_once_and_equal(&load);
     assert_eq!(load["streams_resumed"], 0, "{load:#}");
-    print_figures("load", &load);
+    let hostile = &load["hostile"];
+    let refusal = hostile["heavy"]["refused"].as_str().unwrap();
+    assert!(
+        refusal.contains("steps 10000 is above this service's limit of 8"),
+        "{hostile:#}"
+    );
+    assert_eq!(hostile["heavy"]["steps"], 8, "{hostile:#}");
+    assert_eq!(hostile["flood"]["opened"], 32, "{hostile:#}");
+    assert_eq!(hostile["flood"]["refused"], 200 - 32, "{hostile:#}");
+    print_figures("load beside a heavy and a flooding tenant", &load);
+    println!(
+        "hostile tenants: the heavy one refused at 10000 steps, then {} tokens at 8 steps \
+         ({}); the flood: {} of 200 streams opened",
+        hostile["heavy"]["tokens_acknowledged"],
+        match hostile["heavy"]["ended"].as_str().unwrap() {
+            "" => "not ended",
+            why => why,
+        },
+        hostile["flood"]["opened"],
+    );
 
     let chaos = bench(
         bundle,

@@ -5,13 +5,19 @@
 
 Every bad message gets an `error` naming the fault and leaves the gateway serving; a client whose
 connection drops re-attaches to its stream and goes on bit for bit; snapshots are files while a
-stream lives and gone once it closes. Prints one line per check and `serving checks: N passed`.
+stream lives and gone once it closes. The operator's limits: options beyond them, a client's
+streams beyond its share and a full service are refused at open, each in one log line; a silent
+connection and one that does not read are dropped; a worker ends a stream over its compute
+budget and answers the common crowd before a heavy stream. Prints one line per check and
+`serving checks: N passed`.
 """
 
 from __future__ import annotations
 
 import asyncio
 import json
+import logging
+import socket
 import struct
 import sys
 from pathlib import Path
@@ -21,7 +27,7 @@ import numpy as np
 from websockets.asyncio.client import connect
 
 import troupe
-from troupe.serve import Gateway, ServerError, StreamClient
+from troupe.serve import BudgetExceeded, Gateway, Limits, ServerError, StreamClient, StreamWorker
 from troupe.serve.bench import start_local_cluster
 from troupe.serve.worker import new_session
 
@@ -51,6 +57,66 @@ async def refused(url: str, messages: list[Any], expect: str) -> None:
     check(reply is not None and expect in reply, f"refused ({expect!r}): {reply}")
 
 
+class Lines(logging.Handler):
+    """Keeps the gateway's log records."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.records: list[str] = []
+
+    def emit(self, record: logging.LogRecord) -> None:
+        self.records.append(self.format(record))
+
+
+async def worker_checks(bundle: str, tokens: list[np.ndarray]) -> None:
+    """A worker in this process (no Ray): the budget, and the order in which crowds are stepped."""
+    worker = StreamWorker(bundle, token_budget_ms=1e-6, budget_strikes=2)
+    await worker.open("a", {"seed": 1})
+    await worker.step("a", 0, tokens[0])
+    try:
+        await worker.step("a", 1, tokens[1])
+        check(False, "a stream over its budget two tokens in a row is ended")
+    except BudgetExceeded as e:
+        check("over this service's budget" in str(e) and "a" not in worker.streams,
+              f"a stream over its budget two tokens in a row is ended: {e}")
+    worker.runner.cancel()
+
+    worker = StreamWorker(bundle)
+    await worker.open("light", {"seed": 1})
+    await worker.open("heavy", {"seed": 2, "steps": 8})
+    order: list[str] = []
+
+    async def step(name: str) -> None:
+        await worker.step(name, 0, tokens[0])
+        order.append(name)
+
+    await asyncio.gather(step("heavy"), step("light"))
+    check(order == ["light", "heavy"], f"the crowd on the model's settings is answered first: {order}")
+    worker.runner.cancel()
+
+
+async def slow_reader(url: str, frames: np.ndarray) -> bool:
+    """Opens a stream, sends tokens and never reads; True when the gateway drops it."""
+    from troupe.serve import protocol
+
+    sock = socket.socket()
+    sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)
+    host, port = url.removeprefix("ws://").split(":")
+    sock.connect((host, int(port)))
+    from websockets.asyncio.client import connect
+
+    async with connect(url, sock=sock, max_queue=1, compression=None) as ws:
+        await ws.send(protocol.encode_control("open", options={"seed": 3}))
+        await ws.recv()  # `ready`
+        try:
+            for index in range(5000):
+                await asyncio.wait_for(ws.send(struct.pack("<Q", index) + frames.tobytes()), 10)
+                await asyncio.sleep(0)
+        except Exception:  # the gateway dropped the connection
+            return True
+    return False
+
+
 async def main(bundle: str, snapshot_dir: Path) -> None:
     model = troupe.Model(bundle)
     dim, fpt = model.frame_dim, model.frames_per_token
@@ -58,6 +124,10 @@ async def main(bundle: str, snapshot_dir: Path) -> None:
     tokens = [rng.standard_normal((fpt, dim)).astype(np.float32) for _ in range(10)]
     with new_session(model, {"seed": 5}) as plain:
         want = [plain.step(t) for t in tokens]
+    await worker_checks(bundle, tokens)
+    lines = Lines()
+    logging.getLogger("troupe.serve").addHandler(lines)
+    logging.getLogger("troupe.serve").setLevel(logging.INFO)
 
     gateway = Gateway(bundle, workers=1, snapshot_every=4, snapshot_dir=str(snapshot_dir),
                       worker_options={"num_cpus": 1}, detached_ttl_s=60)
@@ -121,6 +191,32 @@ async def main(bundle: str, snapshot_dir: Path) -> None:
         await asyncio.sleep(0.5)
         check(not (snapshot_dir / f"{stream}.snapshot").exists(), "a closed stream's snapshot is deleted")
         check(gateway.stats()["workers"][0]["alive"], "after every refusal the worker is alive and serving")
+
+        # The operator's limits (Limits' defaults: steps 8, cfg 10, capacity 4096).
+        await refused(url, [json.dumps({"type": "open", "options": {"steps": 10000, "cfg": 2}})],
+                      "steps 10000 is above this service's limit of 8")
+        await refused(url, [json.dumps({"type": "open", "options": {"cfg": 11.5}})], "above this service's limit of 10")
+        await refused(url, [json.dumps({"type": "open", "options": {"capacity": 5000}})], "limit of 4096")
+        # Streams the refused connections above left detached still count until they expire.
+        held = gateway.client_streams.get("127.0.0.1", 0)
+        gateway.limits = gateway.limits.with_(max_streams_per_client=held + 2)
+        async with StreamClient(url, {"seed": 1}), StreamClient(url, {"seed": 2}):
+            await refused(url, [opening], f"this client holds {held + 2} streams, this service's limit per client")
+        await asyncio.sleep(0.3)
+        async with StreamClient(url, {"seed": 3}, local_address="127.0.0.2"):
+            check(True, "another address opens its own streams")
+        async with StreamClient(url, {"seed": 4}):
+            check(True, "a client's closed streams no longer count against it")
+        gateway.limits = gateway.limits.with_(max_streams_per_worker=len(gateway.workers[0].streams))
+        await refused(url, [opening], "no live worker has room")
+        gateway.limits = gateway.limits.with_(max_streams_per_worker=None, idle_s=0.5)
+        await refused(url, [opening], "no message for 0.5 s, this service's idle limit")
+        gateway.limits = gateway.limits.with_(idle_s=None, slow_reader_s=0.5)
+        check(await slow_reader(url, tokens[0]), "a client that does not read is dropped")
+        check(any("slow-reader limit" in line for line in lines.records), "the dropped reader is logged")
+        refusals = [line for line in lines.records if "open refused" in line]
+        check(len(refusals) == gateway.refused and all("\n" not in line for line in refusals),
+              f"every refused open ({gateway.refused}) is one log line")
     finally:
         serving.cancel()
     print(f"serving checks: {passed} passed")

@@ -16,12 +16,15 @@ from __future__ import annotations
 
 from .client import ServerError, StreamClient
 from .gateway import Gateway, NoWorkers, StreamMoved
+from .limits import BudgetExceeded, Limits
 from .snapshots import DirectorySnapshots, ObjectStoreSnapshots
 from .worker import StreamWorker
 
 __all__ = [
+    "BudgetExceeded",
     "DirectorySnapshots",
     "Gateway",
+    "Limits",
     "NoWorkers",
     "ObjectStoreSnapshots",
     "ServerError",

@@ -13,6 +13,9 @@ from __future__ import annotations
 import argparse
 import asyncio
 import logging
+from typing import Any
+
+from .limits import Limits
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -22,12 +25,35 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--address", default="auto", help="the Ray cluster (ray.init's address)")
     ap.add_argument("--workers", type=int, default=2, help="worker actors (one model and one crowd each)")
     ap.add_argument("--cpus-per-worker", type=float, default=1.0)
-    ap.add_argument("--max-streams-per-worker", type=int, help="refuse new streams beyond this many per worker")
+    defaults = Limits()
+    limits = ap.add_argument_group("limits", "what one stream and one client may cost (docs/SERVING.md); "
+                                   "a value of 0 lifts that bound")
+    limits.add_argument("--max-steps", type=int, default=defaults.max_steps, help="solver steps per token")
+    limits.add_argument("--max-cfg", type=float, default=defaults.max_cfg, help="largest guidance scale")
+    limits.add_argument("--max-capacity", type=int, default=defaults.max_capacity, help="tokens of context cache")
+    limits.add_argument("--token-budget-ms", type=float, default=defaults.token_budget_ms,
+                        help="compute one stream's token may take; a stream over it "
+                             f"{defaults.budget_strikes} tokens in a row is ended")
+    limits.add_argument("--max-streams-per-worker", type=int, default=defaults.max_streams_per_worker)
+    limits.add_argument("--max-streams-per-client", type=int, default=defaults.max_streams_per_client,
+                        help="streams one remote address may hold at once")
+    limits.add_argument("--slow-reader-s", type=float, default=defaults.slow_reader_s,
+                        help="seconds an acknowledgement may wait for a client that does not read")
+    limits.add_argument("--idle-s", type=float, default=defaults.idle_s,
+                        help="seconds a connection may send nothing")
+    limits.add_argument("--no-limits", action="store_true", help="lift every bound (for measurements only)")
     ap.add_argument("--snapshot-every", type=int, default=8, help="tokens between a stream's snapshots")
     ap.add_argument("--snapshot-dir", help="keep snapshots in this folder instead of Ray's object store")
     ap.add_argument("--host", default="127.0.0.1")
     ap.add_argument("--port", type=int, default=8765)
     args = ap.parse_args(argv)
+    if args.no_limits:
+        chosen = Limits.unlimited()
+    else:
+        bounds: dict[str, Any] = {name: (getattr(args, name) or None) for name in (
+            "max_steps", "max_cfg", "max_capacity", "token_budget_ms", "max_streams_per_worker",
+            "max_streams_per_client", "slow_reader_s", "idle_s")}
+        chosen = Limits(**bounds)
     logging.basicConfig(level=logging.INFO, format="%(asctime)s %(name)s %(levelname)s %(message)s")
 
     import ray
@@ -37,7 +63,7 @@ def main(argv: list[str] | None = None) -> None:
     ray.init(address=args.address)
     gateway = Gateway(args.bundle, workers=args.workers, snapshot_every=args.snapshot_every,
                       snapshot_dir=args.snapshot_dir, worker_options={"num_cpus": args.cpus_per_worker},
-                      max_streams_per_worker=args.max_streams_per_worker)
+                      limits=chosen)
 
     async def run() -> None:
         await gateway.start()

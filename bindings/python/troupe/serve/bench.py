@@ -7,6 +7,9 @@
         --kill-at 6
     # against a running service (`python -m troupe.serve`), from any machine
     python -m troupe.serve.bench --bundle onnx/bundles/armflow-demo --url ws://gateway:8765 --clients 500
+    # the hostile-tenant case: beside the clients, one heavy and one flooding tenant
+    python -m troupe.serve.bench --bundle onnx/bundles/armflow-demo --local-cluster 2 --clients 12 --hostile \
+        [--no-limits]
 
 Each client is a player at 30 frames per second: it sends one token of actor frames every
 frames-per-token / 30 s, on its own clock (clients start spread over one period), and needs the
@@ -20,6 +23,14 @@ Prints a JSON report (and writes it with --json): token latency p50/p99/max, mis
 frames lost and duplicated, whether the streams equal the uninterrupted ones, and for --kill-at
 the streams moved and the recovery time (from the kill to each moved stream's next
 acknowledgement).
+
+With --hostile two tenants misbehave beside the clients: a heavy one opens its stream with
+`--heavy-steps` solver steps and guidance (and, when that is refused, with the most the limits
+allow) and streams at 30 Hz like the others; a flooding one opens `--flood` streams as fast as it
+can and never sends a token. Every tenant connects from its own loopback address (127.0.1.x for
+the clients), as tenants of a service do. The report's latency figures are the well-behaved
+clients' only; `hostile` says what the two got. --no-limits serves with `Limits.unlimited()`, to
+measure what the limits buy.
 """
 
 from __future__ import annotations
@@ -39,6 +50,7 @@ from typing import Any
 import numpy as np
 
 from .gateway import Gateway
+from .limits import Limits
 
 FPS = 30.0
 
@@ -53,6 +65,7 @@ class ClientRecord:
     duplicates: int = 0
     resumes: int = 0
     error: str = ""
+    address: str | None = None  # the loopback address it connects from (None: the default)
 
 
 def cpu_name() -> str:
@@ -65,8 +78,9 @@ def cpu_name() -> str:
     return platform.processor() or platform.machine()
 
 
-def client_plan(bundle: str, clients: int, tokens: int) -> list[ClientRecord]:
-    """Each client's options and actor tokens (deterministic)."""
+def client_plan(bundle: str, clients: int, tokens: int, loopback_addresses: bool = False) -> list[ClientRecord]:
+    """Each client's options and actor tokens (deterministic); with `loopback_addresses` each
+    client connects from its own 127.0.1.x."""
     import troupe
 
     with troupe.Model(bundle) as model:
@@ -84,7 +98,8 @@ def client_plan(bundle: str, clients: int, tokens: int) -> list[ClientRecord]:
         if labels:  # a trained model: the rules in turn, with the demo's clean-ups
             options |= {"condition": labels[i % len(labels)], "penetration_guard": True, "root_smoothing": True,
                         "recentring": True}
-        plans.append(ClientRecord(options, [frames[t * fpt:(t + 1) * fpt] for t in range(tokens)]))
+        plans.append(ClientRecord(options, [frames[t * fpt:(t + 1) * fpt] for t in range(tokens)],
+                                  address=f"127.0.1.{1 + i % 250}" if loopback_addresses else None))
     return plans
 
 
@@ -93,7 +108,7 @@ async def run_client(url: str, rec: ClientRecord, start_at: float, period: float
 
     loop = asyncio.get_running_loop()
     try:
-        async with StreamClient(url, rec.options) as client:
+        async with StreamClient(url, rec.options, local_address=rec.address) as client:
             async def sender() -> None:
                 for i, frames in enumerate(rec.tokens):
                     await asyncio.sleep(max(0.0, start_at + i * period - loop.time()))
@@ -112,6 +127,63 @@ async def run_client(url: str, rec: ClientRecord, start_at: float, period: float
             rec.resumes = client.resumes
     except Exception as e:  # reported, and counted as lost frames
         rec.error = f"{type(e).__name__}: {e}"
+
+
+async def heavy_tenant(url: str, rec: ClientRecord, heavy_steps: int, allowed_steps: int | None,
+                       start_at: float, period: float, timeout_s: float, until: asyncio.Event) -> dict:
+    """Asks for `heavy_steps` steps with guidance; refused, takes the most the limits allow.
+    Streams at 30 Hz until its tokens run out, the service ends its stream or `until` is set."""
+    from .client import ServerError
+
+    first: dict = {"asked_steps": heavy_steps, "refused": ""}
+    options = {"seed": 999, "steps": heavy_steps, "cfg": 2.0}
+    if allowed_steps is not None and heavy_steps > allowed_steps:
+        # A refusal is immediate: ask once to record it, then stream at the allowed maximum.
+        from .client import StreamClient
+
+        try:
+            async with StreamClient(url, options, local_address=rec.address):
+                pass
+        except ServerError as e:
+            first["refused"] = str(e)
+        options = options | {"steps": allowed_steps}
+    rec.options = options
+    running = asyncio.create_task(run_client(url, rec, start_at, period, timeout_s))
+    stop = asyncio.create_task(until.wait())
+    await asyncio.wait({running, stop}, return_when=asyncio.FIRST_COMPLETED)
+    for task in (running, stop):
+        task.cancel()
+    await asyncio.gather(running, stop, return_exceptions=True)
+    return first | {"steps": options["steps"], "tokens_acknowledged": len(rec.acked_at), "ended": rec.error}
+
+
+async def flooding_tenant(url: str, streams: int, until: asyncio.Event) -> dict:
+    """Opens `streams` streams as fast as it can from one address and holds them, sending no
+    token, until `until` is set."""
+    from websockets.asyncio.client import connect
+
+    from . import protocol
+
+    held, refused, reasons = [], 0, set()
+    for i in range(streams):
+        try:
+            ws = await connect(url, local_addr=("127.0.2.1", 0), compression=None)
+            await ws.send(protocol.encode_control("open", options={"seed": 10_000 + i}))
+            reply = protocol.decode_control(await asyncio.wait_for(ws.recv(), 30))
+        except Exception as e:  # the service may refuse the connection itself
+            refused += 1
+            reasons.add(type(e).__name__)
+            continue
+        if reply["type"] == "ready":
+            held.append(ws)
+        else:
+            refused += 1
+            reasons.add(reply.get("message", ""))
+            await ws.close()
+    await until.wait()
+    for ws in held:
+        await ws.close()
+    return {"asked": streams, "opened": len(held), "refused": refused, "reasons": sorted(reasons)[:3]}
 
 
 def reference(bundle: str, plans: list[ClientRecord]) -> list[np.ndarray]:
@@ -199,7 +271,9 @@ async def kill_worker_node(gateway: Gateway, cluster: Any, nodes: list[Any]) -> 
 
 async def main_async(args: argparse.Namespace) -> dict:
     period = args.frames_per_token / FPS
-    plans = client_plan(args.bundle, args.clients, int(round(args.seconds / period)))
+    tokens = int(round(args.seconds / period))
+    plans = client_plan(args.bundle, args.clients, tokens, loopback_addresses=args.hostile)
+    limits = Limits.unlimited() if args.no_limits else Limits()
     cluster: Any = None
     serving: asyncio.Task | None = None
     gateway: Gateway | None = None
@@ -210,7 +284,7 @@ async def main_async(args: argparse.Namespace) -> dict:
         if url is None:
             cluster, nodes = start_local_cluster(args.local_cluster)
             gateway = Gateway(args.bundle, workers=args.local_cluster, snapshot_every=args.snapshot_every,
-                              worker_options={"num_cpus": 1})
+                              worker_options={"num_cpus": 1}, limits=limits)
             started = time.monotonic()
             await gateway.start()
             result |= {"workers": args.local_cluster, "snapshot_every": args.snapshot_every,
@@ -222,11 +296,24 @@ async def main_async(args: argparse.Namespace) -> dict:
         t0 = loop.time() + 0.5
         clients = [asyncio.create_task(run_client(url, rec, t0 + period * i / len(plans), period, args.timeout))
                    for i, rec in enumerate(plans)]
+        hostile: list[asyncio.Task] = []
+        finished = asyncio.Event()
+        if args.hostile:
+            heavy = client_plan(args.bundle, 1, tokens)[0]
+            heavy.address = "127.0.3.1"
+            hostile = [asyncio.create_task(heavy_tenant(url, heavy, args.heavy_steps, limits.max_steps, t0,
+                                                        period, args.timeout, finished)),
+                       asyncio.create_task(flooding_tenant(url, args.flood, finished))]
         kill = None
         if args.kill_at is not None and gateway is not None:
             await asyncio.sleep(max(0.0, t0 + args.kill_at - loop.time()))
             kill = await kill_worker_node(gateway, cluster, nodes)
         await asyncio.gather(*clients)
+        finished.set()
+        if hostile:
+            heavy_result, flood_result = await asyncio.gather(*hostile)
+            result["hostile"] = {"limits": "none" if args.no_limits else "default", "heavy": heavy_result,
+                                 "flood": flood_result}
         result |= report(plans, reference(args.bundle, plans), period, kill[1] if kill else None)
         if kill and gateway is not None:
             result["killed"] = kill[0]
@@ -258,6 +345,10 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--snapshot-every", type=int, default=8, help="tokens between a stream's snapshots")
     ap.add_argument("--kill-at", type=float, help="kill the busiest worker's node this many seconds in")
     ap.add_argument("--timeout", type=float, default=60.0, help="longest wait for one acknowledgement")
+    ap.add_argument("--hostile", action="store_true", help="add a heavy and a flooding tenant")
+    ap.add_argument("--heavy-steps", type=int, default=10_000, help="steps the heavy tenant asks for")
+    ap.add_argument("--flood", type=int, default=500, help="streams the flooding tenant opens")
+    ap.add_argument("--no-limits", action="store_true", help="serve with no limits (Limits.unlimited())")
     ap.add_argument("--json", type=Path, help="also write the report here")
     args = ap.parse_args(argv)
     if args.kill_at is not None and args.url is not None:

@@ -20,8 +20,10 @@ class ServerError(RuntimeError):
 
 
 class StreamClient:
-    def __init__(self, url: str, options: dict | None = None, stream: str | None = None):
+    def __init__(self, url: str, options: dict | None = None, stream: str | None = None,
+                 local_address: str | None = None):
         self.url = url
+        self.local_address = local_address  # the address to connect from (tests: one per client)
         self.options = options or {}
         self.stream = stream  # set to re-attach to a stream after a dropped connection
         self.ws: Any = None
@@ -34,7 +36,8 @@ class StreamClient:
     async def __aenter__(self) -> "StreamClient":
         from websockets.asyncio.client import connect
 
-        self.ws = await connect(self.url, max_size=2**24, compression=None)
+        extra: dict[str, Any] = {"local_addr": (self.local_address, 0)} if self.local_address else {}
+        self.ws = await connect(self.url, max_size=2**24, compression=None, **extra)
         opening = {"stream": self.stream} if self.stream else {"options": self.options}
         await self.ws.send(protocol.encode_control("open", **opening))
         ready = self._control(await self.ws.recv())

@@ -7,6 +7,12 @@ the last snapshot (in Ray's object store or a folder) and the actor tokens stepp
 when a worker dies the stream is restored on a survivor, the logged tokens are stepped again there
 (their frames were already sent, so they are dropped) and the client is asked to send again every
 token after the last acknowledged one: no frame is lost and none is sent twice.
+
+Tenants share the workers, so the gateway applies the operator's `Limits`: options beyond the
+bounds, a client's streams beyond its share and a full service are refused when a stream opens
+(in one log line each); a connection that sends nothing, or does not read its acknowledgements,
+is dropped after a bound; the workers end a stream whose tokens keep costing more than the
+per-token budget.
 """
 
 from __future__ import annotations
@@ -23,6 +29,7 @@ from typing import Any
 import numpy as np
 
 from . import protocol
+from .limits import BudgetExceeded, Limits, one_line
 from .snapshots import DirectorySnapshots, ObjectStoreSnapshots
 from .worker import StreamWorker, check_options, settle
 
@@ -36,6 +43,10 @@ class StreamMoved(Exception):
 
 class NoWorkers(RuntimeError):
     """No live worker is left to hold a stream."""
+
+
+class _SlowReader(Exception):
+    """A client left an acknowledgement unread past the slow-reader limit."""
 
 
 @dataclass(eq=False)
@@ -59,6 +70,8 @@ class StreamState:
 
     id: str
     worker: WorkerSlot
+    options: dict = field(default_factory=dict)  # as opened: a restore puts it in the same crowd
+    client: str = ""  # who opened it (`Gateway.client_of`), for the per-client limit
     acked: int = 0  # tokens acknowledged: the index the next token must carry
     snapshot_tokens: int = 0  # tokens the last snapshot holds
     log: list[np.ndarray] = field(default_factory=list)  # actor tokens since that snapshot
@@ -84,12 +97,16 @@ class Gateway:
         await gateway.serve("0.0.0.0", 8765)      # until cancelled
 
     `worker_options` go to `ray.remote(...).options` (default: one CPU each, spread over the
-    nodes); `snapshot_dir` keeps snapshots in a folder instead of the object store.
+    nodes); `snapshot_dir` keeps snapshots in a folder instead of the object store; `limits` are
+    what one stream and one client may cost (`Limits()`'s defaults when not given;
+    `Limits.unlimited()` lifts every bound). `max_streams_per_worker`, when given, overrides the
+    limits' value.
     """
 
     def __init__(self, bundle: str, workers: int = 2, snapshot_every: int = 8, snapshot_dir: str | None = None,
                  worker_options: dict | None = None, step_timeout_s: float = 10.0,
-                 max_streams_per_worker: int | None = None, detached_ttl_s: float = 30.0, gather_s: float = 0.002):
+                 max_streams_per_worker: int | None = None, detached_ttl_s: float = 30.0, gather_s: float = 0.002,
+                 limits: Limits | None = None):
         # Absolute: workers run in Ray's own folders. On a real cluster the bundle must lie at
         # this path on every node (a shared file system, or the same image everywhere).
         self.bundle = os.path.abspath(bundle)
@@ -98,7 +115,11 @@ class Gateway:
         self.snapshots = DirectorySnapshots(snapshot_dir) if snapshot_dir else ObjectStoreSnapshots()
         self.worker_options = {"num_cpus": 1, "scheduling_strategy": "SPREAD"} | (worker_options or {})
         self.step_timeout_s = step_timeout_s
-        self.max_streams_per_worker = max_streams_per_worker
+        self.limits = limits or Limits()
+        if max_streams_per_worker is not None:
+            self.limits = self.limits.with_(max_streams_per_worker=max_streams_per_worker)
+        self.client_streams: dict[str, int] = {}  # open streams per client
+        self.refused = 0  # opens refused by a limit or for want of room
         self.detached_ttl_s = detached_ttl_s
         self.gather_s = gather_s
         self.workers: list[WorkerSlot] = []
@@ -122,7 +143,9 @@ class Gateway:
 
         remote: Any = ray.remote(StreamWorker).options(**(self.worker_options | options))
         # The gateway already gathers a window per call: the worker only merges calls that meet.
-        handle = remote.remote(self.bundle, self.snapshot_every, self.gather_s / 4)
+        handle = remote.remote(self.bundle, self.snapshot_every, self.gather_s / 4,
+                               token_budget_ms=self.limits.token_budget_ms,
+                               budget_strikes=self.limits.budget_strikes)
         about = await handle.describe.remote()
         if self.identity and about["identity"] != self.identity:
             ray.kill(handle, no_restart=True)
@@ -134,12 +157,15 @@ class Gateway:
         log.info("%s up on node %s (pid %d)", slot.name, slot.node[:8], slot.pid)
         return slot
 
-    def _least_loaded(self, exclude: WorkerSlot | None = None) -> WorkerSlot:
+    def _least_loaded(self, exclude: WorkerSlot | None = None, room: bool = True) -> WorkerSlot:
+        """The live worker holding the fewest streams; with `room`, only one under the per-worker
+        limit (a recovery takes a dead worker's streams whether or not there is room)."""
         alive = [w for w in self.workers if w.alive and w is not exclude]
-        if self.max_streams_per_worker is not None:
-            alive = [w for w in alive if len(w.streams) < self.max_streams_per_worker]
+        cap = self.limits.max_streams_per_worker
+        if room and cap is not None:
+            alive = [w for w in alive if len(w.streams) < cap]
         if not alive:
-            raise NoWorkers("no live worker has room for a stream")
+            raise NoWorkers("no live worker has room for a stream" if room else "no live worker is left")
         return min(alive, key=lambda w: len(w.streams))
 
     def _worker_died(self, slot: WorkerSlot, why: BaseException) -> None:
@@ -171,10 +197,10 @@ class Gateway:
         again (caller holds `st.lock`)."""
         dead, began = st.worker, time.monotonic()
         while True:
-            target = self._least_loaded(exclude=dead)
+            target = self._least_loaded(exclude=dead, room=False)
             try:
                 await self._call(target.handle.restore.remote(st.id, self.snapshots.get(st.id),
-                                                                      st.snapshot_tokens))
+                                                              st.snapshot_tokens, st.options))
                 for i, frames in enumerate(st.log):
                     await self._submit(target, st.id, st.snapshot_tokens + i, frames)
                 break
@@ -215,9 +241,14 @@ class Gateway:
 
     # Streams ------------------------------------------------------------------------------
 
-    async def open_stream(self, options: dict) -> StreamState:
-        """A new stream on the least loaded worker, its first snapshot kept."""
+    async def open_stream(self, options: dict, client: str = "") -> StreamState:
+        """A new stream on the least loaded worker, its first snapshot kept. Refused (ValueError,
+        or NoWorkers when the service is full) beyond the limits, before any worker is asked."""
         check_options(options)
+        self.limits.check_open(options)
+        cap = self.limits.max_streams_per_client
+        if cap is not None and self.client_streams.get(client, 0) >= cap:
+            raise ValueError(f"this client holds {cap} streams, this service's limit per client")
         while True:
             slot = self._least_loaded()
             stream_id = uuid.uuid4().hex
@@ -232,8 +263,9 @@ class Gateway:
                 slot.streams.discard(stream_id)
                 raise
         self.snapshots.put(stream_id, snapshot)
-        st = StreamState(stream_id, slot)
+        st = StreamState(stream_id, slot, dict(options), client)
         self.streams[stream_id] = st
+        self.client_streams[client] = self.client_streams.get(client, 0) + 1
         return st
 
     async def step(self, st: StreamState, token: int, frames: np.ndarray) -> np.ndarray | None:
@@ -276,6 +308,11 @@ class Gateway:
                 return
             st.closed = True
             self.streams.pop(st.id, None)
+            left = self.client_streams.get(st.client, 1) - 1
+            if left > 0:
+                self.client_streams[st.client] = left
+            else:
+                self.client_streams.pop(st.client, None)
             self.snapshots.drop(st.id)
             st.worker.streams.discard(st.id)
             if st.worker.alive:
@@ -300,16 +337,34 @@ class Gateway:
                 ready.set_result(server.sockets[0].getsockname()[1])
             await asyncio.Future()
 
+    @staticmethod
+    def client_of(ws: Any) -> str:
+        """Who a connection is, for the per-client limit: its remote address. Behind a proxy,
+        override this to read what the proxy vouches for (a header, a token)."""
+        address = getattr(ws, "remote_address", None)
+        return str(address[0]) if address else ""
+
     async def connection(self, ws: Any) -> None:
         """One client: `open`, then tokens, then `close` (protocol.py)."""
         from websockets.exceptions import ConnectionClosed
 
         st = None
+        client = self.client_of(ws)
         try:
-            st = await self._attach(ws, protocol.decode_control(await ws.recv()))
-            await ws.send(protocol.encode_control("ready", stream=st.id, next_token=st.acked, frame_dim=self.frame_dim,
-                                                  frames_per_token=self.frames_per_token))
-            async for message in ws:
+            try:
+                st = await self._attach(ws, protocol.decode_control(await self._receive(ws)), client)
+            except ConnectionClosed:
+                raise
+            except Exception as e:  # refused: one line in the log, the reason to the client
+                self.refused += 1
+                log.info("open refused for %s: %s", client or "?", one_line(e))
+                await self._refuse(ws, e)
+                return
+            await self._send(ws, protocol.encode_control("ready", stream=st.id, next_token=st.acked,
+                                                         frame_dim=self.frame_dim,
+                                                         frames_per_token=self.frames_per_token))
+            while True:
+                message = await self._receive(ws)
                 if isinstance(message, str):
                     if protocol.decode_control(message)["type"] == "close":
                         await self.close_stream(st)
@@ -321,25 +376,53 @@ class Gateway:
                 try:
                     out = await self.step(st, token, frames)
                 except StreamMoved:
-                    await ws.send(protocol.encode_control("resume", next_token=st.acked))
+                    await self._send(ws, protocol.encode_control("resume", next_token=st.acked))
                     continue
+                except BudgetExceeded:
+                    await self.close_stream(st)  # the worker has ended it
+                    raise
                 if out is not None:
-                    await ws.send(protocol.encode_token(token, out))
+                    await self._send(ws, protocol.encode_token(token, out))
         except ConnectionClosed:
             pass
-        except Exception as e:  # a bad message, a refused option, no worker left: the client hears why
-            log.info("connection closed on error: %s", e)
-            try:
-                await ws.send(protocol.encode_control("error", message=str(e).strip().splitlines()[-1] if str(e) else repr(e)))
-                await ws.close()
-            except ConnectionClosed:
-                pass
+        except _SlowReader as e:
+            log.info("connection of %s dropped: %s", client or "?", e)
+            ws.transport.abort()  # it does not read: no closing handshake to wait for
+        except Exception as e:  # a bad message, no worker left, the budget: the client hears why
+            log.info("stream %s of %s closed on error: %s", st.id if st else "-", client or "?", one_line(e))
+            await self._refuse(ws, e)
         finally:
             if st is not None and not st.closed:
                 st.attached = False
                 asyncio.get_running_loop().create_task(self._expire(st))
 
-    async def _attach(self, ws: Any, message: dict) -> StreamState:
+    async def _receive(self, ws: Any) -> Any:
+        """The client's next message; a connection silent for `Limits.idle_s` is closed."""
+        try:
+            return await asyncio.wait_for(ws.recv(), self.limits.idle_s)
+        except asyncio.TimeoutError:
+            raise ValueError(f"no message for {self.limits.idle_s:g} s, this service's idle limit") from None
+
+    async def _send(self, ws: Any, message: Any) -> None:
+        """Sends, waiting at most `Limits.slow_reader_s` for a client that does not read."""
+        try:
+            await asyncio.wait_for(ws.send(message), self.limits.slow_reader_s)
+        except asyncio.TimeoutError:
+            raise _SlowReader(f"an acknowledgement waited {self.limits.slow_reader_s:g} s for the client to "
+                              "read, this service's slow-reader limit") from None
+
+    @staticmethod
+    async def _refuse(ws: Any, error: BaseException) -> None:
+        """Tells the client why (one line) and closes."""
+        from websockets.exceptions import ConnectionClosed
+
+        try:
+            await asyncio.wait_for(ws.send(protocol.encode_control("error", message=one_line(error))), 5)
+            await asyncio.wait_for(ws.close(), 5)
+        except (ConnectionClosed, asyncio.TimeoutError):
+            ws.transport.abort()
+
+    async def _attach(self, ws: Any, message: dict, client: str = "") -> StreamState:
         if message["type"] != "open":
             raise ValueError("the first message is `open`")
         if "stream" in message:
@@ -350,12 +433,13 @@ class Gateway:
                 raise ValueError(f"stream {st.id} is attached to another connection")
             st.attached = True
             return st
-        return await self.open_stream(message.get("options", {}))
+        return await self.open_stream(message.get("options", {}), client)
 
     def stats(self) -> dict:
         return {
             "workers": [{"name": w.name, "node": w.node, "pid": w.pid, "alive": w.alive, "streams": len(w.streams)}
                         for w in self.workers],
             "streams": len(self.streams),
+            "refused_opens": self.refused,
             "recoveries": list(self.recoveries),
         }

@@ -4,11 +4,17 @@ Calls to `step` from many streams are gathered for a moment and advanced togethe
 `troupe.step_sessions` call (the weights are read once per token for the whole crowd), on a
 thread so that the actor keeps taking calls meanwhile. Every `snapshot_every` tokens a stream's
 result carries its snapshot, which the gateway keeps where a dead worker cannot take it along.
+
+Streams that chose their own cost (`steps`, `cfg`) are stepped apart from the crowd of streams on
+the model's settings, after it, one crowd per choice: the common streams' tokens are answered
+before a heavy stream's are computed, and every stream's share of each step it took part in is
+measured against the service's per-token budget (`Limits.token_budget_ms`).
 """
 
 from __future__ import annotations
 
 import asyncio
+import ctypes
 import os
 import time
 from concurrent.futures import ThreadPoolExecutor
@@ -18,6 +24,9 @@ from typing import Any
 import numpy as np
 
 import troupe
+from troupe._native import checked_int
+
+from .limits import BudgetExceeded
 
 # What a client may set on its stream; everything else is refused.
 SESSION_OPTIONS = ("seed", "steps", "cfg", "capacity", "condition")
@@ -35,9 +44,11 @@ def check_options(options: Any) -> dict:
     unknown = set(options) - set(SESSION_OPTIONS) - set(SETTERS)
     if unknown:
         raise ValueError(f"unknown stream options {sorted(unknown)}; known: {sorted(SESSION_OPTIONS + tuple(SETTERS))}")
-    for name in ("seed", "steps", "capacity"):
-        if name in options and (not isinstance(options[name], int) or isinstance(options[name], bool)):
-            raise ValueError(f"{name} is an integer")
+    for name, ctype in (("seed", ctypes.c_uint64), ("steps", ctypes.c_uint32), ("capacity", ctypes.c_size_t)):
+        if name in options:
+            if not isinstance(options[name], int) or isinstance(options[name], bool):
+                raise ValueError(f"{name} is an integer")
+            checked_int(name, options[name], ctype)  # refused, not wrapped, where C cannot hold it
     if "cfg" in options and (not isinstance(options["cfg"], (int, float)) or isinstance(options["cfg"], bool)):
         raise ValueError("cfg is a number")
     if "condition" in options and not isinstance(options["condition"], (str, list)):
@@ -62,10 +73,21 @@ def new_session(model: troupe.Model, options: dict) -> troupe.Session:
     return session
 
 
+# The options that change what a token costs: streams that set none of them step together.
+COST_OPTIONS = ("steps", "cfg")
+
+
+def cost_class(options: dict) -> tuple:
+    """The stream's crowd: () for the model's own settings, else the costly options it chose."""
+    return tuple((k, options[k]) for k in COST_OPTIONS if k in options)
+
+
 @dataclass
 class _Stream:
     session: troupe.Session
     tokens: int  # tokens stepped so far: the index the next step must carry
+    crowd: tuple = ()  # `cost_class` of its options
+    over_budget: int = 0  # tokens in a row whose measured share was over the budget
 
 
 @dataclass
@@ -92,9 +114,14 @@ class StreamWorker:
     coroutines: Ray runs them on one event loop, so the crowd's state needs no lock."""
 
     def __init__(self, bundle: str, snapshot_every: int = 8, gather_s: float = 0.002,
-                 compute_threads: int | None = None):
+                 compute_threads: int | None = None, token_budget_ms: float | None = None,
+                 budget_strikes: int = 3):
         if snapshot_every < 1:
             raise ValueError("snapshot_every is at least 1")
+        if budget_strikes < 1:
+            raise ValueError("budget_strikes is at least 1")
+        self.token_budget_s = None if token_budget_ms is None else token_budget_ms / 1e3
+        self.budget_strikes = budget_strikes
         if compute_threads:
             troupe.set_compute_threads(compute_threads)
         self.model = troupe.Model(bundle)
@@ -129,15 +156,16 @@ class StreamWorker:
         if stream in self.streams:
             raise ValueError(f"stream {stream} is already open here")
         session = new_session(self.model, check_options(options))
-        self.streams[stream] = _Stream(session, 0)
+        self.streams[stream] = _Stream(session, 0, cost_class(options))
         return session.snapshot()
 
-    async def restore(self, stream: str, snapshot: bytes, tokens: int) -> None:
-        """Takes over a stream from its snapshot, saved after `tokens` tokens."""
+    async def restore(self, stream: str, snapshot: bytes, tokens: int, options: dict | None = None) -> None:
+        """Takes over a stream from its snapshot, saved after `tokens` tokens (`options`: those
+        it was opened with, which place it in its crowd)."""
         old = self.streams.pop(stream, None)
         if old is not None:
             old.session.close()
-        self.streams[stream] = _Stream(self.model.restore(snapshot), tokens)
+        self.streams[stream] = _Stream(self.model.restore(snapshot), tokens, cost_class(options or {}))
 
     async def close(self, stream: str) -> None:
         entry = self.streams.pop(stream, None)
@@ -146,7 +174,8 @@ class StreamWorker:
 
     async def step(self, stream: str, token: int, frames: np.ndarray) -> tuple[np.ndarray, bytes | None, float]:
         """Token `token` of `stream`: its reactor frames, the stream's snapshot after it when a
-        snapshot is due (else None), and the seconds the crowd step took."""
+        snapshot is due (else None), and the stream's share of the crowd step's seconds.
+        Raises BudgetExceeded (the stream is then ended) when its tokens cost over the budget."""
         entry = self.streams.get(stream)
         if entry is None:
             raise KeyError(f"stream {stream} is not open on this worker")
@@ -182,32 +211,58 @@ class StreamWorker:
                     seen.add(p.stream)
                 self.pending = rest
                 batch = [p for p in batch if p.stream in self.streams and not p.done.cancelled()]
-                if not batch:
-                    continue
+                # The crowd on the model's settings first, then each costlier choice: a heavy
+                # stream's tokens never hold back the common streams' answers.
+                crowds: dict[tuple, list[_Pending]] = {}
+                for p in batch:
+                    crowds.setdefault(self.streams[p.stream].crowd, []).append(p)
+                for key in sorted(crowds, key=lambda k: (k != (), repr(k))):
+                    await self._step_crowd(loop, crowds[key])
+
+    async def _step_crowd(self, loop: asyncio.AbstractEventLoop, crowd: list[_Pending]) -> None:
+        crowd = [p for p in crowd if p.stream in self.streams]  # one may have been ended meanwhile
+        if not crowd:
+            return
+        try:
+            results = await loop.run_in_executor(self.pool, self._step, crowd)
+        except Exception:
+            # The crowd step changed no session; one stream's fault must not fail the others, so
+            # each steps alone and hears only its own error.
+            for p in crowd:
                 try:
-                    results = await loop.run_in_executor(self.pool, self._step, batch)
-                except Exception:
-                    # The crowd step changed no session; one stream's fault must not fail the
-                    # others, so each steps alone and hears only its own error.
-                    for p in batch:
-                        try:
-                            settle(p.done, (await loop.run_in_executor(self.pool, self._step, [p]))[0])
-                        except Exception as e:
-                            settle(p.done, e)
-                    continue
-                for p, result in zip(batch, results):
-                    settle(p.done, result)
+                    settle(p.done, self._charge(p, (await loop.run_in_executor(self.pool, self._step, [p]))[0]))
+                except Exception as e:
+                    settle(p.done, e)
+            return
+        for p, result in zip(crowd, results):
+            settle(p.done, self._charge(p, result))
+
+    def _charge(self, p: _Pending, result: tuple) -> Any:
+        """The token's result, or BudgetExceeded (and the stream ended) when the stream's share
+        of its steps has been over the budget `budget_strikes` tokens in a row."""
+        entry = self.streams.get(p.stream)
+        if entry is None or self.token_budget_s is None:
+            return result
+        share = result[2]
+        entry.over_budget = entry.over_budget + 1 if share > self.token_budget_s else 0
+        if entry.over_budget < self.budget_strikes:
+            return result
+        self.streams.pop(p.stream).session.close()
+        return BudgetExceeded(
+            f"stream {p.stream} ended: {entry.over_budget} tokens in a row took {share * 1e3:.1f} ms or more of "
+            f"compute, over this service's budget of {self.token_budget_s * 1e3:g} ms a token")
 
     def _step(self, batch: list[_Pending]) -> list[tuple[np.ndarray, bytes | None, float]]:
         entries = [self.streams[p.stream] for p in batch]
         start = time.perf_counter()
         outs = troupe.step_sessions([e.session for e in entries], [p.frames for p in batch])
-        seconds = time.perf_counter() - start
+        # Each stream's share of the step: what the budget is measured against.
+        share = (time.perf_counter() - start) / len(batch)
         self.ticks += 1
         self.stepped += len(batch)
         results = []
         for entry, out in zip(entries, outs):
             entry.tokens += 1
             due = entry.tokens % self.snapshot_every == 0
-            results.append((out, entry.session.snapshot() if due else None, seconds))
+            results.append((out, entry.session.snapshot() if due else None, share))
         return results
