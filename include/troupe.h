@@ -401,6 +401,24 @@ typedef void (*troupe_log_fn)(void *user_data, int32_t level, const char *target
 typedef int32_t (*troupe_progress_fn)(void *user_data, uint64_t done, uint64_t total);
 
 /**
+ * What one long call may cost (`troupe_set_call_budget`). A zero field sets no bound.
+ */
+typedef struct troupe_call_budget {
+  /**
+   * The most work one call may take, in the call's own unit: a group's network evaluations,
+   * a clip's tokens × solver steps, a MAGNet generation's sampler iterations, an ARFlow
+   * generation's sampler steps. A call that would take more fails with
+   * `TROUPE_ERR_INVALID_ARG` before it starts.
+   */
+  uint64_t max_work;
+  /**
+   * The most seconds one call may run. A call past it stops at its next unit of work with
+   * `TROUPE_ERR_CANCELLED`, nothing written.
+   */
+  double max_seconds;
+} troupe_call_budget;
+
+/**
  * Routes the library's log lines at `max_level` or more severe (`TROUPE_LOG_ERROR` ..
  * `TROUPE_LOG_DEBUG`) to `callback`, with `user_data` passed back untouched. NULL restores the
  * default: silent (or stderr when the environment sets `TROUPE_LOG=error|warn|info|debug`).
@@ -432,6 +450,26 @@ troupe_status troupe_set_log_callback(troupe_log_fn callback, void *user_data, i
  * ```
  */
 void troupe_set_progress_callback(troupe_progress_fn callback, void *user_data);
+
+/**
+ * Sets the calling thread's call budget (NULL, or all fields zero, removes it): from now on,
+ * `troupe_umf_generate`, `troupe_armflow_clip_generate`, `troupe_magnet_generate` and
+ * `troupe_arflow_generate` made on this thread are refused when they would take more than
+ * `max_work`, and stop once they have run `max_seconds`. A bound set up front, for a service
+ * that runs callers' requests, beside the progress callback's cancelling. Returns `TROUPE_OK`,
+ * or `TROUPE_ERR_INVALID_ARG` when `max_seconds` is negative or not a number (the budget is
+ * then unchanged). The struct is copied; the caller keeps ownership. Per thread, like the last
+ * error; thread-safe.
+ *
+ * ```c
+ * troupe_call_budget budget = { .max_work = 5000, .max_seconds = 2.0 };
+ * troupe_set_call_budget(&budget);
+ * ```
+ *
+ * # Safety
+ * `budget` is NULL or points to a readable `troupe_call_budget`.
+ */
+troupe_status troupe_set_call_budget(const struct troupe_call_budget *budget);
 
 /**
  * Sets how many threads a model load may use: 0 (the default) one per core, 1 only the calling

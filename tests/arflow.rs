@@ -229,6 +229,21 @@ fn bad_input_is_refused() {
         model.arflow().unwrap().generate(long.view(), &o),
         "1 to 256",
     );
+    // A call budget below the sampler's steps refuses the reaction before it starts.
+    let steps = ArflowOptions {
+        steps: Some(20),
+        ..ArflowOptions::default()
+    };
+    let budget = troupe::CallBudget {
+        max_work: 19,
+        max_seconds: 0.0,
+    };
+    refused(
+        troupe::with_call_budget(budget, || {
+            model.arflow().unwrap().generate(actor.view(), &steps)
+        }),
+        "the reaction would take 20 sampler steps, above this thread's call budget of 19",
+    );
     let mut nan = actor.clone();
     nan[[3, 7]] = f32::NAN;
     refused(

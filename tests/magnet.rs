@@ -341,6 +341,31 @@ fn a_generation_reports_progress_and_can_be_cancelled() {
     )
     .expect_err("cancelled");
     assert!(matches!(e, troupe::Error::Cancelled(_)), "{e}");
+
+    // A call budget: 4 sampler iterations are over a budget of 3, refused before any network
+    // call; within it the generation is what it is without one.
+    let generate = || {
+        model
+            .magnet()
+            .unwrap()
+            .generate("dd100", frames.view(), None, &options)
+    };
+    let tight = troupe::CallBudget {
+        max_work: 3,
+        max_seconds: 0.0,
+    };
+    let e = troupe::with_call_budget(tight, generate).expect_err("over the budget");
+    assert!(
+        matches!(&e, troupe::Error::InvalidOption(m)
+            if m.contains("would take 4 sampler iterations, above this thread's call budget of 3")),
+        "{e}"
+    );
+    let roomy = troupe::CallBudget {
+        max_work: 4,
+        max_seconds: 60.0,
+    };
+    let within = troupe::with_call_budget(roomy, generate).unwrap();
+    assert_eq!(within.frames, generate().unwrap().frames);
 }
 
 /// The seed's own normals for `config`, queued in the sampler's order: each draw's size is read

@@ -455,6 +455,92 @@ fn long_calls_report_progress_and_stop_when_the_callback_says_so() {
     assert_eq!(seen.lock().unwrap().len(), 3);
 }
 
+/// A call budget bounds a long call up front: a group or a clip that would take more work is
+/// refused before it starts, and a long solve stops at its time budget; the budget is the
+/// calling thread's and ends with its scope.
+#[test]
+fn long_calls_keep_within_the_threads_call_budget() {
+    let umf =
+        Model::load(Path::new(env!("CARGO_MANIFEST_DIR")).join("onnx/bundles/umf-tiny")).unwrap();
+    let stages = umf.umf().unwrap().spec().pyramid.stages.len();
+    let long = troupe::GroupOptions {
+        prior: Some(vec![troupe::Solver::euler(10_000); stages]),
+        ..troupe::GroupOptions::default()
+    };
+    let work = troupe::CallBudget {
+        max_work: 1_000,
+        max_seconds: 0.0,
+    };
+    let e = troupe::with_call_budget(work, || umf.umf().unwrap().generate_group(None, 4, &long))
+        .unwrap_err();
+    let total = 10_000 * stages + 3 * 4 * 4;
+    assert!(
+        matches!(&e, Error::InvalidOption(m) if m.contains(&format!(
+            "the group would take {total} network evaluations, above this thread's call budget of 1000"
+        ))),
+        "{e}"
+    );
+    let time = troupe::CallBudget {
+        max_work: 0,
+        max_seconds: 0.2,
+    };
+    let started = std::time::Instant::now();
+    let e = troupe::with_call_budget(time, || umf.umf().unwrap().generate_group(None, 4, &long))
+        .unwrap_err();
+    assert!(
+        matches!(&e, Error::Cancelled(m) if m.contains("the group stopped at this thread's call budget of 0.2 s")),
+        "{e}"
+    );
+    assert!(started.elapsed().as_secs_f64() < 5.0);
+    let options = troupe::GroupOptions::default();
+    let roomy = troupe::CallBudget {
+        max_work: 100_000,
+        max_seconds: 600.0,
+    };
+    let within = troupe::with_call_budget(roomy, || {
+        umf.umf().unwrap().generate_group(None, 2, &options)
+    })
+    .unwrap();
+    let without = umf
+        .umf()
+        .unwrap()
+        .generate_group(None, 2, &options)
+        .unwrap();
+    assert_eq!(
+        within.motion, without.motion,
+        "a budget changes nothing it allows"
+    );
+
+    // A clip's work is its tokens times its steps.
+    let official = Model::load(
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("onnx/bundles/armflow-tiny-interhuman"),
+    )
+    .unwrap();
+    let actor = Array2::<f32>::zeros((20, official.frame_dim()));
+    let clip = ClipOptions {
+        steps: Some(1_000),
+        ..ClipOptions::default()
+    };
+    let e = troupe::with_call_budget(work, || {
+        official
+            .armflow()
+            .unwrap()
+            .generate_clip(actor.view(), None, &clip)
+    })
+    .unwrap_err();
+    assert!(
+        e.to_string().contains("the clip would take") && e.to_string().contains("tokens × steps"),
+        "{e}"
+    );
+    for bad in [-1.0, f64::NAN] {
+        let bad = troupe::CallBudget {
+            max_work: 0,
+            max_seconds: bad,
+        };
+        assert!(troupe::with_call_budget(bad, || Ok(())).is_err());
+    }
+}
+
 /// A BVH file of a million frames reports every 4096 and stops when told; so does the GIF
 /// writer, every frame.
 #[test]

@@ -238,6 +238,7 @@ pub(crate) fn generate(
             .index_axis_move(Axis(0), 0))
     };
     let norm = &nets.spec.normalizer;
+    let _clock = progress::start_call("the reaction", s.steps as u64, "sampler steps")?;
     sample(&mut denoise, raw.view(), &norm.mean, &norm.std, s, normals)
 }
 

@@ -117,6 +117,8 @@ impl Networks {
         check_steps("clip steps", steps)?;
         let cfg_scale = options.cfg_scale.unwrap_or(spec.sampler.cfg_scale);
         check_cfg(cfg_scale)?;
+        let work = n as u64 * u64::from(steps);
+        let _clock = progress::start_call("the clip", work, "tokens × steps")?;
         let mut padded = vec![0f32; clip.frames * d];
         for (dst, src) in padded.iter_mut().zip(actor.iter()) {
             *dst = *src;
@@ -156,6 +158,8 @@ impl Networks {
             let a = &actor_latents[i * lat..(i + 1) * lat];
             let mut z = noise.reactor_noise.clone();
             for k in 0..steps as usize {
+                // A token of many steps is long: the time budget is checked at each of them.
+                progress::check_time("the clip")?;
                 let u = self.guided_velocity(a, &z, &context, grid[k + 1], grid[k], cfg_scale)?;
                 let dt = grid[k] - grid[k + 1];
                 for (zv, uv) in z.iter_mut().zip(&u) {

@@ -2,8 +2,8 @@
 
 use std::ffi::c_void;
 
-use crate::ffi::boundary;
-use crate::shared::progress::set_thread_callback;
+use crate::ffi::boundary::{self, troupe_status};
+use crate::shared::progress::{set_thread_budget, set_thread_callback, CallBudget};
 
 /// A progress callback: `done` of `total` units of a long call are finished. Return 0 to go on,
 /// anything else to cancel the call (it then fails with `TROUPE_ERR_CANCELLED`, having written
@@ -44,4 +44,53 @@ pub extern "C" fn troupe_set_progress_callback(
             }) as crate::shared::progress::ProgressFn
         }));
     });
+}
+
+/// What one long call may cost (`troupe_set_call_budget`). A zero field sets no bound.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Default)]
+pub struct troupe_call_budget {
+    /// The most work one call may take, in the call's own unit: a group's network evaluations,
+    /// a clip's tokens × solver steps, a MAGNet generation's sampler iterations, an ARFlow
+    /// generation's sampler steps. A call that would take more fails with
+    /// `TROUPE_ERR_INVALID_ARG` before it starts.
+    pub max_work: u64,
+    /// The most seconds one call may run. A call past it stops at its next unit of work with
+    /// `TROUPE_ERR_CANCELLED`, nothing written.
+    pub max_seconds: f64,
+}
+
+/// Sets the calling thread's call budget (NULL, or all fields zero, removes it): from now on,
+/// `troupe_umf_generate`, `troupe_armflow_clip_generate`, `troupe_magnet_generate` and
+/// `troupe_arflow_generate` made on this thread are refused when they would take more than
+/// `max_work`, and stop once they have run `max_seconds`. A bound set up front, for a service
+/// that runs callers' requests, beside the progress callback's cancelling. Returns `TROUPE_OK`,
+/// or `TROUPE_ERR_INVALID_ARG` when `max_seconds` is negative or not a number (the budget is
+/// then unchanged). The struct is copied; the caller keeps ownership. Per thread, like the last
+/// error; thread-safe.
+///
+/// ```c
+/// troupe_call_budget budget = { .max_work = 5000, .max_seconds = 2.0 };
+/// troupe_set_call_budget(&budget);
+/// ```
+///
+/// # Safety
+/// `budget` is NULL or points to a readable `troupe_call_budget`.
+#[no_mangle]
+pub unsafe extern "C" fn troupe_set_call_budget(
+    budget: *const troupe_call_budget,
+) -> troupe_status {
+    boundary::call(
+        "troupe_set_call_budget",
+        || {},
+        || {
+            // SAFETY: NULL or a readable struct, by this function's contract.
+            let budget = unsafe { budget.as_ref() }.copied().unwrap_or_default();
+            set_thread_budget(CallBudget {
+                max_work: budget.max_work,
+                max_seconds: budget.max_seconds,
+            })?;
+            Ok(())
+        },
+    )
 }

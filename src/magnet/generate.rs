@@ -13,6 +13,7 @@ use super::tasks::{self, Run};
 use crate::shared::checks::check_input;
 use crate::shared::error::{Error, Result};
 use crate::shared::limits::{at_most, LIMITS};
+use crate::shared::progress;
 
 /// The injected draws `options` give, if any.
 pub(crate) fn injected_draws(options: &MagnetOptions) -> Result<Option<Draws>> {
@@ -194,6 +195,8 @@ pub(crate) fn generate(
         Some(mask) => mask.to_owned(),
         None => Array2::from_elem((f, p), true),
     };
+    // The call budget's clock; the work is checked once the task knows it (`Run::start_task`).
+    let _clock = progress::start_clock();
     let clip = motion::clip_from_frames(values.view(), mask.view());
     let betas = motion::normalised_betas(nets, &clip);
     let s = cfg.samples;

@@ -51,6 +51,13 @@ impl Run<'_> {
         self.guidance.counter = 0;
     }
 
+    /// [`Run::start`] for a generation, refused when `total` is above the call budget.
+    fn start_task(&mut self, total: usize) -> Result<()> {
+        progress::check_work("the MAGNet generation", total as u64, "sampler iterations")?;
+        self.start(total);
+        Ok(())
+    }
+
     fn matrix(&self, group: usize, context_tokens: usize, prune: bool) -> Levels {
         let c = &self.cfg;
         level_matrix(
@@ -359,7 +366,7 @@ pub(crate) fn joint(
     where_mask(ctx.view(), pad_tokens(context, t).view(), &mut x);
     let first = run.matrix(g, tc, true);
     let later = first.ar_window(run.ar_stride() * p, run.nets.spec.model.max_t as i64 - 1);
-    run.start((first.rows() - 1) + n_ar * (later.rows() - 1));
+    run.start_task((first.rows() - 1) + n_ar * (later.rows() - 1))?;
     for r in 0..first.rows() - 1 {
         run.grow(&mut ctx, 0, tc, first.row(r));
         run.step(
@@ -409,7 +416,7 @@ pub(crate) fn partner_prediction(run: &mut Run, gt: ArrayView4<f32>) -> Result<A
     let mut x = normals(run, (s, t, p, d))?;
     where_mask(inject.view(), gt_b.view(), &mut x);
     let m = run.matrix(group_size(Task::PartnerPrediction, &run.cfg, p), tc, true);
-    run.start(n_chunks * (m.rows() - 1));
+    run.start_task(n_chunks * (m.rows() - 1))?;
     for c in 0..n_chunks {
         let ts = c * stride;
         if c > 0 {
@@ -457,7 +464,7 @@ pub(crate) fn live_like(run: &mut Run, gt: ArrayView4<f32>, task: Task) -> Resul
     let mut x = normals(run, (s, t, p, gt.dim().3))?;
     where_mask(inject.view(), gt_b.view(), &mut x);
     let m = live_matrix(run, task);
-    run.start(n_chunks * (m.rows() - 1));
+    run.start_task(n_chunks * (m.rows() - 1))?;
     for c in 0..n_chunks {
         let ts = c * stride;
         if c > 0 {
@@ -528,7 +535,7 @@ pub(crate) fn inbetweening(
             }
         }
     }
-    run.start(m.rows() - 1);
+    run.start_task(m.rows() - 1)?;
     for r in 0..m.rows() - 1 {
         // Context length 0: one clean call (the reference's `{clean: 1}` is unaffected, §11).
         run.step(&mut x, 0, m.row(r), m.row(r + 1), 0, ctx.view())?;
@@ -557,7 +564,7 @@ pub(crate) fn two_worlds(
     where_mask(ctx_a.view(), ctx_full.view(), &mut xb);
     let first = run.matrix(group_size(Task::AgenticTurnTaking, &run.cfg, p), tc, true);
     let later = first.ar_window(run.ar_stride() * p, run.nets.spec.model.max_t as i64 - 1);
-    run.start((first.rows() - 1) + n_ar * (later.rows() - 1));
+    run.start_task((first.rows() - 1) + n_ar * (later.rows() - 1))?;
     let mut windows = vec![(0, tc, &first)];
     windows.extend((1..=n_ar).map(|a| (a * run.ar_stride(), tca, &later)));
     for (ts, tcc, m) in windows {

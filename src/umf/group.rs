@@ -141,6 +141,7 @@ impl Networks {
         // Progress counts network evaluations, so that one long solve can be stopped too.
         let total = plan.prior.iter().map(|s| s.evaluations()).sum::<usize>()
             + (people - 1) * plan.reaction.evaluations();
+        let _clock = progress::start_call("the group", total as u64, "network evaluations")?;
         let counter = Evaluations {
             done: std::cell::Cell::new(0),
             total: total as u64,

@@ -142,6 +142,26 @@ int main(int argc, char **argv) {
     noise.reactions = reactions;
     noise.reactions_len = reactions_len;
 
+    /* a call budget: a group that would take more work is refused before it starts, nothing
+       written; a budget of negative seconds is refused; without one the group runs */
+    {
+        troupe_call_budget budget = {0, 0.0};
+        budget.max_work = 3;
+        EXPECT(troupe_set_call_budget(&budget), TROUPE_OK);
+        memcpy(again, motion, n_motion * sizeof(float));
+        EXPECT(troupe_umf_generate(model, &opt, cond, cdim, 2, NULL, again, n_motion, NULL, 0),
+               TROUPE_ERR_INVALID_ARG);
+        CHECK(strstr(troupe_last_error_message(), "network evaluations, above this thread's call budget of 3") != NULL);
+        CHECK(memcmp(again, motion, n_motion * sizeof(float)) == 0);
+        budget.max_work = 0;
+        budget.max_seconds = -1.0;
+        EXPECT(troupe_set_call_budget(&budget), TROUPE_ERR_INVALID_ARG);
+        EXPECT(troupe_umf_generate(model, &opt, cond, cdim, 2, NULL, again, n_motion, NULL, 0),
+               TROUPE_ERR_INVALID_ARG); /* the refused budget left the old one */
+        EXPECT(troupe_set_call_budget(NULL), TROUPE_OK);
+        EXPECT(troupe_umf_generate(model, &opt, cond, cdim, 2, NULL, again, n_motion, NULL, 0), TROUPE_OK);
+    }
+
     /* bad inputs: a clear status, and nothing written */
     memcpy(again, motion, n_motion * sizeof(float));
     EXPECT(troupe_umf_generate(model, &opt, cond, cdim, 0, NULL, again, n_motion, NULL, 0), TROUPE_ERR_INVALID_ARG);

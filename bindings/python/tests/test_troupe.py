@@ -342,6 +342,24 @@ def umf_golden(name):
     return np.load(UMF / "golden" / f"{name}.npy")
 
 
+def test_a_call_budget_refuses_work_up_front_and_nests(umf):
+    cond = umf_golden("seeded_2p_condition")
+    want = umf.umf.generate_group(2, condition=cond, seed=7)
+    with troupe.call_budget(work=3):
+        with pytest.raises(troupe.InvalidArgument, match="network evaluations, above this thread's call budget of 3"):
+            umf.umf.generate_group(2, condition=cond, seed=7)
+        with troupe.call_budget(work=10**6, seconds=600.0):
+            assert np.array_equal(umf.umf.generate_group(2, condition=cond, seed=7), want)
+        with pytest.raises(troupe.InvalidArgument):  # the enclosing budget is back
+            umf.umf.generate_group(2, condition=cond, seed=7)
+    assert np.array_equal(umf.umf.generate_group(2, condition=cond, seed=7), want)  # none outside
+    with pytest.raises(troupe.InvalidArgument, match="seconds"):
+        with troupe.call_budget(seconds=-1.0):
+            pass
+    with pytest.raises(troupe.InvalidArgument, match="does not fit uint64_t"):
+        troupe.call_budget(work=-1)
+
+
 def test_group_generation_matches_the_reference(umf):
     assert (umf.umf.stages, umf.umf.tokens, umf.clip_frames, umf.frame_dim) == (2, 16, 40, 262)
     cond = umf_golden("seeded_2p_condition")

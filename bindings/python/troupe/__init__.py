@@ -32,7 +32,7 @@ __version__ = "0.2.0"
 
 __all__ = [*errors.__all__, "Model", "Session", "ArmflowModel", "UmfModel", "MagnetModel", "ArflowModel",
            "ArmflowSession", "MagnetSession", "ArflowSession", "bundles", "errors", "motion", "viewer", "step_sessions", "version", "limits",
-           "set_load_threads", "set_compute_threads", "compute_threads", "progress", "ACTOR_LATENT_SAMPLE", "ACTOR_LATENT_MEAN", "EULER", "RK4"]
+           "set_load_threads", "set_compute_threads", "compute_threads", "progress", "call_budget", "ACTOR_LATENT_SAMPLE", "ACTOR_LATENT_MEAN", "EULER", "RK4"]
 
 ACTOR_LATENT_SAMPLE = 0
 ACTOR_LATENT_MEAN = 1
@@ -112,6 +112,35 @@ class progress:
         _lib.troupe_set_progress_callback(_native.PROGRESS_FN(), None)
         if self._error is not None and kind is not None:
             raise self._error from value
+
+
+class call_budget:
+    """Bounds the long calls this thread makes inside the `with` block (groups, clips, MAGNet
+    and ARFlow generations): a call that would take more than `work` units (a group's network
+    evaluations, a clip's tokens x steps, a MAGNet generation's sampler iterations, an ARFlow
+    generation's sampler steps) raises `InvalidArgument` before it starts; one that runs past
+    `seconds` stops with `TroupeError` (`TROUPE_ERR_CANCELLED`). 0 sets no bound. Blocks nest:
+    leaving one puts the enclosing block's budget back.
+
+        with troupe.call_budget(work=5000, seconds=2.0):
+            group = model.umf.generate_group(people=4)
+    """
+
+    _stack = threading.local()
+
+    def __init__(self, work: int = 0, seconds: float = 0.0):
+        self._budget = _native.CallBudget(max_work=work, max_seconds=seconds)
+
+    def __enter__(self) -> call_budget:
+        _check(_lib.troupe_set_call_budget(ctypes.byref(self._budget)))
+        stack = call_budget._stack.__dict__.setdefault("budgets", [])
+        stack.append(self._budget)
+        return self
+
+    def __exit__(self, kind: type[BaseException] | None, value: BaseException | None, traceback: Any) -> None:
+        stack = call_budget._stack.__dict__["budgets"]
+        stack.pop()
+        _check(_lib.troupe_set_call_budget(ctypes.byref(stack[-1]) if stack else None))
 
 
 def _floats(x: ArrayLike, what: str, length: int | None = None) -> np.ndarray:

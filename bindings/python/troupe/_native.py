@@ -130,6 +130,12 @@ class Limits(CStruct):
     _fields_ = [("struct_size", ctypes.c_uint32), ("reserved", ctypes.c_uint32), ("values", LimitValues)]
 
 
+class CallBudget(CStruct):
+    """Mirror of `troupe_call_budget`."""
+
+    _fields_ = [("max_work", ctypes.c_uint64), ("max_seconds", ctypes.c_double)]
+
+
 MAX_STAGES = 8  # TROUPE_MAX_STAGES
 
 
@@ -289,6 +295,7 @@ PROTOTYPES: dict[str, tuple[Any, list[Any]]] = {
     "troupe_limits_get": (status, [ctypes.POINTER(Limits), c_size]),
     "troupe_set_load_threads": (None, [c_size]),
     "troupe_set_progress_callback": (None, [PROGRESS_FN, ctypes.c_void_p]),
+    "troupe_set_call_budget": (status, [ctypes.POINTER(CallBudget)]),
     "troupe_load_threads": (c_size, []),
     "troupe_set_compute_threads": (status, [c_size]),
     "troupe_compute_threads": (c_size, []),
