@@ -968,6 +968,32 @@ troupe_status troupe_session_output_frames(struct troupe_session *session, size_
 troupe_status troupe_session_snapshot(struct troupe_session *session, uint8_t *buf, size_t capacity, size_t *needed);
 
 /**
+ * Seals a snapshot (`snapshot`, `len` bytes, from `troupe_session_snapshot`) under `key`
+ * (`key_len` bytes, at least 16, kept secret by the caller): an HMAC-SHA-256 tag that only a
+ * holder of the key can make, for snapshot stores that others can write. Restore it with
+ * `troupe_session_restore_sealed` and the same key; another key, or any changed byte, is
+ * refused there. The layout is in `docs/SNAPSHOTS.md`.
+ *
+ * Writes the sealed size (`len` + 44) to `*needed`, and the sealed snapshot to `buf` when
+ * `capacity` holds it (`buf` NULL and `capacity` 0: the size only). Returns `TROUPE_OK`,
+ * `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (a key under 16 bytes, or bytes that are not
+ * a snapshot), `TROUPE_ERR_BUFFER_TOO_SMALL` (nothing written but `*needed`),
+ * `TROUPE_ERR_PANIC`. Every buffer is borrowed for the call. Thread-safe.
+ *
+ * ```c
+ * size_t sealed_size = 0;
+ * troupe_snapshot_seal(bytes, size, key, 32, NULL, 0, &sealed_size);
+ * uint8_t *sealed = malloc(sealed_size);
+ * troupe_status st = troupe_snapshot_seal(bytes, size, key, 32, sealed, sealed_size, &sealed_size);
+ * ```
+ *
+ * # Safety
+ * `snapshot` readable for `len` bytes, `key` for `key_len`; `buf` writable for `capacity`;
+ * `needed` writable.
+ */
+troupe_status troupe_snapshot_seal(const uint8_t *snapshot, size_t len, const uint8_t *key, size_t key_len, uint8_t *buf, size_t capacity, size_t *needed);
+
+/**
  * Starts a session that goes on exactly where the session saved in `bytes` (`len` bytes, from
  * `troupe_session_snapshot`; borrowed for the call) stopped. The snapshot must come from this
  * model (the same bundle files); a truncated, altered, foreign or other-version snapshot is
@@ -989,6 +1015,23 @@ troupe_status troupe_session_snapshot(struct troupe_session *session, uint8_t *b
  * `model` must be a live handle; `bytes` readable for `len` bytes; `out` writable.
  */
 troupe_status troupe_session_restore(const struct troupe_model *model, const uint8_t *bytes, size_t len, struct troupe_session **out);
+
+/**
+ * `troupe_session_restore` of a snapshot sealed with `troupe_snapshot_seal` under `key`
+ * (`key_len` bytes). The seal is checked first, in constant time, so a snapshot sealed under
+ * another key, or with any byte changed, is refused before any of it is read; an unsealed
+ * snapshot is refused too (a store that needs seals takes no other).
+ *
+ * On success `*out` receives a new handle owned by the caller (free with
+ * `troupe_session_free`); on failure `*out` is NULL. Returns what `troupe_session_restore`
+ * returns; `TROUPE_ERR_INVALID_ARG` names a seal that does not match. Every buffer is borrowed
+ * for the call. Thread-safe with respect to `model`.
+ *
+ * # Safety
+ * `model` must be a live handle; `bytes` readable for `len` bytes, `key` for `key_len`; `out`
+ * writable.
+ */
+troupe_status troupe_session_restore_sealed(const struct troupe_model *model, const uint8_t *bytes, size_t len, const uint8_t *key, size_t key_len, struct troupe_session **out);
 
 /**
  * Makes the session equal to a fresh one with its current settings (seed, steps, CFG,

@@ -83,6 +83,7 @@ pub use shared::isa::kernels;
 pub use shared::limits::{Limits, LIMITS};
 pub use shared::noise;
 pub use shared::progress::{with_call_budget, with_progress, CallBudget};
+pub use shared::sealed::seal as seal_snapshot;
 pub use shared::solver::{self, Method, Solver};
 pub use shared::text::tokenizer::ClipTokenizer;
 pub use shared::threads::{compute_threads, load_threads, set_compute_threads, set_load_threads};

@@ -276,6 +276,18 @@ impl Model {
     /// another model, family or format version is refused with [`Error::InvalidInput`] before
     /// anything it claims is allocated. The format: `docs/SNAPSHOTS.md`.
     pub fn restore(&self, snapshot: &[u8]) -> Result<Session> {
+        self.restore_checked(snapshot)
+    }
+
+    /// [`Model::restore`] of a snapshot sealed with [`Session::snapshot_sealed`] under `key`:
+    /// its seal is checked first (in constant time), so a snapshot that another key sealed, or
+    /// whose bytes changed, is refused before any of it is read (`docs/SNAPSHOTS.md`). An
+    /// unsealed snapshot is refused too: a store that needs seals takes no other.
+    pub fn restore_sealed(&self, sealed: &[u8], key: &[u8]) -> Result<Session> {
+        self.restore_checked(crate::shared::sealed::open(sealed, key)?)
+    }
+
+    fn restore_checked(&self, snapshot: &[u8]) -> Result<Session> {
         let family = &*self.inner.family;
         let mut payload = SnapshotReader::open(snapshot, family.name(), &self.inner.identity)?;
         let mut session = family.restore(&mut payload)?;

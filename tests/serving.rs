@@ -126,7 +126,7 @@ fn a_local_cluster_serves_streams_exactly_once_and_survives_a_node_dying() {
         "onnx/bundles/armflow-tiny",
         snapshots.to_str().unwrap(),
     ]);
-    assert!(checks.contains("serving checks: 37 passed"), "{checks}");
+    assert!(checks.contains("serving checks: 41 passed"), "{checks}");
 
     // The demo model, its rules in turn, guard and smoothing on: what a service would run, with
     // a heavy and a flooding tenant beside the clients.

@@ -468,6 +468,43 @@ fn actor_frames_count_at(snapshot: &[u8]) -> usize {
     at + 16
 }
 
+/// A snapshot sealed under a key restores with that key only, and continues bit for bit; an
+/// edited byte anywhere, another key, or a snapshot of the other kind is refused by name.
+#[test]
+fn a_sealed_snapshot_restores_with_its_key_only() {
+    let model = common::model();
+    let actor = common::actor();
+    let options = busy_options(model, false);
+    let mut session = reactor(model, &options);
+    run(&mut session, &actor, 0, &[4, 4, 4]);
+    let key = b"a key of thirty-two bytes, kept.";
+    let sealed = session.snapshot_sealed(key).unwrap();
+    assert_eq!(&sealed[44..], &session.snapshot().unwrap()[..]);
+    let mut restored = model.restore_sealed(&sealed, key).unwrap();
+    assert_eq!(
+        run(&mut restored, &actor, 12, &[4, 4]),
+        run(&mut session, &actor, 12, &[4, 4])
+    );
+    let refusal = |r: troupe::Result<Session>| match r {
+        Err(Error::InvalidInput(m)) => m,
+        Err(other) => panic!("{other}"),
+        Ok(_) => panic!("restored"),
+    };
+    assert!(
+        refusal(model.restore_sealed(&sealed, b"another key of 32 bytes, kept..."))
+            .contains("does not match this key")
+    );
+    for at in (0..sealed.len()).step_by(sealed.len() / 97) {
+        let mut edited = sealed.clone();
+        edited[at] ^= 0x10;
+        assert!(model.restore_sealed(&edited, key).is_err(), "byte {at}");
+    }
+    assert!(refusal(model.restore(&sealed)).contains("sealed with a key"));
+    let plain = session.snapshot().unwrap();
+    assert!(refusal(model.restore_sealed(&plain, key)).contains("not sealed"));
+    assert_eq!(troupe::seal_snapshot(&sealed[44..], key).unwrap(), sealed);
+}
+
 #[test]
 fn a_family_without_streams_restores_none() {
     let armflow = common::model().session(common::default_options()).unwrap();

@@ -464,6 +464,8 @@ pub const TARGETS: [(&str, Target); 13] = [
 /// bounded output, steps to finite frames and snapshots again.
 pub fn session_snapshot(data: &[u8]) {
     let model = model();
+    // Any bytes through the sealed restore: refused without reading past the seal's header.
+    assert!(model.restore_sealed(data, b"the fuzzing key!").is_err());
     let mut bytes = Bytes(data);
     let snapshot = if bytes.u8() % 8 == 0 {
         bytes.0.to_vec()

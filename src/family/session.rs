@@ -227,6 +227,13 @@ impl Session {
         Ok(w.finish())
     }
 
+    /// [`Session::snapshot`] sealed under `key` (at least 16 bytes, which the caller keeps
+    /// secret): [`crate::Model::restore_sealed`] with the same key restores it; another key, or
+    /// any changed byte, is refused. For snapshot stores that others can write.
+    pub fn snapshot_sealed(&self, key: &[u8]) -> Result<Vec<u8>> {
+        crate::shared::sealed::seal(&self.snapshot()?, key)
+    }
+
     /// Reads the motion stages a snapshot holds after the stream's part.
     pub(crate) fn load_motion(&mut self, r: &mut SnapshotReader) -> Result<()> {
         let received = self.stream.frames_received();

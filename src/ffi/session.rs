@@ -624,25 +624,94 @@ pub unsafe extern "C" fn troupe_session_snapshot(
             if capacity > 0 {
                 non_null(buf, "buf")?;
             }
-            let bytes = s.snapshot()?;
-            *needed = bytes.len();
-            if buf.is_null() && capacity == 0 {
-                return Ok(());
-            }
-            if capacity < bytes.len() {
-                return Err(FfiError::new(
-                    TROUPE_ERR_BUFFER_TOO_SMALL,
-                    format!(
-                        "the snapshot needs {} bytes, the buffer holds {capacity}",
-                        bytes.len()
-                    ),
-                ));
-            }
-            // SAFETY: `buf` holds `capacity >= bytes.len()` bytes, per the contract.
-            std::ptr::copy_nonoverlapping(bytes.as_ptr(), buf, bytes.len());
-            Ok(())
+            hand_over(&s.snapshot()?, "the snapshot", buf, capacity, needed)
         })
     }
+}
+
+/// Writes `bytes.len()` to `*needed` and, unless this is a size query (`buf` NULL, `capacity`
+/// 0), `bytes` to `buf`: `TROUPE_ERR_BUFFER_TOO_SMALL` when they do not fit.
+///
+/// # Safety
+/// `needed` writable; `buf` NULL or writable for `capacity` bytes.
+unsafe fn hand_over(
+    bytes: &[u8],
+    what: &str,
+    buf: *mut u8,
+    capacity: usize,
+    needed: *mut usize,
+) -> FfiResult<()> {
+    // SAFETY: writable per the contract.
+    unsafe { *needed = bytes.len() };
+    if buf.is_null() && capacity == 0 {
+        return Ok(());
+    }
+    if capacity < bytes.len() {
+        return Err(FfiError::new(
+            TROUPE_ERR_BUFFER_TOO_SMALL,
+            format!(
+                "{what} needs {} bytes, the buffer holds {capacity}",
+                bytes.len()
+            ),
+        ));
+    }
+    // SAFETY: `buf` holds `capacity >= bytes.len()` bytes, per the contract.
+    unsafe { std::ptr::copy_nonoverlapping(bytes.as_ptr(), buf, bytes.len()) };
+    Ok(())
+}
+
+/// Seals a snapshot (`snapshot`, `len` bytes, from `troupe_session_snapshot`) under `key`
+/// (`key_len` bytes, at least 16, kept secret by the caller): an HMAC-SHA-256 tag that only a
+/// holder of the key can make, for snapshot stores that others can write. Restore it with
+/// `troupe_session_restore_sealed` and the same key; another key, or any changed byte, is
+/// refused there. The layout is in `docs/SNAPSHOTS.md`.
+///
+/// Writes the sealed size (`len` + 44) to `*needed`, and the sealed snapshot to `buf` when
+/// `capacity` holds it (`buf` NULL and `capacity` 0: the size only). Returns `TROUPE_OK`,
+/// `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (a key under 16 bytes, or bytes that are not
+/// a snapshot), `TROUPE_ERR_BUFFER_TOO_SMALL` (nothing written but `*needed`),
+/// `TROUPE_ERR_PANIC`. Every buffer is borrowed for the call. Thread-safe.
+///
+/// ```c
+/// size_t sealed_size = 0;
+/// troupe_snapshot_seal(bytes, size, key, 32, NULL, 0, &sealed_size);
+/// uint8_t *sealed = malloc(sealed_size);
+/// troupe_status st = troupe_snapshot_seal(bytes, size, key, 32, sealed, sealed_size, &sealed_size);
+/// ```
+///
+/// # Safety
+/// `snapshot` readable for `len` bytes, `key` for `key_len`; `buf` writable for `capacity`;
+/// `needed` writable.
+#[no_mangle]
+pub unsafe extern "C" fn troupe_snapshot_seal(
+    snapshot: *const u8,
+    len: usize,
+    key: *const u8,
+    key_len: usize,
+    buf: *mut u8,
+    capacity: usize,
+    needed: *mut usize,
+) -> troupe_status {
+    boundary::call(
+        "troupe_snapshot_seal",
+        || {},
+        || {
+            non_null(needed, "needed")?;
+            if capacity > 0 {
+                non_null(buf, "buf")?;
+            }
+            // SAFETY: readable for their lengths per the contract.
+            let (snapshot, key) = unsafe {
+                (
+                    boundary::slice(snapshot, len, "snapshot")?,
+                    boundary::slice(key, key_len, "key")?,
+                )
+            };
+            let sealed = crate::shared::sealed::seal(snapshot, key)?;
+            // SAFETY: forwarded contract.
+            unsafe { hand_over(&sealed, "the sealed snapshot", buf, capacity, needed) }
+        },
+    )
 }
 
 /// Starts a session that goes on exactly where the session saved in `bytes` (`len` bytes, from
@@ -682,6 +751,51 @@ pub unsafe extern "C" fn troupe_session_restore(
             // SAFETY: readable for `len` bytes per the contract.
             let bytes = unsafe { boundary::slice(bytes, len, "bytes") }?;
             let session = model.restore(bytes)?;
+            // SAFETY: checked non-NULL above.
+            unsafe { *out = troupe_session::into_raw(session) };
+            Ok(())
+        },
+    )
+}
+
+/// `troupe_session_restore` of a snapshot sealed with `troupe_snapshot_seal` under `key`
+/// (`key_len` bytes). The seal is checked first, in constant time, so a snapshot sealed under
+/// another key, or with any byte changed, is refused before any of it is read; an unsealed
+/// snapshot is refused too (a store that needs seals takes no other).
+///
+/// On success `*out` receives a new handle owned by the caller (free with
+/// `troupe_session_free`); on failure `*out` is NULL. Returns what `troupe_session_restore`
+/// returns; `TROUPE_ERR_INVALID_ARG` names a seal that does not match. Every buffer is borrowed
+/// for the call. Thread-safe with respect to `model`.
+///
+/// # Safety
+/// `model` must be a live handle; `bytes` readable for `len` bytes, `key` for `key_len`; `out`
+/// writable.
+#[no_mangle]
+pub unsafe extern "C" fn troupe_session_restore_sealed(
+    model: Option<&troupe_model>,
+    bytes: *const u8,
+    len: usize,
+    key: *const u8,
+    key_len: usize,
+    out: *mut *mut troupe_session,
+) -> troupe_status {
+    boundary::call(
+        "troupe_session_restore_sealed",
+        || {},
+        || {
+            non_null(out, "out")?;
+            // SAFETY: checked non-NULL; writable per the contract.
+            unsafe { *out = std::ptr::null_mut() };
+            let model = &boundary::required(model, "model")?.model;
+            // SAFETY: readable for their lengths per the contract.
+            let (bytes, key) = unsafe {
+                (
+                    boundary::slice(bytes, len, "bytes")?,
+                    boundary::slice(key, key_len, "key")?,
+                )
+            };
+            let session = model.restore_sealed(bytes, key)?;
             // SAFETY: checked non-NULL above.
             unsafe { *out = troupe_session::into_raw(session) };
             Ok(())

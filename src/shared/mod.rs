@@ -19,6 +19,7 @@ pub(crate) mod onnx_guard;
 pub(crate) mod panics;
 pub(crate) mod paths;
 pub mod progress;
+pub(crate) mod sealed;
 pub(crate) mod snapshot;
 pub mod solver;
 pub(crate) mod text;

@@ -206,6 +206,11 @@ impl<'a> SnapshotReader<'a> {
     /// payload's length, the checksum) and opens its payload.
     pub fn open(bytes: &'a [u8], family: &str, model: &[u8; MODEL_ID_BYTES]) -> Result<Self> {
         let mut b = bytes;
+        if bytes.starts_with(&crate::shared::sealed::SEALED_MAGIC) {
+            return Err(bad(
+                "it is sealed with a key: restore it with that key (restore_sealed)",
+            ));
+        }
         if take(&mut b, 8, "the magic")? != MAGIC {
             return Err(bad("not a troupe snapshot (no TRPSNAP magic)"));
         }

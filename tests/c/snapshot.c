@@ -119,6 +119,49 @@ static void save(troupe_model *model, troupe_model *other, const float *actor, s
     EXPECT(troupe_session_restore(NULL, bytes, size, &again), TROUPE_ERR_NULL_ARG);
     EXPECT(troupe_session_restore(model, bytes, size, NULL), TROUPE_ERR_NULL_ARG);
 
+    /* sealed under a key: restored with that key only; an edited byte, another key, an
+       unsealed snapshot through the sealed restore and a sealed one through the plain restore
+       are refused by name */
+    {
+        uint8_t key[32], other_key[32];
+        size_t sealed_size = 0, k;
+        uint8_t *sealed;
+        for (k = 0; k < 32; k++) {
+            key[k] = (uint8_t)(k * 7 + 1);
+            other_key[k] = (uint8_t)(key[k] ^ 0x5A);
+        }
+        EXPECT(troupe_snapshot_seal(bytes, size, key, 32, NULL, 0, &sealed_size), TROUPE_OK);
+        CHECK(sealed_size == size + 44);
+        sealed = (uint8_t *)malloc(sealed_size);
+        EXPECT(troupe_snapshot_seal(bytes, size, key, 32, sealed, sealed_size - 1, &sealed_size),
+               TROUPE_ERR_BUFFER_TOO_SMALL);
+        EXPECT(troupe_snapshot_seal(bytes, size, key, 32, sealed, sealed_size, &sealed_size), TROUPE_OK);
+        CHECK(memcmp(sealed, "TRPSEAL", 8) == 0);
+        EXPECT(troupe_session_restore_sealed(model, sealed, sealed_size, key, 32, &again), TROUPE_OK);
+        EXPECT(troupe_session_snapshot(again, bytes2, size, &size2), TROUPE_OK);
+        CHECK(size2 == size && memcmp(bytes, bytes2, size) == 0);
+        troupe_session_free(again);
+        EXPECT(troupe_session_restore_sealed(model, sealed, sealed_size, other_key, 32, &again),
+               TROUPE_ERR_INVALID_ARG);
+        CHECK(again == NULL && strstr(troupe_last_error_message(), "does not match this key") != NULL);
+        sealed[sealed_size / 2] ^= 0x01;
+        EXPECT(troupe_session_restore_sealed(model, sealed, sealed_size, key, 32, &again),
+               TROUPE_ERR_INVALID_ARG);
+        CHECK(strstr(troupe_last_error_message(), "does not match this key") != NULL);
+        sealed[sealed_size / 2] ^= 0x01;
+        EXPECT(troupe_session_restore_sealed(model, bytes, size, key, 32, &again), TROUPE_ERR_INVALID_ARG);
+        CHECK(strstr(troupe_last_error_message(), "not sealed") != NULL);
+        EXPECT(troupe_session_restore(model, sealed, sealed_size, &again), TROUPE_ERR_INVALID_ARG);
+        CHECK(strstr(troupe_last_error_message(), "sealed with a key") != NULL);
+        EXPECT(troupe_session_restore_sealed(model, sealed, sealed_size, key, 15, &again),
+               TROUPE_ERR_INVALID_ARG);
+        CHECK(strstr(troupe_last_error_message(), "at least 16 bytes") != NULL);
+        EXPECT(troupe_session_restore_sealed(model, sealed, sealed_size, NULL, 32, &again), TROUPE_ERR_NULL_ARG);
+        EXPECT(troupe_snapshot_seal(bytes, size, key, 32, NULL, 0, NULL), TROUPE_ERR_NULL_ARG);
+        EXPECT(troupe_snapshot_seal(key, 32, key, 32, NULL, 0, &sealed_size), TROUPE_ERR_INVALID_ARG);
+        free(sealed);
+    }
+
     /* identities: 32 bytes, equal for equal files, different for other weights */
     EXPECT(troupe_model_identity(model, id), TROUPE_OK);
     EXPECT(troupe_model_identity(other, id_other), TROUPE_OK);

@@ -71,14 +71,17 @@ class Lines(logging.Handler):
 async def worker_checks(bundle: str, tokens: list[np.ndarray]) -> None:
     """A worker in this process (no Ray): the budget, and the order in which crowds are stepped."""
     worker = StreamWorker(bundle, token_budget_ms=1e-6, budget_strikes=2)
-    await worker.open("a", {"seed": 1})
-    await worker.step("a", 0, tokens[0])
+    await worker.open("a", {"seed": 1, "steps": 2})
+    await worker.open("common", {"seed": 1})
+    await asyncio.gather(worker.step("a", 0, tokens[0]), worker.step("common", 0, tokens[0]))
     try:
-        await worker.step("a", 1, tokens[1])
+        await asyncio.gather(worker.step("a", 1, tokens[1]), worker.step("common", 1, tokens[1]))
         check(False, "a stream over its budget two tokens in a row is ended")
     except BudgetExceeded as e:
         check("over this service's budget" in str(e) and "a" not in worker.streams,
-              f"a stream over its budget two tokens in a row is ended: {e}")
+              f"a stream that chose its steps, over its budget two tokens in a row, is ended: {e}")
+    await worker.step("common", 2, tokens[2])
+    check(worker.streams["common"].tokens == 3, "a stream on the model's settings is not charged")
     worker.runner.cancel()
 
     worker = StreamWorker(bundle)
@@ -92,6 +95,15 @@ async def worker_checks(bundle: str, tokens: list[np.ndarray]) -> None:
 
     await asyncio.gather(step("heavy"), step("light"))
     check(order == ["light", "heavy"], f"the crowd on the model's settings is answered first: {order}")
+    key = b"sixteen byte key"
+    sealed = worker.streams["light"].session.snapshot(key=key)
+    await worker.restore("moved", sealed, 1, {}, key)
+    await worker.step("moved", 1, tokens[1])
+    try:
+        await worker.restore("light", sealed, 1, {}, b"another sixteen b")
+        check(False, "a worker refuses a snapshot sealed under another key")
+    except troupe.InvalidArgument:
+        check("light" in worker.streams, "a worker refuses a snapshot sealed under another key, the stream kept")
     worker.runner.cancel()
 
 
@@ -129,7 +141,8 @@ async def main(bundle: str, snapshot_dir: Path) -> None:
     logging.getLogger("troupe.serve").addHandler(lines)
     logging.getLogger("troupe.serve").setLevel(logging.INFO)
 
-    gateway = Gateway(bundle, workers=1, snapshot_every=4, snapshot_dir=str(snapshot_dir),
+    key = b"the gateway's snapshot key, 32 b"
+    gateway = Gateway(bundle, workers=1, snapshot_every=4, snapshot_dir=str(snapshot_dir), snapshot_key=key,
                       worker_options={"num_cpus": 1}, detached_ttl_s=60)
     await gateway.start()
     ready = asyncio.get_running_loop().create_future()
@@ -169,6 +182,14 @@ async def main(bundle: str, snapshot_dir: Path) -> None:
             got.append((await client.receive())[1])
         stream = client.stream
         check(stream is not None and (snapshot_dir / f"{stream}.snapshot").is_file(), "the stream's snapshot is a file")
+        sealed = (snapshot_dir / f"{stream}.snapshot").read_bytes()
+        check(sealed[:8] == b"TRPSEAL\0" and model.restore(sealed, key=key).close() is None,
+              "the file is sealed under the gateway's key")
+        try:
+            model.restore(sealed, key=b"a key the gateway does not hold")
+            check(False, "a snapshot file sealed under another key is refused")
+        except troupe.InvalidArgument as e:
+            check("does not match this key" in str(e), f"a snapshot file sealed under another key is refused: {e}")
         await client.ws.close()  # no `close`: the connection just drops
         await asyncio.sleep(0.3)  # the gateway notices the drop and detaches the stream
         await refused(url, [json.dumps({"type": "open", "stream": stream}), json.dumps({"type": "open"})], "`close`")

@@ -934,6 +934,29 @@ def test_hostile_snapshots_raise(model):
             magnet.restore(good)
 
 
+def test_a_sealed_snapshot_restores_with_its_key_only(model):
+    key, other = b"k" * 32, b"o" * 32
+    s = model.session(seed=1)
+    s.step(actor(9))
+    sealed = s.snapshot(key=key)
+    assert sealed[:8] == b"TRPSEAL\0" and sealed[44:] == s.snapshot()
+    assert troupe.seal_snapshot(s.snapshot(), key) == sealed
+    again = model.restore(sealed, key=key)
+    assert np.array_equal(again.step(actor(4)), s.step(actor(4)))
+    with pytest.raises(troupe.InvalidArgument, match="does not match this key"):
+        model.restore(sealed, key=other)
+    edited = bytearray(sealed)
+    edited[-10] ^= 1
+    with pytest.raises(troupe.InvalidArgument, match="does not match this key"):
+        model.restore(edited, key=key)
+    with pytest.raises(troupe.InvalidArgument, match="sealed with a key"):
+        model.restore(sealed)
+    with pytest.raises(troupe.InvalidArgument, match="not sealed"):
+        model.restore(s.snapshot(), key=key)
+    with pytest.raises(troupe.InvalidArgument, match="at least 16 bytes"):
+        s.snapshot(key=b"short")
+
+
 def test_every_streaming_family_streams_joint_positions():
     """The same joint positions through ARMFlow, ARFlow online and a MAGNet live partner (its
     SMPL-X frames found by inverse kinematics): poses back from each, with the guard and the

@@ -32,7 +32,7 @@ __version__ = "0.2.0"
 
 __all__ = [*errors.__all__, "Model", "Session", "ArmflowModel", "UmfModel", "MagnetModel", "ArflowModel",
            "ArmflowSession", "MagnetSession", "ArflowSession", "bundles", "errors", "motion", "viewer", "step_sessions", "version", "limits",
-           "set_load_threads", "set_compute_threads", "compute_threads", "progress", "call_budget", "ACTOR_LATENT_SAMPLE", "ACTOR_LATENT_MEAN", "EULER", "RK4"]
+           "set_load_threads", "set_compute_threads", "compute_threads", "progress", "call_budget", "seal_snapshot", "ACTOR_LATENT_SAMPLE", "ACTOR_LATENT_MEAN", "EULER", "RK4"]
 
 ACTOR_LATENT_SAMPLE = 0
 ACTOR_LATENT_MEAN = 1
@@ -112,6 +112,18 @@ class progress:
         _lib.troupe_set_progress_callback(_native.PROGRESS_FN(), None)
         if self._error is not None and kind is not None:
             raise self._error from value
+
+
+def seal_snapshot(snapshot: bytes | bytearray | memoryview, key: bytes) -> bytes:
+    """`snapshot` sealed under `key` (at least 16 bytes, kept secret): an HMAC-SHA-256 tag only a
+    holder of the key can make, for snapshot stores others can write. `model.restore(sealed,
+    key=key)` restores it; another key or any changed byte is refused (docs/SNAPSHOTS.md)."""
+    data, key = bytes(snapshot), bytes(key)
+    size = ctypes.c_size_t()
+    _check(_lib.troupe_snapshot_seal(data, len(data), key, len(key), None, 0, ctypes.byref(size)))
+    buf = ctypes.create_string_buffer(size.value)
+    _check(_lib.troupe_snapshot_seal(data, len(data), key, len(key), buf, size.value, ctypes.byref(size)))
+    return buf.raw[:size.value]
 
 
 class call_budget:
@@ -245,13 +257,20 @@ class Model:
         _check(_lib.troupe_model_identity(self._h(), out))
         return out.raw
 
-    def restore(self, snapshot: bytes | bytearray | memoryview) -> "Session":
+    def restore(self, snapshot: bytes | bytearray | memoryview, key: bytes | None = None) -> "Session":
         """A session that goes on exactly where `Session.snapshot()` saved it, bit for bit. The
         snapshot may come from another process or machine, but only from this model (the same
-        bundle files); a truncated, altered or foreign one raises InvalidArgument."""
+        bundle files); a truncated, altered or foreign one raises InvalidArgument. With `key`,
+        the snapshot must be sealed under it (`Session.snapshot(key=...)`, `seal_snapshot`):
+        another key, a changed byte or an unsealed snapshot raise InvalidArgument."""
         data = bytes(snapshot)
         handle = _native.session_p()
-        _check(_lib.troupe_session_restore(self._h(), data, len(data), ctypes.byref(handle)))
+        if key is None:
+            _check(_lib.troupe_session_restore(self._h(), data, len(data), ctypes.byref(handle)))
+        else:
+            key = bytes(key)
+            _check(_lib.troupe_session_restore_sealed(self._h(), data, len(data), key, len(key),
+                                                      ctypes.byref(handle)))
         return Session._adopting(self, handle)
 
     clip_frames = property(lambda self: _lib.troupe_model_clip_frames(self._h()),
@@ -852,15 +871,17 @@ class Session:
         self._adopt(model, handle)
         return self
 
-    def snapshot(self) -> bytes:
+    def snapshot(self, key: bytes | None = None) -> bytes:
         """Everything the stream needs to go on, as bytes (versioned, checksummed, bound to the
         model): `model.restore(snapshot)`, in this process or another, continues it bit for bit.
-        The session is unchanged."""
+        The session is unchanged. With `key` (at least 16 bytes, kept secret) the snapshot is
+        sealed under it (`seal_snapshot`) and restores only with `model.restore(..., key=key)`."""
         size = ctypes.c_size_t()
         self._call(_lib.troupe_session_snapshot, None, 0, ctypes.byref(size))
         buf = ctypes.create_string_buffer(size.value)
         self._call(_lib.troupe_session_snapshot, buf, size.value, ctypes.byref(size))
-        return buf.raw[:size.value]
+        plain = buf.raw[:size.value]
+        return plain if key is None else seal_snapshot(plain, key)
 
     def _call(self, fn: Any, *args: Any) -> None:
         if not self._handle:

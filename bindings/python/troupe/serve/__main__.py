@@ -44,6 +44,8 @@ def main(argv: list[str] | None = None) -> None:
     limits.add_argument("--no-limits", action="store_true", help="lift every bound (for measurements only)")
     ap.add_argument("--snapshot-every", type=int, default=8, help="tokens between a stream's snapshots")
     ap.add_argument("--snapshot-dir", help="keep snapshots in this folder instead of Ray's object store")
+    ap.add_argument("--snapshot-key-file", help="seal the folder's snapshots under the key this file holds "
+                    "(at least 16 bytes): a snapshot others wrote there is refused")
     ap.add_argument("--host", default="127.0.0.1")
     ap.add_argument("--port", type=int, default=8765)
     args = ap.parse_args(argv)
@@ -54,6 +56,7 @@ def main(argv: list[str] | None = None) -> None:
             "max_steps", "max_cfg", "max_capacity", "token_budget_ms", "max_streams_per_worker",
             "max_streams_per_client", "slow_reader_s", "idle_s")}
         chosen = Limits(**bounds)
+    key = open(args.snapshot_key_file, "rb").read() if args.snapshot_key_file else None
     logging.basicConfig(level=logging.INFO, format="%(asctime)s %(name)s %(levelname)s %(message)s")
 
     import ray
@@ -63,7 +66,7 @@ def main(argv: list[str] | None = None) -> None:
     ray.init(address=args.address)
     gateway = Gateway(args.bundle, workers=args.workers, snapshot_every=args.snapshot_every,
                       snapshot_dir=args.snapshot_dir, worker_options={"num_cpus": args.cpus_per_worker},
-                      limits=chosen)
+                      limits=chosen, snapshot_key=key)
 
     async def run() -> None:
         await gateway.start()

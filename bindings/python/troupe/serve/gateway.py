@@ -97,7 +97,8 @@ class Gateway:
         await gateway.serve("0.0.0.0", 8765)      # until cancelled
 
     `worker_options` go to `ray.remote(...).options` (default: one CPU each, spread over the
-    nodes); `snapshot_dir` keeps snapshots in a folder instead of the object store; `limits` are
+    nodes); `snapshot_dir` keeps snapshots in a folder instead of the object store, sealed under
+    `snapshot_key` when one is given (docs/SNAPSHOTS.md); `limits` are
     what one stream and one client may cost (`Limits()`'s defaults when not given;
     `Limits.unlimited()` lifts every bound). `max_streams_per_worker`, when given, overrides the
     limits' value.
@@ -106,13 +107,16 @@ class Gateway:
     def __init__(self, bundle: str, workers: int = 2, snapshot_every: int = 8, snapshot_dir: str | None = None,
                  worker_options: dict | None = None, step_timeout_s: float = 10.0,
                  max_streams_per_worker: int | None = None, detached_ttl_s: float = 30.0, gather_s: float = 0.002,
-                 limits: Limits | None = None):
+                 limits: Limits | None = None, snapshot_key: bytes | None = None):
         # Absolute: workers run in Ray's own folders. On a real cluster the bundle must lie at
         # this path on every node (a shared file system, or the same image everywhere).
         self.bundle = os.path.abspath(bundle)
         self.initial_workers = workers
         self.snapshot_every = snapshot_every
-        self.snapshots = DirectorySnapshots(snapshot_dir) if snapshot_dir else ObjectStoreSnapshots()
+        if snapshot_key is not None and not snapshot_dir:
+            raise ValueError("a snapshot key seals the files of a snapshot folder: give snapshot_dir too")
+        self.snapshots: DirectorySnapshots | ObjectStoreSnapshots = (
+            DirectorySnapshots(snapshot_dir, snapshot_key) if snapshot_dir else ObjectStoreSnapshots())
         self.worker_options = {"num_cpus": 1, "scheduling_strategy": "SPREAD"} | (worker_options or {})
         self.step_timeout_s = step_timeout_s
         self.limits = limits or Limits()
@@ -200,7 +204,8 @@ class Gateway:
             target = self._least_loaded(exclude=dead, room=False)
             try:
                 await self._call(target.handle.restore.remote(st.id, self.snapshots.get(st.id),
-                                                              st.snapshot_tokens, st.options))
+                                                              st.snapshot_tokens, st.options,
+                                                              self.snapshots.key))
                 for i, frames in enumerate(st.log):
                     await self._submit(target, st.id, st.snapshot_tokens + i, frames)
                 break

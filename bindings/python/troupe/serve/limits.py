@@ -29,8 +29,10 @@ class Limits:
     max_capacity: int | None = 4096
     """Most tokens a stream's context cache may keep (`capacity`): memory and attention time."""
     token_budget_ms: float | None = 50.0
-    """Compute one stream's token may take on its worker, measured on every step. A stream over
-    it for `budget_strikes` tokens in a row is ended with an error naming the budget."""
+    """Compute one token may take on its worker for a stream that chose its own `steps` or
+    `cfg`, measured on every step. Such a stream over it for `budget_strikes` tokens in a row is
+    ended with an error naming the budget. (Streams on the model's own settings are not charged:
+    their cost is the model's, which the operator chose.)"""
     budget_strikes: int = 3
     """Tokens in a row over `token_budget_ms` before a stream is ended (one slow token, a page
     of cache growing, is not a fault)."""

@@ -14,6 +14,8 @@ class ObjectStoreSnapshots:
     the gateway node's object store, so a worker node's death cannot take them along. A newer
     snapshot of a stream releases the older one."""
 
+    key = None  # the store is the gateway's own: nobody else writes it
+
     def __init__(self) -> None:
         self.refs: dict[str, Any] = {}
 
@@ -33,13 +35,16 @@ class ObjectStoreSnapshots:
 
 class DirectorySnapshots:
     """Snapshots as files `<stream>.snapshot` in a folder, each replaced atomically (written
-    beside, then renamed over) so a crash never leaves half a snapshot."""
+    beside, then renamed over) so a crash never leaves half a snapshot. With `key` (at least 16
+    bytes) every file is sealed under it (`troupe.seal_snapshot`) and the workers restore only
+    what the key sealed: whoever else can write the folder cannot put another stream there."""
 
     NAME = re.compile(r"^[A-Za-z0-9_-]{1,128}$")
 
-    def __init__(self, folder: str | os.PathLike):
+    def __init__(self, folder: str | os.PathLike, key: bytes | None = None):
         self.folder = Path(folder)
         self.folder.mkdir(parents=True, exist_ok=True)
+        self.key = key
 
     def _path(self, stream: str) -> Path:
         if not self.NAME.match(stream):
@@ -47,6 +52,10 @@ class DirectorySnapshots:
         return self.folder / f"{stream}.snapshot"
 
     def put(self, stream: str, snapshot: bytes) -> None:
+        if self.key is not None:
+            import troupe
+
+            snapshot = troupe.seal_snapshot(snapshot, self.key)
         path = self._path(stream)
         partial = path.with_suffix(".partial")
         with open(partial, "wb") as f:

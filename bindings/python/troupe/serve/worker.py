@@ -7,7 +7,7 @@ result carries its snapshot, which the gateway keeps where a dead worker cannot 
 
 Streams that chose their own cost (`steps`, `cfg`) are stepped apart from the crowd of streams on
 the model's settings, after it, one crowd per choice: the common streams' tokens are answered
-before a heavy stream's are computed, and every stream's share of each step it took part in is
+before a heavy stream's are computed, and such a stream's share of each step it took part in is
 measured against the service's per-token budget (`Limits.token_budget_ms`).
 """
 
@@ -159,13 +159,15 @@ class StreamWorker:
         self.streams[stream] = _Stream(session, 0, cost_class(options))
         return session.snapshot()
 
-    async def restore(self, stream: str, snapshot: bytes, tokens: int, options: dict | None = None) -> None:
+    async def restore(self, stream: str, snapshot: bytes, tokens: int, options: dict | None = None,
+                      key: bytes | None = None) -> None:
         """Takes over a stream from its snapshot, saved after `tokens` tokens (`options`: those
-        it was opened with, which place it in its crowd)."""
+        it was opened with, which place it in its crowd; `key`: the key it is sealed under)."""
+        session = self.model.restore(snapshot, key=key)  # refused: the old stream stays
         old = self.streams.pop(stream, None)
         if old is not None:
             old.session.close()
-        self.streams[stream] = _Stream(self.model.restore(snapshot), tokens, cost_class(options or {}))
+        self.streams[stream] = _Stream(session, tokens, cost_class(options or {}))
 
     async def close(self, stream: str) -> None:
         entry = self.streams.pop(stream, None)
@@ -238,10 +240,12 @@ class StreamWorker:
             settle(p.done, self._charge(p, result))
 
     def _charge(self, p: _Pending, result: tuple) -> Any:
-        """The token's result, or BudgetExceeded (and the stream ended) when the stream's share
-        of its steps has been over the budget `budget_strikes` tokens in a row."""
+        """The token's result, or BudgetExceeded (and the stream ended) when a stream that chose
+        its own cost has had a share of its steps over the budget `budget_strikes` tokens in a
+        row. Streams on the model's own settings cost what the operator chose by serving the
+        model: a slow machine is not their fault."""
         entry = self.streams.get(p.stream)
-        if entry is None or self.token_budget_s is None:
+        if entry is None or self.token_budget_s is None or entry.crowd == ():
             return result
         share = result[2]
         entry.over_budget = entry.over_budget + 1 if share > self.token_budget_s else 0
