@@ -290,94 +290,151 @@ fn figures_on_real_rigs() {
         "| rig | height m | mapped-joint error / height, mean (max) | foot skate cm/frame: scaled source, rotations only, foot lock | end effectors cm: no IK, IK |"
     );
     for t in rigs() {
-        let (label, rig) = (t.label, &t.rig);
-        let height = rig.height_metres();
-        let run = |options: RetargetOptions| {
-            let mut r = Retargeter::new(rig, &t.map, &skeleton, options).unwrap();
-            let poses = retarget(&t, &source, options);
-            let positions: Vec<Vec<Vec3>> =
-                poses.iter().map(|p| r.canonical_positions(p)).collect();
-            r.reset();
-            (r, positions)
-        };
-        let plain = RetargetOptions {
-            limb_ik: false,
-            foot_lock: false,
-            ..Default::default()
-        };
-        let (r, rotations_only) = run(plain);
-        let (_, ik_only) = run(RetargetOptions {
-            foot_lock: false,
-            ..Default::default()
-        });
-        let (_, full) = run(RetargetOptions::default());
-        let joints = *r.rig_joints();
-        let mut errors = Vec::new();
-        let mut end_plain = Vec::new();
-        let mut end_ik = Vec::new();
-        for (t, pose) in source.iter().enumerate() {
-            for (s, rj) in joints.iter().enumerate() {
-                let Some(rj) = rj else { continue };
-                let want = r.place(pose[s]);
-                errors.push(norm(sub(full[t][*rj], want)) / height);
-                if [20, 21, 7, 8].contains(&s) {
-                    end_plain.push(norm(sub(rotations_only[t][*rj], want)));
-                    end_ik.push(norm(sub(ik_only[t][*rj], want)));
-                }
+        println!("{}", figures(&t, &source, &skeleton));
+    }
+}
+
+/// `t`'s row of docs/RIGS.md's table for the take `source`, checked against what the retarget
+/// promises: the IK brings hands and feet onto the scaled source's (to a few millimetres where a
+/// limb cannot reach), the foot lock adds no skate over the source's own, and the mapped joints
+/// are within 5 % of the height.
+fn figures(t: &TestRig, source: &[Vec<Vec3>], skeleton: &Skeleton) -> String {
+    let (label, rig) = (t.label, &t.rig);
+    let height = rig.height_metres();
+    let run = |options: RetargetOptions| {
+        let mut r = Retargeter::new(rig, &t.map, skeleton, options).unwrap();
+        let poses = retarget(t, source, options);
+        let positions: Vec<Vec<Vec3>> = poses.iter().map(|p| r.canonical_positions(p)).collect();
+        r.reset();
+        (r, positions)
+    };
+    let plain = RetargetOptions {
+        limb_ik: false,
+        foot_lock: false,
+        ..Default::default()
+    };
+    let (r, rotations_only) = run(plain);
+    let (_, ik_only) = run(RetargetOptions {
+        foot_lock: false,
+        ..Default::default()
+    });
+    let (_, full) = run(RetargetOptions::default());
+    let joints = *r.rig_joints();
+    let mut errors = Vec::new();
+    let mut end_plain = Vec::new();
+    let mut end_ik = Vec::new();
+    for (t, pose) in source.iter().enumerate() {
+        for (s, rj) in joints.iter().enumerate() {
+            let Some(rj) = rj else { continue };
+            let want = r.place(pose[s]);
+            errors.push(norm(sub(full[t][*rj], want)) / height);
+            if [20, 21, 7, 8].contains(&s) {
+                end_plain.push(norm(sub(rotations_only[t][*rj], want)));
+                end_ik.push(norm(sub(ik_only[t][*rj], want)));
             }
         }
-        let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len() as f64;
-        let max = |v: &[f64]| v.iter().cloned().fold(0.0, f64::max);
-        // Contacts of the source's left and right ankles (InterGen's thresholds, causal).
-        let mut skates = [0.0f64; 3];
-        for (ankle, k) in [(7usize, 0usize), (8, 1)] {
-            let contact: Vec<bool> = (0..source.len())
-                .map(|t| {
-                    let step = if t == 0 {
-                        0.0
-                    } else {
-                        norm(sub(source[t][ankle], source[t - 1][ankle]))
-                    };
-                    step * step < 0.001 && source[t][ankle][1] < 0.12
-                })
-                .collect();
-            let rj = joints[ankle].unwrap();
-            let scaled: Vec<Vec3> = source.iter().map(|p| r.place(p[ankle])).collect();
-            let plain: Vec<Vec3> = rotations_only.iter().map(|p| p[rj]).collect();
-            let locked: Vec<Vec3> = full.iter().map(|p| p[rj]).collect();
-            for (i, track) in [scaled, plain, locked].iter().enumerate() {
-                skates[i] += skate(track, &contact) / 2.0;
-            }
-            let _ = k;
+    }
+    let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len() as f64;
+    let max = |v: &[f64]| v.iter().cloned().fold(0.0, f64::max);
+    // Contacts of the source's left and right ankles (InterGen's thresholds, causal).
+    let mut skates = [0.0f64; 3];
+    for ankle in [7usize, 8] {
+        let contact: Vec<bool> = (0..source.len())
+            .map(|t| {
+                let step = if t == 0 {
+                    0.0
+                } else {
+                    norm(sub(source[t][ankle], source[t - 1][ankle]))
+                };
+                step * step < 0.001 && source[t][ankle][1] < 0.12
+            })
+            .collect();
+        let rj = joints[ankle].unwrap();
+        let scaled: Vec<Vec3> = source.iter().map(|p| r.place(p[ankle])).collect();
+        let plain: Vec<Vec3> = rotations_only.iter().map(|p| p[rj]).collect();
+        let locked: Vec<Vec3> = full.iter().map(|p| p[rj]).collect();
+        for (i, track) in [scaled, plain, locked].iter().enumerate() {
+            skates[i] += skate(track, &contact) / 2.0;
         }
+    }
+    assert!(
+        mean(&end_ik) < 0.01,
+        "{label}: end effectors {} m off",
+        mean(&end_ik)
+    );
+    assert!(
+        skates[2] <= skates[0] + 1e-3,
+        "{label}: the foot lock skates {} m/frame, the source {}",
+        skates[2],
+        skates[0]
+    );
+    assert!(
+        mean(&errors) < 0.05,
+        "{label}: mapped joints {} of the height off",
+        mean(&errors)
+    );
+    format!(
+        "| {label} | {height:.3} | {:.4} ({:.4}) | {:.2}, {:.2}, {:.2} | {:.2}, {:.3} |",
+        mean(&errors),
+        max(&errors),
+        skates[0] * 100.0,
+        skates[1] * 100.0,
+        skates[2] * 100.0,
+        mean(&end_plain) * 100.0,
+        mean(&end_ik) * 100.0,
+    )
+}
+
+/// Characters as Blender writes them (`tests/gltf/blender_rigs.py`: Rigify's deform bones with
+/// twist bones, Mixamo's names, Unreal's mannequin in centimetres, an A-pose, and Blender's
+/// default `Bone.001` names), exported by Blender's own BVH exporter, which writes Z up: each is
+/// read standing, mapped with no joint map written for it (every t2m-22 joint to the bone the
+/// script says), and retargeted within the bounds of docs/RIGS.md's table.
+#[test]
+fn characters_blender_writes_are_mapped_and_retargeted_without_a_joint_map() {
+    let test = "characters_blender_writes_are_mapped_and_retargeted_without_a_joint_map";
+    let Some(python) = blender_python(test) else {
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    common::run_ok(
+        Command::new(&python)
+            .arg(repo("tests/gltf/blender_rigs.py"))
+            .arg(dir.path()),
+    );
+    let expected: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.path().join("rigs.json")).unwrap())
+            .unwrap();
+    let source = actor();
+    let skeleton = Skeleton::t2m22().fitted_to(&source);
+    let t2m = Skeleton::t2m22();
+    for (convention, about) in expected.as_object().unwrap() {
+        let file = dir.path().join(about["file"].as_str().unwrap());
+        let rig = read_bvh(&file).unwrap().rig(None, convention).unwrap();
+        let format = rig.format();
+        assert_eq!(format.up, UpAxis::Z, "{convention}: Blender writes Z up");
+        let units = if about["units"] == "cm" {
+            Units::Centimeters
+        } else {
+            Units::Meters
+        };
+        assert_eq!(format.units, units, "{convention}");
+        assert!(
+            (rig.height_metres() - about["height"].as_f64().unwrap()).abs() < 1e-4,
+            "{convention}: {} m tall",
+            rig.height_metres()
+        );
+        let map = JointMap::builtin();
+        let r = Retargeter::new(&rig, &map, &skeleton, RetargetOptions::default()).unwrap();
+        for (k, joint) in t2m.names().iter().enumerate() {
+            let want = about["bones"][joint.as_str()].as_str().unwrap();
+            let got = r.rig_joints()[k].map(|j| rig.names()[j].as_str());
+            assert_eq!(got, Some(want), "{convention}: t2m-22 {joint}");
+        }
+        let label: &'static str = Box::leak(format!("Blender: {convention}").into_boxed_str());
         println!(
-            "| {label} | {height:.3} | {:.4} ({:.4}) | {:.2}, {:.2}, {:.2} | {:.2}, {:.3} |",
-            mean(&errors),
-            max(&errors),
-            skates[0] * 100.0,
-            skates[1] * 100.0,
-            skates[2] * 100.0,
-            mean(&end_plain) * 100.0,
-            mean(&end_ik) * 100.0,
-        );
-        // What the retarget promises, on a real take: the IK brings hands and feet onto the
-        // scaled source's (to a few millimetres where a limb cannot reach), and the foot lock
-        // adds no skate over the source's own.
-        assert!(
-            mean(&end_ik) < 0.01,
-            "{label}: end effectors {} m off",
-            mean(&end_ik)
-        );
-        assert!(
-            skates[2] <= skates[0] + 1e-3,
-            "{label}: the foot lock skates {} m/frame, the source {}",
-            skates[2],
-            skates[0]
-        );
-        assert!(
-            mean(&errors) < 0.05,
-            "{label}: mapped joints {} of the height off",
-            mean(&errors)
+            "{}",
+            figures(&TestRig { label, rig, map }, &source, &skeleton)
         );
     }
 }

@@ -23,6 +23,7 @@
 //! one file) is refused with the reason.
 
 use crate::motion::vec3::{norm, sub, Vec3};
+use crate::motion::world::UpAxis;
 
 // t2m-22 joint indices.
 const PELVIS: usize = 0;
@@ -128,6 +129,31 @@ impl<'a> Posed<'a> {
         (0..points.len().checked_sub(2)?)
             .max_by(|&a, &b| (bone(a) + bone(a + 1)).total_cmp(&(bone(b) + bone(b + 1))))
     }
+}
+
+/// `chain` without the joints that only split a bone in two (Rigify's deform limbs, `DEF-
+/// upper_arm.L` then its twist half `DEF-upper_arm.L.001`): a joint named as its parent in the
+/// chain with something added, lying on the line of its parent's bone and its own. Such a joint
+/// is no elbow or knee, and left in, its halves would be taken for the limb's two bones.
+fn without_splits(chain: &[usize], names: &[String], points: &[Vec3]) -> Vec<usize> {
+    let mut kept: Vec<usize> = Vec::with_capacity(chain.len());
+    for (i, &j) in chain.iter().enumerate() {
+        let split = match (kept.last(), chain.get(i + 1)) {
+            (Some(&parent), Some(&next)) => {
+                let (a, b) = (sub(points[j], points[parent]), sub(points[next], points[j]));
+                let along = a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+                let (own, parents) = (names[j].as_str(), names[parent].as_str());
+                let named = own.len() > parents.len() && own.starts_with(parents);
+                // Within 10 degrees of one line.
+                named && along > 0.985 * norm(a) * norm(b)
+            }
+            _ => false,
+        };
+        if !split {
+            kept.push(j);
+        }
+    }
+    kept
 }
 
 /// Which side a name says, if it says one: +1 left, -1 right.
@@ -261,8 +287,12 @@ pub(crate) fn map_by_shape(
         .map(|&c| (rig.longest[c].0 + rig.bone(chest, c), rig.longest_path(c)))
         .collect();
     arms.sort_by(|a, b| b.0.total_cmp(&a.0));
-    let arms: [Vec<usize>; 2] = [arms[0].1.clone(), arms[1].1.clone()];
-    let leg_chains = legs.map(|l| rig.follow(l, |c| -rig.reach[c].0));
+    let arms: [Vec<usize>; 2] = [
+        without_splits(&arms[0].1, names, points),
+        without_splits(&arms[1].1, names, points),
+    ];
+    let leg_chains =
+        legs.map(|l| without_splits(&rig.follow(l, |c| -rig.reach[c].0), names, points));
     // Facing: the way the feet point (ankle to toes, by the legs' limbs), +Z without toes.
     let mut forward = [0.0, 0.0];
     for chain in &leg_chains {
@@ -331,6 +361,33 @@ pub(crate) fn map_by_shape(
         map[WRISTS[s]] = chain.get(at + 2).copied();
     }
     Ok(map)
+}
+
+/// A Z-up point turned Y up, as [`crate::motion::world::UpAxis::Z`] says: `(x, y, z) -> (x, z, -y)`.
+pub(crate) fn z_up_to_y_up(p: Vec3) -> Vec3 {
+    [p[0], p[2], -p[1]]
+}
+
+/// The axis a figure stands along in the pose `points` (as [`map_by_shape`] takes them): Y, the
+/// BVH convention, unless the figure is a standing humanoid only when read Z up, as Blender's
+/// BVH exporter writes it (armature space, unconverted). A figure that stands neither way (a
+/// quadruped, a pose lying down) is left Y up: what it is, the mapping then says.
+pub(crate) fn standing_axis(
+    names: &[String],
+    parents: &[Option<usize>],
+    points: &[Vec3],
+    ends: &[Option<Vec3>],
+) -> UpAxis {
+    if map_by_shape(names, parents, points, ends).is_ok() {
+        return UpAxis::Y;
+    }
+    let turned: Vec<Vec3> = points.iter().map(|&p| z_up_to_y_up(p)).collect();
+    let turned_ends: Vec<Option<Vec3>> = ends.iter().map(|e| e.map(z_up_to_y_up)).collect();
+    if map_by_shape(names, parents, &turned, &turned_ends).is_ok() {
+        UpAxis::Z
+    } else {
+        UpAxis::Y
+    }
 }
 
 #[cfg(test)]

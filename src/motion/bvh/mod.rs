@@ -28,8 +28,9 @@ use ndarray::Array3;
 use crate::motion::joint_inference::RigShape;
 use crate::motion::joint_map::JointMap;
 use crate::motion::rotation::Quat;
+use crate::motion::shape_map::{standing_axis, z_up_to_y_up};
 use crate::motion::vec3::{add, Vec3};
-use crate::motion::world::{JointsFormat, Units};
+use crate::motion::world::{JointsFormat, Units, UpAxis};
 use crate::shared::error::{Error, Result};
 use crate::shared::logging::{log, Level};
 
@@ -190,7 +191,8 @@ impl Bvh {
 /// A BVH clip as t2m-22 joint positions, with the format that says how to read them.
 #[derive(Debug, Clone)]
 pub struct BvhJoints {
-    /// `[frames, 22, 3]` positions in the file's units and axes.
+    /// `[frames, 22, 3]` positions in the file's units, Y up (a file whose figure stands along
+    /// Z, as Blender writes BVH, is turned Y up).
     pub positions: Array3<f32>,
     /// The file's units (declared or guessed), Y up, right-handed, and its frame rate.
     pub format: JointsFormat,
@@ -204,7 +206,8 @@ impl Bvh {
     /// lacks are placed from the others ([`crate::motion::joint_inference`]; `inferred` says
     /// which and how). `label` names the file in messages. `units`: the file's length unit, or `None` to guess it from the
     /// figure's height in the first frame (above 10 units: centimetres, else metres). BVH is Y
-    /// up by convention.
+    /// up by convention; a figure that stands only along Z (Blender's exporter writes its Z-up
+    /// armature space as it is) is read Z up and turned, and the log says so.
     pub fn to_t2m22(&self, map: &JointMap, units: Option<Units>, label: &str) -> Result<BvhJoints> {
         let frames = self.frames();
         if frames == 0 {
@@ -231,8 +234,28 @@ impl Bvh {
         let names: Vec<String> = self.joints.iter().map(|j| j.name.clone()).collect();
         let parents: Vec<Option<usize>> = self.joints.iter().map(|j| j.parent).collect();
         let end_sites: Vec<bool> = self.joints.iter().map(|j| j.end_site.is_some()).collect();
-        // The first frame, a standing person in a mocap file, shows the rig's shape.
+        // The first frame, a standing person in a mocap file, shows the rig's shape, and the
+        // axis it stands along: Y by convention, Z as Blender's exporter writes (turned Y up).
         let (first_pose, first_ends) = self.pose_with_end_sites(0);
+        let z_up = standing_axis(&names, &parents, &first_pose, &first_ends) == UpAxis::Z;
+        if z_up {
+            log(Level::Info, "troupe::motion", || {
+                format!(
+                    "{label}: the figure stands along Z, not Y: read Z up (as Blender writes BVH)"
+                )
+            });
+        }
+        let pose_at = |t: usize| {
+            let (mut pos, mut ends) = self.pose_with_end_sites(t);
+            if z_up {
+                pos.iter_mut().for_each(|p| *p = z_up_to_y_up(*p));
+                ends.iter_mut()
+                    .flatten()
+                    .for_each(|p| *p = z_up_to_y_up(*p));
+            }
+            (pos, ends)
+        };
+        let (first_pose, first_ends) = pose_at(0);
         let resolved = map.resolve_inferring(
             RigShape {
                 names: &names,
@@ -245,7 +268,7 @@ impl Bvh {
         )?;
         let mut positions = Array3::<f32>::zeros((frames, resolved.sources.len(), 3));
         for t in 0..frames {
-            let (pos, ends) = self.pose_with_end_sites(t);
+            let (pos, ends) = pose_at(t);
             for (k, source) in resolved.sources.iter().enumerate() {
                 let p = source.position(&pos, &ends);
                 for d in 0..3 {
@@ -253,7 +276,7 @@ impl Bvh {
                 }
             }
         }
-        let units = units.unwrap_or_else(|| units_from_height(self.pose(0).0.iter().map(|p| p[1])));
+        let units = units.unwrap_or_else(|| units_from_height(first_pose.iter().map(|p| p[1])));
         Ok(BvhJoints {
             positions,
             inferred: resolved.inferred,

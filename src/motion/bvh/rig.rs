@@ -3,16 +3,18 @@
 use super::{local_transform, units_from_height, Bvh};
 use crate::motion::rig::{Rig, RigJoint};
 use crate::motion::rotation::Quat;
-use crate::motion::vec3::{add, Vec3};
-use crate::motion::world::{JointsFormat, Units};
+use crate::motion::shape_map::standing_axis;
+use crate::motion::world::{JointsFormat, Units, UpAxis};
 use crate::shared::error::{excerpt, Error, Result};
+use crate::shared::logging::{log, Level};
 
 impl Bvh {
     /// The rig of this file's hierarchy: its offsets at rest (no channel applied), no rest
-    /// rotations, Y up. `units`: the file's unit, or `None` to guess it from the rest pose's
-    /// height (above 10 units: centimetres, else metres). `name` names the rig.
+    /// rotations, Y up (or Z up for a figure that stands only that way, as Blender's exporter
+    /// writes). `units`: the file's unit, or `None` to guess it from the rest pose's height
+    /// (above 10 units: centimetres, else metres). `name` names the rig.
     pub fn rig(&self, units: Option<Units>, name: &str) -> Result<Rig> {
-        let joints: Vec<RigJoint> = self
+        let joints = self
             .joints
             .iter()
             .map(|j| RigJoint {
@@ -23,22 +25,7 @@ impl Bvh {
                 end_site: j.end_site,
             })
             .collect();
-        let units = units.unwrap_or_else(|| {
-            let mut world: Vec<Vec3> = Vec::with_capacity(joints.len());
-            for j in &joints {
-                let p = j.parent.map_or([0.0; 3], |p| world[p]);
-                world.push(add(p, j.offset));
-            }
-            units_from_height(world.iter().map(|p| p[1]))
-        });
-        Rig::new(
-            name,
-            joints,
-            JointsFormat {
-                units,
-                ..JointsFormat::default()
-            },
-        )
+        standing(name, joints, units)
     }
 
     /// The rig of this file's hierarchy posed as in frame `frame`: for files whose all-zero
@@ -55,10 +42,9 @@ impl Bvh {
         }
         let row =
             &self.values[frame * self.channels_per_frame..(frame + 1) * self.channels_per_frame];
-        let zero = self.rig(units, name)?;
         let mut at = 0;
         let mut joints = Vec::with_capacity(self.joints.len());
-        for (j, joint) in self.joints.iter().enumerate() {
+        for joint in &self.joints {
             let (offset, rotation) = local_transform(joint, &row[at..]);
             at += joint.channels.len();
             joints.push(RigJoint {
@@ -66,9 +52,48 @@ impl Bvh {
                 parent: joint.parent,
                 offset,
                 rotation: rotation.normalized(),
-                end_site: zero.end_sites()[j],
+                end_site: joint.end_site,
             });
         }
-        Rig::new(name, joints, zero.format())
+        standing(name, joints, units)
     }
+}
+
+/// The rig of `joints` in the axes its rest pose stands along: Y up, as BVH files are by
+/// convention, or Z up for a figure that stands only that way (Blender's BVH exporter writes its
+/// armature's space, Z up, unconverted), said in the log. `units`: declared, or guessed from the
+/// height along that axis.
+fn standing(name: &str, joints: Vec<RigJoint>, units: Option<Units>) -> Result<Rig> {
+    let y_up = Rig::new(name, joints, JointsFormat::default())?;
+    let (pos, rot) = y_up.rest_world();
+    let ends = y_up.end_site_positions(&pos, &rot);
+    let up = standing_axis(y_up.names(), y_up.parents(), &pos, &ends);
+    if up == UpAxis::Z {
+        log(Level::Info, "troupe::motion", || {
+            format!(
+                "rig {}: its rest pose stands along Z, not Y: read Z up (as Blender writes BVH)",
+                excerpt(name)
+            )
+        });
+    }
+    let axis = if up == UpAxis::Z { 2 } else { 1 };
+    let units = units.unwrap_or_else(|| units_from_height(pos.iter().map(|p| p[axis])));
+    let joints = (0..y_up.len())
+        .map(|j| RigJoint {
+            name: y_up.names()[j].clone(),
+            parent: y_up.parents()[j],
+            offset: y_up.offsets()[j],
+            rotation: y_up.rest_rotations()[j],
+            end_site: y_up.end_sites()[j],
+        })
+        .collect();
+    Rig::new(
+        name,
+        joints,
+        JointsFormat {
+            units,
+            up,
+            ..JointsFormat::default()
+        },
+    )
 }
