@@ -385,6 +385,67 @@ fn figures(t: &TestRig, source: &[Vec<Vec3>], skeleton: &Skeleton) -> String {
     )
 }
 
+/// Every BVH rig inside the registry packages the tests fetch (the corpus of
+/// `tests/bvh.rs::every_registry_bvh_reads_without_a_joint_map_and_by_its_shape_alone`) takes the
+/// CMU take with no joint map written for it, within the bounds of docs/RIGS.md's table, or,
+/// without hands, is refused saying so. LAFAN1's files lie down in their all-zero pose: their
+/// first frame, standing, is the rest pose.
+#[test]
+fn every_registry_bvh_rig_is_retargeted_onto_without_a_joint_map() {
+    let files = [
+        ("bvhtools==1.6.0", "tutorials/test1.bvh", true),
+        ("bvhtools==1.6.0", "tutorials/test2.bvh", true),
+        ("bvhtools==1.6.0", "testBvhFiles/test.bvh", true),
+        ("bvhtools==1.6.0", "testBvhFiles/test2.bvh", true),
+        ("bvhtools==1.6.0", "testBvhFiles/test3.bvh", false),
+        (
+            "bvhtoolbox==0.1.3",
+            "tests/example_files/test_freebvh.bvh",
+            false,
+        ),
+        (
+            "bvhtoolbox==0.1.3",
+            "tests/example_files/test_mocapbank.bvh",
+            false,
+        ),
+    ];
+    let source = actor();
+    let skeleton = Skeleton::t2m22().fitted_to(&source);
+    for (package, file, first_frame) in files {
+        let bvh = read_bvh(common::pypi_sdist(package).join(file)).unwrap();
+        if file.ends_with("test3.bvh") {
+            // Rigify's export without hands: its forearms end at end sites, so there is no
+            // joint to drive a hand with, and the refusal says so (reading its motion places
+            // the wrists at those ends instead: tests/bvh.rs).
+            let rig = bvh.rig(None, file).unwrap();
+            let options = RetargetOptions::default();
+            let Err(e) = Retargeter::new(&rig, &JointMap::builtin(), &skeleton, options) else {
+                panic!("{file}: a rig without hands is refused");
+            };
+            let e = e.to_string();
+            assert!(
+                e.contains("its shape is a humanoid's without left_wrist, right_wrist"),
+                "{e}"
+            );
+            println!("| {package} {file} | refused: {e} |");
+            continue;
+        }
+        let rig = if first_frame {
+            bvh.rig_at_frame(0, None, file)
+        } else {
+            bvh.rig(None, file)
+        }
+        .unwrap();
+        let label: &'static str = Box::leak(format!("{package} {file}").into_boxed_str());
+        let t = TestRig {
+            label,
+            rig,
+            map: JointMap::builtin(),
+        };
+        println!("{}", figures(&t, &source, &skeleton));
+    }
+}
+
 /// Characters as Blender writes them (`tests/gltf/blender_rigs.py`: Rigify's deform bones with
 /// twist bones, Mixamo's names, Unreal's mannequin in centimetres, an A-pose, and Blender's
 /// default `Bone.001` names), exported by Blender's own BVH exporter, which writes Z up: each is

@@ -227,6 +227,8 @@ impl Retargeter {
         let canonical_rig = rig.with_format(JointsFormat::default());
         let (rest_pos, rest_rot) = canonical_rig.rest_world();
         let mut found = map.resolve_partial(rig.names());
+        // What the rig's shape says it lacks, when the names leave joints unfound.
+        let mut shape_lacks: Vec<usize> = Vec::new();
         if REQUIRED_JOINTS.iter().any(|&j| found[j].is_none()) {
             // The names do not say: recognise the joints by the shape of the rig's rest pose
             // (metres, Y up), if it has a humanoid's.
@@ -234,7 +236,12 @@ impl Retargeter {
             if let Ok(by_shape) =
                 crate::motion::shape_map::map_by_shape(rig.names(), rig.parents(), &rest_pos, &ends)
             {
-                if REQUIRED_JOINTS.iter().all(|&j| by_shape[j].is_some()) {
+                shape_lacks = REQUIRED_JOINTS
+                    .iter()
+                    .copied()
+                    .filter(|&j| by_shape[j].is_none())
+                    .collect();
+                if shape_lacks.is_empty() {
                     found = by_shape;
                 }
             }
@@ -246,8 +253,23 @@ impl Retargeter {
             .map(|&j| format!("{} (tried {})", t2m.names()[j], map.names_for(j).join(", ")))
             .collect();
         if !missing.is_empty() {
+            // A humanoid without hands (its forearms end at an end site) has nothing to put a
+            // hand on: no joint map helps, so the message says what the rig lacks.
+            let why = if shape_lacks.is_empty() {
+                "give a joint map with your rig's names".to_string()
+            } else {
+                let lacks: Vec<&str> = shape_lacks
+                    .iter()
+                    .map(|&j| t2m.names()[j].as_str())
+                    .collect();
+                format!(
+                    "its shape is a humanoid's without {} (a limb ends where that joint would \
+                     be), which retargeting needs to drive",
+                    lacks.join(", ")
+                )
+            };
             return Err(bad(format!(
-                "the rig has no joint for {}; give a joint map with your rig's names",
+                "the rig has no joint for {}; {why}",
                 missing.join("; ")
             )));
         }
