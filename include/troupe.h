@@ -1837,6 +1837,21 @@ troupe_status troupe_rig_retarget_push(struct troupe_rig_retargeter *retargeter,
 troupe_status troupe_rig_retarget_reset(struct troupe_rig_retargeter *retargeter);
 
 /**
+ * How the retargeter mapped its rig: for each t2m-22 joint (the order
+ * `troupe_rig_retarget_push` takes positions in), the index of the rig joint it drives
+ * (`troupe_rig_joint_name` names it), or -1 where the rig has none and that joint drives
+ * nothing. Found by the joint map's names, or by the rig's shape where the names fall short
+ * (`docs/RIGS.md`): this shows the user which joint became which. Writes 22 values.
+ *
+ * Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_BUFFER_TOO_SMALL` (`capacity` under
+ * 22: nothing written), `TROUPE_ERR_BUSY`. One thread at a time per retargeter.
+ *
+ * # Safety
+ * `retargeter` a live handle; `rig_joints` writable for `capacity` values.
+ */
+troupe_status troupe_rig_retargeter_mapping(struct troupe_rig_retargeter *retargeter, int64_t *rig_joints, size_t capacity);
+
+/**
  * Frees a retargeter. NULL is a no-op.
  *
  * # Safety

@@ -214,6 +214,16 @@ int main(int argc, char **argv) {
     rotations = (float *)malloc(sizeof(float) * 4 * joints);
     EXPECT(troupe_rig_retarget_push(stream, clip, 3 * J, rotations, 4 * joints, root, &root_joint), TROUPE_OK);
     CHECK(root_joint == 0);
+    /* Which Mixamo joint each t2m-22 joint drives: the left wrist is LeftHand. */
+    {
+        int64_t mapping[22];
+        EXPECT(troupe_rig_retargeter_mapping(stream, mapping, 22), TROUPE_OK);
+        CHECK(mapping[20] >= 0 && strstr(troupe_rig_joint_name(mixamo, (size_t)mapping[20]), "LeftHand") != NULL);
+        CHECK(mapping[0] >= 0 && strstr(troupe_rig_joint_name(mixamo, (size_t)mapping[0]), "Hips") != NULL);
+        EXPECT(troupe_rig_retargeter_mapping(stream, mapping, 21), TROUPE_ERR_BUFFER_TOO_SMALL);
+        EXPECT(troupe_rig_retargeter_mapping(stream, NULL, 22), TROUPE_ERR_NULL_ARG);
+        EXPECT(troupe_rig_retargeter_mapping(NULL, mapping, 22), TROUPE_ERR_NULL_ARG);
+    }
     troupe_rig_retargeter_free(stream);
     {
         float *two = (float *)malloc(sizeof(float) * 2 * FRAMES * J * 3);

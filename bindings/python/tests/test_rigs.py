@@ -117,6 +117,19 @@ def test_a_joint_map_is_json_text_a_dict_or_a_file(tmp_path, clip):
         motion.read_bvh_take(source, joint_map={"skeleton": "t2m22", "joints": {"pelvis": ["pelvis"]}})
 
 
+def test_the_retargeter_shows_which_rig_joint_each_joint_drives():
+    rig = motion.Rig.from_json(own_rig_json())
+    with motion.Retargeter(rig, FMT) as stream:
+        assert stream.mapping == {name: name for name in motion.skeleton().names}
+    # The same body with numbers for names: recognised by its shape, joint for joint.
+    numbered = json.loads(own_rig_json())
+    rename = {j["name"]: f"bone {k}" for k, j in enumerate(numbered["joints"])}
+    for j in numbered["joints"]:
+        j["name"], j["parent"] = rename[j["name"]], rename.get(j["parent"])
+    with motion.Retargeter(motion.Rig.from_json(json.dumps(numbered)), FMT) as stream:
+        assert stream.mapping == rename
+
+
 def test_bad_rigs_are_refused_with_the_reason(tmp_path):
     with pytest.raises(troupe.TroupeError, match="0 joints"):
         motion.Rig.from_json('{"name": "x", "joints": []}')

@@ -429,6 +429,7 @@ PROTOTYPES: dict[str, tuple[Any, list[Any]]] = {
     "troupe_rig_retargeter_new": (status, [rig_p, fmt_p, ctypes.c_uint32, ctypes.POINTER(retargeter_p)]),
     "troupe_rig_retarget_push": (status, [retargeter_p, f32p, c_size, f32p, c_size, f32p, ctypes.POINTER(c_size)]),
     "troupe_rig_retarget_reset": (status, [retargeter_p]),
+    "troupe_rig_retargeter_mapping": (status, [retargeter_p, ctypes.POINTER(ctypes.c_int64), c_size]),
     "troupe_rig_retargeter_free": (None, [retargeter_p]),
     "troupe_rig_retarget_clip": (status, [rig_p, f32p, c_size, fmt_p, ctypes.c_uint32, f32p, c_size, f32p, c_size,
                                           ctypes.POINTER(c_size)]),

@@ -376,6 +376,12 @@ def _retarget_flags(foot_lock: bool, limb_ik: bool) -> int:
     return (0 if foot_lock else _RETARGET_NO_FOOT_LOCK) | (0 if limb_ik else _RETARGET_NO_LIMB_IK)
 
 
+# The t2m-22 joints, in the order positions [22, 3] list them.
+T2M22_JOINTS = ("pelvis", "left_hip", "right_hip", "spine1", "left_knee", "right_knee", "spine2", "left_ankle",
+                "right_ankle", "spine3", "left_foot", "right_foot", "neck", "left_collar", "right_collar", "head",
+                "left_shoulder", "right_shoulder", "left_elbow", "right_elbow", "left_wrist", "right_wrist")
+
+
 class Rig:
     """A character rig (its joints, rest pose, units and axes) with the joint map saying which of
     its joints is which t2m-22 joint (`joint_map`: JSON text, a dict or a JSON file's path, or None
@@ -457,6 +463,7 @@ class Retargeter:
         expect_type(rig, Rig, "rig")
         self._handle = _native.retargeter_p()
         self._joints = _lib.troupe_rig_joint_count(rig._live())
+        self._names = rig.joint_names
         c = _format(fmt)
         _check(_lib.troupe_rig_retargeter_new(rig._handle, ctypes.byref(c), _retarget_flags(foot_lock, limb_ik),
                                               ctypes.byref(self._handle)))
@@ -474,6 +481,14 @@ class Retargeter:
     def reset(self) -> None:
         """Forgets the stream (foot pins, the previous frame)."""
         _check(_lib.troupe_rig_retarget_reset(self._live()))
+
+    @property
+    def mapping(self) -> dict[str, str | None]:
+        """Which rig joint each t2m-22 joint drives, by name (None: the rig has none), as the
+        joint map's names or, where they fall short, the rig's shape found it."""
+        out = (ctypes.c_int64 * 22)()
+        _check(_lib.troupe_rig_retargeter_mapping(self._live(), out, 22))
+        return {t2m: (self._names[j] if j >= 0 else None) for t2m, j in zip(T2M22_JOINTS, out)}
 
     def _live(self) -> Any:
         if not self._handle:

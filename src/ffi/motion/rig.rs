@@ -8,7 +8,7 @@ use super::bvh::{units_from, TROUPE_UNITS_AUTO};
 use super::{canonical_people, read_format, troupe_joints_format};
 use crate::ffi::boundary::{
     self, non_null, required, troupe_status, Exclusive, FfiError, FfiResult,
-    TROUPE_ERR_INVALID_ARG, TROUPE_ERR_SHAPE,
+    TROUPE_ERR_BUFFER_TOO_SMALL, TROUPE_ERR_INVALID_ARG, TROUPE_ERR_SHAPE,
 };
 use crate::motion::bvh::{read_bvh, write_rig_bvh_file, BvhWriteOptions};
 use crate::motion::features::read_frame;
@@ -381,6 +381,51 @@ pub unsafe extern "C" fn troupe_rig_retarget_reset(
             // SAFETY: NULL or a live handle per the contract; shared access until claimed.
             let handle = required(unsafe { retargeter.as_ref() }, "retargeter")?;
             handle.state.claim("the retargeter")?.0.reset();
+            Ok(())
+        },
+    )
+}
+
+/// How the retargeter mapped its rig: for each t2m-22 joint (the order
+/// `troupe_rig_retarget_push` takes positions in), the index of the rig joint it drives
+/// (`troupe_rig_joint_name` names it), or -1 where the rig has none and that joint drives
+/// nothing. Found by the joint map's names, or by the rig's shape where the names fall short
+/// (`docs/RIGS.md`): this shows the user which joint became which. Writes 22 values.
+///
+/// Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_BUFFER_TOO_SMALL` (`capacity` under
+/// 22: nothing written), `TROUPE_ERR_BUSY`. One thread at a time per retargeter.
+///
+/// # Safety
+/// `retargeter` a live handle; `rig_joints` writable for `capacity` values.
+#[no_mangle]
+pub unsafe extern "C" fn troupe_rig_retargeter_mapping(
+    retargeter: *mut troupe_rig_retargeter,
+    rig_joints: *mut i64,
+    capacity: usize,
+) -> troupe_status {
+    boundary::call(
+        "troupe_rig_retargeter_mapping",
+        || {},
+        || {
+            // SAFETY: NULL or a live handle per the contract; shared access until claimed.
+            let handle = required(unsafe { retargeter.as_ref() }, "retargeter")?;
+            non_null(rig_joints, "rig_joints")?;
+            let claimed = handle.state.claim("the retargeter")?;
+            let mapping = claimed.0.rig_joints();
+            if capacity < mapping.len() {
+                return Err(FfiError::new(
+                    TROUPE_ERR_BUFFER_TOO_SMALL,
+                    format!(
+                        "the mapping is {} values, the buffer holds {capacity}",
+                        mapping.len()
+                    ),
+                ));
+            }
+            for (k, joint) in mapping.iter().enumerate() {
+                let value = joint.map_or(-1, |j| j as i64);
+                // SAFETY: writable for `capacity >= 22` values per the contract.
+                unsafe { *rig_joints.add(k) = value };
+            }
             Ok(())
         },
     )
