@@ -195,6 +195,41 @@ fn other_model(name: &'static str) -> &'static Model {
     model
 }
 
+/// The golden live configuration of a MAGNet partner at `steps` steps, guidance smoothing off
+/// or on (no opening, seed 0).
+fn live_partner(steps: u8, guided: bool) -> troupe::PartnerOptions {
+    let guidance = if guided {
+        r#"{"weight": 2.0, "start": 0.0, "end": 1.0}"#
+    } else {
+        "null"
+    };
+    let config = format!(
+        r#"{{"task": "motion_control_live", "steps": {steps}, "eta": 0.0,
+        "schedule": "causal_uncertainty", "subseq_len": 4, "ar_seq_stride": 8,
+        "offset_proportion": 0.0, "seq_len": 96, "context_len": 32, "samples": 1,
+        "root_mode": "temporal", "temporal_smoothing": 0.3, "smoothing_start": 0,
+        "update_history_transforms": true, "seed": 5, "guidance": {{"scales": [["clean", 1.0]],
+        "subset_ratio": 0.5, "partial_level": 0.5, "smoothing": {guidance},
+        "foot_skating": null}}}}"#
+    );
+    troupe::PartnerOptions {
+        live_config: Some(config),
+        ..Default::default()
+    }
+}
+
+/// A live partner's opening: 32 frames of a figure standing still, feet on the ground.
+fn live_opening() -> Vec<f32> {
+    (0..32 * 145)
+        .map(|i| match i % 145 {
+            10..=135 if (i % 145 - 10) % 6 == 0 || (i % 145 - 10) % 6 == 4 => 1.0,
+            136 | 140 => 1.0,
+            143 => 0.9,
+            _ => 0.0,
+        })
+        .collect()
+}
+
 /// MAGNet's live partner and ARFlow's online stream with arbitrary settings, opening frames,
 /// chunking and values: every step either fails (the stream usable) or gives finite frames.
 /// One input in two then edits the stream's snapshot ([`edit_snapshot`]) and steps what it
@@ -203,36 +238,12 @@ pub fn other_streams(data: &[u8]) {
     let mut bytes = Bytes(data);
     let magnet = bytes.u8() % 2 == 0;
     let session = if magnet {
-        // The golden live configuration at 1 to 4 steps, guidance off or on.
-        let steps = 1 + bytes.u8() % 4;
-        let guidance = if bytes.u8() % 2 == 0 {
-            "null"
-        } else {
-            r#"{"weight": 2.0, "start": 0.0, "end": 1.0}"#
-        };
-        let config = format!(
-            r#"{{"task": "motion_control_live", "steps": {steps}, "eta": 0.0,
-            "schedule": "causal_uncertainty", "subseq_len": 4, "ar_seq_stride": 8,
-            "offset_proportion": 0.0, "seq_len": 96, "context_len": 32, "samples": 1,
-            "root_mode": "temporal", "temporal_smoothing": 0.3, "smoothing_start": 0,
-            "update_history_transforms": true, "seed": 5, "guidance": {{"scales": [["clean", 1.0]],
-            "subset_ratio": 0.5, "partial_level": 0.5, "smoothing": {guidance},
-            "foot_skating": null}}}}"#
-        );
-        let opening: Vec<f32> = (0..32 * 145)
-            .map(|i| match i % 145 {
-                10..=135 if (i % 145 - 10) % 6 == 0 || (i % 145 - 10) % 6 == 4 => 1.0,
-                136 | 140 => 1.0,
-                143 => 0.9,
-                _ => 0.0,
-            })
-            .collect();
+        let (steps, guided) = (1 + bytes.u8() % 4, bytes.u8() % 2 == 1);
         let options = troupe::PartnerOptions {
             seed: u64::from(bytes.u32()),
-            live_config: Some(config),
-            opening: (bytes.u8() % 8 != 0).then_some(opening),
+            opening: (bytes.u8() % 8 != 0).then(live_opening),
             early_emission: bytes.u8() % 2 == 0,
-            ..Default::default()
+            ..live_partner(steps, guided)
         };
         other_model("magnet-tiny").session(options)
     } else {
@@ -441,7 +452,7 @@ pub fn c_api_sequence(data: &[u8]) {
 pub type Target = fn(&[u8]);
 
 /// Every target by name, for the replay and mutation test.
-pub const TARGETS: [(&str, Target); 13] = [
+pub const TARGETS: [(&str, Target); 14] = [
     ("tar_archive", tar_archive),
     ("manifest", manifest),
     ("onnx_graph", onnx_graph),
@@ -455,7 +466,130 @@ pub const TARGETS: [(&str, Target); 13] = [
     ("motion_encoder", motion_encoder),
     ("rig_retarget", rig_retarget),
     ("session_snapshot", session_snapshot),
+    ("snapshot_edits", snapshot_edits),
 ];
+
+/// The snapshot of every kind of stream, each with the state that kind adds, made once per
+/// process: (its model, the snapshot, whether it takes joint positions).
+fn prepared_snapshots() -> &'static Vec<(&'static Model, Vec<u8>, bool)> {
+    static SNAPSHOTS: OnceLock<Vec<(&'static Model, Vec<u8>, bool)>> = OnceLock::new();
+    SNAPSHOTS.get_or_init(|| {
+        let armflow = model();
+        let mut out = Vec::new();
+        let features = |s: &troupe::Session, frames: usize| -> Vec<f32> {
+            (0..frames * s.frame_dim())
+                .map(|i| ((i as f32) * 0.37).sin())
+                .collect()
+        };
+        // Feature streams with every option that adds state: a small ring that wraps, CFG, the
+        // guard and the smoothing, and either the VAE over windows or recentring (which needs
+        // the per-token VAE).
+        for windows in [true, false] {
+            let mut busy = armflow
+                .session(troupe::ReactorOptions {
+                    seed: 3,
+                    steps: Some(2),
+                    cfg_scale: Some(1.5),
+                    context_capacity: Some(3),
+                    vae_windows: windows,
+                    recentring: (!windows).then(troupe::Recentring::default),
+                    ..Default::default()
+                })
+                .expect("options in range");
+            busy.set_penetration_guard(Some(troupe::PenetrationGuard::default()))
+                .expect("an armflow session is guarded");
+            busy.set_root_smoothing(Some(troupe::RootSmoothing::default()))
+                .expect("an armflow session is smoothed");
+            let frames = features(&busy, 21);
+            busy.step_flat(&frames).expect("finite frames step");
+            out.push((armflow, busy.snapshot().expect("saves"), false));
+        }
+        // Joint streams, resampled from other rates, one with the foot lock.
+        for (fps, foot_lock) in [(120.0, true), (29.97, false)] {
+            let mut joints = armflow
+                .session(troupe::ReactorOptions::default())
+                .expect("defaults");
+            let format = troupe::motion::JointsFormat {
+                fps,
+                ..Default::default()
+            };
+            joints.set_joints_format(format).expect("a valid format");
+            if foot_lock {
+                joints
+                    .set_foot_lock(Some(troupe::FootLockOptions::default()))
+                    .expect("an armflow session locks feet");
+            }
+            joints
+                .step_joints(joint_frames(23, 0).view())
+                .expect("finite positions step");
+            out.push((armflow, joints.snapshot().expect("saves"), true));
+        }
+        // MAGNet's live partner, past its opening, and ARFlow's online stream.
+        let magnet = other_model("magnet-tiny");
+        let mut live = magnet
+            .session(troupe::PartnerOptions {
+                opening: Some(live_opening()),
+                ..live_partner(2, true)
+            })
+            .expect("the golden live configuration");
+        let frames = features(&live, 40);
+        live.step_flat(&frames).expect("finite frames step");
+        out.push((magnet, live.snapshot().expect("saves"), false));
+        let arflow = other_model("arflow-tiny-online");
+        let mut online = arflow
+            .session(troupe::ArflowOptions {
+                steps: Some(2),
+                ..Default::default()
+            })
+            .expect("options in range");
+        let frames = features(&online, 9);
+        online.step_flat(&frames).expect("finite frames step");
+        out.push((arflow, online.snapshot().expect("saves"), false));
+        out
+    })
+}
+
+/// The key sealed snapshots are fuzzed under.
+const SEAL_KEY: &[u8] = b"the fuzzing key!";
+
+/// The snapshot of a stream of every kind ([`prepared_snapshots`]: features with every option,
+/// over VAE windows or recentred,
+/// joint positions resampled with and without the foot lock, MAGNet's live partner, ARFlow's
+/// online stream), edited as an attacker would ([`edit_snapshot`]), one time in four sealed
+/// first and its seal edited too: refused, or a stream whose next calls stay bounded and save
+/// again. Made once, the snapshots cost nothing per input, so this target runs far more edits a
+/// second than those that make a stream for each.
+pub fn snapshot_edits(data: &[u8]) {
+    let mut bytes = Bytes(data);
+    let prepared = prepared_snapshots();
+    let (model, snapshot, joints) = &prepared[usize::from(bytes.u8()) % prepared.len()];
+    let sealed = bytes.u8().is_multiple_of(4);
+    let mut edited = if sealed {
+        troupe::seal_snapshot(snapshot, SEAL_KEY).expect("a snapshot seals")
+    } else {
+        snapshot.clone()
+    };
+    edit_snapshot(&mut edited, &mut bytes);
+    let restored = if sealed {
+        model.restore_sealed(&edited, SEAL_KEY)
+    } else {
+        model.restore(&edited)
+    };
+    let Ok(mut restored) = restored else {
+        return;
+    };
+    if *joints {
+        if let Ok(poses) = restored.step_joints(joint_frames(9, 40).view()) {
+            assert!(
+                poses.len() <= 64,
+                "{} poses for 9 joint frames",
+                poses.len()
+            );
+        }
+    }
+    step_arbitrarily(&mut restored, &mut Bytes(&[4, 0, 9, 0]), 9);
+    restored.snapshot().expect("a restored session saves");
+}
 
 /// Snapshots of streams: a real snapshot of a session stepped from the input (settings, the
 /// guard, feature frames or, one time in three, joint positions at another rate with the foot
