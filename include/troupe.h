@@ -1730,6 +1730,24 @@ typedef struct troupe_rig troupe_rig;
 typedef struct troupe_rig_retargeter troupe_rig_retargeter;
 
 /**
+ * One person's clip for `troupe_gltf_write_people`: its own number of frames.
+ */
+typedef struct troupe_person_clip {
+  /**
+   * The person's name (NUL-terminated UTF-8), or NULL for "person1", "person2", ...
+   */
+  const char *name;
+  /**
+   * t2m-22 joint positions, float32 `[n_frames][22][3]`, in the caller's world.
+   */
+  const float *positions;
+  /**
+   * Frames of `positions`, at least 1.
+   */
+  size_t n_frames;
+} troupe_person_clip;
+
+/**
  * Reads the rig of the BVH file at `path` (UTF-8). `units`: the file's length unit
  * (`TROUPE_UNITS_*`, or `TROUPE_UNITS_AUTO` to guess from the rest pose's height).
  * `rest_frame`: the frame whose pose is the rig's rest pose (for files whose all-zero pose lies
@@ -1877,6 +1895,28 @@ void troupe_rig_retargeter_free(struct troupe_rig_retargeter *retargeter);
  * `root_translations` writable for their lengths; `root_joint` writable.
  */
 troupe_status troupe_rig_retarget_clip(const struct troupe_rig *rig, const float *positions, size_t n_frames, const struct troupe_joints_format *format, uint32_t flags, float *rotations, size_t rotations_len, float *root_translations, size_t root_len, size_t *root_joint);
+
+/**
+ * `troupe_gltf_write` for people of different lengths (a partner streamed back lags its actor
+ * by the stream's latency): `people`, `n_people` clips, each with its own frames. Each person's
+ * animation keeps its own keys, and a shorter one holds its last pose to the end of the longest,
+ * as glTF clients hold a sampler past its last key. Nothing is trimmed or padded. The rest is as
+ * `troupe_gltf_write` says: retargeted onto `rig` (NULL: troupe's own body), `format` for every
+ * person (its `fps` the animation's rate), `flags` its bits.
+ *
+ * Returns what `troupe_gltf_write` returns. Every buffer is borrowed for the call.
+ * Thread-safe.
+ *
+ * ```c
+ * troupe_person_clip people[2] = {{"actor", actor, n_actor}, {"partner", partner, n_partner}};
+ * troupe_status st = troupe_gltf_write_people("duet.glb", NULL, people, 2, &format, 0);
+ * ```
+ *
+ * # Safety
+ * `path` NUL-terminated; `people` readable for `n_people` clips, each clip's `positions`
+ * readable for `n_frames * 66` floats and its `name` NULL or NUL-terminated; `format` readable.
+ */
+troupe_status troupe_gltf_write_people(const char *path, const struct troupe_rig *rig, const struct troupe_person_clip *people, size_t n_people, const struct troupe_joints_format *format, uint32_t flags);
 
 /**
  * Writes a glTF 2.0 binary file (`.glb`) at `path` (UTF-8; atomically): `n_people` people,

@@ -263,6 +263,29 @@ fn every_glb_passes_the_khronos_validator_without_warnings() {
     )
     .unwrap();
     files.push(lone);
+    // Two people of different lengths: each animation keeps its own keys.
+    let longer = retarget(&own, &actor()[..9], RetargetOptions::default());
+    let uneven = dir.path().join("uneven.glb");
+    write_glb_file(
+        &uneven,
+        &[
+            GltfPerson {
+                name: "actor",
+                rig: &rig,
+                poses: &longer,
+                color: PERSON_COLORS[0],
+            },
+            GltfPerson {
+                name: "reactor",
+                rig: &rig,
+                poses: &poses,
+                color: PERSON_COLORS[1],
+            },
+        ],
+        &GltfOptions::default(),
+    )
+    .unwrap();
+    files.push(uneven);
     for (file, (errors, warnings, messages)) in files.iter().zip(validate(&files)) {
         assert_eq!((errors, warnings), (0, 0), "{}: {messages}", file.display());
     }

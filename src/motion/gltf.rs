@@ -266,28 +266,21 @@ fn inverse_bind(q: Quat, t: Vec3) -> [f32; 16] {
     m
 }
 
-/// The bytes of a `.glb` file holding `people` (at least one; all with the same number of
-/// frames, at least one).
+/// The bytes of a `.glb` file holding `people` (at least one, each with at least one frame).
+/// People may have different numbers of frames: each person's animation keys are its own, and a
+/// shorter one holds its last pose to the end of the longest, as every glTF client holds a
+/// sampler past its last key (no trimming, no padding).
 pub fn write_glb(people: &[GltfPerson], options: &GltfOptions) -> Result<Vec<u8>> {
     let bad = |m: String| Error::InvalidInput(format!("glTF out: {m}"));
-    let first = people
-        .first()
-        .ok_or_else(|| bad("no people to write".into()))?;
-    let frames = first.poses.len();
-    if frames == 0 {
-        return Err(bad("a clip of 0 frames".into()));
+    if people.is_empty() {
+        return Err(bad("no people to write".into()));
     }
     if !FPS_RANGE.contains(&options.fps) {
         return Err(bad(format!("{} fps is outside [1, 1000]", options.fps)));
     }
     for (k, p) in people.iter().enumerate() {
-        if p.poses.len() != frames {
-            return Err(bad(format!(
-                "{} has {} frames, {} has {frames}",
-                excerpt(p.name),
-                p.poses.len(),
-                excerpt(first.name)
-            )));
+        if p.poses.is_empty() {
+            return Err(bad(format!("{}: a clip of 0 frames", excerpt(p.name))));
         }
         if p.name.is_empty() || p.name.chars().any(char::is_control) {
             return Err(bad(format!(
@@ -329,13 +322,21 @@ pub fn write_glb(people: &[GltfPerson], options: &GltfOptions) -> Result<Vec<u8>
         },
         bin: Vec::new(),
     };
-    let times: Vec<f32> = (0..frames).map(|t| t as f32 / options.fps).collect();
-    let time_accessor = b.floats(&times, 1, None, true);
+    // One key time accessor per length the people have (with its min and max, as glTF asks).
+    let mut time_accessors = std::collections::BTreeMap::new();
+    for p in people {
+        time_accessors.entry(p.poses.len()).or_insert_with(|| {
+            let times: Vec<f32> = (0..p.poses.len()).map(|t| t as f32 / options.fps).collect();
+            b.floats(&times, 1, None, true)
+        });
+    }
     let mut scene_nodes = Vec::new();
     let mut channels = Vec::new();
     let mut samplers = Vec::new();
     let glb_format = JointsFormat::default();
     for person in people {
+        let frames = person.poses.len();
+        let time_accessor = time_accessors[&frames];
         let rig = person.rig.with_format(glb_format);
         let format = person.rig.format();
         let prefix = if people.len() > 1 {
@@ -821,7 +822,7 @@ mod tests {
         let cases: Vec<(Vec<GltfPerson>, &GltfOptions, &str)> = vec![
             (vec![], &ok, "no people"),
             (vec![person(&[])], &ok, "0 frames"),
-            (vec![person(&good), person(&good[..2])], &ok, "has 2 frames"),
+            (vec![person(&good), person(&[])], &ok, "0 frames"),
             (vec![person(&good)], &slow, "fps"),
             (vec![person(&nan)], &ok, "finite rotations"),
             (vec![person(&short)], &ok, "finite rotations"),
@@ -841,6 +842,9 @@ mod tests {
         }
         let bytes = write_glb(&[person(&good)], &ok).unwrap();
         assert_eq!(&bytes[..4], b"glTF");
+        // People of different lengths: each keeps its own keys.
+        let two = write_glb(&[person(&good), person(&good[..2])], &ok).unwrap();
+        assert!(two.len() > bytes.len());
         assert_eq!(
             u32::from_le_bytes(bytes[8..12].try_into().unwrap()) as usize,
             bytes.len()

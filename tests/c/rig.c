@@ -257,6 +257,24 @@ int main(int argc, char **argv) {
         EXPECT(troupe_gltf_write(path, mixamo, two, 2, FRAMES, &format, NULL, 0x100), TROUPE_ERR_INVALID_ARG);
         EXPECT(troupe_gltf_write(argv[2], mixamo, two, 2, FRAMES, &format, NULL, 0), TROUPE_ERR_INVALID_ARG);
         EXPECT(troupe_gltf_write(NULL, mixamo, two, 2, FRAMES, &format, NULL, 0), TROUPE_ERR_NULL_ARG);
+        {
+            /* People of different lengths, each its own clip: nothing trimmed. */
+            troupe_person_clip people[2];
+            people[0].name = "actor";
+            people[0].positions = two;
+            people[0].n_frames = FRAMES;
+            people[1].name = NULL;
+            people[1].positions = two + FRAMES * J * 3;
+            people[1].n_frames = FRAMES - 3;
+            snprintf(path, sizeof path, "%s/uneven_c.glb", argv[2]);
+            EXPECT(troupe_gltf_write_people(path, mixamo, people, 2, &format, 0), TROUPE_OK);
+            people[1].n_frames = 0;
+            EXPECT(troupe_gltf_write_people(path, mixamo, people, 2, &format, 0), TROUPE_ERR_INVALID_ARG);
+            people[1].positions = NULL;
+            people[1].n_frames = 4;
+            EXPECT(troupe_gltf_write_people(path, mixamo, people, 2, &format, 0), TROUPE_ERR_NULL_ARG);
+            EXPECT(troupe_gltf_write_people(path, mixamo, NULL, 2, &format, 0), TROUPE_ERR_NULL_ARG);
+        }
         two[7] = INFINITY;
         EXPECT(troupe_gltf_write(path, mixamo, two, 2, FRAMES, &format, NULL, 0), TROUPE_ERR_INVALID_ARG);
         free(two);

@@ -85,13 +85,17 @@ def test_a_bvh_rig_and_the_files_written_on_it(tmp_path, clip):
     motion.write_rig_bvh(out, rig, clip, FMT)
     positions, fmt = motion.read_bvh(out)
     assert positions.shape == (90, 22, 3) and fmt.units == "cm"
-    # A partner shorter than its actor (the stream's latency): written over the frames both have.
-    with pytest.warns(UserWarning, match=r"over the 80 frames they all have \(the last frames of a 90 left out\)"):
-        motion.write_gltf(tmp_path / "x.glb", {"a": clip, "b": clip[:80]}, FMT)
+    # A partner shorter than its actor (the stream's latency): each keeps its own frames, nothing
+    # trimmed (glTF holds the shorter one's last pose); JSON, one length, writes those both have.
+    motion.write_gltf(tmp_path / "x.glb", {"a": clip, "b": clip[:80]}, FMT)
     data = (tmp_path / "x.glb").read_bytes()
     doc = json.loads(data[20:20 + int.from_bytes(data[12:16], "little")])
-    times = [a for a in doc["accessors"] if a.get("max") and len(a["max"]) == 1]
-    assert times and all(a["count"] == 80 for a in times), times
+    times = sorted(a["count"] for a in doc["accessors"] if a.get("max") and len(a["max"]) == 1)
+    assert times == [80, 90], times
+    counts = {s["input"] for s in doc["animations"][0]["samplers"]}
+    assert len(counts) == 2
+    with pytest.warns(UserWarning, match=r"over the 80 frames they all have \(the last frames of a 90 left out\)"):
+        motion.write_json(tmp_path / "x.json", {"a": clip, "b": clip[:80]}, FMT)
 
 
 def test_a_joint_map_is_json_text_a_dict_or_a_file(tmp_path, clip):

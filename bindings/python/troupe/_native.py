@@ -130,6 +130,12 @@ class Limits(CStruct):
     _fields_ = [("struct_size", ctypes.c_uint32), ("reserved", ctypes.c_uint32), ("values", LimitValues)]
 
 
+class PersonClip(CStruct):
+    """Mirror of `troupe_person_clip`."""
+
+    _fields_ = [("name", ctypes.c_char_p), ("positions", ctypes.POINTER(ctypes.c_float)), ("n_frames", ctypes.c_size_t)]
+
+
 class CallBudget(CStruct):
     """Mirror of `troupe_call_budget`."""
 
@@ -433,6 +439,8 @@ PROTOTYPES: dict[str, tuple[Any, list[Any]]] = {
     "troupe_rig_retargeter_free": (None, [retargeter_p]),
     "troupe_rig_retarget_clip": (status, [rig_p, f32p, c_size, fmt_p, ctypes.c_uint32, f32p, c_size, f32p, c_size,
                                           ctypes.POINTER(c_size)]),
+    "troupe_gltf_write_people": (status, [ctypes.c_char_p, rig_p, ctypes.POINTER(PersonClip), c_size, fmt_p,
+                                          ctypes.c_uint32]),
     "troupe_gltf_write": (status, [ctypes.c_char_p, rig_p, f32p, c_size, c_size, fmt_p,
                                    ctypes.POINTER(ctypes.c_char_p), ctypes.c_uint32]),
     "troupe_rig_bvh_write": (status, [ctypes.c_char_p, rig_p, f32p, c_size, fmt_p, ctypes.c_uint32, ctypes.c_uint32]),

@@ -326,9 +326,10 @@ def write_bvh(path: str | os.PathLike, people: ArrayLike | dict[str, ArrayLike],
 
 def _people(people: ArrayLike | dict[str, ArrayLike],
             fmt: JointsFormat | None) -> tuple[np.ndarray, Any, _native.JointsFormat]:
-    """The people stacked [P, T, 22, 3] for the C API, over the frames they all have: a partner
-    streamed back lags its actor by the stream's latency, so the actor's last frames have no
-    partner pose yet; they are left out, with a warning naming how many."""
+    """The people stacked [P, T, 22, 3] for the C API's writers of one length (JSON), over the
+    frames they all have: a partner streamed back lags its actor by the stream's latency, so the
+    actor's last frames have no partner pose yet; they are left out, with a warning naming how
+    many."""
     if not isinstance(people, dict):
         people = {"person1": people}
     arrays = [_positions(p, f"positions of {name}") for name, p in people.items()]
@@ -533,13 +534,21 @@ def write_gltf(path: str | os.PathLike, people: ArrayLike | dict[str, ArrayLike]
     """Writes people ({name: positions [T, 22, 3]} in the world `fmt` describes; its fps is the
     animation's rate) as a glTF 2.0 binary file (.glb, atomically): each retargeted onto `rig`
     (None: troupe's own body) as a skinned skeleton with, unless `bodies` is False, a capsule
-    body in its own colour, and one animation. glTF axes: metres, +Y up."""
+    body in its own colour, and one animation. glTF axes: metres, +Y up. People may have
+    different lengths: a shorter one holds its last pose to the end of the longest."""
     if rig is not None:
         expect_type(rig, Rig, "rig")
-    stacked, names, c = _people(people, fmt)
+    if not isinstance(people, dict):
+        people = {"person1": people}
+    arrays = [_positions(p, f"positions of {name}") for name, p in people.items()]
+    for name in people:
+        if not isinstance(name, str) or "\0" in name:
+            raise ValueError(f"person name {name!r} must be a str without NUL characters")
+    clips = (_native.PersonClip * len(arrays))(
+        *[_native.PersonClip(name=n.encode(), positions=_ptr(a), n_frames=a.shape[0]) for n, a in zip(people, arrays)])
     flags = _retarget_flags(foot_lock, limb_ik) | (0 if bodies else _GLTF_NO_BODIES)
-    _check(_lib.troupe_gltf_write(os.fsencode(path), rig._live() if rig is not None else None, _ptr(stacked),
-                                  stacked.shape[0], stacked.shape[1], ctypes.byref(c), names, flags))
+    _check(_lib.troupe_gltf_write_people(os.fsencode(path), rig._live() if rig is not None else None, clips,
+                                         len(arrays), ctypes.byref(_format(fmt)), flags))
 
 
 def write_rig_bvh(path: str | os.PathLike, rig: Rig, positions: ArrayLike, fmt: JointsFormat | None = None,

@@ -274,7 +274,7 @@ pub(crate) unsafe fn read_people<'a>(
 }
 
 /// One person's frames of t2m-22 positions in troupe's axes.
-type Clip = Vec<Vec<crate::motion::vec3::Vec3>>;
+pub(crate) type Clip = Vec<Vec<crate::motion::vec3::Vec3>>;
 
 /// People's positions (`[n_people][n_frames][22][3]` in `format`, as `read_people` takes them)
 /// in troupe's axes (metres, Y up), each frame checked, with their names.

@@ -5,7 +5,7 @@ use std::ffi::{c_char, CString};
 use std::path::Path;
 
 use super::bvh::{units_from, TROUPE_UNITS_AUTO};
-use super::{canonical_people, read_format, troupe_joints_format};
+use super::{canonical_people, read_format, troupe_joints_format, Clip};
 use crate::ffi::boundary::{
     self, non_null, required, troupe_status, Exclusive, FfiError, FfiResult,
     TROUPE_ERR_BUFFER_TOO_SMALL, TROUPE_ERR_INVALID_ARG, TROUPE_ERR_SHAPE,
@@ -522,6 +522,85 @@ pub unsafe extern "C" fn troupe_rig_retarget_clip(
     )
 }
 
+/// One person's clip for `troupe_gltf_write_people`: its own number of frames.
+#[repr(C)]
+#[derive(Debug, Clone, Copy)]
+pub struct troupe_person_clip {
+    /// The person's name (NUL-terminated UTF-8), or NULL for "person1", "person2", ...
+    pub name: *const c_char,
+    /// t2m-22 joint positions, float32 `[n_frames][22][3]`, in the caller's world.
+    pub positions: *const f32,
+    /// Frames of `positions`, at least 1.
+    pub n_frames: usize,
+}
+
+/// `troupe_gltf_write` for people of different lengths (a partner streamed back lags its actor
+/// by the stream's latency): `people`, `n_people` clips, each with its own frames. Each person's
+/// animation keeps its own keys, and a shorter one holds its last pose to the end of the longest,
+/// as glTF clients hold a sampler past its last key. Nothing is trimmed or padded. The rest is as
+/// `troupe_gltf_write` says: retargeted onto `rig` (NULL: troupe's own body), `format` for every
+/// person (its `fps` the animation's rate), `flags` its bits.
+///
+/// Returns what `troupe_gltf_write` returns. Every buffer is borrowed for the call.
+/// Thread-safe.
+///
+/// ```c
+/// troupe_person_clip people[2] = {{"actor", actor, n_actor}, {"partner", partner, n_partner}};
+/// troupe_status st = troupe_gltf_write_people("duet.glb", NULL, people, 2, &format, 0);
+/// ```
+///
+/// # Safety
+/// `path` NUL-terminated; `people` readable for `n_people` clips, each clip's `positions`
+/// readable for `n_frames * 66` floats and its `name` NULL or NUL-terminated; `format` readable.
+#[no_mangle]
+pub unsafe extern "C" fn troupe_gltf_write_people(
+    path: *const c_char,
+    rig: Option<&troupe_rig>,
+    people: *const troupe_person_clip,
+    n_people: usize,
+    format: *const troupe_joints_format,
+    flags: u32,
+) -> troupe_status {
+    boundary::call(
+        "troupe_gltf_write_people",
+        || {},
+        || {
+            // SAFETY (all): forwarded contract.
+            let path = unsafe { boundary::required_str(path, "path") }?;
+            let format = unsafe { read_format(format) }?;
+            let options = options_from(flags, format.fps)?;
+            if n_people > MAX_GLTF_PEOPLE {
+                return Err(FfiError::new(
+                    TROUPE_ERR_INVALID_ARG,
+                    format!("{n_people} people, at most {MAX_GLTF_PEOPLE} in one file"),
+                ));
+            }
+            let people = unsafe { boundary::slice(people, n_people, "people") }?;
+            let mut names = Vec::with_capacity(people.len());
+            let mut clips = Vec::with_capacity(people.len());
+            for (k, person) in people.iter().enumerate() {
+                // Each person read as a group of one, so every check and message is the same.
+                let (mut name, mut clip) = unsafe {
+                    canonical_people(
+                        person.positions,
+                        1,
+                        person.n_frames,
+                        &format,
+                        &person.name,
+                        1,
+                    )
+                }?;
+                if person.name.is_null() {
+                    name[0] = format!("person{}", k + 1);
+                }
+                names.append(&mut name);
+                clips.append(&mut clip);
+            }
+            write_people(path, rig, &names, &clips, options, &format, flags)
+        },
+    )
+}
+
 /// Writes a glTF 2.0 binary file (`.glb`) at `path` (UTF-8; atomically): `n_people` people,
 /// each retargeted onto `rig` (NULL: troupe's own t2m-22 body) from t2m-22 joint positions
 /// `positions`, float32 `[n_people][n_frames][22][3]` in the caller's world as `format` says (its
@@ -569,37 +648,50 @@ pub unsafe extern "C" fn troupe_gltf_write(
                     MAX_GLTF_PEOPLE,
                 )
             }?;
-            let own;
-            let (rig, map) = match rig {
-                Some(r) => (&r.rig, &r.map),
-                None => {
-                    own = (Rig::t2m22(), JointMap::builtin());
-                    (&own.0, &own.1)
-                }
-            };
-            let poses = clips
-                .iter()
-                .map(|clip| retarget_clip(rig, map, clip, None, options))
-                .collect::<crate::Result<Vec<_>>>()?;
-            let people: Vec<GltfPerson> = names
-                .iter()
-                .zip(&poses)
-                .enumerate()
-                .map(|(k, (name, poses))| GltfPerson {
-                    name,
-                    rig,
-                    poses,
-                    color: PERSON_COLORS[k % PERSON_COLORS.len()],
-                })
-                .collect();
-            let gltf = GltfOptions {
-                fps: format.fps,
-                bodies: flags & TROUPE_GLTF_NO_BODIES == 0,
-            };
-            write_glb_file(Path::new(path), &people, &gltf)?;
-            Ok(())
+            write_people(path, rig, &names, &clips, options, &format, flags)
         },
     )
+}
+
+/// People's clips retargeted onto `rig` (None: troupe's own body) and written as a `.glb`.
+fn write_people(
+    path: &str,
+    rig: Option<&troupe_rig>,
+    names: &[String],
+    clips: &[Clip],
+    options: RetargetOptions,
+    format: &JointsFormat,
+    flags: u32,
+) -> FfiResult<()> {
+    let own;
+    let (rig, map) = match rig {
+        Some(r) => (&r.rig, &r.map),
+        None => {
+            own = (Rig::t2m22(), JointMap::builtin());
+            (&own.0, &own.1)
+        }
+    };
+    let poses = clips
+        .iter()
+        .map(|clip| retarget_clip(rig, map, clip, None, options))
+        .collect::<crate::Result<Vec<_>>>()?;
+    let people: Vec<GltfPerson> = names
+        .iter()
+        .zip(&poses)
+        .enumerate()
+        .map(|(k, (name, poses))| GltfPerson {
+            name,
+            rig,
+            poses,
+            color: PERSON_COLORS[k % PERSON_COLORS.len()],
+        })
+        .collect();
+    let gltf = GltfOptions {
+        fps: format.fps,
+        bodies: flags & TROUPE_GLTF_NO_BODIES == 0,
+    };
+    write_glb_file(Path::new(path), &people, &gltf)?;
+    Ok(())
 }
 
 /// Writes a BVH file at `path` (UTF-8; atomically) of `rig` posed by one person's t2m-22 joint
