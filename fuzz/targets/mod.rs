@@ -575,10 +575,16 @@ pub fn snapshot_edits(data: &[u8]) {
     } else {
         model.restore(&edited)
     };
-    let Ok(mut restored) = restored else {
-        return;
-    };
-    if *joints {
+    if let Ok(mut restored) = restored {
+        goes_on_bounded(&mut restored, *joints);
+    }
+}
+
+/// Whatever a restore accepted, the stream's next calls stay bounded (a tampered resampler
+/// count once made this allocate until the host aborted), step to finite frames and save again.
+/// `joints`: the stream takes joint positions.
+fn goes_on_bounded(restored: &mut troupe::Session, joints: bool) {
+    if joints {
         if let Ok(poses) = restored.step_joints(joint_frames(9, 40).view()) {
             assert!(
                 poses.len() <= 64,
@@ -587,7 +593,7 @@ pub fn snapshot_edits(data: &[u8]) {
             );
         }
     }
-    step_arbitrarily(&mut restored, &mut Bytes(&[4, 0, 9, 0]), 9);
+    step_arbitrarily(restored, &mut Bytes(&[4, 0, 9, 0]), 9);
     restored.snapshot().expect("a restored session saves");
 }
 
@@ -653,17 +659,7 @@ pub fn session_snapshot(data: &[u8]) {
         snapshot
     };
     if let Ok(mut restored) = model.restore(&snapshot) {
-        // Whatever a restore accepted, the stream's next calls stay bounded (a tampered
-        // resampler count once made this allocate until the host aborted).
-        if let Ok(poses) = restored.step_joints(joint_frames(9, 40).view()) {
-            assert!(
-                poses.len() <= 64,
-                "{} poses for 9 joint frames",
-                poses.len()
-            );
-        }
-        step_arbitrarily(&mut restored, &mut Bytes(&[4, 0, 9, 0]), 9);
-        restored.snapshot().expect("a restored session saves");
+        goes_on_bounded(&mut restored, true);
     }
 }
 
