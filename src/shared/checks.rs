@@ -4,13 +4,15 @@
 use crate::shared::error::{Error, Result};
 use crate::shared::limits::LIMITS;
 
-/// Rejects NaN and infinities, naming the first offending index.
-pub(crate) fn check_finite(what: &str, values: &[f32]) -> Result<()> {
+/// Rejects NaN and infinities, naming the first offending value by `place` (its index in, its
+/// place out).
+fn finite_at(what: &str, values: &[f32], place: impl Fn(usize) -> String) -> Result<()> {
     match values.iter().position(|v| !v.is_finite()) {
         None => Ok(()),
         Some(i) => Err(Error::InvalidInput(format!(
-            "{what} holds a non-finite value ({}) at index {i}",
-            values[i]
+            "{what} holds a non-finite value ({}) at {}",
+            values[i],
+            place(i)
         ))),
     }
 }
@@ -19,23 +21,31 @@ pub(crate) fn check_finite(what: &str, values: &[f32]) -> Result<()> {
 /// `±LIMITS.max_abs_input`, beyond which the networks' arithmetic overflows. Names the first
 /// offending index.
 pub(crate) fn check_input(what: &str, values: &[f32]) -> Result<()> {
-    check_finite(what, values)?;
+    input_at(what, values, |i| format!("index {i}"))
+}
+
+/// [`check_input`] naming the offending value by `place`.
+fn input_at(what: &str, values: &[f32], place: impl Fn(usize) -> String) -> Result<()> {
+    finite_at(what, values, &place)?;
     let limit = LIMITS.max_abs_input as f32;
     match values.iter().position(|v| v.abs() > limit) {
         None => Ok(()),
         Some(i) => Err(Error::InvalidInput(format!(
-            "{what} holds {:e} at index {i}, beyond troupe's limit of ±{limit:e}",
-            values[i]
+            "{what} holds {:e} at {}, beyond troupe's limit of ±{limit:e}",
+            values[i],
+            place(i)
         ))),
     }
 }
 
 /// Checks one call's frames from a caller (`what`: "actor frames", "user frames"): a whole
 /// number of `dim`-float frames, at most [`LIMITS`]`.max_frames_per_call` of them, every value
-/// as [`check_input`] wants it.
+/// as [`check_input`] wants it (a bad one named by its frame and feature).
 pub(crate) fn check_frames(what: &str, frames: &[f32], dim: usize) -> Result<()> {
     check_frame_count(what, frames, dim)?;
-    check_input(what, frames)
+    input_at(what, frames, |i| {
+        format!("frame {}, feature {}", i / dim, i % dim)
+    })
 }
 
 /// [`check_frames`] without looking at the values: a whole number of `dim`-float frames, at most

@@ -157,6 +157,22 @@ def test_wrong_types_raise_type_errors_naming_the_type(model):
         motion.decode(model, np.zeros((1, model.frame_dim), np.float32), {"floor": 0})
     with pytest.raises(TypeError, match="model must be a troupe.Model, got NoneType"):
         troupe.Session(None)
+    # Text where numbers belong is a TypeError, never read as a number; a wrong shape is the
+    # library's ShapeMismatch (a ValueError too) whichever side notices it.
+    with model.session() as s:
+        for text in ("abc", [["a"]], b"\x00\x01"):
+            with pytest.raises(TypeError, match="actor must be an array of numbers"):
+                s.step(text)
+        with pytest.raises(troupe.ShapeMismatch, match=r"actor must be \[frames, 262\], got \[4, 5\]"):
+            s.step(np.zeros((4, 5), np.float32))
+        frames = np.zeros((4, 262), np.float32)
+        frames[2, 7] = np.nan
+        with pytest.raises(troupe.InvalidArgument, match=r"non-finite value \(NaN\) at frame 2, feature 7"):
+            s.step(frames)
+    with pytest.raises(TypeError, match="fps must be a number, got str"):
+        motion.JointsFormat(fps="30")
+    with pytest.raises(OSError):  # IoError is an OSError, as Python's own file errors are
+        troupe.Model("/nonexistent/bundle")
 
 
 def test_integers_outside_the_c_type_are_refused_not_wrapped(model):

@@ -156,9 +156,16 @@ class call_budget:
 
 
 def _floats(x: ArrayLike, what: str, length: int | None = None) -> np.ndarray:
-    a = np.ascontiguousarray(x, dtype=np.float32)
+    """`x` as contiguous float32; a `TypeError` for text or anything not numbers (never a
+    string read as a number), a `ShapeMismatch` for the wrong number of floats."""
+    if isinstance(x, (str, bytes)):
+        raise TypeError(f"{what} must be an array of numbers, got {type(x).__name__}")
+    try:
+        a = np.ascontiguousarray(x, dtype=np.float32)
+    except (TypeError, ValueError) as e:
+        raise TypeError(f"{what} must be an array of numbers: {e}") from None
     if length is not None and a.size != length:
-        raise ValueError(f"{what} must have {length} floats, got {a.size}")
+        raise errors.ShapeMismatch(f"{what} must have {length} floats, got {a.size}")
     return a
 
 
@@ -431,7 +438,7 @@ class ArmflowModel:
         h = self._model._h()
         a = _floats(actor, "actor")
         if a.ndim != 2 or a.shape[1] != self._model.frame_dim:
-            raise ValueError(f"actor must be [frames, {self._model.frame_dim}], got {list(a.shape)}")
+            raise errors.ShapeMismatch(f"actor must be [frames, {self._model.frame_dim}], got {list(a.shape)}")
         cond = self._model._condition_or_prompt(condition, prompt)
         opt = _native.ClipOptions()
         _check(_lib.troupe_armflow_clip_options_init(h, ctypes.byref(opt), ctypes.sizeof(opt)))
@@ -575,7 +582,7 @@ class MagnetModel:
         h = self._model._h()
         people = _lib.troupe_magnet_people(h)
         if data.ndim != 3 or (people and data.shape[1:] != (people, 145)):
-            raise ValueError(f"frames must be [frames, {people or 'people'}, 145], got shape {data.shape}")
+            raise errors.ShapeMismatch(f"frames must be [frames, {people or 'people'}, 145], got shape {data.shape}")
         opt = self._options(samples, steps, seq_len, seed, eta, x0_guidance, keyframes)
         s, f, p = ctypes.c_size_t(), ctypes.c_size_t(), ctypes.c_size_t()
         _check(_lib.troupe_magnet_output_shape(h, name, ctypes.byref(opt), data.shape[0],
@@ -619,7 +626,7 @@ class ArflowModel:
         T × 262 each) takes the next ones; the run must take all of them. Releases the GIL."""
         a = _floats(actor, "actor")
         if a.ndim != 2 or a.shape[1] != 262:
-            raise ValueError(f"actor must be [frames, 262], got {list(a.shape)}")
+            raise errors.ShapeMismatch(f"actor must be [frames, 262], got {list(a.shape)}")
         h = self._model._h()
         opt = _arflow_options(h, seed, steps, guidance, weight, eta, d_safe, sigma, squared,
                               guided_backprojection, mixing)
@@ -669,7 +676,7 @@ class MagnetSession:
         f = _floats(frames, "frames")
         dim = self._session.frame_dim
         if f.ndim != 2 or f.shape[1] != dim:
-            raise ValueError(f"opening frames must be [frames, {dim}], got {list(f.shape)}")
+            raise errors.ShapeMismatch(f"opening frames must be [frames, {dim}], got {list(f.shape)}")
         self._session._call(_lib.troupe_magnet_session_set_partner_opening, _ptr(f), f.shape[0])
 
     def set_early_emission(self, early: bool) -> None:
@@ -896,7 +903,7 @@ class Session:
     def _actor(self, actor: ArrayLike) -> np.ndarray:
         a = _floats(actor, "actor")
         if a.ndim != 2 or a.shape[1] != self.frame_dim:
-            raise ValueError(f"actor must be [frames, {self.frame_dim}], got {list(a.shape)}")
+            raise errors.ShapeMismatch(f"actor must be [frames, {self.frame_dim}], got {list(a.shape)}")
         return a
 
     def _out_for(self, actor: np.ndarray) -> np.ndarray:

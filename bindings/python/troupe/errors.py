@@ -8,7 +8,9 @@
 
 Arguments of the wrong Python type raise `TypeError` before the library is called; values the
 library refuses raise these. `InvalidArgument` and `ShapeMismatch` are also `ValueError`s, and
-`BufferTooSmall` too, as Python code that catches `ValueError` for a bad value would expect.
+`BufferTooSmall` too, as Python code that catches `ValueError` for a bad value would expect;
+`IoError` is also an `OSError`. An array of the wrong shape raises `ShapeMismatch` whether the
+binding or the library notices it, and text where numbers are expected a `TypeError`.
 """
 
 from __future__ import annotations
@@ -63,8 +65,9 @@ class BufferTooSmall(TroupeError, ValueError):
     status, name = 4, "TROUPE_ERR_BUFFER_TOO_SMALL"
 
 
-class IoError(TroupeError):
-    """TROUPE_ERR_IO: a file could not be read or written."""
+class IoError(TroupeError, OSError):
+    """TROUPE_ERR_IO: a file could not be read or written (also an `OSError`, as Python's own
+    file errors are)."""
 
     status, name = 5, "TROUPE_ERR_IO"
 

@@ -33,6 +33,7 @@ from numpy.typing import ArrayLike
 
 from . import _native
 from . import Model, _check, _floats, _lib, _ptr
+from .errors import ShapeMismatch
 from .errors import expect_type
 
 __all__ = ["JointsFormat", "Placement", "Poses", "Skeleton", "FeatureStream", "skeleton", "encode", "decode",
@@ -54,6 +55,8 @@ class JointsFormat:
         for value, table, what in ((units, _UNITS, "units"), (up, _UP, "up"), (handedness, _HANDED, "handedness")):
             if value not in table:
                 raise ValueError(f"{what} must be one of {sorted(table)}, got {value!r}")
+        if isinstance(fps, bool) or not isinstance(fps, (int, float, np.integer, np.floating)):
+            raise TypeError(f"fps must be a number, got {type(fps).__name__}")
         self.units, self.up, self.handedness, self.fps = units, up, handedness, float(fps)
 
     def _c(self) -> _native.JointsFormat:
@@ -125,7 +128,7 @@ def smplx145_positions(frames: ArrayLike) -> np.ndarray:
     (`troupe.viewer`), BVH files and JSON poses of a MAGNet output."""
     f = _floats(frames, "frames")
     if f.ndim != 2 or f.shape[1] != 145:
-        raise ValueError(f"frames must be [frames, 145], got {list(f.shape)}")
+        raise ShapeMismatch(f"frames must be [frames, 145], got {list(f.shape)}")
     out = np.empty((f.shape[0], JOINTS, 3), np.float32)
     _check(_lib.troupe_motion_smplx145_positions(_ptr(f), f.shape[0], _ptr(out), out.size))
     return out
@@ -168,7 +171,7 @@ def _joint_map(joint_map: str | os.PathLike | dict | None) -> bytes | None:
 def _positions(x: ArrayLike, what: str) -> np.ndarray:
     a = _floats(x, what)
     if a.ndim != 3 or a.shape[1:] != (JOINTS, 3):
-        raise ValueError(f"{what} must be [frames, 22, 3], got {list(a.shape)}")
+        raise ShapeMismatch(f"{what} must be [frames, 22, 3], got {list(a.shape)}")
     return a
 
 
@@ -222,7 +225,7 @@ def decode(model: Model, features: np.ndarray, placement: Placement, fmt: Joints
     c = _format(fmt, model)
     f = _floats(features, "features")
     if f.ndim != 2 or f.shape[1] != model.frame_dim:
-        raise ValueError(f"features must be [frames, {model.frame_dim}], got {list(f.shape)}")
+        raise ShapeMismatch(f"features must be [frames, {model.frame_dim}], got {list(f.shape)}")
     poses, buffers = _pose_buffers(f.shape[0])
     _check(_lib.troupe_motion_decode(model._h(), ctypes.byref(c), given, _ptr(f), f.shape[0],
                                      ctypes.byref(buffers)))
