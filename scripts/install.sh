@@ -141,7 +141,7 @@ bundledir=\${prefix}/share/troupe/bundles
 Name: troupe
 Description: Real-time human interaction motion generation (C ABI $abi, Windows x64 DLL)
 Version: $version
-Cflags: -I\${includedir}
+Cflags: -I\${prefix}/include -I\${includedir}
 Libs: \${libdir}/libtroupe.dll.a
 EOF
     rm -f "$lib/pkgconfig/troupe-static.pc"
@@ -158,7 +158,7 @@ if(NOT TARGET troupe::troupe)
     set_target_properties(troupe::troupe PROPERTIES
         IMPORTED_LOCATION "\${_troupe_prefix}/bin/troupe.dll"
         IMPORTED_IMPLIB "\${_troupe_prefix}/lib/libtroupe.dll.a"
-        INTERFACE_INCLUDE_DIRECTORIES "\${_troupe_prefix}/include/troupe")
+        INTERFACE_INCLUDE_DIRECTORIES "\${_troupe_prefix}/include;\${_troupe_prefix}/include/troupe")
 endif()
 unset(_troupe_prefix)
 EOF
@@ -228,7 +228,7 @@ bundledir=\${prefix}/share/troupe/bundles
 Name: troupe
 Description: Real-time human interaction motion generation (C ABI $abi)
 Version: $version
-Cflags: -I\${includedir}
+Cflags: -I\${prefix}/include -I\${includedir}
 Libs: -L\${libdir} -ltroupe
 Libs.private: $static_flags $static_libs
 EOF
@@ -242,7 +242,7 @@ bundledir=\${prefix}/share/troupe/bundles
 Name: troupe-static
 Description: Real-time human interaction motion generation, linked statically (C ABI $abi)
 Version: $version
-Cflags: -I\${includedir}
+Cflags: -I\${prefix}/include -I\${includedir}
 Libs: \${libdir}/libtroupe.a $static_flags $static_libs
 EOF
 
@@ -261,14 +261,14 @@ if(NOT TARGET troupe::troupe)
     set_target_properties(troupe::troupe PROPERTIES
         IMPORTED_LOCATION "\${_troupe_prefix}/lib/libtroupe.so.$abi"
         IMPORTED_SONAME "libtroupe.so.$abi"
-        INTERFACE_INCLUDE_DIRECTORIES "\${_troupe_prefix}/include/troupe")
+        INTERFACE_INCLUDE_DIRECTORIES "\${_troupe_prefix}/include;\${_troupe_prefix}/include/troupe")
 endif()
 if(NOT TARGET troupe::troupe_static)
     find_package(Threads REQUIRED)
     add_library(troupe::troupe_static STATIC IMPORTED)
     set_target_properties(troupe::troupe_static PROPERTIES
         IMPORTED_LOCATION "\${_troupe_prefix}/lib/libtroupe.a"
-        INTERFACE_INCLUDE_DIRECTORIES "\${_troupe_prefix}/include/troupe"
+        INTERFACE_INCLUDE_DIRECTORIES "\${_troupe_prefix}/include;\${_troupe_prefix}/include/troupe"
         INTERFACE_LINK_LIBRARIES "Threads::Threads;\${CMAKE_DL_LIBS};m;rt;util;gcc_s"
         INTERFACE_LINK_OPTIONS "LINKER:-z,noexecstack")
 endif()

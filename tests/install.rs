@@ -230,6 +230,24 @@ fn pkg_config_consumers_build_and_stream() {
             "{name} streamed other values:\n{text}"
         );
     }
+    // The header by its installed path, as other libraries' are included.
+    let source = scratch().join("by_path.c");
+    std::fs::write(
+        &source,
+        "#include <troupe/troupe.h>\n#include <stdio.h>\n\
+         int main(void) { printf(\"%s\\n\", troupe_version_string()); return 0; }\n",
+    )
+    .unwrap();
+    let bin = scratch().join("by_path");
+    run(Command::new("cc")
+        .arg(&source)
+        .arg("-o")
+        .arg(&bin)
+        .args(pkg_config("troupe", "--cflags"))
+        .args(pkg_config("troupe", "--libs"))
+        .arg(format!("-Wl,-rpath,{libdir}")));
+    let printed = stdout(&run(&mut Command::new(&bin)));
+    assert!(printed.starts_with(env!("CARGO_PKG_VERSION")), "{printed}");
 }
 
 #[test]
