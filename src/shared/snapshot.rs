@@ -363,6 +363,18 @@ impl<'a> SnapshotReader<'a> {
         Ok(v)
     }
 
+    /// Reads a length in metres (a position, an offset, a shift): finite and within
+    /// `±MAX_WORLD_METRES`, as every position troupe takes in is. A larger one, finite as it is,
+    /// would overflow the float32 frames it is added to.
+    pub fn metres(&mut self, what: &str) -> Result<f64> {
+        use crate::motion::world::MAX_WORLD_METRES;
+        let v = self.finite(what)?;
+        if v.abs() > MAX_WORLD_METRES {
+            return Err(bad(format!("{what}: {v} m, beyond {MAX_WORLD_METRES} m")));
+        }
+        Ok(v)
+    }
+
     /// Reads a UTF-8 string of at most `max` bytes.
     pub fn str(&mut self, what: &str, max: usize) -> Result<String> {
         let bytes = self.run(what, max, 1)?;

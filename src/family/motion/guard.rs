@@ -235,8 +235,8 @@ impl GuardState {
     /// (the kept joints are of frames it received: at most `received - base` of them).
     pub(crate) fn load(r: &mut SnapshotReader, received: u64) -> Result<Self> {
         let offset = [
-            r.finite("the guard's offset")?,
-            r.finite("the guard's offset")?,
+            r.metres("the guard's offset")?,
+            r.metres("the guard's offset")?,
         ];
         let base = r.u64("the guard's first frame")?;
         let kept = received.checked_sub(base).ok_or_else(|| {

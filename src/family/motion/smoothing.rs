@@ -92,12 +92,12 @@ impl SmoothingState {
     pub(crate) fn load(r: &mut SnapshotReader) -> Result<Self> {
         let started = r.bool("whether the smoothing started")?;
         let root = [
-            r.finite("the smoothed root")?,
-            r.finite("the smoothed root")?,
+            r.metres("the smoothed root")?,
+            r.metres("the smoothed root")?,
         ];
         let shift = [
-            r.finite("the smoothing's shift")?,
-            r.finite("the smoothing's shift")?,
+            r.metres("the smoothing's shift")?,
+            r.metres("the smoothing's shift")?,
         ];
         Ok(SmoothingState {
             root: started.then_some(root),
