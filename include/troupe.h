@@ -1609,6 +1609,15 @@ troupe_status troupe_bvh_read(const char *path, const char *joint_map_json, uint
 const char *troupe_bvh_inferred(const struct troupe_bvh *bvh);
 
 /**
+ * The name of the rig joint t2m-22 joint `joint` (0 to 21, the order of the take's positions)
+ * is read from: which joint became which, found by the joint map's names or by the rig's
+ * shape. NULL where the joint is placed from others (`troupe_bvh_inferred` says how), for
+ * `joint` above 21, and for NULL. UTF-8, owned by the take, valid until it is freed.
+ * Thread-safe.
+ */
+const char *troupe_bvh_joint_source(const struct troupe_bvh *bvh, size_t joint);
+
+/**
  * Frames of a take; 0 for NULL. Thread-safe.
  */
 size_t troupe_bvh_frames(const struct troupe_bvh *bvh);

@@ -299,9 +299,14 @@ int main(int argc, char **argv) {
         CHECK(strstr(troupe_bvh_inferred(take), "spine2 at") != NULL);
         CHECK(strstr(troupe_bvh_inferred(take), "left_foot three quarters of the way from left_ankle") != NULL);
         CHECK(troupe_bvh_inferred(NULL) == NULL);
+        /* Which rig joint each t2m-22 joint is read from: none for the toes it placed. */
+        CHECK(troupe_bvh_joint_source(take, 10) == NULL); /* left_foot */
+        CHECK(troupe_bvh_joint_source(take, 0) != NULL);
+        CHECK(troupe_bvh_joint_source(take, 22) == NULL && troupe_bvh_joint_source(NULL, 0) == NULL);
         troupe_bvh_free(take);
         EXPECT(troupe_bvh_read(argv[1], NULL, TROUPE_UNITS_AUTO, &take), TROUPE_OK);
         CHECK(strcmp(troupe_bvh_inferred(take), "") == 0);
+        CHECK(troupe_bvh_joint_source(take, 20) != NULL && strstr(troupe_bvh_joint_source(take, 20), "LeftHand") != NULL);
         troupe_bvh_free(take);
     }
     troupe_rig_free(mixamo);

@@ -113,6 +113,9 @@ def test_a_joint_map_is_json_text_a_dict_or_a_file(tmp_path, clip):
     no_toes = {"skeleton": "t2m22", "joints": {**own["joints"], "left_foot": []}}
     take = motion.read_bvh_take(source, joint_map=no_toes)
     assert [line for line in take.inferred if line.startswith("left_foot")], take.inferred
+    # Which rig joint each t2m-22 joint is read from; None for the one placed from others.
+    assert builtin.mapping == {n: n for n in names}
+    assert take.mapping == {n: (None if n == "left_foot" else n) for n in names}
     with pytest.raises(FileNotFoundError, match="neither joint-map JSON text nor a file"):
         motion.read_bvh_take(source, joint_map=str(tmp_path / "missing.json"))
     with pytest.raises(TypeError, match="joint_map"):

@@ -419,6 +419,7 @@ PROTOTYPES: dict[str, tuple[Any, list[Any]]] = {
     "troupe_motion_stream_free": (None, [stream_p]),
     "troupe_bvh_read": (status, [ctypes.c_char_p, ctypes.c_char_p, ctypes.c_uint32, ctypes.POINTER(bvh_p)]),
     "troupe_bvh_frames": (c_size, [bvh_p]),
+    "troupe_bvh_joint_source": (ctypes.c_char_p, [bvh_p, c_size]),
     "troupe_bvh_inferred": (ctypes.c_char_p, [bvh_p]),
     "troupe_bvh_format": (status, [bvh_p, fmt_p, c_size]),
     "troupe_bvh_positions": (status, [bvh_p, f32p, c_size]),

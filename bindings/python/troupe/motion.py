@@ -279,17 +279,19 @@ class FeatureStream:
 
 
 class BvhTake(NamedTuple):
-    """A BVH take as t2m-22 joint positions [T, 22, 3] (the file's units and axes), its
-    JointsFormat, and the t2m-22 joints its rig lacks with how each was placed (one line each)."""
+    """A BVH take as t2m-22 joint positions [T, 22, 3] (the file's units, Y up), its
+    JointsFormat, the t2m-22 joints its rig lacks with how each was placed (one line each), and
+    which rig joint each t2m-22 joint is read from (`mapping`, by name; None where placed)."""
     positions: np.ndarray
     format: JointsFormat
     inferred: list[str]
+    mapping: dict[str, str | None]
 
 
 def read_bvh(path: str | os.PathLike, units: str | None = None,
              joint_map: str | os.PathLike | dict | None = None) -> tuple[np.ndarray, JointsFormat]:
-    """A BVH take as t2m-22 joint positions: (positions [T, 22, 3] in the file's units and axes,
-    its JointsFormat). `units`: the file's ("m", "cm", ...), or None to guess from the figure's
+    """A BVH take as t2m-22 joint positions: (positions [T, 22, 3] in the file's units, Y up (a
+    file standing along Z, as Blender writes BVH, is turned), its JointsFormat). `units`: the file's ("m", "cm", ...), or None to guess from the figure's
     height; `joint_map`: a joint map (JSON text, a dict, or a JSON file's path) to use instead of
     the built-in one. Joints the rig lacks are placed from the others (`read_bvh_take` says
     which)."""
@@ -311,7 +313,9 @@ def read_bvh_take(path: str | os.PathLike, units: str | None = None,
         c = _native.JointsFormat()
         _check(_lib.troupe_bvh_format(handle, ctypes.byref(c), ctypes.sizeof(c)))
         said = _lib.troupe_bvh_inferred(handle).decode()
-        return BvhTake(out, JointsFormat._from_c(c), said.splitlines())
+        sources = [_lib.troupe_bvh_joint_source(handle, k) for k in range(JOINTS)]
+        mapping = {t2m: (name.decode() if name is not None else None) for t2m, name in zip(T2M22_JOINTS, sources)}
+        return BvhTake(out, JointsFormat._from_c(c), said.splitlines(), mapping)
     finally:
         _lib.troupe_bvh_free(handle)
 

@@ -27,6 +27,8 @@ pub struct troupe_bvh {
     positions: Array3<f32>,
     format: JointsFormat,
     inferred: std::ffi::CString,
+    /// Per t2m-22 joint, the rig joint's name it is read from (NUL-free: the reader checks).
+    mapping: Vec<Option<std::ffi::CString>>,
 }
 
 pub(crate) fn units_from(code: u32, what: &str) -> FfiResult<Units> {
@@ -91,10 +93,16 @@ pub unsafe extern "C" fn troupe_bvh_read(
             let joints = read_bvh(path)?.to_t2m22(&map, units, path)?;
             // Lines of text never hold a NUL: joint names are checked by the reader.
             let inferred = std::ffi::CString::new(joints.inferred.join("\n")).unwrap_or_default();
+            let mapping = joints
+                .mapping
+                .into_iter()
+                .map(|name| name.and_then(|n| std::ffi::CString::new(n).ok()))
+                .collect();
             let handle = Box::new(troupe_bvh {
                 positions: joints.positions,
                 format: joints.format,
                 inferred,
+                mapping,
             });
             // SAFETY: as above.
             unsafe { *out = Box::into_raw(handle) };
@@ -111,6 +119,20 @@ pub unsafe extern "C" fn troupe_bvh_read(
 pub extern "C" fn troupe_bvh_inferred(bvh: Option<&troupe_bvh>) -> *const c_char {
     boundary::get(std::ptr::null(), || {
         bvh.map_or(std::ptr::null(), |b| b.inferred.as_ptr())
+    })
+}
+
+/// The name of the rig joint t2m-22 joint `joint` (0 to 21, the order of the take's positions)
+/// is read from: which joint became which, found by the joint map's names or by the rig's
+/// shape. NULL where the joint is placed from others (`troupe_bvh_inferred` says how), for
+/// `joint` above 21, and for NULL. UTF-8, owned by the take, valid until it is freed.
+/// Thread-safe.
+#[no_mangle]
+pub extern "C" fn troupe_bvh_joint_source(bvh: Option<&troupe_bvh>, joint: usize) -> *const c_char {
+    boundary::get(std::ptr::null(), || {
+        bvh.and_then(|b| b.mapping.get(joint))
+            .and_then(Option::as_ref)
+            .map_or(std::ptr::null(), |name| name.as_ptr())
     })
 }
 

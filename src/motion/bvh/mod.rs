@@ -25,7 +25,7 @@ pub use write_rig::{write_rig_bvh, write_rig_bvh_file};
 
 use ndarray::Array3;
 
-use crate::motion::joint_inference::RigShape;
+use crate::motion::joint_inference::{JointSource, RigShape};
 use crate::motion::joint_map::JointMap;
 use crate::motion::rotation::Quat;
 use crate::motion::shape_map::{standing_axis, z_up_to_y_up};
@@ -199,6 +199,9 @@ pub struct BvhJoints {
     /// The t2m-22 joints the rig lacks and how they were placed, one line each (empty when the
     /// rig has them all).
     pub inferred: Vec<String>,
+    /// For each t2m-22 joint, the rig joint it is read from, by name; `None` where it is placed
+    /// from other joints (`inferred` says how). Which joint became which, by names or by shape.
+    pub mapping: Vec<Option<String>>,
 }
 
 impl Bvh {
@@ -277,8 +280,17 @@ impl Bvh {
             }
         }
         let units = units.unwrap_or_else(|| units_from_height(first_pose.iter().map(|p| p[1])));
+        let mapping = resolved
+            .sources
+            .iter()
+            .map(|source| match source {
+                JointSource::Joint(j) => Some(names[*j].clone()),
+                JointSource::Along { .. } => None,
+            })
+            .collect();
         Ok(BvhJoints {
             positions,
+            mapping,
             inferred: resolved.inferred,
             format: JointsFormat {
                 units,
