@@ -213,8 +213,8 @@ class StreamWorker:
                     seen.add(p.stream)
                 self.pending = rest
                 batch = [p for p in batch if p.stream in self.streams and not p.done.cancelled()]
-                # The crowd on the model's settings first, then each costlier choice: a heavy
-                # stream's tokens never hold back the common streams' answers.
+                # The crowd on the model's settings first, then each costlier choice: the common
+                # streams are answered before a heavy stream's token is computed.
                 crowds: dict[tuple, list[_Pending]] = {}
                 for p in batch:
                     crowds.setdefault(self.streams[p.stream].crowd, []).append(p)
