@@ -20,10 +20,7 @@ use hmac::{Hmac, Mac};
 use sha2::Sha256;
 
 use crate::shared::error::{Error, Result};
-use crate::shared::snapshot::{bad, MAGIC};
-
-/// The first bytes of every sealed snapshot.
-pub const SEALED_MAGIC: [u8; 8] = *b"TRPSEAL\0";
+use crate::shared::snapshot::{bad, MAGIC, SEALED_MAGIC};
 /// The sealing layout written; a reader refuses any other.
 pub const SEALED_VERSION: u32 = 1;
 /// The shortest key accepted: 128 bits, below which a key can be guessed.

@@ -23,6 +23,8 @@ use crate::shared::error::{Error, Result};
 
 /// The first bytes of every snapshot.
 pub const MAGIC: [u8; 8] = *b"TRPSNAP\0";
+/// The first bytes of every sealed snapshot (`shared/sealed.rs`), which a plain restore names.
+pub const SEALED_MAGIC: [u8; 8] = *b"TRPSEAL\0";
 /// The layout written; a reader refuses any other.
 pub const FORMAT_VERSION: u32 = 3;
 /// The longest family name a snapshot may carry.
@@ -206,7 +208,7 @@ impl<'a> SnapshotReader<'a> {
     /// payload's length, the checksum) and opens its payload.
     pub fn open(bytes: &'a [u8], family: &str, model: &[u8; MODEL_ID_BYTES]) -> Result<Self> {
         let mut b = bytes;
-        if bytes.starts_with(&crate::shared::sealed::SEALED_MAGIC) {
+        if bytes.starts_with(&SEALED_MAGIC) {
             return Err(bad(
                 "it is sealed with a key: restore it with that key (restore_sealed)",
             ));
@@ -363,14 +365,13 @@ impl<'a> SnapshotReader<'a> {
         Ok(v)
     }
 
-    /// Reads a length in metres (a position, an offset, a shift): finite and within
-    /// `±MAX_WORLD_METRES`, as every position troupe takes in is. A larger one, finite as it is,
-    /// would overflow the float32 frames it is added to.
-    pub fn metres(&mut self, what: &str) -> Result<f64> {
-        use crate::motion::world::MAX_WORLD_METRES;
+    /// Reads a length in metres (a position, an offset, a shift): finite and within `±bound`
+    /// (the world's, for positions). A larger one, finite as it is, would overflow the float32
+    /// frames it is added to.
+    pub fn metres(&mut self, what: &str, bound: f64) -> Result<f64> {
         let v = self.finite(what)?;
-        if v.abs() > MAX_WORLD_METRES {
-            return Err(bad(format!("{what}: {v} m, beyond {MAX_WORLD_METRES} m")));
+        if v.abs() > bound {
+            return Err(bad(format!("{what}: {v} m, beyond {bound} m")));
         }
         Ok(v)
     }

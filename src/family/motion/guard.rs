@@ -29,6 +29,7 @@ use crate::motion::body::{BodyModel, Reach};
 use crate::motion::penetration::PenetrationLoss;
 use crate::motion::skeleton::T2M22_JOINTS;
 use crate::motion::vec3::Vec3;
+use crate::motion::world::MAX_WORLD_METRES;
 use crate::shared::error::{Error, Result};
 use crate::shared::snapshot::{self, SnapshotReader, SnapshotWriter};
 
@@ -235,8 +236,8 @@ impl GuardState {
     /// (the kept joints are of frames it received: at most `received - base` of them).
     pub(crate) fn load(r: &mut SnapshotReader, received: u64) -> Result<Self> {
         let offset = [
-            r.metres("the guard's offset")?,
-            r.metres("the guard's offset")?,
+            r.metres("the guard's offset", MAX_WORLD_METRES)?,
+            r.metres("the guard's offset", MAX_WORLD_METRES)?,
         ];
         let base = r.u64("the guard's first frame")?;
         let kept = received.checked_sub(base).ok_or_else(|| {

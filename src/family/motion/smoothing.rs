@@ -11,6 +11,7 @@
 use ndarray::Array2;
 
 use super::layout::FrameLayout;
+use crate::motion::world::MAX_WORLD_METRES;
 use crate::shared::error::{Error, Result};
 use crate::shared::snapshot::{SnapshotReader, SnapshotWriter};
 
@@ -92,12 +93,12 @@ impl SmoothingState {
     pub(crate) fn load(r: &mut SnapshotReader) -> Result<Self> {
         let started = r.bool("whether the smoothing started")?;
         let root = [
-            r.metres("the smoothed root")?,
-            r.metres("the smoothed root")?,
+            r.metres("the smoothed root", MAX_WORLD_METRES)?,
+            r.metres("the smoothed root", MAX_WORLD_METRES)?,
         ];
         let shift = [
-            r.metres("the smoothing's shift")?,
-            r.metres("the smoothing's shift")?,
+            r.metres("the smoothing's shift", MAX_WORLD_METRES)?,
+            r.metres("the smoothing's shift", MAX_WORLD_METRES)?,
         ];
         Ok(SmoothingState {
             root: started.then_some(root),
