@@ -64,7 +64,7 @@ impl Bvh {
 /// armature's space, Z up, unconverted), said in the log. `units`: declared, or guessed from the
 /// height along that axis.
 fn standing(name: &str, joints: Vec<RigJoint>, units: Option<Units>) -> Result<Rig> {
-    let y_up = Rig::new(name, joints, JointsFormat::default())?;
+    let y_up = Rig::new(name, joints.clone(), JointsFormat::default())?;
     let (pos, rot) = y_up.rest_world();
     let ends = y_up.end_site_positions(&pos, &rot);
     let up = standing_axis(y_up.names(), y_up.parents(), &pos, &ends);
@@ -78,15 +78,6 @@ fn standing(name: &str, joints: Vec<RigJoint>, units: Option<Units>) -> Result<R
     }
     let axis = if up == UpAxis::Z { 2 } else { 1 };
     let units = units.unwrap_or_else(|| units_from_height(pos.iter().map(|p| p[axis])));
-    let joints = (0..y_up.len())
-        .map(|j| RigJoint {
-            name: y_up.names()[j].clone(),
-            parent: y_up.parents()[j],
-            offset: y_up.offsets()[j],
-            rotation: y_up.rest_rotations()[j],
-            end_site: y_up.end_sites()[j],
-        })
-        .collect();
     Rig::new(
         name,
         joints,
