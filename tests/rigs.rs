@@ -26,7 +26,8 @@ use std::process::Command;
 
 use ndarray::Array3;
 use ndarray_npy::read_npy;
-use troupe::motion::bvh::read_bvh;
+use troupe::motion::bvh::{read_bvh, Bvh};
+use troupe::motion::fbx::read_fbx;
 use troupe::motion::gltf::PERSON_COLORS;
 use troupe::motion::rotation::Quat;
 use troupe::motion::vec3::{norm, sub, Vec3};
@@ -471,9 +472,11 @@ fn every_registry_bvh_rig_is_retargeted_onto_without_a_joint_map() {
 
 /// Characters as Blender writes them (`tests/gltf/blender_rigs.py`: Rigify's deform bones with
 /// twist bones, Mixamo's names, Unreal's mannequin in centimetres, an A-pose, and Blender's
-/// default `Bone.001` names), exported by Blender's own BVH exporter, which writes Z up: each is
-/// read standing, mapped with no joint map written for it (every t2m-22 joint to the bone the
-/// script says), and retargeted within the bounds of docs/RIGS.md's table.
+/// default `Bone.001` names), exported by Blender's own BVH exporter, which writes Z up, and by
+/// its FBX exporter (Y up in metres, Unreal's Z up in centimetres): each file is read standing,
+/// mapped with no joint map written for it (every t2m-22 joint to the bone the script says), and
+/// retargeted within the bounds of docs/RIGS.md's table. Each FBX file's animation is read as
+/// Blender poses it: every bone's head where Blender puts it, in every frame.
 #[test]
 fn characters_blender_writes_are_mapped_and_retargeted_without_a_joint_map() {
     let test = "characters_blender_writes_are_mapped_and_retargeted_without_a_joint_map";
@@ -493,34 +496,77 @@ fn characters_blender_writes_are_mapped_and_retargeted_without_a_joint_map() {
     let skeleton = Skeleton::t2m22().fitted_to(&source);
     let t2m = Skeleton::t2m22();
     for (convention, about) in expected.as_object().unwrap() {
-        let file = dir.path().join(about["file"].as_str().unwrap());
-        let rig = read_bvh(&file).unwrap().rig(None, convention).unwrap();
-        let format = rig.format();
-        assert_eq!(format.up, UpAxis::Z, "{convention}: Blender writes Z up");
-        let units = if about["units"] == "cm" {
+        let bvh = dir.path().join(about["file"].as_str().unwrap());
+        let fbx = dir.path().join(about["fbx"].as_str().unwrap());
+        let fbx_clip = read_fbx(&fbx, None).unwrap();
+        fbx_poses_match_blenders(convention, &fbx_clip, &about["fbx_heads"]);
+        let bvh_units = if about["units"] == "cm" {
             Units::Centimeters
         } else {
             Units::Meters
         };
-        assert_eq!(format.units, units, "{convention}");
-        assert!(
-            (rig.height_metres() - about["height"].as_f64().unwrap()).abs() < 1e-4,
-            "{convention}: {} m tall",
-            rig.height_metres()
-        );
-        let map = JointMap::builtin();
-        let r = Retargeter::new(&rig, &map, &skeleton, RetargetOptions::default()).unwrap();
-        for (k, joint) in t2m.names().iter().enumerate() {
-            let want = about["bones"][joint.as_str()].as_str().unwrap();
-            let got = r.rig_joints()[k].map(|j| rig.names()[j].as_str());
-            assert_eq!(got, Some(want), "{convention}: t2m-22 {joint}");
+        let files = [
+            ("BVH", read_bvh(&bvh).unwrap(), UpAxis::Z, bvh_units),
+            // FBX declares its axes and unit: read Y up, in metres.
+            ("FBX", fbx_clip, UpAxis::Y, Units::Meters),
+        ];
+        for (format_name, clip, up, units) in files {
+            let what = format!("{convention} ({format_name})");
+            let rig = clip.rig(None, convention).unwrap();
+            let format = rig.format();
+            assert_eq!(format.up, up, "{what}");
+            assert_eq!(format.units, units, "{what}");
+            assert!(
+                (rig.height_metres() - about["height"].as_f64().unwrap()).abs() < 1e-4,
+                "{what}: {} m tall",
+                rig.height_metres()
+            );
+            let map = JointMap::builtin();
+            let r = Retargeter::new(&rig, &map, &skeleton, RetargetOptions::default()).unwrap();
+            for (k, joint) in t2m.names().iter().enumerate() {
+                let want = about["bones"][joint.as_str()].as_str().unwrap();
+                let got = r.rig_joints()[k].map(|j| rig.names()[j].as_str());
+                assert_eq!(got, Some(want), "{what}: t2m-22 {joint}");
+            }
+            let label: &'static str =
+                Box::leak(format!("Blender {format_name}: {convention}").into_boxed_str());
+            println!(
+                "{}",
+                figures(&TestRig { label, rig, map }, &source, &skeleton)
+            );
         }
-        let label: &'static str = Box::leak(format!("Blender: {convention}").into_boxed_str());
-        println!(
-            "{}",
-            figures(&TestRig { label, rig, map }, &source, &skeleton)
-        );
     }
+}
+
+/// Every bone head of `clip` (read from FBX: Y up, metres) where Blender put it in each frame
+/// (`heads`: per frame, bone name to position, Z up), and the animation really moves them.
+fn fbx_poses_match_blenders(convention: &str, clip: &Bvh, heads: &serde_json::Value) {
+    let frames = heads.as_array().unwrap();
+    assert_eq!(clip.frames(), frames.len(), "{convention}: frames");
+    let positions = clip.positions();
+    let mut worst = 0.0f64;
+    let mut moved = 0.0f64;
+    for (t, frame) in frames.iter().enumerate() {
+        for (name, head) in frame.as_object().unwrap() {
+            let j = clip
+                .joint(name)
+                .unwrap_or_else(|| panic!("{convention}: bone {name} is not a joint"));
+            let h: Vec<f64> = head
+                .as_array()
+                .unwrap()
+                .iter()
+                .map(|v| v.as_f64().unwrap())
+                .collect();
+            let want = [h[0], h[2], -h[1]];
+            let got = [0, 1, 2].map(|d| f64::from(positions[[t, j, d]]));
+            worst = worst.max(norm(sub(got, want)));
+            let first = [0, 1, 2].map(|d| f64::from(positions[[0, j, d]]));
+            moved = moved.max(norm(sub(got, first)));
+        }
+    }
+    println!("{convention} (FBX): bone heads within {worst:.2e} m of Blender's, moving up to {moved:.3} m");
+    assert!(worst < 1e-4, "{convention}: {worst} m from Blender's pose");
+    assert!(moved > 0.1, "{convention}: the animation moved nothing");
 }
 
 /// three.js's name for a glTF node (`PropertyBinding.sanitizeNodeName`): whitespace to `_`,

@@ -1,10 +1,13 @@
 """Characters as Blender writes them: armatures in the naming conventions people use, exported
-with Blender's own BVH exporter (run by tests/rigs.rs with the `bpy` of target/blender).
+with Blender's own BVH and FBX exporters (run by tests/rigs.rs with the `bpy` of target/blender).
 
     python3 tests/gltf/blender_rigs.py OUT_DIR
 
-Writes OUT_DIR/<convention>.bvh for each convention below and OUT_DIR/rigs.json: for each file,
-the bone every t2m-22 joint should map to (the test compares troupe's mapping with it). Every
+Writes OUT_DIR/<convention>.bvh and OUT_DIR/<convention>.fbx for each convention below and
+OUT_DIR/rigs.json: for each character, the bone every t2m-22 joint should map to (the test
+compares troupe's mapping with it) and, for the FBX file, where Blender puts every bone's head
+in each frame of a short animation (metres, Blender's Z up), which troupe's FBX reader must
+reproduce. Every
 character is the same body (1.75 m, standing, facing -Y, Blender's Z up); what differs is how
 it is named and posed at rest and the exporter's scale:
 
@@ -16,7 +19,9 @@ it is named and posed at rest and the exporter's scale:
 - `blender_default`: the names Blender gives bones extruded one after the other (`Bone`,
   `Bone.001`, ...), which say nothing.
 
-Blender's BVH exporter writes armature space as it is, Z up: every file here stands along Z.
+Blender's BVH exporter writes armature space as it is, Z up: every BVH file here stands along
+Z. The FBX files are written as Blender's exporter is used for engines (Y up, metres), but for
+`unreal`, written Z up in centimetres, as Unreal's own files are.
 """
 
 from __future__ import annotations
@@ -155,6 +160,46 @@ def build(convention: str) -> tuple[bpy.types.Object, dict[str, str]]:
     return rig, names
 
 
+def animate(rig: bpy.types.Object, names: dict[str, str]) -> list[dict[str, list[float]]]:
+    """Four frames of motion: the root walks forward and turns, the spine twists, an elbow and a
+    knee bend. Returns each frame's bone heads in world space (metres, Z up)."""
+    keys = {"pelvis": (0.0, 0.0, 0.3), "spine2": (0.0, 0.4, 0.0), "left_elbow": (0.9, 0.0, 0.0),
+            "right_knee": (0.7, 0.0, 0.0)}
+    for frame in range(1, 5):
+        share = (frame - 1) / 3
+        for joint, (x, y, z) in keys.items():
+            bone = rig.pose.bones[names[joint]]
+            bone.rotation_mode = "XYZ"
+            bone.rotation_euler = (x * share, y * share, z * share)
+            bone.keyframe_insert("rotation_euler", frame=frame)
+        root = rig.pose.bones[names["pelvis"]]
+        root.location = (0.0, 0.05 * (frame - 1) / bpy.context.scene.unit_settings.scale_length, 0.0)
+        root.keyframe_insert("location", frame=frame)
+    metres = bpy.context.scene.unit_settings.scale_length
+    heads = []
+    for frame in range(1, 5):
+        bpy.context.scene.frame_set(frame)
+        heads.append({b.name: [v * metres for v in rig.matrix_world @ b.head] for b in rig.pose.bones})
+    return heads
+
+
+def skin(rig: bpy.types.Object, names: dict[str, str]) -> None:
+    """A box around the hips, bound to the hips bone (so the exporter writes a bind pose), selected
+    with the armature."""
+    mesh = bpy.data.meshes.new("body")
+    s = 0.1
+    corners = [(x, y, 0.95 + z) for x in (-s, s) for y in (-s, s) for z in (-s, s)]
+    faces = [(0, 1, 3, 2), (4, 6, 7, 5), (0, 4, 5, 1), (2, 3, 7, 6), (0, 2, 6, 4), (1, 5, 7, 3)]
+    mesh.from_pydata(corners, [], faces)
+    body = bpy.data.objects.new("body", mesh)
+    bpy.context.scene.collection.objects.link(body)
+    group = body.vertex_groups.new(name=names["pelvis"])
+    group.add(list(range(8)), 1.0, "REPLACE")
+    body.parent = rig
+    body.modifiers.new("armature", "ARMATURE").object = rig
+    body.select_set(True)
+
+
 def main(out: Path) -> None:
     out.mkdir(parents=True, exist_ok=True)
     expected = {}
@@ -166,10 +211,34 @@ def main(out: Path) -> None:
         rig.select_set(True)
         path = out / f"{convention}.bvh"
         bpy.ops.export_anim.bvh(filepath=str(path), global_scale=scale, frame_start=1, frame_end=3)
+        if convention == "unreal":
+            # Z up in centimetres: the scene's unit is a centimetre, the body 175 of them tall.
+            bpy.context.scene.unit_settings.scale_length = 0.01
+            rig.scale = (100.0, 100.0, 100.0)
+            bpy.ops.object.transform_apply(location=False, rotation=False, scale=True)
+        heads = animate(rig, names)
+        bpy.context.scene.frame_start, bpy.context.scene.frame_end = 1, 4
+        if convention == "mixamo":
+            # A skinned body, as Mixamo's characters have: the file then holds a bind pose,
+            # which is the rest pose, whatever frame the exporter stands on.
+            skin(rig, names)
+        else:
+            # No bind pose: the bones' transforms at export are the rest pose (frame 1's).
+            bpy.context.scene.frame_set(1)
+        fbx = out / f"{convention}.fbx"
+        types = {"ARMATURE", "MESH"}
+        if convention == "unreal":
+            bpy.ops.export_scene.fbx(filepath=str(fbx), use_selection=True, object_types=types,
+                                     axis_up="Z", axis_forward="-Y", apply_unit_scale=True,
+                                     apply_scale_options="FBX_SCALE_NONE", global_scale=1.0, bake_anim=True)
+        else:
+            bpy.ops.export_scene.fbx(filepath=str(fbx), use_selection=True, object_types=types,
+                                     bake_anim=True)
         # From the toes (2 cm up) or Unreal's root bone (on the floor) to the top of the head.
         height = 1.75 if convention == "unreal" else 1.73
         expected[convention] = {"file": path.name, "units": "cm" if scale == 100.0 else "m", "height": height,
-                                "bones": {joint: names[joint] for joint, _, _ in BODY}}
+                                "bones": {joint: names[joint] for joint, _, _ in BODY},
+                                "fbx": fbx.name, "fbx_heads": heads}
     (out / "rigs.json").write_text(json.dumps(expected, indent=1))
     print(f"wrote {len(expected)} characters to {out}")
 

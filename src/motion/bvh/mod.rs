@@ -20,6 +20,7 @@ mod write_rig;
 pub use parse::{
     parse_bvh, read_bvh, MAX_BVH_BYTES, MAX_BVH_COORDINATE, MAX_BVH_JOINTS, MAX_BVH_NAME_BYTES,
 };
+pub(crate) use write::euler_zyx_degrees;
 pub use write::{write_bvh, write_bvh_file, BvhPerson, BvhWriteOptions};
 pub use write_rig::{write_rig_bvh, write_rig_bvh_file};
 

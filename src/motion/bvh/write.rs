@@ -50,7 +50,7 @@ impl Default for BvhWriteOptions {
 const ROTATION_CHANNELS: &str = "Zrotation Yrotation Xrotation";
 
 /// Euler angles (degrees) with `R = Rz(z) · Ry(y) · Rx(x)`, as `[z, y, x]`.
-pub(super) fn euler_zyx_degrees(q: Quat) -> [f64; 3] {
+pub(crate) fn euler_zyx_degrees(q: Quat) -> [f64; 3] {
     let m = q.to_matrix();
     let sy = (-m[2][0]).clamp(-1.0, 1.0);
     let y = sy.asin();
