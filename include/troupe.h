@@ -1581,12 +1581,13 @@ troupe_status troupe_motion_stream_reset(struct troupe_motion_stream *stream, co
 void troupe_motion_stream_free(struct troupe_motion_stream *stream);
 
 /**
- * Reads the BVH file at `path` (UTF-8) as t2m-22 joint positions. `joint_map_json`: a joint
+ * Reads the BVH or FBX file at `path` (UTF-8; told apart by content) as t2m-22 joint positions. `joint_map_json`: a joint
  * map (JSON, see the built-in `src/motion/rigs/t2m22-joint-names.json`) or NULL for the
  * built-in one (LAFAN1, Mixamo, CMU, HumanIK, SMPL and Rigify names). t2m-22 joints the rig
  * lacks are placed from the others where they can be (`troupe_bvh_inferred` says which).
  * `units`: the file's length unit (`TROUPE_UNITS_*`), or `TROUPE_UNITS_AUTO` to guess from the
- * figure's height. `*out` is set to NULL on entry and to the take on success.
+ * figure's height; an FBX file declares its own, and is converted to `units` (metres for
+ * `TROUPE_UNITS_AUTO`). `*out` is set to NULL on entry and to the take on success.
  *
  * Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_IO` (unreadable file),
  * `TROUPE_ERR_INVALID_ARG` (malformed file, naming line, joint and frame; a rig lacking a
@@ -1757,8 +1758,10 @@ typedef struct troupe_person_clip {
 } troupe_person_clip;
 
 /**
- * Reads the rig of the BVH file at `path` (UTF-8). `units`: the file's length unit
- * (`TROUPE_UNITS_*`, or `TROUPE_UNITS_AUTO` to guess from the rest pose's height).
+ * Reads the rig of the BVH or FBX file at `path` (UTF-8; told apart by content). `units`: the
+ * file's length unit (`TROUPE_UNITS_*`, or `TROUPE_UNITS_AUTO` to guess from the rest pose's
+ * height); an FBX file declares its own and is converted to `units` (metres for
+ * `TROUPE_UNITS_AUTO`), its rest pose being its bind pose where it has one.
  * `rest_frame`: the frame whose pose is the rig's rest pose (for files whose all-zero pose lies
  * down, as LAFAN1's does), or `TROUPE_RIG_ZERO_POSE`. `joint_map_json`: which rig joint is
  * which t2m-22 joint (JSON), or NULL for the built-in names (Mixamo, LAFAN1, CMU, HumanIK,

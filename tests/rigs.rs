@@ -27,13 +27,13 @@ use std::process::Command;
 use ndarray::Array3;
 use ndarray_npy::read_npy;
 use troupe::motion::bvh::{read_bvh, Bvh};
-use troupe::motion::fbx::read_fbx;
+use troupe::motion::fbx::{parse_fbx, read_fbx};
 use troupe::motion::gltf::PERSON_COLORS;
 use troupe::motion::rotation::Quat;
 use troupe::motion::vec3::{norm, sub, Vec3};
 use troupe::motion::{
-    retarget_clip, write_glb_file, GltfOptions, GltfPerson, JointMap, JointsFormat,
-    RetargetOptions, Retargeter, Rig, RigJoint, RigPose, Skeleton, Units, UpAxis,
+    read_motion_file, retarget_clip, write_glb_file, GltfOptions, GltfPerson, JointMap,
+    JointsFormat, RetargetOptions, Retargeter, Rig, RigJoint, RigPose, Skeleton, Units, UpAxis,
 };
 
 fn repo(path: &str) -> PathBuf {
@@ -989,4 +989,94 @@ fn a_rig_from_blenders_gltf_export_is_the_bvh_rig_and_takes_motion() {
     write_pair(&t, &glb);
     let (errors, warnings, messages) = validate(&[glb]).remove(0);
     assert_eq!((errors, warnings), (0, 0), "{messages}");
+}
+
+/// ASCII FBX as Autodesk's tools write it (tests/data/ascii_body.fbx, from
+/// tests/gltf/ascii_fbx.py: Z up, centimetres, 30 fps, Mixamo's names without the prefix, tips
+/// as `_End` bones): read Y up in metres, the tips as end sites, mapped without a joint map, and
+/// its one curve (the hips walking 50 cm forward over a second) sampled at the file's rate.
+#[test]
+fn an_ascii_fbx_in_centimetres_and_z_up_is_read_as_its_author_meant() {
+    let clip = read_fbx(repo("tests/data/ascii_body.fbx"), None).unwrap();
+    assert_eq!(clip.joints.len(), 22, "the tips are end sites, not joints");
+    assert_eq!((clip.frames(), clip.fps()), (31, 30.0));
+    let hips = clip.joint("Hips").unwrap();
+    let p = clip.positions();
+    let at = |t: usize| [0, 1, 2].map(|d| f64::from(p[[t, hips, d]]));
+    assert!(norm(sub(at(0), [0.0, 0.95, 0.0])) < 1e-6, "{:?}", at(0));
+    assert!(norm(sub(at(15), [0.0, 0.95, 0.25])) < 1e-5, "{:?}", at(15));
+    assert!(norm(sub(at(30), [0.0, 0.95, 0.5])) < 1e-6, "{:?}", at(30));
+    let rig = clip.rig(None, "ascii").unwrap();
+    assert!((rig.height_metres() - 1.73).abs() < 1e-6);
+    let take = clip
+        .to_t2m22(&JointMap::builtin(), None, "ascii_body.fbx")
+        .unwrap();
+    assert!(take.inferred.is_empty(), "{:?}", take.inferred);
+    assert_eq!(take.mapping[0].as_deref(), Some("Hips"));
+    assert_eq!(take.format.units, Units::Meters);
+    // The same file asked for in centimetres is converted, not relabelled.
+    let cm = read_fbx(repo("tests/data/ascii_body.fbx"), Some(Units::Centimeters)).unwrap();
+    assert!((f64::from(cm.positions()[[30, hips, 2]]) - 50.0).abs() < 1e-4);
+    // Told from BVH by content, whatever its name.
+    let renamed = tempfile::tempdir().unwrap();
+    let path = renamed.path().join("body.bvh");
+    std::fs::copy(repo("tests/data/ascii_body.fbx"), &path).unwrap();
+    assert_eq!(read_motion_file(&path, None).unwrap().joints.len(), 22);
+}
+
+/// Files that are not what they claim, or FBX without a skeleton, are refused with the file
+/// named and the reason, never a crash: a Blender FBX cut short at every 997th byte, its bytes
+/// flipped, an ASCII file with no bones, one with two bones of one name.
+#[test]
+fn broken_or_boneless_fbx_files_are_refused_with_the_reason() {
+    let ascii = std::fs::read_to_string(repo("tests/data/ascii_body.fbx")).unwrap();
+    let refused = |bytes: &[u8], want: &str| {
+        let e = parse_fbx(bytes, "their.fbx", None).unwrap_err().to_string();
+        assert!(e.starts_with("invalid input: their.fbx: "), "{e}");
+        assert!(e.contains(want), "{e}: wanted `{want}`");
+    };
+    let boneless = ascii.replace("\"LimbNode\" {", "\"Null\" {");
+    refused(boneless.as_bytes(), "no skeleton");
+    let twice = ascii.replace("Model::RightLeg\"", "Model::LeftLeg\"");
+    refused(twice.as_bytes(), "two bones are called `LeftLeg`");
+    refused(
+        b"Kaydara FBX Binary  \x00\x1a\x00\xe8\x1c\x00\x00",
+        "not a readable FBX file",
+    );
+    let cut = &ascii.as_bytes()[..ascii.len() / 2];
+    assert!(parse_fbx(cut, "their.fbx", None).is_err());
+    // Every prefix and a corrupted copy of a real binary file: an error or a clip, never a
+    // crash (ufbx is fuzzed by its authors and by `fuzz/fuzz_targets/fbx.rs`).
+    let binary = binary_fbx_fixture();
+    for end in (0..binary.len()).step_by(997) {
+        let _ = parse_fbx(&binary[..end], "their.fbx", None);
+    }
+    let mut flipped = binary.clone();
+    for k in (0..flipped.len()).step_by(331) {
+        flipped[k] ^= 0x5a;
+    }
+    let _ = parse_fbx(&flipped, "their.fbx", None);
+}
+
+/// Blender's binary FBX of its `mixamo` character (tests/data/PROVENANCE.md).
+fn binary_fbx_fixture() -> Vec<u8> {
+    std::fs::read(repo("tests/data/blender_mixamo.fbx")).unwrap()
+}
+
+/// The committed binary FBX reads as the character tests/gltf/blender_rigs.py builds: its rest
+/// pose from the file's bind pose (it was exported standing on its last, bent frame).
+#[test]
+fn blenders_binary_fbx_reads_its_bind_pose_as_the_rest_pose() {
+    let clip = parse_fbx(&binary_fbx_fixture(), "blender_mixamo.fbx", None).unwrap();
+    assert_eq!((clip.frames(), clip.fps()), (4, 24.0));
+    let rig = clip.rig(None, "mixamo").unwrap();
+    assert!(
+        (rig.height_metres() - 1.73).abs() < 1e-4,
+        "{}",
+        rig.height_metres()
+    );
+    let take = clip
+        .to_t2m22(&JointMap::builtin(), None, "blender_mixamo.fbx")
+        .unwrap();
+    assert!(take.inferred.is_empty(), "{:?}", take.inferred);
 }

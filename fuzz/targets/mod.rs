@@ -452,7 +452,7 @@ pub fn c_api_sequence(data: &[u8]) {
 pub type Target = fn(&[u8]);
 
 /// Every target by name, for the replay and mutation test.
-pub const TARGETS: [(&str, Target); 14] = [
+pub const TARGETS: [(&str, Target); 15] = [
     ("tar_archive", tar_archive),
     ("manifest", manifest),
     ("onnx_graph", onnx_graph),
@@ -461,6 +461,7 @@ pub const TARGETS: [(&str, Target); 14] = [
     ("other_streams", other_streams),
     ("penetration", penetration),
     ("bvh_reader", bvh_reader),
+    ("fbx_reader", fbx_reader),
     ("prompt_encoder", prompt_encoder),
     ("magnet_config", magnet_config),
     ("motion_encoder", motion_encoder),
@@ -790,6 +791,23 @@ pub fn bvh_reader(data: &[u8]) {
         "the reader accepted a file whose positions are not finite"
     );
     if let Ok(joints) = bvh.to_t2m22(&troupe::motion::JointMap::builtin(), None, "fuzz.bvh") {
+        assert!(joints.positions.iter().all(|v| v.is_finite()));
+    }
+}
+
+/// FBX bytes (binary or ASCII) through ufbx and troupe's conversion to a skeleton's clip:
+/// whatever is accepted gives finite positions, a rig, and t2m-22 joints or an error.
+pub fn fbx_reader(data: &[u8]) {
+    use troupe::motion::fbx::parse_fbx;
+    let Ok(clip) = parse_fbx(data, "fuzz.fbx", None) else {
+        return;
+    };
+    assert!(
+        clip.positions().iter().all(|v| v.is_finite()),
+        "the reader accepted a file whose positions are not finite"
+    );
+    let _ = clip.rig(None, "fuzz");
+    if let Ok(joints) = clip.to_t2m22(&troupe::motion::JointMap::builtin(), None, "fuzz.fbx") {
         assert!(joints.positions.iter().all(|v| v.is_finite()));
     }
 }

@@ -66,5 +66,25 @@ pub use smplx145::{smplx145_positions, smplx145_rotations, SMPLX145, SMPLX145_DI
 pub use stream::{FeatureStream, STREAM_LATENCY_FRAMES};
 pub use world::{Handedness, JointsFormat, Units, UpAxis};
 
+/// Reads a skeleton's clip from a BVH or an FBX file, told apart by their content (not their
+/// name), refusing anything that is not a regular file of at most 256 MiB. `units`: for FBX,
+/// the unit the clip is given in (the file declares its own; metres when `None`); a BVH file's
+/// numbers are read as they are, and `units` says later what they mean ([`bvh::Bvh::to_t2m22`],
+/// [`bvh::Bvh::rig`]). Builds for wasm32 read BVH only.
+pub fn read_motion_file(
+    path: impl AsRef<std::path::Path>,
+    units: Option<Units>,
+) -> crate::shared::error::Result<bvh::Bvh> {
+    let path = path.as_ref();
+    let bytes = crate::shared::files::read_bounded(path, bvh::MAX_BVH_BYTES, "motion files")?;
+    let label = path.display().to_string();
+    #[cfg(not(target_arch = "wasm32"))]
+    if fbx::is_fbx(&bytes) {
+        return fbx::parse_fbx(&bytes, &label, units);
+    }
+    let _ = units;
+    bvh::parse_bvh(&bytes, &label)
+}
+
 #[cfg(test)]
 mod tests;

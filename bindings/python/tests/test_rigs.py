@@ -153,3 +153,24 @@ def test_bad_rigs_are_refused_with_the_reason(tmp_path):
     rig.close()
     with pytest.raises(ValueError, match="closed"):
         rig.joint_names
+
+
+def test_fbx_files_are_read_like_bvh_as_their_author_meant(tmp_path):
+    # ASCII FBX in centimetres, Z up (tests/data/PROVENANCE.md): read Y up in metres, or converted
+    # to the unit asked for; Blender's binary FBX: its bind pose is the rest pose.
+    ascii_fbx = REPO / "tests" / "data" / "ascii_body.fbx"
+    take = motion.read_bvh_take(ascii_fbx)
+    assert take.positions.shape == (31, 22, 3)
+    assert take.format.units == "m" and take.format.fps == 30.0
+    assert take.mapping["pelvis"] == "Hips" and take.inferred == []
+    np.testing.assert_allclose(take.positions[-1, 0], [0.0, 0.95, 0.5], atol=1e-5)
+    cm, fmt = motion.read_bvh(ascii_fbx, units="cm")
+    assert fmt.units == "cm"
+    np.testing.assert_allclose(cm[-1, 0], [0.0, 95.0, 50.0], atol=1e-3)
+    rig = motion.Rig.from_fbx(REPO / "tests" / "data" / "blender_mixamo.fbx")
+    assert rig.joint_names[0] == "mixamorig:Hips"
+    assert motion.Retargeter(rig).mapping["left_elbow"] == "mixamorig:LeftForeArm"
+    broken = tmp_path / "broken.fbx"
+    broken.write_bytes((REPO / "tests" / "data" / "blender_mixamo.fbx").read_bytes()[:5000])
+    with pytest.raises(troupe.InvalidArgument, match="broken.fbx: not a readable FBX file"):
+        motion.Rig.from_fbx(broken)

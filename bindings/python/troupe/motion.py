@@ -290,9 +290,10 @@ class BvhTake(NamedTuple):
 
 def read_bvh(path: str | os.PathLike, units: str | None = None,
              joint_map: str | os.PathLike | dict | None = None) -> tuple[np.ndarray, JointsFormat]:
-    """A BVH take as t2m-22 joint positions: (positions [T, 22, 3] in the file's units, Y up (a
-    file standing along Z, as Blender writes BVH, is turned), its JointsFormat). `units`: the file's ("m", "cm", ...), or None to guess from the figure's
-    height; `joint_map`: a joint map (JSON text, a dict, or a JSON file's path) to use instead of
+    """A BVH or FBX take (told apart by content) as t2m-22 joint positions: (positions [T, 22, 3]
+    in the file's units, Y up (a file standing along Z, as Blender writes BVH, is turned), its
+    JointsFormat). `units`: the file's ("m", "cm", ...), or None to guess from the figure's
+    height (an FBX file declares its own, and is converted to `units`, metres for None); `joint_map`: a joint map (JSON text, a dict, or a JSON file's path) to use instead of
     the built-in one. Joints the rig lacks are placed from the others (`read_bvh_take` says
     which)."""
     take = read_bvh_take(path, units, joint_map)
@@ -402,9 +403,11 @@ class Rig:
     @classmethod
     def from_bvh(cls, path: str | os.PathLike, units: str | None = None, rest_frame: int | None = None,
                  joint_map: str | os.PathLike | dict | None = None) -> "Rig":
-        """The rig of a BVH file. `units`: the file's, or None to guess; `rest_frame`: the frame
-        whose pose is the rest pose (for files whose all-zero pose lies down, as LAFAN1's), or
-        None for the all-zero pose."""
+        """The rig of a BVH or FBX file (told apart by content). `units`: the file's, or None to
+        guess (an FBX file declares its own and is converted to `units`, metres for None);
+        `rest_frame`: the frame whose pose is the rest pose (for files whose all-zero pose lies
+        down, as LAFAN1's), or None for the all-zero pose (for FBX, its bind pose where it has
+        one)."""
         handle = _native.rig_p()
         code = _UNITS_AUTO if units is None else _UNITS[units]
         if rest_frame is not None and not 0 <= int(rest_frame) < _RIG_ZERO_POSE:
@@ -413,6 +416,12 @@ class Rig:
         jm = _joint_map(joint_map)
         _check(_lib.troupe_rig_from_bvh(os.fsencode(path), code, frame, jm, ctypes.byref(handle)))
         return cls(handle)
+
+    @classmethod
+    def from_fbx(cls, path: str | os.PathLike, units: str | None = None, rest_frame: int | None = None,
+                 joint_map: str | os.PathLike | dict | None = None) -> "Rig":
+        """The rig of an FBX file (binary or ASCII): `from_bvh`, which reads either."""
+        return cls.from_bvh(path, units, rest_frame, joint_map)
 
     @classmethod
     def from_gltf(cls, path: str | os.PathLike, skin: int = 0,

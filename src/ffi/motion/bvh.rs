@@ -12,7 +12,8 @@ use crate::ffi::boundary::{
     self, non_null, required, troupe_status, write_versioned, FfiError, FfiResult,
     TROUPE_ERR_INVALID_ARG, TROUPE_ERR_SHAPE,
 };
-use crate::motion::bvh::{read_bvh, write_bvh_file, BvhPerson, BvhWriteOptions};
+use crate::motion::bvh::{write_bvh_file, BvhPerson, BvhWriteOptions};
+use crate::motion::read_motion_file;
 use crate::motion::{JointMap, JointsFormat, Units};
 
 /// The most people one BVH file troupe writes may hold.
@@ -46,12 +47,13 @@ pub(crate) fn units_from(code: u32, what: &str) -> FfiResult<Units> {
     })
 }
 
-/// Reads the BVH file at `path` (UTF-8) as t2m-22 joint positions. `joint_map_json`: a joint
+/// Reads the BVH or FBX file at `path` (UTF-8; told apart by content) as t2m-22 joint positions. `joint_map_json`: a joint
 /// map (JSON, see the built-in `src/motion/rigs/t2m22-joint-names.json`) or NULL for the
 /// built-in one (LAFAN1, Mixamo, CMU, HumanIK, SMPL and Rigify names). t2m-22 joints the rig
 /// lacks are placed from the others where they can be (`troupe_bvh_inferred` says which).
 /// `units`: the file's length unit (`TROUPE_UNITS_*`), or `TROUPE_UNITS_AUTO` to guess from the
-/// figure's height. `*out` is set to NULL on entry and to the take on success.
+/// figure's height; an FBX file declares its own, and is converted to `units` (metres for
+/// `TROUPE_UNITS_AUTO`). `*out` is set to NULL on entry and to the take on success.
 ///
 /// Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_IO` (unreadable file),
 /// `TROUPE_ERR_INVALID_ARG` (malformed file, naming line, joint and frame; a rig lacking a
@@ -90,7 +92,7 @@ pub unsafe extern "C" fn troupe_bvh_read(
                 TROUPE_UNITS_AUTO => None,
                 code => Some(units_from(code, "units")?),
             };
-            let joints = read_bvh(path)?.to_t2m22(&map, units, path)?;
+            let joints = read_motion_file(path, units)?.to_t2m22(&map, units, path)?;
             // Lines of text never hold a NUL: joint names are checked by the reader.
             let inferred = std::ffi::CString::new(joints.inferred.join("\n")).unwrap_or_default();
             let mapping = joints

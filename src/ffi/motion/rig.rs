@@ -10,9 +10,10 @@ use crate::ffi::boundary::{
     self, non_null, required, troupe_status, Exclusive, FfiError, FfiResult,
     TROUPE_ERR_BUFFER_TOO_SMALL, TROUPE_ERR_INVALID_ARG, TROUPE_ERR_SHAPE,
 };
-use crate::motion::bvh::{read_bvh, write_rig_bvh_file, BvhWriteOptions};
+use crate::motion::bvh::{write_rig_bvh_file, BvhWriteOptions};
 use crate::motion::features::read_frame;
 use crate::motion::gltf::PERSON_COLORS;
+use crate::motion::read_motion_file;
 use crate::motion::retarget::{retarget_clip, RetargetOptions, Retargeter, SourceFrame};
 use crate::motion::{
     read_gltf_rig_file, write_glb_file, GltfOptions, GltfPerson, JointMap, JointsFormat, Rig,
@@ -101,8 +102,10 @@ fn new_rig(rig: Rig, map: JointMap) -> FfiResult<*mut troupe_rig> {
     Ok(Box::into_raw(Box::new(troupe_rig { rig, map, names })))
 }
 
-/// Reads the rig of the BVH file at `path` (UTF-8). `units`: the file's length unit
-/// (`TROUPE_UNITS_*`, or `TROUPE_UNITS_AUTO` to guess from the rest pose's height).
+/// Reads the rig of the BVH or FBX file at `path` (UTF-8; told apart by content). `units`: the
+/// file's length unit (`TROUPE_UNITS_*`, or `TROUPE_UNITS_AUTO` to guess from the rest pose's
+/// height); an FBX file declares its own and is converted to `units` (metres for
+/// `TROUPE_UNITS_AUTO`), its rest pose being its bind pose where it has one.
 /// `rest_frame`: the frame whose pose is the rig's rest pose (for files whose all-zero pose lies
 /// down, as LAFAN1's does), or `TROUPE_RIG_ZERO_POSE`. `joint_map_json`: which rig joint is
 /// which t2m-22 joint (JSON), or NULL for the built-in names (Mixamo, LAFAN1, CMU, HumanIK,
@@ -135,7 +138,7 @@ pub unsafe extern "C" fn troupe_rig_from_bvh(
                 code => Some(units_from(code, "units")?),
             };
             let map = joint_map(joint_map_json)?;
-            let bvh = read_bvh(path)?;
+            let bvh = read_motion_file(path, units)?;
             let rig = match rest_frame {
                 TROUPE_RIG_ZERO_POSE => bvh.rig(units, path)?,
                 frame => bvh.rig_at_frame(frame as usize, units, path)?,

@@ -32,7 +32,7 @@
 use std::path::Path;
 
 use crate::motion::bvh::{
-    parse_bvh, Bvh, BvhJoint, Channel, MAX_BVH_COORDINATE, MAX_BVH_JOINTS, MAX_BVH_NAME_BYTES,
+    Bvh, BvhJoint, Channel, MAX_BVH_COORDINATE, MAX_BVH_JOINTS, MAX_BVH_NAME_BYTES,
 };
 use crate::motion::rotation::Quat;
 use crate::motion::vec3::{sub, Vec3};
@@ -67,22 +67,6 @@ pub fn read_fbx(path: impl AsRef<Path>, units: Option<Units>) -> Result<Bvh> {
     let path = path.as_ref();
     let bytes = crate::shared::files::read_bounded(path, MAX_FBX_BYTES, "FBX files")?;
     parse_fbx(&bytes, &path.display().to_string(), units)
-}
-
-/// Reads a skeleton's clip from a BVH or an FBX file, told apart by their content (not their
-/// name). `units`: for FBX, the unit the clip is given in (metres when `None`); a BVH file's
-/// numbers are read as they are, and `units` says later what they mean
-/// ([`Bvh::to_t2m22`], [`Bvh::rig`]).
-pub fn read_motion_file(path: impl AsRef<Path>, units: Option<Units>) -> Result<Bvh> {
-    let path = path.as_ref();
-    let max = MAX_FBX_BYTES.max(crate::motion::bvh::MAX_BVH_BYTES);
-    let bytes = crate::shared::files::read_bounded(path, max, "motion files")?;
-    let label = path.display().to_string();
-    if is_fbx(&bytes) {
-        parse_fbx(&bytes, &label, units)
-    } else {
-        parse_bvh(&bytes, &label)
-    }
 }
 
 /// Parses an FBX file's bytes (`label` names it in messages). `units` as in [`read_fbx`].
@@ -244,10 +228,22 @@ impl Skeleton {
         let stack = scene.anim_stacks.iter().next();
         let frames: Vec<(Vec<Vec3>, Vec<Quat>)> = match stack {
             Some(stack) if (1.0..=1000.0).contains(&fps) => {
-                let span = stack.time_end - stack.time_begin;
+                // The stack's own span, or (a stack that states none) its curves' keys.
+                let (mut begin, mut end) = (stack.time_begin, stack.time_end);
+                if (end - begin).partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
+                    (begin, end) = scene
+                        .anim_curves
+                        .iter()
+                        .filter(|c| !c.keyframes.is_empty())
+                        .fold((f64::INFINITY, f64::NEG_INFINITY), |(b, e), c| {
+                            (b.min(c.min_time), e.max(c.max_time))
+                        });
+                }
+                let span = end - begin;
                 let count = if span.is_finite() && span > 0.0 {
                     (span * fps).round() + 1.0
                 } else {
+                    begin = stack.time_begin;
                     1.0
                 };
                 let per_frame = self.joints.len() * 6;
@@ -259,7 +255,7 @@ impl Skeleton {
                 }
                 let mut frames = Vec::with_capacity(count as usize);
                 for t in 0..count as usize {
-                    let time = stack.time_begin + t as f64 / fps;
+                    let time = begin + t as f64 / fps;
                     let posed = ufbx::evaluate_scene(scene, &stack.anim, time, Default::default())
                         .map_err(|e| invalid(format!("frame {t} cannot be evaluated: {e:?}")))?;
                     frames.push(self.world(&posed, label)?);
