@@ -408,7 +408,8 @@ fn a_dropped_bvh_becomes_the_actor_and_streams() {
 
 /// A file the page cannot use is said so in the status line, and the stage does not stay empty:
 /// a BVH that is no humanoid (a chain of two joints) named by `?bvh=` leaves the default clip
-/// playing, and dropped on a playing page leaves the current actor playing.
+/// playing, and dropped on a playing page leaves the current actor playing; a dropped FBX file
+/// is said to be one (the page reads BVH; the library reads both).
 #[test]
 fn a_file_the_page_cannot_use_is_said_so_and_the_stage_plays_on() {
     let test = "a_file_the_page_cannot_use_is_said_so_and_the_stage_plays_on";
@@ -462,6 +463,24 @@ fn a_file_the_page_cannot_use_is_said_so_and_the_stage_plays_on() {
     }
     // The same default clip plays either way.
     assert_eq!(text(&named, "actor"), text(&dropped, "actor"));
+    let fbx = open_page_with(
+        &modules,
+        "frames=200&rule=follow",
+        Vec::new(),
+        None,
+        &[(
+            "TROUPE_DROP",
+            repo("tests/data/ascii_body.fbx").to_str().unwrap(),
+        )],
+    );
+    let said = text(&fbx, "refused");
+    assert!(
+        said.starts_with(
+            "ascii_body.fbx cannot be used (ascii_body.fbx is an FBX file: this page reads BVH"
+        ) && said.ends_with("the current actor plays on"),
+        "{said}"
+    );
+    assert!(number(&fbx, "tokens") >= 5.0);
 }
 
 /// The steered actor goes where the arrow keys send it: live, 4 s of stream with ← held turn it

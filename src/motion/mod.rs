@@ -24,7 +24,6 @@
 pub mod body;
 pub mod bvh;
 pub mod export;
-#[cfg(not(target_arch = "wasm32"))]
 pub mod fbx;
 pub mod features;
 pub mod foot_lock;

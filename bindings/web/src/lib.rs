@@ -407,6 +407,12 @@ impl WebClip {
     /// `label` names the file in error messages.
     #[wasm_bindgen(js_name = fromBvh)]
     pub fn from_bvh(bytes: &[u8], label: &str) -> Result<WebClip, JsError> {
+        if troupe::motion::fbx::is_fbx(bytes) {
+            return Err(JsError::new(&format!(
+                "{label} is an FBX file: this page reads BVH (troupe's library reads FBX too; \
+                 Blender can export BVH)"
+            )));
+        }
         let bvh = parse_bvh(bytes, label).map_err(js_error)?;
         let joints = bvh
             .to_t2m22(&JointMap::builtin(), None, label)
