@@ -1,4 +1,4 @@
-//! FBX files, read as the clip of a skeleton: the same [`Bvh`] value a BVH file gives, so that
+//! FBX files, read as the clip of a skeleton: the same [`Bvh`](crate::motion::bvh::Bvh) value a BVH file gives, so that
 //! everything troupe does with a BVH take or rig (t2m-22 joints, retargeting, rigs for the
 //! writers) works on FBX too.
 //!
@@ -9,7 +9,7 @@
 //! Its alternatives in Rust: `fbxcel` parses the binary node tree only (no ASCII, no transform
 //! rules: troupe would reimplement the part that is hard), and the Autodesk SDK is proprietary.
 //!
-//! How a file becomes a [`Bvh`]:
+//! How a file becomes a [`Bvh`](crate::motion::bvh::Bvh):
 //! - The skeleton is the file's bones (`LimbNode`s), each with the nearest bone above it as its
 //!   parent; a bone without children named like an end marker (`…_end`, `…End`, `…Nub`: what
 //!   Blender, Mixamo and 3ds Max add at the tips) becomes its parent's end site.
