@@ -27,7 +27,9 @@ use std::process::Command;
 use ndarray::Array3;
 use ndarray_npy::read_npy;
 use troupe::motion::bvh::{read_bvh, Bvh};
-use troupe::motion::fbx::{parse_fbx, read_fbx};
+use troupe::motion::fbx::{
+    parse_fbx, read_fbx, write_rig_fbx, write_rig_fbx_file, FbxWriteOptions,
+};
 use troupe::motion::gltf::PERSON_COLORS;
 use troupe::motion::rotation::Quat;
 use troupe::motion::vec3::{norm, sub, Vec3};
@@ -774,9 +776,9 @@ fn worst_head(report: &serde_json::Value, frame: usize, expected: &[(String, Vec
 }
 
 #[test]
-fn blender_imports_the_glb_and_the_bvh_and_puts_every_bone_where_troupe_did() {
+fn blender_imports_the_glb_bvh_and_fbx_and_puts_every_bone_where_troupe_did() {
     let Some(python) =
-        blender_python("blender_imports_the_glb_and_the_bvh_and_puts_every_bone_where_troupe_did")
+        blender_python("blender_imports_the_glb_bvh_and_fbx_and_puts_every_bone_where_troupe_did")
     else {
         return;
     };
@@ -849,6 +851,70 @@ fn blender_imports_the_glb_and_the_bvh_and_puts_every_bone_where_troupe_did() {
                 worst < 1e-3,
                 "{label}, frame {frame}: a bone {worst} m from troupe's joint"
             );
+        }
+
+        let fbx = dir.path().join("actor.fbx");
+        write_rig_fbx_file(&fbx, rig, &people[0], &FbxWriteOptions::default()).unwrap();
+        let mut args = vec!["fbx".to_string(), fbx.display().to_string(), "30".into()];
+        args.extend(frames.iter().map(|f| f.to_string()));
+        let report = blender_heads(&python, &args);
+        assert_eq!(report["armatures"], 1, "{label}: {}", report["objects"]);
+        for &frame in &frames {
+            let posed = rig.posed_positions(&people[0][frame]);
+            let expected: Vec<(String, Vec3)> = rig.names().iter().cloned().zip(posed).collect();
+            let worst = worst_head(&report, frame, &expected);
+            println!("{label}, FBX in Blender, frame {frame}: worst bone {worst:.2e} m");
+            assert!(
+                worst < 1e-3,
+                "{label}, frame {frame}: a bone {worst} m from troupe's joint"
+            );
+        }
+    }
+}
+
+/// The FBX written on each test rig (glTF rigs with rest rotations, BVH rigs, troupe's own) is
+/// read back by troupe's FBX reader with every joint where the rig's forward kinematics puts
+/// it, in every frame, in the unit asked for; its end sites come back as end sites.
+#[test]
+fn fbx_written_on_a_rig_reads_back_with_every_joint_in_place() {
+    let source = actor();
+    for t in rigs() {
+        let poses = retarget(&t, &source, RetargetOptions::default());
+        let rig = &t.rig;
+        for units in [Units::Centimeters, Units::Meters] {
+            let options = FbxWriteOptions { units, fps: 30.0 };
+            let bytes = write_rig_fbx(rig, &poses, &options).unwrap();
+            let clip = parse_fbx(&bytes, t.label, Some(units)).unwrap();
+            assert_eq!(
+                (clip.frames(), clip.fps()),
+                (poses.len(), 30.0),
+                "{}",
+                t.label
+            );
+            let names: Vec<&str> = clip.joints.iter().map(|j| j.name.as_str()).collect();
+            let want: Vec<&str> = rig.names().iter().map(String::as_str).collect();
+            assert_eq!(names.len(), want.len(), "{}", t.label);
+            let ends = clip.joints.iter().filter(|j| j.end_site.is_some()).count();
+            assert_eq!(
+                ends,
+                rig.end_sites().iter().flatten().count(),
+                "{}",
+                t.label
+            );
+            let positions = clip.positions();
+            let mut worst = 0.0f64;
+            for (f, pose) in poses.iter().enumerate() {
+                let posed = rig.posed_positions(pose);
+                for (j, name) in want.iter().enumerate() {
+                    let k = clip.joint(name).unwrap();
+                    // Both in canonical axes (metres, Y up): the file is Y up in `units`.
+                    let p = posed[j];
+                    let got = [0, 1, 2].map(|d| f64::from(positions[[f, k, d]]) * units.meters());
+                    worst = worst.max(norm(sub(got, p)));
+                }
+            }
+            println!("{} ({units:?}): every joint within {worst:.2e} m", t.label);
+            assert!(worst < 1e-4, "{}: a joint {worst} m off", t.label);
         }
     }
 }

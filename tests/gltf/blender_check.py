@@ -3,6 +3,7 @@ head (its joint) is, in glTF's axes (metres, +Y up), at the frames asked for.
 
     python blender_check.py gltf FILE.glb OUT.json FPS FRAME [FRAME...]
     python blender_check.py bvh FILE.bvh OUT.json FPS SCALE FRAME [FRAME...]
+    python blender_check.py fbx FILE.fbx OUT.json FPS FRAME [FRAME...]
     python blender_check.py export FILE.bvh OUT.glb SCALE
     python blender_check.py render FILE.glb OUT.png FRAME
 
@@ -12,7 +13,9 @@ bones' centre from the front.)
 
 glTF: Blender's importer turns glTF's +Y up into its +Z up; BVH: the importer reads Y up
 (`axis_up='Y'`, `axis_forward='-Z'`) and scales lengths by SCALE (file units to metres). Both
-are turned back here: Blender (x, y, z) is glTF (x, z, -y). Frames are troupe's, from 0.
+are turned back here: Blender (x, y, z) is glTF (x, z, -y). FBX: the importer's defaults, which
+read the file's axes and unit from its settings (as a person importing it gets). Frames are
+troupe's, from 0.
 """
 
 import json
@@ -83,6 +86,11 @@ def main():
         frames = [int(f) for f in rest]
         # The importer keys time 0 at frame 0 at the scene's frame rate.
         first = 0
+    elif kind == "fbx":
+        bpy.ops.import_scene.fbx(filepath=path)
+        frames = [int(f) for f in rest]
+        # The importer keys time 0 at frame 1 (its `anim_offset`).
+        first = 1
     else:
         scale = float(rest[0])
         frames = [int(f) for f in rest[1:]]

@@ -35,7 +35,11 @@
 #[cfg(not(target_arch = "wasm32"))]
 mod read;
 #[cfg(not(target_arch = "wasm32"))]
+mod write;
+#[cfg(not(target_arch = "wasm32"))]
 pub use read::{parse_fbx, read_fbx};
+#[cfg(not(target_arch = "wasm32"))]
+pub use write::{write_rig_fbx, write_rig_fbx_file, FbxWriteOptions};
 
 /// The largest FBX file troupe reads.
 pub const MAX_FBX_BYTES: u64 = 1 << 28;
