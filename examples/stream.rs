@@ -13,7 +13,8 @@
 //!   --bundle DIR        model bundle (default: onnx/bundles/armflow-demo)
 //!   --rule NAME         a named condition of the bundle (the demo's partner rules: mirror,
 //!                       follow, keep-away; default: mirror for bundles that have labels)
-//!   --joints FILE       actor joint positions: a .bvh file, or .npy float32 [T, 22, 3] (t2m-22)
+//!   --joints FILE       actor joint positions: a .bvh or .fbx file, or .npy float32 [T, 22, 3]
+//!                       (t2m-22)
 //!                       (default: tests/data/mocap/cmu-playground-120fps.npy, metres, z up, 120 fps)
 //!   --units m|cm|mm|in --up y|z --fps N     how a .npy's positions are measured
 //!   --actor FILE.npy    actor *features* instead, float32 [T, frame_dim]
@@ -26,8 +27,10 @@
 //!   --no-pictures       skip the HTML player and GIF
 //!   --gltf FILE.glb     also write actor and reactor as glTF (skinned bodies, one animation),
 //!                       on --rig or on troupe's own body (docs/RIGS.md)
-//!   --rig FILE          your character: a .bvh (its hierarchy), a .glb/.gltf (its first skin)
-//!                       or a rig .json; the reactor is
+//!   --fbx FILE.fbx      also write the reactor as FBX on --rig or on troupe's own body
+//!                       (binary FBX 7.4, centimetres, Y up: Blender, Unity, Unreal, Maya)
+//!   --rig FILE          your character: a .bvh or .fbx (its skeleton), a .glb/.gltf (its
+//!                       first skin) or a rig .json; the reactor is
 //!                       retargeted onto it as it streams (the time it takes is reported)
 //!   --rig-rest-frame N  the rig .bvh's frame whose pose is its rest pose (default: all zeros)
 //!   --joint-map FILE    which joint of your rigs (the actor .bvh, --rig) is which t2m-22 joint
@@ -52,12 +55,12 @@ use std::time::Instant;
 
 use ndarray::{s, Array2, Array3, ArrayView3, Axis};
 use ndarray_npy::{read_npy, write_npy};
-use troupe::motion::bvh::read_bvh;
+use troupe::motion::fbx::{write_rig_fbx_file, FbxWriteOptions};
 use troupe::motion::resample::Resampler;
 use troupe::motion::{
-    decode_frame, read_gltf_rig_file, retarget_clip, write_glb_file, GltfOptions, GltfPerson,
-    JointMap, JointsFormat, Placement, Pose, RetargetOptions, Retargeter, Rig, RigPose, Skeleton,
-    SourceFrame, Units, UpAxis, T2M22_JOINTS,
+    decode_frame, read_gltf_rig_file, read_motion_file, retarget_clip, write_glb_file, GltfOptions,
+    GltfPerson, JointMap, JointsFormat, Placement, Pose, RetargetOptions, Retargeter, Rig, RigPose,
+    Skeleton, SourceFrame, Units, UpAxis, T2M22_JOINTS,
 };
 use troupe::viewer::{GifOptions, Scene};
 use troupe::{FootLockOptions, Model, PenetrationGuard, ReactorOptions, Recentring, RootSmoothing};
@@ -99,6 +102,7 @@ struct Args {
     foot_lock: Option<FootLockOptions>,
     warmup_tokens: u64,
     gltf: Option<PathBuf>,
+    fbx: Option<PathBuf>,
     rig: Option<PathBuf>,
     rig_rest_frame: Option<usize>,
     joint_map: Option<PathBuf>,
@@ -131,6 +135,7 @@ fn parse_args() -> Result<Args, String> {
         foot_lock: Some(FootLockOptions::default()),
         warmup_tokens: 0,
         gltf: None,
+        fbx: None,
         rig: None,
         rig_rest_frame: None,
         joint_map: None,
@@ -167,6 +172,7 @@ fn parse_args() -> Result<Args, String> {
             "--out" => a.out = value()?.into(),
             "--no-pictures" => a.pictures = false,
             "--gltf" => a.gltf = Some(value()?.into()),
+            "--fbx" => a.fbx = Some(value()?.into()),
             "--rig" => a.rig = Some(value()?.into()),
             "--rig-rest-frame" => a.rig_rest_frame = Some(num(value()?)? as usize),
             "--joint-map" => a.joint_map = Some(value()?.into()),
@@ -198,9 +204,10 @@ fn parse_args() -> Result<Args, String> {
 
 /// The actor's joint positions `[T, 22, 3]` and how they are measured.
 fn load_joints(path: &Path, a: &Args) -> Result<(Array3<f32>, JointsFormat), troupe::Error> {
-    let (positions, mut format) = if path.extension().is_some_and(|e| e == "bvh") {
+    let (positions, mut format) = if path.extension().is_some_and(|e| e == "bvh" || e == "fbx") {
         let label = path.display().to_string();
-        let joints = read_bvh(path)?.to_t2m22(&joint_map(a)?, a.units, &label)?;
+        let clip = read_motion_file(path, a.units)?;
+        let joints = clip.to_t2m22(&joint_map(a)?, a.units, &label)?;
         (joints.positions, joints.format)
     } else {
         let positions: Array3<f32> = read_npy(path)
@@ -233,8 +240,8 @@ fn joint_map(a: &Args) -> Result<JointMap, troupe::Error> {
     }
 }
 
-/// The character of `--rig` (a .bvh hierarchy, a glTF file's first skin or a rig .json), or
-/// troupe's own body.
+/// The character of `--rig` (a .bvh or .fbx skeleton, a glTF file's first skin or a rig
+/// .json), or troupe's own body.
 fn load_rig(a: &Args) -> Result<Rig, troupe::Error> {
     let Some(path) = &a.rig else {
         return Ok(Rig::t2m22());
@@ -242,8 +249,8 @@ fn load_rig(a: &Args) -> Result<Rig, troupe::Error> {
     let label = path.display().to_string();
     if path.extension().is_some_and(|e| e == "glb" || e == "gltf") {
         read_gltf_rig_file(path, 0)
-    } else if path.extension().is_some_and(|e| e == "bvh") {
-        let bvh = read_bvh(path)?;
+    } else if path.extension().is_some_and(|e| e == "bvh" || e == "fbx") {
+        let bvh = read_motion_file(path, None)?;
         match a.rig_rest_frame {
             Some(frame) => bvh.rig_at_frame(frame, None, &label),
             None => bvh.rig(None, &label),
@@ -394,10 +401,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             let n = args.frames.unwrap_or(all.shape()[0]).min(all.shape()[0]);
             let actor = all.slice(s![..n, .., ..]);
             session.set_joints_format(format)?;
-            // The reactor retargeted onto the character as it streams (with --gltf or --rig).
+            // The reactor retargeted onto the character as it streams (with --gltf, --fbx or
+            // --rig).
             let rig = load_rig(&args)?;
             let map = joint_map(&args)?;
-            let mut retargeter = if args.gltf.is_some() || args.rig.is_some() {
+            let mut retargeter = if args.gltf.is_some() || args.fbx.is_some() || args.rig.is_some()
+            {
                 let options = RetargetOptions {
                     fps: model.fps() as f32,
                     ..RetargetOptions::default()
@@ -480,6 +489,19 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                         rig.name()
                     );
                 }
+            }
+            if let (Some(fbx), false) = (&args.fbx, rig_poses.is_empty()) {
+                let options = FbxWriteOptions {
+                    fps: model.fps() as f32,
+                    ..FbxWriteOptions::default()
+                };
+                write_rig_fbx_file(fbx, &rig, &rig_poses, &options)?;
+                println!(
+                    "FBX: {} ({} frames of the reactor on {}; opens in Blender, Unity, Unreal, Maya)",
+                    fbx.display(),
+                    rig_poses.len(),
+                    rig.name()
+                );
             }
             write_npy(&args.out, &reactor)?;
             println!(

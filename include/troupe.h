@@ -1967,6 +1967,24 @@ troupe_status troupe_gltf_write(const char *path, const struct troupe_rig *rig, 
  */
 troupe_status troupe_rig_bvh_write(const char *path, const struct troupe_rig *rig, const float *positions, size_t n_frames, const struct troupe_joints_format *format, uint32_t units, uint32_t flags);
 
+/**
+ * Writes a binary FBX 7.4 file at `path` (UTF-8; atomically) of `rig` posed by one person's t2m-22 joint
+ * positions (`positions`, float32 `[n_frames][22][3]` in the caller's world as `format` says;
+ * its `fps` becomes the file's rate), retargeted with `flags` (0 or `TROUPE_RETARGET_*`). The
+ * file has the rig's skeleton (`LimbNode`s, its rest pose as their transforms, `_end` leaves
+ * at its end sites) in `units` (`TROUPE_UNITS_*`; FBX's own is centimetres), Y up, and one
+ * animation with a key per frame: every joint's rotation, the moving joint's translation.
+ * Blender, Unity, Unreal and Maya import it; `troupe_rig_from_bvh` reads it back.
+ *
+ * Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (as
+ * `troupe_gltf_write`; a joint name holding the bytes 0 or 1), `TROUPE_ERR_IO`,
+ * `TROUPE_ERR_PANIC`. Thread-safe.
+ *
+ * # Safety
+ * `path` NUL-terminated; `positions` readable for `n_frames * 66` floats; `format` readable.
+ */
+troupe_status troupe_rig_fbx_write(const char *path, const struct troupe_rig *rig, const float *positions, size_t n_frames, const struct troupe_joints_format *format, uint32_t units, uint32_t flags);
+
 /* ============================================================================================
  * 10. Session motion
  *

@@ -919,6 +919,39 @@ fn fbx_written_on_a_rig_reads_back_with_every_joint_in_place() {
     }
 }
 
+/// The streaming demo on FBX in and out: the actor read from an ASCII FBX file, the character
+/// from Blender's binary one (its bind pose as rest), the reactor written with `--fbx` on it,
+/// which troupe's reader reads back as that character, one pose per reactor frame.
+#[test]
+fn the_demo_streams_an_fbx_actor_and_writes_the_reactor_as_fbx_on_an_fbx_character() {
+    let dir = tempfile::tempdir().unwrap();
+    let fbx = dir.path().join("reactor.fbx");
+    let out = common::run_ok(
+        Command::new(common::example("stream"))
+            .current_dir(repo(""))
+            .args(["--no-pictures", "--joints", "tests/data/ascii_body.fbx"])
+            .args(["--rig", "tests/data/blender_mixamo.fbx", "--fbx"])
+            .arg(&fbx)
+            .arg("--out")
+            .arg(dir.path().join("reactor.npy")),
+    );
+    let text = common::output_text(&out);
+    println!("{text}");
+    assert!(text.contains("FBX: "), "{text}");
+    let reactor: Array3<f32> = read_npy(dir.path().join("reactor.npy")).unwrap();
+    let clip = read_fbx(&fbx, None).unwrap();
+    let rig = read_fbx(repo("tests/data/blender_mixamo.fbx"), None).unwrap();
+    let names = |c: &Bvh| c.joints.iter().map(|j| j.name.clone()).collect::<Vec<_>>();
+    assert_eq!(names(&clip), names(&rig));
+    assert_eq!(clip.frames(), reactor.shape()[0]);
+    let rest = clip.rig(None, "reactor").unwrap();
+    assert!(
+        (rest.height_metres() - 1.73).abs() < 1e-3,
+        "{}",
+        rest.height_metres()
+    );
+}
+
 /// The streaming demo with `--gltf` and `--rig`: the reactor retargeted as it streams, the file
 /// valid for Khronos' validator, loaded and played by three.js, imported by Blender.
 #[test]

@@ -290,6 +290,22 @@ int main(int argc, char **argv) {
         EXPECT(troupe_rig_bvh_write(path, mixamo, clip, FRAMES, &format, 9, 0), TROUPE_ERR_INVALID_ARG);
     }
     {
+        /* FBX on the rig: read back as a take and as a rig of the same joints. */
+        troupe_bvh *back = NULL;
+        troupe_rig *again = NULL;
+        snprintf(path, sizeof path, "%s/rig_c.fbx", argv[2]);
+        EXPECT(troupe_rig_fbx_write(path, mixamo, clip, FRAMES, &format, TROUPE_UNITS_CENTIMETERS, 0), TROUPE_OK);
+        EXPECT(troupe_bvh_read(path, NULL, TROUPE_UNITS_AUTO, &back), TROUPE_OK);
+        CHECK(troupe_bvh_frames(back) == FRAMES);
+        troupe_bvh_free(back);
+        EXPECT(troupe_rig_from_bvh(path, TROUPE_UNITS_AUTO, TROUPE_RIG_ZERO_POSE, NULL, &again), TROUPE_OK);
+        CHECK(troupe_rig_joint_count(again) == troupe_rig_joint_count(mixamo));
+        troupe_rig_free(again);
+        EXPECT(troupe_rig_fbx_write(path, NULL, clip, FRAMES, &format, TROUPE_UNITS_CENTIMETERS, 0), TROUPE_ERR_NULL_ARG);
+        EXPECT(troupe_rig_fbx_write(path, mixamo, clip, FRAMES, &format, 9, 0), TROUPE_ERR_INVALID_ARG);
+        EXPECT(troupe_rig_fbx_write(NULL, mixamo, clip, FRAMES, &format, TROUPE_UNITS_CENTIMETERS, 0), TROUPE_ERR_NULL_ARG);
+    }
+    {
         /* A rig lacking joints is read with them placed from the others, and says which. */
         troupe_bvh *take = NULL;
         snprintf(path, sizeof path, "%s/no_toes_c.bvh", argv[2]);

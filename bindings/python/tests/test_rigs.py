@@ -174,3 +174,20 @@ def test_fbx_files_are_read_like_bvh_as_their_author_meant(tmp_path):
     broken.write_bytes((REPO / "tests" / "data" / "blender_mixamo.fbx").read_bytes()[:5000])
     with pytest.raises(troupe.InvalidArgument, match="broken.fbx: not a readable FBX file"):
         motion.Rig.from_fbx(broken)
+
+
+def test_a_clip_written_as_fbx_on_a_rig_reads_back_on_that_rig(tmp_path, clip):
+    rig = motion.Rig.from_fbx(REPO / "tests" / "data" / "blender_mixamo.fbx")
+    out = tmp_path / "reactor.fbx"
+    motion.write_rig_fbx(out, rig, clip[:40], motion.JointsFormat("m", "z", fps=30.0))
+    back = motion.Rig.from_fbx(out)
+    assert back.joint_names == rig.joint_names
+    take = motion.read_bvh_take(out)
+    assert take.positions.shape == (40, 22, 3) and take.inferred == []
+    # The retargeted clip keeps the source's height profile: the head stays above the hips.
+    assert (take.positions[:, 15, 1] > take.positions[:, 0, 1]).all()
+    with pytest.raises(troupe.InvalidArgument, match="NaN|finite"):
+        bad = np.array(clip[:5], np.float32)
+        bad[2, 3, 1] = np.nan
+        motion.write_rig_fbx(tmp_path / "bad.fbx", rig, bad, motion.JointsFormat("m", "z", fps=30.0))
+    assert not (tmp_path / "bad.fbx").exists()

@@ -445,6 +445,7 @@ PROTOTYPES: dict[str, tuple[Any, list[Any]]] = {
     "troupe_gltf_write": (status, [ctypes.c_char_p, rig_p, f32p, c_size, c_size, fmt_p,
                                    ctypes.POINTER(ctypes.c_char_p), ctypes.c_uint32]),
     "troupe_rig_bvh_write": (status, [ctypes.c_char_p, rig_p, f32p, c_size, fmt_p, ctypes.c_uint32, ctypes.c_uint32]),
+    "troupe_rig_fbx_write": (status, [ctypes.c_char_p, rig_p, f32p, c_size, fmt_p, ctypes.c_uint32, ctypes.c_uint32]),
     "troupe_session_set_joints_format": (status, [session_p, fmt_p]),
     "troupe_session_step_joints": (status, [session_p, f32p, c_size, ctypes.POINTER(PoseBuffers), c_size,
                                             ctypes.POINTER(c_size)]),

@@ -38,7 +38,7 @@ from .errors import expect_type
 
 __all__ = ["JointsFormat", "Placement", "Poses", "Skeleton", "FeatureStream", "skeleton", "encode", "decode",
            "read_bvh", "write_bvh", "write_json", "save_npz", "smplx145_positions", "penetration_metrics", "JOINTS",
-           "Rig", "RigPose", "Retargeter", "BvhTake", "read_bvh_take", "retarget", "write_gltf", "write_rig_bvh"]
+           "Rig", "RigPose", "Retargeter", "BvhTake", "read_bvh_take", "retarget", "write_gltf", "write_rig_bvh", "write_rig_fbx"]
 
 JOINTS = 22
 _UNITS = {"m": 0, "cm": 1, "mm": 2, "in": 3}
@@ -575,4 +575,16 @@ def write_rig_bvh(path: str | os.PathLike, rig: Rig, positions: ArrayLike, fmt: 
     p = _positions(positions, "positions")
     c = _format(fmt)
     _check(_lib.troupe_rig_bvh_write(os.fsencode(path), rig._live(), _ptr(p), p.shape[0], ctypes.byref(c),
+                                     _UNITS[units], _retarget_flags(foot_lock, limb_ik)))
+
+
+def write_rig_fbx(path: str | os.PathLike, rig: Rig, positions: ArrayLike, fmt: JointsFormat | None = None,
+                  units: str = "cm", foot_lock: bool = True, limb_ik: bool = True) -> None:
+    """Writes one person's clip [T, 22, 3] retargeted onto `rig` as a binary FBX file of the rig's
+    skeleton and one animation (atomically), in `units`, Y up: what Blender, Unity, Unreal and
+    Maya import. `Rig.from_fbx` reads it back."""
+    expect_type(rig, Rig, "rig")
+    p = _positions(positions, "positions")
+    c = _format(fmt)
+    _check(_lib.troupe_rig_fbx_write(os.fsencode(path), rig._live(), _ptr(p), p.shape[0], ctypes.byref(c),
                                      _UNITS[units], _retarget_flags(foot_lock, limb_ik)))

@@ -1,5 +1,5 @@
 //! `troupe_rig_*` and `troupe_gltf_write`: a caller's character rig, troupe's motion retargeted
-//! onto it (one frame at a time or a whole clip), and glTF and BVH files of it.
+//! onto it (one frame at a time or a whole clip), and glTF, BVH and FBX files of it.
 
 use std::ffi::{c_char, CString};
 use std::path::Path;
@@ -11,6 +11,7 @@ use crate::ffi::boundary::{
     TROUPE_ERR_BUFFER_TOO_SMALL, TROUPE_ERR_INVALID_ARG, TROUPE_ERR_SHAPE,
 };
 use crate::motion::bvh::{write_rig_bvh_file, BvhWriteOptions};
+use crate::motion::fbx::{write_rig_fbx_file, FbxWriteOptions};
 use crate::motion::features::read_frame;
 use crate::motion::gltf::PERSON_COLORS;
 use crate::motion::read_motion_file;
@@ -738,6 +739,53 @@ pub unsafe extern "C" fn troupe_rig_bvh_write(
                 fit_skeleton: false,
             };
             write_rig_bvh_file(Path::new(path), &rig.rig, &poses, &bvh)?;
+            Ok(())
+        },
+    )
+}
+
+/// Writes a binary FBX 7.4 file at `path` (UTF-8; atomically) of `rig` posed by one person's t2m-22 joint
+/// positions (`positions`, float32 `[n_frames][22][3]` in the caller's world as `format` says;
+/// its `fps` becomes the file's rate), retargeted with `flags` (0 or `TROUPE_RETARGET_*`). The
+/// file has the rig's skeleton (`LimbNode`s, its rest pose as their transforms, `_end` leaves
+/// at its end sites) in `units` (`TROUPE_UNITS_*`; FBX's own is centimetres), Y up, and one
+/// animation with a key per frame: every joint's rotation, the moving joint's translation.
+/// Blender, Unity, Unreal and Maya import it; `troupe_rig_from_bvh` reads it back.
+///
+/// Returns `TROUPE_OK`, `TROUPE_ERR_NULL_ARG`, `TROUPE_ERR_INVALID_ARG` (as
+/// `troupe_gltf_write`; a joint name holding the bytes 0 or 1), `TROUPE_ERR_IO`,
+/// `TROUPE_ERR_PANIC`. Thread-safe.
+///
+/// # Safety
+/// `path` NUL-terminated; `positions` readable for `n_frames * 66` floats; `format` readable.
+#[no_mangle]
+pub unsafe extern "C" fn troupe_rig_fbx_write(
+    path: *const c_char,
+    rig: Option<&troupe_rig>,
+    positions: *const f32,
+    n_frames: usize,
+    format: *const troupe_joints_format,
+    units: u32,
+    flags: u32,
+) -> troupe_status {
+    boundary::call(
+        "troupe_rig_fbx_write",
+        || {},
+        || {
+            // SAFETY (all): forwarded contract.
+            let path = unsafe { boundary::required_str(path, "path") }?;
+            let rig = required(rig, "rig")?;
+            let format = unsafe { read_format(format) }?;
+            let units = units_from(units, "units")?;
+            let options = retarget_options(flags, format.fps)?;
+            let (_, clips) =
+                unsafe { canonical_people(positions, 1, n_frames, &format, std::ptr::null(), 1) }?;
+            let poses = retarget_clip(&rig.rig, &rig.map, &clips[0], None, options)?;
+            let fbx = FbxWriteOptions {
+                units,
+                fps: format.fps,
+            };
+            write_rig_fbx_file(Path::new(path), &rig.rig, &poses, &fbx)?;
             Ok(())
         },
     )
