@@ -376,6 +376,36 @@ impl Rig {
         (pos, rot)
     }
 
+    /// What a file writer needs of `poses` (at least one, `fps` within [1, 1000], each with one
+    /// finite rotation per joint, a finite root translation and the same moving joint), checked
+    /// with errors that begin "`format` out on rig NAME"; returns the moving joint.
+    pub(crate) fn check_poses(&self, poses: &[RigPose], fps: f32, format: &str) -> Result<usize> {
+        let bad = |m: String| {
+            Error::InvalidInput(format!("{format} out on rig {}: {m}", excerpt(&self.name)))
+        };
+        let first = poses
+            .first()
+            .ok_or_else(|| bad("a clip of 0 frames".into()))?;
+        if !crate::motion::world::FPS_RANGE.contains(&fps) {
+            return Err(bad(format!("{fps} fps is outside [1, 1000]")));
+        }
+        let moving = first.root;
+        for (t, pose) in poses.iter().enumerate() {
+            let finite = pose
+                .rotations
+                .iter()
+                .all(|q| [q.w, q.x, q.y, q.z].iter().all(|v| v.is_finite()))
+                && pose.root_translation.iter().all(|v| v.is_finite());
+            if pose.rotations.len() != self.len() || pose.root != moving || !finite {
+                return Err(bad(format!(
+                    "frame {t}: a pose needs {} finite rotations and the same moving joint",
+                    self.len()
+                )));
+            }
+        }
+        Ok(moving)
+    }
+
     /// World positions of every joint of `pose` in troupe's canonical axes (metres, Y up):
     /// where an engine showing the pose puts each joint.
     pub fn posed_positions(&self, pose: &RigPose) -> Vec<Vec3> {

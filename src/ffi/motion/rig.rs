@@ -18,7 +18,7 @@ use crate::motion::read_motion_file;
 use crate::motion::retarget::{retarget_clip, RetargetOptions, Retargeter, SourceFrame};
 use crate::motion::{
     read_gltf_rig_file, write_glb_file, GltfOptions, GltfPerson, JointMap, JointsFormat, Rig,
-    Skeleton, T2M22_JOINTS,
+    RigPose, Skeleton, T2M22_JOINTS,
 };
 
 /// `troupe_rig_from_bvh`: the rest pose is the file's all-zero pose (its offsets).
@@ -727,12 +727,9 @@ pub unsafe extern "C" fn troupe_rig_bvh_write(
             // SAFETY (all): forwarded contract.
             let path = unsafe { boundary::required_str(path, "path") }?;
             let rig = required(rig, "rig")?;
-            let format = unsafe { read_format(format) }?;
+            let (poses, format) =
+                unsafe { retargeted_clip(rig, positions, n_frames, format, flags) }?;
             let units = units_from(units, "units")?;
-            let options = retarget_options(flags, format.fps)?;
-            let (_, clips) =
-                unsafe { canonical_people(positions, 1, n_frames, &format, std::ptr::null(), 1) }?;
-            let poses = retarget_clip(&rig.rig, &rig.map, &clips[0], None, options)?;
             let bvh = BvhWriteOptions {
                 units,
                 fps: format.fps,
@@ -742,6 +739,27 @@ pub unsafe extern "C" fn troupe_rig_bvh_write(
             Ok(())
         },
     )
+}
+
+/// One person's t2m-22 clip retargeted onto `rig` with `flags`, and its format: what the rig
+/// file writers write.
+///
+/// # Safety
+/// As the writers': `positions` readable for `n_frames * 66` floats; `format` readable.
+unsafe fn retargeted_clip(
+    rig: &troupe_rig,
+    positions: *const f32,
+    n_frames: usize,
+    format: *const troupe_joints_format,
+    flags: u32,
+) -> FfiResult<(Vec<RigPose>, JointsFormat)> {
+    // SAFETY (all): forwarded contract.
+    let format = unsafe { read_format(format) }?;
+    let options = retarget_options(flags, format.fps)?;
+    let (_, clips) =
+        unsafe { canonical_people(positions, 1, n_frames, &format, std::ptr::null(), 1) }?;
+    let poses = retarget_clip(&rig.rig, &rig.map, &clips[0], None, options)?;
+    Ok((poses, format))
 }
 
 /// Writes a binary FBX 7.4 file at `path` (UTF-8; atomically) of `rig` posed by one person's t2m-22 joint
@@ -775,12 +793,9 @@ pub unsafe extern "C" fn troupe_rig_fbx_write(
             // SAFETY (all): forwarded contract.
             let path = unsafe { boundary::required_str(path, "path") }?;
             let rig = required(rig, "rig")?;
-            let format = unsafe { read_format(format) }?;
+            let (poses, format) =
+                unsafe { retargeted_clip(rig, positions, n_frames, format, flags) }?;
             let units = units_from(units, "units")?;
-            let options = retarget_options(flags, format.fps)?;
-            let (_, clips) =
-                unsafe { canonical_people(positions, 1, n_frames, &format, std::ptr::null(), 1) }?;
-            let poses = retarget_clip(&rig.rig, &rig.map, &clips[0], None, options)?;
             let fbx = FbxWriteOptions {
                 units,
                 fps: format.fps,

@@ -13,7 +13,7 @@ use super::parse::{MAX_BVH_COORDINATE, MAX_BVH_NAME_BYTES};
 use super::write::{end_site, euler_zyx_degrees, open_joint, BvhWriteOptions};
 use crate::motion::rig::{Rig, RigPose};
 use crate::motion::vec3::Vec3;
-use crate::motion::world::{JointsFormat, FPS_RANGE};
+use crate::motion::world::JointsFormat;
 use crate::shared::error::{excerpt, Error, Result};
 
 /// The text of a BVH file of `rig` posed by `poses` (at least one, each with one rotation per
@@ -22,26 +22,7 @@ use crate::shared::error::{excerpt, Error, Result};
 pub fn write_rig_bvh(rig: &Rig, poses: &[RigPose], options: &BvhWriteOptions) -> Result<String> {
     let bad =
         |m: String| Error::InvalidInput(format!("BVH out on rig {}: {m}", excerpt(rig.name())));
-    let first = poses
-        .first()
-        .ok_or_else(|| bad("a clip of 0 frames".into()))?;
-    if !FPS_RANGE.contains(&options.fps) {
-        return Err(bad(format!("{} fps is outside [1, 1000]", options.fps)));
-    }
-    let moving = first.root;
-    for (t, pose) in poses.iter().enumerate() {
-        let finite = pose
-            .rotations
-            .iter()
-            .all(|q| [q.w, q.x, q.y, q.z].iter().all(|v| v.is_finite()))
-            && pose.root_translation.iter().all(|v| v.is_finite());
-        if pose.rotations.len() != rig.len() || pose.root != moving || !finite {
-            return Err(bad(format!(
-                "frame {t}: a pose needs {} finite rotations and the same moving joint",
-                rig.len()
-            )));
-        }
-    }
+    let moving = rig.check_poses(poses, options.fps, "BVH")?;
     for name in rig.names() {
         if name.len() > MAX_BVH_NAME_BYTES
             || name

@@ -27,7 +27,7 @@ use crate::motion::bvh::euler_zyx_degrees;
 use crate::motion::rig::{Rig, RigPose};
 use crate::motion::rotation::Quat;
 use crate::motion::vec3::Vec3;
-use crate::motion::world::{JointsFormat, Units, FPS_RANGE};
+use crate::motion::world::{JointsFormat, Units};
 use crate::shared::error::{excerpt, Error, Result};
 
 /// FBX time units per second.
@@ -59,26 +59,7 @@ impl Default for FbxWriteOptions {
 pub fn write_rig_fbx(rig: &Rig, poses: &[RigPose], options: &FbxWriteOptions) -> Result<Vec<u8>> {
     let bad =
         |m: String| Error::InvalidInput(format!("FBX out on rig {}: {m}", excerpt(rig.name())));
-    let first = poses
-        .first()
-        .ok_or_else(|| bad("a clip of 0 frames".into()))?;
-    if !FPS_RANGE.contains(&options.fps) {
-        return Err(bad(format!("{} fps is outside [1, 1000]", options.fps)));
-    }
-    let moving = first.root;
-    for (t, pose) in poses.iter().enumerate() {
-        let finite = pose
-            .rotations
-            .iter()
-            .all(|q| [q.w, q.x, q.y, q.z].iter().all(|v| v.is_finite()))
-            && pose.root_translation.iter().all(|v| v.is_finite());
-        if pose.rotations.len() != rig.len() || pose.root != moving || !finite {
-            return Err(bad(format!(
-                "frame {t}: a pose needs {} finite rotations and the same moving joint",
-                rig.len()
-            )));
-        }
-    }
+    let moving = rig.check_poses(poses, options.fps, "FBX")?;
     // FBX joins an object's name and class with the bytes 0 and 1: a name may hold neither.
     if let Some(name) = rig.names().iter().find(|n| n.contains(['\0', '\u{1}'])) {
         return Err(bad(format!(
