@@ -29,8 +29,11 @@
 //! says a dropped FBX file is one).
 //!
 //! Bounds, for files from others: at most [`MAX_FBX_BYTES`] read, ufbx's allocations capped in
-//! proportion to the file, at most [`MAX_BVH_JOINTS`](crate::motion::bvh::MAX_BVH_JOINTS) bones and [`MAX_FBX_VALUES`] channel
-//! values, every position within [`MAX_BVH_COORDINATE`](crate::motion::bvh::MAX_BVH_COORDINATE).
+//! proportion to the file, at most 1,080,000 frames and [`MAX_FBX_NODE_FRAMES`] scene nodes ×
+//! frames evaluated, at most [`MAX_BVH_JOINTS`](crate::motion::bvh::MAX_BVH_JOINTS) bones and
+//! [`MAX_FBX_VALUES`] channel values, every position within
+//! [`MAX_BVH_COORDINATE`](crate::motion::bvh::MAX_BVH_COORDINATE). Long files report progress
+//! (and can be cancelled) every 4096 frames.
 
 #[cfg(not(target_arch = "wasm32"))]
 mod read;
@@ -46,6 +49,10 @@ pub const MAX_FBX_BYTES: u64 = 1 << 28;
 
 /// The most channel values (frames × channels) a clip read from FBX may hold: 128 MiB.
 pub const MAX_FBX_VALUES: usize = 1 << 25;
+
+/// The most scene nodes × frames a clip read from FBX may cost to evaluate (each frame
+/// evaluates the whole scene): 2^26, seconds of work.
+pub const MAX_FBX_NODE_FRAMES: usize = 1 << 26;
 
 /// The first bytes of a binary FBX file.
 const BINARY_MAGIC: &[u8] = b"Kaydara FBX Binary";

@@ -2,14 +2,16 @@
 
 use std::path::Path;
 
-use super::{MAX_FBX_BYTES, MAX_FBX_VALUES};
+use super::{MAX_FBX_BYTES, MAX_FBX_NODE_FRAMES, MAX_FBX_VALUES};
 use crate::motion::bvh::{
     Bvh, BvhJoint, Channel, MAX_BVH_COORDINATE, MAX_BVH_JOINTS, MAX_BVH_NAME_BYTES,
 };
+use crate::motion::features::MAX_CLIP_FRAMES;
 use crate::motion::rotation::Quat;
 use crate::motion::vec3::{sub, Vec3};
 use crate::motion::world::Units;
 use crate::shared::error::{excerpt, Error, Result};
+use crate::shared::progress;
 
 /// Reads an FBX file as a skeleton's clip, refusing anything that is not a regular file of at
 /// most [`MAX_FBX_BYTES`]. `units`: the unit the clip is given in (the file's own is converted
@@ -204,8 +206,21 @@ impl Skeleton {
                         self.joints.len()
                     )));
                 }
+                // Each frame evaluates the whole scene: bound the work, not only the values.
+                let work = count * scene.nodes.len() as f64;
+                if count > MAX_CLIP_FRAMES as f64 || work > MAX_FBX_NODE_FRAMES as f64 {
+                    return Err(invalid(format!(
+                        "{count} frames of a scene of {} nodes; troupe reads at most \
+                         {MAX_CLIP_FRAMES} frames and {MAX_FBX_NODE_FRAMES} nodes × frames",
+                        scene.nodes.len()
+                    )));
+                }
                 let mut frames = Vec::with_capacity(count as usize);
                 for t in 0..count as usize {
+                    // A long file can be stopped: progress every 4096 frames.
+                    if t % 4096 == 4095 {
+                        progress::report("reading the FBX", t as u64 + 1, count as u64)?;
+                    }
                     let time = begin + t as f64 / fps;
                     let posed = ufbx::evaluate_scene(scene, &stack.anim, time, Default::default())
                         .map_err(|e| invalid(format!("frame {t} cannot be evaluated: {e:?}")))?;
