@@ -1145,7 +1145,10 @@ fn broken_or_boneless_fbx_files_are_refused_with_the_reason() {
     // An animation a million seconds long is refused before it is evaluated.
     let endless = ascii.replace("a: 0,46186158000\n", "a: 0,46186158000000000\n");
     assert_ne!(endless, ascii);
-    refused(endless.as_bytes(), "30000001 frames of 22 bones; troupe reads at most");
+    refused(
+        endless.as_bytes(),
+        "30000001 frames of 22 bones; troupe reads at most",
+    );
     let cut = &ascii.as_bytes()[..ascii.len() / 2];
     assert!(parse_fbx(cut, "their.fbx", None).is_err());
     // Every prefix and a corrupted copy of a real binary file: an error or a clip, never a
