@@ -105,6 +105,43 @@ fn csharp_binding_streams_like_rust_and_refuses_misuse() {
     assert!(worst <= 1e-5, "C# and Rust differ by {worst}");
 }
 
+/// The Unity sample (`unity/Samples~/AnimatorPartner/TroupePartner.cs`) compiled against a stub
+/// UnityEngine (`bindings/csharp/tests/UnityStub.cs`) and run under Mono by
+/// `bindings/csharp/tests/UnitySampleTests.cs`: the demo model on the engine's clock at 20, 60 and
+/// 144 jittered frames a second for 60 s each, the poses held bounded, the playback keeping pace
+/// with the actor, the partner shown; and `PosePlayback`'s contract.
+#[test]
+fn unity_sample_plays_the_partner_on_the_engine_clock_at_20_60_and_144_fps() {
+    let test = "unity_sample_plays_the_partner_on_the_engine_clock_at_20_60_and_144_fps";
+    if !common::tools_or_skip(test, &["mcs", "mono"], "mono-mcs mono-runtime") {
+        return;
+    }
+    let libs = common::c_libraries();
+    let scratch = tempfile::tempdir().unwrap();
+    let exe = scratch.path().join("unity-sample-tests.exe");
+    common::run_ok(
+        Command::new("mcs")
+            .arg("-warnaserror")
+            .arg(format!("-out:{}", exe.display()))
+            .arg(root().join("bindings/csharp/Troupe.cs"))
+            .arg(root().join("bindings/csharp/tests/UnityStub.cs"))
+            .arg(root().join("unity/Samples~/AnimatorPartner/TroupePartner.cs"))
+            .arg(root().join("bindings/csharp/tests/UnitySampleTests.cs")),
+    );
+    let text = common::output_text(&common::run_ok(
+        Command::new("mono")
+            .arg(&exe)
+            .arg(root().join("onnx/bundles"))
+            .arg(root().join("tests/data/mocap/cmu-playground-120fps.npy"))
+            .env("LD_LIBRARY_PATH", libs),
+    ));
+    println!("{text}");
+    assert!(text.contains("ALL PASSED"), "{text}");
+    for fps in ["20 fps", "60 fps", "144 fps"] {
+        assert!(text.contains(&format!("{fps}: ")), "{text}");
+    }
+}
+
 /// Every C# sample of the README and the docs compiles with the binding (warnings as errors) and
 /// runs under Mono against the library (`tests/common/samples.rs`: its setup and the sample as
 /// `Main`'s body), from the repository root, where its paths lead.

@@ -468,6 +468,92 @@ namespace Troupe
         }
     }
 
+    /// <summary>
+    /// Plays poses a session produces at its frame rate on an engine's clock, which ticks at its
+    /// own rate (20, 60, 144 frames a second, or unevenly): each <see cref="Sample"/> moves the
+    /// playhead by the engine's elapsed time and gives the pose there, interpolated between the
+    /// two poses around it. Poses arrive a token (several frames) at a time; the playhead trails
+    /// the newest pose so that it plays smoothly between arrivals, and when it falls further
+    /// behind than <c>maxBehindFrames</c> (a slow engine frame, a hitch) it jumps ahead, so the
+    /// poses held stay bounded whatever the engine's rate. Before the first pose, and when it
+    /// catches up with the newest, it holds the last pose. Not thread-safe: one engine thread.
+    /// </summary>
+    public sealed class PosePlayback
+    {
+        private readonly int floatsPerPose;
+        private readonly float rate;
+        private readonly float maxBehind;
+        private readonly List<float[]> poses = new List<float[]>();
+        // The index (in frames since the first pose) of poses[0], and the playhead.
+        private long first;
+        private double playhead;
+
+        /// <summary>Poses of <paramref name="floatsPerPose"/> floats each (66 for t2m-22 joint
+        /// positions) produced at <paramref name="rate"/> frames a second; the playhead is never
+        /// more than <paramref name="maxBehindFrames"/> frames behind the newest pose.</summary>
+        public PosePlayback(int floatsPerPose, float rate, float maxBehindFrames = 8f)
+        {
+            if (floatsPerPose <= 0) throw new ArgumentOutOfRangeException("floatsPerPose");
+            if (!(rate > 0f) || float.IsInfinity(rate)) throw new ArgumentOutOfRangeException("rate");
+            if (!(maxBehindFrames >= 1f) || float.IsInfinity(maxBehindFrames))
+                throw new ArgumentOutOfRangeException("maxBehindFrames");
+            this.floatsPerPose = floatsPerPose;
+            this.rate = rate;
+            maxBehind = maxBehindFrames;
+        }
+
+        /// <summary>The poses held (those the playhead has not passed), at most
+        /// <c>maxBehindFrames + 2</c> after a <see cref="Sample"/>.</summary>
+        public int Queued { get { return poses.Count; } }
+
+        /// <summary>The playhead, in frames since the first pose pushed.</summary>
+        public double Playhead { get { return playhead; } }
+
+        /// <summary>How far the playhead trails the newest pose, in frames.</summary>
+        public double BehindFrames { get { return poses.Count == 0 ? 0 : first + poses.Count - 1 - playhead; } }
+
+        /// <summary>Appends <paramref name="count"/> poses, stored one after another in
+        /// <paramref name="data"/> (what <see cref="Session.StepJoints"/> wrote).</summary>
+        public void Push(float[] data, int count)
+        {
+            if (data == null) throw new ArgumentNullException("data");
+            if (count < 0 || (long)count * floatsPerPose > data.Length)
+                throw new ArgumentException("data holds fewer than " + count + " poses", "data");
+            for (int i = 0; i < count; i++)
+            {
+                var pose = new float[floatsPerPose];
+                Array.Copy(data, i * floatsPerPose, pose, 0, floatsPerPose);
+                poses.Add(pose);
+            }
+        }
+
+        /// <summary>Moves the playhead by <paramref name="deltaSeconds"/> and writes the pose
+        /// there into <paramref name="pose"/>; false (and nothing written) before the first
+        /// pose.</summary>
+        public bool Sample(float deltaSeconds, float[] pose)
+        {
+            if (pose == null) throw new ArgumentNullException("pose");
+            if (pose.Length < floatsPerPose) throw new ArgumentException("pose holds fewer than " + floatsPerPose + " floats", "pose");
+            if (!(deltaSeconds >= 0f) || float.IsInfinity(deltaSeconds)) throw new ArgumentOutOfRangeException("deltaSeconds");
+            if (poses.Count == 0) return false;
+            long newest = first + poses.Count - 1;
+            playhead = Math.Min(playhead + deltaSeconds * (double)rate, newest);
+            if (newest - playhead > maxBehind) playhead = newest - maxBehind;
+            // Drop the poses the playhead has passed; keep the one it stands on.
+            int passed = (int)Math.Min(Math.Floor(playhead) - first, poses.Count - 1);
+            if (passed > 0)
+            {
+                poses.RemoveRange(0, passed);
+                first += passed;
+            }
+            float[] a = poses[0];
+            float[] b = poses.Count > 1 ? poses[1] : a;
+            float t = (float)(playhead - first);
+            for (int k = 0; k < floatsPerPose; k++) pose[k] = a[k] + (b[k] - a[k]) * t;
+            return true;
+        }
+    }
+
     /// <summary>A model handle, freed once with troupe_model_free.</summary>
     public sealed class ModelHandle : SafeHandle
     {
