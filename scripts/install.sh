@@ -108,8 +108,11 @@ static_flags="-Wl,-z,noexecstack"
 
 # The Unity package, with the library file `$1` of the build in its plugin folder.
 write_unity() {
-    local plugins=x86_64
-    [ "$target" = aarch64-unknown-linux-gnu ] && plugins=ARM64
+    local plugins=x86_64 cpu=x86_64 os=Linux player=Linux64 asm_player=LinuxStandalone64
+    [ "$target" = aarch64-unknown-linux-gnu ] && plugins=ARM64 cpu=ARM64
+    if [ "$1" = troupe.dll ]; then
+        os=Windows player=Win64 asm_player=WindowsStandalone64
+    fi
     rm -rf "$unity"
     mkdir -p "$unity"
     cp -R unity/. "$unity/"
@@ -117,7 +120,62 @@ write_unity() {
     install -m 644 bindings/csharp/Troupe.cs "$unity/Runtime/Troupe.cs"
     mkdir -p "$unity/Runtime/Plugins/$plugins"
     install -m 755 "$out_dir/$1" "$unity/Runtime/Plugins/$plugins/$1"
-    echo "unity package: $unity (com.troupe.runtime $version)"
+    # The assembly compiles where its library is: the editor and the one player it was built for.
+    sed -i "s/\"includePlatforms\": \[[^]]*\]/\"includePlatforms\": [\"Editor\", \"$asm_player\"]/" \
+        "$unity/Runtime/Troupe.Runtime.asmdef"
+    unity_metas "$unity" "Runtime/Plugins/$plugins/$1" "$os" "$cpu" "$player"
+    echo "unity package: $unity (com.troupe.runtime $version; $os $cpu)"
+}
+
+# Unity finds a package's assets by the GUIDs in their `.meta` files, and regenerates missing
+# ones with new GUIDs in every project (breaking references to them): each file and folder gets
+# one here, its GUID derived from its path in the package, so it is the same in every install.
+# Folders ending in `~` (the samples) and hidden files are not imported, so they get none. The
+# plugin's importer settings enable it for the editor and the player of its OS and CPU only.
+unity_guid() { printf 'com.troupe.runtime/%s' "$1" | md5sum | cut -c1-32; }
+unity_metas() {
+    local root=$1 plugin=$2 os=$3 cpu=$4 player=$5 rel guid paths
+    # Listed before any .meta is written, so that none gets a .meta of its own.
+    mapfile -t paths < <(cd "$root" && find . -mindepth 1 \( -name '*~' -o -name '.*' \) -prune -o -print |
+        sed 's|^\./||' | sort)
+    for rel in "${paths[@]}"; do
+            guid=$(unity_guid "$rel")
+            {
+                printf 'fileFormatVersion: 2\nguid: %s\n' "$guid"
+                if [ -d "$root/$rel" ]; then
+                    printf 'folderAsset: yes\nDefaultImporter:\n'
+                elif [ "$rel" = "$plugin" ]; then
+                    unity_plugin_importer "$os" "$cpu" "$player"
+                else
+                    case "$rel" in
+                        *.cs) printf 'MonoImporter:\n  serializedVersion: 2\n  defaultReferences: []\n  executionOrder: 0\n  icon: {instanceID: 0}\n' ;;
+                        *.asmdef) printf 'AssemblyDefinitionImporter:\n' ;;
+                        package.json) printf 'PackageManifestImporter:\n' ;;
+                        *) printf 'TextScriptImporter:\n' ;;
+                    esac
+                fi
+                printf '  externalObjects: {}\n  userData: \n  assetBundleName: \n  assetBundleVariant: \n'
+            } >"$root/$rel.meta"
+    done
+}
+unity_plugin_importer() {
+    local os=$1 cpu=$2 player=$3 p
+    printf 'PluginImporter:\n  serializedVersion: 2\n  iconMap: {}\n  executionOrder: {}\n'
+    printf '  defineConstraints: []\n  isPreloaded: 0\n  isOverridable: 0\n'
+    printf '  isExplicitlyReferenced: 0\n  validateReferences: 1\n  platformData:\n'
+    printf '  - first:\n      : Any\n    second:\n      enabled: 0\n      settings:\n'
+    printf '        Exclude Editor: 0\n'
+    for p in Linux64 OSXUniversal Win64; do
+        printf '        Exclude %s: %s\n' "$p" "$([ "$p" = "$player" ] && echo 0 || echo 1)"
+    done
+    printf '  - first:\n      Any: \n    second:\n      enabled: 0\n      settings: {}\n'
+    printf '  - first:\n      Editor: Editor\n    second:\n      enabled: 1\n      settings:\n'
+    printf '        CPU: %s\n        DefaultValueInitialized: true\n        OS: %s\n' "$cpu" "$os"
+    for p in Linux64 OSXUniversal Win64; do
+        printf '  - first:\n      Standalone: %s\n    second:\n      enabled: %s\n      settings:\n' \
+            "$p" "$([ "$p" = "$player" ] && echo 1 || echo 0)"
+        printf '        CPU: %s\n' "$([ "$p" = "$player" ] && echo "$cpu" || echo None)"
+    done
 }
 du_of() { du -k "$1" | cut -f1; }
 

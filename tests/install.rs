@@ -159,6 +159,107 @@ fn unity_package_holds_the_binding_and_the_library() {
         manifest.contains(&format!("\"version\": \"{}\"", env!("CARGO_PKG_VERSION"))),
         "{manifest}"
     );
+    // What Unity's importer needs: a .meta with a GUID beside every file and folder it imports
+    // (not the `Samples~` folder, which it skips), unique, and the same in every install.
+    let metas = unity_metas(&unity);
+    let again = scratch().join("unity-again");
+    run(Command::new("bash")
+        .arg(root().join("scripts/install.sh"))
+        .args(["--prefix", scratch().join("prefix-again").to_str().unwrap()])
+        .args(["--profile", "dev", "--no-build", "--unity-package"])
+        .arg(&again));
+    assert_eq!(
+        metas,
+        unity_metas(&again),
+        "the GUIDs differ between installs"
+    );
+    let guids: std::collections::BTreeSet<&String> = metas.values().collect();
+    assert_eq!(guids.len(), metas.len(), "a GUID is used twice: {metas:?}");
+    for asset in [
+        "package.json",
+        "README.md",
+        "Runtime",
+        "Runtime/Troupe.cs",
+        "Runtime/Troupe.Runtime.asmdef",
+        "Runtime/Plugins",
+        "Runtime/Plugins/x86_64",
+        "Runtime/Plugins/x86_64/libtroupe.so",
+    ] {
+        assert!(metas.contains_key(asset), "no .meta for {asset}: {metas:?}");
+    }
+    assert!(!metas.keys().any(|k| k.contains('~')), "{metas:?}");
+    // The plugin loads in the Linux x86-64 editor and player only; the assembly compiles there.
+    let plugin =
+        std::fs::read_to_string(unity.join("Runtime/Plugins/x86_64/libtroupe.so.meta")).unwrap();
+    for line in [
+        "PluginImporter:",
+        "Exclude Linux64: 0",
+        "Exclude Win64: 1",
+        "Exclude OSXUniversal: 1",
+        "      Editor: Editor\n    second:\n      enabled: 1",
+        "        CPU: x86_64\n        DefaultValueInitialized: true\n        OS: Linux",
+        "      Standalone: Linux64\n    second:\n      enabled: 1\n      settings:\n        CPU: x86_64",
+        "      Standalone: Win64\n    second:\n      enabled: 0",
+    ] {
+        assert!(plugin.contains(line), "the plugin's importer lacks {line:?}:\n{plugin}");
+    }
+    let asmdef = std::fs::read_to_string(unity.join("Runtime/Troupe.Runtime.asmdef")).unwrap();
+    let asmdef: serde_json::Value = serde_json::from_str(&asmdef).unwrap();
+    assert_eq!(
+        asmdef["includePlatforms"],
+        serde_json::json!(["Editor", "LinuxStandalone64"])
+    );
+}
+
+/// Each `.meta` file of a Unity package (outside folders Unity skips): the asset it describes
+/// (its path in the package) and its GUID, checked to be 32 hexadecimal digits.
+fn unity_metas(package: &Path) -> std::collections::BTreeMap<String, String> {
+    let mut out = std::collections::BTreeMap::new();
+    let mut stack = vec![package.to_path_buf()];
+    while let Some(dir) = stack.pop() {
+        for entry in std::fs::read_dir(&dir).unwrap() {
+            let path = entry.unwrap().path();
+            let name = path.file_name().unwrap().to_string_lossy().into_owned();
+            if name.ends_with('~') || name.starts_with('.') {
+                continue;
+            }
+            if path.is_dir() {
+                stack.push(path.clone());
+            }
+            if let Some(asset) = name.strip_suffix(".meta") {
+                let text = std::fs::read_to_string(&path).unwrap();
+                let guid = text
+                    .lines()
+                    .find_map(|l| l.strip_prefix("guid: "))
+                    .unwrap_or_else(|| panic!("{}: no guid", path.display()))
+                    .to_string();
+                assert!(
+                    guid.len() == 32 && guid.chars().all(|c| c.is_ascii_hexdigit()),
+                    "{}: guid {guid}",
+                    path.display()
+                );
+                assert!(
+                    text.starts_with("fileFormatVersion: 2\n"),
+                    "{}",
+                    path.display()
+                );
+                let rel = dir.join(asset).strip_prefix(package).unwrap().to_path_buf();
+                assert!(
+                    package.join(&rel).exists(),
+                    "{} describes nothing",
+                    path.display()
+                );
+                out.insert(rel.to_string_lossy().replace('\\', "/"), guid);
+            } else {
+                assert!(
+                    dir.join(format!("{name}.meta")).is_file(),
+                    "{} has no .meta",
+                    path.display()
+                );
+            }
+        }
+    }
+    out
 }
 
 #[test]
