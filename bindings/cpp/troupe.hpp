@@ -76,6 +76,25 @@ inline troupe_limits limits() {
     return l;
 }
 
+/// The library's version: "MAJOR.MINOR.PATCH", and as one number (MAJOR * 10000 + MINOR * 100 +
+/// PATCH), for comparing with TROUPE_VERSION_NUMBER at run time.
+inline std::string version() { return troupe_version_string(); }
+inline std::uint32_t version_number() { return troupe_version_number(); }
+
+/// Threads for matrix products (0: every core) and for loading graphs; process-wide.
+inline Status set_compute_threads(std::size_t threads) {
+    return Status::from(troupe_set_compute_threads(threads));
+}
+inline std::size_t compute_threads() { return troupe_compute_threads(); }
+inline void set_load_threads(std::size_t threads) { troupe_set_load_threads(threads); }
+inline std::size_t load_threads() { return troupe_load_threads(); }
+
+/// Bounds the work and time of the long calls this thread makes (zeros: no bound); see
+/// troupe_set_call_budget.
+inline Status set_call_budget(const troupe_call_budget &budget) {
+    return Status::from(troupe_set_call_budget(&budget));
+}
+
 /// Reports the progress of long calls (loads, groups, clips) made by this thread while it lives
 /// to `callback(done, total)`; a callback returning false cancels the call
 /// (TROUPE_ERR_CANCELLED). The callback must not throw. Restores "no callback" when destroyed.
@@ -764,6 +783,20 @@ class Rig {
         if (s) out = Rig(h);
         return s;
     }
+    /// The rig of an FBX file (binary or ASCII; its bind pose as rest where it has one):
+    /// `from_bvh`, which reads either.
+    static Status from_fbx(const std::string &path, Rig &out, std::uint32_t units = TROUPE_UNITS_AUTO,
+                           const char *joint_map_json = nullptr) {
+        return from_bvh(path, out, units, TROUPE_RIG_ZERO_POSE, joint_map_json);
+    }
+    /// The rig of skin `skin` of a glTF file (.glb or .gltf).
+    static Status from_gltf(const std::string &path, Rig &out, std::size_t skin = 0,
+                            const char *joint_map_json = nullptr) {
+        troupe_rig *h = nullptr;
+        Status s = Status::from(troupe_rig_from_gltf(path.c_str(), skin, joint_map_json, &h));
+        if (s) out = Rig(h);
+        return s;
+    }
     /// A rig from its JSON document.
     static Status from_json(const std::string &json, Rig &out, const char *joint_map_json = nullptr) {
         troupe_rig *h = nullptr;
@@ -826,12 +859,47 @@ class Retargeter {
                                                      &out.root_joint));
     }
     Status reset() { return Status::from(troupe_rig_retarget_reset(handle_)); }
+    /// For each t2m-22 joint, the rig joint it drives (-1: none).
+    Status mapping(std::array<std::int64_t, 22> &out) {
+        return Status::from(troupe_rig_retargeter_mapping(handle_, out.data(), out.size()));
+    }
 
   private:
     Retargeter(troupe_rig_retargeter *h, std::size_t joints) : handle_(h), joints_(joints) {}
     troupe_rig_retargeter *handle_ = nullptr;
     std::size_t joints_ = 0;
 };
+
+/// A whole clip ([frames][22][3] in `positions`) retargeted onto `rig`: one pose per frame.
+inline Status retarget_clip(const Rig &rig, const float *positions, std::size_t n_frames,
+                            const troupe_joints_format &format, std::vector<RigPose> &out, std::uint32_t flags = 0) {
+    const std::size_t joints = rig.joint_count();
+    std::vector<float> rotations(n_frames * joints * 4), roots(n_frames * 3);
+    std::size_t root_joint = 0;
+    Status s = Status::from(troupe_rig_retarget_clip(rig.get(), positions, n_frames, &format, flags, rotations.data(),
+                                                     rotations.size(), roots.data(), roots.size(), &root_joint));
+    if (!s) return s;
+    out.assign(n_frames, RigPose{});
+    for (std::size_t t = 0; t < n_frames; t++) {
+        out[t].rotations.assign(rotations.begin() + t * joints * 4, rotations.begin() + (t + 1) * joints * 4);
+        out[t].root_translation = {roots[3 * t], roots[3 * t + 1], roots[3 * t + 2]};
+        out[t].root_joint = root_joint;
+    }
+    return s;
+}
+
+/// One person's clip ([frames][22][3]) retargeted onto `rig` and written as a BVH file of the
+/// rig's hierarchy, or as a binary FBX file of its skeleton, in `units` (TROUPE_UNITS_*).
+inline Status write_rig_bvh(const std::string &path, const Rig &rig, const float *positions, std::size_t n_frames,
+                            const troupe_joints_format &format, std::uint32_t units = TROUPE_UNITS_CENTIMETERS,
+                            std::uint32_t flags = 0) {
+    return Status::from(troupe_rig_bvh_write(path.c_str(), rig.get(), positions, n_frames, &format, units, flags));
+}
+inline Status write_rig_fbx(const std::string &path, const Rig &rig, const float *positions, std::size_t n_frames,
+                            const troupe_joints_format &format, std::uint32_t units = TROUPE_UNITS_CENTIMETERS,
+                            std::uint32_t flags = 0) {
+    return Status::from(troupe_rig_fbx_write(path.c_str(), rig.get(), positions, n_frames, &format, units, flags));
+}
 
 /// Writes people ([people][frames][22][3] in `positions`) retargeted onto `rig` (null: troupe's
 /// own body) as a glTF binary file (`flags`: TROUPE_RETARGET_* and TROUPE_GLTF_*).

@@ -33,6 +33,21 @@ static std::vector<float> run(troupe::Session &s, const std::vector<float> &acto
 int main(int argc, char **argv) {
     if (argc < 3) return 2;
     CHECK(troupe::abi_compatible());
+    CHECK(troupe::version_number() == TROUPE_VERSION_NUMBER && troupe::version() == TROUPE_VERSION_STRING);
+    {
+        // Process-wide settings: set, read back, restored.
+        const std::size_t compute = troupe::compute_threads(), load = troupe::load_threads();
+        CHECK(troupe::set_compute_threads(1).ok() && troupe::compute_threads() == 1);
+        CHECK(troupe::set_compute_threads(compute).ok());
+        troupe::set_load_threads(1);
+        CHECK(troupe::load_threads() == 1);
+        troupe::set_load_threads(load);
+        troupe_call_budget budget{};
+        budget.max_seconds = -1.0;
+        CHECK(troupe::set_call_budget(budget).code() == TROUPE_ERR_INVALID_ARG);
+        budget.max_seconds = 0.0;
+        CHECK(troupe::set_call_budget(budget).ok());
+    }
     CHECK(troupe::limits().values.max_steps == 10000);
     troupe::Model missing;
     troupe::Status bad = troupe::Model::load("/nonexistent/bundle", missing);
@@ -358,9 +373,28 @@ int main(int argc, char **argv) {
             CHECK(retargeter.push(clip.data(), pose).ok() && pose.rotations.size() == 88 && pose.root_joint == 0);
             CHECK(troupe::motion::Rig::from_bvh(base + "-missing.bvh", rig).code() == TROUPE_ERR_IO);
             const std::string glb = base + ".glb";
+            std::array<std::int64_t, 22> drives{};
+            CHECK(retargeter.mapping(drives).ok() && drives[0] == 0 && drives[21] >= 0);
+            std::vector<troupe::motion::RigPose> poses;
+            CHECK(troupe::motion::retarget_clip(rig, clip.data(), frames, fmt, poses).ok() && poses.size() == frames);
+            CHECK(poses[0].rotations.size() == 88 && poses[0].root_joint == 0);
             CHECK(troupe::motion::write_gltf(glb, {"actor"}, clip.data(), frames, fmt, &rig).ok());
             CHECK(troupe::motion::write_gltf(glb, {}, clip.data(), frames, fmt).code() == TROUPE_ERR_INVALID_ARG);
+            // The glTF file's skin as a rig, and the clip on the rig as BVH and FBX, read back.
+            troupe::motion::Rig from_glb;
+            CHECK(troupe::motion::Rig::from_gltf(glb, from_glb).ok() && from_glb.joint_count() == 22);
+            CHECK(troupe::motion::Rig::from_gltf(glb, from_glb, 5).code() == TROUPE_ERR_INVALID_ARG);
             std::remove(glb.c_str());
+            const std::string on_rig = base + "-rig.bvh", fbx = base + ".fbx";
+            CHECK(troupe::motion::write_rig_bvh(on_rig, rig, clip.data(), frames, fmt).ok());
+            CHECK(troupe::motion::write_rig_fbx(fbx, rig, clip.data(), frames, fmt).ok());
+            CHECK(troupe::motion::write_rig_fbx(fbx, rig, clip.data(), frames, fmt, 9).code() ==
+                  TROUPE_ERR_INVALID_ARG);
+            troupe::motion::Rig from_fbx;
+            CHECK(troupe::motion::Rig::from_fbx(fbx, from_fbx).ok() && from_fbx.joint_count() == 22);
+            CHECK(troupe::motion::read_bvh(fbx, take).ok() && take.frames == frames);
+            std::remove(on_rig.c_str());
+            std::remove(fbx.c_str());
             CHECK(troupe::motion::write_json(json, {"actor"}, clip.data(), frames, fmt).ok());
             CHECK(troupe::motion::write_pictures(html, "", {"actor"}, clip.data(), frames, fmt).ok());
             CHECK(troupe::motion::write_pictures("", "", {"actor"}, clip.data(), frames, fmt).code() ==
