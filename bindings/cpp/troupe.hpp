@@ -160,6 +160,8 @@ class Model {
     std::size_t fps() const { return troupe_model_fps(handle_); }
     std::size_t frames_per_token() const { return troupe_model_frames_per_token(handle_); }
     std::size_t latency_frames() const { return troupe_model_latency_frames(handle_); }
+    /// Frames of latency of the joint stream (step_joints) over the feature stream.
+    std::size_t joints_latency_frames() const { return troupe_model_joints_latency_frames(handle_); }
     std::size_t condition_dim() const { return troupe_model_condition_dim(handle_); }
     std::size_t latent_dim() const { return troupe_model_latent_dim(handle_); }
     /// The named conditions the bundle was trained on (the demo model's partner rules).
@@ -553,6 +555,28 @@ class Session {
         if (st) out.swap(v);
         return st;
     }
+    /// A snapshot sealed with `key` (HMAC-SHA-256; docs/SNAPSHOTS.md), for storage the caller
+    /// does not trust; `Session::restore_sealed` with the same key verifies it.
+    static Status seal(const std::vector<std::uint8_t> &snapshot, const std::vector<std::uint8_t> &key,
+                       std::vector<std::uint8_t> &out) {
+        std::size_t size = 0;
+        Status st = Status::from(
+            troupe_snapshot_seal(snapshot.data(), snapshot.size(), key.data(), key.size(), nullptr, 0, &size));
+        if (!st) return st;
+        std::vector<std::uint8_t> v(size);
+        st = Status::from(troupe_snapshot_seal(snapshot.data(), snapshot.size(), key.data(), key.size(), v.data(),
+                                               v.size(), &size));
+        if (st) out.swap(v);
+        return st;
+    }
+    static Status restore_sealed(const Model &model, const std::vector<std::uint8_t> &sealed,
+                                 const std::vector<std::uint8_t> &key, Session &out) {
+        troupe_session *h = nullptr;
+        Status s = Status::from(
+            troupe_session_restore_sealed(model.get(), sealed.data(), sealed.size(), key.data(), key.size(), &h));
+        if (s) out = Session(h, model.frame_dim());
+        return s;
+    }
     /// The stream a snapshot of `model`'s session saved; foreign or damaged bytes are refused.
     static Status restore(const Model &model, const std::uint8_t *bytes, std::size_t len, Session &out) {
         troupe_session *h = nullptr;
@@ -706,10 +730,15 @@ struct Take {
     std::vector<float> positions;
     troupe_joints_format format;
     std::size_t frames = 0;
+    /// The t2m-22 joints the rig lacks and how they were placed, one line each.
+    std::string inferred;
+    /// For each t2m-22 joint, the rig joint it is read from ("" where it was placed).
+    std::array<std::string, 22> mapping;
 };
 
-/// Reads a BVH file; `units` TROUPE_UNITS_* or TROUPE_UNITS_AUTO; `joint_map_json` null for
-/// the built-in map.
+/// Reads a BVH or FBX file (told apart by content); `units` TROUPE_UNITS_* or
+/// TROUPE_UNITS_AUTO (an FBX file is converted to them; metres for AUTO); `joint_map_json`
+/// null for the built-in map.
 inline Status read_bvh(const std::string &path, Take &out, std::uint32_t units = TROUPE_UNITS_AUTO,
                        const char *joint_map_json = nullptr) {
     troupe_bvh *h = nullptr;
@@ -720,6 +749,14 @@ inline Status read_bvh(const std::string &path, Take &out, std::uint32_t units =
     t.positions.resize(t.frames * TROUPE_MOTION_JOINTS * 3);
     s = Status::from(troupe_bvh_positions(h, t.positions.data(), t.positions.size()));
     if (s) s = Status::from(troupe_bvh_format(h, &t.format, sizeof t.format));
+    if (s) {
+        const char *said = troupe_bvh_inferred(h);
+        t.inferred = said ? said : "";
+        for (std::size_t k = 0; k < t.mapping.size(); k++) {
+            const char *name = troupe_bvh_joint_source(h, k);
+            t.mapping[k] = name ? name : "";
+        }
+    }
     troupe_bvh_free(h);
     if (s) out = std::move(t);
     return s;

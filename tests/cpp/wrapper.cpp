@@ -81,6 +81,8 @@ int main(int argc, char **argv) {
         troupe::Model demo;
         if (argc > 4 && troupe::Model::load(argv[4], demo).ok()) {
             CHECK((demo.condition_labels() == std::vector<std::string>{"mirror", "follow", "keep-away"}));
+            // Joint positions add the feature stream's latency and the motion stages' own.
+            CHECK(demo.joints_latency_frames() > demo.latency_frames());
             CHECK(demo.condition_for("follow", v).ok() && (v == std::vector<float>{0.0f, 1.0f, 0.0f}));
             troupe::Status unknown = demo.condition_for("dance", v);
             CHECK(unknown.code() == TROUPE_ERR_INVALID_ARG && v.size() == 3);
@@ -127,6 +129,14 @@ int main(int argc, char **argv) {
         std::vector<float> rest = run(resumed, rest_in, frames - 10);
         head.insert(head.end(), rest.begin(), rest.end());
         CHECK(head == ra);
+        // Sealed with a key: restored with it, refused with another.
+        const std::vector<std::uint8_t> key(32, 7), other(32, 8);
+        std::vector<std::uint8_t> sealed;
+        CHECK(troupe::Session::seal(bytes, key, sealed).ok() && sealed.size() > bytes.size());
+        troupe::Session unsealed, forged;
+        CHECK(troupe::Session::restore_sealed(model, sealed, key, unsealed).ok() && unsealed.valid());
+        CHECK(troupe::Session::restore_sealed(model, sealed, other, forged).code() == TROUPE_ERR_INVALID_ARG);
+        CHECK(!forged.valid());
         bytes[bytes.size() / 2] ^= 1;
         troupe::Session refused;
         troupe::Status st = troupe::Session::restore(model, bytes.data(), bytes.size(), refused);
@@ -360,6 +370,7 @@ int main(int argc, char **argv) {
             CHECK(troupe::motion::write_bvh(bvh, {"actor"}, clip.data(), frames, fmt).ok());
             troupe::motion::Take take;
             CHECK(troupe::motion::read_bvh(bvh, take).ok() && take.frames == frames);
+            CHECK(take.inferred.empty() && take.mapping[0] == "pelvis" && take.mapping[21] == "right_wrist");
             CHECK(take.format.units == TROUPE_UNITS_CENTIMETERS);
             CHECK(std::fabs(take.positions[3 * 15 + 1] / 100.0f - clip[3 * 15 + 1]) < 1e-4f);
             CHECK(troupe::motion::read_bvh(base + "-missing.bvh", take).code() == TROUPE_ERR_IO);
