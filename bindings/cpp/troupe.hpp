@@ -95,6 +95,12 @@ inline Status set_call_budget(const troupe_call_budget &budget) {
     return Status::from(troupe_set_call_budget(&budget));
 }
 
+/// Sends the library's log records up to `max_level` (TROUPE_LOG_*) to `callback` (null: back to
+/// stderr per TROUPE_LOG); process-wide, called from any thread, so it must be thread-safe.
+inline Status set_log_callback(troupe_log_fn callback, void *user_data, std::int32_t max_level) {
+    return Status::from(troupe_set_log_callback(callback, user_data, max_level));
+}
+
 /// Reports the progress of long calls (loads, groups, clips) made by this thread while it lives
 /// to `callback(done, total)`; a callback returning false cancels the call
 /// (TROUPE_ERR_CANCELLED). The callback must not throw. Restores "no callback" when destroyed.
@@ -160,6 +166,17 @@ class Model {
     std::size_t fps() const { return troupe_model_fps(handle_); }
     std::size_t frames_per_token() const { return troupe_model_frames_per_token(handle_); }
     std::size_t latency_frames() const { return troupe_model_latency_frames(handle_); }
+    /// The width of one CLIP token (0 for a bundle without a text branch).
+    std::size_t text_token_dim() const { return troupe_model_text_token_dim(handle_); }
+    /// The condition for CLIP tokens computed elsewhere (`n_tokens` x text_token_dim floats, the
+    /// end-of-text token at `eot_index`); `condition` replaced only on success.
+    Status encode_text(const float *tokens, std::size_t n_tokens, std::size_t eot_index,
+                       std::vector<float> &condition) const {
+        std::vector<float> v(troupe_model_condition_dim(handle_));
+        Status s = Status::from(troupe_text_encode(handle_, tokens, n_tokens, eot_index, v.data(), v.size()));
+        if (s) condition.swap(v);
+        return s;
+    }
     /// Frames of latency of the joint stream (step_joints) over the feature stream.
     std::size_t joints_latency_frames() const { return troupe_model_joints_latency_frames(handle_); }
     std::size_t condition_dim() const { return troupe_model_condition_dim(handle_); }
@@ -219,6 +236,9 @@ class Model {
         /// Tokens of an official clip (0 for a streaming-only bundle).
         std::size_t clip_tokens() const { return troupe_armflow_clip_tokens(m_); }
         /// The bundle's clip settings (steps, CFG), seed 0.
+        Status default_session_options(troupe_armflow_session_options &out) const {
+            return Status::from(troupe_armflow_session_options_init(m_, &out, sizeof out));
+        }
         Status default_clip_options(troupe_armflow_clip_options &out) const {
             return Status::from(troupe_armflow_clip_options_init(m_, &out, sizeof out));
         }
@@ -258,6 +278,11 @@ class Model {
         Status default_options(troupe_group_options &out) const {
             return Status::from(troupe_umf_options_init(m_, &out, sizeof out));
         }
+        /// How many standard normals a group of `people` draws, by part (for replaying noise).
+        Status noise_lengths(std::uint32_t people, std::size_t &prior, std::size_t &jumps,
+                             std::size_t &reactions) const {
+            return Status::from(troupe_umf_noise_lengths(m_, people, &prior, &jumps, &reactions));
+        }
         /// Generates `people` persons; `motion` becomes [people][clip_frames][frame_dim]. A NULL
         /// `condition` is the null condition; NULL `options` the bundle's defaults; NULL `noise`
         /// draws from the seed. On failure `motion` is left as it was.
@@ -290,6 +315,10 @@ class Model {
                 out.emplace_back(troupe_magnet_config(m_, i));
             return out;
         }
+        /// Options that run a configuration as released (no field overridden).
+        static Status default_options(troupe_magnet_options &out) {
+            return Status::from(troupe_magnet_options_init(&out, sizeof out));
+        }
         /// Runs a sampling configuration (a released name, or a whole configuration as JSON) on
         /// `frame_count` frames `[frame_count][people][145]`; `out` becomes
         /// `[samples][frames][people][145]` and `shape` {samples, frames, people} on success only.
@@ -312,6 +341,28 @@ class Model {
             }
             return st;
         }
+        /// `generate` with the run's standard normals given instead of drawn (`draws`, in the
+        /// order docs/MAGNET.md lists; `draws_used` receives how many it took): how a recorded
+        /// run of another implementation is reproduced.
+        Status generate_with_draws(const std::string &config, const float *frames, std::size_t frame_count,
+                                   const std::vector<float> &draws, std::vector<float> &out, std::size_t shape[3],
+                                   std::size_t &draws_used, const troupe_magnet_options *options = nullptr,
+                                   const std::uint8_t *present = nullptr) const {
+            std::size_t s = 0, f = 0, p = 0;
+            Status st = Status::from(troupe_magnet_output_shape(m_, config.c_str(), options, frame_count, &s, &f, &p));
+            if (!st) return st;
+            std::vector<float> v(s * f * p * 145);
+            st = Status::from(troupe_magnet_generate_with_draws(m_, config.c_str(), options, frames, frame_count,
+                                                                present, draws.data(), draws.size(), &draws_used,
+                                                                v.data(), v.size()));
+            if (st) {
+                out.swap(v);
+                shape[0] = s;
+                shape[1] = f;
+                shape[2] = p;
+            }
+            return st;
+        }
 
       private:
         friend class Model;
@@ -322,12 +373,28 @@ class Model {
     /// What only an ARFlow model offers: `model.arflow().generate(...)`.
     class Arflow {
       public:
+        /// The bundle's sampler settings (steps, guidance), seed 0.
+        Status default_options(troupe_arflow_options &out) const {
+            return Status::from(troupe_arflow_options_init(m_, &out, sizeof out));
+        }
         /// The reactor's `frame_count` x 262 frames for the actor's; `options` null runs the
         /// bundle's defaults. `out` is replaced only on success.
         Status generate(const float *actor, std::size_t frame_count, std::vector<float> &out,
                         const troupe_arflow_options *options = nullptr) const {
             std::vector<float> v(frame_count * 262);
             Status st = Status::from(troupe_arflow_generate(m_, options, actor, frame_count, v.data(), frame_count));
+            if (st) out.swap(v);
+            return st;
+        }
+        /// `generate` with the run's standard normals given instead of drawn (`draws_used`
+        /// receives how many it took).
+        Status generate_with_draws(const float *actor, std::size_t frame_count, const std::vector<float> &draws,
+                                   std::vector<float> &out, std::size_t &draws_used,
+                                   const troupe_arflow_options *options = nullptr) const {
+            std::vector<float> v(frame_count * 262);
+            Status st = Status::from(troupe_arflow_generate_with_draws(m_, options, actor, frame_count, draws.data(),
+                                                                       draws.size(), &draws_used, v.data(),
+                                                                       frame_count));
             if (st) out.swap(v);
             return st;
         }
@@ -947,6 +1014,101 @@ inline Status write_gltf(const std::string &path, const std::vector<std::string>
     return Status::from(troupe_gltf_write(path.c_str(), rig ? rig->get() : nullptr, positions, names.size(), n_frames,
                                           &format, c.data(), flags));
 }
+
+/// One person of `write_gltf_people`: a name and their own clip ([n_frames][22][3]).
+struct PersonClip {
+    std::string name;
+    const float *positions = nullptr;
+    std::size_t n_frames = 0;
+};
+
+/// Writes people of different lengths, each with their own frames, as one glTF binary file; a
+/// shorter person holds their last pose to the end.
+inline Status write_gltf_people(const std::string &path, const std::vector<PersonClip> &people,
+                                const troupe_joints_format &format, const Rig *rig = nullptr,
+                                std::uint32_t flags = 0) {
+    std::vector<troupe_person_clip> c(people.size());
+    for (std::size_t i = 0; i < people.size(); i++) {
+        c[i].name = people[i].name.c_str();
+        c[i].positions = people[i].positions;
+        c[i].n_frames = people[i].n_frames;
+    }
+    return Status::from(
+        troupe_gltf_write_people(path.c_str(), rig ? rig->get() : nullptr, c.data(), c.size(), &format, flags));
+}
+
+/// MAGNet's SMPL-X frames (145 floats each) posed on the t2m-22 skeleton ([n_frames][22][3]).
+inline Status smplx145_positions(const float *frames, std::size_t n_frames, std::vector<float> &positions) {
+    std::vector<float> v(n_frames * 66);
+    Status s = Status::from(troupe_motion_smplx145_positions(frames, n_frames, v.data(), v.size()));
+    if (s) positions.swap(v);
+    return s;
+}
+
+/// How two people's bodies intersect over `n_frames` frames of t2m-22 positions (metres, Y up).
+struct PenetrationMetrics {
+    std::size_t frames_intersecting = 0;
+    double frequency = 0, depth_sum = 0, max_depth = 0;
+};
+inline Status penetration_metrics(const float *first, const float *second, std::size_t n_frames,
+                                  PenetrationMetrics &out) {
+    return Status::from(troupe_motion_penetration_metrics(first, second, n_frames, &out.frames_intersecting,
+                                                          &out.frequency, &out.depth_sum, &out.max_depth));
+}
+
+/// One person's joint positions turned into a bundle's feature frames as they arrive (for a
+/// session's actor input). Move-only; one thread at a time.
+class Stream {
+  public:
+    Stream() = default;
+    Stream(Stream &&other) noexcept
+        : handle_(std::exchange(other.handle_, nullptr)), frame_dim_(other.frame_dim_) {}
+    Stream &operator=(Stream &&other) noexcept {
+        if (this != &other) {
+            troupe_motion_stream_free(handle_);
+            handle_ = std::exchange(other.handle_, nullptr);
+            frame_dim_ = other.frame_dim_;
+        }
+        return *this;
+    }
+    Stream(const Stream &) = delete;
+    Stream &operator=(const Stream &) = delete;
+    ~Stream() { troupe_motion_stream_free(handle_); }
+
+    /// A stream for `model`'s features of positions measured as `format` says; its canonical
+    /// frame is the first frame's unless `placement` is given.
+    static Status create(const Model &model, const troupe_joints_format &format, Stream &out,
+                         const troupe_placement *placement = nullptr) {
+        troupe_motion_stream *h = nullptr;
+        Status s = Status::from(troupe_motion_stream_new(model.get(), &format, placement, &h));
+        if (s) out = Stream(h, model.frame_dim());
+        return s;
+    }
+    /// Frames of latency every stream adds (feature frame t needs position frame t + 1).
+    static std::size_t latency_frames() { return troupe_motion_stream_latency_frames(); }
+    /// One frame of positions (66 floats) in; the feature frames it completes appended to `features`.
+    Status push(const float *frame, std::vector<float> &features) {
+        const std::size_t room = troupe_motion_stream_max_frames(handle_);
+        std::vector<float> out(room * frame_dim_);
+        std::size_t n = 0;
+        Status s = Status::from(troupe_motion_stream_push(handle_, frame, 66, out.data(), room, &n));
+        if (s) features.insert(features.end(), out.begin(), out.begin() + n * frame_dim_);
+        return s;
+    }
+    /// The canonical frame the stream uses (after its first frame).
+    Status placement(troupe_placement &out) const {
+        return Status::from(troupe_motion_stream_placement(handle_, &out));
+    }
+    /// Starts over: the next frame fixes the canonical frame, unless `placement` is given.
+    Status reset(const troupe_placement *placement = nullptr) {
+        return Status::from(troupe_motion_stream_reset(handle_, placement));
+    }
+
+  private:
+    Stream(troupe_motion_stream *h, std::size_t frame_dim) : handle_(h), frame_dim_(frame_dim) {}
+    troupe_motion_stream *handle_ = nullptr;
+    std::size_t frame_dim_ = 0;
+};
 
 }  // namespace motion
 

@@ -6,6 +6,7 @@
 #include "../c/npy.h"
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
@@ -29,6 +30,9 @@ static std::vector<float> run(troupe::Session &s, const std::vector<float> &acto
     out.resize(written * s.frame_dim());
     return out;
 }
+
+static std::atomic<int> log_records{0};
+static void count_log(void *, std::int32_t, const char *, const char *) { log_records++; }
 
 int main(int argc, char **argv) {
     if (argc < 3) return 2;
@@ -178,8 +182,33 @@ int main(int argc, char **argv) {
 
     // Groups: defaults, a seed, determinism, and a failure that leaves the output alone.
     troupe::Model umf;
+    // Loading logs at debug level: the records reach a callback, then stderr again.
+    CHECK(troupe::set_log_callback(count_log, nullptr, TROUPE_LOG_DEBUG).ok());
     CHECK(troupe::Model::load(argv[2], umf).ok());
+    CHECK(troupe::set_log_callback(nullptr, nullptr, TROUPE_LOG_WARN).ok() && log_records > 0);
     CHECK(umf.umf().stages() == 2 && umf.clip_frames() == 40 && umf.umf().tokens() == 16);
+    {
+        std::size_t prior = 0, jumps = 0, reactions = 0;
+        CHECK(umf.umf().noise_lengths(2, prior, jumps, reactions).ok() && prior > 0);
+        troupe_magnet_options mo;
+        CHECK(troupe::Model::Magnet::default_options(mo).ok() && mo.struct_size == sizeof mo);
+        troupe_arflow_options ao;
+        CHECK(umf.arflow().default_options(ao).code() == TROUPE_ERR_UNSUPPORTED);
+        std::vector<float> reaction, no_draws(8);
+        std::size_t used = 0;
+        CHECK(umf.arflow().generate_with_draws(no_draws.data(), 1, no_draws, reaction, used).code() ==
+              TROUPE_ERR_UNSUPPORTED && reaction.empty());
+        troupe_armflow_session_options so;
+        CHECK(umf.armflow().default_session_options(so).code() == TROUPE_ERR_UNSUPPORTED);
+        // The tiny UMF bundle has a text branch: CLIP token features in, a condition out.
+        const std::size_t width = umf.text_token_dim();
+        CHECK(width > 0);
+        std::vector<float> tokens(4 * width), condition;
+        for (std::size_t i = 0; i < tokens.size(); i++) tokens[i] = 0.01f * static_cast<float>(i % 17);
+        CHECK(umf.encode_text(tokens.data(), 4, 3, condition).ok() && condition.size() == umf.condition_dim());
+        std::vector<float> kept = condition;
+        CHECK(umf.encode_text(tokens.data(), 4, 4, condition).code() == TROUPE_ERR_INVALID_ARG && condition == kept);
+    }
     troupe_group_options gopt;
     CHECK(umf.umf().default_options(gopt).ok() && gopt.stage_count == 2);
     gopt.seed = 3;
@@ -211,6 +240,9 @@ int main(int argc, char **argv) {
         std::size_t n = 0;
         float *clip = read_npy(argv[6], "frames", &n);
         CHECK(clip != nullptr && n == 128 * 2 * 145);
+        std::vector<float> posed;
+        CHECK(troupe::motion::smplx145_positions(clip, 4, posed).ok() && posed.size() == 4 * 66);
+        CHECK(std::isfinite(posed[0]) && posed[3 * 15 + 1] > posed[1]);
         troupe_magnet_options mopt;
         CHECK(troupe_magnet_options_init(&mopt, sizeof mopt) == TROUPE_OK);
         mopt.samples = 1;
@@ -222,6 +254,16 @@ int main(int argc, char **argv) {
         CHECK(magnet.magnet().generate("dd100", clip, 128, m1, shape, &mopt).ok());
         CHECK(shape[0] == 1 && shape[1] == 64 && shape[2] == 2 && m1.size() == 64 * 2 * 145);
         CHECK(magnet.magnet().generate("dd100", clip, 128, m2, shape, &mopt).ok() && m1 == m2);
+        // Given draws: a run that needs more than given is refused; the same draws, the same run.
+        std::vector<float> draws(1 << 20), d1, d2;
+        for (std::size_t i = 0; i < draws.size(); i++) draws[i] = std::sin(0.37f * static_cast<float>(i));
+        std::size_t used = 0;
+        CHECK(magnet.magnet().generate_with_draws("dd100", clip, 128, draws, d1, shape, used, &mopt).ok());
+        CHECK(used > 0 && used < draws.size() && d1.size() == m1.size());
+        CHECK(magnet.magnet().generate_with_draws("dd100", clip, 128, draws, d2, shape, used, &mopt).ok() && d1 == d2);
+        const std::vector<float> few(used - 1);
+        CHECK(magnet.magnet().generate_with_draws("dd100", clip, 128, few, d2, shape, used, &mopt).code() ==
+              TROUPE_ERR_INVALID_ARG);
         troupe::Status missing = magnet.magnet().generate("nope", clip, 128, m2, shape, &mopt);
         CHECK(missing.code() == TROUPE_ERR_INVALID_ARG && m1 == m2);
         CHECK(missing.message().find("no sampling configuration") != std::string::npos);
@@ -344,6 +386,34 @@ int main(int argc, char **argv) {
               TROUPE_ERR_INVALID_ARG);
         CHECK(features == kept);
         clip[5] = rest[5];
+        // The same clip a frame at a time: the stream's frames are encode's, one frame late.
+        {
+            troupe::motion::Stream stream;
+            CHECK(troupe::motion::Stream::create(model, fmt, stream).ok());
+            CHECK(troupe::motion::Stream::latency_frames() == 1);
+            std::vector<float> streamed;
+            for (std::size_t t = 0; t < frames; t++) CHECK(stream.push(&clip[t * 66], streamed).ok());
+            CHECK(streamed.size() == features.size());
+            float apart = 0.0f;
+            for (std::size_t i = 0; i < streamed.size(); i++) apart = std::max(apart, std::fabs(streamed[i] - features[i]));
+            CHECK(apart < 1e-4f);
+            troupe_placement used;
+            CHECK(stream.placement(used).ok() && std::fabs(used.floor - placement.floor) < 1e-6f);
+            CHECK(stream.reset().ok());
+            std::vector<float> bad(clip.begin(), clip.begin() + 66);
+            bad[0] = NAN;
+            std::vector<float> none;
+            CHECK(stream.push(bad.data(), none).code() == TROUPE_ERR_INVALID_ARG && none.empty());
+        }
+        // Two people: the clip and itself 5 cm aside intersect in every frame.
+        {
+            std::vector<float> aside(clip);
+            for (std::size_t i = 0; i < aside.size(); i += 3) aside[i] += 0.05f;
+            troupe::motion::PenetrationMetrics m;
+            CHECK(troupe::motion::penetration_metrics(clip.data(), aside.data(), frames, m).ok());
+            CHECK(m.frames_intersecting == frames && m.frequency == 1.0 && m.max_depth > 0.0);
+            CHECK(troupe::motion::penetration_metrics(clip.data(), nullptr, frames, m).code() == TROUPE_ERR_NULL_ARG);
+        }
 
         troupe::Session joints;
         CHECK(troupe::Session::create(model, &opt, joints).ok());
@@ -395,6 +465,11 @@ int main(int argc, char **argv) {
             troupe::motion::Rig from_glb;
             CHECK(troupe::motion::Rig::from_gltf(glb, from_glb).ok() && from_glb.joint_count() == 22);
             CHECK(troupe::motion::Rig::from_gltf(glb, from_glb, 5).code() == TROUPE_ERR_INVALID_ARG);
+            CHECK(troupe::motion::write_gltf_people(glb, {{"actor", clip.data(), frames}, {"late", clip.data(), frames / 2}},
+                                                    fmt, &rig)
+                      .ok());
+            CHECK(troupe::motion::write_gltf_people(glb, {{"actor", clip.data(), 0}}, fmt).code() ==
+                  TROUPE_ERR_INVALID_ARG);
             std::remove(glb.c_str());
             const std::string on_rig = base + "-rig.bvh", fbx = base + ".fbx";
             CHECK(troupe::motion::write_rig_bvh(on_rig, rig, clip.data(), frames, fmt).ok());
