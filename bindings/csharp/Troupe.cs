@@ -133,6 +133,22 @@ namespace Troupe
         {
             get { return new JointsFormat { Units = Units.Metres, Up = UpAxis.Y, Handedness = Handedness.Right, Fps = 30f }; }
         }
+
+        internal Native.JointsFormatC ToC()
+        {
+            var c = new Native.JointsFormatC();
+            Native.Check(Native.troupe_joints_format_init(ref c, (UIntPtr)Marshal.SizeOf(typeof(Native.JointsFormatC))));
+            c.units = (uint)Units;
+            c.up_axis = (uint)Up;
+            c.handedness = (uint)Handedness;
+            c.fps = Fps;
+            return c;
+        }
+
+        internal static JointsFormat FromC(Native.JointsFormatC c)
+        {
+            return new JointsFormat { Units = (Units)c.units, Up = (UpAxis)c.up_axis, Handedness = (Handedness)c.handedness, Fps = c.fps };
+        }
     }
 
     /// <summary>A loaded bundle. Thread-safe; sessions keep it alive.</summary>
@@ -335,12 +351,7 @@ namespace Troupe
         /// <summary>How `StepJoints` reads actor positions; forgets the joint stream's frames.</summary>
         public void SetJointsFormat(JointsFormat format)
         {
-            var c = new Native.JointsFormatC();
-            Native.Check(Native.troupe_joints_format_init(ref c, (UIntPtr)Marshal.SizeOf(typeof(Native.JointsFormatC))));
-            c.units = (uint)format.Units;
-            c.up_axis = (uint)format.Up;
-            c.handedness = (uint)format.Handedness;
-            c.fps = format.Fps;
+            var c = format.ToC();
             Native.Check(Native.troupe_session_set_joints_format(Live(), ref c));
         }
 
@@ -360,9 +371,21 @@ namespace Troupe
         /// world); returns how many poses it wrote.</summary>
         public int StepJoints(float[] actor, int actorFrames, float[] positions)
         {
+            return StepJoints(actor, actorFrames, positions, null);
+        }
+
+        /// <summary>StepJoints that also writes each pose's joint rotations into
+        /// <paramref name="rotations"/> (22 * 4 floats per pose: each joint's local rotation
+        /// relative to its parent, w x y z, in the caller's axes), what a Humanoid rig is driven
+        /// with; null writes none.</summary>
+        public int StepJoints(float[] actor, int actorFrames, float[] positions, float[] rotations)
+        {
             CheckFrames(actor, "actor", actorFrames, Native.Joints * 3);
             if (positions == null) throw new ArgumentNullException("positions");
+            int capacity = positions.Length / (Native.Joints * 3);
+            if (rotations != null) capacity = Math.Min(capacity, rotations.Length / (Native.Joints * 4));
             var pinned = GCHandle.Alloc(positions, GCHandleType.Pinned);
+            var pinnedRotations = rotations != null ? GCHandle.Alloc(rotations, GCHandleType.Pinned) : default(GCHandle);
             try
             {
                 var buffers = new Native.PoseBuffersC
@@ -370,14 +393,20 @@ namespace Troupe
                     positions = pinned.AddrOfPinnedObject(),
                     positions_len = (UIntPtr)positions.Length,
                 };
+                if (rotations != null)
+                {
+                    buffers.rotations = pinnedRotations.AddrOfPinnedObject();
+                    buffers.rotations_len = (UIntPtr)rotations.Length;
+                }
                 UIntPtr written;
                 Native.Check(Native.troupe_session_step_joints(Live(), actor, (UIntPtr)actorFrames, ref buffers,
-                    (UIntPtr)(positions.Length / (Native.Joints * 3)), out written));
+                    (UIntPtr)capacity, out written));
                 return (int)written;
             }
             finally
             {
                 pinned.Free();
+                if (rotations != null) pinnedRotations.Free();
             }
         }
 
@@ -554,6 +583,247 @@ namespace Troupe
         }
     }
 
+    /// <summary>One person's take read from a BVH or FBX file as t2m-22 joint positions.</summary>
+    public sealed class Take
+    {
+        /// <summary>Positions, frames * 22 * 3 floats, in <see cref="Format"/>.</summary>
+        public float[] Positions;
+        /// <summary>Frames in the take.</summary>
+        public int Frames;
+        /// <summary>How the positions are measured (the file's units, Y up, its frame rate).</summary>
+        public JointsFormat Format;
+        /// <summary>The t2m-22 joints the rig lacks and how they were placed, one line each.</summary>
+        public string[] Inferred;
+        /// <summary>For each t2m-22 joint, the rig joint it is read from (null where placed).</summary>
+        public string[] Mapping;
+
+        /// <summary>Reads a BVH or FBX file (told apart by content). <paramref name="units"/>:
+        /// the file's, or null to guess (an FBX file declares its own and is converted to
+        /// <paramref name="units"/>, metres for null); <paramref name="jointMapJson"/>: null for
+        /// the built-in names.</summary>
+        public static Take Read(string path, Units? units = null, string jointMapJson = null)
+        {
+            if (path == null) throw new ArgumentNullException("path");
+            Native.CheckAbi();
+            IntPtr h;
+            Native.Check(Native.troupe_bvh_read(Native.Utf8Z(path), jointMapJson == null ? null : Native.Utf8Z(jointMapJson),
+                units.HasValue ? (uint)units.Value : Native.UnitsAuto, out h));
+            try
+            {
+                var take = new Take { Frames = (int)Native.troupe_bvh_frames(h) };
+                take.Positions = new float[take.Frames * Native.Joints * 3];
+                Native.Check(Native.troupe_bvh_positions(h, take.Positions, (UIntPtr)take.Positions.Length));
+                var c = new Native.JointsFormatC();
+                Native.Check(Native.troupe_bvh_format(h, ref c, (UIntPtr)Marshal.SizeOf(typeof(Native.JointsFormatC))));
+                take.Format = JointsFormat.FromC(c);
+                string said = Native.Utf8(Native.troupe_bvh_inferred(h)) ?? "";
+                take.Inferred = said.Length == 0 ? new string[0] : said.Split('\n');
+                take.Mapping = new string[Native.Joints];
+                for (int k = 0; k < Native.Joints; k++) take.Mapping[k] = Native.Utf8(Native.troupe_bvh_joint_source(h, (UIntPtr)k));
+                return take;
+            }
+            finally
+            {
+                Native.troupe_bvh_free(h);
+            }
+        }
+    }
+
+    /// <summary>Flags of retargeting (troupe's TROUPE_RETARGET_*).</summary>
+    [Flags]
+    public enum RetargetFlags : uint { None = 0, NoFootLock = 1, NoLimbIk = 2 }
+
+    /// <summary>A character rig with its joint map (docs/RIGS.md): what motion is retargeted
+    /// onto and written on. Immutable: any thread may use it.</summary>
+    public sealed class Rig : IDisposable
+    {
+        internal readonly RigHandle Handle;
+        private Rig(RigHandle handle) { Handle = handle; }
+
+        /// <summary>The rig of a BVH or FBX file (its bind pose, or the frame
+        /// <paramref name="restFrame"/> of a BVH file, as the rest pose).</summary>
+        public static Rig FromFile(string path, Units? units = null, int? restFrame = null, string jointMapJson = null)
+        {
+            if (path == null) throw new ArgumentNullException("path");
+            if (restFrame.HasValue && restFrame.Value < 0) throw new ArgumentOutOfRangeException("restFrame");
+            Native.CheckAbi();
+            RigHandle h;
+            Native.Check(Native.troupe_rig_from_bvh(Native.Utf8Z(path), units.HasValue ? (uint)units.Value : Native.UnitsAuto,
+                restFrame.HasValue ? (uint)restFrame.Value : Native.RigZeroPose,
+                jointMapJson == null ? null : Native.Utf8Z(jointMapJson), out h));
+            return new Rig(h);
+        }
+
+        /// <summary>The rig of skin <paramref name="skin"/> of a glTF file (.glb or .gltf).</summary>
+        public static Rig FromGltf(string path, int skin = 0, string jointMapJson = null)
+        {
+            if (path == null) throw new ArgumentNullException("path");
+            if (skin < 0) throw new ArgumentOutOfRangeException("skin");
+            Native.CheckAbi();
+            RigHandle h;
+            Native.Check(Native.troupe_rig_from_gltf(Native.Utf8Z(path), (UIntPtr)skin,
+                jointMapJson == null ? null : Native.Utf8Z(jointMapJson), out h));
+            return new Rig(h);
+        }
+
+        /// <summary>A rig from its JSON document (an engine's skeleton: Unity's Humanoid bones
+        /// with "handedness": "left").</summary>
+        public static Rig FromJson(string json, string jointMapJson = null)
+        {
+            if (json == null) throw new ArgumentNullException("json");
+            Native.CheckAbi();
+            RigHandle h;
+            Native.Check(Native.troupe_rig_from_json(Native.Utf8Z(json), jointMapJson == null ? null : Native.Utf8Z(jointMapJson), out h));
+            return new Rig(h);
+        }
+
+        /// <summary>Joints of the rig.</summary>
+        public int JointCount { get { return (int)Native.troupe_rig_joint_count(Handle); } }
+        /// <summary>Joint <paramref name="joint"/>'s name (null past the end).</summary>
+        public string JointName(int joint)
+        {
+            return joint < 0 ? null : Native.Utf8(Native.troupe_rig_joint_name(Handle, (UIntPtr)joint));
+        }
+
+        /// <summary>One person's clip (frames * 22 * 3 floats, as <paramref name="format"/>
+        /// says) retargeted onto the rig and written as a BVH file of its hierarchy.</summary>
+        public void WriteBvh(string path, float[] positions, int frames, JointsFormat format,
+                             Units units = Units.Centimetres, RetargetFlags flags = RetargetFlags.None)
+        {
+            Write(path, positions, frames, format, units, flags, false);
+        }
+
+        /// <summary>The same as a binary FBX file of the rig's skeleton (Blender, Unity, Unreal,
+        /// Maya import it).</summary>
+        public void WriteFbx(string path, float[] positions, int frames, JointsFormat format,
+                             Units units = Units.Centimetres, RetargetFlags flags = RetargetFlags.None)
+        {
+            Write(path, positions, frames, format, units, flags, true);
+        }
+
+        /// <summary>People (people * frames * 22 * 3 floats) retargeted onto the rig as one glTF
+        /// binary file, a skinned body each; <paramref name="names"/> names them.</summary>
+        public void WriteGltf(string path, string[] names, float[] positions, int frames, JointsFormat format,
+                              RetargetFlags flags = RetargetFlags.None)
+        {
+            if (path == null) throw new ArgumentNullException("path");
+            if (names == null) throw new ArgumentNullException("names");
+            Check(positions, frames * names.Length);
+            var c = format.ToC();
+            var utf8 = new IntPtr[names.Length];
+            try
+            {
+                for (int i = 0; i < names.Length; i++)
+                {
+                    if (names[i] == null) continue;
+                    byte[] bytes = Native.Utf8Z(names[i]);
+                    utf8[i] = Marshal.AllocHGlobal(bytes.Length);
+                    Marshal.Copy(bytes, 0, utf8[i], bytes.Length);
+                }
+                Native.Check(Native.troupe_gltf_write(Native.Utf8Z(path), Handle, positions, (UIntPtr)names.Length,
+                    (UIntPtr)frames, ref c, utf8, (uint)flags));
+            }
+            finally
+            {
+                foreach (IntPtr p in utf8) if (p != IntPtr.Zero) Marshal.FreeHGlobal(p);
+            }
+        }
+
+        private void Write(string path, float[] positions, int frames, JointsFormat format, Units units,
+                           RetargetFlags flags, bool fbx)
+        {
+            if (path == null) throw new ArgumentNullException("path");
+            Check(positions, frames);
+            var c = format.ToC();
+            int status = fbx
+                ? Native.troupe_rig_fbx_write(Native.Utf8Z(path), Handle, positions, (UIntPtr)frames, ref c, (uint)units, (uint)flags)
+                : Native.troupe_rig_bvh_write(Native.Utf8Z(path), Handle, positions, (UIntPtr)frames, ref c, (uint)units, (uint)flags);
+            Native.Check(status);
+        }
+
+        private static void Check(float[] positions, int frames)
+        {
+            if (positions == null) throw new ArgumentNullException("positions");
+            if (frames < 1 || (long)frames * Native.Joints * 3 > positions.Length)
+                throw new ArgumentException("positions holds fewer than " + frames + " frames of 22 joints", "positions");
+        }
+
+        /// <summary>Frees the rig (retargeters made from it keep their own copy).</summary>
+        public void Dispose() { Handle.Dispose(); }
+    }
+
+    /// <summary>One stream of t2m-22 positions retargeted onto a rig a frame at a time, with
+    /// no latency. One thread at a time.</summary>
+    public sealed class Retargeter : IDisposable
+    {
+        private readonly RetargeterHandle handle;
+        private readonly int joints;
+
+        /// <summary>A retargeter onto <paramref name="rig"/> of positions measured as
+        /// <paramref name="format"/> says.</summary>
+        public Retargeter(Rig rig, JointsFormat format, RetargetFlags flags = RetargetFlags.None)
+        {
+            if (rig == null) throw new ArgumentNullException("rig");
+            var c = format.ToC();
+            Native.Check(Native.troupe_rig_retargeter_new(rig.Handle, ref c, (uint)flags, out handle));
+            joints = rig.JointCount;
+        }
+
+        /// <summary>The rig's pose for the next frame (22 * 3 floats): each joint's local
+        /// rotation (w x y z, joints * 4 floats, in the rig's axes) into
+        /// <paramref name="rotations"/>, the moving joint's translation into
+        /// <paramref name="rootTranslation"/> (3 floats); returns the moving joint.</summary>
+        public int Push(float[] frame, float[] rotations, float[] rootTranslation)
+        {
+            if (frame == null) throw new ArgumentNullException("frame");
+            if (rotations == null) throw new ArgumentNullException("rotations");
+            if (rootTranslation == null) throw new ArgumentNullException("rootTranslation");
+            if (frame.Length < Native.Joints * 3) throw new ArgumentException("frame holds fewer than 66 floats", "frame");
+            if (rotations.Length < joints * 4) throw new ArgumentException("rotations holds fewer than " + joints * 4 + " floats", "rotations");
+            if (rootTranslation.Length < 3) throw new ArgumentException("rootTranslation holds fewer than 3 floats", "rootTranslation");
+            UIntPtr root;
+            Native.Check(Native.troupe_rig_retarget_push(handle, frame, (UIntPtr)(Native.Joints * 3), rotations,
+                (UIntPtr)(joints * 4), rootTranslation, out root));
+            return (int)root;
+        }
+
+        /// <summary>For each t2m-22 joint, the rig joint it drives (-1: none).</summary>
+        public long[] Mapping()
+        {
+            var out_ = new long[Native.Joints];
+            Native.Check(Native.troupe_rig_retargeter_mapping(handle, out_, (UIntPtr)out_.Length));
+            return out_;
+        }
+
+        /// <summary>Forgets the stream (foot contacts, smoothing).</summary>
+        public void Reset() { Native.Check(Native.troupe_rig_retarget_reset(handle)); }
+
+        /// <summary>Frees the retargeter.</summary>
+        public void Dispose() { handle.Dispose(); }
+    }
+
+    /// <summary>A rig handle, freed once with troupe_rig_free.</summary>
+    public sealed class RigHandle : SafeHandle
+    {
+        /// <summary>An empty handle (the marshaller fills it).</summary>
+        public RigHandle() : base(IntPtr.Zero, true) { }
+        /// <summary>Whether the handle holds no rig.</summary>
+        public override bool IsInvalid { get { return handle == IntPtr.Zero; } }
+        /// <summary>Frees the rig.</summary>
+        protected override bool ReleaseHandle() { Native.troupe_rig_free(handle); return true; }
+    }
+
+    /// <summary>A retargeter handle, freed once with troupe_rig_retargeter_free.</summary>
+    public sealed class RetargeterHandle : SafeHandle
+    {
+        /// <summary>An empty handle (the marshaller fills it).</summary>
+        public RetargeterHandle() : base(IntPtr.Zero, true) { }
+        /// <summary>Whether the handle holds no retargeter.</summary>
+        public override bool IsInvalid { get { return handle == IntPtr.Zero; } }
+        /// <summary>Frees the retargeter.</summary>
+        protected override bool ReleaseHandle() { Native.troupe_rig_retargeter_free(handle); return true; }
+    }
+
     /// <summary>A model handle, freed once with troupe_model_free.</summary>
     public sealed class ModelHandle : SafeHandle
     {
@@ -674,6 +944,30 @@ namespace Troupe
         [DllImport(Lib, CallingConvention = CallingConvention.Cdecl)] internal static extern int troupe_session_set_joints_format(SessionHandle session, ref JointsFormatC format);
         [DllImport(Lib, CallingConvention = CallingConvention.Cdecl)] internal static extern int troupe_session_joints_ready_after(SessionHandle session, UIntPtr frames, out UIntPtr ready);
         [DllImport(Lib, CallingConvention = CallingConvention.Cdecl)] internal static extern int troupe_session_step_joints(SessionHandle session, [In] float[] actor, UIntPtr frames, ref PoseBuffersC output, UIntPtr capacity, out UIntPtr written);
+
+        internal const uint UnitsAuto = 0xFFFFFFFF;
+        internal const uint RigZeroPose = 0xFFFFFFFF;
+        [DllImport(Lib, CallingConvention = CallingConvention.Cdecl)] internal static extern int troupe_bvh_read(byte[] path, byte[] jointMapJson, uint units, out IntPtr bvh);
+        [DllImport(Lib, CallingConvention = CallingConvention.Cdecl)] internal static extern UIntPtr troupe_bvh_frames(IntPtr bvh);
+        [DllImport(Lib, CallingConvention = CallingConvention.Cdecl)] internal static extern int troupe_bvh_format(IntPtr bvh, ref JointsFormatC format, UIntPtr size);
+        [DllImport(Lib, CallingConvention = CallingConvention.Cdecl)] internal static extern int troupe_bvh_positions(IntPtr bvh, [Out] float[] positions, UIntPtr len);
+        [DllImport(Lib, CallingConvention = CallingConvention.Cdecl)] internal static extern IntPtr troupe_bvh_inferred(IntPtr bvh);
+        [DllImport(Lib, CallingConvention = CallingConvention.Cdecl)] internal static extern IntPtr troupe_bvh_joint_source(IntPtr bvh, UIntPtr joint);
+        [DllImport(Lib, CallingConvention = CallingConvention.Cdecl)] internal static extern void troupe_bvh_free(IntPtr bvh);
+        [DllImport(Lib, CallingConvention = CallingConvention.Cdecl)] internal static extern int troupe_rig_from_bvh(byte[] path, uint units, uint restFrame, byte[] jointMapJson, out RigHandle rig);
+        [DllImport(Lib, CallingConvention = CallingConvention.Cdecl)] internal static extern int troupe_rig_from_gltf(byte[] path, UIntPtr skin, byte[] jointMapJson, out RigHandle rig);
+        [DllImport(Lib, CallingConvention = CallingConvention.Cdecl)] internal static extern int troupe_rig_from_json(byte[] json, byte[] jointMapJson, out RigHandle rig);
+        [DllImport(Lib, CallingConvention = CallingConvention.Cdecl)] internal static extern void troupe_rig_free(IntPtr rig);
+        [DllImport(Lib, CallingConvention = CallingConvention.Cdecl)] internal static extern UIntPtr troupe_rig_joint_count(RigHandle rig);
+        [DllImport(Lib, CallingConvention = CallingConvention.Cdecl)] internal static extern IntPtr troupe_rig_joint_name(RigHandle rig, UIntPtr joint);
+        [DllImport(Lib, CallingConvention = CallingConvention.Cdecl)] internal static extern int troupe_rig_retargeter_new(RigHandle rig, ref JointsFormatC format, uint flags, out RetargeterHandle retargeter);
+        [DllImport(Lib, CallingConvention = CallingConvention.Cdecl)] internal static extern int troupe_rig_retarget_push(RetargeterHandle retargeter, [In] float[] positions, UIntPtr len, [Out] float[] rotations, UIntPtr rotationsLen, [Out] float[] rootTranslation, out UIntPtr rootJoint);
+        [DllImport(Lib, CallingConvention = CallingConvention.Cdecl)] internal static extern int troupe_rig_retarget_reset(RetargeterHandle retargeter);
+        [DllImport(Lib, CallingConvention = CallingConvention.Cdecl)] internal static extern int troupe_rig_retargeter_mapping(RetargeterHandle retargeter, [Out] long[] rigJoints, UIntPtr capacity);
+        [DllImport(Lib, CallingConvention = CallingConvention.Cdecl)] internal static extern void troupe_rig_retargeter_free(IntPtr retargeter);
+        [DllImport(Lib, CallingConvention = CallingConvention.Cdecl)] internal static extern int troupe_gltf_write(byte[] path, RigHandle rig, [In] float[] positions, UIntPtr people, UIntPtr frames, ref JointsFormatC format, IntPtr[] names, uint flags);
+        [DllImport(Lib, CallingConvention = CallingConvention.Cdecl)] internal static extern int troupe_rig_bvh_write(byte[] path, RigHandle rig, [In] float[] positions, UIntPtr frames, ref JointsFormatC format, uint units, uint flags);
+        [DllImport(Lib, CallingConvention = CallingConvention.Cdecl)] internal static extern int troupe_rig_fbx_write(byte[] path, RigHandle rig, [In] float[] positions, UIntPtr frames, ref JointsFormatC format, uint units, uint flags);
 
         private static bool abiChecked;
 

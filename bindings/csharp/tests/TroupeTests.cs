@@ -126,6 +126,75 @@ internal static class TroupeTests
             foreach (float v in partner) w.Write(v);
 
         Misuse(demoBundle, tinyBundle, clip);
+        Rigs(demoBundle, clipPath, clip, format);
+    }
+
+    /// <summary>Rotations for a Humanoid, takes from BVH and FBX files, rigs, retargeting and the
+    /// rig writers, each read back; misuse refused.</summary>
+    private static void Rigs(string demoBundle, string clipPath, float[] clip, JointsFormat format)
+    {
+        const int Pose = 22 * 3;
+        using (var model = Model.Load(demoBundle))
+        using (var session = model.CreateSession(new SessionOptions { Seed = 7 }))
+        {
+            session.SetJointsFormat(format);
+            var frame = new float[Pose];
+            var positions = new float[8 * Pose];
+            var rotations = new float[8 * 22 * 4];
+            int got = 0;
+            for (int t = 0; t < 120 && got == 0; t++)
+            {
+                Array.Copy(clip, t * Pose, frame, 0, Pose);
+                got = session.StepJoints(frame, 1, positions, rotations);
+            }
+            Check(got > 0, "poses with rotations");
+            double norm = 0;
+            for (int k = 0; k < 4; k++) norm += rotations[k] * rotations[k];
+            Check(Math.Abs(norm - 1.0) < 1e-4, "a unit rotation per joint");
+        }
+
+        string data = Path.GetFullPath(Path.Combine(Path.GetDirectoryName(clipPath), ".."));
+        string fbx = Path.Combine(data, "blender_mixamo.fbx");
+        Take take = Take.Read(fbx);
+        Check(take.Frames == 4 && take.Positions.Length == 4 * Pose && take.Format.Units == Units.Metres, "Blender's FBX as a take");
+        Check(take.Mapping[0] == "mixamorig:Hips" && take.Inferred.Length == 0, "its mapping: " + take.Mapping[0]);
+        Throws<IoException>(() => Take.Read("/nonexistent.fbx"), "a take that does not exist");
+        Throws<ArgumentNullException>(() => Take.Read(null), "a null take path");
+
+        using (Rig rig = Rig.FromFile(fbx))
+        {
+            Check(rig.JointCount == 22 && rig.JointName(0) == "mixamorig:Hips" && rig.JointName(22) == null, "the FBX rig");
+            using (var retargeter = new Retargeter(rig, format))
+            {
+                var rot = new float[rig.JointCount * 4];
+                var root = new float[3];
+                int moving = retargeter.Push(clip, rot, root);
+                Check(moving == 0 && !float.IsNaN(root[1]), "a frame retargeted onto it");
+                Check(retargeter.Mapping()[0] == 0, "the pelvis drives the hips");
+                Throws<ArgumentException>(() => retargeter.Push(clip, new float[3], root), "too few rotations");
+                retargeter.Reset();
+            }
+            string dir = Path.Combine(Path.GetTempPath(), "troupe-cs-rig-" + Guid.NewGuid().ToString("N"));
+            Directory.CreateDirectory(dir);
+            try
+            {
+                string outFbx = Path.Combine(dir, "partner.fbx"), outBvh = Path.Combine(dir, "partner.bvh"), glb = Path.Combine(dir, "scene.glb");
+                rig.WriteFbx(outFbx, clip, 60, format);
+                rig.WriteBvh(outBvh, clip, 60, format);
+                rig.WriteGltf(glb, new[] { "actor" }, clip, 60, format);
+                Check(Take.Read(outFbx).Frames == 60 && Take.Read(outBvh).Frames == 60, "FBX and BVH on the rig read back");
+                using (Rig fromGlb = Rig.FromGltf(glb)) Check(fromGlb.JointCount == 22, "the glTF's skin as a rig");
+                using (Rig again = Rig.FromFile(outFbx)) Check(again.JointName(0) == "mixamorig:Hips", "the FBX written, as a rig");
+                Throws<InvalidArgumentException>(() => rig.WriteFbx(outFbx, clip, 60, format, (Units)9), "units 9");
+                Throws<ArgumentException>(() => rig.WriteFbx(outFbx, clip, 0, format), "no frames");
+                Throws<InvalidArgumentException>(() => Rig.FromGltf(glb, 3), "a skin the file lacks");
+            }
+            finally
+            {
+                Directory.Delete(dir, true);
+            }
+        }
+        Throws<InvalidArgumentException>(() => Rig.FromJson("{ not json"), "a rig document that is not JSON");
     }
 
     private static void Misuse(string demoBundle, string tinyBundle, float[] clip)
