@@ -76,8 +76,8 @@ inline troupe_limits limits() {
     return l;
 }
 
-/// The library's version: "MAJOR.MINOR.PATCH", and as one number (MAJOR * 10000 + MINOR * 100 +
-/// PATCH), for comparing with TROUPE_VERSION_NUMBER at run time.
+/// The library's version: "MAJOR.MINOR.PATCH", and as one number ((major << 16) | (minor << 8) |
+/// patch), for comparing with TROUPE_VERSION_NUMBER at run time.
 inline std::string version() { return troupe_version_string(); }
 inline std::uint32_t version_number() { return troupe_version_number(); }
 

@@ -238,6 +238,72 @@ namespace Troupe
             return new Session(session, FrameDim);
         }
 
+        /// <summary><see cref="Restore"/> of a snapshot sealed with <paramref name="key"/>
+        /// (<see cref="Seal"/>): a snapshot edited, or sealed with another key, throws
+        /// InvalidArgumentException.</summary>
+        public Session RestoreSealed(byte[] sealedSnapshot, byte[] key)
+        {
+            if (sealedSnapshot == null) throw new ArgumentNullException("sealedSnapshot");
+            if (key == null) throw new ArgumentNullException("key");
+            var h = Live();
+            SessionHandle session;
+            Native.Check(Native.troupe_session_restore_sealed(h, sealedSnapshot, (UIntPtr)sealedSnapshot.Length, key,
+                (UIntPtr)key.Length, out session));
+            session.HoldModel(h);
+            return new Session(session, FrameDim);
+        }
+
+        /// <summary>A snapshot sealed with <paramref name="key"/> (HMAC-SHA-256, docs/SNAPSHOTS.md),
+        /// for storage the caller does not trust.</summary>
+        public static byte[] Seal(byte[] snapshot, byte[] key)
+        {
+            if (snapshot == null) throw new ArgumentNullException("snapshot");
+            if (key == null) throw new ArgumentNullException("key");
+            Native.CheckAbi();
+            UIntPtr size;
+            Native.Check(Native.troupe_snapshot_seal(snapshot, (UIntPtr)snapshot.Length, key, (UIntPtr)key.Length, null,
+                UIntPtr.Zero, out size));
+            var sealedBytes = new byte[(int)size];
+            Native.Check(Native.troupe_snapshot_seal(snapshot, (UIntPtr)snapshot.Length, key, (UIntPtr)key.Length,
+                sealedBytes, size, out size));
+            return sealedBytes;
+        }
+
+        /// <summary>Frames of latency of the feature stream, and of the joint stream
+        /// (StepJoints) which adds its motion stages'.</summary>
+        public int LatencyFrames { get { return (int)Native.troupe_model_latency_frames(Live()); } }
+        /// <inheritdoc cref="LatencyFrames"/>
+        public int JointsLatencyFrames { get { return (int)Native.troupe_model_joints_latency_frames(Live()); } }
+        /// <summary>Width of one latent token (0 where the family has none).</summary>
+        public int LatentDim { get { return (int)Native.troupe_model_latent_dim(Live()); } }
+        /// <summary>Frames of one generated clip (clip-mode families; 0 otherwise).</summary>
+        public int ClipFrames { get { return (int)Native.troupe_model_clip_frames(Live()); } }
+        /// <summary>Whether the model turns text prompts into conditions itself
+        /// (<see cref="Session.SetPrompt"/>).</summary>
+        public bool TakesPrompts { get { return Native.troupe_model_takes_prompts(Live()) != UIntPtr.Zero; } }
+        /// <summary>The library's version as one number: (major &lt;&lt; 16) | (minor &lt;&lt; 8) | patch.</summary>
+        public static uint VersionNumber { get { return Native.troupe_version_number(); } }
+        /// <summary>Threads for matrix products, process-wide (0: every core).</summary>
+        public static int ComputeThreads
+        {
+            get { return (int)Native.troupe_compute_threads(); }
+            set
+            {
+                if (value < 0) throw new ArgumentOutOfRangeException("value");
+                Native.Check(Native.troupe_set_compute_threads((UIntPtr)value));
+            }
+        }
+        /// <summary>Threads that load a bundle's graphs, process-wide (0: the default).</summary>
+        public static int LoadThreads
+        {
+            get { return (int)Native.troupe_load_threads(); }
+            set
+            {
+                if (value < 0) throw new ArgumentOutOfRangeException("value");
+                Native.troupe_set_load_threads((UIntPtr)value);
+            }
+        }
+
         /// <summary>The model's identity: the SHA-256 of its bundle's files (32 bytes).</summary>
         public byte[] Identity
         {
@@ -420,6 +486,26 @@ namespace Troupe
             var condition = new float[(int)Native.troupe_model_condition_dim(m)];
             Native.Check(Native.troupe_model_condition_for_label(m, Native.Utf8Z(label), condition, (UIntPtr)condition.Length));
             Native.Check(Native.troupe_session_set_condition(session, condition, (UIntPtr)condition.Length));
+        }
+
+        /// <summary>Solver steps per token from now on (1 to the library's limit).</summary>
+        public void SetSteps(uint steps) { Native.Check(Native.troupe_session_set_steps(Live(), steps)); }
+        /// <summary>Classifier-free guidance scale from now on (finite, 0 to 100).</summary>
+        public void SetCfgScale(float scale) { Native.Check(Native.troupe_session_set_cfg_scale(Live(), scale)); }
+        /// <summary>Conditions the stream on a text prompt (models with TakesPrompts).</summary>
+        public void SetPrompt(string prompt)
+        {
+            if (prompt == null) throw new ArgumentNullException("prompt");
+            Native.Check(Native.troupe_session_set_prompt(Live(), Native.Utf8Z(prompt)));
+        }
+        /// <summary>Exactly how many frames a Step of <paramref name="actorFrames"/> frames would
+        /// return now.</summary>
+        public int OutputFrames(int actorFrames)
+        {
+            if (actorFrames < 0) throw new ArgumentOutOfRangeException("actorFrames");
+            UIntPtr n;
+            Native.Check(Native.troupe_session_output_frames(Live(), (UIntPtr)actorFrames, out n));
+            return (int)n;
         }
 
         /// <summary>Sets the seed of the session's noise from now on.</summary>
@@ -945,6 +1031,22 @@ namespace Troupe
         [DllImport(Lib, CallingConvention = CallingConvention.Cdecl)] internal static extern int troupe_session_joints_ready_after(SessionHandle session, UIntPtr frames, out UIntPtr ready);
         [DllImport(Lib, CallingConvention = CallingConvention.Cdecl)] internal static extern int troupe_session_step_joints(SessionHandle session, [In] float[] actor, UIntPtr frames, ref PoseBuffersC output, UIntPtr capacity, out UIntPtr written);
 
+        [DllImport(Lib, CallingConvention = CallingConvention.Cdecl)] internal static extern uint troupe_version_number();
+        [DllImport(Lib, CallingConvention = CallingConvention.Cdecl)] internal static extern UIntPtr troupe_compute_threads();
+        [DllImport(Lib, CallingConvention = CallingConvention.Cdecl)] internal static extern int troupe_set_compute_threads(UIntPtr threads);
+        [DllImport(Lib, CallingConvention = CallingConvention.Cdecl)] internal static extern UIntPtr troupe_load_threads();
+        [DllImport(Lib, CallingConvention = CallingConvention.Cdecl)] internal static extern void troupe_set_load_threads(UIntPtr threads);
+        [DllImport(Lib, CallingConvention = CallingConvention.Cdecl)] internal static extern UIntPtr troupe_model_latency_frames(ModelHandle model);
+        [DllImport(Lib, CallingConvention = CallingConvention.Cdecl)] internal static extern UIntPtr troupe_model_joints_latency_frames(ModelHandle model);
+        [DllImport(Lib, CallingConvention = CallingConvention.Cdecl)] internal static extern UIntPtr troupe_model_latent_dim(ModelHandle model);
+        [DllImport(Lib, CallingConvention = CallingConvention.Cdecl)] internal static extern UIntPtr troupe_model_clip_frames(ModelHandle model);
+        [DllImport(Lib, CallingConvention = CallingConvention.Cdecl)] internal static extern UIntPtr troupe_model_takes_prompts(ModelHandle model);
+        [DllImport(Lib, CallingConvention = CallingConvention.Cdecl)] internal static extern int troupe_snapshot_seal(byte[] snapshot, UIntPtr len, byte[] key, UIntPtr keyLen, byte[] buf, UIntPtr capacity, out UIntPtr needed);
+        [DllImport(Lib, CallingConvention = CallingConvention.Cdecl)] internal static extern int troupe_session_restore_sealed(ModelHandle model, byte[] bytes, UIntPtr len, byte[] key, UIntPtr keyLen, out SessionHandle session);
+        [DllImport(Lib, CallingConvention = CallingConvention.Cdecl)] internal static extern int troupe_session_set_steps(SessionHandle session, uint steps);
+        [DllImport(Lib, CallingConvention = CallingConvention.Cdecl)] internal static extern int troupe_session_set_cfg_scale(SessionHandle session, float scale);
+        [DllImport(Lib, CallingConvention = CallingConvention.Cdecl)] internal static extern int troupe_session_set_prompt(SessionHandle session, byte[] prompt);
+        [DllImport(Lib, CallingConvention = CallingConvention.Cdecl)] internal static extern int troupe_session_output_frames(SessionHandle session, UIntPtr frames, out UIntPtr n);
         internal const uint UnitsAuto = 0xFFFFFFFF;
         internal const uint RigZeroPose = 0xFFFFFFFF;
         [DllImport(Lib, CallingConvention = CallingConvention.Cdecl)] internal static extern int troupe_bvh_read(byte[] path, byte[] jointMapJson, uint units, out IntPtr bvh);

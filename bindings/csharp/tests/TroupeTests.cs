@@ -195,6 +195,47 @@ internal static class TroupeTests
             }
         }
         Throws<InvalidArgumentException>(() => Rig.FromJson("{ not json"), "a rig document that is not JSON");
+        Settings(demoBundle, clip, format);
+    }
+
+    /// <summary>Process-wide settings, model sizes, per-session settings, sealed snapshots.</summary>
+    private static void Settings(string demoBundle, float[] clip, JointsFormat format)
+    {
+        Check(Model.VersionNumber == 0x200, "version number " + Model.VersionNumber);
+        int compute = Model.ComputeThreads, load = Model.LoadThreads;
+        Model.ComputeThreads = 1;
+        Model.LoadThreads = 1;
+        Check(Model.ComputeThreads == 1 && Model.LoadThreads == 1, "threads set");
+        Model.ComputeThreads = compute;
+        Model.LoadThreads = load;
+        Throws<ArgumentOutOfRangeException>(() => Model.ComputeThreads = -1, "negative threads");
+        using (var model = Model.Load(demoBundle))
+        {
+            Check(model.JointsLatencyFrames > model.LatencyFrames && model.LatentDim > 0, "latencies and latent width");
+            Check(!model.TakesPrompts, "the demo model takes no prompts (" + model.TakesPrompts + ", clip " + model.ClipFrames + ")");
+            using (var session = model.CreateSession(new SessionOptions { Seed = 3 }))
+            {
+                session.SetSteps(2);
+                session.SetCfgScale(1.5f);
+                Throws<InvalidArgumentException>(() => session.SetSteps(0), "zero steps");
+                Throws<InvalidArgumentException>(() => session.SetCfgScale(float.NaN), "a NaN guidance scale");
+                Throws<UnsupportedException>(() => session.SetPrompt("two people dance"), "a prompt to a model without text");
+                Check(session.OutputFrames(4) >= 0, "output frames");
+                session.SetJointsFormat(format);
+                var poses = new float[8 * 66];
+                var frame = new float[66];
+                for (int t = 0; t < 40; t++)
+                {
+                    Array.Copy(clip, t * 66, frame, 0, 66);
+                    session.StepJoints(frame, 1, poses);
+                }
+                byte[] key = new byte[32], other = new byte[32];
+                for (int i = 0; i < 32; i++) { key[i] = (byte)i; other[i] = (byte)(i + 1); }
+                byte[] sealedBytes = Model.Seal(session.Snapshot(), key);
+                using (var resumed = model.RestoreSealed(sealedBytes, key)) Check(resumed != null, "a sealed snapshot restored");
+                Throws<InvalidArgumentException>(() => model.RestoreSealed(sealedBytes, other), "a sealed snapshot under another key");
+            }
+        }
     }
 
     private static void Misuse(string demoBundle, string tinyBundle, float[] clip)
