@@ -25,7 +25,7 @@
 //! - Frames are sampled at the file's frame rate over its first animation stack; a file
 //!   without animation is one frame, the rest pose.
 //!
-//! Builds for wasm32 have no C compiler here: there, only [`is_fbx`] is built (the web page
+//! Builds for wasm32 have no C compiler here: there, FBX is written but not read (the web page
 //! says a dropped FBX file is one).
 //!
 //! Bounds, for files from others: at most [`MAX_FBX_BYTES`] read, ufbx's allocations capped in
@@ -37,11 +37,9 @@
 
 #[cfg(not(target_arch = "wasm32"))]
 mod read;
-#[cfg(not(target_arch = "wasm32"))]
 mod write;
 #[cfg(not(target_arch = "wasm32"))]
 pub use read::{parse_fbx, read_fbx};
-#[cfg(not(target_arch = "wasm32"))]
 pub use write::{write_rig_fbx, write_rig_fbx_file, FbxWriteOptions};
 
 /// The largest FBX file troupe reads.
