@@ -151,6 +151,29 @@ namespace Troupe
         }
     }
 
+    /// <summary>Options of a whole ARFlow reaction (troupe_arflow_options); a field left null
+    /// takes the bundle's default.</summary>
+    public sealed class ArflowOptions
+    {
+        /// <summary>The seed of the run's noise.</summary>
+        public ulong Seed;
+        /// <summary>Sampler steps.</summary>
+        public uint? Steps;
+        /// <summary>Penetration guidance's scale (0: none).</summary>
+        public float? Guidance;
+    }
+
+    /// <summary>Options of ARMFlow's official clip loop (troupe_armflow_clip_options).</summary>
+    public sealed class ClipOptions
+    {
+        /// <summary>The seed of the run's noise.</summary>
+        public ulong Seed;
+        /// <summary>Solver steps per token.</summary>
+        public uint? Steps;
+        /// <summary>Classifier-free guidance scale.</summary>
+        public float? CfgScale;
+    }
+
     /// <summary>A loaded bundle. Thread-safe; sessions keep it alive.</summary>
     public sealed class Model : IDisposable
     {
@@ -302,6 +325,51 @@ namespace Troupe
                 if (value < 0) throw new ArgumentOutOfRangeException("value");
                 Native.troupe_set_load_threads((UIntPtr)value);
             }
+        }
+
+        /// <summary>ARFlow's whole reaction to <paramref name="frames"/> actor frames (frames *
+        /// 262 features): the reactor's frames, as many. Other families throw
+        /// UnsupportedException.</summary>
+        public float[] ArflowGenerate(float[] actor, int frames, ArflowOptions options = null)
+        {
+            if (actor == null) throw new ArgumentNullException("actor");
+            if (frames < 1 || (long)frames * FrameDim > actor.Length)
+                throw new ArgumentException("actor holds fewer than " + frames + " frames", "actor");
+            var h = Live();
+            var c = new Native.ArflowOptionsC();
+            Native.Check(Native.troupe_arflow_options_init(h, ref c, (UIntPtr)Marshal.SizeOf(typeof(Native.ArflowOptionsC))));
+            if (options != null)
+            {
+                c.seed = options.Seed;
+                if (options.Steps.HasValue) c.steps = options.Steps.Value;
+                if (options.Guidance.HasValue) c.guidance = options.Guidance.Value;
+            }
+            var out_ = new float[frames * FrameDim];
+            Native.Check(Native.troupe_arflow_generate(h, ref c, actor, (UIntPtr)frames, out_, (UIntPtr)frames));
+            return out_;
+        }
+
+        /// <summary>ARMFlow's official clip loop: <paramref name="frames"/> actor frames (1 to
+        /// ClipFrames) in, the reactor's ClipFrames frames out; <paramref name="condition"/> null
+        /// for the null condition. Other families throw UnsupportedException.</summary>
+        public float[] ArmflowClip(float[] actor, int frames, float[] condition = null, ClipOptions options = null)
+        {
+            if (actor == null) throw new ArgumentNullException("actor");
+            if (frames < 1 || (long)frames * FrameDim > actor.Length)
+                throw new ArgumentException("actor holds fewer than " + frames + " frames", "actor");
+            var h = Live();
+            var c = new Native.ClipOptionsC();
+            Native.Check(Native.troupe_armflow_clip_options_init(h, ref c, (UIntPtr)Marshal.SizeOf(typeof(Native.ClipOptionsC))));
+            if (options != null)
+            {
+                c.seed = options.Seed;
+                if (options.Steps.HasValue) c.steps = options.Steps.Value;
+                if (options.CfgScale.HasValue) c.cfg_scale = options.CfgScale.Value;
+            }
+            var out_ = new float[ClipFrames * FrameDim];
+            Native.Check(Native.troupe_armflow_clip_generate_with_options(h, ref c, actor, (UIntPtr)frames, condition,
+                (UIntPtr)(condition == null ? 0 : condition.Length), IntPtr.Zero, out_, (UIntPtr)out_.Length, null, UIntPtr.Zero));
+            return out_;
         }
 
         /// <summary>The model's identity: the SHA-256 of its bundle's files (32 bytes).</summary>
@@ -1047,6 +1115,34 @@ namespace Troupe
         [DllImport(Lib, CallingConvention = CallingConvention.Cdecl)] internal static extern int troupe_session_set_cfg_scale(SessionHandle session, float scale);
         [DllImport(Lib, CallingConvention = CallingConvention.Cdecl)] internal static extern int troupe_session_set_prompt(SessionHandle session, byte[] prompt);
         [DllImport(Lib, CallingConvention = CallingConvention.Cdecl)] internal static extern int troupe_session_output_frames(SessionHandle session, UIntPtr frames, out UIntPtr n);
+        [StructLayout(LayoutKind.Sequential)]
+        internal struct ArflowOptionsC
+        {
+            public uint struct_size;
+            public uint steps;
+            public float guidance;
+            public float weight;
+            public float eta;
+            public float d_safe;
+            public float sigma;
+            public uint flags;
+            public ulong seed;
+        }
+
+        [StructLayout(LayoutKind.Sequential)]
+        internal struct ClipOptionsC
+        {
+            public uint struct_size;
+            public uint steps;
+            public ulong seed;
+            public float cfg_scale;
+            public uint reserved;
+        }
+
+        [DllImport(Lib, CallingConvention = CallingConvention.Cdecl)] internal static extern int troupe_arflow_options_init(ModelHandle model, ref ArflowOptionsC options, UIntPtr size);
+        [DllImport(Lib, CallingConvention = CallingConvention.Cdecl)] internal static extern int troupe_arflow_generate(ModelHandle model, ref ArflowOptionsC options, [In] float[] actor, UIntPtr frames, [Out] float[] output, UIntPtr capacityFrames);
+        [DllImport(Lib, CallingConvention = CallingConvention.Cdecl)] internal static extern int troupe_armflow_clip_options_init(ModelHandle model, ref ClipOptionsC options, UIntPtr size);
+        [DllImport(Lib, CallingConvention = CallingConvention.Cdecl)] internal static extern int troupe_armflow_clip_generate_with_options(ModelHandle model, ref ClipOptionsC options, [In] float[] actor, UIntPtr frames, [In] float[] condition, UIntPtr conditionLen, IntPtr noise, [Out] float[] output, UIntPtr capacity, [Out] float[] latents, UIntPtr latentsCapacity);
         internal const uint UnitsAuto = 0xFFFFFFFF;
         internal const uint RigZeroPose = 0xFFFFFFFF;
         [DllImport(Lib, CallingConvention = CallingConvention.Cdecl)] internal static extern int troupe_bvh_read(byte[] path, byte[] jointMapJson, uint units, out IntPtr bvh);

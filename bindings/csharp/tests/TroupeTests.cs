@@ -196,6 +196,49 @@ internal static class TroupeTests
         }
         Throws<InvalidArgumentException>(() => Rig.FromJson("{ not json"), "a rig document that is not JSON");
         Settings(demoBundle, clip, format);
+        Generators(demoBundle);
+    }
+
+    /// <summary>Whole-clip generation: ARFlow's reaction and ARMFlow's official clip loop,
+    /// seeded (the same seed, the same frames), finite, and refused by other families.</summary>
+    private static void Generators(string demoBundle)
+    {
+        string bundles = Path.GetDirectoryName(Path.GetFullPath(demoBundle));
+        using (var arflow = Model.Load(Path.Combine(bundles, "arflow-tiny")))
+        using (var armflow = Model.Load(Path.Combine(bundles, "armflow-tiny-interhuman")))
+        {
+            const int Frames = 8;
+            var actor = new float[Frames * arflow.FrameDim];
+            for (int i = 0; i < actor.Length; i++) actor[i] = (float)Math.Sin(0.01 * i);
+            var opt = new ArflowOptions { Seed = 5, Steps = 2, Guidance = 0f };
+            float[] a = arflow.ArflowGenerate(actor, Frames, opt), b = arflow.ArflowGenerate(actor, Frames, opt);
+            Check(a.Length == Frames * arflow.FrameDim && AllFinite(a) && SameValues(a, b), "an ARFlow reaction, seeded");
+            Throws<UnsupportedException>(() => armflow.ArflowGenerate(new float[Frames * armflow.FrameDim], Frames), "ARFlow on ARMFlow");
+            Throws<ArgumentException>(() => arflow.ArflowGenerate(actor, Frames + 1), "too few actor frames");
+            Throws<InvalidArgumentException>(() => arflow.ArflowGenerate(actor, Frames, new ArflowOptions { Steps = 0 }), "zero steps");
+
+            Check(armflow.ClipFrames > 0, "ARMFlow's clip length");
+            var clipActor = new float[armflow.ClipFrames * armflow.FrameDim];
+            for (int i = 0; i < clipActor.Length; i++) clipActor[i] = (float)Math.Cos(0.01 * i);
+            var copt = new ClipOptions { Seed = 9, Steps = 1 };
+            float[] c1 = armflow.ArmflowClip(clipActor, armflow.ClipFrames, null, copt);
+            float[] c2 = armflow.ArmflowClip(clipActor, armflow.ClipFrames, null, copt);
+            Check(c1.Length == armflow.ClipFrames * armflow.FrameDim && AllFinite(c1) && SameValues(c1, c2), "an ARMFlow clip, seeded");
+            Throws<UnsupportedException>(() => arflow.ArmflowClip(actor, 1), "a clip on ARFlow");
+        }
+    }
+
+    private static bool AllFinite(float[] v)
+    {
+        foreach (float x in v) if (float.IsNaN(x) || float.IsInfinity(x)) return false;
+        return true;
+    }
+
+    private static bool SameValues(float[] a, float[] b)
+    {
+        if (a.Length != b.Length) return false;
+        for (int i = 0; i < a.Length; i++) if (a[i] != b[i]) return false;
+        return true;
     }
 
     /// <summary>Process-wide settings, model sizes, per-session settings, sealed snapshots.</summary>
