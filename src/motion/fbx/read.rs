@@ -158,7 +158,9 @@ impl Skeleton {
     /// animation stack sampled at the file's rate.
     fn clip(mut self, scene: &ufbx::Scene, label: &str) -> Result<Bvh> {
         let invalid = |what: String| Error::InvalidInput(format!("{label}: {what}"));
-        let rest = self.rest(scene, label)?;
+        // The file's own pose (the scene as loaded), and the rest pose read from it.
+        let file = self.world(scene, label)?;
+        let rest = self.rest(scene, file.clone(), label)?;
         let (rest_pos, rest_rot) = (&rest.0, &rest.1);
         for (j, joint) in self.joints.iter_mut().enumerate() {
             joint.offset = match joint.parent {
@@ -168,7 +170,7 @@ impl Skeleton {
         }
         // A tip keeps its place in its joint's frame: read it there in the file's pose, put it
         // at rest (leaf bones rarely have a bind pose of their own).
-        let (file_pos, file_rot) = self.world(scene, label)?;
+        let (file_pos, file_rot) = &file;
         for (j, end) in self.end_nodes.iter().enumerate() {
             if let Some(e) = end {
                 let tip = position(&scene.nodes[*e].node_to_world);
@@ -305,8 +307,14 @@ impl Skeleton {
 
     /// The rest pose: each bone's bind pose where the file has one (written with skinned
     /// meshes: the pose they were bound in), else its own transform in the file.
-    fn rest(&self, scene: &ufbx::Scene, label: &str) -> Result<(Vec<Vec3>, Vec<Quat>)> {
-        let (mut pos, mut rot) = self.world(scene, label)?;
+    /// `file` is the joints' pose in the loaded scene.
+    fn rest(
+        &self,
+        scene: &ufbx::Scene,
+        file: (Vec<Vec3>, Vec<Quat>),
+        label: &str,
+    ) -> Result<(Vec<Vec3>, Vec<Quat>)> {
+        let (mut pos, mut rot) = file;
         for (j, &i) in self.nodes.iter().enumerate() {
             let node = &scene.nodes[i];
             let Some(pose) = node.bind_pose.as_ref() else {
@@ -346,7 +354,7 @@ impl Skeleton {
 /// bones, Mixamo's `HeadTop_End`, 3ds Max's `Nub`s.
 fn is_end_marker(name: &str) -> bool {
     let lower = name.to_ascii_lowercase();
-    lower.ends_with("end") || lower.ends_with("nub") || lower.ends_with("end site")
+    lower.ends_with("end") || lower.ends_with("nub")
 }
 
 fn position(m: &ufbx::Matrix) -> Vec3 {
