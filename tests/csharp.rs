@@ -68,7 +68,8 @@ fn csharp_binding_streams_like_rust_and_refuses_misuse() {
             .arg("-warnaserror")
             .arg(format!("-out:{}", exe.display()))
             .arg(root().join("bindings/csharp/Troupe.cs"))
-            .arg(root().join("bindings/csharp/tests/TroupeTests.cs")),
+            .arg(root().join("bindings/csharp/tests/TroupeTests.cs"))
+            .arg(root().join("bindings/csharp/tests/Npy.cs")),
     );
     let clip_path = root().join("tests/data/mocap/cmu-playground-120fps.npy");
     let out_path = scratch.path().join("partner.f32");
@@ -126,7 +127,8 @@ fn unity_sample_plays_the_partner_on_the_engine_clock_at_20_60_and_144_fps() {
             .arg(root().join("bindings/csharp/Troupe.cs"))
             .arg(root().join("bindings/csharp/tests/UnityStub.cs"))
             .arg(root().join("unity/Samples~/AnimatorPartner/TroupePartner.cs"))
-            .arg(root().join("bindings/csharp/tests/UnitySampleTests.cs")),
+            .arg(root().join("bindings/csharp/tests/UnitySampleTests.cs"))
+            .arg(root().join("bindings/csharp/tests/Npy.cs")),
     );
     let text = common::output_text(&common::run_ok(
         Command::new("mono")

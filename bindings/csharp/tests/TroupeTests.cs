@@ -1,6 +1,6 @@
 // The C# binding through the real library, run by tests/csharp.rs under Mono:
 //
-//   mcs -out:troupe-tests.exe bindings/csharp/Troupe.cs bindings/csharp/tests/TroupeTests.cs
+//   mcs -out:troupe-tests.exe bindings/csharp/Troupe.cs bindings/csharp/tests/TroupeTests.cs bindings/csharp/tests/Npy.cs
 //   LD_LIBRARY_PATH=target/debug mono troupe-tests.exe DEMO_BUNDLE CLIP.npy OUT.f32 TINY_BUNDLE
 //
 // TINY_BUNDLE: an ARMFlow bundle of other features than the demo's (armflow-tiny-interx); the
@@ -46,26 +46,6 @@ internal static class TroupeTests
         throw new Exception("FAILED: " + what + ": expected " + typeof(T).Name + ", nothing was thrown");
     }
 
-    /// <summary>A float32 C-order .npy file: its shape and values.</summary>
-    private static float[] ReadNpy(string path, out int[] shape)
-    {
-        byte[] bytes = File.ReadAllBytes(path);
-        int headerLen = bytes[8] | (bytes[9] << 8);
-        string header = Encoding.ASCII.GetString(bytes, 10, headerLen);
-        if (!header.Contains("'<f4'") || header.Contains("'fortran_order': True"))
-            throw new Exception(path + ": not a C-order float32 .npy");
-        string dims = header.Substring(header.IndexOf('(') + 1);
-        dims = dims.Substring(0, dims.IndexOf(')'));
-        var parts = new List<int>();
-        foreach (string d in dims.Split(','))
-            if (d.Trim().Length > 0) parts.Add(int.Parse(d.Trim()));
-        shape = parts.ToArray();
-        int offset = 10 + headerLen;
-        var values = new float[(bytes.Length - offset) / 4];
-        Buffer.BlockCopy(bytes, offset, values, 0, values.Length * 4);
-        return values;
-    }
-
     private static int Main(string[] args)
     {
         if (args.Length != 4)
@@ -94,7 +74,7 @@ internal static class TroupeTests
         Check(Model.Version == assembly, "library " + Model.Version + ", binding " + assembly);
 
         int[] shape;
-        float[] clip = ReadNpy(clipPath, out shape);
+        float[] clip = Npy.Read(clipPath, out shape);
         Check(shape.Length == 3 && shape[1] == 22 && shape[2] == 3, "the clip is [T, 22, 3]");
         int frames = shape[0];
         const int Pose = 22 * 3;
@@ -412,7 +392,7 @@ internal static class TroupeTests
         {
             Check(magnet.Family == "magnet", "the model names its family (" + magnet.Family + ")");
             int[] shape;
-            float[] pair = ReadNpy(Path.Combine(bundles, "magnet-tiny", "golden", "frames.npy"), out shape);
+            float[] pair = Npy.Read(Path.Combine(bundles, "magnet-tiny", "golden", "frames.npy"), out shape);
             var opening = new float[32 * 145];
             for (int t = 0; t < 32; t++) Array.Copy(pair, (t * 2 + 1) * 145, opening, t * 145, 145);
             Throws<ArgumentException>(() => s.Magnet.SetPartnerOpening(opening, 33), "more opening frames than the array holds");

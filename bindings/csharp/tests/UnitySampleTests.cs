@@ -19,23 +19,6 @@ static class UnitySampleTests
 {
     private const int Token = 4;
 
-    private static float[] ReadNpy(string path, out int[] shape)
-    {
-        byte[] bytes = File.ReadAllBytes(path);
-        int headerLen = bytes[8] | (bytes[9] << 8);
-        string header = Encoding.ASCII.GetString(bytes, 10, headerLen);
-        string dims = header.Substring(header.IndexOf('(') + 1);
-        dims = dims.Substring(0, dims.IndexOf(')'));
-        var parts = new List<int>();
-        foreach (string d in dims.Split(','))
-            if (d.Trim().Length > 0) parts.Add(int.Parse(d.Trim()));
-        shape = parts.ToArray();
-        int offset = 10 + headerLen;
-        var values = new float[(bytes.Length - offset) / 4];
-        Buffer.BlockCopy(bytes, offset, values, 0, values.Length * 4);
-        return values;
-    }
-
     // t2m-22's joint index for each Humanoid bone the sample asks for.
     private static readonly Dictionary<HumanBodyBones, int> Joint = new Dictionary<HumanBodyBones, int>
     {
@@ -86,7 +69,7 @@ static class UnitySampleTests
 
         Application.streamingAssetsPath = args[0];
         int[] shape;
-        float[] clip = ReadNpy(args[1], out shape); // [T, 22, 3], metres, Z up, 120 fps
+        float[] clip = Npy.Read(args[1], out shape); // [T, 22, 3], metres, Z up, 120 fps
         int clipFrames = shape[0];
         bool failed = false;
         foreach (int fps in new[] { 20, 60, 144 })
