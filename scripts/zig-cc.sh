@@ -1,0 +1,16 @@
+#!/bin/sh
+# The linker the test command and scripts/wheel.sh give cargo for x86_64 Linux
+# (CARGO_TARGET_X86_64_UNKNOWN_LINUX_GNU_LINKER): `zig cc` against glibc 2.28's symbol versions,
+# through cargo-zigbuild's wrapper (it drops the flags zig does not take), both from PyPI in
+# target/zig (scripts/test-tools.sh). A library linked on a new system otherwise asks for the
+# newest versions of `hypot` (GLIBC_2.35) and `pthread_*` (GLIBC_2.34), and pip refuses its wheel
+# on Ubuntu 20.04/22.04, RHEL 8/9 and Amazon Linux 2023; linked here it runs on glibc 2.28 and
+# later (manylinux_2_28). The code is the same: only the symbol versions asked for differ.
+zig_env="$(cd "$(dirname "$0")/.." && pwd)/target/zig"
+[ -x "$zig_env/bin/cargo-zigbuild" ] || {
+    echo "zig-cc.sh: $zig_env/bin/cargo-zigbuild is missing (scripts/test-tools.sh zig)" >&2
+    exit 1
+}
+export CARGO_ZIGBUILD_ZIG_COMMAND="$zig_env/bin/python3"
+export CARGO_ZIGBUILD_ZIG_COMMAND_ARGS="-m ziglang"
+exec "$zig_env/bin/cargo-zigbuild" zig cc -- -g -fno-sanitize=all -target x86_64-linux-gnu.2.28 "$@"
