@@ -36,7 +36,10 @@
 #   --unity-package DIR
 #                      also write the Unity package to DIR: unity/ (its manifest, assembly
 #                      definition and sample) with the C# binding (bindings/csharp/Troupe.cs)
-#                      in Runtime/ and the library in Runtime/Plugins/x86_64/
+#                      in Runtime/ and the library in Runtime/Plugins/x86_64/ (ARM64/ for
+#                      Linux arm64; troupe.dll for Windows). Given a package it wrote before
+#                      for this release, it keeps the other platforms' plugins there: run it
+#                      once per --target to gather them in one package
 #
 # Every file installed is relocatable: the pkg-config and CMake files find the prefix from
 # their own location, so the prefix may be moved or packed as it is. The shared library's
@@ -106,35 +109,65 @@ done
 static_libs="-lgcc_s -lutil -lrt -lpthread -lm -ldl -lc"
 static_flags="-Wl,-z,noexecstack"
 
-# The Unity package, with the library file `$1` of the build in its plugin folder.
+# The Unity package, with the library file `$1` of the build in its plugin folder. A package this
+# script wrote before for the same release keeps the plugins of the other platforms it holds:
+# running it once per --target gathers every platform built here into one package.
 write_unity() {
-    local plugins=x86_64 cpu=x86_64 os=Linux player=Linux64 asm_player=LinuxStandalone64
-    [ "$target" = aarch64-unknown-linux-gnu ] && plugins=ARM64 cpu=ARM64
-    if [ "$1" = troupe.dll ]; then
-        os=Windows player=Win64 asm_player=WindowsStandalone64
+    local plugins=x86_64 kept
+    [ "$target" = aarch64-unknown-linux-gnu ] && plugins=ARM64
+    kept=$(mktemp -d)
+    if [ -d "$unity/Runtime/Plugins" ] && grep -qs "\"version\": \"$version\"" "$unity/package.json"; then
+        cp -R "$unity/Runtime/Plugins/." "$kept/"
+        find "$kept" -name '*.meta' -delete
     fi
     rm -rf "$unity"
     mkdir -p "$unity"
     cp -R unity/. "$unity/"
     # The binding is kept once, in bindings/csharp; the package gets its copy here.
     install -m 644 bindings/csharp/Troupe.cs "$unity/Runtime/Troupe.cs"
+    mkdir -p "$unity/Runtime/Plugins"
+    cp -R "$kept/." "$unity/Runtime/Plugins/"
+    rm -rf "$kept"
     mkdir -p "$unity/Runtime/Plugins/$plugins"
     install -m 755 "$out_dir/$1" "$unity/Runtime/Plugins/$plugins/$1"
-    # The assembly compiles where its library is: the editor and the one player it was built for.
-    sed -i "s/\"includePlatforms\": \[[^]]*\]/\"includePlatforms\": [\"Editor\", \"$asm_player\"]/" \
+    # The demo model as one archive the sample loads from bytes (a TextAsset: every platform,
+    # Android's compressed StreamingAssets included).
+    scripts/bundle-tar.sh onnx/bundles/armflow-demo "$unity/Samples~/AnimatorPartner/armflow-demo.bytes"
+    # The assembly compiles where a library is: the editor and the players of the plugins present.
+    local plugin platform os cpu asm_player players=() platforms='"Editor"' present=()
+    for plugin in "$unity"/Runtime/Plugins/*/*; do
+        platform=$(unity_platform "${plugin#"$unity/"}") ||
+            { echo "install.sh: $plugin is no plugin this script writes" >&2; exit 1; }
+        read -r os cpu _ asm_player <<<"$platform"
+        present+=("$os $cpu")
+        case " ${players[*]} " in *" $asm_player "*) ;; *) players+=("$asm_player") ;; esac
+    done
+    for asm_player in "${players[@]}"; do platforms="$platforms, \"$asm_player\""; done
+    sed -i "s/\"includePlatforms\": \[[^]]*\]/\"includePlatforms\": [$platforms]/" \
         "$unity/Runtime/Troupe.Runtime.asmdef"
-    unity_metas "$unity" "Runtime/Plugins/$plugins/$1" "$os" "$cpu" "$player"
-    echo "unity package: $unity (com.troupe.runtime $version; $os $cpu)"
+    unity_metas "$unity"
+    echo "unity package: $unity (com.troupe.runtime $version; plugins: $(IFS=,; echo "${present[*]}"))"
+}
+
+# A plugin's platform, from its place in the package: its OS and CPU as the importer names them,
+# its standalone player, and the asmdef's name for that player.
+unity_platform() {
+    case "$1" in
+        Runtime/Plugins/x86_64/libtroupe.so) echo "Linux x86_64 Linux64 LinuxStandalone64" ;;
+        Runtime/Plugins/ARM64/libtroupe.so) echo "Linux ARM64 Linux64 LinuxStandalone64" ;;
+        Runtime/Plugins/x86_64/troupe.dll) echo "Windows x86_64 Win64 WindowsStandalone64" ;;
+        *) return 1 ;;
+    esac
 }
 
 # Unity finds a package's assets by the GUIDs in their `.meta` files, and regenerates missing
 # ones with new GUIDs in every project (breaking references to them): each file and folder gets
 # one here, its GUID derived from its path in the package, so it is the same in every install.
-# Folders ending in `~` (the samples) and hidden files are not imported, so they get none. The
+# Folders ending in `~` (the samples) and hidden files are not imported, so they get none. Each
 # plugin's importer settings enable it for the editor and the player of its OS and CPU only.
 unity_guid() { printf 'com.troupe.runtime/%s' "$1" | md5sum | cut -c1-32; }
 unity_metas() {
-    local root=$1 plugin=$2 os=$3 cpu=$4 player=$5 rel guid paths
+    local root=$1 rel guid paths platform
     # Listed before any .meta is written, so that none gets a .meta of its own.
     mapfile -t paths < <(cd "$root" && find . -mindepth 1 \( -name '*~' -o -name '.*' \) -prune -o -print |
         sed 's|^\./||' | sort)
@@ -144,8 +177,9 @@ unity_metas() {
                 printf 'fileFormatVersion: 2\nguid: %s\n' "$guid"
                 if [ -d "$root/$rel" ]; then
                     printf 'folderAsset: yes\nDefaultImporter:\n'
-                elif [ "$rel" = "$plugin" ]; then
-                    unity_plugin_importer "$os" "$cpu" "$player"
+                elif platform=$(unity_platform "$rel"); then
+                    # shellcheck disable=SC2086  (OS, CPU and player)
+                    unity_plugin_importer $platform
                 else
                     case "$rel" in
                         *.cs) printf 'MonoImporter:\n  serializedVersion: 2\n  defaultReferences: []\n  executionOrder: 0\n  icon: {instanceID: 0}\n' ;;

@@ -48,11 +48,7 @@ mkdir -p "$out.tmp"
 # Without the function names (stack traces' only use for them): 5 MB less to download.
 "$bindgen" --target web --no-typescript --remove-name-section --remove-producers-section --out-dir "$out.tmp" "$wasm"
 cp src/viewer/draw.js "$out.tmp/draw.js"
-bundle=onnx/bundles/armflow-demo
-(cd "$bundle" && find . -maxdepth 1 -type f -printf '%P\n' | LC_ALL=C sort) > "$out.tmp/files"
-tar --format=ustar --owner=0 --group=0 --numeric-owner --mtime=@0 -cf "$out.tmp/armflow-demo.tar" \
-    -C "$bundle" -T "$out.tmp/files"
-rm "$out.tmp/files"
+scripts/bundle-tar.sh onnx/bundles/armflow-demo "$out.tmp/armflow-demo.tar"
 cp tests/data/mocap/cmu-playground-120fps.npy "$out.tmp/"
 rm -rf "$out"
 mv "$out.tmp" "$out"

@@ -130,11 +130,22 @@ fn unity_sample_plays_the_partner_on_the_engine_clock_at_20_60_and_144_fps() {
             .arg(root().join("bindings/csharp/tests/UnitySampleTests.cs"))
             .arg(root().join("bindings/csharp/tests/Npy.cs")),
     );
+    // An Android APK's StreamingAssets, unpacked: the demo bundle as the one archive the sample
+    // reads there (and, as a TextAsset, on every platform).
+    let apk = scratch.path().join("apk");
+    std::fs::create_dir_all(apk.join("assets")).unwrap();
+    common::run_ok(
+        Command::new("bash")
+            .arg(root().join("scripts/bundle-tar.sh"))
+            .arg(root().join("onnx/bundles/armflow-demo"))
+            .arg(apk.join("assets/armflow-demo.tar")),
+    );
     let text = common::output_text(&common::run_ok(
         Command::new("mono")
             .arg(&exe)
             .arg(root().join("onnx/bundles"))
             .arg(root().join("tests/data/mocap/cmu-playground-120fps.npy"))
+            .arg(&apk)
             .env("LD_LIBRARY_PATH", libs),
     ));
     println!("{text}");

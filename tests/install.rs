@@ -147,9 +147,36 @@ fn unity_package_holds_the_binding_and_the_library() {
         "Runtime/Troupe.Runtime.asmdef",
         "Runtime/Plugins/x86_64/libtroupe.so",
         "Samples~/AnimatorPartner/TroupePartner.cs",
+        "Samples~/AnimatorPartner/armflow-demo.bytes",
     ] {
         assert!(unity.join(file).is_file(), "the Unity package lacks {file}");
     }
+    // The sample's TextAsset is the demo bundle as one archive: every file of the bundle, byte
+    // for byte, and a model loads from it.
+    let archive = std::fs::read(unity.join("Samples~/AnimatorPartner/armflow-demo.bytes")).unwrap();
+    let bundle = root().join("onnx/bundles/armflow-demo");
+    let mut members = std::collections::BTreeMap::new();
+    for entry in tar::Archive::new(&archive[..]).entries().unwrap() {
+        let mut entry = entry.unwrap();
+        let name = entry.path().unwrap().to_string_lossy().into_owned();
+        let mut data = Vec::new();
+        std::io::Read::read_to_end(&mut entry, &mut data).unwrap();
+        members.insert(name, data);
+    }
+    let mut files = std::collections::BTreeMap::new();
+    for entry in std::fs::read_dir(&bundle).unwrap() {
+        let path = entry.unwrap().path();
+        if path.is_file() {
+            let name = path.file_name().unwrap().to_string_lossy().into_owned();
+            files.insert(name, std::fs::read(&path).unwrap());
+        }
+    }
+    assert!(
+        members == files,
+        "the archive's members differ from the bundle's files"
+    );
+    troupe::Model::from_archive_bytes(&archive, "armflow-demo.bytes")
+        .expect("the demo model loads from the sample's archive");
     assert_eq!(
         std::fs::read(unity.join("Runtime/Troupe.cs")).unwrap(),
         std::fs::read(root().join("bindings/csharp/Troupe.cs")).unwrap()

@@ -598,3 +598,92 @@ fn linux_arm64_install_layout_and_a_program_built_against_it() {
         "linux_arm64_install_layout_and_a_program_built_against_it",
     );
 }
+
+/// One Unity package for every platform built here: `scripts/install.sh --unity-package` run
+/// for the host, then for Windows x64 and Linux arm64 into the same folder, gathers the three
+/// plugins. Each plugin's importer enables it for its own OS and CPU only, every asset has its
+/// own GUID, and the assembly definition includes the editor and the two players present.
+#[test]
+fn unity_package_gathers_the_plugins_of_every_platform() {
+    let test = "unity_package_gathers_the_plugins_of_every_platform";
+    if !WINDOWS_X64.ready(test) || !LINUX_ARM64.ready(test) {
+        return;
+    }
+    common::c_libraries();
+    WINDOWS_X64.library();
+    LINUX_ARM64.library();
+    let unity = scratch().join("unity-every-platform");
+    let _ = std::fs::remove_dir_all(&unity);
+    for (target, profile) in [
+        (None, "dev"),
+        (Some(WINDOWS_X64.triple), "release"),
+        (Some(LINUX_ARM64.triple), "release"),
+    ] {
+        let prefix = scratch().join(format!("unity-prefix-{}", target.unwrap_or("host")));
+        let mut install = Command::new("bash");
+        install
+            .current_dir(root())
+            .arg("scripts/install.sh")
+            .arg("--prefix")
+            .arg(&prefix)
+            .args(["--profile", profile, "--no-build", "--unity-package"])
+            .arg(&unity);
+        if let Some(triple) = target {
+            install.args(["--target", triple]);
+        }
+        let text = common::output_text(&common::run_ok(&mut install));
+        println!("{text}");
+    }
+    // The plugin, its OS and CPU in the editor, and the standalone player it is enabled for.
+    for (plugin, os, cpu, player) in [
+        ("x86_64/libtroupe.so", "Linux", "x86_64", "Linux64"),
+        ("ARM64/libtroupe.so", "Linux", "ARM64", "Linux64"),
+        ("x86_64/troupe.dll", "Windows", "x86_64", "Win64"),
+    ] {
+        let path = unity.join("Runtime/Plugins").join(plugin);
+        assert!(path.is_file(), "the package lacks {plugin}");
+        let meta = std::fs::read_to_string(path.with_file_name(format!(
+            "{}.meta",
+            path.file_name().unwrap().to_string_lossy()
+        )))
+        .unwrap();
+        let editor =
+            format!("        CPU: {cpu}\n        DefaultValueInitialized: true\n        OS: {os}");
+        assert!(meta.contains(&editor), "{plugin}: {meta}");
+        for other in ["Linux64", "Win64", "OSXUniversal"] {
+            let on = other == player;
+            let enabled = format!(
+                "      Standalone: {other}\n    second:\n      enabled: {}\n      settings:\n        CPU: {}",
+                u8::from(on),
+                if on { cpu } else { "None" }
+            );
+            assert!(meta.contains(&enabled), "{plugin} for {other}: {meta}");
+            let exclude = format!("Exclude {other}: {}", u8::from(!on));
+            assert!(meta.contains(&exclude), "{plugin}: {meta}");
+        }
+    }
+    let asmdef = std::fs::read_to_string(unity.join("Runtime/Troupe.Runtime.asmdef")).unwrap();
+    let asmdef: serde_json::Value = serde_json::from_str(&asmdef).unwrap();
+    assert_eq!(
+        asmdef["includePlatforms"],
+        serde_json::json!(["Editor", "LinuxStandalone64", "WindowsStandalone64"])
+    );
+    let mut guids = Vec::new();
+    let mut stack = vec![unity.clone()];
+    while let Some(dir) = stack.pop() {
+        for entry in std::fs::read_dir(&dir).unwrap() {
+            let path = entry.unwrap().path();
+            if path.is_dir() {
+                stack.push(path);
+            } else if path.extension().is_some_and(|e| e == "meta") {
+                let text = std::fs::read_to_string(&path).unwrap();
+                guids.push(text.lines().nth(1).unwrap().to_owned());
+            }
+        }
+    }
+    let unique: std::collections::BTreeSet<&String> = guids.iter().collect();
+    assert_eq!(unique.len(), guids.len(), "a GUID is used twice: {guids:?}");
+    // package.json, README.md, Runtime/ with Troupe.cs and the asmdef, Plugins/ with its two
+    // folders and three plugins.
+    assert_eq!(guids.len(), 11, "{guids:?}");
+}
