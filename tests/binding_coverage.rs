@@ -493,220 +493,117 @@ fn csharp_typed(text: &str, named: bool, by_pointer: &BTreeSet<String>) -> Typed
 
 // ---- Python ----
 
-/// Python's `PROTOTYPES` table (`name: (restype, argtypes)`), read as the declarative Python it
-/// is, with the module's aliases (`status = ctypes.c_int32`) resolved; reading the source rather
-/// than running Python keeps `c_size_t` apart from `c_uint64`, which ctypes makes one type on
-/// 64-bit Linux but which differ elsewhere.
+/// Python's `PROTOTYPES` table (`name: (restype, [argtypes])`) and the module's aliases
+/// (`status = ctypes.c_int32`), read from the source by Python's own parser (`ast`), each type
+/// as its source text. Reading rather than importing keeps `c_size_t` apart from `c_uint64`,
+/// which ctypes makes one type on 64-bit Linux but which differ elsewhere.
 fn python_signatures() -> (Vec<Signature>, Vec<String>) {
-    let source = read("bindings/python/troupe/_native.py");
+    const READ_TABLE: &str = r#"
+import ast, json, sys
+tree = ast.parse(open(sys.argv[1]).read())
+aliases, table, calls = {}, None, set()
+for node in ast.walk(tree):
+    if isinstance(node, ast.Call):
+        calls.add(ast.unparse(node.func))
+for node in tree.body:
+    if isinstance(node, ast.Assign) and len(node.targets) == 1 and isinstance(node.targets[0], ast.Name):
+        aliases[node.targets[0].id] = ast.unparse(node.value)
+    elif isinstance(node, ast.AnnAssign) and ast.unparse(node.target) == "PROTOTYPES":
+        table = node.value
+entries = []
+for key, value in zip(table.keys, table.values):
+    if (isinstance(key, ast.Constant) and isinstance(value, ast.Tuple) and len(value.elts) == 2
+            and isinstance(value.elts[1], ast.List)):
+        entries.append([key.value, ast.unparse(value.elts[0]), [ast.unparse(a) for a in value.elts[1].elts]])
+    else:
+        entries.append(ast.unparse(key) + ": " + ast.unparse(value))
+print(json.dumps({"aliases": aliases, "entries": entries, "calls": sorted(calls)}))
+"#;
+    let out = std::process::Command::new("python3")
+        .arg("-c")
+        .arg(READ_TABLE)
+        .arg(Path::new(env!("CARGO_MANIFEST_DIR")).join("bindings/python/troupe/_native.py"))
+        .output()
+        .expect("run python3");
+    assert!(
+        out.status.success(),
+        "reading _native.py's PROTOTYPES with Python's ast: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let read: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let aliases: BTreeMap<String, String> =
+        serde_json::from_value(read["aliases"].clone()).unwrap();
+    let calls: Vec<String> = serde_json::from_value(read["calls"].clone()).unwrap();
     let mut problems = Vec::new();
-    if !source.contains("ctypes.CDLL(") || source.contains("WinDLL") || source.contains("OleDLL") {
+    if !calls.iter().any(|c| c == "ctypes.CDLL")
+        || calls
+            .iter()
+            .any(|c| c.ends_with("WinDLL") || c.ends_with("OleDLL"))
+    {
         problems.push("python: the library must be opened with ctypes.CDLL (cdecl)".to_string());
     }
-    let aliases: BTreeMap<String, Py> = Regex::new(r"(?m)^([A-Za-z_]\w*)\s*=\s*(.+)$")
-        .unwrap()
-        .captures_iter(&source)
-        .filter_map(|c| Some((c[1].to_string(), parse_python(&c[2]).ok()?)))
-        .collect();
-    let start = source
-        .find("\nPROTOTYPES")
-        .expect("_native.py has no PROTOTYPES table");
-    let table = &source[start..][source[start..].find('{').unwrap()..];
-    let Ok(Py::Dict(entries)) = parse_python(table) else {
-        panic!("_native.py: PROTOTYPES is not a dict literal this test can read");
-    };
-    let typed = |e: &Py| Typed {
+    let typed = |e: &str| Typed {
         text: e.to_string(),
         abi: python_class(e, &aliases),
     };
     let mut signatures = Vec::new();
-    for (key, value) in &entries {
-        match (key, value) {
-            (Py::Str(name), Py::Tuple(pair)) if matches!(pair.as_slice(), [_, Py::List(_)]) => {
-                let Py::List(args) = &pair[1] else {
-                    unreachable!()
-                };
-                signatures.push(Signature {
-                    name: name.clone(),
-                    deprecated: false,
-                    ret: typed(&pair[0]),
-                    params: args.iter().map(typed).collect(),
-                });
-            }
-            _ => problems.push(format!(
-                "python: PROTOTYPES entry `{key}: {value}` is not `\"name\": (restype, [argtypes])`"
+    for entry in read["entries"]
+        .as_array()
+        .expect("_native.py has a PROTOTYPES table")
+    {
+        match entry {
+            serde_json::Value::Array(e) => signatures.push(Signature {
+                name: e[0].as_str().unwrap().to_string(),
+                deprecated: false,
+                ret: typed(e[1].as_str().unwrap()),
+                params: e[2]
+                    .as_array()
+                    .unwrap()
+                    .iter()
+                    .map(|a| typed(a.as_str().unwrap()))
+                    .collect(),
+            }),
+            other => problems.push(format!(
+                "python: PROTOTYPES entry `{other}` is not `\"name\": (restype, [argtypes])`"
             )),
         }
     }
     (signatures, problems)
 }
 
-/// The ABI class of a ctypes type expression.
-fn python_class(e: &Py, aliases: &BTreeMap<String, Py>) -> Result<Abi, String> {
+/// The ABI class of a ctypes type expression, as Python's `ast.unparse` writes it.
+fn python_class(e: &str, aliases: &BTreeMap<String, String>) -> Result<Abi, String> {
     let unknown = || {
         Err(format!(
             "ctypes type `{e}` has no ABI class here: teach tests/binding_coverage.rs its class"
         ))
     };
-    match e {
-        Py::Name(n) if n == "None" => Ok(Abi::Void),
-        Py::Name(n) => Ok(match n.strip_prefix("ctypes.").unwrap_or(n) {
-            "c_bool" | "c_char" | "c_byte" | "c_ubyte" | "c_int8" | "c_uint8" => Abi::Int8,
-            "c_short" | "c_ushort" | "c_int16" | "c_uint16" => Abi::Int16,
-            "c_int" | "c_uint" | "c_int32" | "c_uint32" => Abi::Int32,
-            "c_longlong" | "c_ulonglong" | "c_int64" | "c_uint64" => Abi::Int64,
-            "c_size_t" | "c_ssize_t" => Abi::Usize,
-            "c_float" => Abi::F32,
-            "c_double" => Abi::F64,
-            "c_void_p" | "c_char_p" | "c_wchar_p" => Abi::Pointer,
-            "c_long" | "c_ulong" => {
-                return Err(format!(
-                    "`{n}` is 32 bits on Windows, 64 elsewhere: use a fixed-width type"
-                ))
-            }
-            _ => match aliases.get(n) {
-                Some(aliased) => return python_class(aliased, aliases),
-                None => return unknown(),
-            },
-        }),
+    let name = e.strip_prefix("ctypes.").unwrap_or(e);
+    Ok(match name {
+        "None" => Abi::Void,
+        "c_bool" | "c_char" | "c_byte" | "c_ubyte" | "c_int8" | "c_uint8" => Abi::Int8,
+        "c_short" | "c_ushort" | "c_int16" | "c_uint16" => Abi::Int16,
+        "c_int" | "c_uint" | "c_int32" | "c_uint32" => Abi::Int32,
+        "c_longlong" | "c_ulonglong" | "c_int64" | "c_uint64" => Abi::Int64,
+        "c_size_t" | "c_ssize_t" => Abi::Usize,
+        "c_float" => Abi::F32,
+        "c_double" => Abi::F64,
+        "c_void_p" | "c_char_p" | "c_wchar_p" => Abi::Pointer,
+        "c_long" | "c_ulong" => {
+            return Err(format!(
+                "`{e}` is 32 bits on Windows, 64 elsewhere: use a fixed-width type"
+            ))
+        }
         // CFUNCTYPE, not WINFUNCTYPE: the header's callbacks are cdecl.
-        Py::Call(f, _)
-            if matches!(
-                f.strip_prefix("ctypes.").unwrap_or(f),
-                "POINTER" | "CFUNCTYPE"
-            ) =>
-        {
-            Ok(Abi::Pointer)
+        _ if name.starts_with("POINTER(") || name.starts_with("CFUNCTYPE(") => Abi::Pointer,
+        _ if name.contains("WINFUNCTYPE(") => {
+            return Err(format!(
+                "`{e}` makes a stdcall callback; the header's are cdecl: use ctypes.CFUNCTYPE"
+            ))
         }
-        Py::Call(f, _) if f.ends_with("WINFUNCTYPE") => Err(format!(
-            "`{f}` makes a stdcall callback; the header's are cdecl: use ctypes.CFUNCTYPE"
-        )),
-        _ => unknown(),
-    }
-}
-
-/// The little Python the signature table is written in.
-enum Py {
-    Name(String),
-    Str(String),
-    Call(String, Vec<Py>),
-    Tuple(Vec<Py>),
-    List(Vec<Py>),
-    Dict(Vec<(Py, Py)>),
-}
-
-impl fmt::Display for Py {
-    fn fmt(&self, f: &mut fmt::Formatter) -> fmt::Result {
-        let join = |items: &[Py]| {
-            items
-                .iter()
-                .map(Py::to_string)
-                .collect::<Vec<_>>()
-                .join(", ")
-        };
-        match self {
-            Py::Name(n) => f.write_str(n),
-            Py::Str(s) => write!(f, "\"{s}\""),
-            Py::Call(n, args) => write!(f, "{n}({})", join(args)),
-            Py::Tuple(items) => write!(f, "({})", join(items)),
-            Py::List(items) => write!(f, "[{}]", join(items)),
-            Py::Dict(entries) => write!(f, "{{...{} entries}}", entries.len()),
-        }
-    }
-}
-
-/// Parses the expression `text` begins with (names, strings, calls, tuples, lists, dicts);
-/// whatever follows it is ignored.
-fn parse_python(text: &str) -> Result<Py, String> {
-    let tokens = python_tokens(text);
-    let mut at = 0;
-    python_expr(&tokens, &mut at)
-}
-
-#[derive(PartialEq)]
-enum Token {
-    Word(String),
-    Str(String),
-    Punct(char),
-}
-
-fn python_tokens(text: &str) -> Vec<Token> {
-    let mut tokens = Vec::new();
-    let mut chars = text.chars().peekable();
-    while let Some(c) = chars.next() {
-        match c {
-            c if c.is_whitespace() => {}
-            '#' => while chars.next_if(|&c| c != '\n').is_some() {},
-            '"' | '\'' => tokens.push(Token::Str(chars.by_ref().take_while(|&q| q != c).collect())),
-            c if c.is_ascii_alphanumeric() || c == '_' => {
-                let mut word = c.to_string();
-                while let Some(c) =
-                    chars.next_if(|&c| c.is_ascii_alphanumeric() || c == '_' || c == '.')
-                {
-                    word.push(c);
-                }
-                tokens.push(Token::Word(word));
-            }
-            c => tokens.push(Token::Punct(c)),
-        }
-    }
-    tokens
-}
-
-fn python_expr(tokens: &[Token], at: &mut usize) -> Result<Py, String> {
-    let token = tokens.get(*at).ok_or("unexpected end")?;
-    *at += 1;
-    Ok(match token {
-        Token::Word(w) if tokens.get(*at) == Some(&Token::Punct('(')) => {
-            *at += 1;
-            Py::Call(w.clone(), python_items(tokens, at, ')')?)
-        }
-        Token::Word(w) => Py::Name(w.clone()),
-        Token::Str(s) => Py::Str(s.clone()),
-        // `(x)` is x; `(x,)` and `(x, y)` are tuples.
-        Token::Punct('(') => {
-            let mut items = python_items(tokens, at, ')')?;
-            let trailing_comma = tokens[*at - 2] == Token::Punct(',');
-            if items.len() == 1 && !trailing_comma {
-                items.pop().unwrap()
-            } else {
-                Py::Tuple(items)
-            }
-        }
-        Token::Punct('[') => Py::List(python_items(tokens, at, ']')?),
-        Token::Punct('{') => {
-            let mut entries = Vec::new();
-            while tokens.get(*at) != Some(&Token::Punct('}')) {
-                let key = python_expr(tokens, at)?;
-                if tokens.get(*at) != Some(&Token::Punct(':')) {
-                    return Err(format!("expected `:` after {key}"));
-                }
-                *at += 1;
-                entries.push((key, python_expr(tokens, at)?));
-                if tokens.get(*at) == Some(&Token::Punct(',')) {
-                    *at += 1;
-                }
-            }
-            *at += 1;
-            Py::Dict(entries)
-        }
-        Token::Punct(c) => return Err(format!("unexpected `{c}`")),
+        _ => match aliases.get(e) {
+            Some(aliased) => return python_class(aliased, aliases),
+            None => return unknown(),
+        },
     })
-}
-
-/// Comma-separated expressions up to `close` (consumed); a trailing comma is allowed.
-fn python_items(tokens: &[Token], at: &mut usize, close: char) -> Result<Vec<Py>, String> {
-    let mut items = Vec::new();
-    loop {
-        if tokens.get(*at) == Some(&Token::Punct(close)) {
-            *at += 1;
-            return Ok(items);
-        }
-        items.push(python_expr(tokens, at)?);
-        match tokens.get(*at) {
-            Some(Token::Punct(',')) => *at += 1,
-            Some(Token::Punct(c)) if *c == close => {}
-            _ => return Err(format!("expected `,` or `{close}`")),
-        }
-    }
 }

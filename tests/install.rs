@@ -476,3 +476,65 @@ fn cmake_accepts_this_release_and_refuses_others() {
         }
     }
 }
+
+/// The sizes docs/INSTALL.md gives are `scripts/sizes.sh --update-docs`'s, never typed by hand:
+/// the block between its markers holds the table of each profile's shared library, static
+/// library and wheel, and a stamp naming the commit they were measured at, which must be in
+/// this repository's history; the demo model's size, cheap to measure, must be today's.
+#[test]
+fn install_doc_sizes_are_the_measuring_scripts() {
+    let doc = std::fs::read_to_string(root().join("docs/INSTALL.md")).unwrap();
+    let block = doc
+        .split_once("<!-- sizes:begin -->\n")
+        .and_then(|(_, rest)| rest.split_once("<!-- sizes:end -->"))
+        .map(|(block, _)| block)
+        .expect("docs/INSTALL.md has the sizes markers");
+    let megabytes = |cell: &str| -> f64 {
+        cell.trim()
+            .strip_suffix(" MB")
+            .and_then(|n| n.parse().ok())
+            .unwrap_or_else(|| panic!("not a size in MB: {cell:?}"))
+    };
+    let rows: Vec<Vec<&str>> = block
+        .lines()
+        .filter(|l| l.starts_with("| `"))
+        .map(|l| l.split('|').map(str::trim).collect())
+        .collect();
+    assert!(
+        rows.iter().any(|r| r[1] == "`release`"),
+        "no release row:\n{block}"
+    );
+    for row in &rows {
+        for cell in &row[3..6] {
+            assert!(megabytes(cell) > 1.0, "{row:?}");
+        }
+    }
+    let stamp = block
+        .split_once("Measured by `scripts/sizes.sh --update-docs` at commit ")
+        .map(|(_, rest)| rest)
+        .expect("the sizes carry their stamp");
+    let commit: String = stamp.chars().take_while(char::is_ascii_hexdigit).collect();
+    assert!(commit.len() >= 7, "{stamp}");
+    if root().join(".git").exists() {
+        let known = Command::new("git")
+            .current_dir(root())
+            .args(["cat-file", "-e", &format!("{commit}^{{commit}}")])
+            .status()
+            .unwrap();
+        assert!(
+            known.success(),
+            "the sizes' commit {commit} is not in the history"
+        );
+    }
+    let model: u64 = std::fs::read_dir(root().join("onnx/bundles/armflow-demo"))
+        .unwrap()
+        .map(|e| e.unwrap().metadata().unwrap())
+        .filter(|m| m.is_file())
+        .map(|m| m.len())
+        .sum();
+    let stated = format!(
+        "The demo model the packages carry: {:.1} MB",
+        model as f64 / 1e6
+    );
+    assert!(block.contains(&stated), "want {stated:?} in:\n{block}");
+}

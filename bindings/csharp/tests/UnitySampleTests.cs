@@ -52,13 +52,14 @@ static class UnitySampleTests
         while (routine != null && routine.MoveNext()) { }
     }
 
-    // A Humanoid partner character in a T-pose (Unity's axes: Y up, facing +Z, its left at -X),
-    // under an armature root, with a finger the joint map does not name; no UpperChest, as many
-    // rigs have none.
+    // A Humanoid partner character in a T-pose (in its armature's axes: Y up, facing +Z, its left
+    // at -X), under an armature placed 2 m aside and turned a quarter about Y, with a finger the
+    // joint map does not name; no UpperChest, as many rigs have none.
     private static Dictionary<HumanBodyBones, Transform> Character()
     {
         var b = new Dictionary<HumanBodyBones, Transform>();
-        var armature = new Transform("Armature", null, new UnityEngine.Vector3(0f, 0f, 0f));
+        var armature = new Transform("Armature", null, new UnityEngine.Vector3(2f, 0f, 1f));
+        armature.localRotation = new Quaternion(0f, (float)Math.Sqrt(0.5), 0f, (float)Math.Sqrt(0.5));
         Func<HumanBodyBones, Transform, float, float, float, Transform> add = (bone, parent, x, y, z) =>
             b[bone] = new Transform("mixamorig:" + bone, parent, new UnityEngine.Vector3(x, y, z));
         add(HumanBodyBones.Hips, armature, 0f, 0.95f, 0f);

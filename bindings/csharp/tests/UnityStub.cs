@@ -49,6 +49,7 @@ namespace UnityEngine
         public Quaternion rotation
         {
             get { return parentTransform == null ? localRotation : parentTransform.rotation * localRotation; }
+            set { localRotation = parentTransform == null ? value : Quaternion.Inverse(parentTransform.rotation) * value; }
         }
         public Vector3 position
         {

@@ -7,8 +7,8 @@
 // partner character, spheres show the partner's joints.
 //
 // Setup: put this component on any GameObject, give it the actor's Animator and, for a driven
-// partner, a second Humanoid Animator standing in its rest pose (a T-pose, no controller) at the
-// world's origin. The model: the demo bundle ships with this sample as one archive
+// partner, a second Humanoid Animator standing in its rest pose (a T-pose, no controller); it
+// goes where the partner is, wherever it starts and whatever its armature's scale. The model: the demo bundle ships with this sample as one archive
 // (armflow-demo.bytes, a TextAsset): assign it to `bundleArchive`, which works on every platform,
 // Android included. Or leave it empty and put a bundle under Assets/StreamingAssets: a folder on
 // desktop players; on Android, whose StreamingAssets lie compressed inside the APK, the archive
@@ -31,7 +31,7 @@ namespace Troupe.Samples
     {
         [Tooltip("The actor: a Humanoid Animator.")]
         public Animator actor;
-        [Tooltip("The partner: a Humanoid Animator in its rest pose at the origin; empty shows spheres.")]
+        [Tooltip("The partner: a Humanoid Animator in its rest pose; empty shows spheres.")]
         public Animator partnerCharacter;
         [Tooltip("The bundle as one tar archive (armflow-demo.bytes); empty reads StreamingAssets.")]
         public TextAsset bundleArchive;
@@ -140,9 +140,10 @@ namespace Troupe.Samples
             playback = new PosePlayback(22 * 3, Rate);
         }
 
-        // The partner character's skeleton as a rig (docs/RIGS.md): its hips and every bone
-        // below, in their rest pose, local to their parents, with a joint map from its Humanoid
-        // bones; a retargeter then turns each pose into the bones' local rotations.
+        // The partner character's skeleton as a rig (docs/RIGS.md): its hips (in the world) and
+        // every bone below (local to its parent), in their rest pose, in metres, with a joint
+        // map from its Humanoid bones; a retargeter then turns each pose into the hips' place
+        // and turn and every other bone's local rotation.
         private void DriveCharacter(Animator character, JointsFormat format)
         {
             Transform hips = character.GetBoneTransform(HumanBodyBones.Hips);
@@ -157,8 +158,10 @@ namespace Troupe.Samples
                 // Names must be unique in a rig; a bone's index keeps them so.
                 string name = "b" + bones.Count + ":" + bone.name;
                 names[bone] = name;
-                Vector3 p = bone.localPosition;
-                Quaternion q = bone.localRotation;
+                // In metres whatever the armature's scale: the hips in the world, each other bone
+                // in its parent's frame.
+                Vector3 p = bone == hips ? bone.position : Quaternion.Inverse(bone.parent.rotation) * (bone.position - bone.parent.position);
+                Quaternion q = bone == hips ? bone.rotation : bone.localRotation;
                 json.Append(bones.Count == 0 ? "" : ", ").Append("{\"name\": ").Append(Quote(name))
                     .Append(", \"parent\": ").Append(bone == hips ? "null" : Quote(names[bone.parent]))
                     .Append(", \"offset\": [").Append(F(p.x)).Append(", ").Append(F(p.y)).Append(", ").Append(F(p.z))
@@ -197,11 +200,17 @@ namespace Troupe.Samples
             if (!playback.Sample(Time.deltaTime, shown)) return;
             if (retargeter != null)
             {
+                // The rig's root (the hips) lives in the world; every other bone is local to its parent.
                 int root = retargeter.Push(shown, rotations, rootTranslation);
                 for (int b = 0; b < rigBones.Length; b++)
-                    rigBones[b].localRotation = new Quaternion(rotations[4 * b + 1], rotations[4 * b + 2],
-                        rotations[4 * b + 3], rotations[4 * b]);
-                rigBones[root].localPosition = new Vector3(rootTranslation[0], rootTranslation[1], rootTranslation[2]);
+                {
+                    var q = new Quaternion(rotations[4 * b + 1], rotations[4 * b + 2], rotations[4 * b + 3], rotations[4 * b]);
+                    if (b == 0) rigBones[b].rotation = q;
+                    else rigBones[b].localRotation = q;
+                }
+                var t = new Vector3(rootTranslation[0], rootTranslation[1], rootTranslation[2]);
+                if (root == 0) rigBones[0].position = t;
+                else rigBones[root].localPosition = Quaternion.Inverse(rigBones[root].parent.rotation) * t;
             }
             else
             {
