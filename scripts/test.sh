@@ -91,22 +91,11 @@ use_glibc_228_linker() {
     fi
 }
 
-# The Windows and arm64 builds the suite runs under Wine and qemu (and tests/platforms.rs
-# loads) are the `release` profile at opt-level 1: tract compiles in about 70 % of the time
-# (one arm64 library on 2 cores: 7.2 min against 9.8), and floating point is the same at every
-# level (Rust never reassociates), so the parity checks check the shipped arithmetic. Set
-# after scripts/web.sh, whose page keeps its own size-optimised `release`, and for the rest
-# of the run: tests/platforms.rs builds with this profile too, and must find it built.
-light_cross_builds() {
-    export CARGO_PROFILE_RELEASE_OPT_LEVEL="${CARGO_PROFILE_RELEASE_OPT_LEVEL:-1}"
-}
-
 if [ "$#" -gt 0 ]; then
     . scripts/test-tools.sh all
     use_glibc_228_linker
     phase "web: building the page (scripts/web.sh)"
     scripts/web.sh || echo "scripts/web.sh failed: tests/web.rs runs on an older web/pkg or skips" >&2
-    light_cross_builds
     start_tests
     phase "cargo test $*"
     cargo_test_timed "$@"
@@ -191,7 +180,6 @@ wait_for_tools
 #    unoptimised code is slow; the unit and golden tests and the library tests/platforms.rs
 #    loads, both targets in one cargo run (linted: the code only Windows compiles,
 #    src/shared/paths.rs and the bundle loader's file checks, is checked here).
-light_cross_builds
 cross_targets="x86_64-pc-windows-gnu aarch64-unknown-linux-gnu"
 android=aarch64-linux-android
 sysroot="$(rustc --print sysroot)"
