@@ -12,12 +12,17 @@
 # which saves a Python and a zig start on each of the run's few hundred links. The linker path
 # cargo sees, and so every fingerprint, is this script either way.
 set -euo pipefail
-out=
-for ((i = 1; i < $#; i++)); do
-    if [ "${!i}" = -o ]; then
-        j=$((i + 1))
-        out=${!j}
-    fi
+# zig reads `--strip-debug` (what cargo passes for a profile without debug info) as "strip
+# everything", symbol table included, and then profilers and valgrind's suppressions see no
+# function names. So its link keeps it all, and the debug sections alone are stripped after.
+args=() strip_debug= out= next_is_out=
+for arg in "$@"; do
+    if [ -n "$next_is_out" ]; then out=$arg next_is_out=; fi
+    case "$arg" in
+        -Wl,--strip-debug | -Wl,-S) strip_debug=1; continue ;;
+        -o) next_is_out=1 ;;
+    esac
+    args+=("$arg")
 done
 case "$(basename -- "$out")" in
     libtroupe.so | libtroupe-*.so) ;;
@@ -29,24 +34,12 @@ zig_env="$(cd "$(dirname "$0")/.." && pwd)/target/zig"
     exit 1
 }
 # zig builds glibc 2.28's stubs and its runtime libraries on first use and caches them; the cache
-# lives beside zig, so a machine whose home is read-only or not kept (a CI runner) builds them
-# once per run, not once per link.
+# lives beside zig, in the project's target folder, which is writable wherever the build is
+# (a CI runner's home may not be).
 export ZIG_GLOBAL_CACHE_DIR="${ZIG_GLOBAL_CACHE_DIR:-$zig_env/cache}"
 export ZIG_LOCAL_CACHE_DIR="${ZIG_LOCAL_CACHE_DIR:-$zig_env/cache}"
 export CARGO_ZIGBUILD_ZIG_COMMAND="$zig_env/bin/python3"
 export CARGO_ZIGBUILD_ZIG_COMMAND_ARGS="-m ziglang"
-# zig reads `--strip-debug` (what cargo passes for a profile without debug info) as "strip
-# everything", symbol table included, and then profilers and valgrind's suppressions see no
-# function names. So the link keeps it all, and the debug sections alone are stripped after.
-args=() strip_debug= out= next_is_out=
-for arg in "$@"; do
-    if [ -n "$next_is_out" ]; then out=$arg next_is_out=; fi
-    case "$arg" in
-        -Wl,--strip-debug | -Wl,-S) strip_debug=1; continue ;;
-        -o) next_is_out=1 ;;
-    esac
-    args+=("$arg")
-done
 "$zig_env/bin/cargo-zigbuild" zig cc -- -g -fno-sanitize=all -target x86_64-linux-gnu.2.28 "${args[@]}"
 if [ -n "$strip_debug" ] && [ -n "$out" ]; then
     objcopy --strip-debug "$out"
