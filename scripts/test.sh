@@ -20,13 +20,59 @@
 # second build of every dependency; the library is built with the `testing` feature that the C
 # tests' build asks for, so theirs finds it built; the Windows and arm64 libraries the platform
 # tests load are the ones their unit and golden tests were built with, both targets in one
-# cargo run; the tool installs download while the host build compiles.
+# cargo run; the tool installs download while the host build compiles; the web page and the
+# cross builds compile in the background, at the lowest CPU priority, while the host's tests run
+# (those spend a third of their time waiting on browsers, Ray, compilers and emulators).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
 # Every step's wall time, printed when the script ends (scripts/phases.sh).
 . scripts/phases.sh
-trap phase_summary EXIT
+# Background jobs (bg_start, bg_wait): their output goes to a log, printed when they are
+# waited for; one that failed ends the run there. A step that fails ends the run, and the jobs
+# still running end with it (the EXIT trap).
+kill_tree() {
+    local child
+    for child in $(cat "/proc/$1/task/$1/children" 2>/dev/null); do
+        kill_tree "$child"
+    done
+    kill "$1" 2>/dev/null || true
+}
+stop_background() {
+    local job
+    for job in $(jobs -p); do
+        kill_tree "$job"
+    done
+}
+trap 'stop_background; phase_summary' EXIT
+declare -A bg_pids=()
+# bg_start NAME NICENESS COMMAND...: COMMAND in the background as phase NAME, at that niceness.
+bg_start() {
+    local name=$1 niceness=$2
+    shift 2
+    (
+        trap - EXIT
+        renice -n "$niceness" -p "$BASHPID" >/dev/null || true
+        phase_name='' phase_prefix="background: "
+        phase "$name"
+        "$@"
+        phase_end
+    ) >"$(bg_log "$name")" 2>&1 &
+    bg_pids[$name]=$!
+}
+bg_log() {
+    echo "${CARGO_TARGET_DIR:-target}/background-$(echo "$1" | tr -c 'a-zA-Z0-9\n' '-' | cut -c1-40).log"
+}
+# bg_wait NAME: waits for the job, prints its output, and stops the run if it failed.
+bg_wait() {
+    local name=$1 status=0
+    [ -n "${bg_pids[$name]:-}" ] || return 0
+    phase "waiting for: $name"
+    wait "${bg_pids[$name]}" || status=$?
+    unset "bg_pids[$name]"
+    sed 's/^/   | /' "$(bg_log "$name")"
+    [ "$status" -eq 0 ] || { echo "background step failed ($status): $name" >&2; exit "$status"; }
+}
 
 # A one-off build (CI) gains nothing from incremental compilation and its ~0.8 GB of state, nor
 # from line tables (~15 MB in each of the ~45 test and example binaries): a CI machine's disk is
@@ -72,7 +118,7 @@ skip_summary() {
 start_tests() {
     mkdir -p "$(dirname "$skips")"
     : >"$skips"
-    trap 'phase_summary; skip_summary' EXIT
+    trap 'stop_background; phase_summary; skip_summary' EXIT
 }
 
 # x86_64 Linux builds link through zig against glibc 2.28's symbol versions (scripts/zig-cc.sh,
@@ -107,23 +153,10 @@ fi
 #    output is printed when they are waited for.
 . scripts/test-tools.sh rust
 use_glibc_228_linker
-tools_log="${CARGO_TARGET_DIR:-target}/test-tools.log"
-(
-    trap - EXIT
-    phase_name='' phase_prefix="background: "
+install_packages() {
     . scripts/test-tools.sh packages
-    phase_end
-) >"$tools_log" 2>&1 &
-tools_job=$!
-wait_for_tools() {
-    [ -n "$tools_job" ] || return 0
-    phase "waiting for the installs (scripts/test-tools.sh)"
-    local status=0
-    wait "$tools_job" || status=$?
-    tools_job=
-    sed 's/^/   | /' "$tools_log"
-    [ "$status" -eq 0 ] || { echo "scripts/test-tools.sh failed ($status)" >&2; exit "$status"; }
 }
+bg_start "installs (scripts/test-tools.sh)" 0 install_packages
 
 phase "format"
 cargo fmt --check
@@ -163,23 +196,29 @@ phase "build: host, every target, linted (cargo test --no-run; --benches)"
 # --example` does; the benchmarks are built as the smoke phase runs them.
 cargo test --features testing --no-run
 cargo test --features testing --no-run --benches
-# The API docs: every intra-doc link resolves and no public item's docs point at a private one.
-phase "docs: cargo doc, warnings denied"
-RUSTDOCFLAGS="-D warnings" cargo doc --no-deps --features testing
 
-# 3. The web page (docs/WEB.md, tests/web.rs): troupe-web built for wasm32 into web/pkg (linted
+# The joins below need the installs: the cross linkers, Wine and qemu, the browsers.
+bg_wait "installs (scripts/test-tools.sh)"
+
+# 3. In the background, at the lowest CPU priority, while the host's tests run in front: the web
+#    page and the other platforms' builds. Neither shares a cargo lock with the host's builds
+#    (the web page has its own target folder; the cross builds are `release`, the host's `dev`).
+#
+#    The web page (docs/WEB.md, tests/web.rs): troupe-web built for wasm32 into web/pkg (linted
 #    as it compiles), with the pinned wasm-bindgen-cli, which scripts/web.sh installs once.
-phase "build: web page (scripts/web.sh)"
-scripts/web.sh
-ci_discard target/web-build
+build_web() {
+    scripts/web.sh
+    ci_discard target/web-build
+}
+bg_start "build: web page (scripts/web.sh)" 10 build_web
 
-wait_for_tools
-
-# 4. The other platforms (docs/PLATFORMS.md): Windows x64 cross-built with MinGW-w64 and run
+#    The other platforms (docs/PLATFORMS.md): Windows x64 cross-built with MinGW-w64 and run
 #    under Wine, Linux arm64 cross-built and run under qemu-user. Optimised, because emulated
 #    unoptimised code is slow; the unit and golden tests and the library tests/platforms.rs
 #    loads, both targets in one cargo run (linted: the code only Windows compiles,
-#    src/shared/paths.rs and the bundle loader's file checks, is checked here).
+#    src/shared/paths.rs and the bundle loader's file checks, is checked here). Built with
+#    `--cfg troupe_emulated_tests`, which leaves out the dev-dependencies those tests do not use
+#    (Cargo.toml); exported for the whole run, so the platform tests' own builds find it built.
 cross_targets="x86_64-pc-windows-gnu aarch64-unknown-linux-gnu"
 android=aarch64-linux-android
 sysroot="$(rustc --print sysroot)"
@@ -189,6 +228,7 @@ for triple in $cross_targets; do
     [ "$triple" = aarch64-unknown-linux-gnu ] && runner_tool=qemu-aarch64
     if [ -d "$sysroot/lib/rustlib/$triple" ] && command -v "$runner_tool" >/dev/null 2>&1; then
         cross_ready+=("$triple")
+        export "CARGO_TARGET_$(echo "$triple" | tr 'a-z-' 'A-Z_')_RUSTFLAGS=--cfg troupe_emulated_tests"
     elif [ -n "${CI:-}" ]; then
         echo "the Rust target $triple or $runner_tool is missing and CI is set" >&2
         exit 1
@@ -197,12 +237,16 @@ for triple in $cross_targets; do
             "the Rust target or $runner_tool is not installed" >>"$skips"
     fi
 done
+cross_build=""
 if [ "${#cross_ready[@]}" -gt 0 ]; then
-    phase "build: ${cross_ready[*]} (release, linted)"
-    cargo test --release --features testing "${cross_ready[@]/#/--target=}" --lib --test golden --no-run
+    cross_build="build: ${cross_ready[*]} (release, linted)"
+    bg_start "$cross_build" 19 \
+        cargo test --release --features testing "${cross_ready[@]/#/--target=}" --lib --test golden --no-run
 fi
-# Android: no NDK can be had from the registries, so the library is not linked; every crate is
-# type-checked for it, tract's NEON assembly assembled by the Linux arm64 GNU assembler.
+
+# 4. In front: the Android check, the API docs, then the host's tests.
+#    Android: no NDK can be had from the registries, so the library is not linked; every crate is
+#    type-checked for it, tract's NEON assembly assembled by the Linux arm64 GNU assembler.
 phase "build: cargo check --target $android"
 if [ -d "$sysroot/lib/rustlib/$android" ] && command -v aarch64-linux-gnu-gcc >/dev/null 2>&1; then
     CC_aarch64_linux_android=aarch64-linux-gnu-gcc AR_aarch64_linux_android=aarch64-linux-gnu-ar \
@@ -216,18 +260,22 @@ else
         "the Rust target or aarch64-linux-gnu-gcc is not installed" >>"$skips"
 fi
 
-# 5. The tests, on the builds above.
-phase "tests: run (cargo test)"
-cargo_test_timed --features testing
-ci_discard target/blender
+#    The API docs: every intra-doc link resolves and no public item's docs point at a private one.
+phase "docs: cargo doc, warnings denied"
+RUSTDOCFLAGS="-D warnings" cargo doc --no-deps --features testing
 
-echo "== other platforms: the unit and golden parity tests under Wine and qemu (docs/PLATFORMS.md)"
-for triple in "${cross_ready[@]}"; do
-    phase "tests: cargo test --target $triple (Wine or qemu)"
-    cargo test --release --target "$triple" --features testing --lib --test golden
-    ci_discard "target/$triple"
+#    Every test binary but the two that need a background build (tests/web.rs and
+#    tests/platforms.rs, run once it is done), then the documentation's code samples.
+host_tests=()
+for file in tests/*.rs; do
+    name=$(basename "$file" .rs)
+    case "$name" in web | platforms) ;; *) host_tests+=("--test=$name") ;; esac
 done
-ci_discard target/wine
+phase "tests: run (cargo test), but for the web page's and the other platforms'"
+cargo_test_timed --features testing --lib "${host_tests[@]}"
+phase "tests: documentation samples (cargo test --doc)"
+cargo_test_timed --features testing --doc
+ci_discard target/blender
 
 phase "smoke: streaming and magnet demos"
 cargo run --features testing --example stream -- --frames 120 --tick 3 --out target/ci-reactor.npy --gltf target/ci-reactor.glb
@@ -238,3 +286,21 @@ phase "smoke: benchmarks (each once, tiny bundle; speed is not checked here)"
 # (`cargo bench` would build everything again, optimised, for no check it adds).
 cargo test --features testing --bench step
 cargo test --features testing --bench graph_rows
+
+# 5. The tests that waited for a background build.
+bg_wait "build: web page (scripts/web.sh)"
+phase "tests: the web page (cargo test --test web)"
+cargo_test_timed --features testing --test web
+
+if [ -n "$cross_build" ]; then
+    bg_wait "$cross_build"
+    phase "tests: the other platforms' libraries (cargo test --test platforms)"
+    cargo_test_timed --features testing --test platforms
+    echo "== other platforms: the unit and golden parity tests under Wine and qemu (docs/PLATFORMS.md)"
+    for triple in "${cross_ready[@]}"; do
+        phase "tests: cargo test --target $triple (Wine or qemu)"
+        cargo test --release --target "$triple" --features testing --lib --test golden
+        ci_discard "target/$triple"
+    done
+    ci_discard target/wine
+fi
