@@ -10,6 +10,11 @@
 //! float, double, void): a parameter added, dropped or of another width, or a wrong return
 //! type, would otherwise pass every call through the wrong registers and corrupt memory
 //! silently. C++ compiles against the header, so its compiler checks it.
+//!
+//! The structs Python and C# declare themselves are checked against the C compiler's layout
+//! of the header's (size, and every field's offset and width; `struct layouts` below).
+
+mod common;
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::fmt;
@@ -606,4 +611,299 @@ fn python_class(e: &str, aliases: &BTreeMap<String, String>) -> Result<Abi, Stri
             None => return unknown(),
         },
     })
+}
+
+// ---- struct layouts ----
+//
+// A struct a binding declares itself (Python's ctypes classes, C#'s `[StructLayout]` structs)
+// is laid out by that language's rules, not by the C compiler's: a field in the wrong place or
+// of the wrong width would pass every call a corrupted struct without any error. So each mirror
+// is compared with the C compiler's layout of the header's struct, field by field, from the
+// real `cc`, `ctypes` and Mono. C++ includes the header, so its compiler lays out the C structs.
+
+/// A struct's layout: its size and its leaf fields (nested structs flattened, an array one
+/// field), each as (name, offset, size) in bytes, by offset.
+#[derive(Debug, Default)]
+struct Layout {
+    size: usize,
+    fields: Vec<(String, usize, usize)>,
+}
+
+/// Layouts from `S <struct> <size>` and `F <struct> <field> <offset> <size>` lines; others are
+/// left alone.
+fn parse_layouts(text: &str) -> BTreeMap<String, Layout> {
+    let mut layouts: BTreeMap<String, Layout> = BTreeMap::new();
+    for line in text.lines() {
+        let words: Vec<&str> = line.split_whitespace().collect();
+        let number = |i: usize| -> usize { words[i].parse().expect(line) };
+        match words.as_slice() {
+            ["S", name, _] => layouts.entry(name.to_string()).or_default().size = number(2),
+            ["F", name, field, _, _] => layouts.entry(name.to_string()).or_default().fields.push((
+                field.to_string(),
+                number(3),
+                number(4),
+            )),
+            _ => {}
+        }
+    }
+    for layout in layouts.values_mut() {
+        layout.fields.sort_by_key(|f| f.1);
+    }
+    layouts
+}
+
+/// The header's struct definitions: each struct's members as (type, name), arrays by name.
+fn header_structs() -> BTreeMap<String, Vec<(String, String)>> {
+    let header = read("include/troupe.h");
+    let comments = Regex::new(r"(?s)/\*.*?\*/|//[^\n]*").unwrap();
+    let header = comments.replace_all(&header, "");
+    let definition = Regex::new(r"(?s)typedef struct (\w+) \{(.*?)\} (\w+);").unwrap();
+    let member = Regex::new(r"^(.*?)(\w+)\s*(\[[^\]]*\])?$").unwrap();
+    let mut structs = BTreeMap::new();
+    for c in definition.captures_iter(&header) {
+        assert_eq!(c[1], c[3], "typedef name");
+        let members = c[2]
+            .split(';')
+            .map(|m| m.split_whitespace().collect::<Vec<_>>().join(" "))
+            .filter(|m| !m.is_empty())
+            .map(|m| {
+                let parts = member
+                    .captures(&m)
+                    .unwrap_or_else(|| panic!("member `{m}`"));
+                (parts[1].trim().to_owned(), parts[2].to_owned())
+            })
+            .collect();
+        structs.insert(c[1].to_owned(), members);
+    }
+    assert!(
+        structs.len() >= 10,
+        "{} structs in the header",
+        structs.len()
+    );
+    structs
+}
+
+/// The C compiler's layout of every struct of the header: a program that includes it prints
+/// each one's size and every leaf's `offsetof` and `sizeof`.
+fn c_layouts() -> BTreeMap<String, Layout> {
+    fn leaves(
+        structs: &BTreeMap<String, Vec<(String, String)>>,
+        name: &str,
+        path: &str,
+        out: &mut Vec<(String, String)>,
+    ) {
+        for (ty, field) in &structs[name] {
+            let path = format!("{path}{field}");
+            let nested = ty.trim_start_matches("struct ").trim();
+            if !ty.contains('*') && structs.contains_key(nested) {
+                leaves(structs, nested, &format!("{path}."), out);
+            } else {
+                out.push((field.clone(), path));
+            }
+        }
+    }
+    let structs = header_structs();
+    let mut program = String::from(
+        "#include <stddef.h>\n#include <stdio.h>\n#include \"troupe.h\"\nint main(void) {\n",
+    );
+    for name in structs.keys() {
+        program += &format!("    printf(\"S {name} %zu\\n\", sizeof({name}));\n");
+        let mut fields = Vec::new();
+        leaves(&structs, name, "", &mut fields);
+        for (field, path) in fields {
+            program += &format!(
+                "    printf(\"F {name} {field} %zu %zu\\n\", offsetof({name}, {path}), \
+                 sizeof((({name} *)0)->{path}));\n"
+            );
+        }
+    }
+    program += "    return 0;\n}\n";
+    let scratch = tempfile::tempdir().unwrap();
+    let source = scratch.path().join("layouts.c");
+    let exe = scratch.path().join("layouts");
+    std::fs::write(&source, program).unwrap();
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    common::run_ok(
+        std::process::Command::new("cc")
+            .args(["-std=c11", "-Wall", "-Werror", "-I"])
+            .arg(root.join("include"))
+            .arg("-o")
+            .arg(&exe)
+            .arg(&source),
+    );
+    let out = common::run_ok(&mut std::process::Command::new(&exe));
+    let layouts = parse_layouts(&common::output_text(&out));
+    assert_eq!(layouts.len(), structs.len(), "every header struct laid out");
+    layouts
+}
+
+/// Letters and digits, lower case: `origin_x` and C#'s `OriginX` name one field.
+fn plain(name: &str) -> String {
+    name.chars()
+        .filter(char::is_ascii_alphanumeric)
+        .map(|c| c.to_ascii_lowercase())
+        .collect()
+}
+
+/// Where `mirror` (a binding's struct) is not laid out as `c` (the header's): sizes differ, or
+/// a C field is not covered exactly, from its first byte to its last, by binding fields whose
+/// names begin with its name (an array may be mirrored by one field per element, as C#'s
+/// `Placement` mirrors `heading[4]` with `HeadingW`..`HeadingZ`), or a binding field lies
+/// outside every C field.
+fn layout_mismatches(what: &str, mirror: &Layout, c: &Layout) -> Vec<String> {
+    let mut problems = Vec::new();
+    if mirror.size != c.size {
+        problems.push(format!(
+            "{what}: {} bytes, the header's {}",
+            mirror.size, c.size
+        ));
+    }
+    let mut used = vec![false; mirror.fields.len()];
+    for (name, offset, size) in &c.fields {
+        let mut end = *offset;
+        for (i, (field, at, bytes)) in mirror.fields.iter().enumerate() {
+            if *at < *offset || *at >= offset + size {
+                continue;
+            }
+            used[i] = true;
+            if *at != end || !plain(field).starts_with(&plain(name)) {
+                end = usize::MAX;
+                break;
+            }
+            end += bytes;
+        }
+        if end != offset + size {
+            let found: Vec<String> = mirror
+                .fields
+                .iter()
+                .filter(|(_, at, _)| *at >= *offset && *at < offset + size)
+                .map(|(f, at, b)| format!("{f} at {at} ({b} bytes)"))
+                .collect();
+            problems.push(format!(
+                "{what}: the header's `{name}` is {size} bytes at {offset}; the binding has {}",
+                if found.is_empty() {
+                    "nothing there".to_owned()
+                } else {
+                    found.join(", ")
+                }
+            ));
+        }
+    }
+    for ((field, at, bytes), used) in mirror.fields.iter().zip(used) {
+        if !used {
+            problems.push(format!(
+                "{what}: `{field}` ({bytes} bytes at {at}) lies outside every field of the header's"
+            ));
+        }
+    }
+    problems
+}
+
+/// Compares each (binding struct, C struct) pair; panics with every mismatch, and prints which
+/// header structs the binding mirrors.
+fn check_mirrors(
+    language: &str,
+    mirrors: &BTreeMap<String, String>,
+    layouts: &BTreeMap<String, Layout>,
+) {
+    let c = c_layouts();
+    let mut problems = Vec::new();
+    for (binding, header) in mirrors {
+        let what = format!("{language} `{binding}` (mirror of `{header}`)");
+        match (layouts.get(binding), c.get(header)) {
+            (Some(mirror), Some(c)) => problems.extend(layout_mismatches(&what, mirror, c)),
+            (None, _) => problems.push(format!("{what}: no layout was printed for it")),
+            (_, None) => problems.push(format!("{what}: the header has no such struct")),
+        }
+    }
+    assert!(problems.is_empty(), "{}", problems.join("\n"));
+    let mirrored: BTreeSet<&String> = mirrors.values().collect();
+    let unmirrored: Vec<&String> = c.keys().filter(|k| !mirrored.contains(k)).collect();
+    println!(
+        "{language}: {} of the header's {} structs mirrored, each laid out as the C compiler \
+         lays it out; not mirrored: {unmirrored:?}",
+        mirrored.len(),
+        c.len()
+    );
+}
+
+#[test]
+fn python_structs_have_the_header_layouts() {
+    let (ok, out) = common::run_python(
+        &[
+            "tests/python/struct_layouts.py",
+            "bindings/python/troupe/_native.py",
+        ],
+        &[],
+    );
+    assert!(ok, "{out}");
+    let mut mirrors = BTreeMap::new();
+    for line in out.lines() {
+        if let ["M", class, header] = line.split_whitespace().collect::<Vec<_>>().as_slice() {
+            assert_ne!(
+                *header, "?",
+                "Python's `{class}` is a ctypes struct whose docstring names no header struct \
+                 (\"Mirror of `troupe_...`\")"
+            );
+            mirrors.insert(class.to_string(), header.to_string());
+        }
+    }
+    assert!(mirrors.len() >= 10, "{out}");
+    check_mirrors("Python", &mirrors, &parse_layouts(&out));
+}
+
+#[test]
+fn csharp_structs_have_the_header_layouts() {
+    let test = "csharp_structs_have_the_header_layouts";
+    if !common::tools_or_skip(test, &["mcs", "mono"], "mono-mcs mono-runtime") {
+        return;
+    }
+    // Each struct whose doc comment says "Mirror of <c>troupe_...</c>".
+    let source = read("bindings/csharp/Troupe.cs");
+    let declaration = Regex::new(r"^\s*(?:public|internal) struct (\w+)").unwrap();
+    let named = Regex::new(r"[Mm]irror of\s+(?:///\s*)?<c>(troupe_\w+)</c>").unwrap();
+    let mut mirrors = BTreeMap::new();
+    let mut doc = String::new();
+    for line in source.lines() {
+        let text = line.trim_start();
+        if text.starts_with("///") {
+            doc += text;
+            doc.push(' ');
+        } else if let Some(c) = declaration.captures(line) {
+            if let Some(header) = named.captures(&doc) {
+                mirrors.insert(c[1].to_owned(), header[1].to_owned());
+            }
+            doc.clear();
+        } else if !text.starts_with('[') {
+            doc.clear();
+        }
+    }
+    assert!(mirrors.len() >= 10, "{mirrors:?}");
+
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let scratch = tempfile::tempdir().unwrap();
+    let exe = scratch.path().join("layouts.exe");
+    common::run_ok(
+        std::process::Command::new("mcs")
+            .arg("-warnaserror")
+            .arg(format!("-out:{}", exe.display()))
+            .arg(root.join("bindings/csharp/Troupe.cs"))
+            .arg(root.join("bindings/csharp/tests/Layouts.cs")),
+    );
+    let out = common::output_text(&common::run_ok(
+        std::process::Command::new("mono")
+            .arg(&exe)
+            .args(mirrors.keys()),
+    ));
+    // Every struct a P/Invoke declaration passes must be one compared here.
+    for line in out.lines() {
+        if let ["P", name] = line.split_whitespace().collect::<Vec<_>>().as_slice() {
+            assert!(
+                mirrors.contains_key(*name),
+                "C#'s `{name}` crosses to C in a [DllImport] declaration but its doc comment \
+                 names no header struct (\"Mirror of <c>troupe_...</c>\")"
+            );
+        }
+    }
+    check_mirrors("C#", &mirrors, &parse_layouts(&out));
 }

@@ -1514,10 +1514,11 @@ namespace Troupe
         VariancePreserving = 4,
     }
 
-    /// <summary>Where a clip's canonical frame sits in the caller's world (troupe_placement):
-    /// the floor height, the first frame's root x and z (metres, Y up) and the turn about +Y,
-    /// a unit quaternion, that makes frame 0 face +Z. A plain value: pass it back to put motion
-    /// where the caller's was, or a second person in the first one's frame.</summary>
+    /// <summary>Where a clip's canonical frame sits in the caller's world (mirror of
+    /// <c>troupe_placement</c>): the floor height, the first frame's root x and z (metres, Y up)
+    /// and the turn about +Y, a unit quaternion, that makes frame 0 face +Z. A plain value: pass
+    /// it back to put motion where the caller's was, or a second person in the first one's
+    /// frame.</summary>
     [StructLayout(LayoutKind.Sequential)]
     public struct Placement
     {
@@ -2285,6 +2286,7 @@ namespace Troupe
         internal const int Joints = 22;
         internal const uint AbiVersion = 1;
 
+        /// <summary>Mirror of <c>troupe_session_options</c>.</summary>
         [StructLayout(LayoutKind.Sequential)]
         internal struct SessionOptionsC
         {
@@ -2297,6 +2299,7 @@ namespace Troupe
             public uint reserved;
         }
 
+        /// <summary>Mirror of <c>troupe_joints_format</c>.</summary>
         [StructLayout(LayoutKind.Sequential)]
         internal struct JointsFormatC
         {
@@ -2308,6 +2311,7 @@ namespace Troupe
             public uint reserved;
         }
 
+        /// <summary>Mirror of <c>troupe_pose_buffers</c>.</summary>
         [StructLayout(LayoutKind.Sequential)]
         internal struct PoseBuffersC
         {
@@ -2374,6 +2378,7 @@ namespace Troupe
         [DllImport(Lib, CallingConvention = CallingConvention.Cdecl)] internal static extern int troupe_session_set_cfg_scale(SessionHandle session, float scale);
         [DllImport(Lib, CallingConvention = CallingConvention.Cdecl)] internal static extern int troupe_session_set_prompt(SessionHandle session, byte[] prompt);
         [DllImport(Lib, CallingConvention = CallingConvention.Cdecl)] internal static extern int troupe_session_output_frames(SessionHandle session, UIntPtr frames, out UIntPtr n);
+        /// <summary>Mirror of <c>troupe_arflow_options</c>.</summary>
         [StructLayout(LayoutKind.Sequential)]
         internal struct ArflowOptionsC
         {
@@ -2388,6 +2393,7 @@ namespace Troupe
             public ulong seed;
         }
 
+        /// <summary>Mirror of <c>troupe_armflow_clip_options</c>.</summary>
         [StructLayout(LayoutKind.Sequential)]
         internal struct ClipOptionsC
         {
@@ -2427,6 +2433,7 @@ namespace Troupe
         [DllImport(Lib, CallingConvention = CallingConvention.Cdecl)] internal static extern int troupe_rig_fbx_write(byte[] path, RigHandle rig, [In] float[] positions, UIntPtr frames, ref JointsFormatC format, uint units, uint flags);
 
         // ---- limits, logging, progress, budgets, errors ----
+        /// <summary>Mirror of <c>troupe_limits</c> (its <c>values</c> flattened).</summary>
         [StructLayout(LayoutKind.Sequential)]
         internal struct LimitsC
         {
@@ -2450,6 +2457,7 @@ namespace Troupe
             public ulong max_compute_threads;
         }
 
+        /// <summary>Mirror of <c>troupe_call_budget</c>.</summary>
         [StructLayout(LayoutKind.Sequential)]
         internal struct CallBudgetC
         {
@@ -2503,6 +2511,7 @@ namespace Troupe
         [DllImport(Lib, CallingConvention = CallingConvention.Cdecl)] internal static extern int troupe_viewer_write(byte[] htmlPath, byte[] gifPath, [In] float[] positions, UIntPtr people, UIntPtr frames, ref JointsFormatC format, IntPtr[] names, byte[] title);
         [DllImport(Lib, CallingConvention = CallingConvention.Cdecl)] internal static extern int troupe_session_joints_placement(SessionHandle session, out Placement placement);
 
+        /// <summary>Mirror of <c>troupe_person_clip</c>.</summary>
         [StructLayout(LayoutKind.Sequential)]
         internal struct PersonClipC
         {
@@ -2516,6 +2525,7 @@ namespace Troupe
         [DllImport(Lib, CallingConvention = CallingConvention.Cdecl)] internal static extern int troupe_gltf_write_people(byte[] path, IntPtr noRig, [In] PersonClipC[] people, UIntPtr nPeople, ref JointsFormatC format, uint flags);
 
         // ---- ARMFlow ----
+        /// <summary>Mirror of <c>troupe_armflow_session_options</c>.</summary>
         [StructLayout(LayoutKind.Sequential)]
         internal struct ArmflowSessionOptionsC
         {
@@ -2535,6 +2545,7 @@ namespace Troupe
         // ---- UMF ----
         internal const int MaxStages = 8;
 
+        /// <summary>Mirror of <c>troupe_group_options</c>.</summary>
         [StructLayout(LayoutKind.Sequential)]
         internal struct GroupOptionsC
         {
@@ -2549,6 +2560,7 @@ namespace Troupe
             [MarshalAs(UnmanagedType.ByValArray, SizeConst = MaxStages)] public uint[] stage_steps;
         }
 
+        /// <summary>Mirror of <c>troupe_group_noise</c>.</summary>
         [StructLayout(LayoutKind.Sequential)]
         internal struct GroupNoiseC
         {
@@ -2570,6 +2582,7 @@ namespace Troupe
         // ---- MAGNet ----
         internal const int MaxKeyframes = 8;
 
+        /// <summary>Mirror of <c>troupe_magnet_options</c>.</summary>
         [StructLayout(LayoutKind.Sequential)]
         internal struct MagnetOptionsC
         {
