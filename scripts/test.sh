@@ -21,8 +21,8 @@
 # tests' build asks for, so theirs finds it built; the Windows and arm64 libraries the platform
 # tests load are the ones their unit and golden tests were built with, both targets in one
 # cargo run; the tool installs download while the host build compiles; the web page and the
-# cross builds compile in the background, at the lowest CPU priority, while the host's tests run
-# (those spend a third of their time waiting on browsers, Ray, compilers and emulators).
+# cross builds compile in the background, at a low CPU priority, while the host's tests run
+# (which leave part of the two cores idle, waiting on browsers, Ray, compilers and emulators).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -45,11 +45,13 @@ stop_background() {
     done
 }
 trap 'stop_background; phase_summary' EXIT
-declare -A bg_pids=()
+declare -A bg_pids=() bg_logs=()
 # bg_start NAME NICENESS COMMAND...: COMMAND in the background as phase NAME, at that niceness.
 bg_start() {
     local name=$1 niceness=$2
     shift 2
+    bg_logs[$name]="${CARGO_TARGET_DIR:-target}/background-$((${#bg_logs[@]} + 1))-$(echo "$name" |
+        tr -c 'a-zA-Z0-9\n' '-' | cut -c1-40).log"
     (
         trap - EXIT
         renice -n "$niceness" -p "$BASHPID" >/dev/null || true
@@ -57,11 +59,8 @@ bg_start() {
         phase "$name"
         "$@"
         phase_end
-    ) >"$(bg_log "$name")" 2>&1 &
+    ) >"${bg_logs[$name]}" 2>&1 &
     bg_pids[$name]=$!
-}
-bg_log() {
-    echo "${CARGO_TARGET_DIR:-target}/background-$(echo "$1" | tr -c 'a-zA-Z0-9\n' '-' | cut -c1-40).log"
 }
 # bg_wait NAME: waits for the job, prints its output, and stops the run if it failed.
 bg_wait() {
@@ -70,7 +69,7 @@ bg_wait() {
     phase "waiting for: $name"
     wait "${bg_pids[$name]}" || status=$?
     unset "bg_pids[$name]"
-    sed 's/^/   | /' "$(bg_log "$name")"
+    sed 's/^/   | /' "${bg_logs[$name]}"
     [ "$status" -eq 0 ] || { echo "background step failed ($status): $name" >&2; exit "$status"; }
 }
 
@@ -294,12 +293,21 @@ cargo_test_timed --features testing --test web
 
 if [ -n "$cross_build" ]; then
     bg_wait "$cross_build"
+    # The three emulated runs at once: each waits on Wine or qemu more than it computes, and
+    # they share nothing but the Wine prefix, whose creation scripts/platform-run.sh locks. The
+    # unit and golden parity tests under Wine and qemu (docs/PLATFORMS.md) in the background,
+    # the C programs and installs tests/platforms.rs runs against the same libraries in front.
+    emulated=()
+    for triple in "${cross_ready[@]}"; do
+        emulated+=("tests: cargo test --target $triple (Wine or qemu)")
+        bg_start "${emulated[-1]}" 0 cargo test --release --target "$triple" --features testing --lib --test golden
+    done
     phase "tests: the other platforms' libraries (cargo test --test platforms)"
     cargo_test_timed --features testing --test platforms
-    echo "== other platforms: the unit and golden parity tests under Wine and qemu (docs/PLATFORMS.md)"
+    for job in "${emulated[@]}"; do
+        bg_wait "$job"
+    done
     for triple in "${cross_ready[@]}"; do
-        phase "tests: cargo test --target $triple (Wine or qemu)"
-        cargo test --release --target "$triple" --features testing --lib --test golden
         ci_discard "target/$triple"
     done
     ci_discard target/wine
