@@ -8,7 +8,7 @@
 # Environment: TROUPE_WINE (the Wine loader; found on PATH or in /usr/lib/wine otherwise),
 # WINEPREFIX (default: target/wine, created on first use), WINEPATH (folders searched for
 # DLLs, e.g. the one holding troupe.dll), QEMU_LD_PREFIX (default: /usr/aarch64-linux-gnu,
-# Debian's arm64 C library for cross builds).
+# Debian's arm64 C library for cross builds), QEMU_CPU (default: neoverse-n1, below).
 set -euo pipefail
 root="$(cd "$(dirname "$0")/.." && pwd)"
 triple="$1"
@@ -56,6 +56,11 @@ aarch64-unknown-linux-gnu)
         exit 127
     fi
     export QEMU_LD_PREFIX="${QEMU_LD_PREFIX:-/usr/aarch64-linux-gnu}"
+    # An Arm Neoverse N1 (AWS Graviton2, Ampere Altra; the Cortex-A76 of phones is its sibling):
+    # NEON, no SVE or SME. qemu's default, `max`, offers SVE2 and SME, which tract then uses and
+    # qemu emulates one element at a time: the C clip test took over 10 minutes under `max` on a
+    # 2-core Xeon VM, 60 s as an N1.
+    export QEMU_CPU="${QEMU_CPU:-neoverse-n1}"
     exec qemu-aarch64 "$@"
     ;;
 *)
