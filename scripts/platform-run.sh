@@ -57,9 +57,9 @@ aarch64-unknown-linux-gnu)
     fi
     export QEMU_LD_PREFIX="${QEMU_LD_PREFIX:-/usr/aarch64-linux-gnu}"
     # An Arm Neoverse N1 (AWS Graviton2, Ampere Altra; the Cortex-A76 of phones is its sibling):
-    # NEON, no SVE or SME. qemu's default, `max`, offers SVE2 and SME, which tract then uses and
-    # qemu emulates one element at a time: the C clip test took over 10 minutes under `max` on a
-    # 2-core Xeon VM, 60 s as an N1.
+    # NEON, no SVE. Under qemu's default CPU, `max`, tract sees SVE2 and adds its SVE kernels
+    # (sve_mmm_f32_8x8, sve_mmv_f32_64x1) to those it may choose, and the C clip test took over
+    # 10 minutes on a 2-core Xeon VM: 60 s as an N1.
     export QEMU_CPU="${QEMU_CPU:-neoverse-n1}"
     exec qemu-aarch64 "$@"
     ;;
