@@ -199,7 +199,7 @@ cargo test --features testing --no-run --benches
 # The joins below need the installs: the cross linkers, Wine and qemu, the browsers.
 bg_wait "installs (scripts/test-tools.sh)"
 
-# 3. In the background, at the lowest CPU priority, while the host's tests run in front: the web
+# 3. In the background, at low CPU priority, while the host's tests run in front: the web
 #    page and the other platforms' builds. Neither shares a cargo lock with the host's builds
 #    (the web page has its own target folder; the cross builds are `release`, the host's `dev`).
 #

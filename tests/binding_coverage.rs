@@ -683,9 +683,16 @@ fn header_structs() -> BTreeMap<String, Vec<(String, String)>> {
     structs
 }
 
-/// The C compiler's layout of every struct of the header: a program that includes it prints
-/// each one's size and every leaf's `offsetof` and `sizeof`.
-fn c_layouts() -> BTreeMap<String, Layout> {
+/// The C compiler's layout of every struct of the header, compiled and run once per test
+/// binary (both languages' tests compare with it).
+fn c_layouts() -> &'static BTreeMap<String, Layout> {
+    static LAYOUTS: std::sync::OnceLock<BTreeMap<String, Layout>> = std::sync::OnceLock::new();
+    LAYOUTS.get_or_init(compile_c_layouts)
+}
+
+/// A program that includes the header prints each struct's size and every leaf's `offsetof`
+/// and `sizeof`.
+fn compile_c_layouts() -> BTreeMap<String, Layout> {
     fn leaves(
         structs: &BTreeMap<String, Vec<(String, String)>>,
         name: &str,
