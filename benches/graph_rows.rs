@@ -24,6 +24,11 @@
 //!     TROUPE_BENCH_CONCRETE=1 TROUPE_BENCH_BUNDLE=onnx/bundles/paper-interhuman \
 //!         TROUPE_BENCH_GRAPHS=text_encoder TROUPE_BENCH_BATCHES=1 cargo bench --bench graph_rows
 //!
+//! `TROUPE_BENCH_NODES=1` also prints, per graph and batch, where a call's time goes: the
+//! operations run, the time inside them, and the costliest kinds of operation, each timed around
+//! its evaluation as troupe runs it (the vector registers' upper halves cleared after each:
+//! `shared/vector_state.rs`).
+//!
 //! `cargo test --bench graph_rows` (the suite's smoke run) runs every graph once at batch 2.
 //! Prints one line per graph and batch: median ms per call and per row, and the ratio of the
 //! per-row cost to batch 1's (how much a crowd saves by batching that graph).
@@ -200,6 +205,9 @@ fn main() {
                 }
             };
             (0..warmup).for_each(|_| run());
+            if std::env::var_os("TROUPE_BENCH_NODES").is_some() {
+                node_profile(role, plans, &inputs, calls.max(50));
+            }
             let call = median_ms(run, calls);
             let row = call / batch as f64;
             let one = *batch_one.get_or_insert(row);
@@ -209,4 +217,56 @@ fn main() {
             );
         }
     }
+}
+
+/// Where one call's time goes, by kind of operation, averaged over `calls` calls of each plan.
+fn node_profile(
+    role: &str,
+    plans: &[Arc<TypedRunnableModel>],
+    inputs: &[TVec<TValue>],
+    calls: usize,
+) {
+    let mut by_kind: BTreeMap<String, (f64, usize)> = BTreeMap::new();
+    let mut nodes = 0;
+    for (plan, inputs) in plans.iter().zip(inputs) {
+        nodes += plan.order_without_consts().len();
+        for _ in 0..calls {
+            let mut state = plan.spawn().expect("a plan state");
+            state
+                .run_plan_with_eval(inputs.clone(), |context, op_state, node, input| {
+                    let started = Instant::now();
+                    let outputs =
+                        tract_onnx::tract_core::plan::eval(context, op_state, node, input);
+                    clear_upper_halves();
+                    let kind = by_kind.entry(node.op().name().to_string()).or_default();
+                    kind.0 += started.elapsed().as_secs_f64() * 1e3 / calls as f64;
+                    kind.1 += 1;
+                    outputs
+                })
+                .expect("the graph runs");
+        }
+    }
+    let total: f64 = by_kind.values().map(|(ms, _)| ms).sum();
+    let mut kinds: Vec<_> = by_kind.into_iter().collect();
+    kinds.sort_by(|a, b| b.1 .0.total_cmp(&a.1 .0));
+    println!("{role:>16}: {nodes} operations a call, {total:.3} ms inside them; the costliest:");
+    for (kind, (ms, count)) in kinds.iter().take(8) {
+        println!("{kind:>40}: {ms:8.3} ms ({} a call)", count / calls);
+    }
+}
+
+/// As troupe does after each operation (`shared/vector_state.rs`): `vzeroupper` where the CPU
+/// has AVX.
+fn clear_upper_halves() {
+    #[cfg(target_arch = "x86_64")]
+    if std::arch::is_x86_feature_detected!("avx") {
+        // SAFETY: the CPU has AVX, checked just above.
+        unsafe { zero_upper() }
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx")]
+unsafe fn zero_upper() {
+    std::arch::x86_64::_mm256_zeroupper();
 }

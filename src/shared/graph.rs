@@ -28,6 +28,7 @@ use crate::shared::panics;
 use crate::shared::progress;
 use crate::shared::threads::load_threads;
 use crate::shared::unit_axes;
+use crate::shared::vector_state;
 
 /// A loaded graph whose inputs and outputs are addressed in manifest order.
 #[derive(Debug)]
@@ -163,10 +164,21 @@ impl Graph {
             ordered[slot] = Some(value);
         }
         let ordered: TVec<TValue> = ordered.into_iter().flatten().collect();
-        let mut outputs = self.plan()?.run(ordered).map_err(|e| Error::Inference {
+        let inference = |e: TractError| Error::Inference {
             graph: self.role,
             message: format!("{e:#}"),
-        })?;
+        };
+        let mut state = self.plan()?.spawn().map_err(inference)?;
+        // Each operation starts with the vector registers' upper halves clean: tract's matrix
+        // kernels leave them dirty, which slows the SSE code after them on Intel CPUs
+        // (`shared/vector_state.rs`).
+        let mut outputs = state
+            .run_plan_with_eval(ordered, |context, op_state, node, inputs| {
+                let outputs = tract_onnx::tract_core::plan::eval(context, op_state, node, inputs);
+                vector_state::clear_upper_halves();
+                outputs
+            })
+            .map_err(inference)?;
         Ok(self
             .output_order
             .iter()

@@ -25,3 +25,4 @@ pub mod solver;
 pub(crate) mod text;
 pub(crate) mod threads;
 pub(crate) mod unit_axes;
+pub(crate) mod vector_state;
