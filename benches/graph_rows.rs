@@ -24,10 +24,10 @@
 //!     TROUPE_BENCH_CONCRETE=1 TROUPE_BENCH_BUNDLE=onnx/bundles/paper-interhuman \
 //!         TROUPE_BENCH_GRAPHS=text_encoder TROUPE_BENCH_BATCHES=1 cargo bench --bench graph_rows
 //!
+//! Each call runs as troupe runs its graphs: operation by operation, the vector registers' upper
+//! halves cleared after each (`troupe::evaluate_operation`, `shared/vector_state.rs`).
 //! `TROUPE_BENCH_NODES=1` also prints, per graph and batch, where a call's time goes: the
-//! operations run, the time inside them, and the costliest kinds of operation, each timed around
-//! its evaluation as troupe runs it (the vector registers' upper halves cleared after each:
-//! `shared/vector_state.rs`).
+//! operations run, the time inside them, and the costliest kinds of operation.
 //!
 //! `cargo test --bench graph_rows` (the suite's smoke run) runs every graph once at batch 2.
 //! Prints one line per graph and batch: median ms per call and per row, and the ratio of the
@@ -201,7 +201,11 @@ fn main() {
             };
             let run = || {
                 for (plan, inputs) in plans.iter().zip(&inputs) {
-                    plan.run(inputs.clone()).expect("the graph runs");
+                    plan.spawn()
+                        .and_then(|mut state| {
+                            state.run_plan_with_eval(inputs.clone(), troupe::evaluate_operation)
+                        })
+                        .expect("the graph runs");
                 }
             };
             (0..warmup).for_each(|_| run());
@@ -235,9 +239,7 @@ fn node_profile(
             state
                 .run_plan_with_eval(inputs.clone(), |context, op_state, node, input| {
                     let started = Instant::now();
-                    let outputs =
-                        tract_onnx::tract_core::plan::eval(context, op_state, node, input);
-                    clear_upper_halves();
+                    let outputs = troupe::evaluate_operation(context, op_state, node, input);
                     let kind = by_kind.entry(node.op().name().to_string()).or_default();
                     kind.0 += started.elapsed().as_secs_f64() * 1e3 / calls as f64;
                     kind.1 += 1;
@@ -253,20 +255,4 @@ fn node_profile(
     for (kind, (ms, count)) in kinds.iter().take(8) {
         println!("{kind:>40}: {ms:8.3} ms ({} a call)", count / calls);
     }
-}
-
-/// As troupe does after each operation (`shared/vector_state.rs`): `vzeroupper` where the CPU
-/// has AVX.
-fn clear_upper_halves() {
-    #[cfg(target_arch = "x86_64")]
-    if std::arch::is_x86_feature_detected!("avx") {
-        // SAFETY: the CPU has AVX, checked just above.
-        unsafe { zero_upper() }
-    }
-}
-
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx")]
-unsafe fn zero_upper() {
-    std::arch::x86_64::_mm256_zeroupper();
 }

@@ -15,6 +15,7 @@ use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex, OnceLock};
 
 use tract_onnx::prelude::*;
+use tract_onnx::tract_core::internal::{EvalContext, OpState};
 
 use crate::shared::bundle::BundleFiles;
 use crate::shared::clock::Stopwatch;
@@ -164,21 +165,10 @@ impl Graph {
             ordered[slot] = Some(value);
         }
         let ordered: TVec<TValue> = ordered.into_iter().flatten().collect();
-        let inference = |e: TractError| Error::Inference {
+        let mut outputs = run_plan(self.plan()?, ordered).map_err(|e| Error::Inference {
             graph: self.role,
             message: format!("{e:#}"),
-        };
-        let mut state = self.plan()?.spawn().map_err(inference)?;
-        // Each operation starts with the vector registers' upper halves clean: tract's matrix
-        // kernels leave them dirty, which slows the SSE code after them on Intel CPUs
-        // (`shared/vector_state.rs`).
-        let mut outputs = state
-            .run_plan_with_eval(ordered, |context, op_state, node, inputs| {
-                let outputs = tract_onnx::tract_core::plan::eval(context, op_state, node, inputs);
-                vector_state::clear_upper_halves();
-                outputs
-            })
-            .map_err(inference)?;
+        })?;
         Ok(self
             .output_order
             .iter()
@@ -214,6 +204,32 @@ impl Phases {
             .collect();
         parts.join(", ")
     }
+}
+
+/// Runs an optimised plan as troupe runs every graph: operation by operation, each through
+/// [`evaluate_operation`].
+pub(crate) fn run_plan(
+    plan: &Arc<TypedRunnableModel>,
+    inputs: TVec<TValue>,
+) -> TractResult<TVec<TValue>> {
+    plan.spawn()?.run_plan_with_eval(inputs, evaluate_operation)
+}
+
+/// Evaluates one operation of a plan as troupe does, for `SimpleState::run_plan_with_eval`:
+/// tract's own evaluation, then the vector registers' upper halves cleared, since tract's matrix
+/// kernels leave them dirty and that slows the SSE code after them on Intel CPUs
+/// (`shared/vector_state.rs`). Public for benchmarks that run graphs by hand as troupe runs them
+/// (`benches/graph_rows.rs`).
+#[doc(hidden)]
+pub fn evaluate_operation(
+    context: &EvalContext,
+    op_state: Option<&mut (dyn OpState + 'static)>,
+    node: &TypedNode,
+    inputs: TVec<TValue>,
+) -> TractResult<TVec<TValue>> {
+    let outputs = tract_onnx::tract_core::plan::eval(context, op_state, node, inputs);
+    vector_state::clear_upper_halves();
+    outputs
 }
 
 /// What troupe does to a graph tract has optimised, before running it (`shared/unit_axes.rs`):
