@@ -25,7 +25,7 @@
 //!         TROUPE_BENCH_GRAPHS=text_encoder TROUPE_BENCH_BATCHES=1 cargo bench --bench graph_rows
 //!
 //! Each call runs as troupe runs its graphs: operation by operation, the vector registers' upper
-//! halves cleared after each (`troupe::evaluate_operation`, `shared/vector_state.rs`).
+//! halves cleared after each (`troupe::run_plan`, `shared/vector_state.rs`).
 //! `TROUPE_BENCH_NODES=1` also prints, per graph and batch, where a call's time goes: the
 //! operations run, the time inside them, and the costliest kinds of operation.
 //!
@@ -201,11 +201,7 @@ fn main() {
             };
             let run = || {
                 for (plan, inputs) in plans.iter().zip(&inputs) {
-                    plan.spawn()
-                        .and_then(|mut state| {
-                            state.run_plan_with_eval(inputs.clone(), troupe::evaluate_operation)
-                        })
-                        .expect("the graph runs");
+                    troupe::run_plan(plan, inputs.clone()).expect("the graph runs");
                 }
             };
             (0..warmup).for_each(|_| run());

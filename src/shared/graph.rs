@@ -207,11 +207,10 @@ impl Phases {
 }
 
 /// Runs an optimised plan as troupe runs every graph: operation by operation, each through
-/// [`evaluate_operation`].
-pub(crate) fn run_plan(
-    plan: &Arc<TypedRunnableModel>,
-    inputs: TVec<TValue>,
-) -> TractResult<TVec<TValue>> {
+/// [`evaluate_operation`]. Public for benchmarks that run graphs by hand as troupe runs them
+/// (`benches/graph_rows.rs`).
+#[doc(hidden)]
+pub fn run_plan(plan: &Arc<TypedRunnableModel>, inputs: TVec<TValue>) -> TractResult<TVec<TValue>> {
     plan.spawn()?.run_plan_with_eval(inputs, evaluate_operation)
 }
 

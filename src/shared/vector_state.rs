@@ -6,8 +6,9 @@
 //! 128-bit SSE encodings, and on Intel cores an SSE instruction that runs while the upper halves
 //! are dirty pays for merging them. Measured on an Emerald Rapids Xeon (`docs/PERFORMANCE.md`,
 //! round four part six): `f32::sin` over 4,096 values took 1.09 ms after a tract product and
-//! 16 µs after `vzeroupper`. AMD's Zen cores do not pay this, which is why the same step ran
-//! three to four times slower per operation on the Intel machine than on an EPYC.
+//! 16 µs after `vzeroupper`. Clearing after each operation made that machine's demo step about
+//! a tenth faster; it does not explain most of why its operations cost three to four times
+//! what they cost on an AMD EPYC. No AMD CPU was measured with and without the clear.
 //!
 //! [`clear_upper_halves`] runs `vzeroupper` (which costs about a cycle) where the CPU has AVX.
 //! Every graph run calls it after each of its operations (`shared/graph.rs`).
