@@ -24,8 +24,8 @@
 //!     TROUPE_BENCH_CONCRETE=1 TROUPE_BENCH_BUNDLE=onnx/bundles/paper-interhuman \
 //!         TROUPE_BENCH_GRAPHS=text_encoder TROUPE_BENCH_BATCHES=1 cargo bench --bench graph_rows
 //!
-//! Each call runs as troupe runs its graphs: operation by operation, the vector registers' upper
-//! halves cleared after each (`troupe::run_plan`, `shared/vector_state.rs`).
+//! Each call runs as troupe runs its graphs: a run state reused, operation by operation, the vector
+//! registers' upper halves cleared after each (`troupe::PlanRunner`, `shared/vector_state.rs`).
 //! `TROUPE_BENCH_NODES=1` also prints, per graph and batch, where a call's time goes: the
 //! operations run, the time inside them, and the costliest kinds of operation.
 //!
@@ -199,9 +199,13 @@ fn main() {
             } else {
                 &symbolic_plans
             };
+            let runners: Vec<_> = plans
+                .iter()
+                .map(|plan| troupe::PlanRunner::new(plan.clone()).expect("a plan state"))
+                .collect();
             let run = || {
-                for (plan, inputs) in plans.iter().zip(&inputs) {
-                    troupe::run_plan(plan, inputs.clone()).expect("the graph runs");
+                for (runner, inputs) in runners.iter().zip(&inputs) {
+                    runner.run(inputs.clone()).expect("the graph runs");
                 }
             };
             (0..warmup).for_each(|_| run());

@@ -36,8 +36,9 @@ use crate::shared::vector_state;
 pub(crate) struct Graph {
     role: &'static str,
     file: std::path::PathBuf,
-    /// The optimised plan: set at load, or at the first call of a deferred graph.
-    plan: OnceLock<Arc<TypedRunnableModel>>,
+    /// The optimised plan and its idle run states: set at load, or at the first call of a
+    /// deferred graph.
+    plan: OnceLock<PlanRunner>,
     /// A deferred graph's checked model until its first call optimises it.
     deferred: Mutex<Option<TypedModel>>,
     /// For each manifest input, its position among the graph's inputs.
@@ -122,7 +123,7 @@ impl Graph {
     }
 
     /// The optimised plan, optimising a deferred graph once (other callers wait for it).
-    fn plan(&self) -> Result<&Arc<TypedRunnableModel>> {
+    fn plan(&self) -> Result<&PlanRunner> {
         if let Some(plan) = self.plan.get() {
             return Ok(plan);
         }
@@ -144,7 +145,7 @@ impl Graph {
                 .into_optimized()
                 .and_then(|mut m| {
                     finish_optimised(&mut m);
-                    m.into_runnable()
+                    PlanRunner::new(m.into_runnable()?)
                 })
                 .map_err(|e| bad(format!("cannot be optimised: {e:#}")))
         })
@@ -165,7 +166,7 @@ impl Graph {
             ordered[slot] = Some(value);
         }
         let ordered: TVec<TValue> = ordered.into_iter().flatten().collect();
-        let mut outputs = run_plan(self.plan()?, ordered).map_err(|e| Error::Inference {
+        let mut outputs = self.plan()?.run(ordered).map_err(|e| Error::Inference {
             graph: self.role,
             message: format!("{e:#}"),
         })?;
@@ -206,12 +207,65 @@ impl Phases {
     }
 }
 
-/// Runs an optimised plan as troupe runs every graph: operation by operation, each through
-/// [`evaluate_operation`]. Public for benchmarks that run graphs by hand as troupe runs them
-/// (`benches/graph_rows.rs`).
+/// An optimised plan and the run states of its earlier calls, run as troupe runs every graph:
+/// operation by operation, each through [`evaluate_operation`]. Public for benchmarks that run
+/// graphs by hand as troupe runs them (`benches/graph_rows.rs`).
+///
+/// A fresh tract run state costs a value slot per node and an inter-call state per operation,
+/// allocated and dropped again on every call: about 3 % of the demo model's token. So a call
+/// takes an idle state instead, of any earlier caller, and puts it back when the call succeeded;
+/// one that failed part-way is dropped, so no call sees another's leftovers. Only plans whose
+/// operations keep nothing between calls reuse states (tract's `Scan`, for one, keeps its
+/// position): troupe's graphs all do, and any other plan spawns a fresh state every call.
 #[doc(hidden)]
-pub fn run_plan(plan: &Arc<TypedRunnableModel>, inputs: TVec<TValue>) -> TractResult<TVec<TValue>> {
-    plan.spawn()?.run_plan_with_eval(inputs, evaluate_operation)
+#[derive(Debug)]
+pub struct PlanRunner {
+    plan: Arc<TypedRunnableModel>,
+    /// Whether states may be reused: no operation of the plan keeps an inter-call state.
+    reusable: bool,
+    /// States of finished calls, at most [`PlanRunner::IDLE_STATES`].
+    idle: Mutex<Vec<TypedSimpleState>>,
+}
+
+impl PlanRunner {
+    /// Idle states kept: one per caller running the plan at the same time, up to this many
+    /// (more concurrent callers than this spawn and drop states as before).
+    const IDLE_STATES: usize = 16;
+
+    /// A runner of `plan`.
+    pub fn new(plan: Arc<TypedRunnableModel>) -> TractResult<Self> {
+        let first = plan.spawn()?;
+        let reusable = first.op_states.iter().all(Option::is_none);
+        Ok(Self {
+            plan,
+            reusable,
+            idle: Mutex::new(if reusable { vec![first] } else { Vec::new() }),
+        })
+    }
+
+    /// The optimised plan.
+    pub fn plan(&self) -> &Arc<TypedRunnableModel> {
+        &self.plan
+    }
+
+    /// Runs the plan on `inputs` (in the plan's input order).
+    pub fn run(&self, inputs: TVec<TValue>) -> TractResult<TVec<TValue>> {
+        // A panic while the lock was held left the list whole: a push or a pop is one step.
+        let idle = || self.idle.lock().unwrap_or_else(|p| p.into_inner());
+        let taken = if self.reusable { idle().pop() } else { None };
+        let mut state = match taken {
+            Some(state) => state,
+            None => self.plan.spawn()?,
+        };
+        let outputs = state.run_plan_with_eval(inputs, evaluate_operation)?;
+        if self.reusable {
+            let mut idle = idle();
+            if idle.len() < Self::IDLE_STATES {
+                idle.push(state);
+            }
+        }
+        Ok(outputs)
+    }
 }
 
 /// Evaluates one operation of a plan as troupe does, for `SimpleState::run_plan_with_eval`:
