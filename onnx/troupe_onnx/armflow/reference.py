@@ -310,8 +310,9 @@ class VaeStep(nn.Module):
 
 class ChannelsLastVaeStep(VaeStep):
     """`VaeStep` written channels-last, as the bundle's step graphs are: every convolution one matrix product
-    over the rows of all streams and output frames (`[B·T_out, k·C_in] @ [k·C_in, C_out]`, taps
-    gathered by static slices), every group norm a layer norm over the channels of a group.
+    over the rows of all streams and output frames (`[B·T_out, k·C_in] @ [k·C_in, C_out]`, the
+    taps of every output frame gathered at once), every group norm a layer norm over the channels
+    of a group.
     Same function, same weights, same state (`[B, C, K]`); no per-stream convolution and no
     broadcast over a strided axis, which is what makes the channels-first graph slow in tract."""
 
@@ -325,9 +326,15 @@ class ChannelsLastVaeStep(VaeStep):
                 next_state.append(h[:, -c.left :, :].transpose(1, 2))
             k, s, d = c.kernel_size[0], c.stride[0], c.dilation[0]
             t_out = (h.shape[1] - (k - 1) * d - 1) // s + 1
-            taps = [h[:, i * d : i * d + (t_out - 1) * s + 1 : s, :] for i in range(k)]
-            w = c.weight.permute(0, 2, 1).reshape(c.out_channels, -1)  # tap-major, as `taps`
-            return F.linear(torch.cat(taps, dim=2) if k > 1 else taps[0], w, c.bias)
+            if k > 1 or s > 1:
+                # Every output frame's taps in one gather, frame-major then tap-major: row
+                # t * k + i is input frame t * s + i * d, so the reshape puts output t's taps
+                # side by side. One gather, not a slice per tap and a concatenation: tract
+                # splits a product whose input is a concatenation into a product per part.
+                frames = torch.tensor([t * s + i * d for t in range(t_out) for i in range(k)])
+                h = h.index_select(1, frames).reshape(-1, t_out, k * h.shape[2])
+            w = c.weight.permute(0, 2, 1).reshape(c.out_channels, -1)  # tap-major, as the gather
+            return F.linear(h, w, c.bias)
 
         def norm(n: FrameGroupNorm, h):  # per frame, over each group's channels
             width = n.weight.shape[0] // n.groups  # static sizes: the export keeps them constant
