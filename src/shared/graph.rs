@@ -1,6 +1,6 @@
 //! One ONNX graph of a bundle: loaded, checked against the manifest, optimised once, and run by
-//! any number of sessions at the same time (a tract plan is `Send + Sync`; each call gets its own
-//! scratch state).
+//! any number of sessions at the same time (a tract plan is `Send + Sync`; each call runs in a
+//! state of its own, an idle one left by an earlier call where the plan allows: [`PlanRunner`]).
 //!
 //! A graph few sessions need (the VAE windows, when a bundle also has per-token steps) may be
 //! *deferred*: it is read and checked at load like any other, so a bad file still fails the load,
@@ -691,4 +691,93 @@ pub(crate) fn read_f32<'a>(
         .try_as_plain_ram()
         .and_then(|v| v.as_slice::<f32>())
         .map_err(|e| fail(format!("output `{what}`: {e:#}")))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The committed tiny bundle's velocity graph, loaded as troupe loads it.
+    fn tiny_velocity() -> PlanRunner {
+        let path = concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/onnx/bundles/armflow-tiny/velocity.onnx"
+        );
+        let mut model = tract_onnx::onnx()
+            .model_for_path(path)
+            .and_then(|m| m.into_typed())
+            .and_then(|m| m.into_optimized())
+            .expect("the tiny velocity graph loads");
+        finish_optimised(&mut model);
+        PlanRunner::new(model.into_runnable().expect("a plan")).expect("a runner")
+    }
+
+    /// Inputs for every input of the plan, `rows` rows, values from `seed`.
+    fn inputs(runner: &PlanRunner, rows: usize, seed: f32) -> TVec<TValue> {
+        let model = runner.plan().model();
+        model
+            .input_outlets()
+            .expect("inputs")
+            .iter()
+            .map(|outlet| {
+                let fact = model.outlet_fact(*outlet).expect("a fact");
+                let shape: Vec<usize> = fact
+                    .shape
+                    .iter()
+                    .map(|d| d.as_i64().map_or(rows, |n| n as usize))
+                    .collect();
+                let values: Vec<f32> = (0..shape.iter().product::<usize>())
+                    .map(|i| (i as f32 * 0.37 + seed).sin())
+                    .collect();
+                f32_tensor(&shape, &values)
+            })
+            .collect()
+    }
+
+    fn fresh(runner: &PlanRunner, inputs: TVec<TValue>) -> TVec<TValue> {
+        let mut state = runner.plan().spawn().expect("a state");
+        state
+            .run_plan_with_eval(inputs, evaluate_operation)
+            .expect("the graph runs")
+    }
+
+    fn floats(value: &TValue) -> &[f32] {
+        read_f32("test", "output", value, value.shape()).expect("f32")
+    }
+
+    fn idle(runner: &PlanRunner) -> usize {
+        runner.idle.lock().expect("not poisoned").len()
+    }
+
+    #[test]
+    fn a_reused_state_gives_what_a_fresh_one_gives() {
+        let runner = tiny_velocity();
+        assert!(
+            runner.reusable,
+            "troupe's graphs keep no state between calls"
+        );
+        for (rows, seed) in [(2, 0.0), (3, 1.0), (2, 0.0), (1, 2.5)] {
+            let reused = runner.run(inputs(&runner, rows, seed)).expect("runs");
+            let expected = fresh(&runner, inputs(&runner, rows, seed));
+            assert_eq!(reused.len(), expected.len());
+            for (a, b) in reused.iter().zip(&expected) {
+                assert_eq!(a.shape(), b.shape());
+                assert_eq!(floats(a), floats(b), "{rows} rows, seed {seed}");
+            }
+            assert_eq!(idle(&runner), 1, "one caller at a time reuses one state");
+        }
+    }
+
+    #[test]
+    fn a_failed_call_drops_its_state_and_the_next_call_is_unaffected() {
+        let runner = tiny_velocity();
+        let mut wrong = inputs(&runner, 2, 0.0);
+        wrong[0] = f32_tensor(&[2, 3], &[0.0; 6]);
+        assert!(runner.run(wrong).is_err(), "a wrong width is refused");
+        assert_eq!(idle(&runner), 0, "the failed call's state is not kept");
+        let after = runner.run(inputs(&runner, 2, 0.5)).expect("runs");
+        let expected = fresh(&runner, inputs(&runner, 2, 0.5));
+        assert_eq!(floats(&after[0]), floats(&expected[0]));
+        assert_eq!(idle(&runner), 1);
+    }
 }
