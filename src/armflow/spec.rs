@@ -483,8 +483,9 @@ impl ArmFlowSpec {
 }
 
 /// The interface of a per-token VAE step: `input` then the declared `state_i` inputs (each
-/// `[B, channels, frames]`, one row per stream), `outputs` then a `next_state_i` of the same
-/// shape for each.
+/// `[B, frames, channels]`, one row per stream; any two fixed sizes after `B` are accepted, as
+/// bundles written channels-first hold `[B, channels, frames]` and run the same), `outputs` then
+/// a `next_state_i` of the same shape for each.
 fn stateful(declared: &GraphSpec, input: TensorSpec, outputs: Vec<TensorSpec>) -> GraphSpec {
     let states: Vec<TensorSpec> = declared
         .inputs
@@ -492,9 +493,11 @@ fn stateful(declared: &GraphSpec, input: TensorSpec, outputs: Vec<TensorSpec>) -
         .filter(|t| t.name.starts_with("state_"))
         .map(|t| {
             let shape = match t.shape.as_slice() {
-                [_, c @ Dim::Fixed(_), k @ Dim::Fixed(_)] => vec![sym("B"), c.clone(), k.clone()],
-                // A state of any other shape is reported against the required `[B, C, k]` form.
-                _ => vec![sym("B"), sym("C"), sym("k")],
+                [_, first @ Dim::Fixed(_), second @ Dim::Fixed(_)] => {
+                    vec![sym("B"), first.clone(), second.clone()]
+                }
+                // A state of any other shape is reported against the required `[B, k, C]` form.
+                _ => vec![sym("B"), sym("k"), sym("C")],
             };
             float(&t.name, shape)
         })

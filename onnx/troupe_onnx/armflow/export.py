@@ -32,7 +32,6 @@ from troupe_onnx.armflow.reference import (
     StreamOptions,
     VaeConfig,
     ChannelsLastVaeStep,
-    VaeStep,
     VaeWindows,
     VelocityGraph,
     clip_reference,
@@ -242,8 +241,8 @@ def graph_specs(model: Armflow) -> dict:
     })
 
     def state(stack, prefix):
-        shapes = VaeStep(stack).state_shapes()
-        return [t(f"{prefix}state_{i}", ["B", ch, k]) for i, (_, ch, k) in enumerate(shapes)]
+        shapes = ChannelsLastVaeStep(stack).state_shapes()
+        return [t(f"{prefix}state_{i}", ["B", k, ch]) for i, (_, k, ch) in enumerate(shapes)]
 
     specs = {
         "conditioning": {
@@ -372,7 +371,7 @@ def export_bundle(
     if "text_branch" in specs:
         examples["text_branch"] = (model.text_encoder, (torch.randn(2, 5, cfg.cond_dim), torch.tensor([4, 2])))
     if "vae_encoder_step" in specs:
-        states = lambda stack: [torch.randn(s) for s in VaeStep(stack).state_shapes(2)]  # noqa: E731
+        states = lambda stack: [torch.randn(s) for s in ChannelsLastVaeStep(stack).state_shapes(2)]  # noqa: E731
         fpt = cfg.frames_per_token
         examples["vae_encoder_step"] = (
             EncoderStepGraph(model), (torch.randn(2, fpt, cfg.frame_dim), *states(model.vae.encoder)),

@@ -313,8 +313,13 @@ class ChannelsLastVaeStep(VaeStep):
     over the rows of all streams and output frames (`[B·T_out, k·C_in] @ [k·C_in, C_out]`, the
     taps of every output frame gathered at once), every group norm a layer norm over the channels
     of a group.
-    Same function, same weights, same state (`[B, C, K]`); no per-stream convolution and no
-    broadcast over a strided axis, which is what makes the channels-first graph slow in tract."""
+    Same function, same weights; the state is channels-last too (`[B, K, C]`: the last `K`
+    frames of a convolution's input, oldest first), so a step moves no state between layouts. No
+    per-stream convolution and no broadcast over a strided axis, which is what makes the
+    channels-first graph slow in tract."""
+
+    def state_shapes(self, batch: int = 1) -> list[tuple[int, int, int]]:
+        return [(batch, c.left, c.in_channels) for c in self.convs]
 
     def forward(self, chunk, *state):
         assert len(state) == len(self.convs)
@@ -322,8 +327,8 @@ class ChannelsLastVaeStep(VaeStep):
 
         def conv(c: TimeConv, h):  # h [B, T, C_in] -> [B, T_out, C_out]
             if c.left > 0:
-                h = torch.cat([next(states).transpose(1, 2), h], dim=1)
-                next_state.append(h[:, -c.left :, :].transpose(1, 2))
+                h = torch.cat([next(states), h], dim=1)
+                next_state.append(h[:, -c.left :, :])
             k, s, d = c.kernel_size[0], c.stride[0], c.dilation[0]
             t_out = (h.shape[1] - (k - 1) * d - 1) // s + 1
             if k > 1 or s > 1:
