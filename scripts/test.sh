@@ -213,11 +213,15 @@ bg_start "build: web page (scripts/web.sh)" 10 build_web
 
 #    The other platforms (docs/PLATFORMS.md): Windows x64 cross-built with MinGW-w64 and run
 #    under Wine, Linux arm64 cross-built and run under qemu-user. Optimised, because emulated
-#    unoptimised code is slow; the unit and golden tests and the library tests/platforms.rs
+#    unoptimised code is slow, but at opt-level 1: tract's kernels are assembly either way, and
+#    the two targets compile in about four fifths of the time for a few seconds more under the
+#    emulators (docs/TESTING.md). The unit and golden tests and the library tests/platforms.rs
 #    loads, both targets in one cargo run (linted: the code only Windows compiles,
 #    src/shared/paths.rs and the bundle loader's file checks, is checked here). Built with
 #    `--cfg troupe_emulated_tests`, which leaves out the dev-dependencies those tests do not use
-#    (Cargo.toml); exported for the whole run, so the platform tests' own builds find it built.
+#    (Cargo.toml); the flags are the targets' own (not the release profile's, which the web
+#    page's build reads) and exported for the whole run, so the platform tests' own builds find
+#    the library built.
 cross_targets="x86_64-pc-windows-gnu aarch64-unknown-linux-gnu"
 android=aarch64-linux-android
 sysroot="$(rustc --print sysroot)"
@@ -227,7 +231,7 @@ for triple in $cross_targets; do
     [ "$triple" = aarch64-unknown-linux-gnu ] && runner_tool=qemu-aarch64
     if [ -d "$sysroot/lib/rustlib/$triple" ] && command -v "$runner_tool" >/dev/null 2>&1; then
         cross_ready+=("$triple")
-        export "CARGO_TARGET_$(echo "$triple" | tr 'a-z-' 'A-Z_')_RUSTFLAGS=--cfg troupe_emulated_tests"
+        export "CARGO_TARGET_$(echo "$triple" | tr 'a-z-' 'A-Z_')_RUSTFLAGS=--cfg troupe_emulated_tests -C opt-level=1"
     elif [ -n "${CI:-}" ]; then
         echo "the Rust target $triple or $runner_tool is missing and CI is set" >&2
         exit 1
