@@ -172,11 +172,7 @@ fn main() {
                                     m.symbols.add_assertion(format!("{name} >= 1"))?;
                                 }
                             }
-                            m.into_optimized()
-                        })
-                        .and_then(|mut m| {
-                            troupe::finish_optimised(&mut m);
-                            m.into_runnable()
+                            troupe::optimised_plan(m)
                         })
                         .unwrap_or_else(|e| panic!("{}: {e:#}", file.display()))
                 })

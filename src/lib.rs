@@ -78,7 +78,7 @@ pub use motion::FootLockOptions;
 pub use shared::attention::kernel as attention_kernel;
 pub use shared::error::{Error, Result};
 #[doc(hidden)]
-pub use shared::graph::{evaluate_operation, finish_optimised, load_graph_for_fuzzing, PlanRunner};
+pub use shared::graph::{evaluate_operation, load_graph_for_fuzzing, optimised_plan, PlanRunner};
 pub use shared::isa::kernels;
 pub use shared::limits::{Limits, LIMITS};
 pub use shared::noise;

@@ -141,12 +141,8 @@ impl Graph {
             .ok_or_else(|| bad("its optimisation failed on an earlier call".into()))?;
         let quiet = panics::is_quiet();
         let plan = panics::catch(quiet, || {
-            model
-                .into_optimized()
-                .and_then(|mut m| {
-                    finish_optimised(&mut m);
-                    PlanRunner::new(m.into_runnable()?)
-                })
+            optimised_plan(model)
+                .and_then(PlanRunner::new)
                 .map_err(|e| bad(format!("cannot be optimised: {e:#}")))
         })
         .unwrap_or_else(|reason| Err(bad(format!("optimising the graph panicked: {reason}"))))?;
@@ -285,11 +281,14 @@ pub fn evaluate_operation(
     outputs
 }
 
-/// What troupe does to a graph tract has optimised, before running it (`shared/unit_axes.rs`):
-/// for benchmarks that load graphs by hand as troupe loads them (`benches/graph_rows.rs`).
+/// A typed graph optimised and made runnable as troupe does it: tract's optimiser, then troupe's
+/// own pass over the optimised graph (`shared/unit_axes.rs`). Public for benchmarks that load
+/// graphs by hand as troupe loads them (`benches/graph_rows.rs`).
 #[doc(hidden)]
-pub fn finish_optimised(model: &mut TypedModel) {
-    unit_axes::natural_unit_axes(model);
+pub fn optimised_plan(model: TypedModel) -> TractResult<Arc<TypedRunnableModel>> {
+    let mut model = model.into_optimized()?;
+    unit_axes::natural_unit_axes(&mut model);
+    model.into_runnable()
 }
 
 /// Loads `onnx` as a bundle's graph is loaded (the protobuf guard, tract's typing, the
@@ -703,13 +702,12 @@ mod tests {
             env!("CARGO_MANIFEST_DIR"),
             "/onnx/bundles/armflow-tiny/velocity.onnx"
         );
-        let mut model = tract_onnx::onnx()
+        let plan = tract_onnx::onnx()
             .model_for_path(path)
             .and_then(|m| m.into_typed())
-            .and_then(|m| m.into_optimized())
+            .and_then(optimised_plan)
             .expect("the tiny velocity graph loads");
-        finish_optimised(&mut model);
-        PlanRunner::new(model.into_runnable().expect("a plan")).expect("a runner")
+        PlanRunner::new(plan).expect("a runner")
     }
 
     /// Inputs for every input of the plan, `rows` rows, values from `seed`.
