@@ -144,10 +144,24 @@ impl KvCache {
         })
     }
 
-    /// Every layer's key and value rows of `slot`, in [`KvCache::slot_floats`] order.
+    /// Every layer's key and value rows of `slot`, in [`KvCache::slot_floats`] order. Read block
+    /// by block, as [`KvCache::write`] writes them: a full cache journals a slot every token,
+    /// and an index computation per float was a visible part of a small model's step.
     fn rows_of(&self, slot: usize) -> Vec<f32> {
+        let (dh, s) = (self.head_dim, slot % PAGE_SLOTS);
         let page = &self.pages[slot / PAGE_SLOTS];
-        self.slot_floats(slot).map(|at| page[at]).collect()
+        let mut rows = Vec::with_capacity(2 * self.layers * self.heads * dh);
+        for layer in 0..self.layers {
+            for head in 0..self.heads {
+                let keys = &page[self.block(layer, 0, head)..][..PAGE_SLOTS * dh];
+                rows.extend(keys.iter().skip(s).step_by(PAGE_SLOTS));
+            }
+            for head in 0..self.heads {
+                rows.extend_from_slice(&page[self.block(layer, 1, head) + s * dh..][..dh]);
+            }
+        }
+        debug_assert!(rows.iter().eq(self.slot_floats(slot).map(|at| &page[at])));
+        rows
     }
 
     /// Writes one entry's key and value of `layer` (`heads * head_dim` floats each, the heads
