@@ -13,8 +13,8 @@
 //!
 //! The same wrapper relabels a contiguous tensor itself when the op only adds, removes or
 //! regroups axes whose sizes the plan knows: tract's own evaluation re-derives a reshape's sizes
-//! from their symbolic form on every call, and those few microseconds, hundreds of times a token,
-//! were a visible part of a small model's step (`docs/PERFORMANCE.md`, round four).
+//! from their symbolic form on every call, and with about a hundred axis ops a token that was
+//! 7.5 % of the float16 demo's step (`docs/PERFORMANCE.md`, round four, part nine).
 
 use tract_onnx::prelude::*;
 use tract_onnx::tract_core::internal::*;
